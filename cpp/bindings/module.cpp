@@ -1,0 +1,11 @@
+#include "common.hpp"
+
+PYBIND11_MODULE(_core, m) {
+  m.doc() = "safenav C++ core (use the safenav package, not this module directly)";
+  // std::invalid_argument -> ValueError and std::runtime_error -> RuntimeError
+  // are pybind11's built-in translations.
+  pybind_motion(m);
+  pybind_measurement(m);
+  pybind_filters(m);
+  pybind_metrics(m);
+}

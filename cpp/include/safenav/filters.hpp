@@ -1,0 +1,172 @@
+// safenav/filters.hpp — EKF (SafeNav eqs. 10–14), particle filter
+// (LanBLoc-BMM PF) and extended information filter (landmark placement
+// paper, section III) over the BMM state (x, y, v, θ).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+#include <Eigen/Core>
+
+#include "safenav/measurement.hpp"
+#include "safenav/motion.hpp"
+
+namespace safenav {
+
+/// Outcome of one measurement update.
+struct UpdateResult {
+  bool accepted = true;  ///< false when rejected by the NIS gate
+  double nis = 0.0;      ///< normalised innovation squared yᵀ S⁻¹ y
+  int dim = 0;           ///< measurement dimension (chi-square degrees of freedom)
+};
+
+/// Validate a covariance: finite, symmetric (relative tolerance 1e-9) and
+/// positive definite.  Throws std::invalid_argument naming `what`.
+void check_covariance(const Eigen::MatrixXd& P, const char* what);
+
+/// Chi-square quantile, used to turn a gate probability into an NIS threshold.
+double chi2_quantile(double probability, int dof);
+
+/// Extended Kalman filter on the BMM.
+///  predict: x̂ = f(x̂, u), P = F P Fᵀ + Q                      (eq. 11)
+///  update:  y = z ⊖ h(x̂), S = H P Hᵀ + R                      (eq. 12)
+///           K = P Hᵀ S⁻¹                                      (eq. 13)
+///           x̂ = x̂ + K y, P = (I−KH) P (I−KH)ᵀ + K R Kᵀ        (eq. 14, Joseph form)
+class Ekf {
+ public:
+  Ekf(const BmmParams& params, const State& x0, const StateCov& P0);
+
+  const State& x() const { return x_; }
+  const StateCov& P() const { return P_; }
+  const Bmm& model() const { return bmm_; }
+  void set_state(const State& x, const StateCov& P);
+
+  /// NIS gate: updates whose NIS exceeds the chi-square quantile at this
+  /// probability are rejected.  0 (default) disables the gate.
+  void set_gate(double probability);
+  double gate() const { return gate_probability_; }
+
+  void predict(const Control& u);
+  UpdateResult update(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z);
+
+ private:
+  template <int M>
+  UpdateResult update_fixed(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z);
+  bool gate_rejects(double nis, int dim);
+
+  Bmm bmm_;
+  State x_;
+  StateCov P_;
+  double gate_probability_ = 0.0;
+  std::vector<double> gate_thresholds_;  // chi-square quantile per measurement dimension
+};
+
+/// Particle filter on the BMM with log-weights and systematic resampling.
+class ParticleFilter {
+ public:
+  /// Particles are drawn from N(x0, P0) with the given seed.
+  ParticleFilter(const BmmParams& params, const State& x0, const StateCov& P0, int n_particles,
+                 std::uint64_t seed, double resample_threshold = 0.5);
+  ~ParticleFilter();
+  ParticleFilter(ParticleFilter&&) noexcept;
+  ParticleFilter& operator=(ParticleFilter&&) noexcept;
+
+  int size() const;
+  /// Propagate every particle through the noisy BMM (eqs. 6–9).
+  void predict(const Control& u);
+  /// Multiply weights by the measurement likelihood (in log space); resample
+  /// (systematic) when ESS < resample_threshold·N.  Returns the NIS of the
+  /// weighted-mean prediction (for diagnostics) and whether it resampled.
+  UpdateResult update(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z);
+  /// Effective sample size 1/Σw².
+  double ess() const;
+  int resample_count() const;
+  /// Weighted mean (circular mean for θ).
+  State mean() const;
+  /// Weighted covariance with angle-wrapped deviations.
+  StateCov covariance() const;
+  /// Particles as N×4 (x, y, v, θ) and normalised weights.
+  Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor> particles() const;
+  Eigen::VectorXd weights() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// Extended information filter (information form Y = P⁻¹, y = Y x̂), as used
+/// with bearing measurements in the landmark placement paper.
+///  predict: x̂ = Y⁻¹y, P⁻ = F Y⁻¹ Fᵀ + Q, Y = (P⁻)⁻¹, y = Y f(x̂, u)
+///  update:  Y += Hᵀ R⁻¹ H,  y += Hᵀ R⁻¹ (z ⊖ h(x̂) + H x̂)
+class InformationFilter {
+ public:
+  InformationFilter(const BmmParams& params, const State& x0, const StateCov& P0);
+  const Eigen::Vector4d& information_vector() const { return y_; }
+  const Eigen::Matrix4d& information_matrix() const { return Y_; }
+  State x() const;
+  StateCov P() const;
+  void predict(const Control& u);
+  UpdateResult update(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z);
+
+ private:
+  Bmm bmm_;
+  Eigen::Vector4d y_;
+  Eigen::Matrix4d Y_;
+};
+
+// ---------------------------------------------------------------------------
+// Batch filtering of a whole trajectory.
+// ---------------------------------------------------------------------------
+
+using RowMatrixX2 = Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor>;
+using RowMatrixX4 = Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>;
+using RowMatrixX16 = Eigen::Matrix<double, Eigen::Dynamic, 16, Eigen::RowMajor>;
+using RowMatrixXd = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+/// Measurements aligned with the N control steps: row k is measured after
+/// the k-th prediction.  Each stream is optional (0 rows = absent).  A row of
+/// NaN (position, speed_heading) or a NaN entry (ranges, bearings: landmark not
+/// seen) marks a gap; any other non-finite value is an error.
+struct MeasurementStream {
+  RowMatrixX2 position;                          ///< N×2 LanBLoc fixes
+  Eigen::Matrix2d position_cov = Eigen::Matrix2d::Identity();
+  RowMatrixX2 speed_heading;                     ///< N×2 IMU (v, θ)
+  Eigen::Matrix2d speed_heading_cov = Eigen::Matrix2d::Identity();
+  RowMatrixXd ranges;                            ///< N×K ranges to `landmarks`
+  double range_std = 1.0;
+  RowMatrixXd bearings;                          ///< N×K relative bearings to `landmarks`
+  double bearing_std = 0.05;
+  Landmarks landmarks;                           ///< K×2
+
+  /// Throws std::invalid_argument naming the stream, row and value at fault.
+  void validate(int n_steps) const;
+};
+
+enum class FilterType { Ekf, ParticleFilter, InformationFilter };
+
+struct FilterOptions {
+  FilterType type = FilterType::Ekf;
+  int n_particles = 1000;
+  double resample_threshold = 0.5;
+  std::uint64_t seed = 0;
+  double gate_probability = 0.0;  ///< EKF NIS gate (0 = off)
+};
+
+/// Result of a batch run: estimate after each step's updates (row 0 = prior).
+struct FilterRun {
+  RowMatrixX4 states;        ///< (N+1)×4
+  RowMatrixX16 covariances;  ///< (N+1)×16, row-major 4×4
+  Eigen::VectorXd nis;       ///< NIS summed over the step's accepted updates (NaN if none)
+  Eigen::VectorXi nis_dof;   ///< degrees of freedom of that NIS
+  int n_updates = 0;
+  int n_rejected = 0;
+  int n_resampled = 0;
+  int n_gaps = 0;            ///< steps with no measurement at all (prediction only)
+};
+
+/// Filter a whole trajectory in one call (controls N×2 plus a measurement stream).
+FilterRun run_filter(const BmmParams& params, const FilterOptions& options, const State& x0,
+                     const StateCov& P0, const Eigen::Ref<const RowMatrixX2>& controls,
+                     const MeasurementStream& stream);
+
+}  // namespace safenav

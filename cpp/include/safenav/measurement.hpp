@@ -1,0 +1,86 @@
+// safenav/measurement.hpp — measurement models z = h(x) + v, v ~ N(0, R)
+// (SafeNav eq. 10; range/bearing models as in the landmark placement paper).
+//
+// Every model has the same form (as in GTSAM): a prediction h(x), an analytic
+// Jacobian H = ∂h/∂x, and an angle-aware residual z − h(x).
+#pragma once
+
+#include <string>
+#include <Eigen/Core>
+
+#include "safenav/motion.hpp"
+
+namespace safenav {
+
+enum class MeasurementKind {
+  Position,      ///< z = (x, y)                               — LanBLoc output
+  Range,         ///< z_i = ‖p − ℓ_i‖                          — one row per landmark
+  Bearing,       ///< z_i = wrap(atan2(ℓ_iy − y, ℓ_ix − x) − θ) — relative bearing
+  RangeBearing,  ///< z = (r_1, b_1, r_2, b_2, …)
+  SpeedHeading,  ///< z = (v, θ)                               — IMU speed and heading
+};
+
+const char* to_string(MeasurementKind kind);
+
+using Landmarks = Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor>;
+
+/// Gaussian measurement noise N(0, R), validated once: R must be finite,
+/// symmetric and positive definite.  Holds the Cholesky factor for likelihoods.
+class GaussianNoise {
+ public:
+  GaussianNoise() = default;
+  explicit GaussianNoise(const Eigen::MatrixXd& R, const char* what = "R");
+  /// Isotropic/diagonal helper: R = diag(sigmas²).
+  static GaussianNoise Sigmas(const Eigen::VectorXd& sigmas, const char* what = "sigmas");
+  const Eigen::MatrixXd& cov() const { return R_; }
+  int dim() const { return static_cast<int>(R_.rows()); }
+  /// Squared Mahalanobis norm yᵀ R⁻¹ y.
+  double mahalanobis2(const Eigen::Ref<const Eigen::VectorXd>& y) const;
+ private:
+  Eigen::MatrixXd R_;
+  Eigen::MatrixXd L_;  // lower Cholesky factor of R
+};
+
+/// A measurement model with its noise.  Landmarks are used by the Range,
+/// Bearing and RangeBearing kinds only.
+class MeasurementModel {
+ public:
+  MeasurementModel(MeasurementKind kind, GaussianNoise noise, Landmarks landmarks = Landmarks());
+
+  static MeasurementModel position(const Eigen::Matrix2d& R);
+  static MeasurementModel speed_heading(const Eigen::Matrix2d& R);
+  static MeasurementModel range(const Landmarks& landmarks, double sigma);
+  static MeasurementModel bearing(const Landmarks& landmarks, double sigma);
+  static MeasurementModel range_bearing(const Landmarks& landmarks, double sigma_range, double sigma_bearing);
+
+  MeasurementKind kind() const { return kind_; }
+  int dim() const { return dim_; }
+  const GaussianNoise& noise() const { return noise_; }
+  const Landmarks& landmarks() const { return landmarks_; }
+  /// True for the components of z that are angles (wrapped residuals).
+  bool is_angle(int i) const;
+
+  /// h(x), written into zhat (size dim()).  Throws std::invalid_argument when
+  /// a range/bearing landmark coincides with the vehicle position (undefined).
+  void predict(const State& x, Eigen::Ref<Eigen::VectorXd> zhat) const;
+  Eigen::VectorXd predict(const State& x) const;
+  /// H = ∂h/∂x (dim()×4), analytic.
+  void jacobian(const State& x, Eigen::Ref<Eigen::MatrixXd> H) const;
+  Eigen::MatrixXd jacobian(const State& x) const;
+  /// y = z − ẑ with angle components wrapped to (−π, π].
+  void residual(const Eigen::Ref<const Eigen::VectorXd>& z, const Eigen::Ref<const Eigen::VectorXd>& zhat,
+                Eigen::Ref<Eigen::VectorXd> y) const;
+  /// Validate a measurement vector: right size and finite.
+  void check(const Eigen::Ref<const Eigen::VectorXd>& z) const;
+
+  /// Same model restricted to a subset of landmarks (for streams with gaps).
+  MeasurementModel subset(const std::vector<int>& landmark_rows) const;
+
+ private:
+  MeasurementKind kind_;
+  GaussianNoise noise_;
+  Landmarks landmarks_;
+  int dim_;
+};
+
+}  // namespace safenav

@@ -1,0 +1,123 @@
+// safenav/motion.hpp — the Battlefield Motion Model (SafeNav paper, eqs. 3–9).
+//
+// State x = (x, y, v, θ): position [m], speed [m/s], heading [rad, wrapped to (−π, π]].
+// Control u = (desired speed v_desired [m/s], heading change Δθ [rad]).
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <Eigen/Core>
+
+namespace safenav {
+
+using State = Eigen::Vector4d;        ///< (x, y, v, θ)
+using StateCov = Eigen::Matrix4d;     ///< covariance of State
+using Control = Eigen::Vector2d;      ///< (v_desired, Δθ)
+
+constexpr double kPi = 3.14159265358979323846;
+
+/// Index of each state component.
+enum StateIndex : int { kX = 0, kY = 1, kV = 2, kTheta = 3 };
+
+/// Wrap an angle to (−π, π].  Non-finite input is returned unchanged.
+double wrap_angle_slow(double a);
+inline double wrap_angle(double a) {
+  constexpr double two_pi = 2.0 * kPi;
+  if (a > -kPi && a <= kPi) return a;
+  if (a > kPi && a <= 3.0 * kPi) return a - two_pi;
+  if (a <= -kPi && a > -3.0 * kPi) return a + two_pi;
+  return wrap_angle_slow(a);
+}
+
+/// Parameters of the BMM. Defaults are ours (the paper gives no values) and
+/// are chosen to cover the synthetic data set of SafeNav section V-A.
+struct BmmParams {
+  double acceleration = 3.0;       ///< a   [m/s²] acceleration capability (eq. 3)
+  double deceleration = 3.0;       ///< d   [m/s²] deceleration capability (eq. 3)
+  double max_speed = 10.0;         ///< v_max [m/s] (eq. 3)
+  double max_heading_rate = 1.0;   ///< m   [rad/s] maneuverability (eq. 4)
+  double dt = 0.05;                ///< Δt  [s] time step
+  /// τ  terrain effect, read as metres of extra equivalent travel per metre of
+  /// ground (dimensionless, ≥ 0).  Eq. 8 gives the time to cover a leg of
+  /// length L at cruise speed v_c as t_τ = L/v_c + λ with λ = τ·L/v_c (the
+  /// paper's λ = τ/v_c per metre).  Within one step of Δt the vehicle therefore
+  /// covers v·Δt/(1+τ): eq. 9 is applied with the effective travel time
+  /// Δt·Δt/t_τ = Δt/(1+τ).  τ = 0 gives eq. 7 exactly.
+  double terrain_effect = 0.0;
+  // Process noise (eq. 6–7), standard deviations per step.
+  double speed_noise = 0.05;       ///< σ of ε_v [m/s]
+  double heading_noise = 0.01;     ///< σ of ε_θ [rad]
+  double position_noise = 0.01;    ///< σ of ε_x and ε_y [m]
+
+  /// Throws std::invalid_argument naming the first bad field.
+  void validate() const;
+  /// Multiplier on v·Δt in the position update: 1/(1+τ).
+  double terrain_factor() const { return 1.0 / (1.0 + terrain_effect); }
+};
+
+/// The BMM as a transition function f(x, u) with its Jacobians.
+class Bmm {
+ public:
+  explicit Bmm(const BmmParams& params = BmmParams());
+  const BmmParams& params() const { return params_; }
+
+  /// Eq. 3: speed update with acceleration/deceleration limits and [0, v_max].
+  double next_speed(double v, double desired) const {
+    const auto& p = params_;
+    if (desired > v) return std::max(0.0, std::min({v + p.acceleration * p.dt, desired, p.max_speed}));
+    return std::min(p.max_speed, std::max({v - p.deceleration * p.dt, desired, 0.0}));
+  }
+  /// Eq. 4: heading change clipped to ±m·Δt.
+  double clipped_heading_change(double dtheta) const {
+    const double lim = params_.max_heading_rate * params_.dt;
+    return std::clamp(dtheta, -lim, lim);
+  }
+
+  /// Deterministic transition f(x, u): eqs. 3, 4 and 7/9 (position uses the
+  /// *updated* v and θ, eq. 7).  Throws on non-finite input.
+  State predict(const State& x, const Control& u) const;
+  /// F = ∂f/∂x, analytic, evaluated at (x, u).
+  Eigen::Matrix4d jacobian(const State& x, const Control& u) const;
+  /// G = ∂f/∂ε for the noise vector ε = (ε_x, ε_y, ε_v, ε_θ) (eqs. 6–7), at (x, u).
+  Eigen::Matrix4d noise_jacobian(const State& x, const Control& u) const;
+  /// f(x, u) together with F = ∂f/∂x and G = ∂f/∂ε (either may be null),
+  /// computed once — the EKF's predict step uses this.
+  State linearize(const State& x, const Control& u, Eigen::Matrix4d* F, Eigen::Matrix4d* G) const;
+  /// Σ_ε = diag(σ_x², σ_y², σ_v², σ_θ²).
+  Eigen::Matrix4d noise_cov() const;
+  /// Q = G Σ_ε Gᵀ, the process-noise covariance of the state (eq. 11's Q_k).
+  Eigen::Matrix4d process_cov(const State& x, const Control& u) const;
+
+  /// Noisy transition with the given noise ε = (ε_x, ε_y, ε_v, ε_θ):
+  /// v' = clamp(f_v(v,u) + ε_v, 0, v_max); θ' = wrap(θ + clip(Δθ) + ε_θ);
+  /// p' = p + κ·v'·Δt·(cos θ', sin θ') + (ε_x, ε_y).   (eqs. 6, 7, 9)
+  State transition(const State& x, const Control& u, const Eigen::Vector4d& eps) const;
+  /// The body of transition() without input checks, for inner loops (particle
+  /// filter): `heading_step` is the already clipped Δθ and `k` = κ·Δt.
+  void transition_unchecked(double& x, double& y, double& v, double& theta, double desired_speed,
+                            double heading_step, double k, const double* eps, double& cos_theta,
+                            double& sin_theta) const {
+    v = next_speed(v, desired_speed) + eps[2];
+    v = v < 0.0 ? 0.0 : (v > params_.max_speed ? params_.max_speed : v);
+    theta = wrap_angle(theta + heading_step + eps[3]);
+    cos_theta = std::cos(theta);
+    sin_theta = std::sin(theta);
+    x += k * v * cos_theta + eps[0];
+    y += k * v * sin_theta + eps[1];
+  }
+
+  /// Simulate a trajectory of the true vehicle: returns (N+1)×4 states
+  /// starting at x0, with process noise drawn from a seeded generator.
+  Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor> simulate(
+      const State& x0, const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor>>& controls,
+      std::uint64_t seed) const;
+
+ private:
+  BmmParams params_;
+};
+
+/// Throws std::invalid_argument if any entry of x is not finite, naming `what`.
+void check_finite_state(const State& x, const char* what);
+
+}  // namespace safenav

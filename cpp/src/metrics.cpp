@@ -1,0 +1,159 @@
+#include "safenav/metrics.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+#include <Eigen/Cholesky>
+
+namespace safenav {
+
+namespace {
+void check_points(const Eigen::Ref<const Points2>& p, const char* what, Eigen::Index min_rows = 1) {
+  std::ostringstream os;
+  if (p.rows() < min_rows) {
+    os << what << " needs at least " << min_rows << " point(s), got " << p.rows();
+    throw std::invalid_argument(os.str());
+  }
+  for (Eigen::Index i = 0; i < p.rows(); ++i) {
+    if (!p.row(i).allFinite()) {
+      os << what << " point " << i << " = (" << p(i, 0) << ", " << p(i, 1) << ") is not finite";
+      throw std::invalid_argument(os.str());
+    }
+  }
+}
+}  // namespace
+
+double ade(const Eigen::Ref<const Points2>& est, const Eigen::Ref<const Points2>& truth) {
+  check_points(est, "estimate");
+  check_points(truth, "truth");
+  if (est.rows() != truth.rows()) {
+    std::ostringstream os;
+    os << "ADE pairs points by time: estimate has " << est.rows() << " points but truth has " << truth.rows();
+    throw std::invalid_argument(os.str());
+  }
+  return (est - truth).rowwise().norm().mean();
+}
+
+double fde(const Eigen::Ref<const Points2>& est, const Eigen::Ref<const Points2>& truth) {
+  check_points(est, "estimate");
+  check_points(truth, "truth");
+  return (est.row(est.rows() - 1) - truth.row(truth.rows() - 1)).norm();
+}
+
+double path_length(const Eigen::Ref<const Points2>& path) {
+  check_points(path, "path");
+  if (path.rows() < 2) return 0.0;
+  return (path.bottomRows(path.rows() - 1) - path.topRows(path.rows() - 1)).rowwise().norm().sum();
+}
+
+double path_length_error_percent(const Eigen::Ref<const Points2>& est, const Eigen::Ref<const Points2>& truth) {
+  const double lt = path_length(truth);
+  if (!(lt > 0.0)) throw std::invalid_argument("percent path-length error: the true path has zero length");
+  return std::abs(path_length(est) - lt) / lt * 100.0;
+}
+
+void RiskZones::validate() const {
+  std::ostringstream os;
+  if (!(std::isfinite(half_width) && half_width > 0.0)) {
+    os << "RiskZones.half_width = " << half_width << " must be finite and > 0";
+    throw std::invalid_argument(os.str());
+  }
+  if (weights.empty()) throw std::invalid_argument("RiskZones.weights must not be empty");
+  for (size_t j = 0; j < weights.size(); ++j) {
+    if (!(std::isfinite(weights[j]) && weights[j] > 0.0)) {
+      os << "RiskZones.weights[" << j << "] = " << weights[j] << " must be finite and > 0";
+      throw std::invalid_argument(os.str());
+    }
+  }
+}
+
+Eigen::VectorXd distance_to_path(const Eigen::Ref<const Points2>& points, const Eigen::Ref<const Points2>& path) {
+  check_points(points, "points", 0);
+  check_points(path, "path");
+  Eigen::VectorXd d(points.rows());
+  for (Eigen::Index i = 0; i < points.rows(); ++i) {
+    const Eigen::RowVector2d p = points.row(i);
+    double best = (p - path.row(0)).squaredNorm();
+    for (Eigen::Index k = 0; k + 1 < path.rows(); ++k) {
+      const Eigen::RowVector2d a = path.row(k), ab = path.row(k + 1) - a;
+      const double L2 = ab.squaredNorm();
+      const double t = L2 > 0.0 ? std::clamp((p - a).dot(ab) / L2, 0.0, 1.0) : 0.0;
+      best = std::min(best, (p - (a + t * ab)).squaredNorm());
+    }
+    d[i] = std::sqrt(best);
+  }
+  return d;
+}
+
+double wrs(double deviation, const RiskZones& z) {
+  if (!std::isfinite(deviation)) {
+    std::ostringstream os;
+    os << "WRS deviation = " << deviation << " is not finite";
+    throw std::invalid_argument(os.str());
+  }
+  const double d = std::abs(deviation);
+  const double dmax = z.half_width;
+  const double wmax = *std::max_element(z.weights.begin(), z.weights.end());
+  if (d >= dmax) return dmax * (dmax / wmax);
+  const size_t n = z.weights.size();
+  size_t j = static_cast<size_t>(d / (dmax / static_cast<double>(n)));
+  j = std::min(j, n - 1);
+  return d * (d / z.weights[j]);
+}
+
+Eigen::VectorXd wrs(const Eigen::Ref<const Points2>& points, const Eigen::Ref<const Points2>& path,
+                    const RiskZones& zones) {
+  zones.validate();
+  Eigen::VectorXd d = distance_to_path(points, path);
+  for (Eigen::Index i = 0; i < d.size(); ++i) d[i] = wrs(d[i], zones);
+  return d;
+}
+
+double awrs(const Eigen::Ref<const Points2>& points, const Eigen::Ref<const Points2>& path, const RiskZones& zones) {
+  check_points(points, "points");
+  return wrs(points, path, zones).mean();
+}
+
+Eigen::VectorXd nees(const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>& est,
+                     const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>& truth,
+                     const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>& covs,
+                     int angle_index) {
+  const Eigen::Index N = est.rows(), n = est.cols();
+  std::ostringstream os;
+  if (truth.rows() != N || truth.cols() != n) {
+    os << "NEES: estimates are " << N << "x" << n << " but truth is " << truth.rows() << "x" << truth.cols();
+    throw std::invalid_argument(os.str());
+  }
+  if (covs.rows() != N || covs.cols() != n * n) {
+    os << "NEES: covariances must be " << N << "x" << n * n << " (row-major " << n << "x" << n << " per row), got "
+       << covs.rows() << "x" << covs.cols();
+    throw std::invalid_argument(os.str());
+  }
+  if (angle_index >= n) {
+    os << "NEES: angle_index = " << angle_index << " out of range for state dimension " << n;
+    throw std::invalid_argument(os.str());
+  }
+  Eigen::VectorXd out(N);
+  for (Eigen::Index k = 0; k < N; ++k) {
+    Eigen::VectorXd e = (est.row(k) - truth.row(k)).transpose();
+    if (angle_index >= 0) e[angle_index] = std::remainder(e[angle_index], 2.0 * 3.14159265358979323846);
+    const Eigen::MatrixXd P = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+        covs.row(k).data(), n, n);
+    if (!e.allFinite() || !P.allFinite()) {
+      os << "NEES: row " << k << " has non-finite estimate, truth or covariance";
+      throw std::invalid_argument(os.str());
+    }
+    Eigen::LLT<Eigen::MatrixXd> llt(P);
+    if (llt.info() != Eigen::Success) {
+      os << "NEES: covariance at row " << k << " is not positive definite";
+      throw std::invalid_argument(os.str());
+    }
+    out[k] = e.dot(llt.solve(e));
+  }
+  return out;
+}
+
+}  // namespace safenav

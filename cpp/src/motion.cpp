@@ -1,0 +1,166 @@
+#include "safenav/motion.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+#include "rng.hpp"
+
+namespace safenav {
+
+double wrap_angle_slow(double a) {
+  if (!std::isfinite(a)) return a;
+  double r = std::remainder(a, 2.0 * kPi);  // in [−π, π]
+  if (r <= -kPi) r += 2.0 * kPi;
+  return r;
+}
+
+namespace {
+void require(bool ok, const char* field, double value, const char* rule) {
+  if (!ok) {
+    std::ostringstream os;
+    os << "BmmParams." << field << " = " << value << " is invalid: must be " << rule;
+    throw std::invalid_argument(os.str());
+  }
+}
+bool finite_nonneg(double v) { return std::isfinite(v) && v >= 0.0; }
+bool finite_pos(double v) { return std::isfinite(v) && v > 0.0; }
+}  // namespace
+
+void BmmParams::validate() const {
+  require(finite_pos(acceleration), "acceleration", acceleration, "finite and > 0");
+  require(finite_pos(deceleration), "deceleration", deceleration, "finite and > 0");
+  require(finite_pos(max_speed), "max_speed", max_speed, "finite and > 0");
+  require(finite_pos(max_heading_rate), "max_heading_rate", max_heading_rate, "finite and > 0");
+  require(finite_pos(dt), "dt", dt, "finite and > 0");
+  require(finite_nonneg(terrain_effect), "terrain_effect", terrain_effect, "finite and >= 0");
+  require(finite_nonneg(speed_noise), "speed_noise", speed_noise, "finite and >= 0");
+  require(finite_nonneg(heading_noise), "heading_noise", heading_noise, "finite and >= 0");
+  require(finite_nonneg(position_noise), "position_noise", position_noise, "finite and >= 0");
+}
+
+void check_finite_state(const State& x, const char* what) {
+  static const char* names[4] = {"x", "y", "v", "theta"};
+  for (int i = 0; i < 4; ++i) {
+    if (!std::isfinite(x[i])) {
+      std::ostringstream os;
+      os << what << "." << names[i] << " = " << x[i] << " is not finite";
+      throw std::invalid_argument(os.str());
+    }
+  }
+}
+
+namespace {
+void check_control(const Control& u) {
+  if (!std::isfinite(u[0]) || !std::isfinite(u[1])) {
+    std::ostringstream os;
+    os << "control (desired_speed, heading_change) = (" << u[0] << ", " << u[1] << ") is not finite";
+    throw std::invalid_argument(os.str());
+  }
+}
+}  // namespace
+
+Bmm::Bmm(const BmmParams& params) : params_(params) { params_.validate(); }
+
+State Bmm::predict(const State& x, const Control& u) const { return linearize(x, u, nullptr, nullptr); }
+
+State Bmm::transition(const State& x, const Control& u, const Eigen::Vector4d& eps) const {
+  check_finite_state(x, "state");
+  check_control(u);
+  State out = x;
+  double c, s;
+  transition_unchecked(out[kX], out[kY], out[kV], out[kTheta], u[0], clipped_heading_change(u[1]),
+                       params_.terrain_factor() * params_.dt, eps.data(), c, s);
+  return out;
+}
+
+State Bmm::linearize(const State& x, const Control& u, Eigen::Matrix4d* F, Eigen::Matrix4d* G) const {
+  check_finite_state(x, "state");
+  check_control(u);
+  const auto& p = params_;
+  const double v = x[kV];
+  const double desired = u[0];
+  const double v1 = next_speed(v, desired);
+  const double th1 = wrap_angle(x[kTheta] + clipped_heading_change(u[1]));
+  const double k = p.terrain_factor() * p.dt;
+  const double c = std::cos(th1), s = std::sin(th1);
+  if (F) {
+    // ∂v'/∂v: 1 where v' follows v ± a·Δt, 0 where a limit (v_desired, v_max, 0) binds.
+    double dv = 0.0;
+    if (desired > v) {
+      const double up = v + p.acceleration * p.dt;
+      dv = (up <= desired && up <= p.max_speed && up >= 0.0) ? 1.0 : 0.0;
+    } else {
+      const double down = v - p.deceleration * p.dt;
+      dv = (down >= desired && down >= 0.0 && down <= p.max_speed) ? 1.0 : 0.0;
+    }
+    F->setIdentity();
+    (*F)(kX, kV) = k * c * dv;
+    (*F)(kX, kTheta) = -k * v1 * s;
+    (*F)(kY, kV) = k * s * dv;
+    (*F)(kY, kTheta) = k * v1 * c;
+    (*F)(kV, kV) = dv;
+  }
+  if (G) {
+    G->setIdentity();
+    (*G)(kX, 2) = k * c;
+    (*G)(kX, 3) = -k * v1 * s;
+    (*G)(kY, 2) = k * s;
+    (*G)(kY, 3) = k * v1 * c;
+  }
+  State out;
+  out << x[kX] + k * v1 * c, x[kY] + k * v1 * s, v1, th1;
+  return out;
+}
+
+Eigen::Matrix4d Bmm::jacobian(const State& x, const Control& u) const {
+  Eigen::Matrix4d F;
+  linearize(x, u, &F, nullptr);
+  return F;
+}
+
+Eigen::Matrix4d Bmm::noise_jacobian(const State& x, const Control& u) const {
+  Eigen::Matrix4d G;
+  linearize(x, u, nullptr, &G);
+  return G;
+}
+
+Eigen::Matrix4d Bmm::noise_cov() const {
+  const auto& p = params_;
+  return Eigen::Vector4d(p.position_noise * p.position_noise, p.position_noise * p.position_noise,
+                         p.speed_noise * p.speed_noise, p.heading_noise * p.heading_noise)
+      .asDiagonal();
+}
+
+Eigen::Matrix4d Bmm::process_cov(const State& x, const Control& u) const {
+  const Eigen::Matrix4d G = noise_jacobian(x, u);
+  return G * noise_cov() * G.transpose();
+}
+
+Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor> Bmm::simulate(
+    const State& x0, const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor>>& controls,
+    std::uint64_t seed) const {
+  check_finite_state(x0, "x0");
+  detail::Rng rng(seed);
+  const auto& p = params_;
+  const Eigen::Vector4d sigma(p.position_noise, p.position_noise, p.speed_noise, p.heading_noise);
+  Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor> out(controls.rows() + 1, 4);
+  State x = x0;
+  out.row(0) = x.transpose();
+  for (Eigen::Index k = 0; k < controls.rows(); ++k) {
+    Eigen::Vector4d eps;
+    for (int i = 0; i < 4; ++i) eps[i] = sigma[i] * rng.normal();
+    const Control u = controls.row(k).transpose();
+    if (!u.allFinite()) {
+      std::ostringstream os;
+      os << "controls row " << k << " = (" << u[0] << ", " << u[1] << ") is not finite";
+      throw std::invalid_argument(os.str());
+    }
+    x = transition(x, u, eps);
+    out.row(k + 1) = x.transpose();
+  }
+  return out;
+}
+
+}  // namespace safenav

@@ -1,0 +1,1 @@
+"""safenav: GPS-denied safe navigation (placeholder, filled below)."""
