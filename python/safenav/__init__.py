@@ -1,1 +1,22 @@
-"""safenav: GPS-denied safe navigation (placeholder, filled below)."""
+"""safenav — navigating safely without GPS.
+
+Implements the SafeNav paper (LanBLoc localization, the Battlefield Motion
+Model with EKF/PF, SafeNav corridor navigation) and the landmark placement
+paper.  The heavy lifting is in the C++ core ``safenav._core``.
+"""
+
+from .datasets import SyntheticConfig, SyntheticTrajectory, synthetic_trajectory
+from .filters import Ekf, FilterResult, InformationFilter, ParticleFilter, filter_trajectory
+from .measurement import LANBLOC_STD, MeasurementKind, MeasurementModel
+from .metrics import RiskZones, TrajectoryMetrics, evaluate
+from .motion import Bmm, BmmParams, wrap_angle
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Bmm", "BmmParams", "wrap_angle",
+    "MeasurementKind", "MeasurementModel", "LANBLOC_STD",
+    "Ekf", "ParticleFilter", "InformationFilter", "filter_trajectory", "FilterResult",
+    "RiskZones", "TrajectoryMetrics", "evaluate",
+    "SyntheticConfig", "SyntheticTrajectory", "synthetic_trajectory",
+]

@@ -36,7 +36,7 @@ struct BmmParams {
   double acceleration = 3.0;       ///< a   [m/s²] acceleration capability (eq. 3)
   double deceleration = 3.0;       ///< d   [m/s²] deceleration capability (eq. 3)
   double max_speed = 10.0;         ///< v_max [m/s] (eq. 3)
-  double max_heading_rate = 1.0;   ///< m   [rad/s] maneuverability (eq. 4)
+  double max_heading_rate = 1.5;   ///< m   [rad/s] maneuverability (eq. 4)
   double dt = 0.05;                ///< Δt  [s] time step
   /// τ  terrain effect, read as metres of extra equivalent travel per metre of
   /// ground (dimensionless, ≥ 0).  Eq. 8 gives the time to cover a leg of

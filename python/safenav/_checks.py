@@ -1,0 +1,41 @@
+"""Input validation shared by the Python API: every error names the bad value."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def as_array(name: str, value, shape: tuple, *, allow_nan: bool = False) -> np.ndarray:
+    """Return ``value`` as a C-contiguous float64 array of ``shape``.
+
+    ``shape`` entries may be ``None`` (any size).  Raises ``ValueError`` that
+    names ``name``, the expected and the actual shape, or the first
+    non-finite entry.
+    """
+    try:
+        arr = np.ascontiguousarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be numeric, got {value!r}") from exc
+    if arr.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, arr.shape)):
+        want = "(" + ", ".join("N" if s is None else str(s) for s in shape) + ("," if len(shape) == 1 else "") + ")"
+        raise ValueError(f"{name} must have shape {want}, got {arr.shape}")
+    bad = ~np.isfinite(arr)
+    if allow_nan:
+        bad &= ~np.isnan(arr)
+    if bad.any():
+        idx = tuple(int(i) for i in np.argwhere(bad)[0])
+        where = idx[0] if len(idx) == 1 else idx
+        raise ValueError(f"{name}[{where}] = {arr[idx]} is not finite")
+    return arr
+
+
+def as_positive_int(name: str, value) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise ValueError(f"{name} must be a positive integer, got {value!r}")
+    return int(value)
+
+
+def as_seed(name: str, value) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0 or value >= 2**64:
+        raise ValueError(f"{name} must be an integer in [0, 2**64), got {value!r}")
+    return int(value)

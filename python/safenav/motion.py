@@ -1,0 +1,57 @@
+"""The Battlefield Motion Model (SafeNav paper, eqs. 3–9).
+
+State ``x = (x, y, v, θ)``, control ``u = (desired speed, heading change)``.
+
+* eq. 3 — speed: ``min(v + aΔt, v_desired, v_max)`` when speeding up,
+  ``max(v − dΔt, v_desired, 0)`` when slowing down;
+* eq. 4 — heading: ``θ + clip(Δθ, −mΔt, mΔt)``, wrapped to (−π, π];
+* eq. 7 — position uses the *updated* speed and heading;
+* eqs. 8–9 — terrain: we read τ as metres of extra equivalent travel per
+  metre of ground, so one step covers ``v·Δt/(1+τ)`` (τ = 0 gives eq. 7).
+  The paper's λ = τ/v_c is then the delay per metre at cruise speed v_c; the
+  paper does not say how τ enters a single step, so this is our reading;
+* eq. 6 — process noise ε = (ε_x, ε_y, ε_v, ε_θ) enters the noisy transition
+  ``transition``/``simulate``; the filters use ``Q = G Σ_ε Gᵀ`` with the noise
+  Jacobian G (the paper leaves Q unspecified).
+
+Parameter defaults are ours: the paper gives no values.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import _core
+from ._checks import as_array, as_seed
+
+BmmParams = _core.BmmParams
+wrap_angle = _core.wrap_angle
+
+
+class Bmm(_core.Bmm):
+    """The BMM transition ``f(x, u)`` with analytic Jacobians (eqs. 3–9)."""
+
+    def predict(self, x, u) -> np.ndarray:
+        """Deterministic ``f(x, u)`` (eqs. 3, 4, 7)."""
+        return super().predict(as_array("x", x, (4,)), as_array("u", u, (2,)))
+
+    def jacobian(self, x, u) -> np.ndarray:
+        """``F = ∂f/∂x`` at ``(x, u)`` (the EKF's F_k of eq. 11)."""
+        return super().jacobian(as_array("x", x, (4,)), as_array("u", u, (2,)))
+
+    def noise_jacobian(self, x, u) -> np.ndarray:
+        """``G = ∂f/∂ε`` for ε = (ε_x, ε_y, ε_v, ε_θ) (eqs. 6–7)."""
+        return super().noise_jacobian(as_array("x", x, (4,)), as_array("u", u, (2,)))
+
+    def process_cov(self, x, u) -> np.ndarray:
+        """``Q = G Σ_ε Gᵀ`` (eq. 11's Q_k)."""
+        return super().process_cov(as_array("x", x, (4,)), as_array("u", u, (2,)))
+
+    def transition(self, x, u, eps) -> np.ndarray:
+        """Noisy transition with explicit noise ε = (ε_x, ε_y, ε_v, ε_θ) (eqs. 6–9)."""
+        return super().transition(as_array("x", x, (4,)), as_array("u", u, (2,)), as_array("eps", eps, (4,)))
+
+    def simulate(self, x0, controls, seed: int = 0) -> np.ndarray:
+        """Simulate the true vehicle: ``(N+1, 4)`` states from ``N`` controls, seeded."""
+        return super().simulate(as_array("x0", x0, (4,)), as_array("controls", controls, (None, 2)),
+                                as_seed("seed", seed))
