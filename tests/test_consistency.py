@@ -212,11 +212,6 @@ def test_information_filter_equals_ekf_batch():
     assert np.all(np.diagonal(ekf.covariances[-1]) < 0.5 * np.diagonal(pred.covariances[-1]))
 
 
-@pytest.mark.xfail(strict=True, reason="InformationFilter.predict inverts the predicted covariance F P F^T + Q "
-                                       "unconditionally; with speed_noise = 0 (allowed by BmmParams) and a step "
-                                       "where eq. 3's v_desired limit binds (dv'/dv = 0) that matrix is singular "
-                                       "and the EIF silently turns into NaN/inf instead of matching the EKF or "
-                                       "raising")
 def test_information_filter_zero_speed_noise_with_binding_speed_limit():
     p = BmmParams(speed_noise=0.0)
     x0 = np.array([0.0, 0.0, 2.0, 0.3])
@@ -224,10 +219,7 @@ def test_information_filter_zero_speed_noise_with_binding_speed_limit():
     eif = safenav.InformationFilter(p, x0, P0)
     u = np.array([2.05, 0.0])  # within a*dt of v: v' = v_desired, dv'/dv = 0
     ekf.predict(u)
-    try:
+    # The speed became exactly known: infinite information, which the
+    # information form cannot hold.  It must say so, not turn into NaN.
+    with pytest.raises(RuntimeError, match="singular"):
         eif.predict(u)
-    except (ValueError, RuntimeError) as exc:  # a clear error would also be acceptable
-        assert "singular" in str(exc) or "covariance" in str(exc)
-        return
-    assert np.isfinite(eif.x).all(), eif.x
-    np.testing.assert_allclose(eif.x, ekf.x, rtol=1e-8)

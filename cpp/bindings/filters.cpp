@@ -42,7 +42,7 @@ void pybind_filters(py::module_& m) {
       .def_property_readonly("ess", &ParticleFilter::ess)
       .def_property_readonly("resample_count", &ParticleFilter::resample_count)
       .def_property_readonly("x", &ParticleFilter::mean)
-      .def_property_readonly("P", &ParticleFilter::covariance)
+      .def_property_readonly("P", py::overload_cast<>(&ParticleFilter::covariance, py::const_))
       .def_property_readonly("particles", &ParticleFilter::particles)
       .def_property_readonly("weights", &ParticleFilter::weights);
   common_filter_api(pf);

@@ -57,9 +57,9 @@ void check_gate(double p) {
     throw std::invalid_argument(os.str());
   }
 }
-void check_prior(const State& x0, const StateCov& P0) {
-  check_finite_state(x0, "x0");
-  check_covariance(P0, "P0");
+void check_prior(const State& x0, const StateCov& P0, const char* xname = "x0", const char* pname = "P0") {
+  check_finite_state(x0, xname);
+  check_covariance(P0, pname);
 }
 }  // namespace
 
@@ -67,10 +67,15 @@ void check_prior(const State& x0, const StateCov& P0) {
 // EKF
 // --------------------------------------------------------------------------
 
-Ekf::Ekf(const BmmParams& params, const State& x0, const StateCov& P0) : bmm_(params) { set_state(x0, P0); }
+Ekf::Ekf(const BmmParams& params, const State& x0, const StateCov& P0) : bmm_(params) {
+  check_prior(x0, P0);
+  x_ = x0;
+  x_[kTheta] = wrap_angle(x_[kTheta]);
+  P_ = P0;
+}
 
 void Ekf::set_state(const State& x, const StateCov& P) {
-  check_prior(x, P);
+  check_prior(x, P, "x", "P");
   x_ = x;
   x_[kTheta] = wrap_angle(x_[kTheta]);
   P_ = P;
@@ -148,20 +153,24 @@ UpdateResult Ekf::update(const MeasurementModel& model, const Eigen::Ref<const E
 // --------------------------------------------------------------------------
 
 struct ParticleFilter::Impl {
+  using Particles = Eigen::Matrix<double, Eigen::Dynamic, 4>;  // one particle per row; columns contiguous
   Bmm bmm;
   detail::Rng rng;
   double resample_threshold;
-  Eigen::ArrayXd x, y, v, th, c, s;  // states and cached cos/sin of θ
-  Eigen::ArrayXd logw;
+  Particles X;                // (x, y, v, θ) per row
+  Eigen::ArrayXd c, s;        // cos θ, sin θ of every particle, kept in step with θ
+  Eigen::ArrayXd logw, w;     // log-weights and normalised weights
   int n_resampled = 0;
   // scratch
-  Eigen::ArrayXd w, ll, cum;
-  Eigen::VectorXd zhat, resid, tmp;
+  Eigen::Matrix<double, Eigen::Dynamic, 4> noise;
+  Eigen::ArrayXd delta, d2, sd, cd, c1;
+  Eigen::MatrixXd Y;
+  Eigen::ArrayXd cum;
+  Eigen::VectorXd zhat, resid;
 
   Impl(const BmmParams& p, std::uint64_t seed, double thr) : bmm(p), rng(seed), resample_threshold(thr) {}
 
-  int n() const { return static_cast<int>(x.size()); }
-  State particle(int i) const { return State(x[i], y[i], v[i], th[i]); }
+  int n() const { return static_cast<int>(X.rows()); }
 
   void normalise() {
     const double mx = logw.maxCoeff();
@@ -179,22 +188,17 @@ struct ParticleFilter::Impl {
     for (int i = 0; i < N; ++i) cum[i] = (acc += w[i]);
     cum[N - 1] = 1.0;
     const double u0 = rng.uniform() / N;
-    Eigen::ArrayXd nx(N), ny(N), nv(N), nth(N), nc(N), ns(N);
+    Particles nX(N, 4);
+    Eigen::ArrayXd nc(N), ns(N);
     int i = 0;
     for (int j = 0; j < N; ++j) {
       const double u = u0 + static_cast<double>(j) / N;
       while (i < N - 1 && cum[i] < u) ++i;
-      nx[j] = x[i];
-      ny[j] = y[i];
-      nv[j] = v[i];
-      nth[j] = th[i];
+      nX.row(j) = X.row(i);
       nc[j] = c[i];
       ns[j] = s[i];
     }
-    x.swap(nx);
-    y.swap(ny);
-    v.swap(nv);
-    th.swap(nth);
+    X.swap(nX);
     c.swap(nc);
     s.swap(ns);
     logw.setConstant(-std::log(static_cast<double>(N)));
@@ -203,21 +207,104 @@ struct ParticleFilter::Impl {
   }
 
   State mean() const {
-    State m;
-    m[kX] = (w * x).sum();
-    m[kY] = (w * y).sum();
-    m[kV] = (w * v).sum();
-    m[kTheta] = std::atan2((w * s).sum(), (w * c).sum());
+    State m = X.transpose() * w.matrix();
+    m[kTheta] = std::atan2((w * s).sum(), (w * c).sum());  // circular mean
     return m;
   }
 
+  /// Weighted covariance Σ w_i d_i d_iᵀ about m, θ deviations wrapped.
   StateCov covariance(const State& m) const {
-    StateCov P = StateCov::Zero();
+    const double* x = X.col(kX).data();
+    const double* y = X.col(kY).data();
+    const double* v = X.col(kV).data();
+    const double* th = X.col(kTheta).data();
+    double a[10] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+    constexpr double two_pi = 2.0 * kPi;
     for (int i = 0; i < n(); ++i) {
-      const Eigen::Vector4d d(x[i] - m[kX], y[i] - m[kY], v[i] - m[kV], wrap_angle(th[i] - m[kTheta]));
-      P.noalias() += w[i] * (d * d.transpose());
+      double d3 = th[i] - m[3];  // both in (−π, π]: one wrap suffices
+      d3 -= two_pi * static_cast<double>(d3 > kPi);
+      d3 += two_pi * static_cast<double>(d3 <= -kPi);
+      const double d0 = x[i] - m[0], d1 = y[i] - m[1], d2 = v[i] - m[2];
+      const double wi = w[i];
+      const double w0 = wi * d0, w1 = wi * d1, w2 = wi * d2, w3 = wi * d3;
+      a[0] += w0 * d0; a[1] += w0 * d1; a[2] += w0 * d2; a[3] += w0 * d3;
+      a[4] += w1 * d1; a[5] += w1 * d2; a[6] += w1 * d3;
+      a[7] += w2 * d2; a[8] += w2 * d3;
+      a[9] += w3 * d3;
     }
-    return 0.5 * (P + P.transpose());
+    StateCov P;
+    P << a[0], a[1], a[2], a[3],
+         a[1], a[4], a[5], a[6],
+         a[2], a[5], a[7], a[8],
+         a[3], a[6], a[8], a[9];
+    return P;
+  }
+
+  /// Noisy BMM for every particle (eqs. 6–9, the body of Bmm::transition).
+  /// θ moves by a small δ_i per step, so cos/sin of the new heading come from
+  /// rotating the cached (cos θ, sin θ) by δ_i, with sin δ and cos δ from their
+  /// Taylor series (error < 1e-17 for |δ| ≤ kSmallTurn); larger turns use
+  /// std::cos/std::sin.  This keeps the loop free of libm calls.
+  void predict(double desired_speed, double heading_step) {
+    constexpr double kSmallTurn = 0.25;
+    const auto& p = bmm.params();
+    const int N = n();
+    const double k = p.terrain_factor() * p.dt;
+    noise.resize(N, 4);
+    rng.fill_normal(noise.data(), 4L * N);
+    delta.resize(N);
+    double* __restrict v = X.col(kV).data();
+    double* __restrict th = X.col(kTheta).data();
+    double* __restrict cs = c.data();
+    double* __restrict sn = s.data();
+    double* __restrict dl = delta.data();
+    const double* __restrict ev = noise.col(2).data();
+    // Loops below are branch-free so that the compiler vectorises them.
+    const double vmax = p.max_speed, vdes = desired_speed;
+    const double up_step = p.acceleration * p.dt, down_step = p.deceleration * p.dt;
+    const double sv = p.speed_noise, st = p.heading_noise, sp = p.position_noise;
+    for (int i = 0; i < N; ++i) {  // eq. 3 (Bmm::next_speed) + ε_v, clamped to [0, v_max]
+      const double vi = v[i];
+      const double up = std::max(0.0, std::min(std::min(vi + up_step, vdes), vmax));
+      const double down = std::min(vmax, std::max(std::max(vi - down_step, vdes), 0.0));
+      const double v1 = (vdes > vi ? up : down) + sv * ev[i];
+      v[i] = std::min(std::max(v1, 0.0), vmax);
+    }
+    // eq. 4 + ε_θ: θ moves by δ; rotate (cos θ, sin θ) by δ (Eigen packet math).
+    constexpr double two_pi = 2.0 * kPi;
+    delta = heading_step + st * noise.col(3).array();
+    d2.resize(N);
+    d2 = delta.square();
+    sd.resize(N);
+    cd.resize(N);
+    // Horner form of the Taylor series with reciprocal constants (no divisions).
+    sd = delta * (1 - d2 * (1.0 / 6) * (1 - d2 * (1.0 / 20) * (1 - d2 * (1.0 / 42) *
+                                        (1 - d2 * (1.0 / 72) * (1 - d2 * (1.0 / 110))))));
+    cd = 1 - d2 * 0.5 * (1 - d2 * (1.0 / 12) * (1 - d2 * (1.0 / 30) * (1 - d2 * (1.0 / 56) *
+                                   (1 - d2 * (1.0 / 90) * (1 - d2 * (1.0 / 132))))));
+    c1.resize(N);
+    c1 = c * cd - s * sd;
+    s = s * cd + c * sd;
+    c = c1;
+    d2 = 1.5 - 0.5 * (c.square() + s.square());  // keep (c, s) on the unit circle
+    c *= d2;
+    s *= d2;
+    auto theta = X.col(kTheta).array();
+    theta += delta;  // wrap to (−π, π]; exact for |δ| < π
+    theta -= two_pi * (theta > kPi).cast<double>();
+    theta += two_pi * (theta <= -kPi).cast<double>();
+    if (delta.abs().maxCoeff() > kSmallTurn) {  // rare: large turns get exact trigonometry
+      for (int i = 0; i < N; ++i)
+        if (std::abs(dl[i]) > kSmallTurn) {
+          th[i] = wrap_angle(th[i]);
+          cs[i] = std::cos(th[i]);
+          sn[i] = std::sin(th[i]);
+        }
+    }
+    // eq. 7/9 + (ε_x, ε_y)
+    const auto kv = k * X.col(kV).array();
+    X.col(kX).array() += kv * c + sp * noise.col(0).array();
+    X.col(kY).array() += kv * s + sp * noise.col(1).array();
   }
 };
 
@@ -235,17 +322,18 @@ ParticleFilter::ParticleFilter(const BmmParams& params, const State& x0, const S
   impl_ = std::make_unique<Impl>(params, seed, resample_threshold);
   auto& I = *impl_;
   const Eigen::Matrix4d L = P0.llt().matrixL();
-  for (auto* a : {&I.x, &I.y, &I.v, &I.th, &I.c, &I.s}) a->resize(n_particles);
+  I.X.resize(n_particles, 4);
+  I.c.resize(n_particles);
+  I.s.resize(n_particles);
   for (int i = 0; i < n_particles; ++i) {
     Eigen::Vector4d n;
     for (int k = 0; k < 4; ++k) n[k] = I.rng.normal();
-    const Eigen::Vector4d p = x0 + L * n;
-    I.x[i] = p[kX];
-    I.y[i] = p[kY];
-    I.v[i] = std::max(0.0, p[kV]);
-    I.th[i] = wrap_angle(p[kTheta]);
-    I.c[i] = std::cos(I.th[i]);
-    I.s[i] = std::sin(I.th[i]);
+    State p = x0 + L * n;
+    p[kV] = std::max(0.0, p[kV]);
+    p[kTheta] = wrap_angle(p[kTheta]);
+    I.X.row(i) = p.transpose();
+    I.c[i] = std::cos(p[kTheta]);
+    I.s[i] = std::sin(p[kTheta]);
   }
   I.logw = Eigen::ArrayXd::Constant(n_particles, -std::log(static_cast<double>(n_particles)));
   I.w = Eigen::ArrayXd::Constant(n_particles, 1.0 / n_particles);
@@ -260,35 +348,20 @@ double ParticleFilter::ess() const { return 1.0 / impl_->w.square().sum(); }
 int ParticleFilter::resample_count() const { return impl_->n_resampled; }
 State ParticleFilter::mean() const { return impl_->mean(); }
 StateCov ParticleFilter::covariance() const { return impl_->covariance(impl_->mean()); }
+StateCov ParticleFilter::covariance(const State& about) const { return impl_->covariance(about); }
 Eigen::VectorXd ParticleFilter::weights() const { return impl_->w.matrix(); }
 
 Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor> ParticleFilter::particles() const {
-  const auto& I = *impl_;
-  Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor> out(I.n(), 4);
-  out.col(0) = I.x.matrix();
-  out.col(1) = I.y.matrix();
-  out.col(2) = I.v.matrix();
-  out.col(3) = I.th.matrix();
-  return out;
+  return impl_->X;
 }
 
 void ParticleFilter::predict(const Control& u) {
-  // Every particle follows the noisy BMM, eqs. 6–9 (same as Bmm::transition).
-  auto& I = *impl_;
   if (!u.allFinite()) {
     std::ostringstream os;
     os << "control (desired_speed, heading_change) = (" << u[0] << ", " << u[1] << ") is not finite";
     throw std::invalid_argument(os.str());
   }
-  const auto& p = I.bmm.params();
-  const double dth = I.bmm.clipped_heading_change(u[1]);
-  const double k = p.terrain_factor() * p.dt;
-  const double sig[4] = {p.position_noise, p.position_noise, p.speed_noise, p.heading_noise};
-  for (int i = 0; i < I.n(); ++i) {
-    double eps[4];
-    for (int j = 0; j < 4; ++j) eps[j] = sig[j] > 0.0 ? sig[j] * I.rng.normal() : 0.0;
-    I.bmm.transition_unchecked(I.x[i], I.y[i], I.v[i], I.th[i], u[0], dth, k, eps, I.c[i], I.s[i]);
-  }
+  impl_->predict(u[0], impl_->bmm.clipped_heading_change(u[1]));
 }
 
 UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z) {
@@ -296,38 +369,45 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
   auto& I = *impl_;
   const int m = model.dim();
   const int N = I.n();
-  I.zhat.resize(m);
-  I.resid.resize(m);
-  I.tmp.resize(m);
-  I.ll.resize(N);
-  const Eigen::MatrixXd Rinv = model.noise().cov().inverse();
+  const Eigen::MatrixXd& R = model.noise().cov();
   UpdateResult res;
   res.dim = m;
-  // NIS of the prior weighted mean (diagnostic), before the weights change.
-  {
-    const State mu = I.mean();
-    const StateCov P = I.covariance(mu);
-    const Eigen::MatrixXd H = model.jacobian(mu);
-    model.predict(mu, I.zhat);
-    model.residual(z, I.zhat, I.resid);
-    const Eigen::MatrixXd S = H * P * H.transpose() + model.noise().cov();
-    res.nis = I.resid.dot(S.ldlt().solve(I.resid));
-  }
-  if (m == 2 && (model.kind() == MeasurementKind::Position)) {
-    const Eigen::Matrix2d Ri = Rinv;
+  if (model.kind() == MeasurementKind::Position) {
+    // Fast path: 2-D residuals, log-likelihood and NIS moments in one pass.
+    const Eigen::Matrix2d Ri = R.inverse();
+    const double* x = I.X.col(kX).data();
+    const double* y = I.X.col(kY).data();
+    double s0 = 0, s1 = 0, s00 = 0, s01 = 0, s11 = 0;
     for (int i = 0; i < N; ++i) {
-      const double d0 = z[0] - I.x[i], d1 = z[1] - I.y[i];
-      I.ll[i] = -0.5 * (Ri(0, 0) * d0 * d0 + 2.0 * Ri(0, 1) * d0 * d1 + Ri(1, 1) * d1 * d1);
+      const double d0 = z[0] - x[i], d1 = z[1] - y[i], wi = I.w[i];
+      s0 += wi * d0; s1 += wi * d1;
+      s00 += wi * d0 * d0; s01 += wi * d0 * d1; s11 += wi * d1 * d1;
+      I.logw[i] -= 0.5 * (Ri(0, 0) * d0 * d0 + 2.0 * Ri(0, 1) * d0 * d1 + Ri(1, 1) * d1 * d1);
     }
+    const Eigen::Vector2d ybar(s0, s1);
+    Eigen::Matrix2d S;
+    S << s00 - s0 * s0, s01 - s0 * s1, s01 - s0 * s1, s11 - s1 * s1;
+    S += R;
+    res.nis = ybar.dot(S.ldlt().solve(ybar));
   } else {
+    // Residual of every particle, y_i = z ⊖ h(x_i), one per column.
+    I.Y.resize(m, N);
+    I.zhat.resize(m);
+    I.resid.resize(m);
     for (int i = 0; i < N; ++i) {
-      model.predict(I.particle(i), I.zhat);
+      model.predict(I.X.row(i).transpose(), I.zhat);
       model.residual(z, I.zhat, I.resid);
-      I.tmp.noalias() = Rinv * I.resid;
-      I.ll[i] = -0.5 * I.resid.dot(I.tmp);
+      I.Y.col(i) = I.resid;
     }
+    // NIS (diagnostic) of the prior predictive: mean residual ȳ, S = Cov_w(y) + R.
+    const Eigen::VectorXd ybar = I.Y * I.w.matrix();
+    const Eigen::MatrixXd D = I.Y.colwise() - ybar;
+    const Eigen::MatrixXd S = D * I.w.matrix().asDiagonal() * D.transpose() + R;
+    res.nis = ybar.dot(S.ldlt().solve(ybar));
+    // log-likelihood −½ yᵀR⁻¹y = −½‖L⁻¹y‖², added to the log-weights.
+    Eigen::LLT<Eigen::MatrixXd>(R).matrixL().solveInPlace(I.Y);
+    I.logw -= 0.5 * I.Y.colwise().squaredNorm().transpose().array();
   }
-  I.logw += I.ll;
   I.normalise();
   if (ess() < I.resample_threshold * N) I.resample();
   return res;
@@ -353,7 +433,17 @@ void InformationFilter::predict(const Control& u) {
   const Eigen::Vector4d sigma2 = bmm_.noise_cov().diagonal();
   Eigen::Matrix4d Pp = F * P() * F.transpose() + G * sigma2.asDiagonal() * G.transpose();
   Pp = 0.5 * (Pp + Pp.transpose());
-  Y_ = Pp.inverse();
+  const Eigen::LLT<Eigen::Matrix4d> llt(Pp);
+  if (llt.info() != Eigen::Success || !(llt.matrixL().toDenseMatrix().diagonal().minCoeff() > 1e-12)) {
+    // Zero uncertainty in some direction: infinite information, which the
+    // information form cannot hold.  Happens when a noise sigma is 0 and a
+    // BMM limit binds (∂v'/∂v = 0 with speed_noise = 0, for instance).
+    throw std::runtime_error(
+        "information filter predict: the predicted covariance F P Fᵀ + Q is singular (a state "
+        "component became exactly known, e.g. speed_noise = 0 while a speed limit binds); "
+        "the information form needs a positive-definite covariance: use process noise > 0");
+  }
+  Y_ = llt.solve(Eigen::Matrix4d::Identity());
   Y_ = 0.5 * (Y_ + Y_.transpose());
   y_ = Y_ * x1;
 }
@@ -446,7 +536,7 @@ StateCov estimate_cov(const Ekf& f, const State&) { return f.P(); }
 template <>
 StateCov estimate_cov(const InformationFilter& f, const State&) { return f.P(); }
 template <>
-StateCov estimate_cov(const ParticleFilter& f, const State&) { return f.covariance(); }
+StateCov estimate_cov(const ParticleFilter& f, const State& mean) { return f.covariance(mean); }
 
 /// Landmark model restricted to the landmarks seen in row k (NaN = unseen).
 struct LandmarkStream {

@@ -229,13 +229,14 @@ void MeasurementModel::residual(const Eigen::Ref<const Eigen::VectorXd>& z,
 }
 
 void MeasurementModel::check(const Eigen::Ref<const Eigen::VectorXd>& z) const {
-  std::ostringstream os;
   if (z.size() != dim_) {
+    std::ostringstream os;
     os << to_string(kind_) << " measurement must have " << dim_ << " entries, got " << z.size();
     throw std::invalid_argument(os.str());
   }
   for (int i = 0; i < dim_; ++i) {
     if (!std::isfinite(z[i])) {
+      std::ostringstream os;
       os << to_string(kind_) << " measurement entry " << i << " = " << z[i] << " is not finite";
       throw std::invalid_argument(os.str());
     }

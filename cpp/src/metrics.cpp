@@ -12,13 +12,14 @@ namespace safenav {
 
 namespace {
 void check_points(const Eigen::Ref<const Points2>& p, const char* what, Eigen::Index min_rows = 1) {
-  std::ostringstream os;
   if (p.rows() < min_rows) {
+    std::ostringstream os;
     os << what << " needs at least " << min_rows << " point(s), got " << p.rows();
     throw std::invalid_argument(os.str());
   }
   for (Eigen::Index i = 0; i < p.rows(); ++i) {
     if (!p.row(i).allFinite()) {
+      std::ostringstream os;
       os << what << " point " << i << " = (" << p(i, 0) << ", " << p(i, 1) << ") is not finite";
       throw std::invalid_argument(os.str());
     }

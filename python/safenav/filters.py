@@ -52,6 +52,10 @@ class Ekf(_StepApi, _core.Ekf):
         super().__init__(params, *_prior(x0, P0))
         self.gate = gate
 
+    def set_state(self, x, P) -> None:
+        """Reset the estimate to ``x`` (4,) with covariance ``P`` (4, 4)."""
+        super().set_state(as_array("x", x, (4,)), as_array("P", P, (4, 4)))
+
 
 class ParticleFilter(_StepApi, _core.ParticleFilter):
     """Particle filter on the BMM with log-weights and systematic resampling."""

@@ -31,6 +31,16 @@ wrap_angle = _core.wrap_angle
 class Bmm(_core.Bmm):
     """The BMM transition ``f(x, u)`` with analytic Jacobians (eqs. 3–9)."""
 
+    def next_speed(self, v: float, desired_speed: float) -> float:
+        """Eq. 3: the next speed from speed ``v`` and the desired speed."""
+        as_array("(v, desired_speed)", (v, desired_speed), (2,))
+        return super().next_speed(v, desired_speed)
+
+    def clipped_heading_change(self, heading_change: float) -> float:
+        """Eq. 4: the heading change clipped to ±m·Δt."""
+        as_array("heading_change", (heading_change,), (1,))
+        return super().clipped_heading_change(heading_change)
+
     def predict(self, x, u) -> np.ndarray:
         """Deterministic ``f(x, u)`` (eqs. 3, 4, 7)."""
         return super().predict(as_array("x", x, (4,)), as_array("u", u, (2,)))

@@ -85,6 +85,8 @@ class ParticleFilter {
   State mean() const;
   /// Weighted covariance with angle-wrapped deviations.
   StateCov covariance() const;
+  /// Weighted covariance about a given mean (saves recomputing mean()).
+  StateCov covariance(const State& about) const;
   /// Particles as N×4 (x, y, v, θ) and normalised weights.
   Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor> particles() const;
   Eigen::VectorXd weights() const;
