@@ -20,8 +20,18 @@ def _synthetic(args) -> int:
         out.mkdir(parents=True, exist_ok=True)
         _atomic_csv(raw, out / "synthetic_trials.csv")
         _atomic_csv(table, out / "synthetic_summary.csv")
-        print(f"wrote {out / 'synthetic_trials.csv'} and {out / 'synthetic_summary.csv'}")
+        fig = _synthetic_figure(args, out / "synthetic_trial.png")
+        print(f"wrote {out / 'synthetic_trials.csv'}, {out / 'synthetic_summary.csv'} and {fig}")
     return 0
+
+
+def _synthetic_figure(args, path: Path) -> Path:
+    """Figure of trial 0 (same seeds as the Monte Carlo's first trial)."""
+    from .experiments import synthetic_trial
+    from .plots import plot_synthetic_trial
+
+    data, results = synthetic_trial(0, filters=args.filters, seed=args.seed, n_particles=args.particles)
+    return plot_synthetic_trial(data, {k.upper(): v for k, v in results.items()}, path)
 
 
 def _atomic_csv(df, path: Path) -> None:
@@ -40,7 +50,9 @@ def build_parser() -> argparse.ArgumentParser:
         s.add_argument("--filters", nargs="+", default=["ekf", "pf"], choices=["ekf", "pf", "eif"])
         s.add_argument("--particles", type=int, default=1000, help="PF particles (default 1000)")
         s.add_argument("--seed", type=int, default=0)
-        s.add_argument("--out", default=None, help="folder for the per-trial and summary CSV files")
+        s.add_argument("--out", default="out/demo" if name == "demo" else None,
+                       help="folder for the per-trial and summary CSV files and a figure"
+                            + (" (default out/demo)" if name == "demo" else ""))
         s.set_defaults(func=_synthetic)
     return p
 
