@@ -1,0 +1,159 @@
+"""Filter behaviour not covered by the FilterPy and consistency tests:
+NIS gate, PF log-weights, systematic resampling, PF estimates, determinism,
+measurement streams with gaps, and NIS statistics."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import safenav
+from safenav import BmmParams, MeasurementModel
+from safenav.metrics import chi2_interval
+
+PARAMS = BmmParams()
+X0 = np.array([0.0, 0.0, 2.0, 0.2])
+P0 = np.diag([0.2, 0.2, 0.1, 0.05]) ** 2
+R = np.diag([0.05, 0.05]) ** 2
+POS = MeasurementModel.position(R)
+
+
+def test_nis_gate_rejects_outliers_and_keeps_the_estimate():
+    ekf = safenav.Ekf(PARAMS, X0, P0, gate=0.99)
+    ekf.predict([2.0, 0.0])
+    x, P = ekf.x.copy(), ekf.P.copy()
+    res = ekf.update(POS, x[:2] + [5.0, 0.0])  # 5 m off: far outside the 99 % gate
+    assert not res.accepted and res.nis > safenav._core.chi2_quantile(0.99, 2)
+    np.testing.assert_array_equal(ekf.x, x)
+    np.testing.assert_array_equal(ekf.P, P)
+    good = ekf.update(POS, x[:2] + [0.01, -0.01])
+    assert good.accepted and good.nis < safenav._core.chi2_quantile(0.99, 2)
+    # NIS is yᵀ S⁻¹ y with S = H P Hᵀ + R
+    S = P[:2, :2] + R
+    y = np.array([0.01, -0.01])
+    assert good.nis == pytest.approx(y @ np.linalg.solve(S, y), rel=1e-12)
+
+
+def test_batch_gate_counts_rejections():
+    rng = np.random.default_rng(0)
+    n = 200
+    u = np.tile([2.0, 0.0], (n, 1))
+    truth = safenav.Bmm(PARAMS).simulate(X0, u, seed=1)
+    z = truth[1:, :2] + rng.standard_normal((n, 2)) * 0.05
+    z[50] += 10.0  # two gross outliers
+    z[120] -= 10.0
+    gated = safenav.filter_trajectory(u, X0, P0, params=PARAMS, position=z, position_cov=R, gate=0.999)
+    plain = safenav.filter_trajectory(u, X0, P0, params=PARAMS, position=z, position_cov=R)
+    assert gated.n_rejected == 2 and gated.n_updates == n - 2
+    err = lambda r: np.abs(r.states[51, :2] - truth[51, :2]).max()
+    assert err(gated) < 0.1 < err(plain)
+
+
+def test_pf_log_weights_survive_a_wildly_unlikely_measurement():
+    pf = safenav.ParticleFilter(PARAMS, X0, P0, n_particles=500, seed=3)
+    pf.predict([2.0, 0.0])
+    pf.update(POS, [1e4, -1e4])  # every particle's likelihood underflows in linear space
+    w = pf.weights
+    assert np.isfinite(w).all() and w.sum() == pytest.approx(1.0) and (w >= 0).all()
+    assert np.isfinite(pf.x).all() and np.isfinite(pf.P).all()
+
+
+def test_pf_resamples_systematically_when_ess_drops():
+    pf = safenav.ParticleFilter(PARAMS, X0, P0, n_particles=1000, seed=5, resample_threshold=0.5)
+    assert pf.ess == pytest.approx(1000)
+    pf.predict([2.0, 0.0])
+    before = pf.particles.copy()
+    pf.update(POS, before[:, :2].mean(axis=0) + [0.1, 0.0])
+    assert pf.resample_count == 1 and pf.ess == pytest.approx(1000)  # weights reset to 1/N
+    # every resampled particle is one of the particles before resampling
+    after = pf.particles
+    assert all((np.abs(before - p).sum(axis=1) == 0).any() for p in after[::50])
+    # no resampling while ESS stays above threshold
+    pf2 = safenav.ParticleFilter(PARAMS, X0, P0, n_particles=1000, seed=5, resample_threshold=0.0)
+    pf2.predict([2.0, 0.0])
+    pf2.update(POS, pf2.x[:2])
+    assert pf2.resample_count == 0 and pf2.ess < 1000
+
+
+def test_systematic_resampling_preserves_weights_in_expectation():
+    # Over many seeds, the share of copies of each particle matches its weight.
+    n, counts, wsum = 50, np.zeros(50), np.zeros(50)
+    for seed in range(300):
+        pf = safenav.ParticleFilter(PARAMS, X0, P0 * 100, n_particles=n, seed=seed, resample_threshold=1.0)
+        parts = pf.particles
+        pf.update(POS, X0[:2])
+        w = np.exp(-0.5 * np.sum((parts[:, :2] - X0[:2]) ** 2 / np.diag(R), axis=1))
+        w /= w.sum()
+        order = np.argsort(w)[::-1]
+        after = pf.particles
+        copies = np.array([(np.abs(after - parts[i]).sum(axis=1) == 0).sum() for i in order])
+        # systematic resampling: copies of particle i is floor or ceil of N·w_i
+        assert np.all(np.abs(copies - n * w[order]) < 1.0 + 1e-9)
+        counts += copies
+        wsum += n * w[order]
+    np.testing.assert_allclose(counts, wsum, atol=3.0)
+
+
+def test_pf_mean_and_covariance_match_numpy_from_particles():
+    pf = safenav.ParticleFilter(PARAMS, np.array([1.0, 2.0, 1.5, 3.1]), np.diag([0.3, 0.3, 0.2, 0.2]) ** 2,
+                                n_particles=2000, seed=9, resample_threshold=0.0)
+    pf.predict([1.5, 0.05])
+    pf.update(POS, [1.1, 2.0])
+    X, w = pf.particles, pf.weights
+    mean = X[:, :3].T @ w
+    theta = np.arctan2(w @ np.sin(X[:, 3]), w @ np.cos(X[:, 3]))  # circular mean near ±π
+    np.testing.assert_allclose(pf.x, [*mean, theta], atol=1e-12)
+    d = X - pf.x
+    d[:, 3] = (d[:, 3] + np.pi) % (2 * np.pi) - np.pi
+    np.testing.assert_allclose(pf.P, (d * w[:, None]).T @ d, atol=1e-12)
+
+
+def test_pf_is_deterministic_for_a_seed():
+    u = np.tile([2.0, 0.02], (60, 1))
+    z = safenav.Bmm(PARAMS).simulate(X0, u, seed=2)[1:, :2]
+    run = lambda seed: safenav.filter_trajectory(u, X0, P0, params=PARAMS, filter="pf", position=z,
+                                                 position_cov=R, n_particles=300, seed=seed)
+    a, b, c = run(4), run(4), run(5)
+    np.testing.assert_array_equal(a.states, b.states)
+    np.testing.assert_array_equal(a.covariances, b.covariances)
+    assert not np.array_equal(a.states, c.states)
+
+
+def test_stream_gaps_and_partial_landmark_visibility():
+    n = 80
+    u = np.tile([2.0, 0.03], (n, 1))
+    truth = safenav.Bmm(PARAMS).simulate(X0, u, seed=6)
+    lm = np.array([[5.0, 5.0], [-3.0, 4.0], [8.0, -2.0]])
+    rng = np.random.default_rng(1)
+    d = lm[None] - truth[1:, None, :2]
+    ranges = np.hypot(d[..., 0], d[..., 1]) + rng.standard_normal((n, 3)) * 0.05
+    ranges[::3, 1] = np.nan          # landmark 1 unseen every third step
+    ranges[40:50] = np.nan           # nothing seen for 10 steps
+    for f in ("ekf", "eif", "pf"):
+        res = safenav.filter_trajectory(u, X0, P0, params=PARAMS, filter=f, ranges=ranges, range_std=0.05,
+                                        landmarks=lm, n_particles=2000, seed=0)
+        assert res.n_gaps == 10
+        assert np.isnan(res.nis[40:50]).all() and (res.nis_dof[40:50] == 0).all()
+        assert (res.nis_dof[0:3] == [2, 3, 3]).all()
+        # uncertainty grows through the blackout, then the fixes pull it back
+        assert res.covariances[50, 0, 0] > res.covariances[40, 0, 0]
+        assert np.abs(res.states[-1, :2] - truth[-1, :2]).max() < 0.15
+
+
+def test_ekf_nis_is_chi_square_distributed():
+    rng = np.random.default_rng(2)
+    n = 400
+    params = BmmParams(speed_noise=0.02, heading_noise=0.005, position_noise=0.005)
+    u = np.column_stack([np.full(n, 50.0), np.full(n, 0.01)])  # accelerate at a·Δt: no clipping
+    u[:, 0] = np.where(np.arange(n) % 2 == 0, 50.0, -50.0)
+    x0 = np.array([0.0, 0.0, 3.0, 0.0])
+    nis = []
+    for run in range(20):
+        truth = safenav.Bmm(params).simulate(x0, u, seed=100 + run)
+        z = truth[1:, :2] + rng.standard_normal((n, 2)) * 0.05
+        start = x0 + rng.standard_normal(4) * np.sqrt(np.diag(P0))
+        res = safenav.filter_trajectory(u, start, P0, params=params, position=z, position_cov=R)
+        nis.append(res.nis)
+    nis = np.concatenate(nis)
+    lo, hi = chi2_interval(2, len(nis))
+    assert lo < nis.mean() < hi
