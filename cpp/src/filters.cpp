@@ -139,8 +139,36 @@ UpdateResult Ekf::update_fixed(const MeasurementModel& model, const Eigen::Ref<c
   return res;
 }
 
+UpdateResult Ekf::update_position(const Eigen::Ref<const Eigen::VectorXd>& z, const Eigen::Matrix2d& R) {
+  // Eqs. 12–14 with H = [I₂ 0] written out: P Hᵀ = P[:, :2], H P Hᵀ = P[:2, :2].
+  // Same arithmetic as update_fixed<2>, without the products by zeros.
+  const Eigen::Vector2d y(z[0] - x_[kX], z[1] - x_[kY]);
+  const Eigen::Matrix<double, 4, 2> PHt = P_.leftCols<2>();
+  const Eigen::Matrix2d S = P_.topLeftCorner<2, 2>() + R;
+  const Eigen::LLT<Eigen::Matrix2d> llt(S);
+  if (llt.info() != Eigen::Success) {
+    throw std::runtime_error("EKF position update: innovation covariance S is not positive definite");
+  }
+  UpdateResult res;
+  res.dim = 2;
+  res.nis = y.dot(llt.solve(y));
+  if (gate_rejects(res.nis, 2)) {
+    res.accepted = false;
+    return res;
+  }
+  const Eigen::Matrix<double, 4, 2> K = llt.solve(PHt.transpose()).transpose();
+  x_ += K * y;
+  x_[kTheta] = wrap_angle(x_[kTheta]);
+  // Joseph form: A = (I − KH) P = P − K P[:2, :]; P = A (I − KH)ᵀ + K R Kᵀ = A − A[:, :2] Kᵀ + K R Kᵀ.
+  const Eigen::Matrix4d A = P_ - K * P_.topRows<2>();
+  P_ = A - A.leftCols<2>() * K.transpose() + K * R * K.transpose();
+  P_ = 0.5 * (P_ + P_.transpose());
+  return res;
+}
+
 UpdateResult Ekf::update(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z) {
   model.check(z);
+  if (model.kind() == MeasurementKind::Position) return update_position(z, model.noise().cov());
   switch (model.dim()) {
     case 1: return update_fixed<1>(model, z);
     case 2: return update_fixed<2>(model, z);

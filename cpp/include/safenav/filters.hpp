@@ -50,6 +50,7 @@ class Ekf {
   UpdateResult update(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z);
 
  private:
+  UpdateResult update_position(const Eigen::Ref<const Eigen::VectorXd>& z, const Eigen::Matrix2d& R);
   template <int M>
   UpdateResult update_fixed(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z);
   bool gate_rejects(double nis, int dim);
