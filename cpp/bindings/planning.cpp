@@ -1,0 +1,112 @@
+#include "common.hpp"
+#include "safenav/planning.hpp"
+
+using namespace safenav;
+
+void pybind_planning(py::module_& m) {
+  py::class_<CircleObstacle>(m, "CircleObstacle", "A disc obstacle (center [m], radius [m]).")
+      .def(py::init([](const Eigen::Vector2d& center, double radius) { return CircleObstacle{center, radius}; }),
+           py::arg("center"), py::arg("radius"))
+      .def_readwrite("center", &CircleObstacle::center)
+      .def_readwrite("radius", &CircleObstacle::radius)
+      .def("__repr__", [](const CircleObstacle& c) {
+        return "CircleObstacle(center=(" + std::to_string(c.center.x()) + ", " + std::to_string(c.center.y()) +
+               "), radius=" + std::to_string(c.radius) + ")";
+      });
+
+  const PlanningMap dm;
+  py::class_<PlanningMap>(m, "PlanningMap", "The field (rectangle) and its circle and polygon obstacles.")
+      .def(py::init([](const Eigen::Vector2d& lower, const Eigen::Vector2d& upper, std::vector<CircleObstacle> circles,
+                       std::vector<Points2> polygons, double clearance) {
+             PlanningMap map{lower, upper, std::move(circles), std::move(polygons), clearance};
+             map.validate();
+             return map;
+           }),
+           py::kw_only(), py::arg("lower") = dm.lower, py::arg("upper") = dm.upper,
+           py::arg("circles") = std::vector<CircleObstacle>{}, py::arg("polygons") = std::vector<Points2>{},
+           py::arg("clearance") = dm.clearance)
+      .def_readwrite("lower", &PlanningMap::lower)
+      .def_readwrite("upper", &PlanningMap::upper)
+      .def_readwrite("circles", &PlanningMap::circles)
+      .def_readwrite("polygons", &PlanningMap::polygons)
+      .def_readwrite("clearance", &PlanningMap::clearance)
+      .def("validate", &PlanningMap::validate);
+
+  py::class_<PlanningProblem>(m, "PlanningProblem", "Map, start, goal and the central path of the risk term.")
+      .def(py::init([](PlanningMap map, const Eigen::Vector2d& start, const Eigen::Vector2d& goal,
+                       const Points2& central_path, RiskZones zones) {
+             PlanningProblem p{std::move(map), start, goal, central_path, std::move(zones)};
+             p.validate();
+             return p;
+           }),
+           py::kw_only(), py::arg("map"), py::arg("start"), py::arg("goal"),
+           py::arg("central_path") = Points2(0, 2), py::arg("zones") = RiskZones{})
+      .def_readwrite("map", &PlanningProblem::map)
+      .def_readwrite("start", &PlanningProblem::start)
+      .def_readwrite("goal", &PlanningProblem::goal)
+      .def_readwrite("central_path", &PlanningProblem::central_path)
+      .def_readwrite("zones", &PlanningProblem::zones)
+      .def("validate", &PlanningProblem::validate);
+
+  const PlannerSettings ds;
+  py::class_<PlannerSettings>(m, "PlannerSettings", "RAw-RRT* settings (alpha, beta of SafeNav eq. 16).")
+      .def(py::init([](double alpha, double beta, double range, double goal_bias, std::int64_t max_iterations,
+                       double max_time, std::uint64_t seed, double resolution, double goal_tolerance, bool smooth,
+                       bool stay_in_corridor, bool allow_approximate) {
+             PlannerSettings s{alpha, beta, range, goal_bias, max_iterations, max_time, seed, resolution,
+                               goal_tolerance, smooth, stay_in_corridor, allow_approximate};
+             s.validate();
+             return s;
+           }),
+           py::kw_only(), py::arg("alpha") = ds.alpha, py::arg("beta") = ds.beta, py::arg("range") = ds.range,
+           py::arg("goal_bias") = ds.goal_bias, py::arg("max_iterations") = ds.max_iterations,
+           py::arg("max_time") = ds.max_time, py::arg("seed") = ds.seed, py::arg("resolution") = ds.resolution,
+           py::arg("goal_tolerance") = ds.goal_tolerance, py::arg("smooth") = ds.smooth,
+           py::arg("stay_in_corridor") = ds.stay_in_corridor, py::arg("allow_approximate") = ds.allow_approximate)
+      .def_readwrite("alpha", &PlannerSettings::alpha)
+      .def_readwrite("beta", &PlannerSettings::beta)
+      .def_readwrite("range", &PlannerSettings::range)
+      .def_readwrite("goal_bias", &PlannerSettings::goal_bias)
+      .def_readwrite("max_iterations", &PlannerSettings::max_iterations)
+      .def_readwrite("max_time", &PlannerSettings::max_time)
+      .def_readwrite("seed", &PlannerSettings::seed)
+      .def_readwrite("resolution", &PlannerSettings::resolution)
+      .def_readwrite("goal_tolerance", &PlannerSettings::goal_tolerance)
+      .def_readwrite("smooth", &PlannerSettings::smooth)
+      .def_readwrite("stay_in_corridor", &PlannerSettings::stay_in_corridor)
+      .def_readwrite("allow_approximate", &PlannerSettings::allow_approximate)
+      .def("validate", &PlannerSettings::validate);
+
+  py::enum_<PlanStatus>(m, "PlanStatus")
+      .value("EXACT", PlanStatus::Exact)
+      .value("APPROXIMATE", PlanStatus::Approximate)
+      .value("NO_PATH", PlanStatus::NoPath);
+
+  py::class_<PathCost>(m, "PathCost", "Length, risk (integral of WRS) and alpha*length + beta*risk (eq. 19).")
+      .def_readonly("length", &PathCost::length)
+      .def_readonly("risk", &PathCost::risk)
+      .def_readonly("total", &PathCost::total);
+
+  py::class_<PlanResult>(m, "PlanResult")
+      .def_readonly("status", &PlanResult::status)
+      .def_readonly("success", &PlanResult::success)
+      .def_readonly("path", &PlanResult::path)
+      .def_readonly("cost", &PlanResult::cost)
+      .def_readonly("iterations", &PlanResult::iterations)
+      .def_readonly("planning_time", &PlanResult::planning_time)
+      .def_readonly("first_solution_iteration", &PlanResult::first_solution_iteration)
+      .def_readonly("first_solution_time", &PlanResult::first_solution_time)
+      .def_readonly("cost_history", &PlanResult::cost_history);
+
+  m.def("plan", &plan, py::arg("problem"), py::arg("settings") = PlannerSettings{}, release_gil());
+  m.def("replan", &replan, py::arg("problem"), py::arg("position"), py::arg("lookahead"),
+        py::arg("settings") = PlannerSettings{}, release_gil());
+  m.def("replan_to", &replan_to, py::arg("problem"), py::arg("position"), py::arg("goal"),
+        py::arg("settings") = PlannerSettings{}, release_gil());
+  m.def("point_ahead", &point_ahead, py::arg("path"), py::arg("position"), py::arg("distance"), release_gil());
+  m.def("point_is_free", &point_is_free, py::arg("map"), py::arg("point"));
+  m.def("segment_is_free", &segment_is_free, py::arg("map"), py::arg("a"), py::arg("b"));
+  m.def("path_is_free", &path_is_free, py::arg("map"), py::arg("path"), release_gil());
+  m.def("path_cost", &path_cost, py::arg("path"), py::arg("problem"), py::arg("settings") = PlannerSettings{},
+        release_gil());
+}

@@ -1,0 +1,127 @@
+// safenav/planning.hpp — RAw-RRT* (SafeNav eqs. 15–19, Algorithm 3).
+//
+// Cost of a path p (eq. 19, integrated along the motion):
+//   C_total = α·C_length + β·C_risk,
+//   C_length = Σ ‖p_{i+1} − p_i‖                        (eq. 15)
+//   C_risk   = ∫ WRS(d(s)) ds  along the path, with d the deviation from the
+//              central path (eq. 17) and WRS of eq. 18 (safenav::wrs).
+// The integral is the trapezoid rule on sub-steps of at most `resolution`
+// metres on every edge: it is how OMPL's StateCostIntegralObjective with
+// motion-cost interpolation integrates a state cost, and path_cost()
+// reports exactly that number.  β = 0 is plain RRT* (the baseline).
+//
+// Built on OMPL's RRTstar; OMPL stays inside cpp/src/planning.cpp: this header
+// exposes only Eigen and std types.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "safenav/metrics.hpp"
+
+namespace safenav {
+
+/// A disc obstacle.
+struct CircleObstacle {
+  Eigen::Vector2d center = Eigen::Vector2d::Zero();
+  double radius = 1.0;  ///< [m], > 0
+};
+
+/// The field and its obstacles: what a state validity checker needs.
+struct PlanningMap {
+  Eigen::Vector2d lower = Eigen::Vector2d(0.0, 0.0);      ///< field's lower-left corner [m]
+  Eigen::Vector2d upper = Eigen::Vector2d(200.0, 200.0);  ///< field's upper-right corner [m] (SafeNav V-A)
+  std::vector<CircleObstacle> circles;
+  std::vector<Points2> polygons;  ///< simple polygons, ≥ 3 vertices each, open (first ≠ last) or closed
+  double clearance = 0.0;         ///< keep this far from every obstacle [m] (vehicle radius)
+  void validate() const;          ///< throws std::invalid_argument naming the bad value
+};
+
+/// What to plan: map, start, goal and the central (safe) path of the risk term.
+struct PlanningProblem {
+  PlanningMap map;
+  Eigen::Vector2d start = Eigen::Vector2d::Zero();
+  Eigen::Vector2d goal = Eigen::Vector2d::Zero();
+  Points2 central_path;  ///< optional polyline (0 rows = no risk term)
+  RiskZones zones;       ///< safe buffer of eq. 18 (half-width, weights 2/4/6/8)
+  void validate() const;
+};
+
+/// Planner settings.  Defaults: α = β = 1 (eq. 16 leaves them free).
+struct PlannerSettings {
+  double alpha = 1.0;              ///< α, weight of the length term (eq. 16), ≥ 0
+  double beta = 1.0;               ///< β, weight of the risk term (eq. 16), ≥ 0; 0 = plain RRT*
+  double range = 0.0;              ///< longest tree edge [m]; 0 = OMPL's default (20 % of the field's diagonal)
+  double goal_bias = 0.05;         ///< probability of sampling the goal, in [0, 1]
+  std::int64_t max_iterations = 5000;  ///< RRT* iterations (the deterministic budget), > 0
+  double max_time = 0.0;           ///< wall-clock budget [s]; 0 = none (then only iterations bound the run)
+  std::uint64_t seed = 0;          ///< same seed + same iteration budget → identical path
+  double resolution = 0.1;         ///< cost-integration (and corridor-check) step along a motion [m], > 0
+  double goal_tolerance = 1e-6;    ///< a tree node this close to the goal reaches it [m]
+  bool smooth = false;             ///< shortcut the path with OMPL's PathSimplifier (collision-checked)
+  bool stay_in_corridor = false;   ///< states must also lie within zones.half_width of the central path
+  bool allow_approximate = false;  ///< return OMPL's approximate path (closest approach) instead of NoPath
+  void validate() const;
+};
+
+enum class PlanStatus {
+  Exact,        ///< a path that reaches the goal
+  Approximate,  ///< no path reached the goal; the path gets as close as the tree did (allow_approximate)
+  NoPath,       ///< no path within the budget
+};
+std::string to_string(PlanStatus status);
+
+/// Length, risk and total of a path under eq. 19 (see the header comment).
+struct PathCost {
+  double length = 0.0;  ///< C_length [m]
+  double risk = 0.0;    ///< C_risk = ∫ WRS ds
+  double total = 0.0;   ///< α·length + β·risk
+};
+
+struct PlanResult {
+  PlanStatus status = PlanStatus::NoPath;
+  bool success = false;  ///< status == Exact
+  Points2 path;          ///< N×2 waypoints, start first (0 rows when NoPath)
+  PathCost cost;         ///< of `path` (after smoothing, if any)
+  std::int64_t iterations = 0;            ///< RRT* iterations run
+  double planning_time = 0.0;             ///< wall-clock time in OMPL's solve [s]
+  std::int64_t first_solution_iteration = -1;  ///< iteration of the first exact solution (−1: none)
+  double first_solution_time = -1.0;      ///< [s] since the start of solve (−1: none)
+  /// Each improvement of the best solution: rows (iteration, time [s], cost).
+  /// The cost is OMPL's objective value, which equals path_cost().total of
+  /// that (unsmoothed) solution.
+  Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> cost_history;
+};
+
+/// RAw-RRT* from problem.start to problem.goal (Algorithm 3).
+PlanResult plan(const PlanningProblem& problem, const PlannerSettings& settings = {});
+
+/// Replanning for SafeNav Algorithm 4, line 9: plan from `position` to the
+/// point `lookahead` metres (arc length) ahead of position's projection on the
+/// central path; if that point is blocked, the goal slides further along the
+/// path to the first free point (the path's end at most).
+PlanResult replan(const PlanningProblem& problem, const Eigen::Vector2d& position, double lookahead,
+                  const PlannerSettings& settings = {});
+/// Replanning to an explicit goal.
+PlanResult replan_to(const PlanningProblem& problem, const Eigen::Vector2d& position, const Eigen::Vector2d& goal,
+                     const PlannerSettings& settings = {});
+
+/// The point `distance` metres of arc length ahead of the projection of
+/// `position` on `path` (clamped to the path's end).
+Eigen::Vector2d point_ahead(const Eigen::Ref<const Points2>& path, const Eigen::Vector2d& position, double distance);
+
+/// Whether p is inside the field and at least `clearance` away from every obstacle.
+bool point_is_free(const PlanningMap& map, const Eigen::Vector2d& p);
+/// Whether the whole segment a–b is free (exact segment/obstacle tests, not sampling).
+bool segment_is_free(const PlanningMap& map, const Eigen::Vector2d& a, const Eigen::Vector2d& b);
+/// Whether every edge of the polyline is free.
+bool path_is_free(const PlanningMap& map, const Eigen::Ref<const Points2>& path);
+
+/// Cost of a path under eq. 19 with the settings' α, β and resolution.
+PathCost path_cost(const Eigen::Ref<const Points2>& path, const PlanningProblem& problem,
+                   const PlannerSettings& settings = {});
+
+}  // namespace safenav
