@@ -11,6 +11,8 @@ void pybind_motion(py::module_& m);
 void pybind_measurement(py::module_& m);
 void pybind_filters(py::module_& m);
 void pybind_metrics(py::module_& m);
+void pybind_geometry(py::module_& m);
+void pybind_planning(py::module_& m);
 
 /// Release the GIL for a batch call (inputs are already converted).
 using release_gil = py::call_guard<py::gil_scoped_release>;

@@ -8,4 +8,6 @@ PYBIND11_MODULE(_core, m) {
   pybind_measurement(m);
   pybind_filters(m);
   pybind_metrics(m);
+  pybind_geometry(m);
+  pybind_planning(m);
 }

@@ -10,6 +10,9 @@ from .filters import Ekf, FilterResult, InformationFilter, ParticleFilter, filte
 from .measurement import LANBLOC_STD, MeasurementKind, MeasurementModel
 from .metrics import RiskZones, TrajectoryMetrics, evaluate
 from .motion import Bmm, BmmParams, wrap_angle
+from .geometry import Corridor, PathSegments
+from .scenario import Scenario, default_scenario, load_scenario, save_scenario
+from .world import World, ScenarioError
 
 __version__ = "0.1.0"
 
@@ -19,4 +22,6 @@ __all__ = [
     "Ekf", "ParticleFilter", "InformationFilter", "filter_trajectory", "FilterResult",
     "RiskZones", "TrajectoryMetrics", "evaluate",
     "SyntheticConfig", "SyntheticTrajectory", "synthetic_trajectory",
+    "Corridor", "PathSegments",
+    "World", "Scenario", "ScenarioError", "default_scenario", "load_scenario", "save_scenario",
 ]
