@@ -479,6 +479,9 @@ PlanResult plan(const PlanningProblem& problem, const PlannerSettings& settings)
   auto planner = std::make_shared<SeededRRTstar>(si, derive_seed(settings.seed, 1));
   if (settings.range > 0.0) planner->setRange(settings.range);
   planner->setGoalBias(settings.goal_bias);
+  // Radius neighbourhoods (r ≤ range) instead of k-nearest: no long edges, each
+  // costing a full WRS integral, while the tree is sparse.
+  planner->setKNearest(false);
   planner->setProblemDefinition(pdef);
   planner->setup();
 

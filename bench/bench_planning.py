@@ -1,0 +1,228 @@
+"""Benchmark RAw-RRT* (OMPL RRTstar + alpha*length + beta*integral(WRS)) on a
+paper-like 200 x 200 m field.
+
+For a few start/goal pairs (each with a central safe path through free
+waypoints) it prints medians over seeds of:
+  * time to the first solution, time to reach 5 % above the grid optimum,
+    final cost / grid optimum (grid: 16-connected Dijkstra, 1 m, same cost);
+  * plain RRT* (beta = 0) beside RAw-RRT* with length and risk;
+  * speed ratio against a pure-Python RRT* (PythonRobotics-style) with the
+    same iteration budget and the same cost.
+
+Obstacles: 25 discs and polygons (the paper's 25 obstacles; its 25 hazards
+enter here only through the corridor risk term).  Run:
+    python bench/bench_planning.py [--iterations 3000] [--seeds 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+
+import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import dijkstra
+
+from safenav import RiskZones, metrics
+from safenav import planning as P
+
+FIELD = 200.0
+ZONES = RiskZones(half_width=8.0)   # four 2 m zones per side
+RES = 0.5                           # cost-integration step [m]
+RANGE = 10.0
+
+
+def build_world(seed=2024):
+    rng = np.random.default_rng(seed)
+    circles, polys = [], []
+    while len(circles) + len(polys) < 25:
+        c = rng.uniform(20, 180, 2)
+        if rng.random() < 0.6:
+            circles.append((c[0], c[1], rng.uniform(4, 10)))
+        else:
+            n = rng.integers(3, 7)
+            ang = np.sort(rng.uniform(0, 2 * np.pi, n))
+            r = rng.uniform(4, 10, n)
+            polys.append(np.c_[c[0] + r * np.cos(ang), c[1] + r * np.sin(ang)])
+    return P.make_map(upper=(FIELD, FIELD), circles=circles, polygons=polys)
+
+
+def free_point(m, p, rng):
+    p = np.asarray(p, float)
+    while not P.point_is_free(m, p):
+        p = np.clip(p + rng.normal(0, 3, 2), 1, FIELD - 1)
+    return p
+
+
+def scenarios(m):
+    rng = np.random.default_rng(7)
+    dest = free_point(m, (185, 185), rng)
+    out = []
+    for origin, via in [((10, 15), [(60, 40), (120, 110)]), ((15, 120), [(70, 140), (130, 170)]),
+                        ((150, 10), [(160, 80), (150, 140)])]:
+        pts = [free_point(m, origin, rng)] + [free_point(m, v, rng) for v in via] + [dest]
+        out.append(P.PlanningProblem(map=m, start=pts[0], goal=pts[-1], central_path=np.array(pts), zones=ZONES))
+    return out
+
+
+# ------------------------------------------------------------- vectorised geometry
+def inside_any(m, pts):
+    bad = np.zeros(len(pts), bool)
+    for c in m.circles:
+        bad |= np.hypot(pts[:, 0] - c.center[0], pts[:, 1] - c.center[1]) <= c.radius
+    for poly in m.polygons:
+        x, y = pts[:, 0], pts[:, 1]
+        ins = np.zeros(len(pts), bool)
+        for i in range(len(poly)):
+            (xi, yi), (xj, yj) = poly[i], poly[i - 1]
+            cond = (yi > y) != (yj > y)
+            ins ^= cond & (x < (xj - xi) * (y - yi) / np.where(yj == yi, 1, yj - yi) + xi)
+        bad |= ins
+    return bad
+
+
+def edge_cost(problem, a, b, alpha, beta, path):
+    """Cost of straight edges a[k]-b[k] (trapezoid rule on RES steps, as the planner)."""
+    L = np.linalg.norm(b - a, axis=1)
+    n = int(np.ceil(L.max() / RES))
+    t = np.linspace(0, 1, n + 1)
+    pts = a[:, None, :] + t[None, :, None] * (b - a)[:, None, :]
+    w = metrics.wrs(pts.reshape(-1, 2), path, ZONES).reshape(len(a), n + 1)
+    risk = np.trapezoid(w, t, axis=1) * L
+    hit = inside_any(problem.map, pts.reshape(-1, 2)).reshape(len(a), n + 1).any(axis=1)
+    return alpha * L + beta * risk, hit
+
+
+def grid_optimum(problem, alpha, beta, h=1.0):
+    xs = np.arange(0, FIELD + 1e-9, h)
+    nx = len(xs)
+    gx, gy = np.meshgrid(xs, xs, indexing="ij")
+    pts = np.c_[gx.ravel(), gy.ravel()]
+    idx = np.arange(nx * nx).reshape(nx, nx)
+    rows, cols, ws = [], [], []
+    for di, dj in [(1, 0), (0, 1), (1, 1), (1, -1), (2, 1), (1, 2), (2, -1), (1, -2)]:
+        i0, i1 = max(0, -di), nx - max(0, di)
+        j0, j1 = max(0, -dj), nx - max(0, dj)
+        a = idx[i0:i1, j0:j1].ravel()
+        b = idx[i0 + di:i1 + di, j0 + dj:j1 + dj].ravel()
+        c, hit = edge_cost(problem, pts[a], pts[b], alpha, beta, problem.central_path)
+        ok = ~hit
+        rows += [a[ok], b[ok]]
+        cols += [b[ok], a[ok]]
+        ws += [c[ok], c[ok]]
+    g = csr_matrix((np.concatenate(ws), (np.concatenate(rows), np.concatenate(cols))), shape=(nx * nx,) * 2)
+    s = int(round(problem.start[0] / h)) * nx + int(round(problem.start[1] / h))
+    t = int(round(problem.goal[0] / h)) * nx + int(round(problem.goal[1] / h))
+    # start and goal snap to the nearest grid node (within 0.71 m)
+    return float(dijkstra(g, indices=s)[t])
+
+
+# ------------------------------------------------------------- pure-Python RRT*
+def python_rrt_star(problem, alpha, beta, iterations, seed, goal_bias=0.05, expand=RANGE):
+    """PythonRobotics-style RRT* with the same cost; nodes in Python lists."""
+    rng = np.random.default_rng(seed)
+    m, path = problem.map, problem.central_path
+    start, goal = np.asarray(problem.start), np.asarray(problem.goal)
+
+    def cost(a, b):
+        c, hit = edge_cost(problem, a[None], b[None], alpha, beta, path)
+        return float(c[0]), bool(hit[0]) or not P.segment_is_free(m, a, b)
+
+    nodes, parent, cst = [start], [-1], [0.0]
+    best = math.inf
+    goal_nodes = []
+    for it in range(iterations):
+        rnd = goal if rng.random() < goal_bias else rng.uniform(0, FIELD, 2)
+        arr = np.array(nodes)
+        d = np.linalg.norm(arr - rnd, axis=1)
+        k = int(np.argmin(d))
+        step = rnd - nodes[k]
+        dist = np.linalg.norm(step)
+        new = rnd if dist <= expand else nodes[k] + step / dist * expand
+        if inside_any(m, new[None])[0]:
+            continue
+        r = min(expand, 50.0 * math.sqrt(math.log(len(nodes) + 1) / (len(nodes) + 1)))
+        near = np.flatnonzero(np.linalg.norm(arr - new, axis=1) <= max(r, 1e-9))
+        if k not in near:
+            near = np.append(near, k)
+        best_p, best_c = -1, math.inf
+        edge = {}
+        for j in near:
+            c, hit = cost(nodes[j], new)
+            if not hit:
+                edge[j] = c
+                if cst[j] + c < best_c:
+                    best_p, best_c = j, cst[j] + c
+        if best_p < 0:
+            continue
+        nodes.append(new)
+        parent.append(best_p)
+        cst.append(best_c)
+        n_new = len(nodes) - 1
+        for j in near:  # rewire (symmetric edge costs)
+            if j in edge and best_c + edge[j] < cst[j]:
+                parent[j], cst[j] = n_new, best_c + edge[j]
+        if np.linalg.norm(new - goal) < 1e-9:
+            goal_nodes.append(n_new)
+    if goal_nodes:
+        best = min(cst[g] for g in goal_nodes)
+    return best
+
+
+def median(x):
+    x = [v for v in x if v is not None and np.isfinite(v)]
+    return float(np.median(x)) if x else float("nan")
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--iterations", type=int, default=3000)
+    ap.add_argument("--seeds", type=int, default=5)
+    ap.add_argument("--python-iterations", type=int, default=500)
+    args = ap.parse_args()
+    m = build_world()
+    probs = scenarios(m)
+    print(f"field 200x200 m, {len(m.circles)} discs + {len(m.polygons)} polygons, corridor half-width "
+          f"{ZONES.half_width} m, resolution {RES} m, range {RANGE} m, {args.iterations} iterations, "
+          f"{args.seeds} seeds (medians)\n")
+    hdr = (f"{'path':4} {'planner':9} {'t_first[s]':>10} {'t_5%[s]':>8} {'cost/grid':>9} {'length':>8} "
+           f"{'risk':>8} {'plan[s]':>8}")
+    print(hdr)
+    for pi, prob in enumerate(probs, 1):
+        for name, beta in (("RRT*", 0.0), ("RAw-RRT*", 1.0)):
+            ref = grid_optimum(prob, 1.0, beta)
+            tf, t5, ratio, L, R, T = [], [], [], [], [], []
+            for s in range(args.seeds):
+                r = P.plan(prob, alpha=1.0, beta=beta, seed=s, max_iterations=args.iterations, range=RANGE,
+                           resolution=RES)
+                if not r.success:
+                    continue
+                h = r.cost_history
+                tf.append(r.first_solution_time)
+                within = np.flatnonzero(h[:, 2] <= 1.05 * ref)
+                t5.append(h[within[0], 1] if len(within) else None)
+                ratio.append(r.cost.total / ref)
+                L.append(r.cost.length)
+                R.append(r.cost.risk)
+                T.append(r.planning_time)
+            print(f"P{pi:<3} {name:9} {median(tf):10.3f} {median(t5):8.3f} {median(ratio):9.3f} {median(L):8.1f} "
+                  f"{median(R):8.1f} {median(T):8.2f}   (grid optimum {ref:.1f}, reached 5%: "
+                  f"{sum(v is not None for v in t5)}/{len(t5)})")
+    print(f"\nspeed vs pure-Python RRT* ({args.python_iterations} iterations, beta = 1, same cost):")
+    ratios = []
+    for pi, prob in enumerate(probs, 1):
+        t = time.perf_counter()
+        c_py = python_rrt_star(prob, 1.0, 1.0, args.python_iterations, seed=0)
+        t_py = time.perf_counter() - t
+        t = time.perf_counter()
+        r = P.plan(prob, beta=1.0, seed=0, max_iterations=args.python_iterations, range=RANGE, resolution=RES)
+        t_cpp = time.perf_counter() - t
+        ratios.append(t_py / t_cpp)
+        print(f"P{pi}: python {t_py:7.2f} s (cost {c_py:8.1f})   OMPL {t_cpp:6.3f} s (cost "
+              f"{r.cost.total if r.success else float('nan'):8.1f})   ratio {t_py / t_cpp:6.1f}x")
+    print(f"median speed ratio {np.median(ratios):.1f}x")
+
+
+if __name__ == "__main__":
+    main()
