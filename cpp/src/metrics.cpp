@@ -10,8 +10,7 @@
 
 namespace safenav {
 
-namespace {
-void check_points(const Eigen::Ref<const Points2>& p, const char* what, Eigen::Index min_rows = 1) {
+void check_points(const Eigen::Ref<const Points2>& p, const char* what, Eigen::Index min_rows) {
   if (p.rows() < min_rows) {
     std::ostringstream os;
     os << what << " needs at least " << min_rows << " point(s), got " << p.rows();
@@ -25,7 +24,6 @@ void check_points(const Eigen::Ref<const Points2>& p, const char* what, Eigen::I
     }
   }
 }
-}  // namespace
 
 double ade(const Eigen::Ref<const Points2>& est, const Eigen::Ref<const Points2>& truth) {
   check_points(est, "estimate");

@@ -11,6 +11,10 @@ namespace safenav {
 
 using Points2 = Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor>;
 
+/// Throws std::invalid_argument unless `points` has at least `min_rows` rows,
+/// all finite; the message names `what` and the first bad point.
+void check_points(const Eigen::Ref<const Points2>& points, const char* what, Eigen::Index min_rows = 1);
+
 /// ADE = (1/N) Σ ‖Ŷ_t − Y_t‖ (eq. 21).  Both trajectories must have the same
 /// number of points (the definition pairs them by time).
 double ade(const Eigen::Ref<const Points2>& estimate, const Eigen::Ref<const Points2>& truth);
