@@ -69,6 +69,14 @@ def make_map(lower=(0.0, 0.0), upper=(200.0, 200.0), circles: Iterable = (), pol
                        clearance=float(clearance))
 
 
+def map_from_world(world, clearance: float = 0.0) -> PlanningMap:
+    """The planning map of a :class:`safenav.World`: its field and obstacles
+    (hazards carry risk, not collision, and are not obstacles)."""
+    lower, upper = world.field.bounds
+    return make_map(lower, upper, circles=world.circle_array(), polygons=world.polygon_arrays(),
+                    clearance=clearance)
+
+
 def plan(problem: PlanningProblem, settings: PlannerSettings | None = None, **kwargs) -> PlanResult:
     """RAw-RRT* from ``problem.start`` to ``problem.goal``.  Settings as a
     ``PlannerSettings`` or as keywords (``alpha``, ``beta``, ``range``,
