@@ -10,32 +10,20 @@
 #include <sstream>
 #include <stdexcept>
 
-#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
-#include <CGAL/Polygon_2_algorithms.h>
 #include <CGAL/convex_hull_2.h>
+
+#include "cgal_util.hpp"
 
 namespace safenav {
 
 namespace {
 
-using K = CGAL::Exact_predicates_inexact_constructions_kernel;
-using Point = K::Point_2;
+using cgal::K;
+using cgal::Point;
+using cgal::from_cgal;
+using cgal::inside_or_on;
+using cgal::to_cgal;
 constexpr double kPi = 3.14159265358979323846;
-
-void check_finite(const Eigen::Ref<const Points2>& p, const char* what, Eigen::Index min_rows) {
-  if (p.rows() < min_rows) {
-    std::ostringstream os;
-    os << what << " needs at least " << min_rows << " point(s), got " << p.rows();
-    throw std::invalid_argument(os.str());
-  }
-  for (Eigen::Index i = 0; i < p.rows(); ++i) {
-    if (!p.row(i).allFinite()) {
-      std::ostringstream os;
-      os << what << " point " << i << " = (" << p(i, 0) << ", " << p(i, 1) << ") is not finite";
-      throw std::invalid_argument(os.str());
-    }
-  }
-}
 
 void check_point(const Eigen::Vector2d& p, const char* what) {
   if (!p.allFinite()) {
@@ -50,32 +38,12 @@ double check_s(double s) {
   return s;
 }
 
-std::vector<Point> to_cgal(const Eigen::Ref<const Points2>& p) {
-  std::vector<Point> out;
-  out.reserve(static_cast<size_t>(p.rows()));
-  for (Eigen::Index i = 0; i < p.rows(); ++i) out.emplace_back(p(i, 0), p(i, 1));
-  return out;
-}
-
-Points2 from_cgal(const std::vector<Point>& pts) {
-  Points2 out(static_cast<Eigen::Index>(pts.size()), 2);
-  for (size_t i = 0; i < pts.size(); ++i) {
-    out(static_cast<Eigen::Index>(i), 0) = pts[i].x();
-    out(static_cast<Eigen::Index>(i), 1) = pts[i].y();
-  }
-  return out;
-}
-
-bool inside_or_on(const std::vector<Point>& poly, const Point& q) {
-  return CGAL::bounded_side_2(poly.begin(), poly.end(), q, K()) != CGAL::ON_UNBOUNDED_SIDE;
-}
-
 }  // namespace
 
 // ------------------------------------------------------------- free functions
 
 Points2 convex_hull(const Eigen::Ref<const Points2>& points) {
-  check_finite(points, "convex_hull input", 1);
+  check_points(points, "convex_hull input", 1);
   const std::vector<Point> in = to_cgal(points);
   std::vector<Point> out;
   CGAL::convex_hull_2(in.begin(), in.end(), std::back_inserter(out), K());
@@ -83,8 +51,8 @@ Points2 convex_hull(const Eigen::Ref<const Points2>& points) {
 }
 
 BoolVector points_in_polygon(const Eigen::Ref<const Points2>& points, const Eigen::Ref<const Points2>& polygon) {
-  check_finite(points, "points", 0);
-  check_finite(polygon, "polygon", 3);
+  check_points(points, "points", 0);
+  check_points(polygon, "polygon", 3);
   const std::vector<Point> poly = to_cgal(polygon);
   if (!CGAL::is_simple_2(poly.begin(), poly.end(), K()))
     throw std::invalid_argument("polygon is not simple (its edges cross or it has repeated vertices)");
@@ -97,7 +65,7 @@ BoolVector points_in_polygon(const Eigen::Ref<const Points2>& points, const Eige
 
 Corridor::Corridor(const Eigen::Ref<const Points2>& path, RiskZones zones) : zones_(std::move(zones)) {
   zones_.validate();
-  check_finite(path, "path", 2);
+  check_points(path, "path", 2);
   // Drop consecutive duplicates (zero-length edges).
   std::vector<Eigen::Index> keep{0};
   for (Eigen::Index i = 1; i < path.rows(); ++i)
@@ -179,7 +147,7 @@ double Corridor::wrs(const Eigen::Vector2d& p) const { return safenav::wrs(proje
 namespace {
 template <class Out, class F>
 Out per_point(const Eigen::Ref<const Points2>& pts, F f) {
-  check_finite(pts, "points", 0);
+  check_points(pts, "points", 0);
   Out out(pts.rows());
   for (Eigen::Index i = 0; i < pts.rows(); ++i) out[i] = f(Eigen::Vector2d(pts(i, 0), pts(i, 1)));
   return out;
@@ -208,7 +176,7 @@ Eigen::VectorXd Corridor::wrs(const Eigen::Ref<const Points2>& pts) const {
   return per_point<Eigen::VectorXd>(pts, [&](const Eigen::Vector2d& p) { return wrs(p); });
 }
 double Corridor::awrs(const Eigen::Ref<const Points2>& pts) const {
-  check_finite(pts, "points", 1);
+  check_points(pts, "points", 1);
   return wrs(pts).mean();
 }
 Points2 Corridor::points_at(const Eigen::Ref<const Eigen::VectorXd>& s) const {

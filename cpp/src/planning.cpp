@@ -15,6 +15,7 @@
 #include <cmath>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 
@@ -32,6 +33,9 @@
 #include <ompl/util/Console.h>
 #include <ompl/util/RandomNumbers.h>
 
+#include "cgal_util.hpp"
+#include "safenav/geometry.hpp"
+
 namespace safenav {
 namespace {
 
@@ -48,43 +52,6 @@ std::string fmt(const Vec2& p) {
 }
 
 // ---------------------------------------------------------------- geometry
-double cross(const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); }
-
-double point_segment_distance(const Vec2& p, const Vec2& a, const Vec2& b) {
-  const Vec2 ab = b - a;
-  const double l2 = ab.squaredNorm();
-  const double t = l2 > 0.0 ? std::clamp((p - a).dot(ab) / l2, 0.0, 1.0) : 0.0;
-  return (a + t * ab - p).norm();
-}
-
-bool segments_intersect(const Vec2& a, const Vec2& b, const Vec2& c, const Vec2& d) {
-  const double d1 = cross(b - a, c - a), d2 = cross(b - a, d - a);
-  const double d3 = cross(d - c, a - c), d4 = cross(d - c, b - c);
-  if (((d1 > 0 && d2 < 0) || (d1 < 0 && d2 > 0)) && ((d3 > 0 && d4 < 0) || (d3 < 0 && d4 > 0))) return true;
-  // Collinear or touching cases are caught by the endpoint distances below.
-  return false;
-}
-
-double segment_segment_distance(const Vec2& a, const Vec2& b, const Vec2& c, const Vec2& d) {
-  if (segments_intersect(a, b, c, d)) return 0.0;
-  return std::min({point_segment_distance(a, c, d), point_segment_distance(b, c, d),
-                   point_segment_distance(c, a, b), point_segment_distance(d, a, b)});
-}
-
-// Crossing-number test; boundary points count as inside via the distance test
-// of the callers.
-bool point_in_polygon(const Vec2& p, const Points2& poly) {
-  bool inside = false;
-  const Eigen::Index n = poly.rows();
-  for (Eigen::Index i = 0, j = n - 1; i < n; j = i++) {
-    const double xi = poly(i, 0), yi = poly(i, 1), xj = poly(j, 0), yj = poly(j, 1);
-    if ((yi > p.y()) != (yj > p.y()) && p.x() < (xj - xi) * (p.y() - yi) / (yj - yi) + xi) inside = !inside;
-  }
-  return inside;
-}
-
-Vec2 vertex(const Points2& poly, Eigen::Index i) { return Vec2(poly(i, 0), poly(i, 1)); }
-
 // Polygon with a repeated closing vertex removed.
 Points2 open_polygon(const Points2& poly) {
   if (poly.rows() > 1 && poly.row(0) == poly.row(poly.rows() - 1)) return poly.topRows(poly.rows() - 1);
@@ -95,54 +62,89 @@ bool in_bounds(const PlanningMap& map, const Vec2& p) {
   return p.x() >= map.lower.x() && p.x() <= map.upper.x() && p.y() >= map.lower.y() && p.y() <= map.upper.y();
 }
 
-// Path length along `path` up to the projection of p, and the projection.
-double arc_length_of_projection(const Points2& path, const Vec2& p) {
-  double best = std::numeric_limits<double>::infinity(), s_best = 0.0, s = 0.0;
-  for (Eigen::Index i = 0; i + 1 < path.rows(); ++i) {
-    const Vec2 a = vertex(path, i), b = vertex(path, i + 1);
-    const Vec2 ab = b - a;
-    const double l = ab.norm();
-    const double t = l > 0.0 ? std::clamp((p - a).dot(ab) / (l * l), 0.0, 1.0) : 0.0;
-    const double d = (a + t * ab - p).norm();
-    if (d < best) best = d, s_best = s + t * l;
-    s += l;
-  }
-  return s_best;
-}
-
-Vec2 point_at_arc_length(const Points2& path, double s) {
-  if (path.rows() == 1 || s <= 0.0) return vertex(path, 0);
-  for (Eigen::Index i = 0; i + 1 < path.rows(); ++i) {
-    const Vec2 a = vertex(path, i), b = vertex(path, i + 1);
-    const double l = (b - a).norm();
-    if (s <= l) return l > 0.0 ? Vec2(a + (s / l) * (b - a)) : a;
-    s -= l;
-  }
-  return vertex(path, path.rows() - 1);
-}
-
-double path_arc_length(const Points2& path) { return path.rows() < 2 ? 0.0 : path_length(path); }
-
-// Risk of one point: WRS (eq. 18) of its deviation (eq. 17) from the central path.
-class RiskField {
+// A map's obstacles as CGAL objects, built once per map.  A point or segment
+// collides when it is inside or on a polygon (CGAL::bounded_side_2), crosses
+// an edge (CGAL::do_intersect) or comes within the clearance of an obstacle
+// (CGAL::squared_distance); the boundary counts as a collision.
+class Obstacles {
  public:
-  RiskField(const Points2& path, const RiskZones& zones) : path_(path), zones_(zones), query_(1, 2) {}
-  double operator()(double x, double y) const {
-    if (path_.rows() == 0) return 0.0;
-    query_(0, 0) = x;
-    query_(0, 1) = y;
-    return wrs(distance_to_path(query_, path_)[0], zones_);
+  explicit Obstacles(const PlanningMap& map) : map_(map) {
+    for (const auto& raw : map.polygons) {
+      polygons_.push_back(cgal::to_cgal(open_polygon(raw)));
+      const auto& poly = polygons_.back();
+      std::vector<cgal::Segment> edges;
+      for (std::size_t i = 0; i < poly.size(); ++i) edges.emplace_back(poly[i], poly[(i + 1) % poly.size()]);
+      edges_.push_back(std::move(edges));
+    }
   }
-  double deviation(double x, double y) const {
-    query_(0, 0) = x;
-    query_(0, 1) = y;
-    return distance_to_path(query_, path_)[0];
+
+  bool point_free(const Vec2& p) const {
+    if (!in_bounds(map_, p)) return false;
+    for (const auto& c : map_.circles)
+      if ((p - c.center).norm() <= c.radius + map_.clearance) return false;
+    const cgal::Point q = cgal::point(p);
+    const double c2 = map_.clearance * map_.clearance;
+    for (std::size_t k = 0; k < polygons_.size(); ++k) {
+      if (cgal::inside_or_on(polygons_[k], q)) return false;
+      for (const auto& e : edges_[k])
+        if (CGAL::squared_distance(q, e) <= c2) return false;
+    }
+    return true;
+  }
+
+  bool segment_free(const Vec2& a, const Vec2& b) const {
+    // The field is convex: both ends inside means the whole segment is.
+    if (!in_bounds(map_, a) || !in_bounds(map_, b)) return false;
+    const cgal::Segment ab(cgal::point(a), cgal::point(b));
+    for (const auto& c : map_.circles) {
+      const double r = c.radius + map_.clearance;
+      if (CGAL::squared_distance(cgal::point(c.center), ab) <= r * r) return false;
+    }
+    const double c2 = map_.clearance * map_.clearance;
+    for (std::size_t k = 0; k < polygons_.size(); ++k) {
+      // A segment inside the polygon touches no edge.
+      if (cgal::inside_or_on(polygons_[k], ab.source())) return false;
+      for (const auto& e : edges_[k])
+        if (CGAL::do_intersect(ab, e) || CGAL::squared_distance(ab, e) <= c2) return false;
+    }
+    return true;
   }
 
  private:
-  Points2 path_;
+  const PlanningMap& map_;
+  std::vector<std::vector<cgal::Point>> polygons_;
+  std::vector<std::vector<cgal::Segment>> edges_;
+};
+
+// The central path of the risk term: a Corridor (deviation, eq. 17; WRS,
+// eq. 18), or, when the path has a single distinct point, that point.
+class CentralPath {
+ public:
+  CentralPath(const Points2& path, const RiskZones& zones) : zones_(zones) {
+    if (path.rows() == 0) return;
+    empty_ = false;
+    point_ = Vec2(path(0, 0), path(0, 1));
+    for (Eigen::Index i = 1; i < path.rows(); ++i)
+      if (path.row(i) != path.row(0)) {
+        corridor_.emplace(path, zones);
+        break;
+      }
+  }
+  bool empty() const { return empty_; }
+  double deviation(const Vec2& p) const { return corridor_ ? corridor_->project(p).distance : (p - point_).norm(); }
+  double risk(const Vec2& p) const {
+    if (empty_) return 0.0;
+    return corridor_ ? corridor_->wrs(p) : wrs((p - point_).norm(), zones_);
+  }
+  double arc_length(const Vec2& p) const { return corridor_ ? corridor_->project(p).arc_length : 0.0; }
+  Vec2 point_at(double s) const { return corridor_ ? corridor_->point_at(s) : point_; }
+  double length() const { return corridor_ ? corridor_->length() : 0.0; }
+
+ private:
   RiskZones zones_;
-  mutable Points2 query_;
+  bool empty_ = true;
+  Vec2 point_{0, 0};
+  std::optional<Corridor> corridor_;
 };
 
 // Sub-step count of an edge: OMPL's validSegmentCount() for a space whose
@@ -156,17 +158,19 @@ const double* xy(const ob::State* s) { return s->as<ob::RealVectorStateSpace::St
 
 class Checker : public ob::StateValidityChecker {
  public:
-  Checker(const ob::SpaceInformationPtr& si, const PlanningMap& map, const RiskField* corridor, double half_width)
-      : ob::StateValidityChecker(si), map_(map), corridor_(corridor), half_width_(half_width) {}
+  Checker(const ob::SpaceInformationPtr& si, const Obstacles& obstacles, const CentralPath* corridor,
+          double half_width)
+      : ob::StateValidityChecker(si), obstacles_(obstacles), corridor_(corridor), half_width_(half_width) {}
   bool isValid(const ob::State* s) const override {
     const double* v = xy(s);
-    if (!point_is_free(map_, Vec2(v[0], v[1]))) return false;
-    return !corridor_ || corridor_->deviation(v[0], v[1]) <= half_width_;
+    const Vec2 p(v[0], v[1]);
+    if (!obstacles_.point_free(p)) return false;
+    return !corridor_ || corridor_->deviation(p) <= half_width_;
   }
 
  private:
-  const PlanningMap& map_;
-  const RiskField* corridor_;
+  const Obstacles& obstacles_;
+  const CentralPath* corridor_;
   double half_width_;
 };
 
@@ -174,9 +178,9 @@ class Checker : public ob::StateValidityChecker {
 // constraint is checked every `step` metres.
 class MotionChecker : public ob::MotionValidator {
  public:
-  MotionChecker(const ob::SpaceInformationPtr& si, const PlanningMap& map, const RiskField* corridor,
+  MotionChecker(const ob::SpaceInformationPtr& si, const Obstacles& obstacles, const CentralPath* corridor,
                 double half_width, double step)
-      : ob::MotionValidator(si), map_(map), corridor_(corridor), half_width_(half_width), step_(step) {}
+      : ob::MotionValidator(si), obstacles_(obstacles), corridor_(corridor), half_width_(half_width), step_(step) {}
 
   bool checkMotion(const ob::State* s1, const ob::State* s2) const override {
     const double *a = xy(s1), *b = xy(s2);
@@ -205,17 +209,17 @@ class MotionChecker : public ob::MotionValidator {
 
  private:
   bool free(const Vec2& a, const Vec2& b) const {
-    if (!segment_is_free(map_, a, b)) return false;
+    if (!obstacles_.segment_free(a, b)) return false;
     if (!corridor_) return true;
     const unsigned int n = std::max(1u, segment_count((b - a).norm(), step_));
     for (unsigned int j = 0; j <= n; ++j) {
       const Vec2 p = a + (static_cast<double>(j) / n) * (b - a);
-      if (corridor_->deviation(p.x(), p.y()) > half_width_) return false;
+      if (corridor_->deviation(p) > half_width_) return false;
     }
     return true;
   }
-  const PlanningMap& map_;
-  const RiskField* corridor_;
+  const Obstacles& obstacles_;
+  const CentralPath* corridor_;
   double half_width_, step_;
 };
 
@@ -223,17 +227,17 @@ class MotionChecker : public ob::MotionValidator {
 // enableMotionCostInterpolation = true).
 class WrsObjective : public ob::StateCostIntegralObjective {
  public:
-  WrsObjective(const ob::SpaceInformationPtr& si, const RiskField& risk)
+  WrsObjective(const ob::SpaceInformationPtr& si, const CentralPath& risk)
       : ob::StateCostIntegralObjective(si, true), risk_(risk) {
     description_ = "weighted risk score (SafeNav eq. 18) integrated along the path";
   }
   ob::Cost stateCost(const ob::State* s) const override {
     const double* v = xy(s);
-    return ob::Cost(risk_(v[0], v[1]));
+    return ob::Cost(risk_.risk(Vec2(v[0], v[1])));
   }
 
  private:
-  const RiskField& risk_;
+  const CentralPath& risk_;
 };
 
 class SeededSampler : public ob::RealVectorStateSampler {
@@ -278,19 +282,45 @@ Points2 to_points(const og::PathGeometric& path) {
   return out;
 }
 
-void check_point(const PlanningProblem& problem, const PlannerSettings& settings, const Vec2& p,
-                 const std::string& name) {
+void check_point(const PlanningProblem& problem, const PlannerSettings& settings, const Obstacles& obstacles,
+                 const CentralPath& central, const Vec2& p, const std::string& name) {
   if (!p.allFinite()) bad(name + " " + fmt(p) + " is not finite");
   if (!in_bounds(problem.map, p))
     bad(name + " " + fmt(p) + " is outside the field " + fmt(problem.map.lower) + "–" + fmt(problem.map.upper));
-  if (!point_is_free(problem.map, p)) bad(name + " " + fmt(p) + " is inside an obstacle (or within its clearance)");
+  if (!obstacles.point_free(p)) bad(name + " " + fmt(p) + " is inside an obstacle (or within its clearance)");
   if (settings.stay_in_corridor) {
-    const RiskField f(problem.central_path, problem.zones);
-    const double d = f.deviation(p.x(), p.y());
+    const double d = central.deviation(p);
     if (d > problem.zones.half_width)
       bad(name + " " + fmt(p) + " is " + std::to_string(d) + " m from the central path, outside the corridor (half_width " +
           std::to_string(problem.zones.half_width) + ")");
   }
+}
+
+// path_cost() with the central path already built.
+PathCost cost_of(const Eigen::Ref<const Points2>& path, const CentralPath& risk, const PlanningProblem& problem,
+                 const PlannerSettings& settings) {
+  // The same step as OMPL's longest valid segment (extent · fraction).
+  const double extent = (problem.map.upper - problem.map.lower).norm();
+  const double step = extent * (settings.resolution / extent);
+  PathCost c;
+  for (Eigen::Index i = 0; i + 1 < path.rows(); ++i) {
+    const Vec2 a(path(i, 0), path(i, 1)), b(path(i + 1, 0), path(i + 1, 1));
+    const double len = (b - a).norm();
+    c.length += len;
+    if (risk.empty()) continue;
+    const unsigned int n = std::max(1u, segment_count(len, step));
+    Vec2 prev = a;
+    double r_prev = risk.risk(a);
+    for (unsigned int j = 1; j <= n; ++j) {
+      const Vec2 q = j == n ? b : Vec2(a + (static_cast<double>(j) / n) * (b - a));
+      const double r = risk.risk(q);
+      c.risk += 0.5 * (r_prev + r) * (q - prev).norm();
+      prev = q;
+      r_prev = r;
+    }
+  }
+  c.total = settings.alpha * c.length + settings.beta * c.risk;
+  return c;
 }
 
 }  // namespace
@@ -347,40 +377,21 @@ std::string to_string(PlanStatus status) {
 }
 
 // ---------------------------------------------------------------- geometry API
-bool point_is_free(const PlanningMap& map, const Vec2& p) {
-  if (!in_bounds(map, p)) return false;
-  for (const auto& c : map.circles)
-    if ((p - c.center).norm() <= c.radius + map.clearance) return false;
-  for (const auto& raw : map.polygons) {
-    const Points2 poly = open_polygon(raw);
-    if (point_in_polygon(p, poly)) return false;
-    const Eigen::Index n = poly.rows();
-    for (Eigen::Index i = 0; i < n; ++i)
-      if (point_segment_distance(p, vertex(poly, i), vertex(poly, (i + 1) % n)) <= map.clearance) return false;
-  }
-  return true;
-}
+bool point_is_free(const PlanningMap& map, const Vec2& p) { return Obstacles(map).point_free(p); }
 
 bool segment_is_free(const PlanningMap& map, const Vec2& a, const Vec2& b) {
   if (!a.allFinite() || !b.allFinite()) bad("segment " + fmt(a) + "–" + fmt(b) + " is not finite");
-  // The field is convex: both ends inside means the whole segment is.
-  if (!in_bounds(map, a) || !in_bounds(map, b)) return false;
-  for (const auto& c : map.circles)
-    if (point_segment_distance(c.center, a, b) <= c.radius + map.clearance) return false;
-  for (const auto& raw : map.polygons) {
-    const Points2 poly = open_polygon(raw);
-    if (point_in_polygon(a, poly)) return false;  // a segment inside the polygon touches no edge
-    const Eigen::Index n = poly.rows();
-    for (Eigen::Index i = 0; i < n; ++i)
-      if (segment_segment_distance(a, b, vertex(poly, i), vertex(poly, (i + 1) % n)) <= map.clearance) return false;
-  }
-  return true;
+  return Obstacles(map).segment_free(a, b);
 }
 
 bool path_is_free(const PlanningMap& map, const Eigen::Ref<const Points2>& path) {
-  if (path.rows() == 1) return point_is_free(map, Vec2(path(0, 0), path(0, 1)));
-  for (Eigen::Index i = 0; i + 1 < path.rows(); ++i)
-    if (!segment_is_free(map, Vec2(path(i, 0), path(i, 1)), Vec2(path(i + 1, 0), path(i + 1, 1)))) return false;
+  const Obstacles obstacles(map);
+  if (path.rows() == 1) return obstacles.point_free(Vec2(path(0, 0), path(0, 1)));
+  for (Eigen::Index i = 0; i + 1 < path.rows(); ++i) {
+    const Vec2 a(path(i, 0), path(i, 1)), b(path(i + 1, 0), path(i + 1, 1));
+    if (!a.allFinite() || !b.allFinite()) bad("segment " + fmt(a) + "–" + fmt(b) + " is not finite");
+    if (!obstacles.segment_free(a, b)) return false;
+  }
   return true;
 }
 
@@ -389,37 +400,15 @@ Vec2 point_ahead(const Eigen::Ref<const Points2>& path, const Vec2& position, do
   if (!path.allFinite()) bad("path has a non-finite point");
   if (!position.allFinite()) bad("position " + fmt(position) + " is not finite");
   if (!std::isfinite(distance)) bad("distance " + std::to_string(distance) + " is not finite");
-  const Points2 p = path;
-  return point_at_arc_length(p, arc_length_of_projection(p, position) + distance);
+  const CentralPath central(path, RiskZones{});
+  return central.point_at(central.arc_length(position) + distance);
 }
 
 PathCost path_cost(const Eigen::Ref<const Points2>& path, const PlanningProblem& problem,
                    const PlannerSettings& settings) {
   settings.validate();
   if (!path.allFinite()) bad("path has a non-finite point");
-  const RiskField risk(problem.central_path, problem.zones);
-  // The same step as OMPL's longest valid segment (extent · fraction).
-  const double extent = (problem.map.upper - problem.map.lower).norm();
-  const double step = extent * (settings.resolution / extent);
-  PathCost c;
-  for (Eigen::Index i = 0; i + 1 < path.rows(); ++i) {
-    const Vec2 a(path(i, 0), path(i, 1)), b(path(i + 1, 0), path(i + 1, 1));
-    const double len = (b - a).norm();
-    c.length += len;
-    if (problem.central_path.rows() == 0) continue;
-    const unsigned int n = std::max(1u, segment_count(len, step));
-    Vec2 prev = a;
-    double r_prev = risk(a.x(), a.y());
-    for (unsigned int j = 1; j <= n; ++j) {
-      const Vec2 q = j == n ? b : Vec2(a + (static_cast<double>(j) / n) * (b - a));
-      const double r = risk(q.x(), q.y());
-      c.risk += 0.5 * (r_prev + r) * (q - prev).norm();
-      prev = q;
-      r_prev = r;
-    }
-  }
-  c.total = settings.alpha * c.length + settings.beta * c.risk;
-  return c;
+  return cost_of(path, CentralPath(problem.central_path, problem.zones), problem, settings);
 }
 
 // ---------------------------------------------------------------- planning
@@ -429,13 +418,14 @@ PlanResult plan(const PlanningProblem& problem, const PlannerSettings& settings)
   const bool has_risk = problem.central_path.rows() > 0;
   if (settings.stay_in_corridor && !has_risk) bad("stay_in_corridor needs a central_path");
   if (settings.alpha == 0.0 && !has_risk) bad("alpha = 0 needs a central_path for the risk term");
-  check_point(problem, settings, problem.start, "start");
-  check_point(problem, settings, problem.goal, "goal");
+  const PlanningMap& map = problem.map;
+  const Obstacles obstacles(map);
+  const CentralPath risk(problem.central_path, problem.zones);
+  const CentralPath* corridor = settings.stay_in_corridor ? &risk : nullptr;
+  check_point(problem, settings, obstacles, risk, problem.start, "start");
+  check_point(problem, settings, obstacles, risk, problem.goal, "goal");
 
   ompl::msg::setLogLevel(ompl::msg::LOG_ERROR);
-  const PlanningMap& map = problem.map;
-  const RiskField risk(problem.central_path, problem.zones);
-  const RiskField* corridor = settings.stay_in_corridor ? &risk : nullptr;
 
   auto space = std::make_shared<ob::RealVectorStateSpace>(2);
   ob::RealVectorBounds bounds(2);
@@ -450,9 +440,9 @@ PlanResult plan(const PlanningProblem& problem, const PlannerSettings& settings)
   space->setLongestValidSegmentFraction(settings.resolution / space->getMaximumExtent());
 
   auto si = std::make_shared<ob::SpaceInformation>(space);
-  si->setStateValidityChecker(std::make_shared<Checker>(si, map, corridor, problem.zones.half_width));
+  si->setStateValidityChecker(std::make_shared<Checker>(si, obstacles, corridor, problem.zones.half_width));
   si->setMotionValidator(
-      std::make_shared<MotionChecker>(si, map, corridor, problem.zones.half_width, settings.resolution));
+      std::make_shared<MotionChecker>(si, obstacles, corridor, problem.zones.half_width, settings.resolution));
   si->setup();
 
   // α·length + β·∫WRS (eqs. 16, 19) as a sum of OMPL objectives.
@@ -537,17 +527,17 @@ PlanResult plan(const PlanningProblem& problem, const PlannerSettings& settings)
         const unsigned int n = std::max(1u, segment_count((b - a).norm(), settings.resolution));
         for (unsigned int j = 0; ok && j <= n; ++j) {
           const Vec2 q = a + (static_cast<double>(j) / n) * (b - a);
-          ok = risk.deviation(q.x(), q.y()) <= problem.zones.half_width;
+          ok = risk.deviation(q) <= problem.zones.half_width;
         }
       }
     }
-    if (ok && path_cost(candidate, problem, settings).total <= path_cost(points, problem, settings).total)
+    if (ok && cost_of(candidate, risk, problem, settings).total <= cost_of(points, risk, problem, settings).total)
       points = candidate;
   }
   result.status = exact ? PlanStatus::Exact : PlanStatus::Approximate;
   result.success = exact;
   result.path = points;
-  result.cost = path_cost(points, problem, settings);
+  result.cost = cost_of(points, risk, problem, settings);
   return result;
 }
 
@@ -566,14 +556,14 @@ PlanResult replan(const PlanningProblem& problem, const Vec2& position, double l
   problem.validate();
   settings.validate();
   if (!position.allFinite()) bad("position " + fmt(position) + " is not finite");
-  const Points2& path = problem.central_path;
-  const double total = path_arc_length(path);
-  double s = arc_length_of_projection(path, position) + lookahead;
-  Vec2 goal = point_at_arc_length(path, s);
+  const CentralPath path(problem.central_path, problem.zones);
+  const double total = path.length();
+  double s = path.arc_length(position) + lookahead;
+  Vec2 goal = path.point_at(s);
   // Slide the goal past whatever blocks it (Algorithm 4: a point ahead on the safe path).
   while (!point_is_free(problem.map, goal) && s < total) {
     s += settings.resolution;
-    goal = point_at_arc_length(path, s);
+    goal = path.point_at(s);
   }
   if (!point_is_free(problem.map, goal))
     bad("no free point on the central path ahead of " + fmt(position) + " (the path's end " + fmt(goal) +
