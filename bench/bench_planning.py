@@ -1,17 +1,17 @@
-"""Benchmark RAw-RRT* (OMPL RRTstar + alpha*length + beta*integral(WRS)) on a
-paper-like 200 x 200 m field.
+"""Benchmark RAw-RRT* (OMPL RRTstar + alpha*length + beta*integral(WRS)) on the
+built-in default scenario (the paper's 200 x 200 m real-imitated world).
 
-For a few start/goal pairs (each with a central safe path through free
-waypoints) it prints medians over seeds of:
+For each path type (P1-P3: first to last cluster centroid, the ground-truth
+polyline as the central safe path) it prints medians over seeds of:
   * time to the first solution, time to reach 5 % above the grid optimum,
     final cost / grid optimum (grid: 16-connected Dijkstra, 1 m, same cost);
   * plain RRT* (beta = 0) beside RAw-RRT* with length and risk;
   * speed ratio against a pure-Python RRT* (PythonRobotics-style) with the
     same iteration budget and the same cost.
 
-Obstacles: 25 discs and polygons (the paper's 25 obstacles; its 25 hazards
+Obstacles: the scenario's 25 (its 25 hazards carry risk, not collision, and
 enter here only through the corridor risk term).  Run:
-    python bench/bench_planning.py [--iterations 3000] [--seeds 5]
+    python bench/bench_planning.py [--iterations 30000] [--seeds 3]
 """
 
 from __future__ import annotations
@@ -24,62 +24,34 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
-from safenav import RiskZones, metrics
+import safenav
+from safenav import metrics
 from safenav import planning as P
 
-FIELD = 200.0
-ZONES = RiskZones(half_width=8.0)   # four 2 m zones per side
+SCENARIO = safenav.default_scenario()
+WORLD = SCENARIO.world
+FIELD = float(WORLD.field.width)    # 200 m square field
+ZONES = SCENARIO.risk_zones()       # half-width 8 m, four 2 m zones per side
 RES = 0.5                           # cost-integration step [m]
 RANGE = 10.0
 
 
-def build_world(seed=2024):
-    rng = np.random.default_rng(seed)
-    circles, polys = [], []
-    while len(circles) + len(polys) < 25:
-        c = rng.uniform(20, 180, 2)
-        if rng.random() < 0.6:
-            circles.append((c[0], c[1], rng.uniform(4, 10)))
-        else:
-            n = rng.integers(3, 7)
-            ang = np.sort(rng.uniform(0, 2 * np.pi, n))
-            r = rng.uniform(4, 10, n)
-            polys.append(np.c_[c[0] + r * np.cos(ang), c[1] + r * np.sin(ang)])
-    return P.make_map(upper=(FIELD, FIELD), circles=circles, polygons=polys)
+def default_problems():
+    """The built-in default scenario (SafeNav V-A real-imitated world): one
+    problem per path type, from the first to the last cluster centroid, with
+    the ground-truth polyline as the central safe path."""
+    sc = safenav.default_scenario()
+    m = P.map_from_world(sc.world)
+    probs = {}
+    for pt in sc.path_types:
+        path = sc.path_polyline(pt.name)
+        probs[pt.name] = P.PlanningProblem(map=m, start=path[0], goal=path[-1], central_path=path, zones=ZONES)
+    return sc, probs
 
 
-def free_point(m, p, rng):
-    p = np.asarray(p, float)
-    while not P.point_is_free(m, p):
-        p = np.clip(p + rng.normal(0, 3, 2), 1, FIELD - 1)
-    return p
-
-
-def scenarios(m):
-    rng = np.random.default_rng(7)
-    dest = free_point(m, (185, 185), rng)
-    out = []
-    for origin, via in [((10, 15), [(60, 40), (120, 110)]), ((15, 120), [(70, 140), (130, 170)]),
-                        ((150, 10), [(160, 80), (150, 140)])]:
-        pts = [free_point(m, origin, rng)] + [free_point(m, v, rng) for v in via] + [dest]
-        out.append(P.PlanningProblem(map=m, start=pts[0], goal=pts[-1], central_path=np.array(pts), zones=ZONES))
-    return out
-
-
-# ------------------------------------------------------------- vectorised geometry
 def inside_any(m, pts):
-    bad = np.zeros(len(pts), bool)
-    for c in m.circles:
-        bad |= np.hypot(pts[:, 0] - c.center[0], pts[:, 1] - c.center[1]) <= c.radius
-    for poly in m.polygons:
-        x, y = pts[:, 0], pts[:, 1]
-        ins = np.zeros(len(pts), bool)
-        for i in range(len(poly)):
-            (xi, yi), (xj, yj) = poly[i], poly[i - 1]
-            cond = (yi > y) != (yj > y)
-            ins ^= cond & (x < (xj - xi) * (y - yi) / np.where(yj == yi, 1, yj - yi) + xi)
-        bad |= ins
-    return bad
+    """Points inside an obstacle (boundary included), via the world model."""
+    return WORLD.obstacle_mask(pts)
 
 
 def edge_cost(problem, a, b, alpha, beta, path):
@@ -177,13 +149,15 @@ def median(x):
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--iterations", type=int, default=3000)
-    ap.add_argument("--seeds", type=int, default=5)
+    ap.add_argument("--iterations", type=int, default=30000)
+    ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--python-iterations", type=int, default=500)
     args = ap.parse_args()
-    m = build_world()
-    probs = scenarios(m)
-    print(f"field 200x200 m, {len(m.circles)} discs + {len(m.polygons)} polygons, corridor half-width "
+    _, named = default_problems()
+    probs = list(named.values())
+    m = probs[0].map
+    print(f"default scenario: field 200x200 m, {len(m.circles)} discs + {len(m.polygons)} polygons, paths "
+          f"{', '.join(named)}, corridor half-width "
           f"{ZONES.half_width} m, resolution {RES} m, range {RANGE} m, {args.iterations} iterations, "
           f"{args.seeds} seeds (medians)\n")
     hdr = (f"{'path':4} {'planner':9} {'t_first[s]':>10} {'t_5%[s]':>8} {'cost/grid':>9} {'length':>8} "
