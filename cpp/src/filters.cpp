@@ -303,25 +303,30 @@ struct ParticleFilter::Impl {
     const double* y = X.col(kY).data();
     const double* v = X.col(kV).data();
     const double* th = X.col(kTheta).data();
-    double a[10] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+    double a0 = 0, a1 = 0, a2 = 0, a3 = 0, a4 = 0, a5 = 0, a6 = 0, a7 = 0, a8 = 0, a9 = 0;
     constexpr double two_pi = 2.0 * kPi;
-    for (int i = 0; i < n(); ++i) {
-      double d3 = th[i] - m[3];  // both in (−π, π]: one wrap suffices
-      d3 -= two_pi * static_cast<double>(d3 > kPi);
-      d3 += two_pi * static_cast<double>(d3 <= -kPi);
-      const double d0 = x[i] - m[0], d1 = y[i] - m[1], d2 = v[i] - m[2];
-      const double wi = w[i];
+    const double m0 = m[0], m1 = m[1], m2 = m[2], m3 = m[3];
+    const double* ww = w.data();
+    const int N = n();
+    // SIMD reduction (-fopenmp-simd): a fixed summation order for a given build.
+#pragma omp simd reduction(+ : a0, a1, a2, a3, a4, a5, a6, a7, a8, a9)
+    for (int i = 0; i < N; ++i) {
+      double d3 = th[i] - m3;  // both in (−π, π]: one wrap suffices
+      d3 = d3 > kPi ? d3 - two_pi : d3;
+      d3 = d3 <= -kPi ? d3 + two_pi : d3;
+      const double d0 = x[i] - m0, d1 = y[i] - m1, d2 = v[i] - m2;
+      const double wi = ww[i];
       const double w0 = wi * d0, w1 = wi * d1, w2 = wi * d2, w3 = wi * d3;
-      a[0] += w0 * d0; a[1] += w0 * d1; a[2] += w0 * d2; a[3] += w0 * d3;
-      a[4] += w1 * d1; a[5] += w1 * d2; a[6] += w1 * d3;
-      a[7] += w2 * d2; a[8] += w2 * d3;
-      a[9] += w3 * d3;
+      a0 += w0 * d0; a1 += w0 * d1; a2 += w0 * d2; a3 += w0 * d3;
+      a4 += w1 * d1; a5 += w1 * d2; a6 += w1 * d3;
+      a7 += w2 * d2; a8 += w2 * d3;
+      a9 += w3 * d3;
     }
     StateCov P;
-    P << a[0], a[1], a[2], a[3],
-         a[1], a[4], a[5], a[6],
-         a[2], a[5], a[7], a[8],
-         a[3], a[6], a[8], a[9];
+    P << a0, a1, a2, a3,
+         a1, a4, a5, a6,
+         a2, a5, a7, a8,
+         a3, a6, a8, a9;
     return P;
   }
 
@@ -435,12 +440,16 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
     const Eigen::Matrix2d Ri = R.inverse();
     const double* x = I.X.col(kX).data();
     const double* y = I.X.col(kY).data();
+    const double* w = I.w.data();
+    double* logw = I.logw.data();
+    const double z0 = z[0], z1 = z[1], r00 = 0.5 * Ri(0, 0), r01 = Ri(0, 1), r11 = 0.5 * Ri(1, 1);
     double s0 = 0, s1 = 0, s00 = 0, s01 = 0, s11 = 0;
+#pragma omp simd reduction(+ : s0, s1, s00, s01, s11)
     for (int i = 0; i < N; ++i) {
-      const double d0 = z[0] - x[i], d1 = z[1] - y[i], wi = I.w[i];
+      const double d0 = z0 - x[i], d1 = z1 - y[i], wi = w[i];
       s0 += wi * d0; s1 += wi * d1;
       s00 += wi * d0 * d0; s01 += wi * d0 * d1; s11 += wi * d1 * d1;
-      I.logw[i] -= 0.5 * (Ri(0, 0) * d0 * d0 + 2.0 * Ri(0, 1) * d0 * d1 + Ri(1, 1) * d1 * d1);
+      logw[i] -= r00 * d0 * d0 + r01 * d0 * d1 + r11 * d1 * d1;
     }
     const Eigen::Vector2d ybar(s0, s1);
     Eigen::Matrix2d S;
