@@ -5,7 +5,9 @@ For each path type (P1-P3: first to last cluster centroid, the ground-truth
 polyline as the central safe path) it prints medians over seeds of:
   * time to the first solution, time to reach 5 % above the grid optimum,
     final cost / grid optimum (grid: 16-connected Dijkstra, 1 m, same cost);
-  * plain RRT* (beta = 0) beside RAw-RRT* with length and risk;
+  * plain RRT* (beta = 0) beside RAw-RRT* with length and risk, and
+    RAw-RRT* with half of its samples drawn inside the corridor ("RAw+bias",
+    corridor_bias = 0.5, our extension);
   * speed ratio against a pure-Python RRT* (PythonRobotics-style) with the
     same iteration budget and the same cost.
 
@@ -164,12 +166,13 @@ def main():
            f"{'risk':>8} {'plan[s]':>8}")
     print(hdr)
     for pi, prob in enumerate(probs, 1):
-        for name, beta in (("RRT*", 0.0), ("RAw-RRT*", 1.0)):
-            ref = grid_optimum(prob, 1.0, beta)
+        refs = {}
+        for name, beta, bias in (("RRT*", 0.0, 0.0), ("RAw-RRT*", 1.0, 0.0), ("RAw+bias", 1.0, 0.5)):
+            ref = refs[beta] = refs[beta] if beta in refs else grid_optimum(prob, 1.0, beta)
             tf, t5, ratio, L, R, T = [], [], [], [], [], []
             for s in range(args.seeds):
                 r = P.plan(prob, alpha=1.0, beta=beta, seed=s, max_iterations=args.iterations, range=RANGE,
-                           resolution=RES)
+                           resolution=RES, corridor_bias=bias)
                 if not r.success:
                     continue
                 h = r.cost_history

@@ -52,9 +52,10 @@ void pybind_planning(py::module_& m) {
   py::class_<PlannerSettings>(m, "PlannerSettings", "RAw-RRT* settings (alpha, beta of SafeNav eq. 16).")
       .def(py::init([](double alpha, double beta, double range, double goal_bias, std::int64_t max_iterations,
                        double max_time, std::uint64_t seed, double resolution, double goal_tolerance, bool smooth,
-                       bool stay_in_corridor, bool allow_approximate) {
-             PlannerSettings s{alpha, beta, range, goal_bias, max_iterations, max_time, seed, resolution,
-                               goal_tolerance, smooth, stay_in_corridor, allow_approximate};
+                       bool stay_in_corridor, bool allow_approximate, double corridor_bias) {
+             PlannerSettings s{alpha,         beta,   range,           goal_bias,         max_iterations,
+                               max_time,      seed,   resolution,      goal_tolerance,    smooth,
+                               stay_in_corridor, allow_approximate, corridor_bias};
              s.validate();
              return s;
            }),
@@ -62,7 +63,8 @@ void pybind_planning(py::module_& m) {
            py::arg("goal_bias") = ds.goal_bias, py::arg("max_iterations") = ds.max_iterations,
            py::arg("max_time") = ds.max_time, py::arg("seed") = ds.seed, py::arg("resolution") = ds.resolution,
            py::arg("goal_tolerance") = ds.goal_tolerance, py::arg("smooth") = ds.smooth,
-           py::arg("stay_in_corridor") = ds.stay_in_corridor, py::arg("allow_approximate") = ds.allow_approximate)
+           py::arg("stay_in_corridor") = ds.stay_in_corridor, py::arg("allow_approximate") = ds.allow_approximate,
+           py::arg("corridor_bias") = ds.corridor_bias)
       .def_readwrite("alpha", &PlannerSettings::alpha)
       .def_readwrite("beta", &PlannerSettings::beta)
       .def_readwrite("range", &PlannerSettings::range)
@@ -75,6 +77,7 @@ void pybind_planning(py::module_& m) {
       .def_readwrite("smooth", &PlannerSettings::smooth)
       .def_readwrite("stay_in_corridor", &PlannerSettings::stay_in_corridor)
       .def_readwrite("allow_approximate", &PlannerSettings::allow_approximate)
+      .def_readwrite("corridor_bias", &PlannerSettings::corridor_bias)
       .def("validate", &PlannerSettings::validate);
 
   py::enum_<PlanStatus>(m, "PlanStatus")

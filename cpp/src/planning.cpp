@@ -138,6 +138,7 @@ class CentralPath {
   }
   double arc_length(const Vec2& p) const { return corridor_ ? corridor_->project(p).arc_length : 0.0; }
   Vec2 point_at(double s) const { return corridor_ ? corridor_->point_at(s) : point_; }
+  Vec2 tangent_at(double s) const { return corridor_ ? corridor_->tangent_at(s) : Vec2(1.0, 0.0); }
   double length() const { return corridor_ ? corridor_->length() : 0.0; }
 
  private:
@@ -242,9 +243,31 @@ class WrsObjective : public ob::StateCostIntegralObjective {
 
 class SeededSampler : public ob::RealVectorStateSampler {
  public:
-  SeededSampler(const ob::StateSpace* space, std::uint_fast32_t seed) : ob::RealVectorStateSampler(space) {
+  /// Uniform over the field, or — with probability `corridor_bias` — uniform
+  /// in arc length and offset within the corridor around the central path.
+  SeededSampler(const ob::StateSpace* space, std::uint_fast32_t seed, const CentralPath* central = nullptr,
+                double corridor_bias = 0.0, double half_width = 0.0)
+      : ob::RealVectorStateSampler(space), central_(central), bias_(corridor_bias), half_width_(half_width) {
     rng_.setLocalSeed(seed);
   }
+  void sampleUniform(ob::State* state) override {
+    if (bias_ > 0.0 && central_ && central_->length() > 0.0 && rng_.uniform01() < bias_) {
+      const double s = rng_.uniformReal(0.0, central_->length());
+      const double offset = rng_.uniformReal(-half_width_, half_width_);
+      const Vec2 t = central_->tangent_at(s);
+      const Vec2 p = central_->point_at(s) + offset * Vec2(-t.y(), t.x());
+      auto* v = state->as<ob::RealVectorStateSpace::StateType>()->values;
+      v[0] = p.x();
+      v[1] = p.y();
+      space_->enforceBounds(state);
+      return;
+    }
+    ob::RealVectorStateSampler::sampleUniform(state);
+  }
+
+ private:
+  const CentralPath* central_;
+  double bias_, half_width_;
 };
 
 class SeededRRTstar : public og::RRTstar {
@@ -365,6 +388,8 @@ void PlannerSettings::validate() const {
   finite_nonneg(max_time, "max_time");
   if (!std::isfinite(resolution) || resolution <= 0.0) bad("resolution must be > 0, got " + std::to_string(resolution));
   finite_nonneg(goal_tolerance, "goal_tolerance");
+  if (!(corridor_bias >= 0.0 && corridor_bias <= 1.0))
+    bad("corridor_bias must be in [0, 1], got " + std::to_string(corridor_bias));
 }
 
 std::string to_string(PlanStatus status) {
@@ -435,8 +460,11 @@ PlanResult plan(const PlanningProblem& problem, const PlannerSettings& settings)
   bounds.setHigh(1, map.upper.y());
   space->setBounds(bounds);
   const std::uint_fast32_t sampler_seed = derive_seed(settings.seed, 0);
-  space->setStateSamplerAllocator(
-      [sampler_seed](const ob::StateSpace* s) { return std::make_shared<SeededSampler>(s, sampler_seed); });
+  const CentralPath* central = settings.corridor_bias > 0.0 ? &risk : nullptr;
+  const double bias = settings.corridor_bias, half_width = problem.zones.half_width;
+  space->setStateSamplerAllocator([sampler_seed, central, bias, half_width](const ob::StateSpace* s) {
+    return std::make_shared<SeededSampler>(s, sampler_seed, central, bias, half_width);
+  });
   space->setLongestValidSegmentFraction(settings.resolution / space->getMaximumExtent());
 
   auto si = std::make_shared<ob::SpaceInformation>(space);

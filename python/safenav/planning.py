@@ -81,7 +81,8 @@ def plan(problem: PlanningProblem, settings: PlannerSettings | None = None, **kw
     """RAw-RRT* from ``problem.start`` to ``problem.goal``.  Settings as a
     ``PlannerSettings`` or as keywords (``alpha``, ``beta``, ``range``,
     ``goal_bias``, ``max_iterations``, ``max_time``, ``seed``, ``resolution``,
-    ``smooth``, ``stay_in_corridor``, ``allow_approximate``, ``goal_tolerance``)."""
+    ``smooth``, ``stay_in_corridor``, ``allow_approximate``, ``goal_tolerance``,
+    ``corridor_bias``)."""
     return _core.plan(problem, _settings(settings, kwargs))
 
 
