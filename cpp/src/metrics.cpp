@@ -1,5 +1,7 @@
 #include "safenav/metrics.hpp"
 
+#include "safenav/motion.hpp"  // wrap_angle
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -138,7 +140,7 @@ Eigen::VectorXd nees(const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic
   Eigen::VectorXd out(N);
   for (Eigen::Index k = 0; k < N; ++k) {
     Eigen::VectorXd e = (est.row(k) - truth.row(k)).transpose();
-    if (angle_index >= 0) e[angle_index] = std::remainder(e[angle_index], 2.0 * 3.14159265358979323846);
+    if (angle_index >= 0) e[angle_index] = wrap_angle(e[angle_index]);
     const Eigen::MatrixXd P = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
         covs.row(k).data(), n, n);
     if (!e.allFinite() || !P.allFinite()) {

@@ -68,10 +68,13 @@ State Bmm::predict(const State& x, const Control& u) const { return linearize(x,
 State Bmm::transition(const State& x, const Control& u, const Eigen::Vector4d& eps) const {
   check_finite_state(x, "state");
   check_control(u);
-  State out = x;
-  double c, s;
-  transition_unchecked(out[kX], out[kY], out[kV], out[kTheta], u[0], clipped_heading_change(u[1]),
-                       params_.terrain_factor() * params_.dt, eps.data(), c, s);
+  // eqs. 3, 4 and 6: speed and heading with their noise; eq. 7/9: the position
+  // moves with the *updated* speed and heading.
+  const double v1 = std::clamp(next_speed(x[kV], u[0]) + eps[2], 0.0, params_.max_speed);
+  const double th1 = wrap_angle(x[kTheta] + clipped_heading_change(u[1]) + eps[3]);
+  const double k = params_.terrain_factor() * params_.dt;
+  State out;
+  out << x[kX] + k * v1 * std::cos(th1) + eps[0], x[kY] + k * v1 * std::sin(th1) + eps[1], v1, th1;
   return out;
 }
 

@@ -23,6 +23,7 @@ import numpy as np
 
 from . import _core
 from ._checks import as_array, as_positive_int, as_seed
+from .measurement import LANBLOC_STD
 from .motion import BmmParams
 
 FilterType = _core.FilterType
@@ -108,7 +109,6 @@ def filter_trajectory(controls, x0, P0, *, params: BmmParams | None = None, filt
     st = _core.MeasurementStream()
     if position is not None:
         st.position = as_array("position", position, (n, 2), allow_nan=True)
-        from .measurement import LANBLOC_STD
         st.position_cov = (np.diag(np.square(LANBLOC_STD)) if position_cov is None
                            else as_array("position_cov", position_cov, (2, 2)))
     if speed_heading is not None:

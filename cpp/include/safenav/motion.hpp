@@ -93,19 +93,6 @@ class Bmm {
   /// v' = clamp(f_v(v,u) + ε_v, 0, v_max); θ' = wrap(θ + clip(Δθ) + ε_θ);
   /// p' = p + κ·v'·Δt·(cos θ', sin θ') + (ε_x, ε_y).   (eqs. 6, 7, 9)
   State transition(const State& x, const Control& u, const Eigen::Vector4d& eps) const;
-  /// The body of transition() without input checks, for inner loops (particle
-  /// filter): `heading_step` is the already clipped Δθ and `k` = κ·Δt.
-  void transition_unchecked(double& x, double& y, double& v, double& theta, double desired_speed,
-                            double heading_step, double k, const double* eps, double& cos_theta,
-                            double& sin_theta) const {
-    v = next_speed(v, desired_speed) + eps[2];
-    v = v < 0.0 ? 0.0 : (v > params_.max_speed ? params_.max_speed : v);
-    theta = wrap_angle(theta + heading_step + eps[3]);
-    cos_theta = std::cos(theta);
-    sin_theta = std::sin(theta);
-    x += k * v * cos_theta + eps[0];
-    y += k * v * sin_theta + eps[1];
-  }
 
   /// Simulate a trajectory of the true vehicle: returns (N+1)×4 states
   /// starting at x0, with process noise drawn from a seeded generator.
