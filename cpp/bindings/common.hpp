@@ -13,6 +13,10 @@ void pybind_filters(py::module_& m);
 void pybind_metrics(py::module_& m);
 void pybind_geometry(py::module_& m);
 void pybind_planning(py::module_& m);
+void pybind_localization(py::module_& m);
+void pybind_stereo(py::module_& m);
+void pybind_placement(py::module_& m);
+void pybind_navigation(py::module_& m);
 
 /// Release the GIL for a batch call (inputs are already converted).
 using release_gil = py::call_guard<py::gil_scoped_release>;

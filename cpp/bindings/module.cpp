@@ -10,4 +10,8 @@ PYBIND11_MODULE(_core, m) {
   pybind_metrics(m);
   pybind_geometry(m);
   pybind_planning(m);
+  pybind_localization(m);
+  pybind_stereo(m);
+  pybind_placement(m);
+  pybind_navigation(m);
 }

@@ -54,6 +54,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="folder for the per-trial and summary CSV files and a figure"
                             + (" (default out/demo)" if name == "demo" else ""))
         s.set_defaults(func=_synthetic)
+    from .placement_cli import register as register_place
+    register_place(sub)
     return p
 
 

@@ -1,0 +1,3 @@
+#pragma once
+// localization: work in progress (see the open issue).
+namespace safenav {}

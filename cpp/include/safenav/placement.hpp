@@ -1,0 +1,3 @@
+#pragma once
+// placement: work in progress (see the open issue).
+namespace safenav {}

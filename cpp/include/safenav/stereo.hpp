@@ -1,0 +1,3 @@
+#pragma once
+// stereo: work in progress (see the open issue).
+namespace safenav {}

@@ -1,0 +1,2 @@
+// localization: work in progress (see the open issue).
+#include "safenav/localization.hpp"

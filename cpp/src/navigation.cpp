@@ -1,0 +1,2 @@
+// navigation: work in progress (see the open issue).
+#include "safenav/navigation.hpp"

@@ -1,0 +1,2 @@
+// placement: work in progress (see the open issue).
+#include "safenav/placement.hpp"

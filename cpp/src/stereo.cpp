@@ -1,0 +1,2 @@
+// stereo: work in progress (see the open issue).
+#include "safenav/stereo.hpp"
