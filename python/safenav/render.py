@@ -1,0 +1,479 @@
+"""Camera-in-the-loop rendering: the stereo pair a vehicle sees (issue 3).
+
+:class:`StereoRenderer` draws the left and right images of an ideal,
+already rectified stereo rig (:class:`StereoRig`: pinhole, same intrinsics
+``K`` for both cameras, baseline ``B`` along the camera x axis, camera height
+``h``, a fixed pitch) at a vehicle pose ``(x, y, θ)``:
+
+* a textured ground plane (a periodic 1/f-noise tile, drawn with one
+  ``cv2.warpPerspective`` through the ground-to-image homography
+  ``H = K [r₁ r₂ t]``, faded into haze with distance);
+* a textured background at infinity (a periodic panorama indexed by azimuth
+  and elevation with ``cv2.remap``; at infinity it has zero disparity);
+* every landmark of the world as a planar fiducial marker (an ArUco or
+  AprilTag image with a white quiet zone, side ``marker_size_m``) whose centre
+  stands at the landmark's map position and height on a thin pole, facing the
+  rig or with a fixed yaw; each marker is warped into its bounding box only,
+  with an anti-aliased alpha mask, far markers first (painter's order), from
+  a per-marker mip pyramid so that minification does not alias.
+
+Conventions.  World: x east, y north, z up; the heading θ is counter-clockwise
+from +x.  Camera: x right, y down, z forward.  **The vehicle's position is the
+left camera's centre** (OpenCV's stereo reference frame), at height ``h``; the
+right camera sits ``B`` to its right.  Pixel centres are at integer
+coordinates, so a camera point ``(X, Y, Z)`` projects to
+``u = f·X/Z + c_x``, ``v = f·Y/Z + c_y``, and a point at depth ``Z`` has
+disparity ``u_L − u_R = f·B/Z`` (the pair is rectified by construction,
+``doffs = 0``).  :meth:`StereoRig.calibration` gives the matching
+:class:`safenav.stereo.StereoCalibration` (zero distortion, ``R = I``,
+``T = (−B, 0, 0)``), so the LanBLoc pipeline can skip rectification.
+
+Only landmarks inside the horizontal field of view and within
+``rig.max_range_m`` are drawn (vectorised culling).  Obstacles are not drawn
+and do not occlude landmarks.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Mapping, Sequence
+
+import cv2
+import numpy as np
+
+from .detect import aruco_dictionary, marker_image
+from .world import Landmark, World
+
+__all__ = ["StereoRig", "StereoRenderer", "camera_rotation", "periodic_noise"]
+
+
+# --------------------------------------------------------------------------- the rig
+
+def _pos(name, v, *, allow_zero=False):
+    if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not math.isfinite(v) \
+            or v < 0 or (v == 0 and not allow_zero):
+        raise ValueError(f"{name} = {v!r}: must be a finite number {'>= 0' if allow_zero else '> 0'}")
+    return float(v)
+
+
+@dataclass(frozen=True)
+class StereoRig:
+    """An ideal rectified stereo rig on the vehicle.
+
+    The defaults scale the scenario camera (SafeNav V-A2: 2560×1440 px,
+    f = 1400 px, i.e. an 85° horizontal field of view, baseline 0.3 m) to
+    640×480 px: f = 350 px.
+    """
+
+    width: int = 640                  #: image width [px]
+    height: int = 480                 #: image height [px]
+    focal_length_px: float = 350.0    #: f [px] (both axes)
+    baseline_m: float = 0.3           #: B [m]
+    camera_height_m: float = 1.5      #: h, camera centres above the ground [m]
+    pitch_rad: float = 0.0            #: camera pitch, positive looks up [rad]
+    max_range_m: float = 30.0         #: landmarks farther than this (3D) are not drawn [m]
+    near_m: float = 0.2               #: near clipping depth [m]
+
+    def __post_init__(self):
+        for n in ("width", "height"):
+            v = getattr(self, n)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 16:
+                raise ValueError(f"{n} = {v!r}: must be an integer >= 16 [px]")
+            object.__setattr__(self, n, int(v))
+        for n in ("focal_length_px", "baseline_m", "camera_height_m", "max_range_m", "near_m"):
+            object.__setattr__(self, n, _pos(n, getattr(self, n)))
+        p = self.pitch_rad
+        if isinstance(p, bool) or not isinstance(p, (int, float, np.integer, np.floating)) or not abs(p) < 0.5:
+            raise ValueError(f"pitch_rad = {p!r}: must be a finite angle with |pitch| < 0.5 rad")
+        object.__setattr__(self, "pitch_rad", float(p))
+
+    @classmethod
+    def from_camera(cls, camera, width: int = 640, height: int | None = 480, *, camera_height_m: float = 1.5,
+                    max_range_m: float = 30.0, pitch_rad: float = 0.0) -> "StereoRig":
+        """The scenario's :class:`~safenav.scenario.CameraParams` scaled to ``width`` px (same field of view)."""
+        s = width / camera.image_width_px
+        h = int(round(camera.image_height_px * s)) if height is None else height
+        return cls(width, h, camera.focal_length_px * s, camera.baseline_m, camera_height_m, pitch_rad,
+                   max_range_m)
+
+    @property
+    def cx(self) -> float:
+        return (self.width - 1) / 2.0
+
+    @property
+    def cy(self) -> float:
+        return (self.height - 1) / 2.0
+
+    @property
+    def K(self) -> np.ndarray:
+        f = self.focal_length_px
+        return np.array([[f, 0.0, self.cx], [0.0, f, self.cy], [0.0, 0.0, 1.0]])
+
+    @property
+    def horizontal_fov_rad(self) -> float:
+        return 2.0 * math.atan2(self.width / 2.0, self.focal_length_px)
+
+    @property
+    def fB(self) -> float:
+        """f·B [px·m]: disparity d = f·B / Z."""
+        return self.focal_length_px * self.baseline_m
+
+    def calibration(self):
+        """The matching :class:`safenav.stereo.StereoCalibration` (no distortion, R = I, T = (−B, 0, 0))."""
+        from .stereo import StereoCalibration
+        K = self.K
+        return StereoCalibration(K, np.zeros(5), K, np.zeros(5), np.eye(3), np.array([-self.baseline_m, 0.0, 0.0]),
+                                 (self.width, self.height))
+
+    def camera_centers(self, pose) -> tuple[np.ndarray, np.ndarray]:
+        """World centres of the left and right cameras at ``pose = (x, y, θ)``."""
+        x, y, th = _pose(pose)
+        left = np.array([x, y, self.camera_height_m])
+        right = left + self.baseline_m * np.array([math.sin(th), -math.cos(th), 0.0])
+        return left, right
+
+
+def camera_rotation(theta: float, pitch: float = 0.0) -> np.ndarray:
+    """World → camera rotation (rows: camera x = right, y = down, z = forward) for heading θ and pitch."""
+    c, s, cp, sp = math.cos(theta), math.sin(theta), math.cos(pitch), math.sin(pitch)
+    fwd = np.array([c * cp, s * cp, sp])
+    right = np.array([s, -c, 0.0])
+    down = np.cross(fwd, right)
+    return np.stack([right, down, fwd])
+
+
+def _pose(pose) -> tuple[float, float, float]:
+    try:
+        p = np.asarray(pose, dtype=float).ravel()
+    except (TypeError, ValueError):
+        raise ValueError(f"pose = {pose!r}: must be (x, y, theta)") from None
+    if p.size not in (3, 4):
+        raise ValueError(f"pose = {pose!r}: must be (x, y, theta) or a state (x, y, v, theta)")
+    if p.size == 4:
+        p = p[[0, 1, 3]]
+    if not np.isfinite(p).all():
+        raise ValueError(f"pose = {tuple(p)}: must be finite")
+    return float(p[0]), float(p[1]), float(p[2])
+
+
+# --------------------------------------------------------------------------- textures
+
+def periodic_noise(shape: tuple[int, int], seed: int, beta: float = 1.6, lo: int = 20, hi: int = 235) -> np.ndarray:
+    """A seamlessly tiling uint8 texture: white noise shaped to a 1/f^β spectrum (FFT, so periodic)."""
+    rng = np.random.default_rng(seed)
+    h, w = shape
+    spec = np.fft.rfft2(rng.standard_normal((h, w)))
+    fy = np.fft.fftfreq(h)[:, None]
+    fx = np.fft.rfftfreq(w)[None, :]
+    f = np.hypot(fx, fy)
+    f[0, 0] = 1.0
+    img = np.fft.irfft2(spec / f ** (beta / 2.0), s=(h, w))
+    img -= np.percentile(img, 1)
+    img /= max(np.percentile(img, 99), 1e-12)
+    return np.clip(lo + (hi - lo) * img, 0, 255).astype(np.uint8)
+
+
+# --------------------------------------------------------------------------- the renderer
+
+class StereoRenderer:
+    """Renders the rectified stereo pair of ``rig`` at a vehicle pose (see the module docstring).
+
+    Parameters
+    ----------
+    landmarks:
+        A :class:`~safenav.world.World` or a sequence of :class:`~safenav.world.Landmark`.
+    rig:
+        The :class:`StereoRig`.
+    marker_size_m:
+        Side of the black-framed marker [m]; the white quiet zone adds one
+        cell on each side.
+    dictionary:
+        ``cv2.aruco`` dictionary of the markers (must hold every marker id).
+    marker_ids:
+        ``landmark id → marker id`` (default: the landmark id itself).
+    facing:
+        ``"camera"`` (each marker turns toward the rig, about the vertical) or
+        a yaw [rad] for every marker, or a mapping ``landmark id → yaw``; the
+        yaw is the direction the marker's face points to.  A marker seen
+        from behind is not drawn.
+    color:
+        ``False`` renders (H, W) grey images, ``True`` (H, W, 3) BGR.
+    noise_std:
+        Standard deviation of additive Gaussian pixel noise (independent in
+        the two images), drawn from a generator seeded with ``seed``.
+    texture_seed:
+        Seed of the ground and background textures.
+    """
+
+    GROUND_RES_M = 0.02      # ground texture: metres per texel
+    GROUND_TILE = 1024       # texels per tile side (period 20.48 m)
+    PANO_W, PANO_H = 4096, 1024
+    PANO_EL = (-0.35, 0.9)   # elevations covered by the panorama [rad]
+    HAZE_M = 80.0            # ground contrast falls as exp(-Z / HAZE_M)
+    POLE_WIDTH_M = 0.08
+
+    def __init__(self, landmarks, rig: StereoRig | None = None, *, marker_size_m: float = 1.5,
+                 dictionary: str = "DICT_4X4_100", marker_ids: Mapping[int, int] | None = None,
+                 facing: str | float | Mapping[int, float] = "camera", color: bool = False,
+                 noise_std: float = 0.0, seed: int = 0, texture_seed: int = 0):
+        self.rig = StereoRig() if rig is None else rig
+        if not isinstance(self.rig, StereoRig):
+            raise ValueError(f"rig = {rig!r}: must be a StereoRig")
+        lms = landmarks.landmarks if isinstance(landmarks, World) else tuple(landmarks)
+        for i, lm in enumerate(lms):
+            if not isinstance(lm, Landmark):
+                raise ValueError(f"landmarks[{i}] = {lm!r}: must be a Landmark")
+        self.landmarks: tuple[Landmark, ...] = tuple(lms)
+        self.marker_size_m = _pos("marker_size_m", marker_size_m)
+        self.dictionary = aruco_dictionary(dictionary)
+        self.dictionary_name = dictionary
+        n_dict = int(self.dictionary.bytesList.shape[0])
+        marker_ids = {} if marker_ids is None else dict(marker_ids)
+        self._marker_id = {}
+        for lm in self.landmarks:
+            mid = marker_ids.get(lm.id, lm.id)
+            if isinstance(mid, bool) or not isinstance(mid, (int, np.integer)) or not 0 <= mid < n_dict:
+                raise ValueError(f"landmark {lm.id}: marker id {mid!r} is not in dictionary {dictionary} "
+                                 f"(ids 0..{n_dict - 1}); pass marker_ids or a larger dictionary")
+            self._marker_id[lm.id] = int(mid)
+        if isinstance(facing, str):
+            if facing != "camera":
+                raise ValueError(f"facing = {facing!r}: must be 'camera', a yaw in radians or a mapping id -> yaw")
+            self._yaw = None
+        elif isinstance(facing, Mapping):
+            self._yaw = np.array([float(facing.get(lm.id, np.nan)) for lm in self.landmarks])
+            missing = [lm.id for lm, y in zip(self.landmarks, self._yaw) if not math.isfinite(y)]
+            if missing:
+                raise ValueError(f"facing: no finite yaw for landmark {missing[0]}")
+        else:
+            y = float(facing)
+            if not math.isfinite(y):
+                raise ValueError(f"facing = {facing!r}: must be finite")
+            self._yaw = np.full(len(self.landmarks), y)
+        self.color = bool(color)
+        self.noise_std = _pos("noise_std", noise_std, allow_zero=True)
+        self._rng = np.random.default_rng(seed)
+        self._L = np.array([(*lm.position[:2], lm.height) for lm in self.landmarks], float).reshape(-1, 3)
+        # textures
+        self._ground = periodic_noise((self.GROUND_TILE, self.GROUND_TILE), texture_seed, beta=1.4)
+        pano = periodic_noise((self.PANO_H, self.PANO_W), texture_seed + 1, beta=1.8, lo=90, hi=250)
+        self._pano = pano
+        self._ground_mean = float(self._ground.mean())
+        self._pyramids: dict[int, list[np.ndarray]] = {}
+        self._prepare_rig()
+
+    # ---- rig-dependent precomputation
+    def _prepare_rig(self):
+        r = self.rig
+        f, cx, cy, ph = r.focal_length_px, r.cx, r.cy, r.pitch_rad
+        v = np.arange(r.height, dtype=np.float64)
+        up = -math.cos(ph) * (v - cy) / f + math.sin(ph)   # world-up component of the ray (camera z = 1)
+        # ground rows: the ray meets the ground nearer than 2 km
+        ground = up < -r.camera_height_m / 2000.0
+        self._v_ground = int(np.argmax(ground)) if ground.any() else r.height
+        t = r.camera_height_m / np.maximum(-up[self._v_ground:], 1e-12)   # camera depth of the ground row
+        self._haze = np.exp(-t / self.HAZE_M).astype(np.float32)[:, None]
+        # background maps (rows above the ground): azimuth relative to the heading and elevation
+        nb = min(self._v_ground + 2, r.height)
+        uu, vv = np.meshgrid(np.arange(r.width, dtype=np.float64), np.arange(nb, dtype=np.float64))
+        R0 = camera_rotation(0.0, ph)
+        rays = np.stack([(uu - cx) / f, (vv - cy) / f, np.ones_like(uu)], axis=-1) @ R0  # world directions
+        az = np.arctan2(rays[..., 1], rays[..., 0])
+        el = np.arctan2(rays[..., 2], np.hypot(rays[..., 0], rays[..., 1]))
+        e0, e1 = self.PANO_EL
+        self._bg_x = (-az / (2 * math.pi) * self.PANO_W).astype(np.float32)
+        self._bg_y = np.clip((e1 - el) / (e1 - e0) * (self.PANO_H - 1), 0, self.PANO_H - 1).astype(np.float32)
+        self._nb = nb
+
+    # ---- public API
+    def calibration(self):
+        """The rig's :class:`safenav.stereo.StereoCalibration` (images are already rectified)."""
+        return self.rig.calibration()
+
+    def project(self, pose, points, camera: str = "left") -> tuple[np.ndarray, np.ndarray]:
+        """Pinhole projection of world ``points`` (N, 3) into ``camera``: ``(uv (N, 2), depth Z (N,))``."""
+        if camera not in ("left", "right"):
+            raise ValueError(f"camera = {camera!r}: must be 'left' or 'right'")
+        x, y, th = _pose(pose)
+        P = np.asarray(points, dtype=float).reshape(-1, 3)
+        R = camera_rotation(th, self.rig.pitch_rad)
+        C = self.rig.camera_centers((x, y, th))[0 if camera == "left" else 1]
+        pc = (P - C) @ R.T
+        with np.errstate(divide="ignore", invalid="ignore"):
+            uv = self.rig.focal_length_px * pc[:, :2] / pc[:, 2:3] + [self.rig.cx, self.rig.cy]
+        return uv, pc[:, 2]
+
+    def culled(self, pose) -> np.ndarray:
+        """Indices of the landmarks that pass the cheap cull: within range and the horizontal field of view."""
+        if len(self.landmarks) == 0:
+            return np.zeros(0, dtype=int)
+        x, y, th = _pose(pose)
+        C = np.array([x, y, self.rig.camera_height_m])
+        d = self._L - C
+        dist = np.linalg.norm(d, axis=1)
+        fwd = d[:, 0] * math.cos(th) + d[:, 1] * math.sin(th)
+        lat = d[:, 0] * math.sin(th) - d[:, 1] * math.cos(th)
+        half = 0.5 * self.rig.horizontal_fov_rad
+        ang = np.abs(np.arctan2(lat, fwd))
+        slack = np.arctan2(self._board_half_m + self.rig.baseline_m, np.maximum(np.hypot(fwd, lat), 1e-9))
+        keep = (dist <= self.rig.max_range_m) & (fwd > self.rig.near_m) & (ang <= half + slack)
+        return np.flatnonzero(keep)
+
+    def marker_corners(self, pose) -> dict[int, np.ndarray]:
+        """World corners (4, 3) of the black-framed marker of every culled landmark (TL, TR, BR, BL)."""
+        out = {}
+        for i in self.culled(pose):
+            c, a, up = self._frame(i, pose)
+            s = 0.5 * self.marker_size_m
+            out[self.landmarks[i].id] = np.array([c - a * s + up * s, c + a * s + up * s,
+                                                  c + a * s - up * s, c - a * s - up * s])
+        return out
+
+    def visible(self, pose, margin_px: float = 2.0, min_side_px: float = 0.0) -> list[int]:
+        """Landmark ids whose whole marker lies inside both images, facing the rig, at least ``min_side_px``."""
+        ids = []
+        for lid, corners in self.marker_corners(pose).items():
+            ok = True
+            for cam in ("left", "right"):
+                uv, z = self.project(pose, corners, cam)
+                if (z <= self.rig.near_m).any() or (uv < margin_px).any() \
+                        or (uv[:, 0] > self.rig.width - 1 - margin_px).any() \
+                        or (uv[:, 1] > self.rig.height - 1 - margin_px).any():
+                    ok = False
+                    break
+                side = np.linalg.norm(np.diff(np.vstack([uv, uv[:1]]), axis=0), axis=1).min()
+                if side < min_side_px:
+                    ok = False
+                    break
+            if ok and self._faces(pose, lid):
+                ids.append(lid)
+        return ids
+
+    def render(self, pose) -> tuple[np.ndarray, np.ndarray]:
+        """The rectified ``(left, right)`` images at ``pose = (x, y, θ)`` (or a state (x, y, v, θ))."""
+        x, y, th = _pose(pose)
+        pose = (x, y, th)
+        R = camera_rotation(th, self.rig.pitch_rad)
+        centers = self.rig.camera_centers(pose)
+        idx = self.culled(pose)
+        boards = [self._board(i, pose) for i in idx]
+        out = []
+        for C in centers:
+            img = self._background_and_ground(th, R, C)
+            self._draw_markers(img, R, C, boards)
+            if self.noise_std > 0:
+                noise = self._rng.standard_normal(img.shape, dtype=np.float32) * self.noise_std
+                img = np.clip(img + noise, 0, 255).astype(np.uint8)
+            out.append(img if not self.color else cv2.cvtColor(img, cv2.COLOR_GRAY2BGR))
+        return out[0], out[1]
+
+    # ---- internals
+    @property
+    def _board_half_m(self) -> float:
+        cells = self.dictionary.markerSize + 2
+        return 0.5 * self.marker_size_m * (cells + 2) / cells
+
+    def _frame(self, i: int, pose) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Centre, in-plane right axis and up axis of landmark ``i``'s marker."""
+        c = self._L[i]
+        if self._yaw is None:
+            x, y, th = _pose(pose)
+            mid = np.array([x, y]) + 0.5 * self.rig.baseline_m * np.array([math.sin(th), -math.cos(th)])
+            n = mid - c[:2]
+            nn = math.hypot(*n)
+            n = n / nn if nn > 1e-9 else np.array([-math.cos(th), -math.sin(th)])
+        else:
+            n = np.array([math.cos(self._yaw[i]), math.sin(self._yaw[i])])
+        a = np.array([-n[1], n[0], 0.0])   # the viewer's right when facing the marker
+        return c, a, np.array([0.0, 0.0, 1.0])
+
+    def _faces(self, pose, lid: int) -> bool:
+        i = next(k for k, lm in enumerate(self.landmarks) if lm.id == lid)
+        c, a, _ = self._frame(i, pose)
+        n = np.array([a[1], -a[0]])
+        x, y, _th = _pose(pose)
+        return float(n @ (np.array([x, y]) - c[:2])) > 0
+
+    def _board(self, i: int, pose):
+        c, a, up = self._frame(i, pose)
+        hb = self._board_half_m
+        corners = np.array([c - a * hb + up * hb, c + a * hb + up * hb, c + a * hb - up * hb, c - a * hb - up * hb])
+        n = np.array([a[1], -a[0]])
+        x, y, _ = _pose(pose)
+        facing = float(n @ (np.array([x, y]) - c[:2])) > 0
+        bottom = c[2] - hb
+        pw = 0.5 * self.POLE_WIDTH_M
+        pole = None
+        if bottom > 0:
+            pole = np.array([c - a * pw + up * (bottom - c[2]), c + a * pw + up * (bottom - c[2]),
+                             c + a * pw - up * c[2], c - a * pw - up * c[2]])
+        return self.landmarks[i].id, corners, pole, facing
+
+    def _pyramid(self, lid: int) -> list[np.ndarray]:
+        pyr = self._pyramids.get(lid)
+        if pyr is None:
+            base = marker_image(self.dictionary, self._marker_id[lid], cell_px=64, border_cells=1)
+            pyr = [base]
+            while pyr[-1].shape[0] > 8:
+                pyr.append(cv2.resize(pyr[-1], None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA))
+            pyr = [cv2.merge([m, np.full_like(m, 255)]) for m in pyr[::-1]]   # smallest first, + alpha
+            self._pyramids[lid] = pyr
+        return pyr
+
+    def _background_and_ground(self, th: float, R: np.ndarray, C: np.ndarray) -> np.ndarray:
+        r = self.rig
+        img = np.empty((r.height, r.width), np.uint8)
+        # background at infinity: shift the azimuth map by the heading
+        shift = np.float32((-th / (2 * math.pi) * self.PANO_W) % self.PANO_W)
+        bg = cv2.remap(self._pano, self._bg_x + shift, self._bg_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP)
+        img[:self._nb] = bg
+        v0 = self._v_ground
+        if v0 < r.height:
+            period = self.GROUND_TILE * self.GROUND_RES_M
+            X0, Y0 = math.floor(C[0] / period) * period, math.floor(C[1] / period) * period
+            A = np.array([[self.GROUND_RES_M, 0, X0], [0, self.GROUND_RES_M, Y0], [0, 0, 1.0]])
+            H = r.K @ np.column_stack([R[:, 0], R[:, 1], -R @ C]) @ A   # texel -> image pixel
+            H = np.array([[1, 0, 0], [0, 1, -v0], [0, 0, 1.0]]) @ H     # rows from v0
+            g = cv2.warpPerspective(self._ground, np.linalg.inv(H), (r.width, r.height - v0),
+                                    flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_WRAP)
+            m = self._ground_mean
+            img[v0:] = ((g.astype(np.float32) - m) * self._haze + m).astype(np.uint8)
+        return img
+
+    def _draw_markers(self, img: np.ndarray, R: np.ndarray, C: np.ndarray, boards) -> None:
+        r = self.rig
+        f, cx, cy = r.focal_length_px, r.cx, r.cy
+        items = []
+        for lid, corners, pole, facing in boards:
+            if not facing:
+                continue
+            pc = (corners - C) @ R.T
+            if (pc[:, 2] <= r.near_m).any():
+                continue
+            items.append((float(pc[:, 2].mean()), lid, pc, pole))
+        items.sort(key=lambda t: -t[0])   # far first
+        h, w = img.shape
+        for _, lid, pc, pole in items:
+            if pole is not None:
+                pp = (pole - C) @ R.T
+                if (pp[:, 2] > r.near_m).all():
+                    uv = f * pp[:, :2] / pp[:, 2:3] + [cx, cy]
+                    cv2.fillConvexPoly(img, np.round(uv * 16).astype(np.int32), 70, cv2.LINE_AA, 4)
+            uv = (f * pc[:, :2] / pc[:, 2:3] + [cx, cy]).astype(np.float64)
+            x0, y0 = np.floor(uv.min(axis=0)).astype(int) - 1
+            x1, y1 = np.ceil(uv.max(axis=0)).astype(int) + 2
+            x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, w), min(y1, h)
+            if x1 <= x0 or y1 <= y0:
+                continue
+            side = float(np.max(np.linalg.norm(uv - np.roll(uv, 1, axis=0), axis=1)))
+            pyr = self._pyramid(lid)
+            tex = next((p for p in pyr if p.shape[0] >= side), pyr[-1])
+            s = tex.shape[0]
+            src = np.array([[-0.5, -0.5], [s - 0.5, -0.5], [s - 0.5, s - 0.5], [-0.5, s - 0.5]], np.float32)
+            M = cv2.getPerspectiveTransform(src, (uv - [x0, y0]).astype(np.float32))
+            warped = cv2.warpPerspective(tex, M, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR,
+                                         borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+            alpha = warped[:, :, 1].astype(np.float32) * (1.0 / 255.0)
+            roi = img[y0:y1, x0:x1]
+            roi[:] = (roi + (warped[:, :, 0].astype(np.float32) - roi) * alpha + 0.5).astype(np.uint8)
