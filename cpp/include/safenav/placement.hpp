@@ -1,3 +1,166 @@
+// safenav/placement.hpp — landmark placement for guaranteed observability
+// (the landmark placement paper, section II), with k-cover, corner coverage
+// and the tables the global-optimum ILP (python/safenav/placement.py) needs.
+//
+// A route is a polyline of n ≥ 2 points (n−1 edges).  A landmark is in view
+// of the camera at a route point when its distance is ≤ R and its bearing
+// relative to the direction of travel is within ±α/2 (sector field of view)
+// or anywhere (circular field of view, Corollary 1).
+//
+// Edge frame (section II-A): each edge (t_i, t_{i+1}) is moved by a rigid
+// transform to (0, 0) → (d, 0); a landmark at (x_k, y_k) in that frame is in
+// view from (t, 0) for t in the interval of Lemma 2,
+//   t_s = max(x_k − √(R² − y_k²), 0),  t_d = min(x_k − |y_k|·cot(α/2), d),
+// and, for a circular field of view (Corollary 1, with the paper's typo fixed:
+// the printed "0" in t_d is d),
+//   t_d = min(x_k + √(R² − y_k²), d).
+//
+// Non-coincidence (condition (2) of the LPP): two landmarks on one bearing
+// from the camera count as one.  Two landmarks align only at the single point
+// of the edge where the line through them meets it, so coverage is counted as
+// the number of *distinct bearings* in view (bearings equal within 1e-9 rad
+// are one).  Intervals are closed; gaps shorter than 1e-9 m are rounding.
 #pragma once
-// placement: work in progress (see the open issue).
-namespace safenav {}
+
+#include <vector>
+#include <Eigen/Core>
+
+namespace safenav {
+
+/// Shape of the camera's field of view.
+enum class FieldOfView { Sector, Circular };
+
+/// The camera and the collision-avoidance distance (the paper's R, α, p).
+struct Camera {
+  double range = 2.0;                            ///< R [m], viewing range (> clearance)
+  double angle = 50.0 * 3.14159265358979323846 / 180.0;  ///< α [rad], full viewing angle, in (0, π]
+  double clearance = 0.05;                       ///< p [m], landmarks must be farther than p from the route
+  FieldOfView fov = FieldOfView::Sector;
+  /// Throws std::invalid_argument naming the first bad field.
+  void validate() const;
+};
+
+using Points2 = Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor>;
+
+/// A closed interval [start, end] of an edge (arc length) or of a turn (angle).
+struct Interval {
+  double start = 0.0;
+  double end = 0.0;
+};
+
+/// Rigid transform of the edge a → b to (0, 0) → (d, 0) (section II-A, steps 1–2).
+struct EdgeFrame {
+  EdgeFrame(const Eigen::Vector2d& a, const Eigen::Vector2d& b);
+  Eigen::Vector2d origin;  ///< t_i
+  double heading;          ///< θ = atan2(y_{i+1} − y_i, x_{i+1} − x_i)
+  double length;           ///< d
+  Eigen::Vector2d to_local(const Eigen::Vector2d& p) const;
+  Eigen::Vector2d to_world(const Eigen::Vector2d& q) const;
+};
+
+/// Lemma 1, the four conditions as printed (sector field of view): necessary
+/// for the landmark at `local` (edge frame) to be in view from some point of
+/// an edge of length `length`.  For the circular field of view: within R of
+/// the edge.
+bool in_region_of_influence(const Eigen::Vector2d& local, double length, const Camera& camera);
+
+/// Lemma 2 (sector) or Corollary 1 (circular): the closed interval of the
+/// edge [0, length] from which the landmark at `local` is in view.  Returns
+/// false (and leaves `out` alone) when it is never in view.
+bool visibility_interval(const Eigen::Vector2d& local, double length, const Camera& camera, Interval* out);
+
+/// Result of a k-interval cover of [0, length].
+struct CoverResult {
+  std::vector<int> chosen;          ///< indices into the interval list, in the order picked
+  std::vector<Interval> uncovered;  ///< maximal stretches covered fewer than k times (empty: covered)
+};
+
+/// Algorithm 1 generalised to k ≥ 1: cover every point of [0, length] by at
+/// least k of the given closed intervals with the fewest intervals.  At the
+/// leftmost point covered fewer than k times, take the interval reaching
+/// farthest among those containing it (for k = 2 and no `preplaced`
+/// intervals this is the paper's Algorithm 1).  Optimal (Proposition 1);
+/// `preplaced` intervals count as already chosen and cost nothing.  When a
+/// point cannot be covered the greedy skips the stretch, carries on, and
+/// reports the stretch in `uncovered`.
+CoverResult greedy_cover(const std::vector<Interval>& intervals, double length, int k,
+                         const std::vector<Interval>& preplaced = {});
+
+/// Stretches of [0, length] covered fewer than k times by closed intervals.
+std::vector<Interval> deficient_stretches(const std::vector<Interval>& intervals, double length, int k);
+
+struct PlacementOptions {
+  int k = 2;                     ///< landmarks in view at every point (the paper: 2)
+  bool corners = false;          ///< also cover the in-place turn at every interior vertex
+  bool reuse = false;            ///< edges after the first count landmarks already placed (the paper: false)
+  bool distinct_bearings = true; ///< enforce non-coincidence (the paper's Algorithm 1 does not)
+};
+
+/// The landmarks picked for one edge (its own picks, candidate indices).
+struct EdgePlacement {
+  std::vector<int> landmarks;
+  std::vector<Interval> uncovered;  ///< arc-length stretches of the edge with < k (zero length: an alignment point)
+  int n_candidates = 0;             ///< candidates whose Lemma 2 interval is not empty
+};
+
+/// The landmarks picked for the in-place turn at one interior vertex.
+struct CornerPlacement {
+  int vertex = 0;                   ///< route point index
+  double turn = 0.0;                ///< signed turn angle wrap(θ_out − θ_in) [rad]
+  std::vector<int> landmarks;
+  std::vector<Interval> uncovered;  ///< stretches of turned angle [0, |turn|] with < k
+};
+
+struct Placement {
+  std::vector<int> landmarks;       ///< chosen candidate indices, sorted
+  std::vector<EdgePlacement> edges;
+  std::vector<CornerPlacement> corners;
+  std::vector<int> too_close;       ///< candidates within the clearance p of the route (removed)
+  bool covered() const;
+};
+
+/// The paper's placement for a whole route: per edge the greedy cover, then
+/// the union over edges (section II-B), with candidates closer than p to the
+/// route removed first and, optionally, non-coincidence, reuse and corners.
+Placement place_landmarks(const Points2& route, const Points2& candidates, const Camera& camera,
+                          const PlacementOptions& options = PlacementOptions());
+
+/// Every (edge, candidate) pair with a non-empty Lemma 2 interval, for
+/// candidates farther than p from the route.  (x, y) is the candidate in the
+/// edge frame.  For corners (corner_visibility): `edge` is the vertex index,
+/// [start, end] the interval of turned angle, (x, y) the candidate relative to
+/// the vertex.
+struct VisibilityTable {
+  Eigen::VectorXi edge, candidate;
+  Eigen::VectorXd start, end, x, y;
+};
+VisibilityTable edge_visibility(const Points2& route, const Points2& candidates, const Camera& camera);
+VisibilityTable corner_visibility(const Points2& route, const Points2& candidates, const Camera& camera);
+
+/// Signed turn wrap(θ_{i} − θ_{i−1}) at every interior vertex i = 1 … n−2.
+Eigen::VectorXd turn_angles(const Points2& route);
+
+/// Pairs of candidates (first < second) on one bearing from the camera at an
+/// edge point t where both are in view.
+struct AlignmentTable {
+  Eigen::VectorXi edge, first, second;
+  Eigen::VectorXd t;
+};
+AlignmentTable alignments(const Points2& route, const Points2& candidates, const Camera& camera);
+
+/// Distance from each point to the route polyline.
+Eigen::VectorXd distance_to_route(const Points2& route, const Points2& points);
+
+/// Exact coverage check of a set of landmarks: at every interval endpoint,
+/// alignment point and between them, count distinct bearings in view.
+struct CoverageReport {
+  int min_count = 0;            ///< fewest distinct bearings in view anywhere checked
+  double min_distance = 0.0;    ///< closest landmark to the route
+  Eigen::VectorXi kind;         ///< per deficient stretch: 0 edge, 1 corner
+  Eigen::VectorXi index;        ///< edge index or vertex index
+  Eigen::VectorXd start, end;   ///< the stretch (arc length, or turned angle)
+};
+CoverageReport check_coverage(const Points2& route, const Points2& landmarks, const Camera& camera, int k,
+                              bool corners = false);
+
+}  // namespace safenav
