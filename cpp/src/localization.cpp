@@ -1,2 +1,507 @@
-// localization: work in progress (see the open issue).
 #include "safenav/localization.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
+#include <Eigen/QR>
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <sstream>
+#include <stdexcept>
+
+#include "rng.hpp"
+
+namespace safenav {
+
+const char* to_string(LocalizationStatus status) {
+  switch (status) {
+    case LocalizationStatus::Ok: return "ok";
+    case LocalizationStatus::TooFew: return "too_few";
+    case LocalizationStatus::Degenerate: return "degenerate";
+    case LocalizationStatus::DidNotConverge: return "did_not_converge";
+  }
+  return "unknown";
+}
+
+void LocalizationOptions::validate() const {
+  std::ostringstream os;
+  if (!(std::isfinite(outlier_threshold) && outlier_threshold > 0.0))
+    os << "outlier_threshold = " << outlier_threshold << " must be finite and > 0";
+  else if (max_iterations < 1)
+    os << "max_iterations = " << max_iterations << " must be >= 1";
+  else if (!(std::isfinite(tolerance) && tolerance > 0.0))
+    os << "tolerance = " << tolerance << " must be finite and > 0";
+  else if (!(max_gdop > 0.0))
+    os << "max_gdop = " << max_gdop << " must be > 0";
+  else if (!(std::isfinite(ambiguity_margin) && ambiguity_margin >= 0.0))
+    os << "ambiguity_margin = " << ambiguity_margin << " must be finite and >= 0";
+  else if (!(std::isfinite(min_crossing_angle) && min_crossing_angle >= 0.0 && min_crossing_angle < M_PI / 2))
+    os << "min_crossing_angle = " << min_crossing_angle << " must be in [0, pi/2)";
+  else if (max_subsets < 1)
+    os << "max_subsets = " << max_subsets << " must be >= 1";
+  const std::string msg = os.str();
+  if (!msg.empty()) throw std::invalid_argument(msg);
+}
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+double wrap(double a) {
+  a = std::remainder(a, 2.0 * M_PI);
+  return a <= -M_PI ? a + 2.0 * M_PI : a;
+}
+
+void check_inputs(const Eigen::Ref<const Anchors>& anchors, const Eigen::Ref<const Eigen::VectorXd>& z,
+                  const Eigen::Ref<const Eigen::VectorXd>& sigmas, const char* zname, bool nonnegative) {
+  std::ostringstream os;
+  const auto n = anchors.rows();
+  if (z.size() != n) {
+    os << zname << " has " << z.size() << " entries but anchors has " << n << " rows";
+    throw std::invalid_argument(os.str());
+  }
+  if (sigmas.size() != n) {
+    os << "sigmas has " << sigmas.size() << " entries but anchors has " << n << " rows";
+    throw std::invalid_argument(os.str());
+  }
+  for (Eigen::Index i = 0; i < n; ++i) {
+    if (!anchors.row(i).allFinite()) {
+      os << "anchor " << i << " has non-finite position (" << anchors(i, 0) << ", " << anchors(i, 1) << ")";
+      throw std::invalid_argument(os.str());
+    }
+    if (!std::isfinite(z[i]) || (nonnegative && z[i] < 0.0)) {
+      os << zname << "[" << i << "] = " << z[i] << " must be finite" << (nonnegative ? " and >= 0" : "");
+      throw std::invalid_argument(os.str());
+    }
+    if (!(std::isfinite(sigmas[i]) && sigmas[i] > 0.0)) {
+      os << "sigmas[" << i << "] = " << sigmas[i] << " must be finite and > 0";
+      throw std::invalid_argument(os.str());
+    }
+  }
+}
+
+/// One measurement model over a set of anchors: residual z − h(p) and the
+/// Jacobian row ∂h/∂p.
+struct RangeModel {
+  static constexpr int kMinimal = 3;
+  static constexpr const char* kWhat = "ranges";
+  double residual(const Eigen::Vector2d& p, const Eigen::Vector2d& a, double z) const { return z - (p - a).norm(); }
+  Eigen::RowVector2d jacobian(const Eigen::Vector2d& p, const Eigen::Vector2d& a) const {
+    const Eigen::Vector2d d = p - a;
+    const double r = d.norm();
+    return r > 0.0 ? Eigen::RowVector2d(d.transpose() / r) : Eigen::RowVector2d::Zero();
+  }
+};
+
+struct BearingModel {
+  static constexpr int kMinimal = 2;
+  static constexpr const char* kWhat = "bearings";
+  double residual(const Eigen::Vector2d& p, const Eigen::Vector2d& a, double z) const {
+    return wrap(z - std::atan2(a.y() - p.y(), a.x() - p.x()));
+  }
+  Eigen::RowVector2d jacobian(const Eigen::Vector2d& p, const Eigen::Vector2d& a) const {
+    const double dx = a.x() - p.x(), dy = a.y() - p.y();
+    const double r2 = dx * dx + dy * dy;
+    return r2 > 0.0 ? Eigen::RowVector2d(dy / r2, -dx / r2) : Eigen::RowVector2d::Zero();
+  }
+};
+
+struct Problem {
+  const Eigen::Ref<const Anchors>& anchors;
+  const Eigen::Ref<const Eigen::VectorXd>& z;
+  const Eigen::Ref<const Eigen::VectorXd>& sigma;
+  Eigen::Vector2d a(int i) const { return anchors.row(i).transpose(); }
+};
+
+struct Fit {
+  Eigen::Vector2d p = Eigen::Vector2d::Constant(kNaN);
+  double cost = kNaN;
+  int iterations = 0;
+  bool converged = false;
+};
+
+template <class Model>
+double cost_at(const Model& m, const Problem& pr, const std::vector<int>& idx, const Eigen::Vector2d& p) {
+  double c = 0.0;
+  for (int i : idx) {
+    const double e = m.residual(p, pr.a(i), pr.z[i]) / pr.sigma[i];
+    c += e * e;
+  }
+  return c;
+}
+
+/// Weighted normal equations A = Jᵀ W J, g = Jᵀ W e at p.
+template <class Model>
+void normal_equations(const Model& m, const Problem& pr, const std::vector<int>& idx, const Eigen::Vector2d& p,
+                      Eigen::Matrix2d& A, Eigen::Vector2d& g) {
+  A.setZero();
+  g.setZero();
+  for (int i : idx) {
+    const double w = 1.0 / (pr.sigma[i] * pr.sigma[i]);
+    const Eigen::RowVector2d J = m.jacobian(p, pr.a(i));
+    A.noalias() += w * J.transpose() * J;
+    g.noalias() += (w * m.residual(p, pr.a(i), pr.z[i])) * J.transpose();
+  }
+}
+
+/// Levenberg–Marquardt (Marquardt's diagonal scaling) from p0; pure
+/// Gauss–Newton steps once λ has decayed.
+template <class Model>
+Fit levenberg_marquardt(const Model& m, const Problem& pr, const std::vector<int>& idx, Eigen::Vector2d p,
+                        const LocalizationOptions& opt) {
+  Fit f;
+  double lambda = 1e-3;
+  double cost = cost_at(m, pr, idx, p);
+  Eigen::Matrix2d A;
+  Eigen::Vector2d g;
+  for (int it = 0; it < opt.max_iterations; ++it) {
+    f.iterations = it + 1;
+    normal_equations(m, pr, idx, p, A, g);
+    bool stepped = false;
+    while (lambda < 1e16) {
+      Eigen::Matrix2d Ad = A;
+      Ad.diagonal() *= (1.0 + lambda);
+      const Eigen::Vector2d delta = Ad.fullPivLu().solve(g);
+      if (!delta.allFinite()) break;
+      const Eigen::Vector2d pn = p + delta;
+      const double cn = cost_at(m, pr, idx, pn);
+      const bool small = delta.norm() <= opt.tolerance * (1.0 + p.norm());
+      if (cn <= cost) {
+        p = pn;
+        const double decrease = cost - cn;
+        cost = cn;
+        lambda = std::max(lambda * 0.1, 1e-15);
+        stepped = true;
+        if (small || decrease <= 1e-15 * cost) {
+          f.converged = true;
+        }
+        break;
+      }
+      if (small) {  // no descent left at machine precision: a minimum
+        f.converged = true;
+        break;
+      }
+      lambda *= 10.0;
+    }
+    if (f.converged) break;
+    if (!stepped) {
+      // Damping exhausted: converged only if the gradient vanishes.
+      f.converged = g.norm() <= 1e-9 * std::max(1.0, A.norm() * (1.0 + p.norm()));
+      break;
+    }
+  }
+  f.p = p;
+  f.cost = cost;
+  return f;
+}
+
+/// Linear start for ranges: 2aᵢᵀp − s = |aᵢ|² − rᵢ² with s = |p|² (3 unknowns).
+bool linear_start(const RangeModel&, const Problem& pr, const std::vector<int>& idx, Eigen::Vector2d& p) {
+  const int k = static_cast<int>(idx.size());
+  Eigen::MatrixXd M(k, 3);
+  Eigen::VectorXd b(k);
+  for (int r = 0; r < k; ++r) {
+    const int i = idx[r];
+    const Eigen::Vector2d a = pr.a(i);
+    const double w = 1.0 / pr.sigma[i];
+    M.row(r) << 2.0 * a.x() * w, 2.0 * a.y() * w, -w;
+    b[r] = (a.squaredNorm() - pr.z[i] * pr.z[i]) * w;
+  }
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(M);
+  if (qr.rank() < 3) return false;
+  const Eigen::Vector3d sol = qr.solve(b);
+  p = sol.head<2>();
+  return p.allFinite();
+}
+
+/// Linear start for bearings: nᵢᵀp = nᵢᵀaᵢ with nᵢ = (−sin βᵢ, cos βᵢ).
+bool linear_start(const BearingModel&, const Problem& pr, const std::vector<int>& idx, Eigen::Vector2d& p) {
+  const int k = static_cast<int>(idx.size());
+  Eigen::MatrixXd M(k, 2);
+  Eigen::VectorXd b(k);
+  for (int r = 0; r < k; ++r) {
+    const int i = idx[r];
+    const Eigen::Vector2d nrm(-std::sin(pr.z[i]), std::cos(pr.z[i]));
+    M.row(r) = nrm.transpose();
+    b[r] = nrm.dot(pr.a(i));
+  }
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(M);
+  if (qr.rank() < 2) return false;
+  p = qr.solve(b);
+  return p.allFinite();
+}
+
+/// Centroid and unit normal of the anchors' best-fit line; ratio = spread
+/// across / spread along (0 for collinear anchors).
+void principal_line(const Problem& pr, const std::vector<int>& idx, Eigen::Vector2d& c, Eigen::Vector2d& normal,
+                    double& ratio) {
+  c.setZero();
+  for (int i : idx) c += pr.a(i);
+  c /= static_cast<double>(idx.size());
+  Eigen::Matrix2d S = Eigen::Matrix2d::Zero();
+  for (int i : idx) S.noalias() += (pr.a(i) - c) * (pr.a(i) - c).transpose();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(S);
+  normal = es.eigenvectors().col(0);
+  const double lmax = es.eigenvalues()[1];
+  ratio = lmax > 0.0 ? std::sqrt(std::max(0.0, es.eigenvalues()[0]) / lmax) : 0.0;
+}
+
+std::string point_str(const Eigen::Vector2d& p) {
+  std::ostringstream os;
+  os << "(" << p.x() << ", " << p.y() << ")";
+  return os.str();
+}
+
+/// GDOP and covariance at p over idx.
+template <class Model>
+void geometry_at(const Model& m, const Problem& pr, const std::vector<int>& idx, const Eigen::Vector2d& p,
+                 double& gdop, Eigen::Matrix2d& cov, bool bearings) {
+  Eigen::Matrix2d G = Eigen::Matrix2d::Zero();
+  Eigen::Matrix2d A = Eigen::Matrix2d::Zero();
+  double mean_range = 0.0;
+  for (int i : idx) {
+    const Eigen::RowVector2d J = m.jacobian(p, pr.a(i));
+    G.noalias() += J.transpose() * J;
+    A.noalias() += (1.0 / (pr.sigma[i] * pr.sigma[i])) * J.transpose() * J;
+    mean_range += (p - pr.a(i)).norm();
+  }
+  mean_range /= static_cast<double>(idx.size());
+  Eigen::FullPivLU<Eigen::Matrix2d> luG(G), luA(A);
+  const double inf = std::numeric_limits<double>::infinity();
+  gdop = luG.isInvertible() ? std::sqrt(std::max(0.0, luG.inverse().trace())) : inf;
+  if (bearings && std::isfinite(gdop)) gdop /= std::max(mean_range, 1e-300);
+  if (luA.isInvertible()) {
+    cov = luA.inverse();
+    cov = 0.5 * (cov + cov.transpose());
+  } else {
+    cov.setConstant(inf);
+  }
+}
+
+/// Solve on the measurement subset idx with every degeneracy check.
+template <class Model>
+LocalizationResult solve_subset(const Model& m, const Problem& pr, const std::vector<int>& idx,
+                                const LocalizationOptions& opt) {
+  LocalizationResult res;
+  constexpr bool kBearings = std::is_same<Model, BearingModel>::value;
+  const int k = static_cast<int>(idx.size());
+  std::ostringstream os;
+  if (k < Model::kMinimal) {
+    res.status = LocalizationStatus::TooFew;
+    os << Model::kMinimal << " " << Model::kWhat << " are needed, got " << k;
+    res.reason = os.str();
+    return res;
+  }
+  Eigen::Vector2d c, normal;
+  double ratio = 0.0;
+  principal_line(pr, idx, c, normal, ratio);
+  if (kBearings) {
+    double best_sin = 0.0;
+    for (int a = 0; a < k; ++a)
+      for (int b = a + 1; b < k; ++b)
+        best_sin = std::max(best_sin, std::abs(std::sin(pr.z[idx[a]] - pr.z[idx[b]])));
+    if (best_sin < std::sin(opt.min_crossing_angle)) {
+      res.status = LocalizationStatus::Degenerate;
+      os << "bearing lines are (nearly) parallel: widest crossing angle " << std::asin(std::min(1.0, best_sin))
+         << " rad < min_crossing_angle " << opt.min_crossing_angle;
+      res.reason = os.str();
+      return res;
+    }
+  } else if (ratio < 1e-9) {
+    res.status = LocalizationStatus::Degenerate;
+    res.reason = "anchors are collinear: the ranges fit two mirror-image positions";
+    return res;
+  }
+  Eigen::Vector2d p0;
+  if (!linear_start(m, pr, idx, p0)) {
+    res.status = LocalizationStatus::Degenerate;
+    res.reason = "the linear system for the starting point is rank deficient";
+    return res;
+  }
+  Fit f = levenberg_marquardt(m, pr, idx, p0, opt);
+  if (!f.converged || !f.p.allFinite()) {
+    res.status = LocalizationStatus::DidNotConverge;
+    res.position = f.p;
+    res.iterations = f.iterations;
+    os << "Levenberg-Marquardt did not converge in " << f.iterations << " iterations (max_iterations = "
+       << opt.max_iterations << ")";
+    res.reason = os.str();
+    return res;
+  }
+  geometry_at(m, pr, idx, f.p, res.gdop, res.covariance, kBearings);
+  if (!kBearings) {
+    // A second minimum (typically the reflection across the anchors' line)
+    // that fits about as well makes the fix ambiguous.
+    const Eigen::Vector2d pm = f.p - 2.0 * (f.p - c).dot(normal) * normal;
+    const double scale = 1.0 + f.p.norm();
+    if ((pm - f.p).norm() > 1e-9 * scale) {
+      const Fit g = levenberg_marquardt(m, pr, idx, pm, opt);
+      const double sep = (g.p - f.p).norm();
+      const double sd = std::sqrt(std::max(0.0, res.covariance.trace()));
+      if (g.converged && g.p.allFinite() && sep > std::max(3.0 * sd, 1e-6 * scale)) {
+        if (g.cost < f.cost - opt.ambiguity_margin) {
+          f = g;  // the linear start fell into the worse minimum
+          geometry_at(m, pr, idx, f.p, res.gdop, res.covariance, kBearings);
+        } else if (std::abs(g.cost - f.cost) <= opt.ambiguity_margin) {
+          res.status = LocalizationStatus::Degenerate;
+          res.position = f.p;
+          res.iterations = f.iterations;
+          os << "ambiguous geometry: " << point_str(f.p) << " (chi2 " << f.cost << ") and " << point_str(g.p)
+             << " (chi2 " << g.cost << ") fit the ranges within ambiguity_margin " << opt.ambiguity_margin;
+          res.reason = os.str();
+          res.covariance.setConstant(kNaN);
+          return res;
+        }
+      }
+    }
+  } else {
+    for (int i : idx) {
+      if (std::abs(m.residual(f.p, pr.a(i), pr.z[i])) > M_PI / 2) {
+        res.status = LocalizationStatus::Degenerate;
+        os << "bearing " << i << " points away from anchor " << i << " at the solution " << point_str(f.p);
+        res.reason = os.str();
+        res.covariance.setConstant(kNaN);
+        return res;
+      }
+    }
+  }
+  res.position = f.p;
+  res.iterations = f.iterations;
+  res.chi2 = f.cost;
+  if (!(res.gdop <= opt.max_gdop)) {
+    res.status = LocalizationStatus::Degenerate;
+    os << "GDOP " << res.gdop << " exceeds max_gdop " << opt.max_gdop << " (anchors nearly in line with the position)";
+    res.reason = os.str();
+    return res;
+  }
+  res.status = LocalizationStatus::Ok;
+  return res;
+}
+
+template <class Model>
+std::vector<int> inliers_at(const Model& m, const Problem& pr, const Eigen::Vector2d& p, double thr) {
+  std::vector<int> in;
+  for (int i = 0; i < pr.z.size(); ++i)
+    if (std::abs(m.residual(p, pr.a(i), pr.z[i])) <= thr * pr.sigma[i]) in.push_back(i);
+  return in;
+}
+
+/// Next k-combination of {0..n-1} in lexicographic order.
+bool next_combination(std::vector<int>& c, int n) {
+  const int k = static_cast<int>(c.size());
+  for (int i = k - 1; i >= 0; --i) {
+    if (c[i] < n - k + i) {
+      ++c[i];
+      for (int j = i + 1; j < k; ++j) c[j] = c[j - 1] + 1;
+      return true;
+    }
+  }
+  return false;
+}
+
+double n_choose_k(int n, int k) {
+  double r = 1.0;
+  for (int i = 1; i <= k; ++i) r = r * (n - k + i) / i;
+  return r;
+}
+
+template <class Model>
+LocalizationResult localize(const Model& m, const Problem& pr, const LocalizationOptions& opt) {
+  const int n = static_cast<int>(pr.z.size());
+  std::vector<int> all(n);
+  std::iota(all.begin(), all.end(), 0);
+  auto finish = [&](LocalizationResult r, const std::vector<int>& in) {
+    r.inliers = Eigen::Array<bool, Eigen::Dynamic, 1>::Constant(n, false);
+    for (int i : in) r.inliers[i] = true;
+    return r;
+  };
+  LocalizationResult full = solve_subset(m, pr, all, opt);
+  if (!opt.reject_outliers || n <= Model::kMinimal) return finish(full, all);
+  if (full.ok() && static_cast<int>(inliers_at(m, pr, full.position, opt.outlier_threshold).size()) == n)
+    return finish(full, all);
+
+  // Consensus over minimal sets (all of them, or max_subsets drawn at random).
+  const int k = Model::kMinimal;
+  std::vector<int> best_in;
+  double best_cost = std::numeric_limits<double>::infinity();
+  auto consider = [&](const std::vector<int>& subset) {
+    Eigen::Vector2d p0;
+    if (!linear_start(m, pr, subset, p0)) return;
+    const Fit f = levenberg_marquardt(m, pr, subset, p0, opt);
+    if (!f.converged || !f.p.allFinite()) return;
+    std::vector<int> in = inliers_at(m, pr, f.p, opt.outlier_threshold);
+    if (static_cast<int>(in.size()) < k) return;
+    const double c = cost_at(m, pr, in, f.p);
+    if (in.size() > best_in.size() || (in.size() == best_in.size() && c < best_cost)) {
+      best_in = std::move(in);
+      best_cost = c;
+    }
+  };
+  std::vector<int> subset(k);
+  if (n_choose_k(n, k) <= opt.max_subsets) {
+    std::iota(subset.begin(), subset.end(), 0);
+    do consider(subset);
+    while (next_combination(subset, n));
+  } else {
+    detail::Rng rng(opt.seed);
+    for (int s = 0; s < opt.max_subsets; ++s) {
+      // k distinct indices (Floyd's algorithm), sorted.
+      subset.clear();
+      for (int j = n - k; j < n; ++j) {
+        const int t = static_cast<int>(rng.uniform() * (j + 1));
+        if (std::find(subset.begin(), subset.end(), t) == subset.end())
+          subset.push_back(t);
+        else
+          subset.push_back(j);
+      }
+      std::sort(subset.begin(), subset.end());
+      consider(subset);
+    }
+  }
+  if (static_cast<int>(best_in.size()) < k) {
+    // No minimal set agrees with enough others: report the full fit's problem.
+    if (!full.ok()) return finish(full, all);
+    LocalizationResult r;
+    r.status = LocalizationStatus::TooFew;
+    r.reason = std::string("no ") + std::to_string(k) + " " + Model::kWhat + " agree within outlier_threshold";
+    return finish(r, {});
+  }
+  // Refit on the consensus set and re-evaluate it until it is stable.
+  std::vector<int> in = best_in;
+  LocalizationResult r;
+  for (int round = 0; round < 10; ++round) {
+    r = solve_subset(m, pr, in, opt);
+    if (!r.ok()) break;
+    std::vector<int> again = inliers_at(m, pr, r.position, opt.outlier_threshold);
+    if (again == in || static_cast<int>(again.size()) < k) break;
+    in = std::move(again);
+  }
+  if (r.ok() && static_cast<int>(in.size()) < n) {
+    std::ostringstream os;
+    os << n - static_cast<int>(in.size()) << " of " << n << " " << Model::kWhat << " rejected as outliers";
+    r.reason = os.str();
+  }
+  return finish(r, in);
+}
+
+}  // namespace
+
+LocalizationResult trilaterate(const Eigen::Ref<const Anchors>& anchors, const Eigen::Ref<const Eigen::VectorXd>& ranges,
+                               const Eigen::Ref<const Eigen::VectorXd>& sigmas, const LocalizationOptions& options) {
+  options.validate();
+  check_inputs(anchors, ranges, sigmas, "ranges", true);
+  const Problem pr{anchors, ranges, sigmas};
+  return localize(RangeModel{}, pr, options);
+}
+
+LocalizationResult triangulate_bearings(const Eigen::Ref<const Anchors>& anchors,
+                                        const Eigen::Ref<const Eigen::VectorXd>& bearings,
+                                        const Eigen::Ref<const Eigen::VectorXd>& sigmas,
+                                        const LocalizationOptions& options) {
+  options.validate();
+  check_inputs(anchors, bearings, sigmas, "bearings", false);
+  const Problem pr{anchors, bearings, sigmas};
+  return localize(BearingModel{}, pr, options);
+}
+
+}  // namespace safenav

@@ -1,3 +1,91 @@
+// safenav/localization.hpp — LanBLoc position fixes from landmark anchors
+// (SafeNav paper section IV-A: "recognized landmarks as anchor nodes for
+// trilateration ... with further position optimization").
+//
+//  * trilateration from >= 3 ranges r_i = ‖p − a_i‖ + v_i, v_i ~ N(0, σ_i²):
+//    linear least squares start, then weighted Gauss–Newton with
+//    Levenberg–Marquardt damping; covariance (Jᵀ W J)⁻¹ of the normal
+//    equations; GDOP; outlier rejection (exhaustive or sampled minimal sets,
+//    then consensus refit) when >= 4 ranges;
+//  * bearing triangulation from >= 2 absolute bearings
+//    β_i = atan2(a_iy − y, a_ix − x) + v_i (same machinery).
+//
+// Geometry that does not determine the position (fewer anchors than needed,
+// collinear anchors, a mirror solution that fits as well, parallel bearing
+// lines) returns an explicit status instead of a point.
 #pragma once
-// localization: work in progress (see the open issue).
-namespace safenav {}
+
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <vector>
+#include <Eigen/Core>
+
+namespace safenav {
+
+enum class LocalizationStatus {
+  Ok,              ///< position and covariance are valid
+  TooFew,          ///< fewer measurements (or inliers) than the minimal set
+  Degenerate,      ///< the geometry does not determine the position
+  DidNotConverge,  ///< the iteration did not converge
+};
+
+const char* to_string(LocalizationStatus status);
+
+struct LocalizationOptions {
+  /// A measurement is an outlier when |residual| / σ exceeds this.
+  double outlier_threshold = 3.0;
+  /// Whether to reject outliers (only when there are more measurements than
+  /// the minimal set: >= 4 ranges, >= 3 bearings).
+  bool reject_outliers = true;
+  /// Gauss–Newton/LM iteration limit and relative step tolerance.
+  int max_iterations = 100;
+  double tolerance = 1e-12;
+  /// GDOP above this is reported as degenerate geometry.
+  double max_gdop = 100.0;
+  /// A second (mirror) solution whose weighted cost χ² is within this margin
+  /// of the best one makes the fix ambiguous (degenerate).
+  double ambiguity_margin = 9.0;
+  /// Bearings: lines that cross at less than this angle (rad) are parallel.
+  double min_crossing_angle = 1e-2;
+  /// Minimal sets tried for outlier rejection: all of them when there are at
+  /// most this many, otherwise this many drawn with `seed`.
+  int max_subsets = 500;
+  std::uint64_t seed = 0;
+
+  void validate() const;
+};
+
+using Anchors = Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor>;
+
+struct LocalizationResult {
+  LocalizationStatus status = LocalizationStatus::TooFew;
+  Eigen::Vector2d position = Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
+  Eigen::Matrix2d covariance = Eigen::Matrix2d::Constant(std::numeric_limits<double>::quiet_NaN());
+  double gdop = std::numeric_limits<double>::quiet_NaN();
+  double chi2 = std::numeric_limits<double>::quiet_NaN();  ///< Σ (r_i/σ_i)² over inliers
+  Eigen::Array<bool, Eigen::Dynamic, 1> inliers;             ///< one per measurement
+  int iterations = 0;
+  std::string reason;  ///< why it failed; when ok, empty or a note (outliers rejected)
+
+  bool ok() const { return status == LocalizationStatus::Ok; }
+};
+
+/// Trilateration from ranges to anchors (n×2), ranges (n) and their standard
+/// deviations (n).  Throws std::invalid_argument on malformed input
+/// (mismatched sizes, non-finite values, negative ranges, σ <= 0).
+LocalizationResult trilaterate(const Eigen::Ref<const Anchors>& anchors, const Eigen::Ref<const Eigen::VectorXd>& ranges,
+                               const Eigen::Ref<const Eigen::VectorXd>& sigmas,
+                               const LocalizationOptions& options = LocalizationOptions());
+
+/// Triangulation from absolute bearings (world frame, rad, from the vehicle to
+/// each anchor; add the known heading to relative bearings first).
+/// GDOP for bearings is sqrt(trace((GᵀG)⁻¹)) / mean range with G_i the
+/// bearing gradient, i.e. metres of position error per metre of range per
+/// radian of bearing error.
+LocalizationResult triangulate_bearings(const Eigen::Ref<const Anchors>& anchors,
+                                        const Eigen::Ref<const Eigen::VectorXd>& bearings,
+                                        const Eigen::Ref<const Eigen::VectorXd>& sigmas,
+                                        const LocalizationOptions& options = LocalizationOptions());
+
+}  // namespace safenav

@@ -1,0 +1,428 @@
+"""Stereo ranging for LanBLoc (SafeNav paper, section IV-A).
+
+LanBLoc measures the distance from the vehicle to each recognised landmark
+with stereo matching, then trilaterates (:mod:`safenav.localization`).  This
+module is the ranging half, in C++ over OpenCV:
+
+* :class:`StereoCalibration` — ``K1, D1, K2, D2, R, T`` and the image size,
+  exactly what ``cv2.stereoCalibrate`` returns (``X₂ = R X₁ + T``); loads and
+  saves OpenCV FileStorage YAML/XML (also OpenCV's ``stereo_calib`` sample
+  files with ``M1``/``M2`` in one file and ``R``/``T`` in another);
+* :class:`RectifiedCamera` — the ideal rectified rig ``(f, cx, cy, B, doffs)``
+  with ``Z = f·B / (d + doffs)`` (Middlebury's convention; ``doffs`` is the
+  right principal column minus the left one);
+* :class:`StereoMatcher` — ``stereoRectify`` + ``initUndistortRectifyMap``
+  (maps cached), SGBM disparities (float pixels, NaN where invalid), depth,
+  and :meth:`StereoMatcher.box_range`: the median depth of the valid pixels in
+  a detection box with ``σ_Z ≈ Z²·σ_d / (f·B)`` (first-order propagation of
+  the disparity noise σ_d through ``Z = f·B/(d + doffs)``).
+
+Images are ``uint8`` arrays ``(H, W)`` or ``(H, W, 3)``; boxes are
+``(x_min, y_min, x_max, y_max)`` pixels (xyxy), covering the pixel columns
+``x_min <= i < x_max`` and rows ``y_min <= j < y_max``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from pathlib import Path
+
+import numpy as np
+
+from . import _core
+from ._checks import as_array
+
+SgbmMode = _core.SgbmMode
+
+__all__ = ["StereoCalibration", "RectifiedCamera", "StereoMatcher", "BoxRange", "SgbmMode", "SGBM_DEFAULTS"]
+
+#: SGBM parameters and their defaults (OpenCV's names, snake_case).  ``P1 = P2
+#: = 0`` selects OpenCV's recommended ``8·cn·block_size²`` and ``32·cn·block_size²``.
+SGBM_DEFAULTS = dict(min_disparity=0, num_disparities=64, block_size=5, P1=0, P2=0, disp12_max_diff=1,
+                     pre_filter_cap=63, uniqueness_ratio=10, speckle_window_size=100, speckle_range=2,
+                     mode="sgbm")
+_MODES = {"sgbm": SgbmMode.SGBM, "hh": SgbmMode.HH, "sgbm_3way": SgbmMode.SGBM_3WAY, "hh4": SgbmMode.HH4}
+
+
+# ---------------------------------------------------------------------------
+# calibration
+# ---------------------------------------------------------------------------
+
+def _image_size(value) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in value)
+        ok = all(float(v) == int(v) for v in value)
+    except (TypeError, ValueError):
+        ok = False
+    if not ok or w <= 0 or h <= 0:
+        raise ValueError(f"image_size must be (width, height) positive integers, got {value!r}")
+    return w, h
+
+
+def _distortion(name, value) -> np.ndarray:
+    d = np.asarray(value, dtype=np.float64).ravel() if value is not None else np.zeros(0)
+    if d.size not in (0, 4, 5, 8, 12, 14):
+        raise ValueError(f"calibration {name} has {d.size} coefficients; OpenCV takes 0, 4, 5, 8, 12 or 14")
+    return np.ascontiguousarray(d)
+
+
+@dataclass(frozen=True)
+class StereoCalibration:
+    """A calibrated stereo rig (what ``cv2.stereoCalibrate`` returns).
+
+    ``K1``, ``K2`` are 3×3 intrinsics, ``D1``, ``D2`` distortion vectors
+    (0/4/5/8/12/14 coefficients), ``R`` (3×3) and ``T`` (3,) the pose of
+    camera 2 in camera 1's frame (``X₂ = R X₁ + T``; ``T[0] < 0`` when camera
+    2 is on the right), ``image_size = (width, height)``.  Validated on
+    construction: a NaN anywhere raises ``ValueError`` naming the field.
+    """
+
+    K1: np.ndarray
+    D1: np.ndarray
+    K2: np.ndarray
+    D2: np.ndarray
+    R: np.ndarray
+    T: np.ndarray
+    image_size: tuple[int, int]
+
+    def __post_init__(self):
+        for name in ("K1", "K2", "R"):
+            object.__setattr__(self, name, _matrix(name, getattr(self, name), (3, 3)))
+        object.__setattr__(self, "T", _matrix("T", np.asarray(self.T, dtype=np.float64).ravel(), (3,)))
+        object.__setattr__(self, "D1", _distortion("D1", self.D1))
+        object.__setattr__(self, "D2", _distortion("D2", self.D2))
+        object.__setattr__(self, "image_size", _image_size(self.image_size))
+        self._core().validate()  # NaN, rotation, baseline, rig orientation → ValueError naming the field
+
+    def _core(self) -> _core.StereoCalibration:
+        c = _core.StereoCalibration()
+        c.K1, c.D1, c.K2, c.D2, c.R, c.T = self.K1, self.D1, self.K2, self.D2, self.R, self.T
+        c.width, c.height = self.image_size
+        return c
+
+    @property
+    def baseline(self) -> float:
+        """‖T‖, in the unit of T."""
+        return float(np.linalg.norm(self.T))
+
+    def save(self, path) -> None:
+        """Write OpenCV FileStorage (``.yml``/``.yaml``/``.xml``/``.json``, by extension)."""
+        import cv2
+
+        path = Path(path)
+        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+        if not fs.isOpened():
+            raise ValueError(f"cannot open {str(path)!r} for writing")
+        try:
+            for name in ("K1", "D1", "K2", "D2", "R"):
+                value = getattr(self, name)
+                fs.write(name, value.reshape(1, -1) if value.ndim == 1 else value)
+            fs.write("T", self.T.reshape(3, 1))
+            fs.write("image_width", int(self.image_size[0]))
+            fs.write("image_height", int(self.image_size[1]))
+        finally:
+            fs.release()
+
+    @classmethod
+    def load(cls, path, extrinsics_path=None) -> "StereoCalibration":
+        """Read OpenCV FileStorage written by :meth:`save` or by OpenCV itself.
+
+        Intrinsics may be named ``K1``/``K2`` or ``M1``/``M2`` (OpenCV's
+        ``stereo_calib`` sample, which writes ``intrinsics.yml`` and, with
+        ``R``/``T``, ``extrinsics.yml``: pass that as ``extrinsics_path``).
+        The image size is ``image_width``/``image_height``, ``image_size`` or
+        ``imageSize`` (``[width, height]``).  Missing nodes raise ``ValueError``
+        naming the node and the file.
+        """
+        import cv2
+
+        nodes = {}
+        for p in (path,) + ((extrinsics_path,) if extrinsics_path is not None else ()):
+            p = Path(p)
+            if not p.is_file():
+                raise ValueError(f"calibration file {str(p)!r} does not exist")
+            try:
+                fs = cv2.FileStorage(str(p), cv2.FILE_STORAGE_READ)
+            except cv2.error as exc:
+                raise ValueError(f"calibration file {str(p)!r} is not OpenCV FileStorage: {exc}") from exc
+            if not fs.isOpened():
+                raise ValueError(f"calibration file {str(p)!r} is not OpenCV FileStorage")
+            try:
+                root = fs.root()
+                for key in root.keys():
+                    nodes[key] = (_read(root.getNode(key)), p)
+            finally:
+                fs.release()
+
+        def get(*names, required=True):
+            for n in names:
+                if n in nodes and nodes[n][0] is not None:
+                    return nodes[n][0]
+            if required:
+                raise ValueError(f"calibration file {str(path)!r} has no {' / '.join(names)} node")
+            return None
+
+        if get("image_width", required=False) is not None:
+            size = (get("image_width"), get("image_height"))
+        else:
+            size = np.asarray(get("image_size", "imageSize")).ravel()
+        return cls(K1=get("K1", "M1"), D1=get("D1"), K2=get("K2", "M2"), D2=get("D2"), R=get("R"), T=get("T"),
+                   image_size=tuple(size))
+
+
+def _read(node):
+    if node.isNone():
+        return None
+    if node.isInt() or node.isReal():
+        return node.real()
+    if node.isSeq():
+        return np.array([node.at(i).real() for i in range(node.size())], dtype=np.float64)
+    m = node.mat()
+    return None if m is None else np.asarray(m, dtype=np.float64)
+
+
+def _matrix(name, value, shape):
+    try:
+        arr = np.ascontiguousarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"calibration {name} must be numeric, got {value!r}") from exc
+    if arr.shape != shape:
+        raise ValueError(f"calibration {name} must have shape {shape}, got {arr.shape}")
+    return arr  # finiteness is checked in C++ with the entry named
+
+
+@dataclass(frozen=True)
+class RectifiedCamera:
+    """An ideal rectified rig: focal length ``f`` (px), principal point
+    ``(cx, cy)`` of the left camera (the right one's is ``(cx + doffs, cy)``),
+    ``baseline`` B (its unit is the depth unit) and image size.
+
+    Depth from disparity: ``Z = f·B / (d + doffs)``.
+    """
+
+    f: float
+    cx: float
+    cy: float
+    baseline: float
+    doffs: float = 0.0
+    width: int = 640
+    height: int = 480
+
+    def __post_init__(self):
+        self._core().validate()
+
+    def _core(self) -> _core.RectifiedCamera:
+        c = _core.RectifiedCamera()
+        for f in fields(self):
+            setattr(c, f.name, getattr(self, f.name))
+        return c
+
+    @classmethod
+    def _from_core(cls, c) -> "RectifiedCamera":
+        return cls(f=c.f, cx=c.cx, cy=c.cy, baseline=c.baseline, doffs=c.doffs, width=c.width, height=c.height)
+
+    @property
+    def K(self) -> np.ndarray:
+        """Intrinsics of the rectified left camera."""
+        return np.array([[self.f, 0.0, self.cx], [0.0, self.f, self.cy], [0.0, 0.0, 1.0]])
+
+    def depth_of(self, disparity) -> np.ndarray:
+        """``Z = f·B / (d + doffs)`` elementwise (NaN where ``d + doffs <= 0``)."""
+        d = np.asarray(disparity, dtype=np.float64)
+        w = d + self.doffs
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(w > 0, self.f * self.baseline / w, np.nan)
+
+    def disparity_of(self, depth) -> np.ndarray:
+        """Inverse of :meth:`depth_of`: ``d = f·B / Z − doffs``."""
+        return self.f * self.baseline / np.asarray(depth, dtype=np.float64) - self.doffs
+
+    def resolvable_range(self, min_disparity: float = 1.0) -> float:
+        """Largest depth whose ``d + doffs`` is still ``min_disparity`` pixels."""
+        return self.f * self.baseline / float(min_disparity)
+
+
+# ---------------------------------------------------------------------------
+# matching and ranging
+# ---------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class BoxRange:
+    """Range to a landmark from the disparities inside its detection box."""
+
+    ok: bool
+    range: float       #: median depth Z of the valid pixels (along the optical axis), NaN if not ok
+    sigma: float       #: σ_Z ≈ Z²·σ_d / (f·B)
+    disparity: float   #: median disparity d (px)
+    n_valid: int       #: valid pixels in the box
+    n_pixels: int      #: pixels in the box (clipped to the image)
+    point: np.ndarray  #: box centre at depth Z, rectified left camera frame (x right, y down, z forward)
+    reason: str        #: why there is no range ("" when ok)
+
+    @property
+    def distance(self) -> float:
+        """Slant distance ‖point‖ from the left camera centre to the box centre."""
+        return float(np.linalg.norm(self.point))
+
+    @property
+    def horizontal_distance(self) -> float:
+        """``hypot(x, z)``: the distance in the camera's horizontal plane (level camera)."""
+        return float(math.hypot(self.point[0], self.point[2]))
+
+    @property
+    def bearing(self) -> float:
+        """Bearing of the box centre relative to the optical axis, counter-clockwise
+        (to the left) positive, rad: ``atan2(−x, z)`` (level camera)."""
+        return float(math.atan2(-self.point[0], self.point[2]))
+
+    @property
+    def sigma_horizontal(self) -> float:
+        """σ of :attr:`horizontal_distance` (it scales with Z along the ray)."""
+        return float(self.sigma * self.horizontal_distance / self.range) if self.ok else math.nan
+
+
+def _image(name: str, img) -> np.ndarray:
+    if not isinstance(img, np.ndarray):
+        raise ValueError(f"{name} must be a numpy uint8 array, got {type(img).__name__}")
+    if img.dtype != np.uint8:
+        raise ValueError(f"{name} must have dtype uint8, got {img.dtype}")
+    if img.ndim not in (2, 3) or (img.ndim == 3 and img.shape[2] not in (1, 3, 4)):
+        raise ValueError(f"{name} must have shape (H, W) or (H, W, 1|3|4), got {img.shape}")
+    if img.size == 0:
+        raise ValueError(f"{name} is empty: shape {img.shape}")
+    if img.ndim == 3 and img.shape[2] == 1:
+        img = img[:, :, 0]
+    return np.ascontiguousarray(img)
+
+
+def _pair(left, right, lname="left", rname="right"):
+    l, r = _image(lname, left), _image(rname, right)
+    if l.shape != r.shape:
+        raise ValueError(f"{lname} and {rname} images differ in shape: {l.shape} vs {r.shape}")
+    return l, r
+
+
+def _sgbm(params: dict) -> _core.SgbmParams:
+    unknown = set(params) - set(SGBM_DEFAULTS)
+    if unknown:
+        raise ValueError(f"unknown SGBM parameter(s) {sorted(unknown)}; known: {sorted(SGBM_DEFAULTS)}")
+    p = _core.SgbmParams()
+    for k, v in {**SGBM_DEFAULTS, **params}.items():
+        if k == "mode":
+            if isinstance(v, str):
+                if v.lower() not in _MODES:
+                    raise ValueError(f"mode = {v!r} must be one of {sorted(_MODES)}")
+                v = _MODES[v.lower()]
+            elif not isinstance(v, SgbmMode):
+                raise ValueError(f"mode = {v!r} must be one of {sorted(_MODES)}")
+        elif isinstance(v, bool) or not isinstance(v, (int, np.integer)):
+            raise ValueError(f"SGBM parameter {k} = {v!r} must be an integer")
+        setattr(p, k, v if k == "mode" else int(v))
+    p.validate()
+    return p
+
+
+class StereoMatcher:
+    """Rectification + SGBM + ranging for one stereo rig.
+
+    ``StereoMatcher(calibration, alpha=0.0, **sgbm_params)`` with a
+    :class:`StereoCalibration` rectifies with ``cv2.stereoRectify`` (zero
+    disparity at infinity, ``alpha`` as in OpenCV: 0 keeps only valid pixels)
+    and caches the ``initUndistortRectifyMap`` maps.  With a
+    :class:`RectifiedCamera` (renderer output, Middlebury) the images are
+    already rectified and :meth:`rectify` only validates and copies.
+
+    ``sgbm_params`` are every ``cv2.StereoSGBM`` parameter in snake_case
+    (see :data:`SGBM_DEFAULTS`); ``mode`` is ``"sgbm"``, ``"hh"``,
+    ``"sgbm_3way"`` or ``"hh4"``.  Not thread-safe; use one per thread.
+    """
+
+    def __init__(self, calibration, *, alpha: float = 0.0, **sgbm_params):
+        params = _sgbm(sgbm_params)
+        if isinstance(calibration, StereoCalibration):
+            self._m = _core.StereoMatcher(calibration._core(), params, float(alpha))
+        elif isinstance(calibration, RectifiedCamera):
+            self._m = _core.StereoMatcher(calibration._core(), params)
+        else:
+            raise ValueError(f"calibration must be a StereoCalibration or a RectifiedCamera, "
+                             f"got {type(calibration).__name__}")
+        self.calibration = calibration
+        self.camera = RectifiedCamera._from_core(self._m.camera)
+
+    @property
+    def sgbm_params(self) -> dict:
+        p = self._m.params
+        out = {k: getattr(p, k) for k in SGBM_DEFAULTS if k != "mode"}
+        out["mode"] = {v: k for k, v in _MODES.items()}[p.mode]
+        return out
+
+    @property
+    def needs_rectification(self) -> bool:
+        return self._m.needs_rectification
+
+    @property
+    def rectification(self) -> dict:
+        """``R1, R2`` (3×3), ``P1, P2`` (3×4) and ``Q`` (4×4) as ``cv2.stereoRectify`` gives them."""
+        return {k: getattr(self._m, k) for k in ("R1", "R2", "P1", "P2", "Q")}
+
+    def rectify(self, left, right) -> tuple[np.ndarray, np.ndarray]:
+        """Remap a raw pair into the rectified frame (bilinear; the maps are cached)."""
+        return self._m.rectify(*_pair(left, right))
+
+    def rectify_points(self, points, camera: str = "left") -> np.ndarray:
+        """Map raw pixel coordinates ``(N, 2)`` of ``camera`` ("left"/"right") to rectified ones."""
+        pts = as_array("points", points, (None, 2))
+        if camera == "left":
+            return self._m.rectify_points_left(pts)
+        if camera == "right":
+            return self._m.rectify_points_right(pts)
+        raise ValueError(f"camera must be 'left' or 'right', got {camera!r}")
+
+    def disparity(self, left_rect, right_rect) -> np.ndarray:
+        """SGBM disparity ``(H, W)`` float32 pixels of a rectified pair, NaN where invalid."""
+        return self._m.disparity(*_pair(left_rect, right_rect, "left_rect", "right_rect"))
+
+    def compute(self, left, right) -> np.ndarray:
+        """Rectify (when needed) and match a raw pair; returns the disparity."""
+        if self.needs_rectification:
+            left, right = self.rectify(left, right)
+        return self.disparity(left, right)
+
+    def depth(self, disparity) -> np.ndarray:
+        """``Z = f·B / (d + doffs)`` (float32, NaN where invalid)."""
+        return self._m.depth(self._disparity(disparity))
+
+    def _disparity(self, disparity) -> np.ndarray:
+        d = np.asarray(disparity)
+        want = (self.camera.height, self.camera.width)
+        if d.shape != want:
+            raise ValueError(f"disparity must have shape {want}, got {d.shape}")
+        if not np.issubdtype(d.dtype, np.floating):
+            raise ValueError(f"disparity must be a float array, got dtype {d.dtype}")
+        return np.ascontiguousarray(d, dtype=np.float32)
+
+    def box_range(self, disparity, box, *, sigma_d: float = 0.5, min_valid_pixels: int = 20,
+                  min_valid_fraction: float = 0.1, min_disparity: float = 1.0,
+                  max_range: float = math.inf) -> BoxRange:
+        """Range to the landmark in ``box = (x_min, y_min, x_max, y_max)``.
+
+        The range is the median depth of the box's valid pixels.  No range
+        (``ok=False`` with a ``reason``) when fewer than
+        ``max(min_valid_pixels, min_valid_fraction·n_pixels)`` pixels are
+        valid ("too few valid pixels"), when ``d + doffs`` at the median depth
+        is below ``min_disparity`` pixels or the depth exceeds ``max_range``
+        ("beyond resolvable range"), or when the box is outside the image.
+        ``sigma_d`` is the disparity noise in pixels.
+        """
+        b = as_array("box", box, (4,))
+        o = _core.BoxRangeOptions()
+        o.sigma_d = float(sigma_d)
+        o.min_valid_pixels = int(min_valid_pixels)
+        o.min_valid_fraction = float(min_valid_fraction)
+        o.min_disparity = float(min_disparity)
+        o.max_range = float(max_range)
+        r = self._m.box_range(self._disparity(disparity), *b, o)
+        return BoxRange(ok=r.ok, range=r.range if r.ok else math.nan, sigma=r.sigma if r.ok else math.nan,
+                        disparity=r.disparity, n_valid=r.n_valid, n_pixels=r.n_pixels,
+                        point=np.array(r.point), reason=r.reason)
