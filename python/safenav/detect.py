@@ -277,7 +277,7 @@ def decode_yolo(output: np.ndarray, conf_threshold: float = 0.25, iou_threshold:
 
     Each of the N columns holds ``cx, cy, w, h`` (input pixels) then ``nc``
     class scores.  A column's class is its best-scoring class; columns whose
-    best score is below ``conf_threshold`` are dropped; then NMS at
+    best score is not above ``conf_threshold`` are dropped; then NMS at
     ``iou_threshold`` runs separately per class (``cv2.dnn.NMSBoxesBatched``).
 
     Returns ``(boxes (K, 4) as x0, y0, x1, y1, scores (K,), class ids (K,))``,
@@ -290,7 +290,7 @@ def decode_yolo(output: np.ndarray, conf_threshold: float = 0.25, iou_threshold:
     scores_all = pred[4:]
     cls = np.argmax(scores_all, axis=0)
     score = scores_all[cls, np.arange(pred.shape[1])]
-    keep = np.isfinite(score) & (score >= conf_threshold) & np.isfinite(pred[:4]).all(axis=0)
+    keep = np.isfinite(score) & (score > conf_threshold) & np.isfinite(pred[:4]).all(axis=0)
     if not keep.any():
         return np.zeros((0, 4)), np.zeros(0), np.zeros(0, dtype=int)
     cx, cy, w, h = pred[:4, keep]
