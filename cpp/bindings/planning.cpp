@@ -32,6 +32,11 @@ void pybind_planning(py::module_& m) {
       .def_readwrite("clearance", &PlanningMap::clearance)
       .def("validate", &PlanningMap::validate);
 
+  py::class_<ObstacleChecker>(m, "ObstacleChecker", "Repeated collision queries against one PlanningMap.")
+      .def(py::init<const PlanningMap&>(), py::arg("map"))
+      .def("point_free", &ObstacleChecker::point_free, py::arg("point"))
+      .def("segment_free", &ObstacleChecker::segment_free, py::arg("a"), py::arg("b"));
+
   py::class_<PlanningProblem>(m, "PlanningProblem", "Map, start, goal and the central path of the risk term.")
       .def(py::init([](PlanningMap map, const Eigen::Vector2d& start, const Eigen::Vector2d& goal,
                        const Points2& central_path, RiskZones zones) {

@@ -70,11 +70,16 @@ class Obstacles {
  public:
   explicit Obstacles(const PlanningMap& map) : map_(map) {
     for (const auto& raw : map.polygons) {
-      polygons_.push_back(cgal::to_cgal(open_polygon(raw)));
+      const Points2 open = open_polygon(raw);
+      polygons_.push_back(cgal::to_cgal(open));
       const auto& poly = polygons_.back();
       std::vector<cgal::Segment> edges;
       for (std::size_t i = 0; i < poly.size(); ++i) edges.emplace_back(poly[i], poly[(i + 1) % poly.size()]);
       edges_.push_back(std::move(edges));
+      // Bounding circle (vertex mean, farthest vertex) for a cheap reject.
+      const Vec2 c = open.colwise().mean().transpose();
+      const double r = (open.rowwise() - c.transpose()).rowwise().norm().maxCoeff();
+      bounds_.push_back({c, r + map.clearance});
     }
   }
 
@@ -85,6 +90,7 @@ class Obstacles {
     const cgal::Point q = cgal::point(p);
     const double c2 = map_.clearance * map_.clearance;
     for (std::size_t k = 0; k < polygons_.size(); ++k) {
+      if ((p - bounds_[k].center).squaredNorm() > bounds_[k].radius2()) continue;
       if (cgal::inside_or_on(polygons_[k], q)) return false;
       for (const auto& e : edges_[k])
         if (CGAL::squared_distance(q, e) <= c2) return false;
@@ -102,6 +108,7 @@ class Obstacles {
     }
     const double c2 = map_.clearance * map_.clearance;
     for (std::size_t k = 0; k < polygons_.size(); ++k) {
+      if (segment_point_distance2(a, b, bounds_[k].center) > bounds_[k].radius2()) continue;
       // A segment inside the polygon touches no edge.
       if (cgal::inside_or_on(polygons_[k], ab.source())) return false;
       for (const auto& e : edges_[k])
@@ -111,9 +118,21 @@ class Obstacles {
   }
 
  private:
-  const PlanningMap& map_;
+  struct Bound {
+    Vec2 center;
+    double radius;  // bounding radius plus clearance
+    double radius2() const { return radius * radius; }
+  };
+  static double segment_point_distance2(const Vec2& a, const Vec2& b, const Vec2& p) {
+    const Vec2 ab = b - a;
+    const double L2 = ab.squaredNorm();
+    const double t = L2 > 0.0 ? std::clamp((p - a).dot(ab) / L2, 0.0, 1.0) : 0.0;
+    return (a + t * ab - p).squaredNorm();
+  }
+  PlanningMap map_;
   std::vector<std::vector<cgal::Point>> polygons_;
   std::vector<std::vector<cgal::Segment>> edges_;
+  std::vector<Bound> bounds_;
 };
 
 // The central path of the risk term: a Corridor (deviation, eq. 17; WRS,
@@ -402,6 +421,25 @@ std::string to_string(PlanStatus status) {
 }
 
 // ---------------------------------------------------------------- geometry API
+struct ObstacleChecker::Impl : Obstacles {
+  using Obstacles::Obstacles;
+};
+
+ObstacleChecker::ObstacleChecker(const PlanningMap& map) {
+  map.validate();
+  impl_ = std::make_shared<const Impl>(map);
+}
+
+bool ObstacleChecker::point_free(const Vec2& p) const {
+  if (!p.allFinite()) bad("point " + fmt(p) + " is not finite");
+  return impl_->point_free(p);
+}
+
+bool ObstacleChecker::segment_free(const Vec2& a, const Vec2& b) const {
+  if (!a.allFinite() || !b.allFinite()) bad("segment " + fmt(a) + "–" + fmt(b) + " is not finite");
+  return impl_->segment_free(a, b);
+}
+
 bool point_is_free(const PlanningMap& map, const Vec2& p) { return Obstacles(map).point_free(p); }
 
 bool segment_is_free(const PlanningMap& map, const Vec2& a, const Vec2& b) {

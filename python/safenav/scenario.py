@@ -231,6 +231,43 @@ class BufferParams(_Params):
 
 
 @dataclass(frozen=True)
+class NavigationParams(_Params):
+    """SafeNav navigation (Algorithms 1, 2 and 4).  The paper gives none of these
+    numbers; ours are stated here and in the README.
+
+    ``clearance`` keeps planned paths (the safe path and detours) that far from
+    obstacles; ``plan_iterations`` is the RAw-RRT* budget of the safe path,
+    ``replan_iterations`` that of a detour; ``corridor_bias`` their share of
+    samples drawn inside the corridor (0 = uniform, as in the paper)."""
+
+    cruise_speed: float = 2.0          #: desired speed [m/s]
+    arrival_radius: float = 1.0        #: arrived when the estimate is this close to the destination [m]
+    segment_length: float = 10.0       #: longest path segment of Algorithms 1-2 [m]
+    sub_segments: int = 4              #: Algorithm 2's sub-segments per segment
+    lookahead: float = 5.0             #: Algorithm 1's corrective look-ahead [m]
+    step_back_speed: float = 0.5       #: Algorithm 1's step-back speed [m/s]
+    sensing_range: float = 10.0        #: obstacles this far ahead on the path are detected [m]
+    replan_lookahead: float = 20.0     #: a detour rejoins the path this far ahead [m]
+    clearance: float = 2.0             #: planned paths keep this far from obstacles [m]
+    plan_iterations: int = 20000       #: RAw-RRT* iterations for the safe path
+    replan_iterations: int = 3000      #: RAw-RRT* iterations for a detour
+    corridor_bias: float = 0.5         #: share of corridor samples in RAw-RRT*
+    lost_position_std: float = 10.0    #: lost localization above this position σ [m]
+    max_steps: int = 0                 #: 0 = 3 × path length / (speed · dt) + 200
+
+    def __post_init__(self):
+        for n in ("cruise_speed", "arrival_radius", "segment_length", "lookahead", "step_back_speed",
+                  "sensing_range", "replan_lookahead", "lost_position_std"):
+            object.__setattr__(self, n, _real(n, getattr(self, n), lo=0.0, lo_open=True))
+        object.__setattr__(self, "clearance", _real("clearance", self.clearance, lo=0.0))
+        object.__setattr__(self, "corridor_bias", _real("corridor_bias", self.corridor_bias, lo=0.0, hi=1.0))
+        object.__setattr__(self, "sub_segments", _integer("sub_segments", self.sub_segments, lo=1))
+        for n in ("plan_iterations", "replan_iterations"):
+            object.__setattr__(self, n, _integer(n, getattr(self, n), lo=1))
+        object.__setattr__(self, "max_steps", _integer("max_steps", self.max_steps, lo=0))
+
+
+@dataclass(frozen=True)
 class Seeds(_Params):
     """Seeds: the world generator's, the Monte-Carlo trials' base seed, the planner's."""
 
@@ -246,7 +283,7 @@ class Seeds(_Params):
 
 _SECTIONS: dict[str, type] = {
     "seeds": Seeds, "camera": CameraParams, "detection": DetectionParams, "bmm": BmmConfig,
-    "noise": NoiseParams, "planner": PlannerParams, "buffer": BufferParams,
+    "noise": NoiseParams, "planner": PlannerParams, "buffer": BufferParams, "navigation": NavigationParams,
 }
 
 
@@ -272,6 +309,7 @@ class Scenario:
     noise: NoiseParams = field(default_factory=NoiseParams)
     planner: PlannerParams = field(default_factory=PlannerParams)
     buffer: BufferParams = field(default_factory=BufferParams)
+    navigation: NavigationParams = field(default_factory=NavigationParams)
 
     def __post_init__(self):
         _text("name", self.name)

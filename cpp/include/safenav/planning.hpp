@@ -15,6 +15,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -118,6 +119,21 @@ PlanResult replan_to(const PlanningProblem& problem, const Eigen::Vector2d& posi
 /// The point `distance` metres of arc length ahead of the projection of
 /// `position` on `path` (clamped to the path's end).
 Eigen::Vector2d point_ahead(const Eigen::Ref<const Points2>& path, const Eigen::Vector2d& position, double distance);
+
+/// Repeated collision queries against one map (the map's geometry is prepared
+/// once; polygons are culled by bounding circles).  Copies share the data.
+class ObstacleChecker {
+ public:
+  explicit ObstacleChecker(const PlanningMap& map);
+  /// Inside the field and at least `clearance` away from every obstacle.
+  bool point_free(const Eigen::Vector2d& p) const;
+  /// The whole segment a–b is free (exact tests, not sampling).
+  bool segment_free(const Eigen::Vector2d& a, const Eigen::Vector2d& b) const;
+
+ private:
+  struct Impl;
+  std::shared_ptr<const Impl> impl_;
+};
 
 /// Whether p is inside the field and at least `clearance` away from every obstacle.
 bool point_is_free(const PlanningMap& map, const Eigen::Vector2d& p);

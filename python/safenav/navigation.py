@@ -1,0 +1,215 @@
+"""SafeNav navigation: SafeNav-CHull (Algorithm 1), SafeNav-Centroid
+(Algorithm 2) and the safe path navigation loop with RAw-RRT* replanning
+(Algorithm 4 of the extended paper; Algorithm 3 of the conference version).
+
+The trial loop runs in the C++ core (:class:`Navigator`): each step it
+chooses a control from the filter's estimate, checks the path ahead for
+obstacles and replans a detour when it is blocked, moves the true vehicle
+(BMM with process noise and terrain), measures (LanBLoc position fix when at
+least ``min_landmarks`` landmarks are within range and the camera's field of
+view, plus IMU speed and heading) and updates the EKF or PF.  A trial ends at
+the destination or with an explicit outcome: ``collision``,
+``left_corridor``, ``step_limit``, ``lost_localization`` or ``no_path``.
+
+Metrics (SafeNav eqs. 20-23) compare the *estimated* trajectory with the safe
+path it was told to follow, the paper's "ground truth trajectory": ADE is the
+mean distance to the safe path resampled at the same arc-length fractions
+(the paper does not say how it pairs points of trajectories of different
+lengths; this is our reading), FDE the distance of the final estimate to the
+destination, % error the path-length error.  ``loc_ade``/``loc_fde`` compare
+the estimate with the true vehicle instead (localization error).
+
+Example::
+
+    import safenav
+    from safenav import navigation
+    sc = safenav.default_scenario()
+    safe = navigation.plan_safe_path(sc, "P1")
+    nav = navigation.make_navigator(sc, safe.path, method="centroid", filter="ekf")
+    trial = nav.run(seed=1)
+    trial.outcome_name, trial.metrics["ade"], trial.estimate[:5]
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import _core
+from ._checks import as_array
+from .planning import PlanningProblem, PlannerSettings, map_from_world, plan
+
+Navigator = _core.Navigator
+NavigationMethod = _core.NavigationMethod
+NavigationProblem = _core.NavigationProblem
+NavigationSettings = _core.NavigationSettings
+SensorSettings = _core.SensorSettings
+PositionSource = _core.PositionSource
+TrialOutcome = _core.TrialOutcome
+TrialResult = _core.TrialResult
+
+__all__ = [
+    "Navigator", "NavigationMethod", "NavigationProblem", "NavigationSettings", "SensorSettings",
+    "PositionSource", "TrialOutcome", "TrialResult", "SourceProfile", "SOURCES", "METHODS", "FILTERS",
+    "OUTCOMES", "position_source", "plan_safe_path", "make_navigator", "chull_control", "centroid_control",
+]
+
+METHODS = {"chull": NavigationMethod.CHULL, "centroid": NavigationMethod.CENTROID}
+FILTERS = {"ekf": _core.FilterType.EKF, "pf": _core.FilterType.PF}
+#: Outcome codes (``TrialOutcome`` values) to names, in code order.
+OUTCOMES = ("arrived", "collision", "left_corridor", "step_limit", "lost_localization", "no_path")
+
+
+@dataclass(frozen=True)
+class SourceProfile:
+    """A measurement-level position source: z = p + b + w (see ``PositionSource``).
+
+    ``emulated`` marks the paper's comparison methods, whose originals (trained
+    networks, GNSS/INS fusion) cannot be had here: they are error profiles we
+    chose, not the methods themselves (DESIGN.md, decision 8)."""
+
+    name: str
+    label: str
+    std: tuple[float, float]
+    bias_std: float = 0.0
+    bias_walk_std: float = 0.0
+    outlier_probability: float = 0.0
+    outlier_std: float = 0.0
+    needs_landmarks: bool = True
+    emulated: bool = False
+    note: str = ""
+
+    def to_core(self) -> PositionSource:
+        s = PositionSource()
+        s.name = self.name
+        s.std = np.asarray(self.std, dtype=float)
+        s.bias_std, s.bias_walk_std = self.bias_std, self.bias_walk_std
+        s.outlier_probability, s.outlier_std = self.outlier_probability, self.outlier_std
+        s.needs_landmarks, s.emulated = self.needs_landmarks, self.emulated
+        s.validate()
+        return s
+
+
+#: The position sources.  LanBLoc's σ is the paper's RMSE (0.0142 m X, 0.039 m Y).
+#: The three baselines are *emulations* with error profiles of our choosing:
+#: none was tuned to land on a number of the paper's.
+SOURCES: dict[str, SourceProfile] = {
+    "lanbloc": SourceProfile(
+        "lanbloc", "LanBLoc", (0.0142, 0.039),
+        note="LanBLoc at the measurement level: the paper's RMSE, fixes only with >= min_landmarks in view"),
+    "deeploc-gps": SourceProfile(
+        "deeploc-gps", "DeepLoc-GPS (emulated)", (0.30, 0.30), bias_std=0.10, needs_landmarks=False, emulated=True,
+        note="emulated: CNN pose regression fused with (degraded) GPS: 0.30 m white noise, 0.10 m constant bias"),
+    "deeploc-ekf-gps": SourceProfile(
+        "deeploc-ekf-gps", "DeepLoc-EKF-GPS (emulated)", (0.20, 0.20), bias_walk_std=0.005, needs_landmarks=False,
+        emulated=True,
+        note="emulated: DeepLoc with an EKF over GPS: 0.20 m white noise, a slowly drifting bias (5 mm/fix walk)"),
+    "sensor-fusion": SourceProfile(
+        "sensor-fusion", "Sensor Fusion (emulated)", (0.25, 0.25), bias_std=0.15, outlier_probability=0.02,
+        outlier_std=2.0, needs_landmarks=False, emulated=True,
+        note="emulated: multi-source fusion: 0.25 m noise, 0.15 m bias, 2 % outliers of 2 m"),
+}
+
+
+def position_source(name: str) -> SourceProfile:
+    """The :data:`SOURCES` profile ``name``; a clear error for an unknown one."""
+    try:
+        return SOURCES[name]
+    except KeyError:
+        raise ValueError(f"source = {name!r}: unknown position source (have: {sorted(SOURCES)}; "
+                         f"the camera loop is passed as a callback to Navigator.run)") from None
+
+
+def _choice(kind: str, value: str, table: dict):
+    try:
+        return table[value]
+    except (KeyError, TypeError):
+        raise ValueError(f"{kind} = {value!r}: must be one of {sorted(table)}") from None
+
+
+def plan_safe_path(scenario, path_type: str, *, seed: int | None = None, iterations: int | None = None):
+    """Plan the safe path of a path type with RAw-RRT* (Algorithm 3): from the
+    start cluster's centroid to the destination's, around the obstacles (kept
+    ``navigation.clearance`` away), with the ground-truth polyline through the
+    clusters as the central path of the risk term.  Returns the
+    :class:`~safenav.planning.PlanResult`; raises ``RuntimeError`` when no path
+    is found within the budget."""
+    nav = scenario.navigation
+    gt = scenario.path_polyline(path_type)
+    world_map = map_from_world(scenario.world, clearance=nav.clearance)
+    problem = PlanningProblem(map=world_map, start=gt[0], goal=gt[-1], central_path=gt, zones=scenario.risk_zones())
+    settings = PlannerSettings(alpha=scenario.planner.alpha, beta=scenario.planner.beta,
+                               max_iterations=int(iterations or nav.plan_iterations),
+                               seed=int(scenario.seeds.planner if seed is None else seed),
+                               corridor_bias=nav.corridor_bias, smooth=True)
+    result = plan(problem, settings)
+    if not result.success:
+        raise RuntimeError(f"path type {path_type}: RAw-RRT* found no safe path ({result.status}, "
+                           f"{result.iterations} iterations); raise navigation.plan_iterations")
+    return result
+
+
+def make_navigator(scenario, safe_path, *, method: str = "centroid", filter: str = "ekf",
+                   source: str = "lanbloc", n_particles: int = 500, position_every: int = 1,
+                   replan: bool = True, record: bool = True, world_map=None, max_steps: int | None = None,
+                   planner_seed: int | None = None) -> Navigator:
+    """A :class:`Navigator` for ``safe_path`` in ``scenario``'s world.
+
+    ``method``: ``"chull"`` (Algorithm 1) or ``"centroid"`` (Algorithm 2);
+    ``filter``: ``"ekf"`` or ``"pf"``; ``source``: a :data:`SOURCES` name.
+    ``world_map`` overrides the true obstacles (a ``PlanningMap``), e.g. to
+    add obstacles the safe path was not planned around."""
+    path = as_array("safe_path", safe_path, (None, 2))
+    nav = scenario.navigation
+    problem = NavigationProblem()
+    problem.path = path
+    problem.zones = scenario.risk_zones()
+    problem.map = world_map if world_map is not None else map_from_world(scenario.world, clearance=nav.clearance)
+    problem.bmm = scenario.bmm_params()
+
+    s = NavigationSettings()
+    s.method = _choice("method", method, METHODS)
+    s.cruise_speed = nav.cruise_speed
+    s.arrival_radius = nav.arrival_radius
+    s.max_steps = int(nav.max_steps if max_steps is None else max_steps)
+    s.segments = _core.SegmentOptions(count=0, length=nav.segment_length, sub_segments=nav.sub_segments)
+    s.lookahead, s.step_back_speed = nav.lookahead, nav.step_back_speed
+    s.replan = bool(replan)
+    s.sensing_range, s.replan_lookahead = nav.sensing_range, nav.replan_lookahead
+    s.planner = PlannerSettings(alpha=scenario.planner.alpha, beta=scenario.planner.beta,
+                                max_iterations=nav.replan_iterations, corridor_bias=nav.corridor_bias,
+                                smooth=True, seed=int(planner_seed or 0))
+    s.lost_position_std = nav.lost_position_std
+    fo = _core.FilterOptions()
+    fo.type = _choice("filter", filter, FILTERS)
+    fo.n_particles = int(n_particles)
+    s.filter = fo
+    s.record = bool(record)
+
+    se = SensorSettings()
+    se.position = position_source(source).to_core()
+    se.landmarks = scenario.world.landmark_array()[:, :2]
+    se.max_range = scenario.detection.max_range_m
+    se.field_of_view = np.deg2rad(scenario.camera.field_of_view_deg)
+    se.min_landmarks = scenario.detection.min_landmarks
+    se.position_every = int(position_every)
+    se.imu_speed_std = scenario.noise.imu_speed_std
+    se.imu_heading_std = scenario.noise.imu_heading_std
+    if tuple(scenario.noise.lanbloc_std) != SOURCES["lanbloc"].std and source == "lanbloc":
+        se.position.std = np.asarray(scenario.noise.lanbloc_std, dtype=float)
+    return Navigator(problem, s, se)
+
+
+def centroid_control(segments, estimate, cruise_speed: float) -> np.ndarray:
+    """Algorithm 2's control (v, Δθ) toward the nearest sub-segment centroid ahead."""
+    seg = getattr(segments, "_s", segments)
+    return _core.centroid_control(seg, as_array("estimate", estimate, (4,)), float(cruise_speed))
+
+
+def chull_control(segments, bmm, estimate, cruise_speed: float, lookahead: float, step_back_speed: float):
+    """Algorithm 1's decision: ``ChullDecision`` with ``control``, ``segment``,
+    ``kind`` (0 default kept, 1 corrective, 2 step back) and ``predicted``."""
+    seg = getattr(segments, "_s", segments)
+    return _core.chull_control(seg, bmm, as_array("estimate", estimate, (4,)), float(cruise_speed),
+                               float(lookahead), float(step_back_speed))
