@@ -318,6 +318,17 @@ LocalizationResult solve_subset(const Model& m, const Problem& pr, const std::ve
     res.reason = "the linear system for the starting point is rank deficient";
     return res;
   }
+  if (kBearings) {
+    // The bearing lines' intersection must lie behind every anchor's bearing.
+    for (int i : idx) {
+      if (std::abs(m.residual(p0, pr.a(i), pr.z[i])) > M_PI / 2) {
+        res.status = LocalizationStatus::Degenerate;
+        os << "bearing " << i << " points away from anchor " << i << " at the lines' intersection " << point_str(p0);
+        res.reason = os.str();
+        return res;
+      }
+    }
+  }
   Fit f = levenberg_marquardt(m, pr, idx, p0, opt);
   if (!f.converged || !f.p.allFinite()) {
     res.status = LocalizationStatus::DidNotConverge;

@@ -1,0 +1,246 @@
+"""Trilateration and bearing triangulation (LanBLoc's position fix, SafeNav
+IV-A): exactness, covariance against Monte Carlo, agreement with scipy's
+least_squares, outlier rejection, failure statuses and bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import optimize, stats
+
+from safenav.localization import horizontal_range, triangulate_bearings, trilaterate
+
+SQUARE = np.array([[0.0, 0.0], [40.0, 0.0], [40.0, 30.0], [0.0, 30.0], [20.0, 45.0]])
+
+
+def ranges_to(anchors, p):
+    return np.linalg.norm(anchors - p, axis=1)
+
+
+def bearings_to(anchors, p):
+    return np.arctan2(anchors[:, 1] - p[1], anchors[:, 0] - p[0])
+
+
+def test_exact_on_noiseless_ranges_over_random_geometries():
+    rng = np.random.default_rng(1)
+    n_ok = 0
+    for _ in range(200):
+        n = rng.integers(3, 9)
+        anchors = rng.uniform(-50, 50, (n, 2))
+        p = rng.uniform(-60, 60, 2)
+        res = trilaterate(anchors, ranges_to(anchors, p), 0.1)
+        if res.status == "degenerate":  # only allowed for genuinely bad geometry
+            assert res.gdop > 100 or "ambiguous" in res.reason or "collinear" in res.reason
+            continue
+        assert res.ok, res.reason
+        n_ok += 1
+        np.testing.assert_allclose(res.position, p, atol=1e-9)
+        assert res.inliers.all()
+    assert n_ok > 180
+
+
+def test_exact_on_noiseless_bearings_and_relative_bearings():
+    rng = np.random.default_rng(2)
+    for _ in range(100):
+        n = rng.integers(2, 7)
+        anchors = rng.uniform(-50, 50, (n, 2))
+        p = rng.uniform(-60, 60, 2)
+        b = bearings_to(anchors, p)
+        res = triangulate_bearings(anchors, b, 0.01)
+        if not res.ok:
+            assert res.status == "degenerate", res.reason
+            continue
+        np.testing.assert_allclose(res.position, p, atol=1e-9)
+        heading = rng.uniform(-np.pi, np.pi)
+        rel = np.angle(np.exp(1j * (b - heading)))
+        np.testing.assert_allclose(triangulate_bearings(anchors, rel, 0.01, heading=heading).position, p, atol=1e-9)
+
+
+def _gauss_newton_covariance(anchors, p, sigmas):
+    u = (p - anchors) / np.linalg.norm(p - anchors, axis=1)[:, None]
+    return np.linalg.inv(u.T @ np.diag(sigmas**-2.0) @ u), np.sqrt(np.trace(np.linalg.inv(u.T @ u)))
+
+
+def test_covariance_and_gdop_are_the_normal_equations():
+    p = np.array([12.0, 9.0])
+    sig = np.array([0.1, 0.2, 0.05, 0.3, 0.1])
+    res = trilaterate(SQUARE, ranges_to(SQUARE, p), sig)
+    cov, gdop = _gauss_newton_covariance(SQUARE, p, sig)
+    np.testing.assert_allclose(res.covariance, cov, rtol=1e-10)
+    assert res.gdop == pytest.approx(gdop, rel=1e-10)
+
+
+def test_empirical_covariance_matches_returned_covariance():
+    """Monte Carlo: 3000 noisy fixes; the sample covariance matches (Jᵀ W J)⁻¹
+    and the NEES eᵀ P⁻¹ e averages 2 (chi-square, 2 dof)."""
+    rng = np.random.default_rng(3)
+    p = np.array([15.0, 10.0])
+    sig = np.array([0.2, 0.1, 0.3, 0.15, 0.25])
+    r0 = ranges_to(SQUARE, p)
+    n = 3000
+    est = np.empty((n, 2))
+    nees = np.empty(n)
+    for k in range(n):
+        res = trilaterate(SQUARE, r0 + sig * rng.standard_normal(5), sig, reject_outliers=False)
+        assert res.ok, res.reason
+        est[k] = res.position
+        e = res.position - p
+        nees[k] = e @ np.linalg.solve(res.covariance, e)
+    cov_true, _ = _gauss_newton_covariance(SQUARE, p, sig)
+    emp = np.cov(est.T)
+    # Each variance has relative standard error sqrt(2/n) ≈ 2.6 %; allow ~4 σ.
+    np.testing.assert_allclose(np.diag(emp), np.diag(cov_true), rtol=0.1)
+    corr_emp = emp[0, 1] / np.sqrt(emp[0, 0] * emp[1, 1])
+    corr_true = cov_true[0, 1] / np.sqrt(cov_true[0, 0] * cov_true[1, 1])
+    assert abs(corr_emp - corr_true) < 4 / np.sqrt(n)
+    # second-order bias O(σ²/range) is far below the 4-standard-error band here
+    assert np.all(np.abs(est.mean(axis=0) - p) < 4 * np.sqrt(np.diag(cov_true) / n))
+    lo, hi = stats.chi2.ppf([0.0005, 0.9995], 2 * n) / n
+    assert lo < nees.mean() < hi
+
+
+def test_agrees_with_scipy_least_squares():
+    rng = np.random.default_rng(4)
+    for _ in range(30):
+        anchors = rng.uniform(0, 50, (6, 2))
+        p = rng.uniform(5, 45, 2)
+        sig = rng.uniform(0.05, 0.5, 6)
+        z = ranges_to(anchors, p) + sig * rng.standard_normal(6)
+        res = trilaterate(anchors, z, sig, reject_outliers=False)
+        if not res.ok:
+            continue
+        ref = optimize.least_squares(lambda q: (z - ranges_to(anchors, q)) / sig, res.position + 1.0,
+                                     xtol=1e-15, ftol=1e-15, gtol=1e-15)
+        np.testing.assert_allclose(res.position, ref.x, atol=1e-7)
+        assert res.chi2 == pytest.approx(2 * ref.cost, rel=1e-6, abs=1e-12)
+
+
+def test_bearing_fit_agrees_with_scipy_least_squares():
+    rng = np.random.default_rng(5)
+    anchors = SQUARE
+    p = np.array([18.0, 12.0])
+    sig = np.full(5, 0.02)
+    z = bearings_to(anchors, p) + sig * rng.standard_normal(5)
+    res = triangulate_bearings(anchors, z, sig, reject_outliers=False)
+    assert res.ok
+    ref = optimize.least_squares(lambda q: np.angle(np.exp(1j * (z - bearings_to(anchors, q)))) / sig,
+                                 p + 2.0, xtol=1e-15, ftol=1e-15, gtol=1e-15)
+    np.testing.assert_allclose(res.position, ref.x, atol=1e-7)
+
+
+@pytest.mark.parametrize("bad", [[1], [0, 3], [2, 4]])
+def test_outliers_are_rejected(bad):
+    rng = np.random.default_rng(6)
+    anchors = np.vstack([SQUARE, [[-10.0, 20.0], [50.0, 15.0]]])
+    p = np.array([22.0, 14.0])
+    sig = np.full(len(anchors), 0.1)
+    z = ranges_to(anchors, p) + sig * rng.standard_normal(len(anchors))
+    z[bad] += np.array([6.0, -4.0])[: len(bad)]
+    res = trilaterate(anchors, z, sig)
+    assert res.ok, res.reason
+    expect = np.ones(len(anchors), bool)
+    expect[bad] = False
+    np.testing.assert_array_equal(res.inliers, expect)
+    assert f"{len(bad)} of {len(anchors)}" in res.reason
+    assert np.linalg.norm(res.position - p) < 4 * np.sqrt(np.trace(res.covariance))
+    plain = trilaterate(anchors, z, sig, reject_outliers=False)
+    assert np.linalg.norm(plain.position - p) > 5 * np.linalg.norm(res.position - p)
+
+
+def test_bearing_outlier_is_rejected():
+    p = np.array([18.0, 12.0])
+    z = bearings_to(SQUARE, p)
+    z[2] += 0.5
+    res = triangulate_bearings(SQUARE, z, 0.01)
+    assert res.ok and not res.inliers[2] and res.inliers.sum() == 4
+    np.testing.assert_allclose(res.position, p, atol=1e-9)
+
+
+def test_sampled_minimal_sets_are_deterministic_per_seed():
+    rng = np.random.default_rng(7)
+    anchors = rng.uniform(0, 100, (30, 2))
+    p = np.array([50.0, 50.0])
+    z = ranges_to(anchors, p) + 0.1 * rng.standard_normal(30)
+    z[:5] += 8.0
+    a = trilaterate(anchors, z, 0.1, max_subsets=50, seed=3)
+    b = trilaterate(anchors, z, 0.1, max_subsets=50, seed=3)
+    assert a.ok and not a.inliers[:5].any() and a.inliers[5:].sum() >= 24
+    np.testing.assert_array_equal(a.position, b.position)
+
+
+def test_too_few():
+    res = trilaterate(SQUARE[:2], [10.0, 20.0], 0.1)
+    assert res.status == "too_few" and "3 ranges are needed, got 2" in res.reason
+    assert np.isnan(res.position).all()
+    res = triangulate_bearings(SQUARE[:1], [0.3], 0.01)
+    assert res.status == "too_few" and "2 bearings" in res.reason
+
+
+def test_collinear_and_near_collinear_anchors_are_degenerate():
+    p = np.array([10.0, 7.0])
+    line = np.array([[0.0, 0.0], [10.0, 0.0], [25.0, 0.0], [40.0, 0.0]])
+    res = trilaterate(line, ranges_to(line, p), 0.1)
+    assert res.status == "degenerate" and "collinear" in res.reason and np.isnan(res.position).all()
+    # 1 cm off the line over 40 m: the mirror point fits within the noise
+    near = line + np.array([[0, 0], [0, 0.01], [0, -0.01], [0, 0]])
+    res = trilaterate(near, ranges_to(near, p) + [0.05, -0.05, 0.02, 0.0], 0.1)
+    assert res.status == "degenerate" and "ambiguous" in res.reason
+    # the same line with 1 mm ranges and a vehicle far from it is determined...
+    res = trilaterate(near + [[0, 0], [0, 5], [0, -5], [0, 0]], ranges_to(near + [[0, 0], [0, 5], [0, -5], [0, 0]], p),
+                      0.001)
+    assert res.ok
+    # ...but a vehicle on the anchors' line has huge GDOP
+    p_on = np.array([60.0, 0.02])
+    tri = np.array([[0.0, 0.0], [20.0, 0.05], [40.0, -0.05]])
+    res = trilaterate(tri, ranges_to(tri, p_on), 0.01)
+    assert res.status == "degenerate" and "GDOP" in res.reason and res.gdop > 100
+
+
+def test_parallel_bearings_are_degenerate():
+    anchors = np.array([[10.0, 0.0], [20.0, 0.0], [30.0, 0.0]])
+    res = triangulate_bearings(anchors, [0.0, 0.0, 0.0], 0.01)  # vehicle on the anchors' line
+    assert res.status == "degenerate" and "parallel" in res.reason
+    # lines that cross behind the vehicle
+    res = triangulate_bearings(np.array([[10.0, 0.0], [0.0, 10.0]]), [np.pi, -np.pi / 2], 0.01)
+    assert res.status == "degenerate" and "points away" in res.reason
+
+
+def test_did_not_converge_is_reported():
+    rng = np.random.default_rng(8)
+    z = ranges_to(SQUARE, [15.0, 10.0]) + rng.standard_normal(5)
+    res = trilaterate(SQUARE, z, 1.0, max_iterations=1, reject_outliers=False)
+    assert res.status == "did_not_converge" and "max_iterations = 1" in res.reason
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(anchors=[[0, 0], [1, np.nan], [2, 3]]), r"anchors\[\(1, 1\)\] = nan"),
+    (dict(ranges=[1.0, -2.0, 3.0]), r"ranges\[1\] = -2"),
+    (dict(ranges=[1.0, np.inf, 3.0]), r"ranges\[1\] = inf"),
+    (dict(ranges=[1.0, 2.0]), r"ranges must have shape \(3,\)"),
+    (dict(sigmas=[0.1, 0.0, 0.1]), r"sigmas\[1\] = 0"),
+    (dict(sigmas=[0.1, 0.1]), r"sigmas must have shape"),
+    (dict(anchors=[[0, 0, 0]]), r"anchors must have shape \(N, 2\)"),
+    (dict(outlier_threshold=-1), "outlier_threshold = -1"),
+    (dict(seed=-1), "seed must be"),
+])
+def test_bad_input_names_the_value(kwargs, match):
+    args = dict(anchors=[[0, 0], [10, 0], [0, 10]], ranges=[5.0, 7.0, 8.0], sigmas=0.1)
+    args.update(kwargs)
+    a, r, s = args.pop("anchors"), args.pop("ranges"), args.pop("sigmas")
+    with pytest.raises(ValueError, match=match):
+        trilaterate(a, r, s, **args)
+
+
+def test_horizontal_range_feeds_2d_trilateration_of_3d_landmarks():
+    """Landmarks at heights, camera at 1.5 m: slant ranges → horizontal ranges → exact 2D fix."""
+    heights = np.array([4.0, 0.5, 2.0, 8.0, 1.0])
+    cam_h = 1.5
+    p = np.array([14.0, 11.0])
+    slant = np.sqrt(ranges_to(SQUARE, p) ** 2 + (heights - cam_h) ** 2)
+    h, sh = horizontal_range(slant, heights, cam_h, sigma=0.1)
+    np.testing.assert_allclose(h, ranges_to(SQUARE, p), rtol=1e-12)
+    np.testing.assert_allclose(sh, 0.1 * slant / h)
+    np.testing.assert_allclose(trilaterate(SQUARE, h, sh).position, p, atol=1e-9)
+    assert horizontal_range(1.0, 3.0, 1.0) == 0.0  # noisy slant shorter than the height difference
+    with pytest.raises(ValueError, match="slant_range"):
+        horizontal_range(np.nan, 1.0)
