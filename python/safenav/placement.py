@@ -138,7 +138,7 @@ def _route(route) -> np.ndarray:
     step = np.hypot(*np.diff(r, axis=0).T)
     if (step <= 1e-12).any():
         i = int(np.argmax(step <= 1e-12)) + 1
-        raise ValueError(f"route[{i}] = {tuple(r[i])} repeats route[{i - 1}]: an edge of zero length has no direction")
+        raise ValueError(f"route[{i}] = ({r[i, 0]:g}, {r[i, 1]:g}) repeats route[{i - 1}]: an edge of zero length has no direction")
     return r
 
 
@@ -241,7 +241,7 @@ def plan_tour(targets, *, source: int = 0, destination: int = -1, restarts: int 
     for i in range(n):
         for j in range(i + 1, n):
             if np.array_equal(t[i], t[j]):
-                raise ValueError(f"targets[{i}] and targets[{j}] repeat the point {tuple(t[i])}")
+                raise ValueError(f"targets[{i}] and targets[{j}] repeat the point ({t[i, 0]:g}, {t[i, 1]:g})")
     D = np.hypot(*(t[:, None, :] - t[None, :, :]).transpose(2, 0, 1))
     inner = [i for i in range(n) if i not in (s, d)]
     if not inner:
