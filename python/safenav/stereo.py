@@ -144,7 +144,7 @@ class StereoCalibration:
                 raise ValueError(f"calibration file {str(p)!r} does not exist")
             try:
                 fs = cv2.FileStorage(str(p), cv2.FILE_STORAGE_READ)
-            except cv2.error as exc:
+            except (cv2.error, SystemError) as exc:  # cv2 raises SystemError on unparsable files
                 raise ValueError(f"calibration file {str(p)!r} is not OpenCV FileStorage: {exc}") from exc
             if not fs.isOpened():
                 raise ValueError(f"calibration file {str(p)!r} is not OpenCV FileStorage")
@@ -163,12 +163,12 @@ class StereoCalibration:
                 raise ValueError(f"calibration file {str(path)!r} has no {' / '.join(names)} node")
             return None
 
+        mats = dict(K1=get("K1", "M1"), D1=get("D1"), K2=get("K2", "M2"), D2=get("D2"), R=get("R"), T=get("T"))
         if get("image_width", required=False) is not None:
             size = (get("image_width"), get("image_height"))
         else:
             size = np.asarray(get("image_size", "imageSize")).ravel()
-        return cls(K1=get("K1", "M1"), D1=get("D1"), K2=get("K2", "M2"), D2=get("D2"), R=get("R"), T=get("T"),
-                   image_size=tuple(size))
+        return cls(**mats, image_size=tuple(size))
 
 
 def _read(node):
