@@ -26,7 +26,10 @@ coordinates, so a camera point ``(X, Y, Z)`` projects to
 disparity ``u_L − u_R = f·B/Z`` (the pair is rectified by construction,
 ``doffs = 0``).  :meth:`StereoRig.calibration` gives the matching
 :class:`safenav.stereo.StereoCalibration` (zero distortion, ``R = I``,
-``T = (−B, 0, 0)``), so the LanBLoc pipeline can skip rectification.
+``T = (−B, 0, 0)``; ``cv2.stereoRectify`` of it is the identity) and
+:meth:`StereoRig.rectified_camera` the equivalent
+:class:`safenav.stereo.RectifiedCamera`, so the LanBLoc pipeline can skip
+rectification.
 
 Only landmarks inside the horizontal field of view and within
 ``rig.max_range_m`` are drawn (vectorised culling).  Obstacles are not drawn
@@ -125,6 +128,12 @@ class StereoRig:
         K = self.K
         return StereoCalibration(K, np.zeros(5), K, np.zeros(5), np.eye(3), np.array([-self.baseline_m, 0.0, 0.0]),
                                  (self.width, self.height))
+
+    def rectified_camera(self):
+        """The rig as a :class:`safenav.stereo.RectifiedCamera` (``Z = f·B/d``, doffs = 0): no rectification."""
+        from .stereo import RectifiedCamera
+        return RectifiedCamera(self.focal_length_px, self.cx, self.cy, self.baseline_m, 0.0, self.width,
+                               self.height)
 
     def camera_centers(self, pose) -> tuple[np.ndarray, np.ndarray]:
         """World centres of the left and right cameras at ``pose = (x, y, θ)``."""

@@ -1,0 +1,487 @@
+"""The LanBLoc pipeline: stereo pair → landmarks → ranges → position (SafeNav section IV-A).
+
+LanBLoc recognises landmarks in the left image, measures the distance to each
+by stereo matching, and trilaterates with the recognised landmarks as anchors
+("with further position optimization").  :class:`LanBLoc` runs, per frame:
+
+1. rectification (skipped when the camera is a
+   :class:`~safenav.stereo.RectifiedCamera`, e.g. the renderer's);
+2. detection on the rectified left image (:mod:`safenav.detect`; default the
+   ArUco :class:`~safenav.detect.FiducialDetector`);
+3. SGBM disparity (:class:`~safenav.stereo.StereoMatcher`), by default only on
+   the band of rows that holds the boxes (plus a margin);
+4. per detection, the box-median depth ``Z`` with ``σ_Z ≈ Z²·σ_d/(f·B)``
+   (:meth:`~safenav.stereo.StereoMatcher.box_range`, on the box shrunk by
+   ``box_shrink`` per side so that background pixels at the edges stay out);
+   the slant distance ``s = ‖P‖`` of the box centre ``P`` at that depth; the
+   horizontal range ``ρ = sqrt(s² − (z_ℓ − h)²)`` from the landmark's known
+   height ``z_ℓ`` and the camera height ``h``
+   (:func:`~safenav.localization.horizontal_range`, ``σ_ρ = σ_s·s/ρ``); and
+   the bearing of the box centre relative to the heading (counter-clockwise,
+   as in :meth:`safenav.MeasurementModel.bearing`);
+5. trilateration of the ranges to the landmarks' map positions
+   (:func:`~safenav.localization.trilaterate`: linear start, weighted
+   Levenberg–Marquardt, covariance ``(JᵀWJ)⁻¹``, GDOP, outlier consensus).
+   A forward-looking camera sees all its landmarks on one side, so the
+   mirror image of the fix across them may fit the ranges nearly as well;
+   trilateration then says "degenerate".  The bearings settle it: at the
+   mirror image the landmarks' left-to-right order is reversed, which no
+   heading explains (a χ² test on the bearing residuals, 99.9 %).
+
+The result (:class:`LanBLocResult`) carries an explicit ``status`` —
+``ok``, ``no_landmarks``, ``too_few_ranges``, ``degenerate`` or
+``did_not_converge`` — with a ``reason``, the position and covariance when ok,
+and every landmark's range and bearing (:class:`LandmarkObservation`) so that a
+filter can use the ranges directly (``result.range_measurements()`` →
+anchors, ranges, σ for :meth:`safenav.MeasurementModel.range`).
+
+The fix is the position of the **left camera's centre** projected on the
+ground: the rig's reference point (see :mod:`safenav.render`).
+
+:class:`CameraLoopSource` closes the camera loop for the navigation
+experiments: it renders the pair at the true vehicle pose
+(:class:`~safenav.render.StereoRenderer`), runs the pipeline and returns the
+fix and its covariance, or ``None`` (a dropout) when localization fails.
+
+Bad input raises ``ValueError`` naming the value: images of different sizes
+or not matching the calibration, empty images, a NaN calibration or camera
+height, a detected landmark id that the landmark table does not know.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from .detect import Detection, Detector, FiducialDetector, _check_image
+from .localization import LocalizationResult, horizontal_range, trilaterate
+from .render import StereoRenderer, StereoRig, camera_rotation
+from .stereo import RectifiedCamera, StereoCalibration, StereoMatcher
+from .world import Landmark, World
+
+__all__ = ["LandmarkObservation", "LanBLocResult", "LanBLoc", "CameraLoopSource", "STATUSES"]
+
+#: Result statuses, in the order the pipeline can stop.
+STATUSES = ("ok", "no_landmarks", "too_few_ranges", "degenerate", "did_not_converge")
+
+#: Default SGBM settings for the pipeline: 3-way SGBM with 64 disparities
+#: (ranges down to f·B/64, i.e. 1.6 m for the default rig), uniqueness 10.
+PIPELINE_SGBM = dict(num_disparities=64, block_size=5, mode="sgbm_3way", uniqueness_ratio=10,
+                     speckle_window_size=100, speckle_range=2)
+
+
+@dataclass(frozen=True)
+class LandmarkObservation:
+    """One recognised landmark and what stereo made of it."""
+
+    landmark_id: int
+    class_name: str
+    box: tuple[float, float, float, float]   #: detection box in the rectified left image [px]
+    score: float
+    anchor: np.ndarray        #: the landmark's map position (x, y, z) [m]
+    ok: bool                  #: a usable range was measured
+    range: float              #: horizontal range ρ from the camera's vertical axis to the landmark's [m]
+    sigma: float              #: σ_ρ [m]
+    slant_range: float        #: s, camera centre to the box centre at the median depth [m]
+    depth: float              #: median Z in the box [m]
+    disparity: float          #: median disparity [px]
+    n_valid: int              #: valid disparity pixels in the (shrunk) box
+    bearing: float            #: bearing of the box centre relative to the heading, CCW [rad]
+    bearing_sigma: float      #: σ of the bearing [rad]
+    reason: str = ""          #: why there is no range ("" when ok)
+
+
+@dataclass(frozen=True)
+class LanBLocResult:
+    """The outcome of one LanBLoc frame (see the module docstring)."""
+
+    status: str
+    reason: str
+    position: np.ndarray                      #: (2,) [m]; NaN unless ok
+    covariance: np.ndarray                    #: (2, 2) [m²]; NaN unless ok
+    gdop: float
+    observations: tuple[LandmarkObservation, ...]
+    detections: tuple[Detection, ...]
+    localization: LocalizationResult | None = None
+    timings: dict = field(default_factory=dict, compare=False)   #: seconds per stage
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+    @property
+    def n_ranges(self) -> int:
+        return sum(o.ok for o in self.observations)
+
+    def range_measurements(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(landmark ids (n,), anchors (n, 2), horizontal ranges (n,), σ (n,))`` of the usable ranges."""
+        obs = [o for o in self.observations if o.ok]
+        return (np.array([o.landmark_id for o in obs], dtype=int),
+                np.array([o.anchor[:2] for o in obs], dtype=float).reshape(-1, 2),
+                np.array([o.range for o in obs], dtype=float), np.array([o.sigma for o in obs], dtype=float))
+
+    def bearing_measurements(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(landmark ids, anchors (n, 2), bearings relative to the heading (n,), σ (n,))`` of every detection."""
+        obs = self.observations
+        return (np.array([o.landmark_id for o in obs], dtype=int),
+                np.array([o.anchor[:2] for o in obs], dtype=float).reshape(-1, 2),
+                np.array([o.bearing for o in obs], dtype=float), np.array([o.bearing_sigma for o in obs], dtype=float))
+
+
+def _chi2_999(dof: int) -> float:
+    from scipy.stats import chi2
+    return float(chi2.ppf(0.999, max(dof, 1)))
+
+
+def _landmark_table(landmarks) -> dict[int, tuple[np.ndarray, str]]:
+    if isinstance(landmarks, World):
+        landmarks = landmarks.landmarks
+    table = {}
+    if isinstance(landmarks, Mapping):
+        for k, v in landmarks.items():
+            p = np.asarray(v, dtype=float).ravel()
+            if p.size not in (2, 3) or not np.isfinite(p).all():
+                raise ValueError(f"landmarks[{k!r}] = {v!r}: must be a finite (x, y) or (x, y, z)")
+            table[int(k)] = (np.append(p, 0.0) if p.size == 2 else p, "landmark")
+        return table
+    for i, lm in enumerate(landmarks):
+        if not isinstance(lm, Landmark):
+            raise ValueError(f"landmarks[{i}] = {lm!r}: must be a Landmark")
+        table[lm.id] = (np.array([*lm.position[:2], lm.height]), lm.class_name)
+    return table
+
+
+def _finite(name, v, *, positive=False, nonneg=False):
+    if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not math.isfinite(v):
+        raise ValueError(f"{name} = {v!r}: must be a finite number")
+    if (positive and not v > 0) or (nonneg and v < 0):
+        raise ValueError(f"{name} = {v!r}: must be {'> 0' if positive else '>= 0'}")
+    return float(v)
+
+
+class LanBLoc:
+    """The LanBLoc vision pipeline for one stereo rig and landmark map.
+
+    Parameters
+    ----------
+    landmarks:
+        A :class:`~safenav.world.World`, a sequence of
+        :class:`~safenav.world.Landmark`, or a mapping ``id → (x, y[, z])``.
+        ``z`` is the height of the landmark's reference point (the marker
+        centre) above the ground.
+    camera:
+        A :class:`~safenav.render.StereoRig` (rendered, rectified pairs), a
+        :class:`~safenav.stereo.RectifiedCamera`, a
+        :class:`~safenav.stereo.StereoCalibration` (pairs are rectified first)
+        or a ready :class:`~safenav.stereo.StereoMatcher`.
+    detector:
+        A :class:`~safenav.detect.Detector`; default a
+        :class:`~safenav.detect.FiducialDetector` on the landmark ids.
+    camera_height_m, pitch_rad:
+        The camera centres' height above the ground and the pitch (positive
+        up); taken from the rig when ``camera`` is a StereoRig.
+    sigma_d:
+        Disparity noise σ_d [px] for σ_Z = Z²·σ_d/(f·B).  The default 0.5 px
+        allows for SGBM's pixel locking on the markers' flat cells.
+    min_landmarks:
+        Ranges needed to trilaterate (the paper: at least 3).
+    max_range_m:
+        Ranges beyond this are "beyond resolvable range".
+    box_shrink:
+        Fraction of the box width/height cut from each side before the median.
+    row_band:
+        Match only the rows spanned by the boxes (plus ``band_margin_px``);
+        ``False`` matches the whole image.
+    bearing_sigma_px:
+        σ of the box centre [px], for the bearings' σ = σ_px / f.
+    unknown_landmark:
+        ``"error"`` (default): a detection whose landmark id is not in
+        ``landmarks`` raises ``ValueError``; ``"skip"`` ignores it.
+    resolve_ambiguity:
+        When trilateration reports a degenerate fix, retry without its
+        mirror-ambiguity check and accept the best fit if the bearings agree
+        with it (see :meth:`_bearings_agree`); collinear anchors and large
+        GDOP stay degenerate.
+    sgbm:
+        SGBM parameters (:data:`safenav.stereo.SGBM_DEFAULTS` names), over
+        :data:`PIPELINE_SGBM`.
+    trilateration:
+        Keyword arguments for :func:`~safenav.localization.trilaterate`.
+    """
+
+    def __init__(self, landmarks, camera, detector: Detector | None = None, *,
+                 camera_height_m: float | None = None, pitch_rad: float | None = None, sigma_d: float = 0.5,
+                 min_landmarks: int = 3, max_range_m: float = math.inf, box_shrink: float = 0.1,
+                 row_band: bool = True, band_margin_px: int = 24, bearing_sigma_px: float = 1.0,
+                 unknown_landmark: str = "error", resolve_ambiguity: bool = True, sgbm: Mapping | None = None,
+                 trilateration: Mapping | None = None):
+        self.landmarks = _landmark_table(landmarks)
+        rig = camera if isinstance(camera, StereoRig) else None
+        if rig is not None:
+            camera = rig.rectified_camera()
+            camera_height_m = rig.camera_height_m if camera_height_m is None else camera_height_m
+            pitch_rad = rig.pitch_rad if pitch_rad is None else pitch_rad
+            max_range_m = rig.max_range_m if max_range_m == math.inf else max_range_m
+        if camera_height_m is None:
+            raise ValueError("camera_height_m is required unless camera is a StereoRig")
+        self.camera_height_m = _finite("camera_height_m", camera_height_m, nonneg=True)
+        self.pitch_rad = _finite("pitch_rad", 0.0 if pitch_rad is None else pitch_rad)
+        if isinstance(camera, StereoMatcher):
+            self.matcher = camera
+        elif isinstance(camera, (RectifiedCamera, StereoCalibration)):
+            self.matcher = StereoMatcher(camera, **{**PIPELINE_SGBM, **dict(sgbm or {})})
+        else:
+            raise ValueError(f"camera = {camera!r}: must be a StereoRig, RectifiedCamera, StereoCalibration "
+                             f"or StereoMatcher")
+        self.camera = self.matcher.camera
+        self.detector = FiducialDetector(landmarks if isinstance(landmarks, World) else
+                                         {k: k for k in self.landmarks}) if detector is None else detector
+        if not isinstance(self.detector, Detector):
+            raise ValueError(f"detector = {detector!r}: must be a safenav.detect.Detector")
+        self.sigma_d = _finite("sigma_d", sigma_d, positive=True)
+        if isinstance(min_landmarks, bool) or not isinstance(min_landmarks, (int, np.integer)) or min_landmarks < 3:
+            raise ValueError(f"min_landmarks = {min_landmarks!r}: must be an integer >= 3 (2D trilateration)")
+        self.min_landmarks = int(min_landmarks)
+        if not (isinstance(max_range_m, (int, float)) and max_range_m > 0):
+            raise ValueError(f"max_range_m = {max_range_m!r}: must be > 0")
+        self.max_range_m = float(max_range_m)
+        self.box_shrink = _finite("box_shrink", box_shrink, nonneg=True)
+        if self.box_shrink >= 0.5:
+            raise ValueError(f"box_shrink = {box_shrink!r}: must be < 0.5")
+        self.row_band = bool(row_band)
+        self.band_margin_px = int(band_margin_px)
+        self.bearing_sigma_px = _finite("bearing_sigma_px", bearing_sigma_px, positive=True)
+        if unknown_landmark not in ("error", "skip"):
+            raise ValueError(f"unknown_landmark = {unknown_landmark!r}: must be 'error' or 'skip'")
+        self.unknown_landmark = unknown_landmark
+        self.resolve_ambiguity = bool(resolve_ambiguity)
+        self.trilateration = dict(trilateration or {})
+        self._R0t = camera_rotation(0.0, self.pitch_rad).T   # camera → world directions at heading 0
+        self._band_matchers: dict[tuple[int, int], StereoMatcher] = {}
+
+    # ---------------------------------------------------------------- stages
+    def check_pair(self, left, right) -> tuple[np.ndarray, np.ndarray]:
+        """Validate a stereo pair (uint8, non-empty, same shape, the calibration's size)."""
+        left = _check_image(left, "left image")
+        right = _check_image(right, "right image")
+        if left.shape != right.shape:
+            raise ValueError(f"left and right images differ in size: {left.shape} vs {right.shape}")
+        want = (self.camera.height, self.camera.width)
+        if left.shape[:2] != want:
+            raise ValueError(f"images are {left.shape[1]}x{left.shape[0]} px but the calibration is "
+                             f"{want[1]}x{want[0]} px")
+        return left, right
+
+    def disparity(self, left, right, boxes=()) -> np.ndarray:
+        """SGBM disparity of the rectified pair (NaN where invalid or outside the row band)."""
+        h = left.shape[0]
+        if not self.row_band or len(boxes) == 0:
+            return self.matcher.disparity(left, right)
+        b = np.asarray(boxes, dtype=float).reshape(-1, 4)
+        q = 16   # band edges on a 16-row grid, so that band matchers are reused
+        y0 = max((int(math.floor(b[:, 1].min())) - self.band_margin_px) // q * q, 0)
+        y1 = min(-(-(int(math.ceil(b[:, 3].max())) + 1 + self.band_margin_px) // q) * q, h)
+        if y1 - y0 >= 0.8 * h:
+            return self.matcher.disparity(left, right)
+        m = self._band_matchers.get((y0, y1))
+        if m is None:
+            c = self.camera
+            band = RectifiedCamera(c.f, c.cx, c.cy - y0, c.baseline, c.doffs, c.width, y1 - y0)
+            m = StereoMatcher(band, **self.matcher.sgbm_params)
+            if len(self._band_matchers) > 64:
+                self._band_matchers.clear()
+            self._band_matchers[(y0, y1)] = m
+        out = np.full((h, left.shape[1]), np.nan, np.float32)
+        out[y0:y1] = m.disparity(np.ascontiguousarray(left[y0:y1]), np.ascontiguousarray(right[y0:y1]))
+        return out
+
+    def observe(self, det: Detection, disparity: np.ndarray) -> LandmarkObservation:
+        """Range and bearing of one detection (step 4 of the module docstring)."""
+        anchor, _ = self.landmarks[det.landmark_id]
+        x0, y0, x1, y1 = det.box
+        sx, sy = self.box_shrink * (x1 - x0), self.box_shrink * (y1 - y0)
+        box = (x0 + sx, y0 + sy, x1 - sx, y1 - sy)
+        br = self.matcher.box_range(disparity, box, sigma_d=self.sigma_d, max_range=self.max_range_m)
+        cam = self.camera
+        u, v = det.center
+        ray = self._R0t @ np.array([(u - cam.cx) / cam.f, (v - cam.cy) / cam.f, 1.0])
+        bearing = math.atan2(ray[1], ray[0])
+        b_sigma = self.bearing_sigma_px / cam.f
+        common = dict(landmark_id=det.landmark_id, class_name=det.class_name, box=det.box, score=det.score,
+                      anchor=anchor, bearing=bearing, bearing_sigma=b_sigma, disparity=float(br.disparity),
+                      n_valid=int(br.n_valid))
+        if not br.ok:
+            return LandmarkObservation(ok=False, range=math.nan, sigma=math.nan, slant_range=math.nan,
+                                       depth=math.nan, reason=br.reason, **common)
+        s = br.distance
+        sigma_s = br.sigma * s / br.range
+        rho, sigma_rho = horizontal_range(s, anchor[2], self.camera_height_m, sigma=sigma_s)
+        if not rho > 0:
+            return LandmarkObservation(ok=False, range=math.nan, sigma=math.nan, slant_range=s, depth=br.range,
+                                       reason=f"slant range {s:.3f} m is shorter than the height difference "
+                                              f"{anchor[2] - self.camera_height_m:.3f} m", **common)
+        return LandmarkObservation(ok=True, range=float(rho), sigma=float(sigma_rho), slant_range=s,
+                                   depth=float(br.range), **common)
+
+    def _bearings_agree(self, loc: LocalizationResult, obs: Sequence[LandmarkObservation]) -> bool:
+        """Whether the bearings fit the fix ``loc`` with one common heading (χ² test, 99.9 %).
+
+        The absolute bearing from the fix to landmark i is β_i; the measured
+        bearing relative to the heading is b_i; with the heading estimated as
+        the circular mean of β_i − b_i the residuals must be within their σ:
+        the bearing σ plus the fix's uncertainty across the line of sight.
+        The mirror image of a fix reverses the landmarks' order, which no
+        heading explains.
+        """
+        p, P = loc.position, loc.covariance
+        res, var = [], []
+        for o in obs:
+            d = o.anchor[:2] - p
+            rho = float(np.hypot(*d))
+            if rho < 1e-6:
+                return False
+            n = np.array([-d[1], d[0]]) / rho
+            res.append(math.atan2(d[1], d[0]) - o.bearing)
+            var.append(o.bearing_sigma ** 2 + float(n @ P @ n) / rho ** 2)
+        res = np.asarray(res)
+        theta = math.atan2(np.sin(res).mean(), np.cos(res).mean())
+        r = (res - theta + math.pi) % (2 * math.pi) - math.pi
+        chi2 = float(np.sum(r * r / np.asarray(var)))
+        return chi2 <= _chi2_999(len(obs) - 1)
+
+    # ---------------------------------------------------------------- the whole frame
+    def localize(self, left, right) -> LanBLocResult:
+        """Run the pipeline on one stereo pair (raw if the camera needs rectification)."""
+        t = {}
+        t0 = time.perf_counter()
+        left, right = self.check_pair(left, right)
+        if self.matcher.needs_rectification:
+            left, right = self.matcher.rectify(left, right)
+        t1 = time.perf_counter()
+        t["rectify"] = t1 - t0
+        dets = []
+        seen = set()
+        for d in self.detector.detect(left):
+            if d.landmark_id not in self.landmarks:
+                if self.unknown_landmark == "error":
+                    raise ValueError(f"detected landmark id {d.landmark_id} ({d.class_name!r}) is not in the "
+                                     f"landmark map (known ids: {sorted(self.landmarks)})")
+                continue
+            if d.landmark_id in seen:   # keep the best-scoring box of a landmark
+                continue
+            seen.add(d.landmark_id)
+            dets.append(d)
+        t2 = time.perf_counter()
+        t["detect"] = t2 - t1
+        nan2, nan22 = np.full(2, np.nan), np.full((2, 2), np.nan)
+        if not dets:
+            t["disparity"] = t["range"] = t["localize"] = 0.0
+            return LanBLocResult("no_landmarks", "no landmark recognised in the left image", nan2, nan22, math.nan,
+                                 (), (), None, t)
+        disp = self.disparity(left, right, [d.box for d in dets])
+        t3 = time.perf_counter()
+        t["disparity"] = t3 - t2
+        obs = tuple(self.observe(d, disp) for d in dets)
+        t4 = time.perf_counter()
+        t["range"] = t4 - t3
+        ok = [o for o in obs if o.ok]
+        if len(ok) < self.min_landmarks:
+            t["localize"] = 0.0
+            why = "; ".join(f"landmark {o.landmark_id}: {o.reason}" for o in obs if not o.ok)
+            return LanBLocResult("too_few_ranges", f"{len(ok)} usable range(s), {self.min_landmarks} needed"
+                                 + (f" ({why})" if why else ""), nan2, nan22, math.nan, obs, tuple(dets), None, t)
+        anchors = np.array([o.anchor[:2] for o in ok])
+        rng, sig = [o.range for o in ok], [o.sigma for o in ok]
+        loc = trilaterate(anchors, rng, sig, **self.trilateration)
+        if loc.status == "degenerate" and self.resolve_ambiguity:
+            # a forward camera sees every landmark on one side, so the mirror image of the fix across
+            # them often fits the ranges too; the bearings' left-to-right order tells the two apart
+            best = trilaterate(anchors, rng, sig, **{**self.trilateration, "ambiguity_margin": 0.0})
+            if best.ok and self._bearings_agree(best, ok):
+                loc = dataclasses.replace(best, reason="mirror ambiguity resolved by the bearings")
+        t["localize"] = time.perf_counter() - t4
+        if not loc.ok:
+            status = {"too_few": "too_few_ranges"}.get(loc.status, loc.status)
+            status = status if status in STATUSES else "degenerate"
+            return LanBLocResult(status, loc.reason, nan2, nan22, float(loc.gdop), obs, tuple(dets), loc, t)
+        return LanBLocResult("ok", loc.reason, np.array(loc.position), np.array(loc.covariance), float(loc.gdop),
+                             obs, tuple(dets), loc, t)
+
+    __call__ = localize
+
+
+# --------------------------------------------------------------------------- the camera loop
+
+class CameraLoopSource:
+    """LanBLoc through the camera loop: a position source for the navigation loop.
+
+    ``source(true_state, step)`` renders the stereo pair at the true pose
+    ``(x, y, θ)`` of ``true_state = (x, y, v, θ)``, runs :class:`LanBLoc`, and
+    returns ``(z (2,), R (2, 2))`` — the fix and its covariance — or ``None``
+    when localization fails (a dropout: no landmark in view, too few ranges,
+    degenerate geometry).  ``R`` is the trilateration covariance plus
+    ``covariance_floor_m² · I`` (default 0).
+
+    The last frame's :class:`LanBLocResult` is :attr:`last` (detections,
+    per-landmark ranges and bearings, status and reason, stage timings);
+    :attr:`last_images` holds the pair when ``keep_images`` is set;
+    :attr:`stats` counts calls, fixes and failure statuses.
+    """
+
+    name = "lanbloc-camera"
+    emulated = False
+
+    def __init__(self, world: World, rig: StereoRig | None = None, detector: Detector | None = None, *,
+                 marker_size_m: float = 1.5, dictionary: str = "DICT_4X4_100", noise_std: float = 1.0,
+                 sigma_d: float = 0.2,
+                 seed: int = 0, texture_seed: int = 0, covariance_floor_m: float = 0.0, keep_images: bool = False,
+                 **pipeline):
+        if not isinstance(world, World):
+            raise ValueError(f"world = {world!r}: must be a safenav World")
+        self.world = world
+        self.rig = StereoRig() if rig is None else rig
+        self.renderer = StereoRenderer(world, self.rig, marker_size_m=marker_size_m, dictionary=dictionary,
+                                       noise_std=noise_std, seed=seed, texture_seed=texture_seed)
+        if detector is None:
+            detector = FiducialDetector(world, dictionary=dictionary)
+        self.pipeline = LanBLoc(world, self.rig, detector, sigma_d=sigma_d, **pipeline)
+        self.covariance_floor_m = _finite("covariance_floor_m", covariance_floor_m, nonneg=True)
+        self.keep_images = bool(keep_images)
+        self.last: LanBLocResult | None = None
+        self.last_step: int | None = None
+        self.last_images: tuple[np.ndarray, np.ndarray] | None = None
+        self.stats: dict[str, int] = {"calls": 0, **{s: 0 for s in STATUSES}}
+
+    @classmethod
+    def from_scenario(cls, scenario, width: int = 640, height: int | None = 480, *,
+                      camera_height_m: float = 1.5, **kwargs) -> "CameraLoopSource":
+        """From a :class:`~safenav.scenario.Scenario`: its world, its camera scaled to ``width`` px,
+        its detection range and minimum landmark count."""
+        rig = StereoRig.from_camera(scenario.camera, width, height, camera_height_m=camera_height_m,
+                                    max_range_m=scenario.detection.max_range_m)
+        kwargs.setdefault("min_landmarks", max(3, scenario.detection.min_landmarks))
+        return cls(scenario.world, rig, **kwargs)
+
+    def __call__(self, true_state, step: int):
+        s = np.asarray(true_state, dtype=float).ravel()
+        if s.shape != (4,) or not np.isfinite(s).all():
+            raise ValueError(f"true_state = {true_state!r}: must be a finite (x, y, v, theta)")
+        pose = (s[0], s[1], s[3])
+        t0 = time.perf_counter()
+        left, right = self.renderer.render(pose)
+        t_render = time.perf_counter() - t0
+        res = self.pipeline.localize(left, right)
+        res.timings["render"] = t_render
+        self.last, self.last_step = res, int(step)
+        self.last_images = (left, right) if self.keep_images else None
+        self.stats["calls"] += 1
+        self.stats[res.status] = self.stats.get(res.status, 0) + 1
+        if not res.ok:
+            return None
+        R = res.covariance + self.covariance_floor_m ** 2 * np.eye(2)
+        return res.position.copy(), R
