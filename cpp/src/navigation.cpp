@@ -56,21 +56,6 @@ double position_std(const StateCov& P) {
   return std::sqrt(std::max(0.0, m + r));
 }
 
-/// Points of `path` resampled at the arc-length fractions of `traj`.
-Points2 resample_like(const Corridor& path, const Eigen::Ref<const Points2>& traj) {
-  const Eigen::Index n = traj.rows();
-  Eigen::VectorXd s(n);
-  s[0] = 0.0;
-  for (Eigen::Index i = 1; i < n; ++i) s[i] = s[i - 1] + (traj.row(i) - traj.row(i - 1)).norm();
-  const double total = s[n - 1];
-  Points2 out(n, 2);
-  for (Eigen::Index i = 0; i < n; ++i) {
-    const double f = total > 0.0 ? s[i] / total : (n > 1 ? double(i) / double(n - 1) : 0.0);
-    out.row(i) = path.point_at(f * path.length()).transpose();
-  }
-  return out;
-}
-
 /// The filter in the loop: an EKF or a particle filter behind one interface.
 class LoopFilter {
  public:
@@ -625,9 +610,8 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
   // Metrics (eqs. 20–23) against the safe path.
   Points2 est(rows, 2);
   for (Eigen::Index i = 0; i < rows; ++i) est.row(i) = est_points[static_cast<std::size_t>(i)].transpose();
-  const Points2 ref = resample_like(safe, est);
   TrialMetrics& m = res.metrics;
-  m.ade = (est - ref).rowwise().norm().mean();
+  m.ade = safe.distance(est).mean();
   m.fde = (est.bottomRows<1>().transpose() - destination).norm();
   m.path_error_percent = std::abs(est_length - safe.length()) / safe.length() * 100.0;
   m.awrs = wrs_est / double(rows);

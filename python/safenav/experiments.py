@@ -85,3 +85,63 @@ def summarize_synthetic(raw: pd.DataFrame) -> pd.DataFrame:
     for col in ("ade", "fde", "awrs", "ms_per_trial"):
         agg[f"paper_{col}"] = [PAPER_SYNTHETIC.get(f, {}).get(col, np.nan) for f in agg.index]
     return agg.reset_index()
+
+
+# --------------------------------------------------------------------------- navigation (SafeNav V-D)
+
+#: The paper's Table IV (% path-length error per path type) of the extended
+#: version (Table III of the conference version).
+PAPER_PERCENT_ERROR = {
+    "chull": {"P1": 5.755, "P2": 7.42, "P3": 6.35, "Average": 6.51},
+    "centroid": {"P1": 5.32, "P2": 5.60, "P3": 5.47, "Average": 5.46},
+}
+#: The paper's Table V (extended; Table IV of the conference version):
+#: ADE, FDE [m], AWRS and time per trial [ms].
+PAPER_NAVIGATION = {
+    "chull": {"P1": (2.73, 3.16, 1.31, 14.93), "P2": (2.72, 3.08, 1.11, 14.84), "P3": (3.46, 3.57, 1.71, 15.98),
+              "Average": (2.97, 3.27, 1.38, 15.25)},
+    "centroid": {"P1": (1.06, 0.87, 1.01, 16.74), "P2": (1.13, 1.03, 1.01, 16.94), "P3": (1.15, 1.06, 1.01, 16.97),
+                 "Average": (1.11, 0.99, 1.01, 16.88)},
+}
+METHOD_LABELS = {"chull": "SafeNav-CHull", "centroid": "SafeNav-Centroid"}
+
+
+def _with_average(summary: pd.DataFrame) -> pd.DataFrame:
+    cols = ["ade", "fde", "awrs", "path_error_percent", "time_ms", "time_per_step_us", "success_rate", "steps"]
+    avg = summary.groupby("method", sort=False)[cols].mean().reset_index()
+    avg["path_type"] = "Average"
+    return pd.concat([summary[["method", "path_type", *cols]], avg[["method", "path_type", *cols]]],
+                     ignore_index=True)
+
+
+def percent_error_table(summary: pd.DataFrame) -> pd.DataFrame:
+    """Table III/IV layout of the % path-length error (eq. 23): one row per
+    method, one column per path type plus the average; the paper's value beside
+    each of ours (``paper P1`` …).  ``summary`` is :func:`safenav.runner.summarize`
+    output for one filter and source."""
+    s = _with_average(summary)
+    rows = []
+    for method, g in s.groupby("method", sort=False):
+        row = {"Approach": METHOD_LABELS.get(method, method)}
+        for _, r in g.iterrows():
+            row[r["path_type"]] = r["path_error_percent"]
+            row[f"paper {r['path_type']}"] = PAPER_PERCENT_ERROR.get(method, {}).get(r["path_type"], np.nan)
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def navigation_table(summary: pd.DataFrame) -> pd.DataFrame:
+    """Table IV/V layout: per method and path type (plus the average), ADE,
+    FDE, AWRS and the median time per trial, with the paper's numbers beside,
+    then our success rate, steps and time per step."""
+    s = _with_average(summary)
+    rows = []
+    for _, r in s.iterrows():
+        paper = PAPER_NAVIGATION.get(r["method"], {}).get(r["path_type"], (np.nan,) * 4)
+        rows.append({
+            "Approach": METHOD_LABELS.get(r["method"], r["method"]), "Path": r["path_type"],
+            "ADE": r["ade"], "FDE": r["fde"], "AWRS": r["awrs"], "time ms": r["time_ms"],
+            "paper ADE": paper[0], "paper FDE": paper[1], "paper AWRS": paper[2], "paper ms": paper[3],
+            "success": r["success_rate"], "steps": r["steps"], "µs/step": r["time_per_step_us"],
+        })
+    return pd.DataFrame(rows)

@@ -12,11 +12,13 @@ the destination or with an explicit outcome: ``collision``,
 ``left_corridor``, ``step_limit``, ``lost_localization`` or ``no_path``.
 
 Metrics (SafeNav eqs. 20-23) compare the *estimated* trajectory with the safe
-path it was told to follow, the paper's "ground truth trajectory": ADE is the
-mean distance to the safe path resampled at the same arc-length fractions
-(the paper does not say how it pairs points of trajectories of different
-lengths; this is our reading), FDE the distance of the final estimate to the
-destination, % error the path-length error.  ``loc_ade``/``loc_fde`` compare
+path it was told to follow, the paper's "ground truth trajectory".  That path
+has no time stamps, so eq. 21's point-wise pairing Ŷ(t)-Y(t) is undefined;
+we pair each estimate with its nearest point of the safe path (ADE = mean
+cross-track distance; our reading).  Pairing by equal arc-length fractions
+was tried and rejected: a 1 % longer trajectory then shows a metre of "error"
+mid-way that is only a phase shift.  FDE is the distance of the final
+estimate to the destination, % error the path-length error (eq. 23).  ``loc_ade``/``loc_fde`` compare
 the estimate with the true vehicle instead (localization error).
 
 Example::

@@ -50,3 +50,84 @@ def plot_synthetic_trial(data, estimates: dict, path: str | Path, *, title: str 
     fig.savefig(out.with_suffix(".svg"))
     plt.close(fig)
     return out
+
+
+def plot_navigation(scenario, trials: dict, path: str | Path, *, title: str | None = None,
+                    show_hulls: bool = True) -> Path:
+    """Figs. 4-5 of SafeNav: per path type, the field (obstacles, hazards),
+    the safe-path corridor with its risk zones, the segment hulls (CHull) or
+    sub-segment centroids (Centroid), and the true and estimated trajectories.
+
+    ``trials`` maps a path type name to ``(navigator, trial_result)``.  Writes
+    a PNG and an SVG beside it; returns the PNG path."""
+    from matplotlib.patches import Circle as _Circle, Polygon as _Polygon
+
+    from . import _core
+    from .world import Circle
+
+    plt = _pyplot()
+    n = len(trials)
+    fig, axes = plt.subplots(1, n, figsize=(5.2 * n, 5.4), squeeze=False)
+    world = scenario.world
+    for ax, (name, (navigator, trial)) in zip(axes[0], trials.items()):
+        for h in world.hazards:
+            patch = (_Circle(tuple(h.shape.center), h.shape.radius) if isinstance(h.shape, Circle)
+                     else _Polygon(h.shape.array(), closed=True))
+            patch.set(facecolor="tab:orange", alpha=0.18 + 0.1 * min(h.risk, 5) / 5, edgecolor="none")
+            ax.add_patch(patch)
+        for o in world.obstacles:
+            patch = _Circle(tuple(o.center), o.radius) if isinstance(o, Circle) else _Polygon(o.array(), closed=True)
+            patch.set(facecolor="0.25", edgecolor="k", lw=0.5)
+            ax.add_patch(patch)
+        segs = navigator.segments
+        corridor = _core.Corridor(navigator.problem.path, navigator.problem.zones)
+        W = corridor.half_width
+        nz = corridor.zone_count
+        safe = np.asarray(corridor.path)
+        off = np.linspace(-W, W, 2 * nz + 1)
+        s = np.linspace(0, corridor.length, 400)
+        pts = np.asarray(corridor.points_at(s))
+        tang = np.gradient(pts, axis=0)
+        tang /= np.maximum(np.linalg.norm(tang, axis=1, keepdims=True), 1e-12)
+        normal = np.c_[-tang[:, 1], tang[:, 0]]
+        for k, o in enumerate(off):
+            if o == 0:
+                continue
+            edge = pts + o * normal
+            ax.plot(edge[:, 0], edge[:, 1], "-", color="tab:green", lw=0.9 if abs(o) == W else 0.4,
+                    alpha=0.8 if abs(o) == W else 0.4)
+        if show_hulls and navigator.settings.method == _core.NavigationMethod.CHULL:
+            for k in range(segs.size):
+                hull = np.asarray(segs.hull(k))
+                ax.add_patch(_Polygon(hull, closed=True, fill=False, edgecolor="tab:purple", lw=0.6, alpha=0.6))
+        else:
+            c = np.asarray(segs.centroids)
+            ax.plot(c[:, 0], c[:, 1], "+", color="tab:purple", ms=4, mew=0.8, label="sub-segment centroids")
+        lm = world.landmark_array()
+        ax.plot(lm[:, 0], lm[:, 1], "^", color="tab:blue", ms=4, label="landmarks")
+        ax.plot(safe[:, 0], safe[:, 1], "-", color="tab:green", lw=1.0, label="safe path")
+        gt = scenario.path_polyline(name)
+        ax.plot(gt[:, 0], gt[:, 1], ":", color="0.4", lw=1.0, label="cluster polyline")
+        ax.plot(trial.truth[:, 0], trial.truth[:, 1], "k-", lw=1.4, label="true")
+        ax.plot(trial.estimate[:, 0], trial.estimate[:, 1], "--", color="tab:red", lw=1.2, label="estimated")
+        ax.plot(*safe[0], "o", color="tab:green", ms=6)
+        ax.plot(*safe[-1], "*", color="tab:red", ms=10)
+        pad = 2 * W
+        lo, hi = safe.min(axis=0) - pad, safe.max(axis=0) + pad
+        ax.set_xlim(lo[0], hi[0])
+        ax.set_ylim(lo[1], hi[1])
+        ax.set_aspect("equal")
+        m = trial.metrics
+        ax.set_title(f"{name}: {trial.outcome_name}, ADE {m['ade']:.2f} m, FDE {m['fde']:.2f} m", fontsize=10)
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+    axes[0][0].legend(loc="best", fontsize=7)
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=120)
+    fig.savefig(out.with_suffix(".svg"))
+    plt.close(fig)
+    return out

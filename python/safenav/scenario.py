@@ -249,7 +249,7 @@ class NavigationParams(_Params):
     sensing_range: float = 10.0        #: obstacles this far ahead on the path are detected [m]
     replan_lookahead: float = 20.0     #: a detour rejoins the path this far ahead [m]
     clearance: float = 2.0             #: planned paths keep this far from obstacles [m]
-    plan_iterations: int = 20000       #: RAw-RRT* iterations for the safe path
+    plan_iterations: int = 5000        #: RAw-RRT* iterations for the safe path
     replan_iterations: int = 3000      #: RAw-RRT* iterations for a detour
     corridor_bias: float = 0.5         #: share of corridor samples in RAw-RRT*
     lost_position_std: float = 10.0    #: lost localization above this position σ [m]

@@ -130,7 +130,7 @@ struct NavigationSettings {
 /// the safe path as ground truth (see Navigator::run); loc_* compare the
 /// estimate with the true vehicle.
 struct TrialMetrics {
-  double ade = 0.0;             ///< eq. 21: estimate vs the safe path resampled at equal arc-length fractions
+  double ade = 0.0;             ///< eq. 21: mean distance of the estimate to the safe path (our reading, see navigation.py)
   double fde = 0.0;             ///< eq. 22: final estimate vs the destination
   double path_error_percent = 0.0;  ///< eq. 23: |L_est − L_path| / L_path · 100
   double awrs = 0.0;            ///< eq. 20: mean WRS of the estimated trajectory (eq. 18, about the safe path)

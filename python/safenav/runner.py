@@ -1,0 +1,258 @@
+"""Monte Carlo runner for SafeNav navigation (section V-D: 1000 trials per
+path type and method).
+
+A *sweep* is the grid path types × methods × filters × sources, with N trials
+in each cell.  Trial i of path type p has the seed
+``SeedSequence([seed, p_index]).generate_state(N)[i]``: it depends only on the
+base seed, the path type and i, so
+
+* every method, filter and source sees the same random trials (common random
+  numbers: paired comparisons), and
+* the results are identical whatever the number of workers or chunks, locally
+  or on a Dask cluster.
+
+Trials run in chunks inside the C++ core (``Navigator.run_many``, which
+releases the GIL), so local workers are threads; a Dask cluster given by
+``scheduler`` (an address, or a ``distributed.Client``) runs the same chunks.
+
+The result is a tidy :class:`pandas.DataFrame`, one row per trial;
+:func:`summarize` averages it per cell, and :func:`write_table` writes CSV and
+Parquet atomically.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from . import navigation as nav
+from .scenario import Scenario
+
+__all__ = ["Sweep", "trial_seeds", "plan_safe_paths", "run_sweep", "summarize", "write_table", "METRICS"]
+
+#: Per-trial metric columns averaged by :func:`summarize`.
+METRICS = ("ade", "fde", "path_error_percent", "awrs", "awrs_true", "loc_ade", "loc_fde", "max_deviation")
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """What to run: the grid and its trial count."""
+
+    scenario: Scenario
+    path_types: tuple[str, ...] = ()        #: () = all of the scenario's
+    methods: tuple[str, ...] = ("chull", "centroid")
+    filters: tuple[str, ...] = ("ekf",)
+    sources: tuple[str, ...] = ("lanbloc",)
+    trials: int = 1000
+    seed: int = 0
+    n_particles: int = 500
+    position_every: int = 1
+    chunk: int = 50                          #: trials per work unit
+
+    def __post_init__(self):
+        if not isinstance(self.scenario, Scenario):
+            raise ValueError(f"scenario = {self.scenario!r}: must be a safenav.Scenario")
+        names = [p.name for p in self.scenario.path_types]
+        pts = tuple(self.path_types) or tuple(names)
+        for p in pts:
+            if p not in names:
+                raise ValueError(f"path_types: {p!r} is not a path type of the scenario (have: {names})")
+        object.__setattr__(self, "path_types", pts)
+        for kind, values, table in (("methods", self.methods, nav.METHODS), ("filters", self.filters, nav.FILTERS),
+                                    ("sources", self.sources, nav.SOURCES)):
+            if not values:
+                raise ValueError(f"{kind}: needs at least one")
+            for v in values:
+                if v not in table:
+                    raise ValueError(f"{kind}: {v!r} is unknown (have: {sorted(table)})")
+            object.__setattr__(self, kind, tuple(values))
+        for name, lo in (("trials", 1), ("n_particles", 1), ("position_every", 1), ("chunk", 1)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
+                raise ValueError(f"{name} = {v!r}: must be an integer >= {lo}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or self.seed < 0:
+            raise ValueError(f"seed = {self.seed!r}: must be an integer >= 0")
+
+
+def trial_seeds(seed: int, path_index: int, n: int) -> np.ndarray:
+    """The n trial seeds of one path type (uint64)."""
+    return np.random.SeedSequence([int(seed), int(path_index)]).generate_state(n, dtype=np.uint64)
+
+
+def plan_safe_paths(scenario: Scenario, path_types=None) -> dict[str, np.ndarray]:
+    """RAw-RRT* safe path of each path type (deterministic: the scenario's planner seed)."""
+    names = path_types or [p.name for p in scenario.path_types]
+    return {name: np.asarray(nav.plan_safe_path(scenario, name).path) for name in names}
+
+
+@dataclass(frozen=True)
+class _Chunk:
+    """A work unit: trials [start, stop) of one cell.  Picklable (for Dask)."""
+
+    scenario: Scenario
+    path_type: str
+    path_index: int
+    safe_path: np.ndarray
+    method: str
+    filter: str
+    source: str
+    seeds: np.ndarray
+    start: int
+    n_particles: int
+    position_every: int
+    extra: dict = field(default_factory=dict)
+
+
+def _run_chunk(c: _Chunk) -> pd.DataFrame:
+    navigator = nav.make_navigator(c.scenario, c.safe_path, method=c.method, filter=c.filter, source=c.source,
+                                   n_particles=c.n_particles, position_every=c.position_every, record=False,
+                                   **c.extra)
+    d = navigator.run_many([int(s) for s in c.seeds])
+    n = len(c.seeds)
+    df = pd.DataFrame({
+        "path_type": [c.path_type] * n, "method": [c.method] * n, "filter": [c.filter] * n,
+        "source": [c.source] * n, "trial": np.arange(c.start, c.start + n), "seed": c.seeds.astype(np.uint64),
+    })
+    df["outcome"] = [nav.OUTCOMES[o] for o in d["outcome"]]
+    df["success"] = np.asarray(d["outcome"]) == 0
+    df["reason"] = d["reason"]
+    for k in ("steps", "replans", "position_fixes", "dropouts", "rejected"):
+        df[k] = np.asarray(d[k])
+    for k in METRICS:
+        df[k] = np.asarray(d[k])
+    df["time_ms"] = np.asarray(d["time_s"]) * 1e3
+    df["time_per_step_us"] = df["time_ms"] * 1e3 / np.maximum(df["steps"], 1)
+    return df
+
+
+def _chunks(sweep: Sweep, safe_paths: dict[str, np.ndarray], extra: dict) -> list[_Chunk]:
+    out = []
+    for pi, name in enumerate(sweep.path_types):
+        seeds = trial_seeds(sweep.seed, pi, sweep.trials)
+        for method in sweep.methods:
+            for filt in sweep.filters:
+                for source in sweep.sources:
+                    for a in range(0, sweep.trials, sweep.chunk):
+                        out.append(_Chunk(sweep.scenario, name, pi, safe_paths[name], method, filt, source,
+                                          seeds[a:a + sweep.chunk], a, sweep.n_particles, sweep.position_every,
+                                          dict(extra)))
+    return out
+
+
+def run_sweep(sweep: Sweep, *, workers: int | None = None, scheduler=None, safe_paths=None,
+              progress: bool = False, **navigator_options) -> pd.DataFrame:
+    """Run every trial of ``sweep``; one row per trial, in (path type, method,
+    filter, source, trial) order whatever ``workers`` or ``scheduler``.
+
+    ``workers``: local threads (default: all cores).  ``scheduler``: a Dask
+    scheduler address or a ``distributed.Client``; the same chunks then run on
+    that cluster.  ``safe_paths``: precomputed {path type: path}; planned here
+    otherwise.  ``navigator_options`` go to :func:`safenav.navigation.make_navigator`."""
+    if safe_paths is None:
+        safe_paths = plan_safe_paths(sweep.scenario, sweep.path_types)
+    missing = [p for p in sweep.path_types if p not in safe_paths]
+    if missing:
+        raise ValueError(f"safe_paths: no path for {missing}")
+    chunks = _chunks(sweep, safe_paths, navigator_options)
+    bar = None
+    if progress:
+        from tqdm import tqdm
+        bar = tqdm(total=len(chunks) * 1, unit="chunk", desc="trials", leave=False)
+    try:
+        if scheduler is not None:
+            frames = _run_dask(chunks, scheduler, bar)
+        else:
+            n = workers if workers is not None else (os.cpu_count() or 1)
+            if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+                raise ValueError(f"workers = {workers!r}: must be an integer >= 1")
+            frames = [None] * len(chunks)
+            with ThreadPoolExecutor(max_workers=int(n)) as pool:
+                futures = {pool.submit(_run_chunk, c): i for i, c in enumerate(chunks)}
+                for fut in _as_completed(futures):
+                    frames[futures[fut]] = fut.result()
+                    if bar is not None:
+                        bar.update(1)
+    finally:
+        if bar is not None:
+            bar.close()
+    return pd.concat(frames, ignore_index=True)
+
+
+def _as_completed(futures):
+    from concurrent.futures import as_completed
+    return as_completed(futures)
+
+
+def _run_dask(chunks, scheduler, bar):
+    try:
+        from distributed import Client, as_completed
+    except ImportError as exc:  # pragma: no cover - exercised only without the extra
+        raise RuntimeError("--scheduler needs Dask: pip install 'safenav[dask]'") from exc
+    own = not isinstance(scheduler, Client)
+    client = Client(scheduler) if own else scheduler
+    try:
+        futures = client.map(_run_chunk, chunks, pure=False)
+        index = {f.key: i for i, f in enumerate(futures)}
+        frames = [None] * len(chunks)
+        for fut in as_completed(futures):
+            frames[index[fut.key]] = fut.result()
+            if bar is not None:
+                bar.update(1)
+        return frames
+    finally:
+        if own:
+            client.close()
+
+
+def summarize(raw: pd.DataFrame) -> pd.DataFrame:
+    """Per cell (path type, method, filter, source): trial count, success rate,
+    the metrics' means over the *arrived* trials, and the median time per
+    trial [ms] and per step [µs] over all trials."""
+    if raw.empty:
+        raise ValueError("summarize: the raw table has no rows")
+    keys = ["path_type", "method", "filter", "source"]
+    rows = []
+    for cell, g in raw.groupby(keys, sort=False):
+        ok = g[g["success"]]
+        row = dict(zip(keys, cell))
+        row["trials"] = len(g)
+        row["success_rate"] = float(g["success"].mean())
+        for k in METRICS:
+            row[k] = float(ok[k].mean()) if len(ok) else float("nan")
+        row["steps"] = float(g["steps"].mean())
+        row["replans"] = float(g["replans"].mean())
+        row["dropout_share"] = float((g["dropouts"] / np.maximum(g["steps"], 1)).mean())
+        row["time_ms"] = float(g["time_ms"].median())
+        row["time_per_step_us"] = float(g["time_per_step_us"].median())
+        for o in nav.OUTCOMES[1:]:
+            row[f"n_{o}"] = int((g["outcome"] == o).sum())
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def write_table(df: pd.DataFrame, path, *, parquet: bool = True) -> list[Path]:
+    """Write ``df`` as CSV (and Parquet) next to ``path`` (suffix replaced),
+    atomically: each file is written to a temporary name, then renamed."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    out = []
+    targets = [(path.with_suffix(".csv"), lambda p: df.to_csv(p, index=False))]
+    if parquet:
+        targets.append((path.with_suffix(".parquet"), lambda p: df.to_parquet(p, index=False)))
+    for target, write in targets:
+        fd, tmp = tempfile.mkstemp(prefix=target.name + ".", suffix=".tmp", dir=target.parent)
+        os.close(fd)
+        try:
+            write(tmp)
+            os.replace(tmp, target)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+        out.append(target)
+    return out
