@@ -209,9 +209,12 @@ def centroid_control(segments, estimate, cruise_speed: float) -> np.ndarray:
     return _core.centroid_control(seg, as_array("estimate", estimate, (4,)), float(cruise_speed))
 
 
-def chull_control(segments, bmm, estimate, cruise_speed: float, lookahead: float, step_back_speed: float):
+def chull_control(segments, bmm, estimate, cruise_speed: float, lookahead: float, step_back_speed: float,
+                  obstacles=None):
     """Algorithm 1's decision: ``ChullDecision`` with ``control``, ``segment``,
-    ``kind`` (0 default kept, 1 corrective, 2 step back) and ``predicted``."""
+    ``kind`` (0 default kept, 1 corrective, 2 step back) and ``predicted``.
+    ``obstacles`` (an ``ObstacleChecker``) shortens the look-ahead while the
+    chord to it crosses an obstacle."""
     seg = getattr(segments, "_s", segments)
     return _core.chull_control(seg, bmm, as_array("estimate", estimate, (4,)), float(cruise_speed),
-                               float(lookahead), float(step_back_speed))
+                               float(lookahead), float(step_back_speed), obstacles)

@@ -30,6 +30,8 @@ from . import _core
 from ._checks import as_array
 
 CircleObstacle = _core.CircleObstacle
+#: Repeated collision queries against one map: ``ObstacleChecker(map).segment_free(a, b)``.
+ObstacleChecker = _core.ObstacleChecker
 PlanningMap = _core.PlanningMap
 PlanningProblem = _core.PlanningProblem
 PlannerSettings = _core.PlannerSettings
@@ -38,7 +40,7 @@ PlanResult = _core.PlanResult
 PathCost = _core.PathCost
 
 __all__ = [
-    "CircleObstacle", "PlanningMap", "PlanningProblem", "PlannerSettings", "PlanStatus", "PlanResult", "PathCost",
+    "CircleObstacle", "ObstacleChecker", "PlanningMap", "PlanningProblem", "PlannerSettings", "PlanStatus", "PlanResult", "PathCost",
     "make_map", "plan", "replan", "point_ahead", "point_is_free", "segment_is_free", "path_is_free", "path_cost",
 ]
 
