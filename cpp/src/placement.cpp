@@ -140,6 +140,28 @@ std::vector<char> within(const Points2& route, const Points2& pts, const Grid& g
   return close;
 }
 
+/// Lemma 2 / Corollary 1 with the camera's constants computed once.
+struct Fov {
+  explicit Fov(const Camera& cam)
+      : R(cam.range), R2(cam.range * cam.range), circular(cam.fov == FieldOfView::Circular),
+        ymax(circular ? cam.range : cam.range * std::sin(0.5 * cam.angle)),
+        cot_half(circular ? 0.0 : std::cos(0.5 * cam.angle) / std::sin(0.5 * cam.angle)) {}
+  bool interval(const Eigen::Vector2d& local, double length, Interval* out) const {
+    const double x = local.x(), y = local.y(), ay = std::abs(y);
+    if (ay > ymax || x < -R || x > length + R) return false;  // Lemma 1, condition 1 (and |x| bounds)
+    const double h = std::sqrt(std::max(R2 - y * y, 0.0));
+    const double a = std::max(x - h, 0.0);                                       // eq. (1)/(3)
+    const double b = circular ? std::min(x + h, length)                          // eq. (4), typo fixed
+                              : std::min(x - ay * cot_half, length);             // eq. (2)
+    if (b < a) return false;
+    *out = {a, b};
+    return true;
+  }
+  double R, R2;
+  bool circular;
+  double ymax, cot_half;
+};
+
 /// A candidate's Lemma 2 interval on one edge with its position in the edge frame.
 struct Seen {
   int idx;
@@ -153,12 +175,13 @@ std::vector<Seen> seen_on_edge(const Points2& route, Eigen::Index e, const Point
   const Eigen::Vector2d a = route.row(e).transpose(), b = route.row(e + 1).transpose();
   const EdgeFrame f(a, b);
   const double R = cam.range;
+  const Fov fov(cam);
   std::vector<Seen> out;
   grid.query(std::min(a.x(), b.x()) - R, std::min(a.y(), b.y()) - R, std::max(a.x(), b.x()) + R,
              std::max(a.y(), b.y()) + R, [&](int i) {
                if (!excluded.empty() && excluded[i]) return;
                Seen s{i, {}, f.to_local(pts.row(i).transpose())};
-               if (visibility_interval(s.local, f.length, cam, &s.iv)) out.push_back(s);
+               if (fov.interval(s.local, f.length, &s.iv)) out.push_back(s);
              });
   std::sort(out.begin(), out.end(), [](const Seen& x, const Seen& y) { return x.idx < y.idx; });
   return out;
@@ -288,17 +311,18 @@ void Camera::validate() const {
 }
 
 EdgeFrame::EdgeFrame(const Eigen::Vector2d& a, const Eigen::Vector2d& b)
-    : origin(a), heading(std::atan2(b.y() - a.y(), b.x() - a.x())), length((b - a).norm()) {}
+    : origin(a), heading(std::atan2(b.y() - a.y(), b.x() - a.x())), length((b - a).norm()) {
+  cos_ = length > 0 ? (b.x() - a.x()) / length : 1.0;
+  sin_ = length > 0 ? (b.y() - a.y()) / length : 0.0;
+}
 
 Eigen::Vector2d EdgeFrame::to_local(const Eigen::Vector2d& p) const {
-  const double c = std::cos(heading), s = std::sin(heading);
   const Eigen::Vector2d q = p - origin;
-  return {c * q.x() + s * q.y(), -s * q.x() + c * q.y()};
+  return {cos_ * q.x() + sin_ * q.y(), -sin_ * q.x() + cos_ * q.y()};
 }
 
 Eigen::Vector2d EdgeFrame::to_world(const Eigen::Vector2d& q) const {
-  const double c = std::cos(heading), s = std::sin(heading);
-  return origin + Eigen::Vector2d(c * q.x() - s * q.y(), s * q.x() + c * q.y());
+  return origin + Eigen::Vector2d(cos_ * q.x() - sin_ * q.y(), sin_ * q.x() + cos_ * q.y());
 }
 
 bool in_region_of_influence(const Eigen::Vector2d& local, double length, const Camera& cam) {
@@ -316,20 +340,7 @@ bool in_region_of_influence(const Eigen::Vector2d& local, double length, const C
 }
 
 bool visibility_interval(const Eigen::Vector2d& local, double length, const Camera& cam, Interval* out) {
-  const double x = local.x(), y = local.y(), R = cam.range, ay = std::abs(y);
-  if (ay > R) return false;
-  const double h = std::sqrt(R * R - y * y);
-  double a = std::max(x - h, 0.0), b;
-  if (cam.fov == FieldOfView::Circular) {
-    b = std::min(x + h, length);  // Corollary 1, eq. (4) with the typo fixed (d, not 0)
-  } else {
-    const double half = 0.5 * cam.angle;
-    if (ay > R * std::sin(half)) return false;                      // Lemma 1, condition 1
-    b = std::min(x - ay * std::cos(half) / std::sin(half), length);  // eq. (2): |y_k| cot(α/2)
-  }
-  if (b < a) return false;
-  *out = {a, b};
-  return true;
+  return Fov(cam).interval(local, length, out);
 }
 
 std::vector<Interval> deficient_stretches(const std::vector<Interval>& iv, double length, int k) {
@@ -453,7 +464,7 @@ Placement place_landmarks(const Points2& route, const Points2& candidates, const
   check_candidates(candidates);
   check_k(opt.k);
   const int k = opt.k;
-  const Grid grid(candidates, camera.range);
+  const Grid grid(candidates, 0.5 * camera.range);
   const std::vector<char> close = within(route, candidates, grid, camera.clearance);
   Placement out;
   for (Eigen::Index i = 0; i < candidates.rows(); ++i)
@@ -558,7 +569,7 @@ VisibilityTable edge_visibility(const Points2& route, const Points2& candidates,
   camera.validate();
   check_route(route);
   check_points(candidates, "candidates");
-  const Grid grid(candidates, camera.range);
+  const Grid grid(candidates, 0.5 * camera.range);
   const std::vector<char> close = within(route, candidates, grid, camera.clearance);
   std::vector<int> edge;
   std::vector<Seen> rows;
@@ -574,7 +585,7 @@ VisibilityTable corner_visibility(const Points2& route, const Points2& candidate
   camera.validate();
   const Eigen::VectorXd turns = turn_angles(route);
   check_points(candidates, "candidates");
-  const Grid grid(candidates, camera.range);
+  const Grid grid(candidates, 0.5 * camera.range);
   const std::vector<char> close = within(route, candidates, grid, camera.clearance);
   std::vector<int> vert;
   std::vector<Seen> rows;
@@ -594,7 +605,7 @@ AlignmentTable alignments(const Points2& route, const Points2& candidates, const
   camera.validate();
   check_route(route);
   check_points(candidates, "candidates");
-  const Grid grid(candidates, camera.range);
+  const Grid grid(candidates, 0.5 * camera.range);
   const std::vector<char> close = within(route, candidates, grid, camera.clearance);
   std::vector<int> e_, f_, s_;
   std::vector<double> t_;

@@ -56,6 +56,9 @@ struct EdgeFrame {
   double length;           ///< d
   Eigen::Vector2d to_local(const Eigen::Vector2d& p) const;
   Eigen::Vector2d to_world(const Eigen::Vector2d& q) const;
+
+ private:
+  double cos_, sin_;       // of heading
 };
 
 /// Lemma 1, the four conditions as printed (sector field of view): necessary
