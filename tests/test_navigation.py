@@ -398,3 +398,16 @@ def test_run_and_plan_commands_on_a_scenario_file(tmp_path, capsys):
     bad.write_text(f.read_text().replace("cruise_speed = 2.0", "cruise_speed = -3.0"))
     assert main(["run", str(bad), "--trials", "1", "--quiet", "--out", str(tmp_path / "x")]) == 2
     assert "navigation.cruise_speed" in capsys.readouterr().err
+
+
+def test_camera_loop_source_runs_the_vision_pipeline_in_the_sweep(small_sweep):
+    sweep, paths = small_sweep
+    cam = runner.Sweep(sweep.scenario, path_types=("P3",), methods=("centroid",), sources=("lanbloc-camera",),
+                       trials=1, position_every=40, seed=5)
+    raw = runner.run_sweep(cam, workers=1, safe_paths=paths)
+    row = raw.iloc[0]
+    assert row["source"] == "lanbloc-camera" and row["success"], row["reason"]
+    # One rendered frame every 40 steps: each gave a fix or a dropout.
+    assert row["position_fixes"] + row["dropouts"] == row["steps"] // 40
+    assert row["position_fixes"] > 0
+    assert row["loc_ade"] < 2.0

@@ -65,7 +65,8 @@ def _navigation(args, *, demo: bool) -> int:
     sweep = runner.Sweep(scenario, path_types=tuple(args.path_types or ()), methods=tuple(args.methods),
                          filters=tuple(args.filters), sources=tuple(args.sources), trials=args.trials,
                          seed=args.seed if args.seed is not None else scenario.seeds.trials,
-                         n_particles=args.particles)
+                         n_particles=args.particles,
+                         position_every=args.position_every or (10 if "lanbloc-camera" in args.sources else 1))
     print(f"safenav {'demo' if demo else 'run'}: scenario {scenario.name!r}, path types {list(sweep.path_types)}, "
           f"{sweep.trials} trials per cell, seed {sweep.seed}")
     safe = runner.plan_safe_paths(scenario, sweep.path_types)
@@ -80,7 +81,9 @@ def _navigation(args, *, demo: bool) -> int:
     written = runner.write_table(raw, out / "trials")
     written += runner.write_table(summary, out / "summary", parquet=False)
     for (filt, source), part in summary.groupby(["filter", "source"], sort=False):
-        label = f"LanBLoc-BMM({filt.upper()})" if source == "lanbloc" else f"{nv.SOURCES[source].label}, {filt.upper()}"
+        label = (f"LanBLoc-BMM({filt.upper()})" if source == "lanbloc" else
+                 f"LanBLoc camera loop, {filt.upper()}" if source == "lanbloc-camera" else
+                 f"{nv.SOURCES[source].label}, {filt.upper()}")
         pe = percent_error_table(part)
         nt = navigation_table(part)
         fmt = lambda v: f"{v:.3g}"  # noqa: E731
@@ -102,7 +105,8 @@ def _navigation(args, *, demo: bool) -> int:
         trials = {}
         for pi, name in enumerate(sweep.path_types):
             navigator = nv.make_navigator(scenario, safe[name], method=method, filter=sweep.filters[0],
-                                          source=sweep.sources[0], n_particles=sweep.n_particles)
+                                          source=sweep.sources[0] if sweep.sources[0] in nv.SOURCES else "lanbloc",
+                                          n_particles=sweep.n_particles)
             trials[name] = (navigator, navigator.run(int(runner.trial_seeds(sweep.seed, pi, 1)[0])))
         fig_name = {"chull": "fig4_chull", "centroid": "fig5_centroid"}.get(method, f"fig_{method}")
         figs.append(plot_navigation(scenario, trials, out / f"{fig_name}.png",
@@ -164,8 +168,11 @@ def build_parser() -> argparse.ArgumentParser:
         s.add_argument("--methods", nargs="+", default=["chull", "centroid"], choices=["chull", "centroid"])
         s.add_argument("--filters", nargs="+", default=["ekf"], choices=["ekf", "pf"])
         s.add_argument("--sources", nargs="+", default=["lanbloc"],
-                       choices=["lanbloc", "deeploc-gps", "deeploc-ekf-gps", "sensor-fusion"],
-                       help="position source at the measurement level (the baselines are emulations)")
+                       choices=["lanbloc", "lanbloc-camera", "deeploc-gps", "deeploc-ekf-gps", "sensor-fusion"],
+                       help="position source: LanBLoc at the measurement level, LanBLoc through the camera loop "
+                            "(rendered stereo pairs, detection, SGBM, trilateration; slow), or an emulated baseline")
+        s.add_argument("--position-every", type=int, default=None,
+                       help="a position fix every n steps (default 1; 10 for lanbloc-camera)")
         s.add_argument("--path-types", nargs="+", default=None, help="default: all of the scenario's")
         s.add_argument("--particles", type=int, default=500, help="PF particles (default 500)")
         s.add_argument("--workers", type=int, default=None, help="local worker threads (default: all cores)")

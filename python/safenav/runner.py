@@ -64,8 +64,9 @@ class Sweep:
             if p not in names:
                 raise ValueError(f"path_types: {p!r} is not a path type of the scenario (have: {names})")
         object.__setattr__(self, "path_types", pts)
+        sources = {**nav.SOURCES, **{k: None for k in CAMERA_SOURCES}}
         for kind, values, table in (("methods", self.methods, nav.METHODS), ("filters", self.filters, nav.FILTERS),
-                                    ("sources", self.sources, nav.SOURCES)):
+                                    ("sources", self.sources, sources)):
             if not values:
                 raise ValueError(f"{kind}: needs at least one")
             for v in values:
@@ -109,11 +110,39 @@ class _Chunk:
     extra: dict = field(default_factory=dict)
 
 
+#: Position sources that run the vision pipeline instead of a noise profile.
+CAMERA_SOURCES = ("lanbloc-camera",)
+
+
+def _camera_trials(navigator, c: "_Chunk") -> dict:
+    """Trials with LanBLoc through the camera loop (render, detect, SGBM,
+    trilaterate) as the position callback: Python per fix, so slower."""
+    from .lanbloc import CameraLoopSource
+
+    keys = ("outcome", "steps", "replans", "position_fixes", "dropouts", "rejected", "chull_default",
+            "chull_corrective", "chull_step_back", "time_s", "reason", *METRICS)
+    d = {k: [] for k in keys}
+    for s in c.seeds:
+        source = CameraLoopSource(c.scenario.world, seed=int(s) % 2**32)
+        r = navigator.run(int(s), position=source)
+        for k in keys:
+            if k in METRICS:
+                d[k].append(r.metrics[k])
+            elif k == "outcome":
+                d[k].append(int(r.outcome))
+            elif k == "time_s":
+                d[k].append(r.wall_time)
+            else:
+                d[k].append(getattr(r, k))
+    return d
+
+
 def _run_chunk(c: _Chunk) -> pd.DataFrame:
-    navigator = nav.make_navigator(c.scenario, c.safe_path, method=c.method, filter=c.filter, source=c.source,
-                                   n_particles=c.n_particles, position_every=c.position_every, record=False,
-                                   **c.extra)
-    d = navigator.run_many([int(s) for s in c.seeds])
+    camera = c.source in CAMERA_SOURCES
+    navigator = nav.make_navigator(c.scenario, c.safe_path, method=c.method, filter=c.filter,
+                                   source="lanbloc" if camera else c.source, n_particles=c.n_particles,
+                                   position_every=c.position_every, record=False, **c.extra)
+    d = _camera_trials(navigator, c) if camera else navigator.run_many([int(s) for s in c.seeds])
     n = len(c.seeds)
     df = pd.DataFrame({
         "path_type": [c.path_type] * n, "method": [c.method] * n, "filter": [c.filter] * n,
