@@ -12,7 +12,8 @@ cd "$(dirname "$0")/.."
 PYTHON=${PYTHON:-python3}
 VENV=${VENV:-.venv}
 DEB_PACKAGES=(build-essential cmake ninja-build pkg-config
-              libeigen3-dev libcgal-dev libompl-dev libopencv-dev libboost-filesystem-dev)
+              libeigen3-dev libcgal-dev libompl-dev libopencv-dev libboost-filesystem-dev
+              opencv-doc)  # opencv-doc: the real stereo chessboard pairs of the calibration test
 
 say() { printf '[bootstrap] %s\n' "$*"; }
 

@@ -89,8 +89,8 @@ def test_run_synthetic_is_reproducible_and_independent_of_trial_count():
     pd.testing.assert_frame_equal(a, b.iloc[: len(a)].reset_index(drop=True))
 
 
-def test_demo_command_prints_the_table_and_writes_files(tmp_path, capsys):
-    assert cli.main(["demo", "--trials", "3", "--particles", "200", "--out", str(tmp_path)]) == 0
+def test_synthetic_command_prints_the_table_and_writes_files(tmp_path, capsys):
+    assert cli.main(["synthetic", "--trials", "3", "--particles", "200", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "paper_ade" in out and "ekf" in out and "pf" in out
     for name in ("synthetic_trials.csv", "synthetic_summary.csv", "synthetic_trial.png", "synthetic_trial.svg"):
