@@ -13,6 +13,9 @@ from .motion import Bmm, BmmParams, wrap_angle
 from .geometry import Corridor, PathSegments
 from .scenario import Scenario, default_scenario, load_scenario, save_scenario
 from .world import World, ScenarioError
+from .localization import trilaterate, triangulate_bearings
+from .stereo import RectifiedCamera, StereoCalibration, StereoMatcher
+from . import navigation, runner
 
 __version__ = "0.1.0"
 
@@ -24,4 +27,6 @@ __all__ = [
     "SyntheticConfig", "SyntheticTrajectory", "synthetic_trajectory",
     "Corridor", "PathSegments",
     "World", "Scenario", "ScenarioError", "default_scenario", "load_scenario", "save_scenario",
+    "trilaterate", "triangulate_bearings", "StereoCalibration", "RectifiedCamera", "StereoMatcher",
+    "navigation", "runner",
 ]
