@@ -125,6 +125,17 @@ class LanBLocResult:
                 np.array([o.anchor[:2] for o in obs], dtype=float).reshape(-1, 2),
                 np.array([o.range for o in obs], dtype=float), np.array([o.sigma for o in obs], dtype=float))
 
+    def range_model(self):
+        """``(model, z)`` for a filter update with the ranges directly: a
+        :class:`safenav.MeasurementModel` of kind RANGE over the ranged
+        landmarks with ``R = diag(σ²)``, and ``z`` the horizontal ranges;
+        ``None`` when no range was measured.  ``filter.update(model, z)``."""
+        from .measurement import MeasurementKind, MeasurementModel
+        _, anchors, z, sigma = self.range_measurements()
+        if len(z) == 0:
+            return None
+        return MeasurementModel(MeasurementKind.RANGE, np.diag(sigma ** 2), anchors), z
+
     def bearing_measurements(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(landmark ids, anchors (n, 2), bearings relative to the heading (n,), σ (n,))`` of every detection."""
         obs = self.observations

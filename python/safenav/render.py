@@ -15,7 +15,8 @@ already rectified stereo rig (:class:`StereoRig`: pinhole, same intrinsics
   stands at the landmark's map position and height on a thin pole, facing the
   rig or with a fixed yaw; each marker is warped into its bounding box only,
   with an anti-aliased alpha mask, far markers first (painter's order), from
-  a per-marker mip pyramid so that minification does not alias.
+  a per-marker mip pyramid (the level just below the on-screen size, so
+  the marker is only ever magnified and its edges stay where they belong).
 
 Conventions.  World: x east, y north, z up; the heading θ is counter-clockwise
 from +x.  Camera: x right, y down, z forward.  **The vehicle's position is the
@@ -340,11 +341,24 @@ class StereoRenderer:
         return out
 
     def visible(self, pose, margin_px: float = 2.0, min_side_px: float = 0.0) -> list[int]:
-        """Landmark ids whose whole marker lies inside both images, facing the rig, at least ``min_side_px``."""
+        """Landmark ids whose whole marker lies inside both images, faces the rig, has sides of at
+        least ``min_side_px`` and is not hidden, even in part, by a nearer marker's board (both images)."""
+        x, y, th = _pose(pose)
+        boxes = {}   # (camera, id) -> board bounding box and depth, for the occlusion test
+        for i in self.culled(pose):
+            lid, board, _, facing = self._board(i, (x, y, th))
+            if not facing:
+                continue
+            for cam in ("left", "right"):
+                uv, z = self.project(pose, board, cam)
+                if (z > self.rig.near_m).all():
+                    boxes[cam, lid] = (uv.min(axis=0), uv.max(axis=0), float(z.mean()))
         ids = []
         for lid, corners in self.marker_corners(pose).items():
-            ok = True
+            ok = self._faces(pose, lid)
             for cam in ("left", "right"):
+                if not ok:
+                    break
                 uv, z = self.project(pose, corners, cam)
                 if (z <= self.rig.near_m).any() or (uv < margin_px).any() \
                         or (uv[:, 0] > self.rig.width - 1 - margin_px).any() \
@@ -355,7 +369,12 @@ class StereoRenderer:
                 if side < min_side_px:
                     ok = False
                     break
-            if ok and self._faces(pose, lid):
+                lo, hi, zm = uv.min(axis=0), uv.max(axis=0), float(z.mean())
+                for (c, other), (olo, ohi, oz) in boxes.items():
+                    if c == cam and other != lid and oz < zm and (olo < hi).all() and (ohi > lo).all():
+                        ok = False
+                        break
+            if ok:
                 ids.append(lid)
         return ids
 
@@ -477,7 +496,9 @@ class StereoRenderer:
                 continue
             side = float(np.max(np.linalg.norm(uv - np.roll(uv, 1, axis=0), axis=1)))
             pyr = self._pyramid(lid)
-            tex = next((p for p in pyr if p.shape[0] >= side), pyr[-1])
+            # the largest level not bigger than on screen: magnified by 1-2x, bilinear keeps each
+            # step edge's ramp symmetric about the true edge (minifying would alias edges by ~0.1 px)
+            tex = next((p for p in reversed(pyr) if p.shape[0] <= side), pyr[0])
             s = tex.shape[0]
             src = np.array([[-0.5, -0.5], [s - 0.5, -0.5], [s - 0.5, s - 0.5], [-0.5, s - 0.5]], np.float32)
             M = cv2.getPerspectiveTransform(src, (uv - [x0, y0]).astype(np.float32))
