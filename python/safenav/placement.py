@@ -49,7 +49,7 @@ __all__ = [
     "CameraParams", "PlacementResult", "SimulationResult", "PAPER_TABLE_ONE",
     "candidate_grid", "plan_tour", "tour_length", "place_along_route", "place_through_targets",
     "place_along_path", "place_optimal", "check_coverage", "simulate", "random_instance",
-    "table_one", "corner_gap_demo", "plot_placement", "plot_simulation",
+    "table_one", "corner_gap_demo", "plot_placement", "plot_simulation", "plot_corner_gap", "paper_figures",
 ]
 
 #: The paper's Table I: (targets, landmarks) for its nine random instances.
@@ -578,7 +578,8 @@ def place_along_path(path, camera: CameraParams | dict | None = None, *, candida
                      world=None, k: int = 2, corners: bool = True, method: str = "reuse",
                      allow_uncovered: bool = False) -> PlacementResult:
     """Landmarks along a SafeNav safe path (a polyline, e.g. from
-    :meth:`safenav.World.path_polyline` or :func:`safenav.planning.plan`) so
+    :meth:`safenav.World.path_polyline`, or a :func:`safenav.planning.plan`
+    result) so
     that a vehicle on it always has ``k`` landmarks in view.
 
     Without ``candidates`` a grid of ``spacing`` within R of the path is used;
@@ -586,6 +587,10 @@ def place_along_path(path, camera: CameraParams | dict | None = None, *, candida
     dropped.  Consecutive repeated path points are merged.
     """
     cam = _camera(camera)
+    if hasattr(path, "path") and not isinstance(path, np.ndarray):  # a planner's PlanResult
+        if not getattr(path, "success", True):
+            raise ValueError("the plan has no path (planning did not succeed)")
+        path = path.path
     p = as_array("path", path, (None, 2))
     keep = np.concatenate([[True], np.hypot(*np.diff(p, axis=0).T) > 1e-12])
     p = _route(p[keep])
@@ -737,7 +742,7 @@ def simulate(route, landmarks, camera: CameraParams | dict | None = None, *, spe
     while wp < len(r) and len(controls) < max_steps:
         to = r[wp] - x[:2]
         dist = math.hypot(*to)
-        if dist <= 0.5 * speed * dt:
+        if dist <= 0.75 * speed * dt:  # arrived (within one step)
             wp += 1
             continue
         err = math.atan2(to[1], to[0]) - x[3]
@@ -748,8 +753,6 @@ def simulate(route, landmarks, camera: CameraParams | dict | None = None, *, spe
         else:
             u = (min(speed, dist / dt), heading_gain * err * dt if dist > speed * dt else err)
         x = bmm.transition(x, u, rng.standard_normal(4) * sig_eps)
-        if not turn and dist <= speed * dt:  # arrived: no noise overshoot past the waypoint
-            pass
         states.append(x)
         controls.append(u)
         turning.append(turn)
@@ -871,3 +874,83 @@ def plot_simulation(sim: SimulationResult, path, *, title: str | None = None) ->
     fig.savefig(out, dpi=130)
     plt.close(fig)
     return out
+
+
+def plot_corner_gap(demo: dict, path) -> Path:
+    """Landmarks in view and heading 3σ over time without and with corner
+    coverage (:func:`corner_gap_demo`).  Writes a PNG; returns its path."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(2, 2, figsize=(10, 5.2), sharex="col")
+    for j, key in enumerate(("plain", "corners")):
+        d = demo[key]
+        sim, pl = d["simulation"], d["placement"]
+        ax = axes[0, j]
+        ax.step(sim.t, sim.n_in_view, where="post", color="0.25", lw=0.8)
+        ax.axhline(2, color="tab:red", ls=":", lw=0.8)
+        ax.fill_between(sim.t, 0, sim.n_in_view.max() + 1, where=sim.turning, step="post", color="tab:orange",
+                        alpha=0.25, label="turning in place")
+        ax.set_ylabel("landmarks in view")
+        ax.set_title(f"{'with' if key == 'corners' else 'without'} corner coverage: {pl.count} landmarks; "
+                     f"< 2 in view {100 * d['turn_gap']:.0f}% of turning time", fontsize=8)
+        ax.legend(loc="upper right", fontsize=7)
+        ax = axes[1, j]
+        ax.plot(sim.t, 3 * sim.sigmas[:, 2], color="tab:purple", lw=0.9, label="3σ heading")
+        ax.plot(sim.t, np.abs(sim.errors[:, 2]), color="tab:blue", lw=0.7, label="|heading error|")
+        ax.set_ylabel("rad")
+        ax.set_xlabel("time [s]")
+        ax.legend(loc="upper right", fontsize=7)
+    fig.tight_layout()
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+    return out
+
+
+def paper_figures(folder="docs/figures", *, seed: int = 0) -> dict:
+    """Regenerate the figures of docs/placement.md: the paper's Figs. 6–9
+    (6 and 7 targets: route, landmarks, true and EIF paths; X/Y/heading errors
+    with ±3σ), the corner-coverage demonstration, and Table I's counts.
+    Returns the numbers quoted in the docs."""
+    folder = Path(folder)
+    cam = CameraParams()
+    cand = candidate_grid((0, 0), PAPER_AREA, PAPER_SPACING, margin=cam.range)
+    rng = np.random.default_rng(seed)
+    numbers = {}
+    for n in (6, 7):
+        while True:  # first feasible instance of this size
+            targets = random_instance(n, rng)
+            route = targets[plan_tour(targets)]
+            pl = place_along_route(route, cand, cam, allow_uncovered=True)
+            if pl.covered:
+                break
+        sim = simulate(route, pl.landmarks, cam, seed=seed)
+        plot_placement(pl, folder / f"placement_route{n}.png", simulation=sim,
+                       title=f"{n} targets, {pl.count} landmarks (greedy, k = 2)")
+        plot_simulation(sim, folder / f"placement_errors{n}.png",
+                        title=f"{n} targets, {pl.count} landmarks: EIF errors with ±3σ")
+        numbers[f"targets{n}"] = {"landmarks": pl.count, "duration_s": float(sim.t[-1]),
+                                  "inside_3sigma": sim.inside_3sigma(), "below_2_in_view": sim.gap_fraction(2)}
+    demo = corner_gap_demo(seed=3, n_targets=6)
+    plot_corner_gap(demo, folder / "placement_corners.png")
+    numbers["corners"] = {k: {"landmarks": v["placement"].count, "turn_gap": v["turn_gap"], "gap": v["gap"],
+                              "inside_3sigma": v["inside_3sigma"]} for k, v in demo.items()}
+    df = table_one(seed=seed)
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7.5, 3.4))
+    idx = np.arange(len(df))
+    cols = (("paper", "paper (its own instances)", "0.6"), ("greedy_paper", "greedy (Alg. 1)", "tab:blue"),
+            ("optimal", "ILP optimum", "tab:green"), ("greedy_corners", "greedy + corners", "tab:orange"),
+            ("optimal_corners", "ILP + corners", "tab:red"))
+    w = 0.16
+    for j, (c, label, color) in enumerate(cols):
+        ax.bar(idx + (j - 2) * w, df[c].astype(float), w, label=label, color=color)
+    ax.set_xticks(idx, [f"#{i}\n{t} targets" for i, t in zip(df.instance, df.targets)], fontsize=7)
+    ax.set_ylabel("landmarks")
+    ax.set_title(f"Table I: nine random instances (seed {seed}) beside the paper's counts", fontsize=9)
+    ax.legend(fontsize=7, ncol=3)
+    fig.tight_layout()
+    fig.savefig(folder / "placement_table1.png", dpi=120)
+    plt.close(fig)
+    numbers["table_one"] = df
+    return numbers
