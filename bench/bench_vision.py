@@ -5,6 +5,7 @@ Run from the repository root::
 
     python bench/bench_vision.py            # 5 repeats over the frame set
     python bench/bench_vision.py --quick    # 2 repeats
+    python bench/bench_vision.py --figure docs/figures/lanbloc_camera_loop.png
 
 Frames: poses every 4 m along the default scenario's three paths (P1-P3),
 heading along the path, kept where at least one marker is in view; the
@@ -71,11 +72,70 @@ def _timed(f, *args):
     return out, time.perf_counter() - t0
 
 
+def figure(path: str) -> None:
+    """One camera-loop frame: left image with boxes and ranges, the pipeline's disparity, the fix on the map."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Ellipse, Rectangle
+
+    sc = safenav.default_scenario()
+    src = CameraLoopSource(sc.world, seed=1)
+    poly = sc.world.path_polyline(sc.path_types[1])
+    a, b = poly[0], poly[1]
+    length = float(np.linalg.norm(b - a))
+    th = math.atan2(*(b - a)[::-1])
+    p = a + (b - a) * (length - 16.0) / length
+    out = src(np.array([p[0], p[1], 1.0, th]), 0)
+    res = src.last
+    left, right = src.renderer.render((p[0], p[1], th))
+    disp = src.pipeline.disparity(left, right, [d.box for d in res.detections])
+    fig, ax = plt.subplots(1, 3, figsize=(15, 4.2), gridspec_kw=dict(width_ratios=[1.33, 1.33, 1]))
+    ax[0].imshow(left, cmap="gray", vmin=0, vmax=255)
+    for o in res.observations:
+        x0, y0, x1, y1 = o.box
+        ax[0].add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, color="tab:red", lw=1.5))
+        ax[0].text(x0, y0 - 4, f"#{o.landmark_id} {o.range:.1f}±{o.sigma:.1f} m", color="yellow", fontsize=8)
+    ax[0].set_title("left image, detections, horizontal ranges")
+    im = ax[1].imshow(disp, cmap="viridis")
+    fig.colorbar(im, ax=ax[1], fraction=0.035, label="disparity [px]")
+    ax[1].set_title("SGBM disparity (row band), NaN blank")
+    for ax_ in ax[:2]:
+        ax_.set_xticks([])
+        ax_.set_yticks([])
+    lm = sc.world.landmark_array()
+    ax[2].scatter(lm[:, 0], lm[:, 1], c="k", s=12, label="landmarks")
+    ids, anchors, _, _ = res.range_measurements()
+    ax[2].scatter(anchors[:, 0], anchors[:, 1], facecolors="none", edgecolors="tab:red", s=80, label="ranged")
+    ax[2].plot(*poly.T, "--", color="0.6", lw=1, label="path P2")
+    ax[2].plot(p[0], p[1], "o", color="tab:blue", label="true position")
+    if out is not None:
+        z, R = out
+        w, V = np.linalg.eigh(R)
+        ang = math.degrees(math.atan2(V[1, 1], V[0, 1]))
+        ax[2].add_patch(Ellipse(z, 2 * 2.45 * math.sqrt(w[1]), 2 * 2.45 * math.sqrt(w[0]), angle=ang,
+                                fill=False, color="tab:green", label="fix, 95 % ellipse"))
+        ax[2].plot(*z, "x", color="tab:green")
+    ax[2].set_xlim(p[0] - 8, p[0] + 30)
+    ax[2].set_ylim(p[1] - 22, p[1] + 16)
+    ax[2].set_aspect("equal")
+    ax[2].legend(fontsize=7, loc="lower left")
+    ax[2].set_title(f"fix: {res.status}, error {np.linalg.norm(out[0] - p) if out else float('nan'):.2f} m")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    print(f"wrote {path}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="2 repeats instead of 5")
     ap.add_argument("--step", type=float, default=4.0, help="metres between frames along the paths")
+    ap.add_argument("--figure", metavar="PNG", help="only draw one camera-loop frame to PNG "
+                    "(docs/figures/lanbloc_camera_loop.png) and exit")
     args = ap.parse_args()
+    if args.figure:
+        figure(args.figure)
+        return
     repeats = 2 if args.quick else 5
 
     sc = safenav.default_scenario()
@@ -141,6 +201,7 @@ def main() -> None:
     print("\ncamera loop along the paths (every 1.5 m, heading along the path):")
     fB = rig.fB
     derr = []
+    false_ids = 0
     for name in [p.name for p in sc.path_types]:
         stats = {s: 0 for s in STATUSES}
         errs, nees = [], []
@@ -150,8 +211,9 @@ def main() -> None:
             out = src(np.array([x, y, 1.0, th]), 0)
             stats[src.last.status] += 1
             corners = renderer.marker_corners((x, y, th))
+            false_ids += sum(o.landmark_id not in corners for o in src.last.observations)
             for o in src.last.observations:
-                if o.ok:
+                if o.ok and o.landmark_id in corners:
                     _, z = renderer.project((x, y, th), corners[o.landmark_id].mean(axis=0)[None])
                     derr.append(o.disparity - fB / z[0])
             if out is not None:
@@ -167,6 +229,7 @@ def main() -> None:
     print(f"  box-median disparity error on markers: RMS {math.sqrt(np.mean(d ** 2)):.3f} px, "
           f"median {np.median(d):.3f} px, 99 % {np.percentile(d, 99):.3f} px, max {d.max():.3f} px "
           f"({len(d)} ranges)")
+    print(f"  detections of markers that are not in the field of view (false ids): {false_ids}")
 
 
 if __name__ == "__main__":

@@ -196,6 +196,11 @@ class FiducialDetector(Detector):
     min_perimeter_rate:
         ArUco's ``minMarkerPerimeterRate`` (perimeter relative to the larger
         image side); the default admits markers of about 4 px per side.
+    error_correction_rate, max_border_error_rate:
+        ArUco's ``errorCorrectionRate`` and ``maxErroneousBitsInBorderRate``,
+        tighter than OpenCV's 0.6 and 0.35: on rendered ground texture the
+        defaults read one false marker in 339 frames of the default
+        scenario's paths, these none, for one missed marker in 870.
 
     The score of a fiducial is 1.
     """
@@ -203,7 +208,8 @@ class FiducialDetector(Detector):
     name = "fiducial"
 
     def __init__(self, landmark_map=None, dictionary: str = "DICT_4X4_100", *, subpixel: bool = True,
-                 min_perimeter_rate: float = 0.02):
+                 min_perimeter_rate: float = 0.02, error_correction_rate: float = 0.3,
+                 max_border_error_rate: float = 0.1):
         self.dictionary = aruco_dictionary(dictionary)
         self.dictionary_name = dictionary if isinstance(dictionary, str) else repr(dictionary)
         self._map, self._names = (None, {}) if landmark_map is None else _landmark_table(landmark_map)
@@ -215,8 +221,13 @@ class FiducialDetector(Detector):
                                      f"(ids 0..{n - 1})")
         if not (math.isfinite(min_perimeter_rate) and 0 < min_perimeter_rate < 4):
             raise ValueError(f"min_perimeter_rate = {min_perimeter_rate!r}: must be in (0, 4)")
+        for n, v in (("error_correction_rate", error_correction_rate), ("max_border_error_rate", max_border_error_rate)):
+            if not (isinstance(v, (int, float)) and 0.0 <= v <= 1.0):
+                raise ValueError(f"{n} = {v!r}: must be in [0, 1]")
         params = cv2.aruco.DetectorParameters()
         params.minMarkerPerimeterRate = float(min_perimeter_rate)
+        params.errorCorrectionRate = float(error_correction_rate)
+        params.maxErroneousBitsInBorderRate = float(max_border_error_rate)
         if subpixel:
             params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
             params.cornerRefinementWinSize = 3
