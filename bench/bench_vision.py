@@ -5,6 +5,7 @@ Run from the repository root::
 
     python bench/bench_vision.py            # 5 repeats over the frame set
     python bench/bench_vision.py --quick    # 2 repeats
+    python bench/bench_vision.py --paths-only --width 1280   # along-path statistics at 1280x720
     python bench/bench_vision.py --figure docs/figures/lanbloc_camera_loop.png
 
 Frames: poses every 4 m along the default scenario's three paths (P1-P3),
@@ -42,6 +43,7 @@ import numpy as np
 
 import safenav
 from safenav.lanbloc import STATUSES, CameraLoopSource, PIPELINE_SGBM
+from safenav.render import StereoRig
 
 
 def _frames(sc, step: float):
@@ -132,6 +134,9 @@ def main() -> None:
     ap.add_argument("--step", type=float, default=4.0, help="metres between frames along the paths")
     ap.add_argument("--figure", metavar="PNG", help="only draw one camera-loop frame to PNG "
                     "(docs/figures/lanbloc_camera_loop.png) and exit")
+    ap.add_argument("--width", type=int, default=640,
+                    help="image width; the scenario camera (2560x1440, 85 deg) is scaled to it (480 rows at 640)")
+    ap.add_argument("--paths-only", action="store_true", help="skip the timings, only the along-path statistics")
     args = ap.parse_args()
     if args.figure:
         figure(args.figure)
@@ -139,7 +144,8 @@ def main() -> None:
     repeats = 2 if args.quick else 5
 
     sc = safenav.default_scenario()
-    src = CameraLoopSource(sc.world, seed=1)
+    rig = StereoRig() if args.width == 640 else StereoRig.from_camera(sc.camera, args.width, None)
+    src = CameraLoopSource(sc.world, rig, seed=1)
     rig, renderer, lb = src.rig, src.renderer, src.pipeline
     peer = _peer_sgbm()
     poses = _frames(sc, args.step)
@@ -148,8 +154,10 @@ def main() -> None:
     print(f"safenav {safenav.__version__} | OpenCV (pip) {cv2.__version__} | {platform.processor() or platform.machine()}"
           f" | {rig.width}x{rig.height}, f = {rig.focal_length_px:g} px, B = {rig.baseline_m:g} m")
     print(f"{len(frames)} frames with a marker in view (of {len(poses)} poses every {args.step:g} m on P1-P3), "
-          f"{repeats} repeats\n")
+          f"{repeats} repeats" + (" (timings skipped)" if args.paths_only else "") + "\n")
 
+    if args.paths_only:
+        repeats = 0
     t = {k: [] for k in ("render", "detect", "disparity", "disparity_full", "peer_sgbm", "range", "localize",
                          "pipeline", "loop")}
     for rep in range(repeats):
@@ -183,16 +191,17 @@ def main() -> None:
             _, dt = _timed(src, np.array([x, y, 1.0, th]), 0)
             t["loop"].append(dt)
 
-    peer_ms = 1e3 * float(np.median(t["peer_sgbm"]))
+    peer_ms = 1e3 * float(np.median(t["peer_sgbm"])) if repeats else math.nan
     rows = [("render (left + right)", "render"), ("detect (ArUco, left)", "detect"),
             ("disparity, row band (C++ SGBM)", "disparity"), ("disparity, full frame (C++ SGBM)", "disparity_full"),
             ("peer: cv2.StereoSGBM, full frame", "peer_sgbm"), ("range (all boxes)", "range"),
             ("localize (trilaterate)", "localize"), ("pipeline (detect..localize)", "pipeline"),
             ("camera loop (render + pipeline)", "loop")]
-    print(f"{'stage':36s} {'median ms':>10s} {'min-max ms':>17s} {'fps':>9s} {'peer SGBM / stage':>18s}")
+    if repeats:
+        print(f"{'stage':36s} {'median ms':>10s} {'min-max ms':>17s} {'fps':>9s} {'peer SGBM / stage':>18s}")
     for label, key in rows:
         v = 1e3 * np.array(t[key])
-        if len(v) == 0:
+        if len(v) == 0 or repeats == 0:
             continue
         med = float(np.median(v))
         print(f"{label:36s} {med:10.3f} {v.min():8.3f}-{v.max():8.3f} {1e3 / med:9.1f} {peer_ms / med:18.2f}")
