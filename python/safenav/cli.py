@@ -55,8 +55,8 @@ def _navigation(args, *, demo: bool) -> int:
 
     from . import navigation as nv
     from . import runner
-    from .experiments import METHOD_LABELS, navigation_table, percent_error_table
-    from .plots import plot_navigation
+    from .experiments import markdown_table, navigation_table, percent_error_table
+    from .reproduce import navigation_figures
 
     t0 = time.perf_counter()
     scenario = _load(args)
@@ -100,33 +100,11 @@ def _navigation(args, *, demo: bool) -> int:
         print(f"\n{len(failures)} of {len(raw)} trials did not arrive: "
               + ", ".join(f"{k} {v}" for k, v in failures["outcome"].value_counts().items()))
     # Figs. 4 and 5: one recorded trial (trial 0) per method and path type.
-    figs = []
-    for method in sweep.methods:
-        trials = {}
-        for pi, name in enumerate(sweep.path_types):
-            navigator = nv.make_navigator(scenario, safe[name], method=method, filter=sweep.filters[0],
-                                          source=sweep.sources[0] if sweep.sources[0] in nv.SOURCES else "lanbloc",
-                                          n_particles=sweep.n_particles)
-            trials[name] = (navigator, navigator.run(int(runner.trial_seeds(sweep.seed, pi, 1)[0])))
-        fig_name = {"chull": "fig4_chull", "centroid": "fig5_centroid"}.get(method, f"fig_{method}")
-        figs.append(plot_navigation(scenario, trials, out / f"{fig_name}.png",
-                                    title=f"{METHOD_LABELS.get(method, method)} with RAw-RRT*, "
-                                          f"LanBLoc-BMM({sweep.filters[0].upper()}): trial 0"))
+    figs = navigation_figures(scenario, safe, sweep, out)
     total = time.perf_counter() - t0
     print(f"\nplanning {t_plan:.1f} s, {len(raw)} trials {t_run:.1f} s, total {total:.1f} s")
     print("wrote " + ", ".join(str(p) for p in [*written, *figs]))
     return 0
-
-
-def markdown_table(df, digits: int = 3) -> str:
-    """A pandas DataFrame as a GitHub Markdown table (floats to ``digits`` significant digits)."""
-    def cell(v):
-        if isinstance(v, (float, np.floating)):
-            return "—" if np.isnan(v) else f"{v:.{digits}g}"
-        return str(v)
-    lines = ["| " + " | ".join(map(str, df.columns)) + " |", "|" + "---|" * len(df.columns)]
-    lines += ["| " + " | ".join(cell(v) for v in row) + " |" for row in df.itertuples(index=False)]
-    return "\n".join(lines) + "\n"
 
 
 def _plan(args) -> int:
@@ -155,6 +133,23 @@ def _plan(args) -> int:
     tmp.replace(out / "safe_paths.json")
     fig = plot_navigation(scenario, trials, out / "safe_paths.png", title=f"{scenario.name}: safe paths (RAw-RRT*)")
     print(f"wrote {out / 'safe_paths.json'} and {fig}")
+    return 0
+
+
+def _experiment(args) -> int:
+    from . import reproduce
+
+    opts = reproduce.ExperimentOptions(
+        trials=args.trials, camera_trials=args.camera_trials, camera_position_every=args.position_every,
+        particles=args.particles, workers=args.workers, scheduler=args.scheduler, seed=args.seed, out=args.out,
+        scenario=_load(args), path_types=tuple(args.path_types or ()), progress=not args.quiet)
+    results = reproduce.run_experiments(args.names, opts)
+    report = reproduce.write_report(results, opts)
+    files = [f for r in results for f in (*r.files, *r.figures)]
+    print(f"\nwrote {len(files)} files under {opts.out} and the report {report}")
+    bad = [c for r in results for c in r.claims if c.holds is False]
+    if bad:
+        print(f"{len(bad)} of the paper's claims do not hold here (see the report)")
     return 0
 
 
@@ -205,6 +200,25 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--out", default=None, help="folder for the per-trial and summary CSV files and a figure")
     s.set_defaults(func=_synthetic)
+
+    s = sub.add_parser("experiment", help="reproduce the SafeNav paper's tables and figures, with a report.html",
+                       description="Experiments: all, field (Fig. 1), synthetic (Table I, Fig. 3), real-imitated "
+                                   "(Table II), navigation (Tables III-IV, Figs. 4-5); the paper's names "
+                                   "table1..table4, fig1, fig3, fig4, fig5 work too.")
+    s.add_argument("names", nargs="+", metavar="NAME", help="experiment name(s), or 'all'")
+    s.add_argument("--trials", type=int, default=1000, help="Monte Carlo trials per cell (default 1000, as the paper)")
+    s.add_argument("--camera-trials", type=int, default=20,
+                   help="trials per cell of the camera-in-the-loop variants of Tables II and IV (default 20; 0 = skip)")
+    s.add_argument("--position-every", type=int, default=10, help="camera loop: a fix every n steps (default 10)")
+    s.add_argument("--particles", type=int, default=1000, help="PF particles (default 1000)")
+    s.add_argument("--path-types", nargs="+", default=None, help="default: all of the scenario's")
+    s.add_argument("--workers", type=int, default=None, help="local worker threads (default: all cores)")
+    s.add_argument("--scheduler", default=None, help="Dask scheduler address: run the trials on that cluster")
+    s.add_argument("--seed", type=int, default=None, help="base seed (default: the scenario's seeds.trials)")
+    s.add_argument("--scenario", default=None, help="scenario .toml or .json (default: the built-in one)")
+    s.add_argument("--out", default="out/experiments", help="output folder (default out/experiments)")
+    s.add_argument("--quiet", action="store_true", help="no progress bars")
+    s.set_defaults(func=_experiment)
 
     from .placement_cli import register as register_place
     register_place(sub)

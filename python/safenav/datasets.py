@@ -45,6 +45,14 @@ class SyntheticConfig:
     heading_amplitude: float = np.pi / 2       #: paper: θ(t) = π/2 sin(2πt/T)
     bmm: BmmParams = field(default_factory=BmmParams)  #: the true vehicle's BMM (dt is overridden)
     position_std: tuple[float, float] = LANBLOC_STD    #: LanBLoc fix noise (paper's RMSE)
+    #: Error profile of the position source beyond white noise (see
+    #: :class:`safenav.navigation.SourceProfile`): a constant bias drawn per
+    #: trial, a bias random walk per fix, and occasional outliers.  All 0 for
+    #: LanBLoc; the emulated baselines set them.
+    position_bias_std: float = 0.0
+    position_bias_walk_std: float = 0.0
+    outlier_probability: float = 0.0
+    outlier_std: float = 0.0
     imu: bool = True                           #: also measure (v, θ)
     speed_std: float = 0.05                    #: IMU speed noise [m/s]
     heading_std: float = 0.02                  #: IMU heading noise [rad]
@@ -61,8 +69,27 @@ class SyntheticConfig:
                 raise ValueError(f"SyntheticConfig.{name} = {v!r} must be finite and > 0")
         if not (0.0 <= self.dropout < 1.0):
             raise ValueError(f"SyntheticConfig.dropout = {self.dropout!r} must be in [0, 1)")
+        for name in ("position_bias_std", "position_bias_walk_std", "outlier_std"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v >= 0):
+                raise ValueError(f"SyntheticConfig.{name} = {v!r} must be finite and >= 0")
+        if not (0.0 <= self.outlier_probability <= 1.0):
+            raise ValueError(f"SyntheticConfig.outlier_probability = {self.outlier_probability!r} must be in [0, 1]")
         if len(self.position_std) != 2 or not all(np.isfinite(s) and s > 0 for s in self.position_std):
             raise ValueError(f"SyntheticConfig.position_std = {self.position_std!r} must be two values > 0")
+
+    def position_cov(self) -> np.ndarray:
+        """The 2×2 covariance a filter is told for one position fix: white noise
+        plus the bias and outlier variances (the C++ ``PositionSource.reported_cov``,
+        so that the synthetic set and the navigation loop tell filters the same)."""
+        from . import _core
+
+        s = _core.PositionSource()
+        s.std = np.asarray(self.position_std, dtype=float)
+        s.bias_std, s.bias_walk_std = self.position_bias_std, self.position_bias_walk_std
+        s.outlier_probability, s.outlier_std = self.outlier_probability, self.outlier_std
+        s.validate()
+        return np.asarray(s.reported_cov())
 
     def params(self) -> BmmParams:
         """The true vehicle's BMM parameters with this data set's dt."""
@@ -110,6 +137,20 @@ def command_profile(cfg: SyntheticConfig) -> tuple[np.ndarray, np.ndarray, np.nd
     return t, speed, heading
 
 
+def _source_errors(cfg: SyntheticConfig, n: int, rng) -> np.ndarray:
+    """(n, 2) bias + bias walk + outliers of the position source, in the order
+    the C++ navigation loop draws them (bias once, then per fix: walk, outlier)."""
+    err = np.zeros((n, 2))
+    if cfg.position_bias_std > 0:
+        err += rng.standard_normal(2) * cfg.position_bias_std
+    if cfg.position_bias_walk_std > 0:
+        err += np.cumsum(rng.standard_normal((n, 2)) * cfg.position_bias_walk_std, axis=0)
+    if cfg.outlier_probability > 0:
+        hit = rng.random(n) < cfg.outlier_probability
+        err += hit[:, None] * rng.standard_normal((n, 2)) * cfg.outlier_std
+    return err
+
+
 def synthetic_trajectory(config: SyntheticConfig | None = None, seed: int = 0) -> SyntheticTrajectory:
     """Generate one seeded synthetic trial (SafeNav section V-A(3)(i))."""
     cfg = config or SyntheticConfig()
@@ -117,13 +158,14 @@ def synthetic_trajectory(config: SyntheticConfig | None = None, seed: int = 0) -
     t, speed, heading = command_profile(cfg)
     controls = np.column_stack([speed[1:], np.diff(heading)])
     ss = np.random.SeedSequence(seed)
-    motion_seed, meas_seed = ss.spawn(2)
+    motion_seed, meas_seed, error_seed = ss.spawn(3)  # the first two as before the error profile existed
     x0 = np.array([0.0, 0.0, speed[0], heading[0]])
     states = Bmm(cfg.params()).simulate(x0, controls, int(motion_seed.generate_state(1, np.uint64)[0]))
     rng = np.random.default_rng(meas_seed)
     n = cfg.n_steps
     truth = states[1:]
     position = truth[:, :2] + rng.standard_normal((n, 2)) * np.asarray(cfg.position_std)
+    position += _source_errors(cfg, n, np.random.default_rng(error_seed))
     if cfg.dropout > 0:
         position[rng.random(n) < cfg.dropout] = np.nan
     speed_heading = None

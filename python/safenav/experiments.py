@@ -1,9 +1,15 @@
-"""Experiments.  For now: the synthetic data set filtered by EKF and PF
-(the LanBLoc-BMM rows of the SafeNav paper's synthetic-data table)."""
+"""The SafeNav paper's experiments: the synthetic data set (Table I of the
+conference version, Table II of the extended one) and the paper's numbers for
+every table, beside which ours are printed.
+
+Table numbers follow the *conference* version throughout (I synthetic, II
+real-imitated, III % path-length error, IV ADE/FDE/AWRS/time); the extended
+version numbers them one higher.  :mod:`safenav.reproduce` runs them all."""
 
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
@@ -11,17 +17,49 @@ import pandas as pd
 from ._checks import as_positive_int, as_seed
 from .datasets import SyntheticConfig, synthetic_trajectory
 from .filters import filter_trajectory
-from .metrics import RiskZones, evaluate
+from .metrics import RiskZones, evaluate, wrs
 
-#: The paper's LanBLoc-BMM rows of its synthetic-data table (Table II of the
-#: extended version): ADE, FDE [m], AWRS, time per trial [ms].
-PAPER_SYNTHETIC = {
-    "ekf": {"ade": 0.4972, "fde": 0.4675, "awrs": 0.3492, "ms_per_trial": 3.98},
-    "pf": {"ade": 0.9471, "fde": 0.8177, "awrs": 1.2612, "ms_per_trial": 9551.0},
+#: The localization methods of Tables I and II, in the paper's row order
+#: (keys of :data:`safenav.navigation.SOURCES`).
+PAPER_SOURCES = ("deeploc-gps", "deeploc-ekf-gps", "sensor-fusion", "lanbloc")
+
+#: The paper's Table I (synthetic trajectories): (source, filter) ->
+#: ADE, FDE [m], AWRS, time per trial [ms].
+PAPER_TABLE1 = {
+    ("deeploc-gps", "ekf"): (0.6069, 0.5495, 0.3926, 5.02), ("deeploc-gps", "pf"): (1.1335, 1.7614, 2.1414, 9815.0),
+    ("deeploc-ekf-gps", "ekf"): (0.5621, 0.4818, 0.3590, 4.57),
+    ("deeploc-ekf-gps", "pf"): (1.4864, 1.5709, 1.7823, 10054.0),
+    ("sensor-fusion", "ekf"): (1.3546, 0.5714, 0.3513, 4.90), ("sensor-fusion", "pf"): (1.9155, 3.1229, 2.9387, 10103.0),
+    ("lanbloc", "ekf"): (0.4972, 0.4675, 0.3492, 3.98), ("lanbloc", "pf"): (0.9471, 0.8177, 1.2612, 9551.0),
 }
+#: The paper's Table II (real-imitated trajectories, the mean over P1-P3):
+#: (source, filter) -> ADE, FDE [m], AWRS, time per trial [ms].
+PAPER_TABLE2 = {
+    ("deeploc-gps", "ekf"): (0.3041, 0.3103, 0.2009, 20.58), ("deeploc-gps", "pf"): (1.6928, 2.8891, 4.3586, 192621.0),
+    ("deeploc-ekf-gps", "ekf"): (0.2869, 0.2969, 0.1906, 18.94),
+    ("deeploc-ekf-gps", "pf"): (2.0672, 7.1665, 3.6346, 197250.0),
+    ("sensor-fusion", "ekf"): (0.2998, 0.3115, 0.1749, 22.31), ("sensor-fusion", "pf"): (1.6831, 4.2886, 5.4116, 198790.0),
+    ("lanbloc", "ekf"): (0.2393, 0.3095, 0.1528, 14.94), ("lanbloc", "pf"): (1.5162, 1.4024, 3.1623, 185502.0),
+}
+#: The LanBLoc-BMM rows of Table I by filter (kept for the filter benchmark).
+PAPER_SYNTHETIC = {f: dict(zip(("ade", "fde", "awrs", "ms_per_trial"), PAPER_TABLE1[("lanbloc", f)]))
+                   for f in ("ekf", "pf")}
 
 #: Initial estimate uncertainty (x, y, v, θ) — ours.
 PRIOR_STD = np.array([0.1, 0.1, 0.1, 0.05])
+
+
+def source_config(source: str, base: SyntheticConfig | None = None) -> SyntheticConfig:
+    """The synthetic data set with the position fixes of ``source`` (a key of
+    :data:`safenav.navigation.SOURCES`): its white noise, bias, bias walk and
+    outliers.  The synthetic set has no landmarks, so every source fixes at
+    every step."""
+    from .navigation import position_source
+
+    p = position_source(source)
+    return replace(base or SyntheticConfig(), position_std=tuple(p.std), position_bias_std=p.bias_std,
+                   position_bias_walk_std=p.bias_walk_std, outlier_probability=p.outlier_probability,
+                   outlier_std=p.outlier_std)
 
 
 def _trial_seeds(seed: int, trials: int):
@@ -42,49 +80,155 @@ def _run_trial(cfg: SyntheticConfig, seeds, filters, n_particles: int):
         t0 = time.perf_counter()
         results[name] = filter_trajectory(
             data.controls, x0, P0, params=cfg.params(), filter=name, position=data.position,
-            position_cov=np.diag(np.square(cfg.position_std)), speed_heading=data.speed_heading,
+            position_cov=cfg.position_cov(), speed_heading=data.speed_heading,
             speed_heading_cov=imu_cov, n_particles=n_particles, seed=filter_seed)
         times[name] = time.perf_counter() - t0
     return data, results, times
 
 
 def synthetic_trial(trial: int, *, filters=("ekf", "pf"), seed: int = 0, n_particles: int = 1000,
-                    config: SyntheticConfig | None = None):
+                    config: SyntheticConfig | None = None, source: str | None = None):
     """Trial number ``trial`` of :func:`run_synthetic`: returns (data, {filter: FilterResult})."""
     seeds = list(_trial_seeds(as_seed("seed", seed), trial + 1))[trial]
-    data, results, _ = _run_trial(config or SyntheticConfig(), seeds, filters, n_particles)
+    cfg = source_config(source, config) if source else (config or SyntheticConfig())
+    data, results, _ = _run_trial(cfg, seeds, filters, n_particles)
     return data, results
 
 
-def run_synthetic(trials: int = 100, *, filters=("ekf", "pf"), seed: int = 0, n_particles: int = 1000,
-                  config: SyntheticConfig | None = None, zones: RiskZones | None = None) -> pd.DataFrame:
-    """Monte Carlo over ``trials`` synthetic trajectories; one row per (trial, filter).
+@dataclass(frozen=True)
+class _SyntheticChunk:
+    """Trials [start, start + len(seeds)) of one source: a picklable work unit."""
 
-    Time per trial is the wall time of the filter call (the data generation is
-    not timed)."""
-    trials = as_positive_int("trials", trials)
-    cfg = config or SyntheticConfig()
-    zones = zones or RiskZones()
-    rows = []
-    for trial, seeds in enumerate(_trial_seeds(as_seed("seed", seed), trials)):
-        data, results, times = _run_trial(cfg, seeds, filters, n_particles)
+    config: SyntheticConfig
+    source: str
+    filters: tuple[str, ...]
+    seeds: tuple
+    start: int
+    n_particles: int
+    zones: RiskZones
+
+
+def _synthetic_chunk(c: _SyntheticChunk):
+    """Rows of the raw table, and the per-step WRS summed over the chunk's trials per filter."""
+    rows, wrs_sum = [], {}
+    n_steps = c.config.n_steps
+    for k, seeds in enumerate(c.seeds):
+        data, results, times = _run_trial(c.config, seeds, c.filters, c.n_particles)
         for name, res in results.items():
-            m = evaluate(res.states[:, :2], data.states[:, :2], zones=zones)
-            rows.append({"trial": trial, "filter": name, **m.as_dict(), "steps": cfg.n_steps,
-                         "ms_per_trial": times[name] * 1e3, "us_per_step": times[name] * 1e6 / cfg.n_steps,
+            est = res.states[:, :2]
+            m = evaluate(est, data.states[:, :2], zones=c.zones)
+            w = wrs(est, data.states[:, :2], c.zones)
+            wrs_sum[name] = wrs_sum.get(name, 0.0) + w
+            rows.append({"source": c.source, "trial": c.start + k, "filter": name, **m.as_dict(), "steps": n_steps,
+                         "ms_per_trial": times[name] * 1e3, "us_per_step": times[name] * 1e6 / n_steps,
                          "n_gaps": res.n_gaps, "n_resampled": res.n_resampled})
-    return pd.DataFrame(rows)
+    return rows, wrs_sum
+
+
+@dataclass(frozen=True)
+class SyntheticResult:
+    """:func:`synthetic_experiment` output: the raw table (one row per
+    source, trial and filter) and the mean WRS of each step over the trials
+    per (source, filter), for the paper's Fig. 3."""
+
+    raw: pd.DataFrame
+    wrs_mean: dict
+
+
+def synthetic_experiment(trials: int = 100, *, sources=("lanbloc",), filters=("ekf", "pf"), seed: int = 0,
+                         n_particles: int = 1000, config: SyntheticConfig | None = None,
+                         zones: RiskZones | None = None, workers: int | None = 1, scheduler=None,
+                         chunk: int = 25, progress: bool = False) -> SyntheticResult:
+    """Monte Carlo over ``trials`` synthetic trajectories per position source
+    (the paper's Table I grid: sources × filters).
+
+    Trial i has the same truth, commands and white noise for every source
+    (common random numbers); the sources differ in their error profile.  The
+    results do not depend on ``workers``, ``chunk`` or ``scheduler`` (see
+    :func:`safenav.runner.map_ordered`).  Time per trial is the wall time of
+    the filter call (data generation is not timed)."""
+    from .navigation import position_source
+    from .runner import map_ordered
+
+    trials = as_positive_int("trials", trials)
+    chunk = as_positive_int("chunk", chunk)
+    for s in sources:
+        position_source(s)
+    if not sources:
+        raise ValueError("sources: needs at least one")
+    zones = zones or RiskZones()
+    seeds = list(_trial_seeds(as_seed("seed", seed), trials))
+    jobs = [_SyntheticChunk(source_config(src, config), src, tuple(filters), tuple(seeds[a:a + chunk]), a,
+                            n_particles, zones)
+            for src in sources for a in range(0, trials, chunk)]
+    parts = map_ordered(_synthetic_chunk, jobs, workers=workers, scheduler=scheduler, progress=progress,
+                        desc="synthetic")
+    rows, wrs_mean = [], {}
+    for job, (r, w) in zip(jobs, parts):
+        rows += r
+        for f, v in w.items():
+            wrs_mean[(job.source, f)] = wrs_mean.get((job.source, f), 0.0) + v
+    wrs_mean = {k: v / trials for k, v in wrs_mean.items()}
+    return SyntheticResult(pd.DataFrame(rows), wrs_mean)
+
+
+def run_synthetic(trials: int = 100, *, filters=("ekf", "pf"), seed: int = 0, n_particles: int = 1000,
+                  config: SyntheticConfig | None = None, zones: RiskZones | None = None,
+                  sources=("lanbloc",), workers: int | None = 1) -> pd.DataFrame:
+    """The raw table of :func:`synthetic_experiment`: one row per (source, trial, filter)."""
+    return synthetic_experiment(trials, sources=sources, filters=filters, seed=seed, n_particles=n_particles,
+                                config=config, zones=zones, workers=workers).raw
 
 
 def summarize_synthetic(raw: pd.DataFrame) -> pd.DataFrame:
-    """Mean per filter, with the paper's numbers beside ours."""
-    agg = raw.groupby("filter", sort=False).agg(
+    """Mean per (source, filter), with the paper's Table I numbers beside ours."""
+    if raw.empty:
+        raise ValueError("summarize_synthetic: the raw table has no rows")
+    agg = raw.groupby(["source", "filter"], sort=False).agg(
         trials=("trial", "count"), ade=("ade", "mean"), fde=("fde", "mean"), awrs=("awrs", "mean"),
         path_err_pct=("path_length_error_percent", "mean"), ms_per_trial=("ms_per_trial", "median"),
-        us_per_step=("us_per_step", "median"))
-    for col in ("ade", "fde", "awrs", "ms_per_trial"):
-        agg[f"paper_{col}"] = [PAPER_SYNTHETIC.get(f, {}).get(col, np.nan) for f in agg.index]
-    return agg.reset_index()
+        us_per_step=("us_per_step", "median")).reset_index()
+    for i, col in enumerate(("ade", "fde", "awrs", "ms_per_trial")):
+        agg[f"paper_{col}"] = [PAPER_TABLE1.get((s, f), (np.nan,) * 4)[i] for s, f in zip(agg["source"], agg["filter"])]
+    return agg
+
+
+def markdown_table(df: pd.DataFrame, digits: int = 3) -> str:
+    """A DataFrame as a GitHub Markdown table (floats to ``digits`` significant digits)."""
+    def cell(v):
+        if isinstance(v, (float, np.floating)):
+            return "—" if np.isnan(v) else f"{v:.{digits}g}"
+        return str(v)
+    lines = ["| " + " | ".join(map(str, df.columns)) + " |", "|" + "---|" * len(df.columns)]
+    lines += ["| " + " | ".join(cell(v) for v in row) + " |" for row in df.itertuples(index=False)]
+    return "\n".join(lines) + "\n"
+
+
+def _source_label(source: str) -> str:
+    from .navigation import SOURCES
+
+    if source == "lanbloc":
+        return "LanBLoc-BMM"
+    if source == "lanbloc-camera":
+        return "LanBLoc-BMM (camera loop)"
+    return SOURCES[source].label if source in SOURCES else source
+
+
+def localization_table(summary: pd.DataFrame, paper: dict) -> pd.DataFrame:
+    """Table I/II layout: one row per (algorithm, filter) in the paper's order,
+    ADE, FDE, AWRS and the median time per trial, with the paper's numbers
+    beside.  ``summary`` has columns source, filter, ade, fde, awrs and
+    ms_per_trial (one row per source and filter)."""
+    order = {s: i for i, s in enumerate((*PAPER_SOURCES, "lanbloc-camera"))}
+    s = summary.assign(_o=summary["source"].map(lambda v: order.get(v, len(order))),
+                       _f=summary["filter"].map({"ekf": 0, "pf": 1})).sort_values(["_o", "_f"], kind="stable")
+    rows = []
+    for _, r in s.iterrows():
+        p = paper.get((r["source"], r["filter"]), (np.nan,) * 4)
+        rows.append({"Algorithm": _source_label(r["source"]), "Filter": r["filter"].upper(),
+                     "ADE": r["ade"], "FDE": r["fde"], "AWRS": r["awrs"], "time ms": r["ms_per_trial"],
+                     "paper ADE": p[0], "paper FDE": p[1], "paper AWRS": p[2], "paper ms": p[3]})
+    return pd.DataFrame(rows)
 
 
 # --------------------------------------------------------------------------- navigation (SafeNav V-D)

@@ -44,12 +44,137 @@ def plot_synthetic_trial(data, estimates: dict, path: str | Path, *, title: str 
     ax_err.legend(fontsize=8)
     ax_err.grid(alpha=0.3)
     fig.tight_layout()
+    return _save(fig, path, dpi=130)
+
+
+def _draw_world(ax, world, *, hazard_label=None, obstacle_label=None) -> None:
+    """Hazards (orange, darker = riskier) and obstacles (grey) of ``world``."""
+    from matplotlib.patches import Circle as _Circle, Polygon as _Polygon
+
+    from .world import Circle
+
+    for i, h in enumerate(world.hazards):
+        patch = (_Circle(tuple(h.shape.center), h.shape.radius) if isinstance(h.shape, Circle)
+                 else _Polygon(h.shape.array(), closed=True))
+        patch.set(facecolor="tab:orange", alpha=0.18 + 0.1 * min(h.risk, 5) / 5, edgecolor="none",
+                  label=hazard_label if i == 0 else None)
+        ax.add_patch(patch)
+    for i, o in enumerate(world.obstacles):
+        patch = _Circle(tuple(o.center), o.radius) if isinstance(o, Circle) else _Polygon(o.array(), closed=True)
+        patch.set(facecolor="0.25", edgecolor="k", lw=0.5, label=obstacle_label if i == 0 else None)
+        ax.add_patch(patch)
+
+
+def _draw_corridor(ax, corridor, *, color="tab:green", label=None) -> None:
+    """The safe buffer of a ``_core.Corridor``: its edges (bold) and zone borders (thin)."""
+    W = corridor.half_width
+    off = np.linspace(-W, W, 2 * corridor.zone_count + 1)
+    pts = np.asarray(corridor.points_at(np.linspace(0, corridor.length, 400)))
+    tang = np.gradient(pts, axis=0)
+    tang /= np.maximum(np.linalg.norm(tang, axis=1, keepdims=True), 1e-12)
+    normal = np.c_[-tang[:, 1], tang[:, 0]]
+    for o in off:
+        if o == 0:
+            continue
+        edge = pts + o * normal
+        ax.plot(edge[:, 0], edge[:, 1], "-", color=color, lw=0.9 if abs(o) == W else 0.4,
+                alpha=0.8 if abs(o) == W else 0.4, label=label if o == W else None)
+
+
+def _save(fig, path, dpi=120) -> Path:
+    """Write ``path`` (PNG) and an SVG beside it; close the figure."""
+    plt = _pyplot()
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=130)
+    fig.savefig(out, dpi=dpi)
     fig.savefig(out.with_suffix(".svg"))
     plt.close(fig)
     return out
+
+
+def plot_field(scenario, safe_paths: dict, path: str | Path, *, title: str | None = None) -> Path:
+    """SafeNav Fig. 1: the field with its landmark clusters (numbered at their
+    centroids), obstacles, hazards and, per path type, the safe path with its
+    buffer (the risk-zone corridor).  ``safe_paths`` maps a path type name to
+    its (M, 2) safe path.  Writes a PNG and an SVG; returns the PNG path."""
+    from . import _core
+
+    plt = _pyplot()
+    world = scenario.world
+    fig, ax = plt.subplots(figsize=(8.2, 7.6))
+    b = world.field.bounds
+    from matplotlib.patches import Rectangle
+
+    ax.add_patch(Rectangle(tuple(b[0]), *(b[1] - b[0]), fill=False, edgecolor="k", lw=0.8))
+    _draw_world(ax, world, hazard_label="hazard", obstacle_label="obstacle")
+    cmap = plt.get_cmap("tab20")
+    for i, (cid, lms) in enumerate(sorted(world.clusters().items())):
+        xy = np.array([lm.xy for lm in lms])
+        ax.plot(xy[:, 0], xy[:, 1], "^", ms=4, color=cmap(i % 20), label="landmarks (by cluster)" if i == 0 else None)
+        c = world.cluster_centroid(cid)
+        ax.annotate(str(cid), c, fontsize=7, ha="center", va="center", color="k",
+                    bbox=dict(boxstyle="circle,pad=0.15", fc="w", ec=cmap(i % 20), lw=0.8))
+    zones = scenario.risk_zones()
+    colors = ("tab:green", "tab:blue", "tab:purple", "tab:red", "tab:brown")
+    for k, (name, sp) in enumerate(safe_paths.items()):
+        col = colors[k % len(colors)]
+        _draw_corridor(ax, _core.Corridor(np.asarray(sp, dtype=float), zones), color=col)
+        sp = np.asarray(sp)
+        ax.plot(sp[:, 0], sp[:, 1], "-", color=col, lw=1.4, label=f"{name} safe path and buffer")
+        ax.plot(*sp[0], "o", color=col, ms=6)
+    dest = [np.asarray(sp)[-1] for sp in safe_paths.values()]
+    if dest:
+        ax.plot(*dest[0], "*", color="tab:red", ms=12, label="destination")
+    ax.set_xlim(b[0][0], b[1][0])
+    ax.set_ylim(b[0][1], b[1][1])
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.legend(loc="upper left", fontsize=7, framealpha=0.85)
+    ax.set_title(title or f"{scenario.name}: field, landmark clusters, obstacles, hazards and safe paths", fontsize=10)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def plot_wrs_comparison(wrs_mean: dict, t, path: str | Path, *, labels: dict | None = None,
+                        title: str | None = None) -> Path:
+    """SafeNav Fig. 3: weighted risk score (eq. 18) over time, the mean over
+    the trials.  Top row: (a) every method with the EKF, (b) with the PF.
+    Bottom row: per method, EKF against PF.  ``wrs_mean`` maps (source,
+    filter) to a per-step mean WRS array; ``t`` is the time of each step."""
+    plt = _pyplot()
+    labels = labels or {}
+    sources = list(dict.fromkeys(s for s, _ in wrs_mean))
+    n = max(len(sources), 2)
+    fig = plt.figure(figsize=(3.4 * n, 6.4))
+    gs = fig.add_gridspec(2, 2 * n)
+    top = [fig.add_subplot(gs[0, :n]), fig.add_subplot(gs[0, n:])]
+    cmap = plt.get_cmap("tab10")
+    t = np.asarray(t)
+    for ax, filt, tag in zip(top, ("ekf", "pf"), ("(a)", "(b)")):
+        for i, src in enumerate(sources):
+            if (src, filt) in wrs_mean:
+                w = np.asarray(wrs_mean[(src, filt)])
+                ax.plot(t[: len(w)], w, color=cmap(i), lw=1.1, label=labels.get(src, src))
+        ax.set_title(f"{tag} {filt.upper()}: mean WRS per step", fontsize=9)
+        ax.set_xlabel("t [s]")
+        ax.set_ylabel("WRS")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    for i, src in enumerate(sources):
+        ax = fig.add_subplot(gs[1, 2 * i: 2 * i + 2] if len(sources) <= n else gs[1, i])
+        for filt, style in (("ekf", "-"), ("pf", "--")):
+            if (src, filt) in wrs_mean:
+                w = np.asarray(wrs_mean[(src, filt)])
+                ax.plot(t[: len(w)], w, style, color=cmap(i), lw=1.1, label=filt.upper())
+        ax.set_title(f"({chr(ord('c') + i)}) {labels.get(src, src)}", fontsize=8)
+        ax.set_xlabel("t [s]")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    return _save(fig, path)
 
 
 def plot_navigation(scenario, trials: dict, path: str | Path, *, title: str | None = None,
@@ -60,42 +185,21 @@ def plot_navigation(scenario, trials: dict, path: str | Path, *, title: str | No
 
     ``trials`` maps a path type name to ``(navigator, trial_result)``.  Writes
     a PNG and an SVG beside it; returns the PNG path."""
-    from matplotlib.patches import Circle as _Circle, Polygon as _Polygon
+    from matplotlib.patches import Polygon as _Polygon
 
     from . import _core
-    from .world import Circle
 
     plt = _pyplot()
     n = len(trials)
     fig, axes = plt.subplots(1, n, figsize=(5.2 * n, 5.4), squeeze=False)
     world = scenario.world
     for ax, (name, (navigator, trial)) in zip(axes[0], trials.items()):
-        for h in world.hazards:
-            patch = (_Circle(tuple(h.shape.center), h.shape.radius) if isinstance(h.shape, Circle)
-                     else _Polygon(h.shape.array(), closed=True))
-            patch.set(facecolor="tab:orange", alpha=0.18 + 0.1 * min(h.risk, 5) / 5, edgecolor="none")
-            ax.add_patch(patch)
-        for o in world.obstacles:
-            patch = _Circle(tuple(o.center), o.radius) if isinstance(o, Circle) else _Polygon(o.array(), closed=True)
-            patch.set(facecolor="0.25", edgecolor="k", lw=0.5)
-            ax.add_patch(patch)
+        _draw_world(ax, world)
         segs = navigator.segments
         corridor = _core.Corridor(navigator.problem.path, navigator.problem.zones)
         W = corridor.half_width
-        nz = corridor.zone_count
         safe = np.asarray(corridor.path)
-        off = np.linspace(-W, W, 2 * nz + 1)
-        s = np.linspace(0, corridor.length, 400)
-        pts = np.asarray(corridor.points_at(s))
-        tang = np.gradient(pts, axis=0)
-        tang /= np.maximum(np.linalg.norm(tang, axis=1, keepdims=True), 1e-12)
-        normal = np.c_[-tang[:, 1], tang[:, 0]]
-        for k, o in enumerate(off):
-            if o == 0:
-                continue
-            edge = pts + o * normal
-            ax.plot(edge[:, 0], edge[:, 1], "-", color="tab:green", lw=0.9 if abs(o) == W else 0.4,
-                    alpha=0.8 if abs(o) == W else 0.4)
+        _draw_corridor(ax, corridor)
         if show_hulls and navigator.settings.method == _core.NavigationMethod.CHULL:
             for k in range(segs.size):
                 hull = np.asarray(segs.hull(k))
@@ -125,9 +229,4 @@ def plot_navigation(scenario, trials: dict, path: str | Path, *, title: str | No
     if title:
         fig.suptitle(title)
     fig.tight_layout()
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=120)
-    fig.savefig(out.with_suffix(".svg"))
-    plt.close(fig)
-    return out
+    return _save(fig, path)

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import os
 import tempfile
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -34,7 +34,8 @@ import pandas as pd
 from . import navigation as nav
 from .scenario import Scenario
 
-__all__ = ["Sweep", "trial_seeds", "plan_safe_paths", "run_sweep", "summarize", "write_table", "METRICS"]
+__all__ = ["Sweep", "trial_seeds", "plan_safe_paths", "run_sweep", "map_ordered", "summarize", "write_table",
+           "METRICS"]
 
 #: Per-trial metric columns averaged by :func:`summarize`.
 METRICS = ("ade", "fde", "path_error_percent", "awrs", "awrs_true", "loc_ade", "loc_fde", "max_deviation")
@@ -189,51 +190,59 @@ def run_sweep(sweep: Sweep, *, workers: int | None = None, scheduler=None, safe_
     if missing:
         raise ValueError(f"safe_paths: no path for {missing}")
     chunks = _chunks(sweep, safe_paths, navigator_options)
+    return pd.concat(map_ordered(_run_chunk, chunks, workers=workers, scheduler=scheduler, progress=progress,
+                                 desc="trials"), ignore_index=True)
+
+
+def map_ordered(fn, items, *, workers: int | None = None, scheduler=None, progress: bool = False,
+                desc: str = "chunks") -> list:
+    """``[fn(item) for item in items]``, run on local threads or a Dask cluster,
+    returned in the order of ``items`` whatever order the work finishes in.
+
+    ``fn`` and the items must be picklable for Dask (module-level functions and
+    dataclasses).  ``workers``: local threads (default: all cores); useful when
+    ``fn`` spends its time in C++ calls that release the GIL.  ``scheduler``: a
+    Dask scheduler address or a ``distributed.Client``."""
+    items = list(items)
     bar = None
     if progress:
         from tqdm import tqdm
-        bar = tqdm(total=len(chunks) * 1, unit="chunk", desc="trials", leave=False)
+        bar = tqdm(total=len(items), unit="chunk", desc=desc, leave=False)
     try:
         if scheduler is not None:
-            frames = _run_dask(chunks, scheduler, bar)
-        else:
-            n = workers if workers is not None else (os.cpu_count() or 1)
-            if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-                raise ValueError(f"workers = {workers!r}: must be an integer >= 1")
-            frames = [None] * len(chunks)
-            with ThreadPoolExecutor(max_workers=int(n)) as pool:
-                futures = {pool.submit(_run_chunk, c): i for i, c in enumerate(chunks)}
-                for fut in _as_completed(futures):
-                    frames[futures[fut]] = fut.result()
-                    if bar is not None:
-                        bar.update(1)
+            return _run_dask(fn, items, scheduler, bar)
+        n = workers if workers is not None else (os.cpu_count() or 1)
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+            raise ValueError(f"workers = {workers!r}: must be an integer >= 1")
+        out = [None] * len(items)
+        with ThreadPoolExecutor(max_workers=int(n)) as pool:
+            futures = {pool.submit(fn, c): i for i, c in enumerate(items)}
+            for fut in as_completed(futures):
+                out[futures[fut]] = fut.result()
+                if bar is not None:
+                    bar.update(1)
+        return out
     finally:
         if bar is not None:
             bar.close()
-    return pd.concat(frames, ignore_index=True)
 
 
-def _as_completed(futures):
-    from concurrent.futures import as_completed
-    return as_completed(futures)
-
-
-def _run_dask(chunks, scheduler, bar):
+def _run_dask(fn, items, scheduler, bar):
     try:
-        from distributed import Client, as_completed
+        from distributed import Client, as_completed as dask_completed
     except ImportError as exc:  # pragma: no cover - exercised only without the extra
         raise RuntimeError("--scheduler needs Dask: pip install 'safenav[dask]'") from exc
     own = not isinstance(scheduler, Client)
     client = Client(scheduler) if own else scheduler
     try:
-        futures = client.map(_run_chunk, chunks, pure=False)
+        futures = client.map(fn, items, pure=False)
         index = {f.key: i for i, f in enumerate(futures)}
-        frames = [None] * len(chunks)
-        for fut in as_completed(futures):
-            frames[index[fut.key]] = fut.result()
+        out = [None] * len(items)
+        for fut in dask_completed(futures):
+            out[index[fut.key]] = fut.result()
             if bar is not None:
                 bar.update(1)
-        return frames
+        return out
     finally:
         if own:
             client.close()
