@@ -124,6 +124,7 @@ class ExperimentResult:
     notes: list = field(default_factory=list)
     claims: list = field(default_factory=list)
     wall_s: float = 0.0
+    camera_s: float = 0.0      #: of wall_s, the camera-in-the-loop variant's trials
 
 
 # --------------------------------------------------------------------------- helpers
@@ -318,8 +319,10 @@ def _camera_variant(opts, safe, folder, res, cache, *, methods, filters, key, la
     seeds of each path type)."""
     n = opts.camera_trials
     kw = dict(methods=methods, filters=filters, trials=n, position_every=opts.camera_position_every)
+    t0 = time.perf_counter()
     meas = _run_cells(opts, safe, cache, sources=("lanbloc",), **kw)
     cam = _run_cells(opts, safe, cache, sources=("lanbloc-camera",), chunk=1, **kw)
+    res.camera_s += time.perf_counter() - t0
     raw = pd.concat([meas, cam], ignore_index=True)
     res.files += runner.write_table(raw, folder / "camera_trials")
     s = runner.summarize(raw)
