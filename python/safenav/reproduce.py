@@ -170,6 +170,14 @@ def _path_average(summary: pd.DataFrame) -> pd.DataFrame:
     return g.rename(columns={"time_ms": "ms_per_trial", "loc_ade": "ade", "loc_fde": "fde"})
 
 
+def _outcomes(raw: pd.DataFrame) -> str:
+    """'Metrics are means over the N arrived trials; M did not arrive (collision k, ...).'"""
+    fails = raw[~raw["success"]]
+    why = ", ".join(f"{k} {v}" for k, v in fails["outcome"].value_counts().items())
+    return (f"Metrics are means over the {len(raw) - len(fails)} of {len(raw)} trials that arrived"
+            + (f"; the others ended in: {why}." if len(fails) else "."))
+
+
 def _best(table: pd.DataFrame, col: str, rows=None) -> pd.Series:
     t = table if rows is None else table[rows]
     return t.loc[t[col].idxmin()]
@@ -277,15 +285,10 @@ def run_real_imitated(opts: ExperimentOptions, cache: dict) -> ExperimentResult:
                    f"{opts.trials} trials per path type (SafeNav-Centroid along the safe path; PF "
                    f"{opts.particles} particles); time = mean over path types of the median per trial", table)
     res.claims += _localization_claims(table, "Table II", paper=ex.PAPER_TABLE2)
-    fails = raw[~raw["success"]]
     res.notes.append("The paper does not say which controller drove its Table II trials; we follow each safe path "
                      "with SafeNav-Centroid (Algorithm 2), the same path and seeds for every source and filter. "
                      "ADE and FDE here are localization errors: the estimate against the true vehicle at each step "
-                     "(Table II compares localization methods). "
-                     "Metrics are means over the trials that arrived; "
-                     f"{len(fails)} of {len(raw)} trials did not arrive"
-                     + (" (" + ", ".join(f"{k} {v}" for k, v in fails["outcome"].value_counts().items()) + ")."
-                        if len(fails) else "."))
+                     "(Table II compares localization methods). " + _outcomes(raw))
     if opts.camera_trials:
         _camera_variant(opts, safe, folder, res, cache, methods=("centroid",), filters=("ekf", "pf"),
                         key=["filter"], label="Table II")
@@ -391,12 +394,9 @@ def run_navigation(opts: ExperimentOptions, cache: dict) -> ExperimentResult:
                    f"LanBLoc-BMM(EKF), {opts.trials} trials per path type", nt)
     res.figures += navigation_figures(opts.scenario, safe, sweep, folder)
     res.claims += _navigation_claims(pe, nt)
-    fails = raw[~raw["success"]]
     res.notes.append("ADE is the mean distance of the estimate to the safe path (cross-track; our reading of eq. 21, "
                      "whose point-wise pairing is undefined for an untimed path), FDE the final estimate's distance to "
-                     f"the destination. Metrics are means over arrived trials; {len(fails)} of {len(raw)} did not "
-                     "arrive" + (" (" + ", ".join(f"{k} {v}" for k, v in fails["outcome"].value_counts().items())
-                                 + ")." if len(fails) else "."))
+                     "the destination. " + _outcomes(raw))
     if opts.camera_trials:
         _camera_variant(opts, safe, folder, res, cache, methods=("chull", "centroid"), filters=("ekf",),
                         key=["method"], label="Table IV")
