@@ -147,6 +147,56 @@ def test_outliers_are_rejected(bad):
     assert np.linalg.norm(plain.position - p) > 5 * np.linalg.norm(res.position - p)
 
 
+def test_one_outlier_among_exactly_four_ranges():
+    """Four ranges, one of them off by 3-8 m (well beyond 3σ).  Three ranges in
+    2D leave one degree of freedom to check, so the outlier shows unless the
+    geometry lets another triple fit as well.  Whenever a range is rejected it
+    must be the bad one and the fix within 4σ of the truth; a triple that fits
+    elsewhere as well must give 'degenerate' (ambiguous), never a wrong point
+    marked ok.  The outlier passes unnoticed only where a wrong point fits all
+    four ranges (rare: under 2 % of the draws)."""
+    rng = np.random.default_rng(12)
+    rejected = ambiguous = unnoticed = 0
+    for _ in range(300):
+        anchors = rng.uniform(0, 40, (4, 2))
+        p = rng.uniform(5, 35, 2)
+        sig = np.full(4, 0.1)
+        z = ranges_to(anchors, p) + sig * rng.standard_normal(4)
+        bad = int(rng.integers(4))
+        z[bad] = max(z[bad] + rng.choice([-1.0, 1.0]) * rng.uniform(3, 8), 0.5)
+        res = trilaterate(anchors, z, sig)
+        if not res.ok:
+            assert res.status == "degenerate", res.reason
+            ambiguous += res.reason.startswith("ambiguous outliers")
+            continue
+        if res.inliers.all():
+            unnoticed += 1
+            continue
+        expect = np.ones(4, bool)
+        expect[bad] = False
+        np.testing.assert_array_equal(res.inliers, expect)
+        assert np.linalg.norm(res.position - p) < 4 * np.sqrt(np.trace(res.covariance))
+        rejected += 1
+    # measured: 249 rejected correctly, 37 ambiguous outliers, 13 mirror-ambiguous, 1 unnoticed
+    assert rejected >= 230 and ambiguous >= 20 and unnoticed <= 6, (rejected, ambiguous, unnoticed)
+
+
+def test_two_triples_that_fit_two_positions_are_ambiguous():
+    """Anchors 0 and 1 on the x axis are equidistant from p = (10, 8) and its
+    mirror image q = (10, −8); range 2 is measured to p and range 3 to q.  The
+    triples {0, 1, 2} and {0, 1, 3} fit p and q exactly: which range is the
+    outlier cannot be told, so the fix is degenerate, not p or q."""
+    anchors = np.array([[0.0, 0.0], [25.0, 0.0], [30.0, 20.0], [-5.0, -15.0]])
+    p, q = np.array([10.0, 8.0]), np.array([10.0, -8.0])
+    z = np.r_[ranges_to(anchors[:3], p), np.linalg.norm(anchors[3] - q)]
+    res = trilaterate(anchors, z, 0.1)
+    assert res.status == "degenerate" and "ambiguous" in res.reason and np.isnan(res.position).all()
+    assert "10" in res.reason and "-8" in res.reason          # both candidate positions are named
+    for drop, want in ((3, p), (2, q)):                        # each triple alone is a clean fix
+        keep = [i for i in range(4) if i != drop]
+        np.testing.assert_allclose(trilaterate(anchors[keep], z[keep], 0.1).position, want, atol=1e-9)
+
+
 def test_bearing_outlier_is_rejected():
     p = np.array([18.0, 12.0])
     z = bearings_to(SQUARE, p)

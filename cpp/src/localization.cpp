@@ -8,6 +8,8 @@
 #include <numeric>
 #include <sstream>
 #include <stdexcept>
+#include <utility>
+#include <vector>
 
 #include "rng.hpp"
 
@@ -435,6 +437,9 @@ LocalizationResult localize(const Model& m, const Problem& pr, const Localizatio
   const int k = Model::kMinimal;
   std::vector<int> best_in;
   double best_cost = std::numeric_limits<double>::infinity();
+  // Every distinct consensus set met, with the minimal-set fit that found it
+  // (for the ambiguity check below).
+  std::vector<std::pair<std::vector<int>, Eigen::Vector2d>> consensus;
   auto consider = [&](const std::vector<int>& subset) {
     Eigen::Vector2d p0;
     if (!linear_start(m, pr, subset, p0)) return;
@@ -443,6 +448,9 @@ LocalizationResult localize(const Model& m, const Problem& pr, const Localizatio
     std::vector<int> in = inliers_at(m, pr, f.p, opt.outlier_threshold);
     if (static_cast<int>(in.size()) < k) return;
     const double c = cost_at(m, pr, in, f.p);
+    bool known = false;
+    for (const auto& s : consensus) known = known || s.first == in;
+    if (!known) consensus.emplace_back(in, f.p);
     if (in.size() > best_in.size() || (in.size() == best_in.size() && c < best_cost)) {
       best_in = std::move(in);
       best_cost = c;
@@ -488,6 +496,39 @@ LocalizationResult localize(const Model& m, const Problem& pr, const Localizatio
     in = std::move(again);
   }
   if (r.ok() && static_cast<int>(in.size()) < n) {
+    // Another consensus set as large as this one that fits a position far
+    // away about as well: which measurements are the outliers cannot be told
+    // (e.g. four ranges, one bad, where two triples each fit a point).
+    const double sd = std::sqrt(std::max(0.0, r.covariance.trace()));
+    const double scale = 1.0 + r.position.norm();
+    for (const auto& s : consensus) {
+      if (s.first.size() != in.size() || s.first == in) continue;
+      const Fit g = levenberg_marquardt(m, pr, s.first, s.second, opt);
+      if (!g.converged || !g.p.allFinite()) continue;
+      if (inliers_at(m, pr, g.p, opt.outlier_threshold).size() < in.size()) continue;
+      const double sep = (g.p - r.position).norm();
+      if (sep > std::max(3.0 * sd, 1e-6 * scale) && std::abs(g.cost - r.chi2) <= opt.ambiguity_margin) {
+        auto list = [n](const std::vector<int>& keep) {
+          std::ostringstream o;
+          const char* sep_ = "";
+          for (int i = 0; i < n; ++i)
+            if (std::find(keep.begin(), keep.end(), i) == keep.end()) {
+              o << sep_ << i;
+              sep_ = ", ";
+            }
+          return o.str();
+        };
+        std::ostringstream os;
+        os << "ambiguous outliers: rejecting " << Model::kWhat << " {" << list(in) << "} gives " << point_str(r.position)
+           << " (chi2 " << r.chi2 << "), rejecting {" << list(s.first) << "} gives " << point_str(g.p) << " (chi2 "
+           << g.cost << "), within ambiguity_margin " << opt.ambiguity_margin;
+        LocalizationResult amb;
+        amb.status = LocalizationStatus::Degenerate;
+        amb.reason = os.str();
+        amb.iterations = r.iterations;
+        return finish(amb, in);
+      }
+    }
     std::ostringstream os;
     os << n - static_cast<int>(in.size()) << " of " << n << " " << Model::kWhat << " rejected as outliers";
     r.reason = os.str();

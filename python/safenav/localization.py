@@ -18,7 +18,11 @@ LanBLoc "utilizes the recognized landmarks as anchor nodes for trilateration
   ``outlier_threshold``): every minimal set (3 ranges / 2 bearings; at most
   ``max_subsets``, else that many drawn with ``seed``) is solved, the one
   with the largest consensus (ties: lowest χ²) wins, and the fit is redone on
-  its consensus until the inlier set is stable.
+  its consensus until the inlier set is stable.  If another consensus set
+  as large fits a position more than 3σ away within ``ambiguity_margin``
+  in χ² (e.g. four ranges with one bad, where two triples each fit a
+  point), the outliers cannot be told apart and the fix is ``degenerate``
+  ("ambiguous outliers", naming both choices).
 * Explicit failure instead of a wrong point: ``too_few`` (fewer than the
   minimal set), ``degenerate`` (collinear anchors, a second minimum such as
   the mirror image across the anchors' line that fits within

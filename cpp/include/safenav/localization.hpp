@@ -43,8 +43,10 @@ struct LocalizationOptions {
   double tolerance = 1e-12;
   /// GDOP above this is reported as degenerate geometry.
   double max_gdop = 100.0;
-  /// A second (mirror) solution whose weighted cost χ² is within this margin
-  /// of the best one makes the fix ambiguous (degenerate).
+  /// A second (mirror) solution, or a second consensus set of outliers as
+  /// large as the chosen one, whose weighted cost χ² is within this margin of
+  /// the best one at a position more than 3σ away makes the fix ambiguous
+  /// (degenerate).  0 keeps only exact ties ambiguous.
   double ambiguity_margin = 9.0;
   /// Bearings: lines that cross at less than this angle (rad) are parallel.
   double min_crossing_angle = 1e-2;
