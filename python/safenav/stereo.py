@@ -179,7 +179,13 @@ def _read(node):
     if node.isSeq():
         return np.array([node.at(i).real() for i in range(node.size())], dtype=np.float64)
     m = node.mat()
-    return None if m is None else np.asarray(m, dtype=np.float64)
+    if m is None:
+        # an empty matrix (e.g. no distortion coefficients) reads back as None: keep it as empty
+        if node.isMap() and not node.getNode("rows").isNone() and not node.getNode("cols").isNone() \
+                and int(node.getNode("rows").real()) * int(node.getNode("cols").real()) == 0:
+            return np.zeros(0)
+        return None
+    return np.asarray(m, dtype=np.float64)
 
 
 def _matrix(name, value, shape):
@@ -210,6 +216,14 @@ class RectifiedCamera:
     height: int = 480
 
     def __post_init__(self):
+        for name in ("f", "cx", "cy", "baseline", "doffs"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+                raise ValueError(f"rectified camera {name} = {v!r} must be a number")
+        for name in ("width", "height"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
+                raise ValueError(f"rectified camera {name} = {v!r} must be an integer number of pixels")
         self._core().validate()
 
     def _core(self) -> _core.RectifiedCamera:
@@ -416,6 +430,12 @@ class StereoMatcher:
         ``sigma_d`` is the disparity noise in pixels.
         """
         b = as_array("box", box, (4,))
+        if isinstance(min_valid_pixels, bool) or not isinstance(min_valid_pixels, (int, np.integer)):
+            raise ValueError(f"min_valid_pixels = {min_valid_pixels!r} must be an integer")
+        for name, v in (("sigma_d", sigma_d), ("min_valid_fraction", min_valid_fraction),
+                        ("min_disparity", min_disparity), ("max_range", max_range)):
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+                raise ValueError(f"{name} = {v!r} must be a number")
         o = _core.BoxRangeOptions()
         o.sigma_d = float(sigma_d)
         o.min_valid_pixels = int(min_valid_pixels)
