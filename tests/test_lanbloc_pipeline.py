@@ -119,6 +119,35 @@ def test_bearings_and_range_model_feed_a_filter():
     ekf = safenav.Ekf(safenav.BmmParams(), x_true + [2.0, -1.0, 0, 0], np.diag([4.0, 4.0, 0.1, 0.01]))
     upd = ekf.update(model, z)
     assert upd.accepted and np.linalg.norm(ekf.x[:2] - p) < 0.6
+    # the same ranges into the particle filter
+    prior = np.diag([4.0, 4.0, 0.1, 0.01])
+    pf = safenav.ParticleFilter(safenav.BmmParams(), x_true + [2.0, -1.0, 0, 0], prior, n_particles=4000, seed=3)
+    assert pf.update(model, z).accepted and np.linalg.norm(pf.x[:2] - p) < 0.6
+
+
+def test_the_position_fix_feeds_a_filter_as_a_position_measurement():
+    """The other mode: the fix and its covariance as a POSITION measurement, into the EKF and the PF."""
+    from safenav.measurement import MeasurementKind, MeasurementModel
+
+    pose, placements = SCENES[0]
+    world = _scene(pose, placements)
+    res = LanBLoc(world, RIG).localize(*StereoRenderer(world, RIG).render(pose))
+    assert res.ok, res.reason
+    p = np.array(pose[:2])
+    x_true = np.array([*p, 2.0, pose[2]])
+    model = MeasurementModel(MeasurementKind.POSITION, res.covariance)
+    np.testing.assert_allclose(model.predict(x_true), p, atol=1e-12)
+    prior = np.diag([4.0, 4.0, 0.1, 0.01])
+    ekf = safenav.Ekf(safenav.BmmParams(), x_true + [2.0, -1.0, 0, 0], prior)
+    assert ekf.update(model, res.position).accepted
+    # the Kalman update of the position block: x⁺ = x + P(P + R)⁻¹(z − x), P⁺ = P − P(P + R)⁻¹P
+    x0, P0, Rf = (x_true + [2.0, -1.0, 0, 0])[:2], prior[:2, :2], res.covariance
+    K = P0 @ np.linalg.inv(P0 + Rf)
+    np.testing.assert_allclose(ekf.x[:2], x0 + K @ (res.position - x0), atol=1e-9)
+    np.testing.assert_allclose(ekf.P[:2, :2], P0 - K @ P0, atol=1e-9)
+    pf = safenav.ParticleFilter(safenav.BmmParams(), x_true + [2.0, -1.0, 0, 0], prior, n_particles=4000, seed=3)
+    assert pf.update(model, res.position).accepted
+    assert np.linalg.norm(pf.x[:2] - ekf.x[:2]) < 0.2     # linear-Gaussian: the PF approximates the same posterior
 
 
 def test_a_raw_pair_with_a_calibration_is_rectified_to_the_same_fix():
@@ -194,6 +223,14 @@ def test_bad_input_names_the_value():
     assert sorted(d.landmark_id for d in skip.detections) == [7, 8]
     with pytest.raises(ValueError, match="landmarks"):
         LanBLoc({1: (0.0, float("nan"))}, RIG)
+    with pytest.raises(ValueError, match="id 'a' must be a non-negative integer"):
+        LanBLoc({"a": (0.0, 1.0)}, RIG)
+    with pytest.raises(ValueError, match="landmarks = 5"):
+        LanBLoc(5, RIG)
+    with pytest.raises(ValueError, match="band_margin_px = nan"):
+        LanBLoc(world, RIG, band_margin_px=float("nan"))
+    with pytest.raises(ValueError, match="unknown option 'max_gdp'"):
+        LanBLoc(world, RIG, trilateration=dict(max_gdp=50.0))
 
 
 def test_camera_loop_source_on_a_stretch_of_path_P2():
@@ -229,3 +266,22 @@ def test_camera_loop_source_on_a_stretch_of_path_P2():
     assert src.stats["calls"] == 14 and sum(v for k, v in src.stats.items() if k != "calls") == 14
     with pytest.raises(ValueError, match="true_state"):
         src(np.array([1.0, 2.0, 3.0]), 0)
+
+
+def test_measurement_sources_are_selectable_and_the_emulations_say_so():
+    """The navigation experiments' position sources: LanBLoc at the measurement
+    level with the paper's RMSE (0.0142 m X, 0.039 m Y) as the default, the
+    camera loop (this module), and the paper's comparison methods as error
+    profiles labelled as emulations."""
+    from safenav import navigation as nv
+
+    lanbloc = nv.position_source("lanbloc")
+    assert lanbloc.std == (0.0142, 0.039) and not lanbloc.emulated
+    assert nv.make_navigator.__kwdefaults__["source"] == "lanbloc"
+    for name, label in (("deeploc-gps", "DeepLoc-GPS"), ("deeploc-ekf-gps", "DeepLoc-EKF-GPS"),
+                        ("sensor-fusion", "Sensor Fusion")):
+        s = nv.position_source(name)
+        assert s.emulated and s.to_core().emulated and s.label == f"{label} (emulated)" and "emulated" in s.note
+    assert CameraLoopSource.name == "lanbloc-camera" and not CameraLoopSource.emulated
+    with pytest.raises(ValueError, match="unknown position source"):
+        nv.position_source("gps")

@@ -155,11 +155,19 @@ def _landmark_table(landmarks) -> dict[int, tuple[np.ndarray, str]]:
     table = {}
     if isinstance(landmarks, Mapping):
         for k, v in landmarks.items():
-            p = np.asarray(v, dtype=float).ravel()
+            if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 0:
+                raise ValueError(f"landmarks: id {k!r} must be a non-negative integer")
+            try:
+                p = np.asarray(v, dtype=float).ravel()
+            except (TypeError, ValueError):
+                p = np.zeros(0)
             if p.size not in (2, 3) or not np.isfinite(p).all():
                 raise ValueError(f"landmarks[{k!r}] = {v!r}: must be a finite (x, y) or (x, y, z)")
             table[int(k)] = (np.append(p, 0.0) if p.size == 2 else p, "landmark")
         return table
+    if isinstance(landmarks, (str, bytes)) or not isinstance(landmarks, Sequence):
+        raise ValueError(f"landmarks = {landmarks!r}: must be a World, a sequence of Landmark or a mapping "
+                         f"id -> (x, y[, z])")
     for i, lm in enumerate(landmarks):
         if not isinstance(lm, Landmark):
             raise ValueError(f"landmarks[{i}] = {lm!r}: must be a Landmark")
@@ -265,6 +273,8 @@ class LanBLoc:
         if self.box_shrink >= 0.5:
             raise ValueError(f"box_shrink = {box_shrink!r}: must be < 0.5")
         self.row_band = bool(row_band)
+        if isinstance(band_margin_px, bool) or not isinstance(band_margin_px, (int, np.integer)) or band_margin_px < 0:
+            raise ValueError(f"band_margin_px = {band_margin_px!r}: must be an integer >= 0")
         self.band_margin_px = int(band_margin_px)
         self.bearing_sigma_px = _finite("bearing_sigma_px", bearing_sigma_px, positive=True)
         if unknown_landmark not in ("error", "skip"):
@@ -272,6 +282,11 @@ class LanBLoc:
         self.unknown_landmark = unknown_landmark
         self.resolve_ambiguity = bool(resolve_ambiguity)
         self.trilateration = dict(trilateration or {})
+        import inspect
+        known = [n for n, p in inspect.signature(trilaterate).parameters.items() if p.kind == p.KEYWORD_ONLY]
+        unknown = sorted(set(self.trilateration) - set(known))
+        if unknown:
+            raise ValueError(f"trilateration: unknown option {unknown[0]!r} (known: {', '.join(known)})")
         self._R0t = camera_rotation(0.0, self.pitch_rad).T   # camera → world directions at heading 0
         self._band_matchers: dict[tuple[int, int], StereoMatcher] = {}
 
