@@ -158,6 +158,32 @@ def test_greedy_equals_brute_force_on_random_edges(k):
     assert n_feasible >= {1: 40, 2: 40, 3: 10}[k] and n_infeasible >= 5
 
 
+def test_greedy_count_equals_brute_force_on_200_coverable_edges():
+    """The issue's acceptance test for Proposition 1 at the default k = 2:
+    at least 200 random small edges that can be 2-covered, where the greedy's
+    count must equal the brute-force optimum (and its picks must 2-cover)."""
+    rng = np.random.default_rng(99)
+    core = CAM.to_core()
+    compared = tried = 0
+    while compared < 200:
+        tried += 1
+        assert tried < 2000, "too few coverable edges drawn"
+        d = rng.uniform(0.3, 2.0)
+        lms = rng.uniform((-0.5, -0.9), (d + 2.0, 0.9), size=(40, 2))
+        iv = [x for x in (_core.visibility_interval(p, d, core) for p in lms) if x is not None]
+        iv = iv[: int(rng.integers(5, 11))]
+        if len(iv) < 2:
+            continue
+        best = brute_force_cover(iv, d, 2)
+        chosen, uncovered = _core.greedy_cover(np.array(iv), d, 2, np.zeros((0, 2)))
+        if best is None:
+            assert uncovered
+            continue
+        assert not uncovered and len(chosen) == best, (d, iv, chosen, best)
+        assert covered_k_times([iv[i] for i in chosen], d, 2)
+        compared += 1
+
+
 def test_greedy_with_preplaced_intervals_is_optimal():
     rng = np.random.default_rng(7)
     checked = 0
@@ -369,6 +395,18 @@ def test_infeasible_and_bad_input_messages():
         P.place_along_route([[0, 0]], TABLE_CAND, CAM)
     with pytest.raises(ValueError, match="camera fov"):
         P.CameraParams(fov="fisheye")
+    with pytest.raises(ValueError, match="camera: unknown parameter 'zoom'"):
+        P.place_along_route(route, TABLE_CAND, {"zoom": 2})
+    with pytest.raises(ValueError, match="margin = nan must be a finite number"):
+        P.candidate_grid((0, 0), (4, 8), 0.5, margin=float("nan"))
+    with pytest.raises(ValueError, match="source = 1.5 is not a target index"):
+        P.plan_tour([[0, 0], [1, 1], [2, 2]], source=1.5)
+    with pytest.raises(ValueError, match="prior_std"):
+        P.simulate(route, TABLE_CAND[:3], CAM, prior_std=(-1, 0, 0, 0))
+    with pytest.raises(ValueError, match="time_limit = nan"):
+        P.place_optimal(route, TABLE_CAND, CAM, time_limit=float("nan"))
+    with pytest.raises(ValueError, match="bearing_std = 'x'"):
+        P.simulate(route, TABLE_CAND[:3], CAM, bearing_std="x")
 
 
 # ---------------------------------------------------------------------------
@@ -399,6 +437,32 @@ def test_place_along_a_safenav_path():
     assert not world.obstacle_mask(res.landmarks).any()
 
 
+def test_place_along_a_planned_safenav_safe_path():
+    """The planner's safe path (a PlanResult, not the reference polyline): with the
+    default corner coverage the vehicle sees >= 2 landmarks everywhere on it, edges
+    and turns, checked exactly and by dense sampling with direct geometry; no
+    landmark within p of the path, inside an obstacle or outside the field."""
+    import safenav
+    from safenav import navigation as nv
+
+    sc = safenav.default_scenario()
+    plan = nv.plan_safe_path(sc, "P3", iterations=1500)
+    assert plan.success
+    cam = P.CameraParams(range=8.0, angle_deg=60.0, clearance=1.0)
+    res = P.place_along_path(plan, cam, spacing=2.0, world=sc.world)
+    assert res.corners and res.covered and len(res.route) >= 3
+    np.testing.assert_allclose(res.route[[0, -1]], np.asarray(plan.path)[[0, -1]])
+    rep = res.check(corners=True)
+    assert rep.min_count >= 2 and len(rep.start) == 0
+    assert dense_counts(res.route, res.landmarks, cam, per_metre=20) >= 2
+    d = np.array([min(np.hypot(*(q - (a + np.clip((q - a) @ (b - a) / ((b - a) @ (b - a)), 0, 1) * (b - a))))
+                      for a, b in zip(res.route[:-1], res.route[1:])) for q in res.landmarks])
+    assert d.min() > cam.clearance
+    assert not sc.world.obstacle_mask(res.landmarks).any() and sc.world.field.contains(res.landmarks).all()
+    with pytest.raises(ValueError, match="path must have at least 2 points, got 0"):
+        P.place_along_path(np.zeros((0, 2)), cam)
+
+
 def test_table_one_shape_and_order():
     df = P.table_one(seed=0, sizes=[5, 6], optimal=True, time_limit=60)
     assert list(df["targets"]) == [5, 6]
@@ -419,6 +483,12 @@ def test_eif_consistent_on_a_placed_instance():
     sim = P.simulate(route, res.landmarks, CAM, seed=1)
     inside = sim.inside_3sigma()
     assert min(inside.values()) >= 0.95, inside
+    # ... with bounds that say something (measured: median σ 5 mm, 4 mm rad) and a
+    # mean NEES near its 3 degrees of freedom (measured 2.7), so 3σ is not inflated
+    assert (np.median(sim.sigmas, axis=0) < [0.02, 0.02, 0.02]).all()
+    C = sim.covariance[:, [0, 1, 3]][:, :, [0, 1, 3]]
+    nees = np.einsum("ni,ni->n", sim.errors, np.linalg.solve(C, sim.errors[..., None])[..., 0])
+    assert 1.5 < nees.mean() < 4.5
     # the robot drove the route and the estimate tracks it
     assert np.hypot(*(sim.truth[-1, :2] - route[-1])) < 0.05
     assert np.abs(sim.errors[:, :2]).max() < 0.2

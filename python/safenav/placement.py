@@ -127,6 +127,10 @@ def _camera(camera) -> CameraParams:
     if isinstance(camera, CameraParams):
         return camera
     if isinstance(camera, dict):
+        known = ("range", "angle_deg", "clearance", "fov")
+        bad = sorted(set(camera) - set(known))
+        if bad:
+            raise ValueError(f"camera: unknown parameter {bad[0]!r} (known: {', '.join(known)})")
         return CameraParams(**camera)
     raise ValueError(f"camera must be a CameraParams or a dict, got {camera!r}")
 
@@ -156,10 +160,13 @@ def _k(k) -> int:
 def candidate_grid(lower, upper, spacing: float = PAPER_SPACING, margin: float = 0.0) -> np.ndarray:
     """Candidate locations on a square grid of ``spacing`` covering the box
     ``[lower − margin, upper + margin]`` (grid lines through ``lower − margin``)."""
+    for name, v in (("spacing", spacing), ("margin", margin)):
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not math.isfinite(v):
+            raise ValueError(f"{name} = {v!r} must be a finite number")
+    if spacing <= 0:
+        raise ValueError(f"spacing = {spacing!r} must be finite and > 0")
     lo = as_array("lower", lower, (2,)) - margin
     hi = as_array("upper", upper, (2,)) + margin
-    if not (math.isfinite(spacing) and spacing > 0):
-        raise ValueError(f"spacing = {spacing!r} must be finite and > 0")
     if (hi < lo).any():
         raise ValueError(f"upper = {tuple(hi)} must not be below lower = {tuple(lo)}")
     n = np.floor((hi - lo) / spacing + 1e-9).astype(int) + 1
@@ -234,6 +241,11 @@ def plan_tour(targets, *, source: int = 0, destination: int = -1, restarts: int 
     n = t.shape[0]
     if n < 2:
         raise ValueError(f"targets must hold at least 2 points (a source and a destination), got {n}")
+    for name, v in (("source", source), ("destination", destination)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
+            _bad_index(name, v, n)
+    if isinstance(restarts, bool) or not isinstance(restarts, (int, np.integer)) or restarts < 0:
+        raise ValueError(f"restarts = {restarts!r} must be an integer >= 0")
     s = int(source) % n if -n <= int(source) < n else _bad_index("source", source, n)
     d = int(destination) % n if -n <= int(destination) < n else _bad_index("destination", destination, n)
     if s == d:
@@ -428,6 +440,9 @@ def place_optimal(route, candidates, camera: CameraParams | dict | None = None, 
 
     cam = _camera(camera)
     r, c, k = _route(route), _candidates(candidates), _k(k)
+    if isinstance(time_limit, bool) or not isinstance(time_limit, (int, float, np.integer, np.floating)) \
+            or not (math.isfinite(time_limit) and time_limit > 0):
+        raise ValueError(f"time_limit = {time_limit!r} must be a finite number of seconds > 0")
     core_cam = cam.to_core()
     t0 = time.perf_counter()
     vis = _core.edge_visibility(r, c, core_cam)
@@ -592,6 +607,8 @@ def place_along_path(path, camera: CameraParams | dict | None = None, *, candida
             raise ValueError("the plan has no path (planning did not succeed)")
         path = path.path
     p = as_array("path", path, (None, 2))
+    if p.shape[0] < 2:
+        raise ValueError(f"path must have at least 2 points, got {p.shape[0]}")
     keep = np.concatenate([[True], np.hypot(*np.diff(p, axis=0).T) > 1e-12])
     p = _route(p[keep])
     if candidates is None:
@@ -724,8 +741,16 @@ def simulate(route, landmarks, camera: CameraParams | dict | None = None, *, spe
     if lm.shape[0] == 0:
         raise ValueError("landmarks must hold at least one landmark, got 0")
     for name, v in (("speed", speed), ("dt", dt), ("bearing_std", bearing_std), ("heading_gain", heading_gain)):
-        if not (math.isfinite(v) and v > 0):
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) \
+                or not (math.isfinite(v) and v > 0):
             raise ValueError(f"{name} = {v!r} must be finite and > 0")
+    try:
+        prior = np.asarray(prior_std, dtype=float).ravel() if np.ndim(prior_std) == 1 else np.zeros(0)
+    except (TypeError, ValueError):
+        prior = np.zeros(0)
+    if prior.shape != (4,) or not (np.isfinite(prior).all() and (prior > 0).all()):
+        raise ValueError(f"prior_std = {prior_std!r} must be 4 finite values > 0 (x, y, v, theta)")
+    as_positive_int("max_steps", max_steps)
     params = BmmParams()
     params.dt = float(dt)
     params.max_speed = max(1.0, 2 * speed)
