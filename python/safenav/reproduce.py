@@ -178,6 +178,15 @@ def _outcomes(raw: pd.DataFrame) -> str:
             + (f"; the others ended in: {why}." if len(fails) else "."))
 
 
+def _fix_shares(raw: pd.DataFrame) -> str:
+    """How often each source delivered a position fix (share of steps)."""
+    share = (raw["position_fixes"] / raw["steps"].clip(lower=1)).groupby(raw["source"], sort=False).mean()
+    return ("Share of steps with a position fix: " + ", ".join(f"{ex._source_label(k)} {v:.0%}" for k, v in
+                                                                share.items())
+            + ". LanBLoc fixes only while at least the scenario's minimum number of landmarks is in range and in "
+              "view, so between clusters it dead-reckons on the IMU; the emulated baselines fix at every step.")
+
+
 def _best(table: pd.DataFrame, col: str, rows=None) -> pd.Series:
     t = table if rows is None else table[rows]
     return t.loc[t[col].idxmin()]
@@ -288,7 +297,7 @@ def run_real_imitated(opts: ExperimentOptions, cache: dict) -> ExperimentResult:
     res.notes.append("The paper does not say which controller drove its Table II trials; we follow each safe path "
                      "with SafeNav-Centroid (Algorithm 2), the same path and seeds for every source and filter. "
                      "ADE and FDE here are localization errors: the estimate against the true vehicle at each step "
-                     "(Table II compares localization methods). " + _outcomes(raw))
+                     "(Table II compares localization methods). " + _outcomes(raw) + " " + _fix_shares(raw))
     if opts.camera_trials:
         _camera_variant(opts, safe, folder, res, cache, methods=("centroid",), filters=("ekf", "pf"),
                         key=["filter"], label="Table II")
