@@ -36,7 +36,8 @@ def test_every_experiment_writes_raw_summary_and_figures(run_all):
         if name != "field":
             raw = pd.read_parquet(folder / "trials.parquet")
             assert len(raw) > 0 and not raw.isna().all(axis=None)
-    for table in ("synthetic/table1", "real-imitated/table2", "real-imitated/camera_loop", "navigation/table3",
+    for table in ("synthetic/table1", "real-imitated/table2", "real-imitated/table2_placed", "real-imitated/camera_loop",
+                  "navigation/table3",
                   "navigation/table4", "navigation/camera_loop"):
         assert (out / f"{table}.csv").stat().st_size > 0
         md = (out / f"{table}.md").read_text()
@@ -75,6 +76,20 @@ def test_table2_is_the_path_average_of_per_path_localization_errors(run_all):
     assert row["FDE"] == pytest.approx(per_path["loc_fde"].mean().mean(), rel=1e-12)
     assert row["AWRS"] == pytest.approx(per_path["awrs"].mean().mean(), rel=1e-12)
     assert row["paper ms"] == ex.PAPER_TABLE2[("lanbloc", "pf")][3]
+
+
+def test_placed_landmarks_give_lanbloc_a_fix_at_almost_every_step(run_all):
+    raw = pd.read_parquet(run_all / "real-imitated" / "trials.parquet")
+    placed = pd.read_parquet(run_all / "real-imitated" / "placed_trials.parquet")
+    own = raw[raw["source"] == "lanbloc"].reset_index(drop=True)
+    assert list(placed["seed"]) == list(own["seed"])          # the same trials
+    share = lambda df: (df["position_fixes"] / df["steps"]).mean()  # noqa: E731
+    assert share(own) < 0.5 < 0.95 < share(placed)
+    t = pd.read_csv(run_all / "real-imitated" / "table2_placed.csv")
+    row = t[(t["Filter"] == "EKF") & t["Landmarks"].str.startswith("clusters + placed")].iloc[0]
+    ok = placed[(placed["filter"] == "ekf") & placed["success"]]
+    assert row["ADE"] == pytest.approx(ok.groupby("path_type")["loc_ade"].mean().mean(), rel=1e-12)
+    assert row["fix share"] == pytest.approx(share(placed[placed["filter"] == "ekf"]), rel=1e-12)
 
 
 def test_tables3_and_4_are_recomputed_from_the_raw_table(run_all):
