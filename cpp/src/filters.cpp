@@ -3,7 +3,9 @@
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
 #include <boost/math/distributions/chi_squared.hpp>
+#include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <functional>
 #include <limits>
 #include <sstream>
@@ -179,21 +181,138 @@ UpdateResult Ekf::update(const MeasurementModel& model, const Eigen::Ref<const E
 // --------------------------------------------------------------------------
 // Particle filter
 // --------------------------------------------------------------------------
+//
+// Layout: structure of arrays, one contiguous column per component (x, y, v,
+// θ, and cos θ, sin θ kept in step with θ), log-weights and weights in their
+// own arrays.  Each per-particle pass below is a branch-free loop over those
+// arrays (an always_inline "kernel") that detail::dispatch runs from a copy
+// compiled for AVX2 where the CPU has it, and from the baseline x86-64 copy
+// elsewhere.  Sums over particles accumulate in four lanes written out in the
+// source (D4), so the result, to the last bit, does not depend on which copy
+// ran.  No step allocates.
 
 namespace {
-/// One noisy BMM step (eqs. 3, 4, 6, 7/9) for N particles stored as columns.
-/// A single branch-free loop that the compiler vectorises (it needs
-/// -fno-trapping-math to if-convert the clamps).  θ moves by δ_i; (cos θ,
-/// sin θ) is rotated by δ_i with sin δ and cos δ from their Taylor series in
-/// Horner form (error < 1e-17 for |δ| ≤ 0.25; larger turns are redone exactly
-/// by the caller).  Writes δ_i to dl.
-void particles_step(int N, double* __restrict x, double* __restrict y, double* __restrict v,
-                    double* __restrict th, double* __restrict cs, double* __restrict sn, double* __restrict dl,
-                    const double* __restrict ex, const double* __restrict ey, const double* __restrict ev,
-                    const double* __restrict et, double vdes, double heading_step, double up_step,
-                    double down_step, double vmax, double k, double sv, double st, double sp) {
+
+/// 1/k for the Taylor series below, as constants: under the core's
+/// -frounding-math (from CGAL) the compiler does not fold 1.0/k itself.
+struct Reciprocals {
+  double v[133];
+  constexpr Reciprocals() : v() {
+    for (int k = 1; k < 133; ++k) v[k] = 1.0 / k;
+  }
+  constexpr double operator[](int k) const { return v[k]; }
+};
+constexpr Reciprocals kInv{};
+/// 1/k! for k = 0..13.
+struct InvFactorials {
+  double v[14];
+  constexpr InvFactorials() : v() {
+    double f = 1.0;
+    for (int k = 0; k < 14; ++k) {
+      if (k > 0) f *= k;  // exact: 13! < 2⁵³
+      v[k] = 1.0 / f;
+    }
+  }
+  constexpr double operator[](int k) const { return v[k]; }
+};
+constexpr InvFactorials kInvFactorial{};
+
+/// Four doubles (particles i..i+3) as one 32-byte vector (Bytes = 32, AVX2)
+/// or two 16-byte ones (Bytes = 16, SSE2): the same lanes and the same IEEE
+/// operations either way.  Sums over particles accumulate in a D4 (lane j
+/// takes particles j, j+4, ...) and end in sum(), a fixed order, so reductions
+/// give identical bits on both paths.
+template <int Bytes>
+struct D4;
+template <>
+struct D4<32> {
+  typedef double V __attribute__((vector_size(32)));
+  V v;
+  static D4 load(const double* p) { D4 r; std::memcpy(&r.v, p, 32); return r; }
+  static D4 splat(double a) { return {V{a, a, a, a}}; }
+  void store(double* p) const { std::memcpy(p, &v, 32); }
+  friend D4 operator+(D4 a, D4 b) { return {a.v + b.v}; }
+  friend D4 operator-(D4 a, D4 b) { return {a.v - b.v}; }
+  friend D4 operator*(D4 a, D4 b) { return {a.v * b.v}; }
+  D4& operator+=(D4 b) { v += b.v; return *this; }
+  /// a > b ? a + c : a  (and a <= b ? a + c : a), lane-wise
+  static D4 add_if_gt(D4 a, D4 b, D4 c) { return {a.v > b.v ? a.v + c.v : a.v}; }
+  static D4 add_if_le(D4 a, D4 b, D4 c) { return {a.v <= b.v ? a.v + c.v : a.v}; }
+  double sum() const { return (v[0] + v[1]) + (v[2] + v[3]); }
+};
+template <>
+struct D4<16> {
+  typedef double V __attribute__((vector_size(16)));
+  V lo, hi;
+  static D4 load(const double* p) { D4 r; std::memcpy(&r.lo, p, 16); std::memcpy(&r.hi, p + 2, 16); return r; }
+  static D4 splat(double a) { return {V{a, a}, V{a, a}}; }
+  void store(double* p) const { std::memcpy(p, &lo, 16); std::memcpy(p + 2, &hi, 16); }
+  friend D4 operator+(D4 a, D4 b) { return {a.lo + b.lo, a.hi + b.hi}; }
+  friend D4 operator-(D4 a, D4 b) { return {a.lo - b.lo, a.hi - b.hi}; }
+  friend D4 operator*(D4 a, D4 b) { return {a.lo * b.lo, a.hi * b.hi}; }
+  D4& operator+=(D4 b) { lo += b.lo; hi += b.hi; return *this; }
+  static D4 add_if_gt(D4 a, D4 b, D4 c) { return {a.lo > b.lo ? a.lo + c.lo : a.lo, a.hi > b.hi ? a.hi + c.hi : a.hi}; }
+  static D4 add_if_le(D4 a, D4 b, D4 c) { return {a.lo <= b.lo ? a.lo + c.lo : a.lo, a.hi <= b.hi ? a.hi + c.hi : a.hi}; }
+  double sum() const { return (lo[0] + lo[1]) + (hi[0] + hi[1]); }
+};
+
+/// Run body(i, loads) over particles in blocks of four.  The last, partial
+/// block is run on zero-padded copies of the K input columns whose weight
+/// column (one of them) is 0 beyond N, so that it adds exactly nothing to any
+/// weighted sum; `store` receives how many of its lanes are real.
+template <int Bytes, int K, class Body>
+SAFENAV_ALWAYS_INLINE void blocks_of_four(int N, const double* const (&cols)[K], Body&& body) {
+  using D = D4<Bytes>;
+  int i = 0;
+  for (; i + 4 <= N; i += 4) {
+    D in[K];
+    for (int c = 0; c < K; ++c) in[c] = D::load(cols[c] + i);
+    body(i, in, 4);
+  }
+  if (i < N) {
+    double pad[K][4] = {};
+    for (int c = 0; c < K; ++c)
+      for (int j = 0; i + j < N; ++j) pad[c][j] = cols[c][i + j];
+    D in[K];
+    for (int c = 0; c < K; ++c) in[c] = D::load(pad[c]);
+    body(i, in, N - i);
+  }
+}
+
+/// Store the first n lanes of a D4 at p.
+template <int Bytes>
+SAFENAV_ALWAYS_INLINE void store_lanes(const D4<Bytes>& a, double* p, int n) {
+  if (n == 4) {
+    a.store(p);
+  } else {
+    double tmp[4];
+    a.store(tmp);
+    for (int j = 0; j < n; ++j) p[j] = tmp[j];
+  }
+}
+
+/// One noisy BMM step (eqs. 3, 4, 6, 7/9, as Bmm::transition) for every
+/// particle.  θ moves by δ_i; (cos θ, sin θ) is rotated by δ_i with sin δ and
+/// cos δ from their Taylor series in Horner form (error < 1e-17 for
+/// |δ| ≤ kSmallTurn; larger turns are redone exactly by the caller, which is
+/// told how many there were).  Element-wise, so left to the auto-vectoriser;
+/// it needs -fno-trapping-math to if-convert the clamps.  (Kernels take their
+/// arrays as __restrict parameters: GCC honours restrict there, through
+/// inlining, and not on local copies.)
+struct StepParams {
+  double vdes, heading_step, up_step, down_step, vmax, k, sv, st, sp;
+};
+constexpr double kSmallTurn = 0.25;
+SAFENAV_ALWAYS_INLINE long particles_step(int N, double* __restrict x, double* __restrict y, double* __restrict v,
+                                          double* __restrict th, double* __restrict cs, double* __restrict sn,
+                                          const double* __restrict ex, const double* __restrict ey,
+                                          const double* __restrict ev, const double* __restrict et,
+                                          const StepParams* a) {
   constexpr double two_pi = 2.0 * kPi;
-    for (int i = 0; i < N; ++i) {
+  const double vdes = a->vdes, heading_step = a->heading_step, up_step = a->up_step, down_step = a->down_step,
+               vmax = a->vmax, k = a->k, sv = a->sv, st = a->st, sp = a->sp;
+  long n_big = 0;  // turns with |δ| > kSmallTurn (64-bit, like the doubles, so that the loop vectorises)
+  for (int i = 0; i < N; ++i) {
     // eq. 3 (Bmm::next_speed) + ε_v, clamped to [0, v_max]
     const double vi = v[i];
     double up = vi + up_step;
@@ -202,19 +321,19 @@ void particles_step(int N, double* __restrict x, double* __restrict y, double* _
     double down = vi - down_step;
     down = down > vdes ? down : vdes;
     down = down > 0.0 ? down : 0.0;
+    down = down < vmax ? down : vmax;
     double v1 = (vdes > vi ? up : down) + sv * ev[i];
     v1 = v1 > 0.0 ? v1 : 0.0;
     v1 = v1 < vmax ? v1 : vmax;
     v[i] = v1;
-    // eq. 4 + ε_θ: θ moves by δ; rotate (cos θ, sin θ) by δ, with sin δ and
-    // cos δ from their Taylor series in Horner form (reciprocal constants).
+    // eq. 4 + ε_θ: θ moves by δ; rotate (cos θ, sin θ) by δ.
     const double d = heading_step + st * et[i];
-    dl[i] = d;
+    n_big += (d > kSmallTurn) | (d < -kSmallTurn);
     const double d2 = d * d;
-    const double sd = d * (1 - d2 * (1.0 / 6) * (1 - d2 * (1.0 / 20) * (1 - d2 * (1.0 / 42) *
-                                  (1 - d2 * (1.0 / 72) * (1 - d2 * (1.0 / 110))))));
-    const double cd = 1 - d2 * 0.5 * (1 - d2 * (1.0 / 12) * (1 - d2 * (1.0 / 30) * (1 - d2 * (1.0 / 56) *
-                                  (1 - d2 * (1.0 / 90) * (1 - d2 * (1.0 / 132))))));
+    const double sd = d * (1 - d2 * kInv[6] * (1 - d2 * kInv[20] * (1 - d2 * kInv[42] *
+                                  (1 - d2 * kInv[72] * (1 - d2 * kInv[110])))));
+    const double cd = 1 - d2 * 0.5 * (1 - d2 * kInv[12] * (1 - d2 * kInv[30] * (1 - d2 * kInv[56] *
+                                  (1 - d2 * kInv[90] * (1 - d2 * kInv[132])))));
     const double c1 = cs[i] * cd - sn[i] * sd;
     const double s1 = sn[i] * cd + cs[i] * sd;
     const double r = 1.5 - 0.5 * (c1 * c1 + s1 * s1);  // keep (c, s) on the unit circle
@@ -229,136 +348,273 @@ void particles_step(int N, double* __restrict x, double* __restrict y, double* _
     x[i] += k * v1 * c2 + sp * ex[i];
     y[i] += k * v1 * s2 + sp * ey[i];
   }
+  return n_big;
 }
+
+/// Position update: logw_i −= ½ d_iᵀ R⁻¹ d_i with d_i = z − (x_i, y_i), and
+/// the prior-weighted moments of d for the NIS: (Σw d0, Σw d1, Σw d0²,
+/// Σw d0 d1, Σw d1²).
+struct PositionParams {
+  double z0, z1, r00, r01, r11;  // r = ½ R⁻¹ (r01 doubled: the cross term appears twice)
+};
+struct Sums5 {
+  double s[5];
+};
+template <int Bytes>
+SAFENAV_ALWAYS_INLINE Sums5 position_loglik(int N, const double* __restrict x, const double* __restrict y,
+                                            const double* __restrict w, double* __restrict logw,
+                                            const PositionParams* a) {
+  using D = D4<Bytes>;
+  const D z0 = D::splat(a->z0), z1 = D::splat(a->z1), r00 = D::splat(a->r00), r01 = D::splat(a->r01),
+          r11 = D::splat(a->r11);
+  D s0 = D::splat(0), s1 = s0, s00 = s0, s01 = s0, s11 = s0;
+  const double* const cols[4] = {x, y, w, logw};
+  blocks_of_four<Bytes>(N, cols, [&](int i, const D* in, int n) __attribute__((always_inline)) {
+    const D d0 = z0 - in[0], d1 = z1 - in[1];
+    const D w0 = in[2] * d0, w1 = in[2] * d1;
+    s0 += w0;
+    s1 += w1;
+    s00 += w0 * d0;
+    s01 += w0 * d1;
+    s11 += w1 * d1;
+    store_lanes(in[3] - (r00 * d0 * d0 + r01 * d0 * d1 + r11 * d1 * d1), logw + i, n);
+  });
+  return {{s0.sum(), s1.sum(), s00.sum(), s01.sum(), s11.sum()}};
+}
+
+/// exp(x) for x in [−700, 0], to about 1 ulp, in plain arithmetic that
+/// vectorises: x = n·ln2 + r with |r| ≤ ½ln2, exp(r) by its Taylor series to
+/// r¹³ (remainder < 5e-18), 2ⁿ put into the exponent bits.
+SAFENAV_ALWAYS_INLINE double exp_nonpositive(double x) {
+  constexpr double kInvLn2 = 1.4426950408889634, kLn2Hi = 0x1.62e42fee00000p-1, kLn2Lo = 0x1.a39ef35793c76p-33;
+  constexpr double kShift = 0x1.8p52;  // adding it rounds to an integer held in the low mantissa bits
+  const double kd = x * kInvLn2 + kShift;
+  const double n = kd - kShift;
+  const double r = (x - n * kLn2Hi) - n * kLn2Lo;  // n·kLn2Hi is exact
+  double p = kInvFactorial[13];
+  for (int k = 12; k >= 0; --k) p = p * r + kInvFactorial[k];
+  std::uint64_t bits;
+  std::memcpy(&bits, &kd, sizeof bits);
+  bits = (bits << 52) + (std::uint64_t{1023} << 52);  // 2ⁿ: n sits in the low bits of kd, n ≥ −1022
+  double scale;
+  std::memcpy(&scale, &bits, sizeof scale);
+  return p * scale;
+}
+
+/// Normalisation, first pass (element-wise): floor the log-weights at
+/// mx + floor and set w_i = exp(logw_i − mx).
+SAFENAV_ALWAYS_INLINE void exp_weights(int N, double* __restrict logw, double* __restrict w, double mx, double floor) {
+  const double lo = mx + floor;
+  for (int i = 0; i < N; ++i) {
+    double l = logw[i];
+    l = l > lo ? l : lo;
+    logw[i] = l;
+    w[i] = exp_nonpositive(l - mx);
+  }
+}
+
+/// Σ w_i.
+template <int Bytes>
+SAFENAV_ALWAYS_INLINE double sum_weights(int N, const double* __restrict w) {
+  using D = D4<Bytes>;
+  D s = D::splat(0);
+  const double* const cols[1] = {w};
+  blocks_of_four<Bytes>(N, cols, [&](int, const D* in, int) __attribute__((always_inline)) { s += in[0]; });
+  return s.sum();
+}
+
+/// Normalisation, second pass: w_i ·= 1/Σw, logw_i −= log Σ (the
+/// log-sum-exp); returns Σ w_i² (for the ESS).
+template <int Bytes>
+SAFENAV_ALWAYS_INLINE double scale_weights(int N, double* __restrict logw, double* __restrict w, double inv,
+                                           double lse) {
+  using D = D4<Bytes>;
+  const D dinv = D::splat(inv), dlse = D::splat(lse);
+  D s = D::splat(0);
+  const double* const cols[2] = {w, logw};
+  blocks_of_four<Bytes>(N, cols, [&](int i, const D* in, int n) __attribute__((always_inline)) {
+    const D wi = in[0] * dinv;  // zero in padding lanes
+    s += wi * wi;
+    store_lanes(wi, w + i, n);
+    store_lanes(in[1] - dlse, logw + i, n);
+  });
+  return s.sum();
+}
+
+/// Weighted sums for the mean: Σw x, Σw y, Σw v, Σw cos θ, Σw sin θ.
+template <int Bytes>
+SAFENAV_ALWAYS_INLINE Sums5 mean_sums(int N, const double* __restrict x, const double* __restrict y,
+                                      const double* __restrict v, const double* __restrict cs,
+                                      const double* __restrict sn, const double* __restrict w) {
+  using D = D4<Bytes>;
+  D s0 = D::splat(0), s1 = s0, s2 = s0, s3 = s0, s4 = s0;
+  const double* const cols[6] = {x, y, v, cs, sn, w};
+  blocks_of_four<Bytes>(N, cols, [&](int, const D* in, int) __attribute__((always_inline)) {
+    const D wi = in[5];
+    s0 += wi * in[0];
+    s1 += wi * in[1];
+    s2 += wi * in[2];
+    s3 += wi * in[3];
+    s4 += wi * in[4];
+  });
+  return {{s0.sum(), s1.sum(), s2.sum(), s3.sum(), s4.sum()}};
+}
+
+/// Weighted second moments Σ w_i d_i d_iᵀ about m, θ deviations wrapped (θ_i
+/// and m[3] are both in (−π, π]: one wrap suffices); the upper triangle, row
+/// by row.
+struct Sums10 {
+  double s[10];
+};
+template <int Bytes>
+SAFENAV_ALWAYS_INLINE Sums10 covariance_sums(int N, const double* __restrict x, const double* __restrict y,
+                                             const double* __restrict v, const double* __restrict th,
+                                             const double* __restrict w, const State* m) {
+  using D = D4<Bytes>;
+  const D m0 = D::splat((*m)[0]), m1 = D::splat((*m)[1]), m2 = D::splat((*m)[2]), m3 = D::splat((*m)[3]);
+  const D pi = D::splat(kPi), minus_pi = D::splat(-kPi), two_pi = D::splat(2.0 * kPi),
+          minus_two_pi = D::splat(-2.0 * kPi);
+  D a0 = D::splat(0), a1 = a0, a2 = a0, a3 = a0, a4 = a0, a5 = a0, a6 = a0, a7 = a0, a8 = a0, a9 = a0;
+  const double* const cols[5] = {x, y, v, th, w};
+  blocks_of_four<Bytes>(N, cols, [&](int, const D* in, int) __attribute__((always_inline)) {
+    D d3 = in[3] - m3;
+    d3 = D::add_if_gt(d3, pi, minus_two_pi);
+    d3 = D::add_if_le(d3, minus_pi, two_pi);
+    const D d0 = in[0] - m0, d1 = in[1] - m1, d2 = in[2] - m2;
+    const D wi = in[4];
+    const D w0 = wi * d0, w1 = wi * d1, w2 = wi * d2, w3 = wi * d3;
+    a0 += w0 * d0;
+    a1 += w0 * d1;
+    a2 += w0 * d2;
+    a3 += w0 * d3;
+    a4 += w1 * d1;
+    a5 += w1 * d2;
+    a6 += w1 * d3;
+    a7 += w2 * d2;
+    a8 += w2 * d3;
+    a9 += w3 * d3;
+  });
+  return {{a0.sum(), a1.sum(), a2.sum(), a3.sum(), a4.sum(), a5.sum(), a6.sum(), a7.sum(), a8.sum(), a9.sum()}};
+}
+
 }  // namespace
 
 struct ParticleFilter::Impl {
-  using Particles = Eigen::Matrix<double, Eigen::Dynamic, 4>;  // one particle per row; columns contiguous
+  // Columns of S: x, y, v, θ, cos θ, sin θ (each contiguous).
+  enum Column : int { kCos = 4, kSin = 5, kColumns = 6 };
+  using Columns = Eigen::Matrix<double, Eigen::Dynamic, kColumns>;
   Bmm bmm;
-  detail::Rng rng;
+  detail::BatchRng rng;
   double resample_threshold;
-  Particles X;                // (x, y, v, θ) per row
-  Eigen::ArrayXd c, s;        // cos θ, sin θ of every particle, kept in step with θ
+  Columns S, S_next;          // particles; S_next receives a resampled set
   Eigen::ArrayXd logw, w;     // log-weights and normalised weights
+  double ess = 0.0;           // 1/Σw², kept with w
   int n_resampled = 0;
   // scratch
-  Eigen::Matrix<double, Eigen::Dynamic, 4> noise;
-  Eigen::ArrayXd delta;
-  Eigen::MatrixXd Y;
-  Eigen::ArrayXd cum;
+  Eigen::Matrix<double, Eigen::Dynamic, 4> noise;  // ε_x, ε_y, ε_v, ε_θ per particle
+  std::vector<int> start;     // resampling: first pointer index of each particle
+  Eigen::MatrixXd Y;          // residuals of a general measurement model
   Eigen::VectorXd zhat, resid;
 
   Impl(const BmmParams& p, std::uint64_t seed, double thr) : bmm(p), rng(seed), resample_threshold(thr) {}
 
-  int n() const { return static_cast<int>(X.rows()); }
+  int n() const { return static_cast<int>(S.rows()); }
+  double* col(int c) { return S.col(c).data(); }
+  const double* col(int c) const { return S.col(c).data(); }
 
-  /// Normalise the log-weights.  Weights below e^−300 of the best particle's
-  /// are floored there: such particles are dead either way, and the floor keeps
-  /// exp() and w² out of subnormal numbers, which are ~100× slower.
-  void normalise() {
+  /// Normalise the log-weights (mx = their maximum).  Weights below e^−300 of
+  /// the best particle's are floored there: such particles are dead either
+  /// way, and the floor keeps exp() and w² out of subnormal numbers, which are
+  /// ~100× slower.
+  void normalise(double mx) {
     constexpr double kLogFloor = -300.0;
-    const double mx = logw.maxCoeff();
-    logw = logw.max(mx + kLogFloor);
-    w = (logw - mx).exp();
-    const double sum = w.sum();  // ≥ 1: the best particle contributes exp(0)
-    logw -= mx + std::log(sum);
-    w /= sum;
+    const int N = n();
+    detail::dispatch<exp_weights>(N, logw.data(), w.data(), mx, kLogFloor);
+    const double sum = detail::dispatch<sum_weights<32>, sum_weights<16>>(N, w.data());  // ≥ 1: exp(0) is in it
+    ess = 1.0 / detail::dispatch<scale_weights<32>, scale_weights<16>>(N, logw.data(), w.data(), 1.0 / sum,
+                                                                       mx + std::log(sum));
   }
 
+  /// Systematic resampling: pointers u_j = (j + U)/N, j = 0..N−1, one
+  /// U ~ U[0, 1); particle i gets the pointers in (C_{i−1}, C_i], C_i = Σ_{k≤i} w_k:
+  /// n_i = #{j : u_j ≤ C_i} − #{j : u_j ≤ C_{i−1}} copies, so E[n_i] = N w_i and
+  /// n_i is ⌊N w_i⌋ or ⌈N w_i⌉.  Branch-free (the old while-loop search
+  /// mispredicted about once per particle): with c_i = #{j : u_j ≤ C_i},
+  /// pointers from c_i on belong to particles after i, so start[c_i] = i + 1
+  /// (the last such i wins), and a running maximum of `start` gives every
+  /// pointer its particle.
   void resample() {
-    // Systematic resampling: one uniform offset, N evenly spaced pointers.
     const int N = n();
-    cum.resize(N);
+    const double U = rng.uniform();
+    start.assign(static_cast<std::size_t>(N) + 1, 0);
+    int* st = start.data();
+    const double* ww = w.data();
     double acc = 0.0;
-    for (int i = 0; i < N; ++i) cum[i] = (acc += w[i]);
-    cum[N - 1] = 1.0;
-    const double u0 = rng.uniform() / N;
-    Particles nX(N, 4);
-    Eigen::ArrayXd nc(N), ns(N);
-    int i = 0;
-    for (int j = 0; j < N; ++j) {
-      const double u = u0 + static_cast<double>(j) / N;
-      while (i < N - 1 && cum[i] < u) ++i;
-      nX.row(j) = X.row(i);
-      nc[j] = c[i];
-      ns[j] = s[i];
+    for (int i = 0; i < N - 1; ++i) {
+      acc += ww[i];
+      const double t = acc * N - U;  // u_j ≤ C_i  ⇔  j ≤ t
+      const int c = t < 0.0 ? 0 : std::min(static_cast<int>(t) + 1, N);
+      st[c] = i + 1;
     }
-    X.swap(nX);
-    c.swap(nc);
-    s.swap(ns);
+    for (int j = 1; j < N; ++j) st[j] = std::max(st[j], st[j - 1]);  // now the source of pointer j
+    for (int c = 0; c < kColumns; ++c) {
+      const double* __restrict from = S.col(c).data();
+      double* __restrict to = S_next.col(c).data();
+      for (int j = 0; j < N; ++j) to[j] = from[st[j]];
+    }
+    S.swap(S_next);
     logw.setConstant(-std::log(static_cast<double>(N)));
     w.setConstant(1.0 / N);
+    ess = N;
     ++n_resampled;
   }
 
   State mean() const {
-    State m = X.transpose() * w.matrix();
-    m[kTheta] = std::atan2((w * s).sum(), (w * c).sum());  // circular mean
-    return m;
+    const Sums5 s = detail::dispatch<mean_sums<32>, mean_sums<16>>(n(), col(kX), col(kY), col(kV), col(kCos),
+                                                                    col(kSin), w.data());
+    return State(s.s[0], s.s[1], s.s[2], std::atan2(s.s[4], s.s[3]));  // circular mean for θ
   }
 
   /// Weighted covariance Σ w_i d_i d_iᵀ about m, θ deviations wrapped.
   StateCov covariance(const State& m) const {
-    const double* x = X.col(kX).data();
-    const double* y = X.col(kY).data();
-    const double* v = X.col(kV).data();
-    const double* th = X.col(kTheta).data();
-    double a0 = 0, a1 = 0, a2 = 0, a3 = 0, a4 = 0, a5 = 0, a6 = 0, a7 = 0, a8 = 0, a9 = 0;
-    constexpr double two_pi = 2.0 * kPi;
-    const double m0 = m[0], m1 = m[1], m2 = m[2], m3 = m[3];
-    const double* ww = w.data();
-    const int N = n();
-    // SIMD reduction (-fopenmp-simd): a fixed summation order for a given build.
-#pragma omp simd reduction(+ : a0, a1, a2, a3, a4, a5, a6, a7, a8, a9)
-    for (int i = 0; i < N; ++i) {
-      double d3 = th[i] - m3;  // both in (−π, π]: one wrap suffices
-      d3 = d3 > kPi ? d3 - two_pi : d3;
-      d3 = d3 <= -kPi ? d3 + two_pi : d3;
-      const double d0 = x[i] - m0, d1 = y[i] - m1, d2 = v[i] - m2;
-      const double wi = ww[i];
-      const double w0 = wi * d0, w1 = wi * d1, w2 = wi * d2, w3 = wi * d3;
-      a0 += w0 * d0; a1 += w0 * d1; a2 += w0 * d2; a3 += w0 * d3;
-      a4 += w1 * d1; a5 += w1 * d2; a6 += w1 * d3;
-      a7 += w2 * d2; a8 += w2 * d3;
-      a9 += w3 * d3;
-    }
+    const Sums10 t = detail::dispatch<covariance_sums<32>, covariance_sums<16>>(n(), col(kX), col(kY), col(kV),
+                                                                                col(kTheta), w.data(), &m);
+    const double* s = t.s;
     StateCov P;
-    P << a0, a1, a2, a3,
-         a1, a4, a5, a6,
-         a2, a5, a7, a8,
-         a3, a6, a8, a9;
+    P << s[0], s[1], s[2], s[3],
+         s[1], s[4], s[5], s[6],
+         s[2], s[5], s[7], s[8],
+         s[3], s[6], s[8], s[9];
     return P;
   }
 
   /// Noisy BMM for every particle (eqs. 6–9, the body of Bmm::transition).
   /// θ moves by a small δ_i per step, so cos/sin of the new heading come from
-  /// rotating the cached (cos θ, sin θ) by δ_i, with sin δ and cos δ from their
-  /// Taylor series (error < 1e-17 for |δ| ≤ kSmallTurn); larger turns use
-  /// std::cos/std::sin.  This keeps the loop free of libm calls.
+  /// rotating the cached (cos θ, sin θ) by δ_i (particles_step); turns larger
+  /// than kSmallTurn are redone with std::cos/std::sin.
   void predict(double desired_speed, double heading_step) {
-    constexpr double kSmallTurn = 0.25;
     const auto& p = bmm.params();
     const int N = n();
     const double k = p.terrain_factor() * p.dt;
-    noise.resize(N, 4);
     rng.fill_normal(noise.data(), 4L * N);
-    delta.resize(N);
-    double* __restrict x = X.col(kX).data();
-    double* __restrict y = X.col(kY).data();
-    double* __restrict v = X.col(kV).data();
-    double* __restrict th = X.col(kTheta).data();
-    double* __restrict cs = c.data();
-    double* __restrict sn = s.data();
-    double* __restrict dl = delta.data();
-    const double* __restrict ex = noise.col(0).data();
-    const double* __restrict ey = noise.col(1).data();
-    const double* __restrict ev = noise.col(2).data();
-    const double* __restrict et = noise.col(3).data();
-    particles_step(N, x, y, v, th, cs, sn, dl, ex, ey, ev, et, desired_speed, heading_step, p.acceleration * p.dt,
-                   p.deceleration * p.dt, p.max_speed, k, p.speed_noise, p.heading_noise, p.position_noise);
-    if (delta.abs().maxCoeff() > kSmallTurn) {  // rare: large turns get exact trigonometry
+    double* x = col(kX);
+    double* y = col(kY);
+    double* v = col(kV);
+    double* th = col(kTheta);
+    double* cs = col(kCos);
+    double* sn = col(kSin);
+    const double* ex = noise.col(0).data();
+    const double* ey = noise.col(1).data();
+    const double* ev = noise.col(2).data();
+    const double* et = noise.col(3).data();
+    const StepParams a{desired_speed, heading_step, p.acceleration * p.dt, p.deceleration * p.dt,
+                       p.max_speed,   k,            p.speed_noise,         p.heading_noise,
+                       p.position_noise};
+    const long n_big = detail::dispatch<particles_step>(N, x, y, v, th, cs, sn, ex, ey, ev, et, &a);
+    if (n_big > 0) {  // rare: large turns get exact trigonometry
       for (int i = 0; i < N; ++i) {
-        if (std::abs(dl[i]) > kSmallTurn) {
+        const double d = heading_step + p.heading_noise * et[i];  // as in particles_step
+        if (d > kSmallTurn || d < -kSmallTurn) {
           th[i] = wrap_angle(th[i]);
           const double ce = std::cos(th[i]), se = std::sin(th[i]);
           x[i] += k * v[i] * (ce - cs[i]);
@@ -384,22 +640,24 @@ ParticleFilter::ParticleFilter(const BmmParams& params, const State& x0, const S
   check_prior(x0, P0);
   impl_ = std::make_unique<Impl>(params, seed, resample_threshold);
   auto& I = *impl_;
+  const int N = n_particles;
   const Eigen::Matrix4d L = P0.llt().matrixL();
-  I.X.resize(n_particles, 4);
-  I.c.resize(n_particles);
-  I.s.resize(n_particles);
-  for (int i = 0; i < n_particles; ++i) {
-    Eigen::Vector4d n;
-    for (int k = 0; k < 4; ++k) n[k] = I.rng.normal();
-    State p = x0 + L * n;
+  I.S.resize(N, Impl::kColumns);
+  I.S_next.resize(N, Impl::kColumns);
+  I.noise.resize(N, 4);
+  I.start.reserve(static_cast<std::size_t>(N) + 1);
+  I.rng.fill_normal(I.noise.data(), 4L * N);  // particle i: row i
+  for (int i = 0; i < N; ++i) {
+    State p = x0 + L * I.noise.row(i).transpose();
     p[kV] = std::max(0.0, p[kV]);
     p[kTheta] = wrap_angle(p[kTheta]);
-    I.X.row(i) = p.transpose();
-    I.c[i] = std::cos(p[kTheta]);
-    I.s[i] = std::sin(p[kTheta]);
+    I.S.row(i).head<4>() = p.transpose();
+    I.S(i, Impl::kCos) = std::cos(p[kTheta]);
+    I.S(i, Impl::kSin) = std::sin(p[kTheta]);
   }
-  I.logw = Eigen::ArrayXd::Constant(n_particles, -std::log(static_cast<double>(n_particles)));
-  I.w = Eigen::ArrayXd::Constant(n_particles, 1.0 / n_particles);
+  I.logw = Eigen::ArrayXd::Constant(N, -std::log(static_cast<double>(N)));
+  I.w = Eigen::ArrayXd::Constant(N, 1.0 / N);
+  I.ess = N;
 }
 
 ParticleFilter::~ParticleFilter() = default;
@@ -407,7 +665,7 @@ ParticleFilter::ParticleFilter(ParticleFilter&&) noexcept = default;
 ParticleFilter& ParticleFilter::operator=(ParticleFilter&&) noexcept = default;
 
 int ParticleFilter::size() const { return impl_->n(); }
-double ParticleFilter::ess() const { return 1.0 / impl_->w.square().sum(); }
+double ParticleFilter::ess() const { return impl_->ess; }
 int ParticleFilter::resample_count() const { return impl_->n_resampled; }
 State ParticleFilter::mean() const { return impl_->mean(); }
 StateCov ParticleFilter::covariance() const { return impl_->covariance(impl_->mean()); }
@@ -415,7 +673,7 @@ StateCov ParticleFilter::covariance(const State& about) const { return impl_->co
 Eigen::VectorXd ParticleFilter::weights() const { return impl_->w.matrix(); }
 
 Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor> ParticleFilter::particles() const {
-  return impl_->X;
+  return impl_->S.leftCols<4>();
 }
 
 void ParticleFilter::predict(const Control& u) {
@@ -438,22 +696,14 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
   if (model.kind() == MeasurementKind::Position) {
     // Fast path: 2-D residuals, log-likelihood and NIS moments in one pass.
     const Eigen::Matrix2d Ri = R.inverse();
-    const double* x = I.X.col(kX).data();
-    const double* y = I.X.col(kY).data();
-    const double* w = I.w.data();
-    double* logw = I.logw.data();
-    const double z0 = z[0], z1 = z[1], r00 = 0.5 * Ri(0, 0), r01 = Ri(0, 1), r11 = 0.5 * Ri(1, 1);
-    double s0 = 0, s1 = 0, s00 = 0, s01 = 0, s11 = 0;
-#pragma omp simd reduction(+ : s0, s1, s00, s01, s11)
-    for (int i = 0; i < N; ++i) {
-      const double d0 = z0 - x[i], d1 = z1 - y[i], wi = w[i];
-      s0 += wi * d0; s1 += wi * d1;
-      s00 += wi * d0 * d0; s01 += wi * d0 * d1; s11 += wi * d1 * d1;
-      logw[i] -= r00 * d0 * d0 + r01 * d0 * d1 + r11 * d1 * d1;
-    }
+    const PositionParams a{z[0], z[1], 0.5 * Ri(0, 0), Ri(0, 1), 0.5 * Ri(1, 1)};
+    const Sums5 t = detail::dispatch<position_loglik<32>, position_loglik<16>>(N, I.col(kX), I.col(kY), I.w.data(),
+                                                                               I.logw.data(), &a);
+    const double* ps = t.s;
+    const double s0 = ps[0], s1 = ps[1];
     const Eigen::Vector2d ybar(s0, s1);
     Eigen::Matrix2d S;
-    S << s00 - s0 * s0, s01 - s0 * s1, s01 - s0 * s1, s11 - s1 * s1;
+    S << ps[2] - s0 * s0, ps[3] - s0 * s1, ps[3] - s0 * s1, ps[4] - s1 * s1;
     S += R;
     res.nis = ybar.dot(S.ldlt().solve(ybar));
   } else {
@@ -462,7 +712,7 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
     I.zhat.resize(m);
     I.resid.resize(m);
     for (int i = 0; i < N; ++i) {
-      model.predict(I.X.row(i).transpose(), I.zhat);
+      model.predict(I.S.row(i).head<4>().transpose(), I.zhat);
       model.residual(z, I.zhat, I.resid);
       I.Y.col(i) = I.resid;
     }
@@ -475,8 +725,8 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
     Eigen::LLT<Eigen::MatrixXd>(R).matrixL().solveInPlace(I.Y);
     I.logw -= 0.5 * I.Y.colwise().squaredNorm().transpose().array();
   }
-  I.normalise();
-  if (ess() < I.resample_threshold * N) I.resample();
+  I.normalise(I.logw.maxCoeff());  // the maximum is exact in any order
+  if (I.ess < I.resample_threshold * N) I.resample();
   return res;
 }
 
