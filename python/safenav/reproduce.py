@@ -266,17 +266,22 @@ def _localization_claims(table: pd.DataFrame, name: str, *, paper: dict) -> list
         holds = all(e < p for _, e, p in pairs)
         claims.append(Claim(f"{name}: the EKF has a lower ADE than the PF for every method", holds,
                             "; ".join(f"{a}: EKF {e:.3g} vs PF {p:.3g}" for a, e, p in pairs)))
-    fastest = _best(t[ekf], "time ms")
-    claims.append(Claim(f"{name}: LanBLoc-BMM(EKF) has the lowest runtime", bool(fastest["Algorithm"] == "LanBLoc-BMM"),
-                        f"LanBLoc-BMM(EKF) {lrow['time ms']:.3g} ms; fastest EKF row: {fastest['Algorithm']} "
-                        f"{fastest['time ms']:.3g} ms (differences of microseconds are timing noise)"))
-    pf = t[t["Filter"] == "PF"]
-    if len(pf):
-        paper_pf = [v[3] for k, v in paper.items() if k[1] == "pf"]
-        claims.append(Claim(f"{name}: a PF trial takes {min(paper_pf) / 1e3:.3g}-{max(paper_pf) / 1e3:.3g} s "
-                            "(the paper's PF times)", bool(pf["time ms"].max() >= 0.5 * min(paper_pf)),
-                            f"ours: {pf['time ms'].min():.3g}-{pf['time ms'].max():.3g} ms per trial, "
-                            f"{min(paper_pf) / pf['time ms'].max():.0f}× faster or more"))
+    times = t[ekf]["time ms"]
+    claims.append(Claim(f"{name}: LanBLoc-BMM(EKF) has the lowest runtime", None,
+                        f"ours: the EKF rows take {times.min():.3g}-{times.max():.3g} ms per trial; every source runs "
+                        "the same filter here and the emulated sources have no pipeline of their own to time, so "
+                        "runtimes do not separate the methods"))
+    pairs = [(g[g["Filter"] == "EKF"]["time ms"].iloc[0], g[g["Filter"] == "PF"]["time ms"].iloc[0], alg)
+             for alg, g in t.groupby("Algorithm", sort=False) if set(g["Filter"]) >= {"EKF", "PF"}]
+    if pairs:
+        paper_ratio = np.median([paper[(s, "pf")][3] / paper[(s, "ekf")][3] for s in ex.PAPER_SOURCES])
+        ours_ratio = np.median([p / e for e, p, _ in pairs])
+        paper_pf = min(v[3] for k, v in paper.items() if k[1] == "pf")
+        ours_pf = max(p for _, p, _ in pairs)
+        claims.append(Claim(f"{name}: the PF costs orders of magnitude more than the EKF (paper: "
+                            f"{paper_ratio:.0f}× per trial)", bool(ours_ratio >= 10),
+                            f"ours: {ours_ratio:.0f}× (median over methods); our slowest PF trial median, "
+                            f"{ours_pf:.3g} ms, is {paper_pf / ours_pf:.0f}× faster than the paper's fastest PF row"))
     return claims
 
 
@@ -500,8 +505,9 @@ def _navigation_claims(pe: pd.DataFrame, nt: pd.DataFrame) -> list:
         for col, factor in (("ADE", 1.67), ("FDE", 3.30)):
             r = avg.loc[ch, col] / avg.loc[ce, col]
             claims.append(Claim(f"Table IV: SafeNav-Centroid's {col} is {factor}× lower than SafeNav-CHull's",
-                                bool(r > 1), f"ours: {r:.2f}× lower ({avg.loc[ce, col]:.3g} m vs "
-                                             f"{avg.loc[ch, col]:.3g} m); the direction holds if > 1"))
+                                bool(r > 1.05), f"ours: {r:.2f}× lower ({avg.loc[ce, col]:.3g} m vs "
+                                                f"{avg.loc[ch, col]:.3g} m); we count the claim as holding when "
+                                                "Centroid is lower by more than 5 %"))
         claims.append(Claim("Table IV: SafeNav-Centroid has a lower AWRS than SafeNav-CHull", bool(
             avg.loc[ce, "AWRS"] < avg.loc[ch, "AWRS"]), f"ours: {avg.loc[ce, 'AWRS']:.3g} vs {avg.loc[ch, 'AWRS']:.3g}"))
         claims.append(Claim("Table IV: SafeNav-Centroid's FDE is lower than its ADE (it stops precisely at the "
