@@ -8,6 +8,7 @@
 #include <cstring>
 #include <functional>
 #include <limits>
+#include <new>
 #include <sstream>
 #include <stdexcept>
 
@@ -193,29 +194,21 @@ UpdateResult Ekf::update(const MeasurementModel& model, const Eigen::Ref<const E
 
 namespace {
 
-/// 1/k for the Taylor series below, as constants: under the core's
-/// -frounding-math (from CGAL) the compiler does not fold 1.0/k itself.
-struct Reciprocals {
-  double v[133];
-  constexpr Reciprocals() : v() {
-    for (int k = 1; k < 133; ++k) v[k] = 1.0 / k;
-  }
-  constexpr double operator[](int k) const { return v[k]; }
-};
-constexpr Reciprocals kInv{};
-/// 1/k! for k = 0..13.
-struct InvFactorials {
+/// Taylor coefficients as constants (the core's -frounding-math, from CGAL,
+/// stops the compiler folding 1.0/k! itself): 1/k! for exp, and
+/// (−1)^k/(2k+1)!, (−1)^k/(2k)! for sin and cos in powers of x².
+struct Coefficients {
   double v[14];
-  constexpr InvFactorials() : v() {
-    double f = 1.0;
+  constexpr Coefficients(int first, int step, bool alternate) : v() {
     for (int k = 0; k < 14; ++k) {
-      if (k > 0) f *= k;  // exact: 13! < 2⁵³
-      v[k] = 1.0 / f;
+      double f = 1.0;
+      for (int j = 2; j <= first + step * k; ++j) f *= j;  // exact up to 18! (< 2⁵³); 13! is the most used
+      v[k] = (alternate && k % 2 ? -1.0 : 1.0) / f;
     }
   }
   constexpr double operator[](int k) const { return v[k]; }
 };
-constexpr InvFactorials kInvFactorial{};
+constexpr Coefficients kInvFactorial(0, 1, false), kSin(1, 2, true), kCos(0, 2, true);
 
 /// Four doubles (particles i..i+3) as one 32-byte vector (Bytes = 32, AVX2)
 /// or two 16-byte ones (Bytes = 16, SSE2): the same lanes and the same IEEE
@@ -329,11 +322,11 @@ SAFENAV_ALWAYS_INLINE long particles_step(int N, double* __restrict x, double* _
     // eq. 4 + ε_θ: θ moves by δ; rotate (cos θ, sin θ) by δ.
     const double d = heading_step + st * et[i];
     n_big += (d > kSmallTurn) | (d < -kSmallTurn);
-    const double d2 = d * d;
-    const double sd = d * (1 - d2 * kInv[6] * (1 - d2 * kInv[20] * (1 - d2 * kInv[42] *
-                                  (1 - d2 * kInv[72] * (1 - d2 * kInv[110])))));
-    const double cd = 1 - d2 * 0.5 * (1 - d2 * kInv[12] * (1 - d2 * kInv[30] * (1 - d2 * kInv[56] *
-                                  (1 - d2 * kInv[90] * (1 - d2 * kInv[132])))));
+    // sin δ = δ Σ_k s_k u^k, cos δ = Σ_k c_k u^k (u = δ²) in Estrin's form: a
+    // short dependency chain, which is what bounds this loop
+    const double u = d * d, u2 = u * u, u4 = u2 * u2;
+    const double sd = d * (((1 + kSin[1] * u) + (kSin[2] + kSin[3] * u) * u2) + (kSin[4] + kSin[5] * u) * u4);
+    const double cd = ((1 + kCos[1] * u) + (kCos[2] + kCos[3] * u) * u2) + ((kCos[4] + kCos[5] * u) + kCos[6] * u2) * u4;
     const double c1 = cs[i] * cd - sn[i] * sd;
     const double s1 = sn[i] * cd + cs[i] * sd;
     const double r = 1.5 - 0.5 * (c1 * c1 + s1 * s1);  // keep (c, s) on the unit circle
@@ -382,17 +375,22 @@ SAFENAV_ALWAYS_INLINE Sums5 position_loglik(int N, const double* __restrict x, c
   return {{s0.sum(), s1.sum(), s00.sum(), s01.sum(), s11.sum()}};
 }
 
-/// exp(x) for x in [−700, 0], to about 1 ulp, in plain arithmetic that
-/// vectorises: x = n·ln2 + r with |r| ≤ ½ln2, exp(r) by its Taylor series to
-/// r¹³ (remainder < 5e-18), 2ⁿ put into the exponent bits.
+/// exp(x) for x in [−700, 0], within 2 ulp (exp(0) = 1 exactly), in plain
+/// arithmetic that vectorises: x = n·ln2 + r with |r| ≤ ½ln2, exp(r) by its
+/// Taylor series to r¹³ (remainder < 5e-18), 2ⁿ put into the exponent bits.
 SAFENAV_ALWAYS_INLINE double exp_nonpositive(double x) {
   constexpr double kInvLn2 = 1.4426950408889634, kLn2Hi = 0x1.62e42fee00000p-1, kLn2Lo = 0x1.a39ef35793c76p-33;
   constexpr double kShift = 0x1.8p52;  // adding it rounds to an integer held in the low mantissa bits
   const double kd = x * kInvLn2 + kShift;
   const double n = kd - kShift;
   const double r = (x - n * kLn2Hi) - n * kLn2Lo;  // n·kLn2Hi is exact
-  double p = kInvFactorial[13];
-  for (int k = 12; k >= 0; --k) p = p * r + kInvFactorial[k];
+  // Estrin's scheme: a short dependency chain (Horner's 13 steps made this
+  // loop latency-bound)
+  const auto& c = kInvFactorial;
+  const double r2 = r * r, r4 = r2 * r2, r8 = r4 * r4;
+  const double q0 = c[0] + c[1] * r, q1 = c[2] + c[3] * r, q2 = c[4] + c[5] * r, q3 = c[6] + c[7] * r,
+               q4 = c[8] + c[9] * r, q5 = c[10] + c[11] * r, q6 = c[12] + c[13] * r;
+  const double p = ((q0 + q1 * r2) + (q2 + q3 * r2) * r4) + ((q4 + q5 * r2) + q6 * r4) * r8;
   std::uint64_t bits;
   std::memcpy(&bits, &kd, sizeof bits);
   bits = (bits << 52) + (std::uint64_t{1023} << 52);  // 2ⁿ: n sits in the low bits of kd, n ≥ −1022
@@ -497,30 +495,100 @@ SAFENAV_ALWAYS_INLINE Sums10 covariance_sums(int N, const double* __restrict x, 
   return {{a0.sum(), a1.sum(), a2.sum(), a3.sum(), a4.sum(), a5.sum(), a6.sum(), a7.sum(), a8.sum(), a9.sum()}};
 }
 
+/// Resampling copy: pointer j takes particle src_j = max(start_0..start_j)
+/// (see ParticleFilter::Impl::resample); all six columns of a particle are
+/// copied together, which keeps the loop at the stores' pace.
+inline void copy_selected(int N, const int* __restrict start, const double* __restrict f0,
+                          const double* __restrict f1, const double* __restrict f2, const double* __restrict f3,
+                          const double* __restrict f4, const double* __restrict f5, double* __restrict t0,
+                          double* __restrict t1, double* __restrict t2, double* __restrict t3, double* __restrict t4,
+                          double* __restrict t5) {
+  int src = 0;
+  for (int j = 0; j < N; ++j) {
+    src = std::max(src, start[j]);
+    t0[j] = f0[src];
+    t1[j] = f1[src];
+    t2[j] = f2[src];
+    t3[j] = f3[src];
+    t4[j] = f4[src];
+    t5[j] = f5[src];
+  }
+}
+
 }  // namespace
 
+/// Columns of doubles for the particle filter, each starting on a 64-byte
+/// boundary (the column stride is padded to 8 doubles): vector loads then
+/// never split a cache line, whichever allocator the host process uses.
+class Columns {
+ public:
+  void resize(int rows, int cols) {
+    stride_ = (rows + 7) / 8 * 8;
+    data_.assign(static_cast<std::size_t>(stride_) * cols, 0.0);
+  }
+  int stride() const { return stride_; }
+  double* col(int c) { return data_.data() + static_cast<std::ptrdiff_t>(c) * stride_; }
+  const double* col(int c) const { return data_.data() + static_cast<std::ptrdiff_t>(c) * stride_; }
+  void swap(Columns& o) noexcept {
+    data_.swap(o.data_);
+    std::swap(stride_, o.stride_);
+  }
+
+ private:
+  template <class T>
+  struct Allocator {
+    using value_type = T;
+    Allocator() = default;
+    template <class U>
+    Allocator(const Allocator<U>&) noexcept {}
+    T* allocate(std::size_t n) { return static_cast<T*>(::operator new(n * sizeof(T), std::align_val_t{64})); }
+    void deallocate(T* p, std::size_t) noexcept { ::operator delete(p, std::align_val_t{64}); }
+    friend bool operator==(const Allocator&, const Allocator&) { return true; }
+    friend bool operator!=(const Allocator&, const Allocator&) { return false; }
+  };
+  std::vector<double, Allocator<double>> data_;
+  int stride_ = 0;
+};
+
 struct ParticleFilter::Impl {
-  // Columns of S: x, y, v, θ, cos θ, sin θ (each contiguous).
-  enum Column : int { kCos = 4, kSin = 5, kColumns = 6 };
-  using Columns = Eigen::Matrix<double, Eigen::Dynamic, kColumns>;
+  // Particle columns: x, y, v, θ, cos θ, sin θ; weight columns: log w, w.
+  enum Column : int { kCos = 4, kSin = 5, kParticleColumns = 6 };
+  enum WeightColumn : int { kLogW = 0, kW = 1 };
   Bmm bmm;
   detail::BatchRng rng;
   double resample_threshold;
+  int N = 0;
   Columns S, S_next;          // particles; S_next receives a resampled set
-  Eigen::ArrayXd logw, w;     // log-weights and normalised weights
+  Columns W;                  // log-weights and normalised weights
   double ess = 0.0;           // 1/Σw², kept with w
   int n_resampled = 0;
   // scratch
-  Eigen::Matrix<double, Eigen::Dynamic, 4> noise;  // ε_x, ε_y, ε_v, ε_θ per particle
-  std::vector<int> start;     // resampling: first pointer index of each particle
+  Columns noise;              // ε_x, ε_y, ε_v, ε_θ of every particle
+  std::vector<int> start;     // resampling: the particle of each pointer
   Eigen::MatrixXd Y;          // residuals of a general measurement model
   Eigen::VectorXd zhat, resid;
 
-  Impl(const BmmParams& p, std::uint64_t seed, double thr) : bmm(p), rng(seed), resample_threshold(thr) {}
+  Impl(const BmmParams& p, std::uint64_t seed, double thr, int n)
+      : bmm(p), rng(seed), resample_threshold(thr), N(n) {
+    S.resize(N, kParticleColumns);
+    S_next.resize(N, kParticleColumns);
+    W.resize(N, 2);
+    noise.resize(N, 4);
+    start.resize(static_cast<std::size_t>(N) + 1);
+  }
 
-  int n() const { return static_cast<int>(S.rows()); }
-  double* col(int c) { return S.col(c).data(); }
-  const double* col(int c) const { return S.col(c).data(); }
+  int n() const { return N; }
+  double* col(int c) { return S.col(c); }
+  const double* col(int c) const { return S.col(c); }
+  double* logw() { return W.col(kLogW); }
+  double* w() { return W.col(kW); }
+  const double* w() const { return W.col(kW); }
+  State particle(int i) const { return State(S.col(kX)[i], S.col(kY)[i], S.col(kV)[i], S.col(kTheta)[i]); }
+  void reset_weights() {
+    std::fill_n(logw(), N, -std::log(static_cast<double>(N)));
+    std::fill_n(w(), N, 1.0 / N);
+    ess = N;
+  }
 
   /// Normalise the log-weights (mx = their maximum).  Weights below e^−300 of
   /// the best particle's are floored there: such particles are dead either
@@ -528,11 +596,9 @@ struct ParticleFilter::Impl {
   /// ~100× slower.
   void normalise(double mx) {
     constexpr double kLogFloor = -300.0;
-    const int N = n();
-    detail::dispatch<exp_weights>(N, logw.data(), w.data(), mx, kLogFloor);
-    const double sum = detail::dispatch<sum_weights<32>, sum_weights<16>>(N, w.data());  // ≥ 1: exp(0) is in it
-    ess = 1.0 / detail::dispatch<scale_weights<32>, scale_weights<16>>(N, logw.data(), w.data(), 1.0 / sum,
-                                                                       mx + std::log(sum));
+    detail::dispatch<exp_weights>(N, logw(), w(), mx, kLogFloor);
+    const double sum = detail::dispatch<sum_weights<32>, sum_weights<16>>(N, w());  // ≥ 1: exp(0) is in it
+    ess = 1.0 / detail::dispatch<scale_weights<32>, scale_weights<16>>(N, logw(), w(), 1.0 / sum, mx + std::log(sum));
   }
 
   /// Systematic resampling: pointers u_j = (j + U)/N, j = 0..N−1, one
@@ -544,11 +610,10 @@ struct ParticleFilter::Impl {
   /// (the last such i wins), and a running maximum of `start` gives every
   /// pointer its particle.
   void resample() {
-    const int N = n();
     const double U = rng.uniform();
-    start.assign(static_cast<std::size_t>(N) + 1, 0);
+    std::fill(start.begin(), start.end(), 0);
     int* st = start.data();
-    const double* ww = w.data();
+    const double* ww = w();
     double acc = 0.0;
     for (int i = 0; i < N - 1; ++i) {
       acc += ww[i];
@@ -556,29 +621,24 @@ struct ParticleFilter::Impl {
       const int c = t < 0.0 ? 0 : std::min(static_cast<int>(t) + 1, N);
       st[c] = i + 1;
     }
-    for (int j = 1; j < N; ++j) st[j] = std::max(st[j], st[j - 1]);  // now the source of pointer j
-    for (int c = 0; c < kColumns; ++c) {
-      const double* __restrict from = S.col(c).data();
-      double* __restrict to = S_next.col(c).data();
-      for (int j = 0; j < N; ++j) to[j] = from[st[j]];
-    }
+    static_assert(kParticleColumns == 6, "one copy per column below");
+    copy_selected(N, st, S.col(0), S.col(1), S.col(2), S.col(3), S.col(4), S.col(5), S_next.col(0), S_next.col(1),
+                  S_next.col(2), S_next.col(3), S_next.col(4), S_next.col(5));
     S.swap(S_next);
-    logw.setConstant(-std::log(static_cast<double>(N)));
-    w.setConstant(1.0 / N);
-    ess = N;
+    reset_weights();
     ++n_resampled;
   }
 
   State mean() const {
-    const Sums5 s = detail::dispatch<mean_sums<32>, mean_sums<16>>(n(), col(kX), col(kY), col(kV), col(kCos),
-                                                                    col(kSin), w.data());
+    const Sums5 s = detail::dispatch<mean_sums<32>, mean_sums<16>>(N, col(kX), col(kY), col(kV), col(kCos),
+                                                                    col(kSin), w());
     return State(s.s[0], s.s[1], s.s[2], std::atan2(s.s[4], s.s[3]));  // circular mean for θ
   }
 
   /// Weighted covariance Σ w_i d_i d_iᵀ about m, θ deviations wrapped.
   StateCov covariance(const State& m) const {
-    const Sums10 t = detail::dispatch<covariance_sums<32>, covariance_sums<16>>(n(), col(kX), col(kY), col(kV),
-                                                                                col(kTheta), w.data(), &m);
+    const Sums10 t = detail::dispatch<covariance_sums<32>, covariance_sums<16>>(N, col(kX), col(kY), col(kV),
+                                                                                col(kTheta), w(), &m);
     const double* s = t.s;
     StateCov P;
     P << s[0], s[1], s[2], s[3],
@@ -594,19 +654,18 @@ struct ParticleFilter::Impl {
   /// than kSmallTurn are redone with std::cos/std::sin.
   void predict(double desired_speed, double heading_step) {
     const auto& p = bmm.params();
-    const int N = n();
     const double k = p.terrain_factor() * p.dt;
-    rng.fill_normal(noise.data(), 4L * N);
+    rng.fill_normal(noise.col(0), 4L * noise.stride());  // all four columns (and their padding)
     double* x = col(kX);
     double* y = col(kY);
     double* v = col(kV);
     double* th = col(kTheta);
     double* cs = col(kCos);
     double* sn = col(kSin);
-    const double* ex = noise.col(0).data();
-    const double* ey = noise.col(1).data();
-    const double* ev = noise.col(2).data();
-    const double* et = noise.col(3).data();
+    const double* ex = noise.col(0);
+    const double* ey = noise.col(1);
+    const double* ev = noise.col(2);
+    const double* et = noise.col(3);
     const StepParams a{desired_speed, heading_step, p.acceleration * p.dt, p.deceleration * p.dt,
                        p.max_speed,   k,            p.speed_noise,         p.heading_noise,
                        p.position_noise};
@@ -638,26 +697,21 @@ ParticleFilter::ParticleFilter(const BmmParams& params, const State& x0, const S
     throw std::invalid_argument(os.str());
   }
   check_prior(x0, P0);
-  impl_ = std::make_unique<Impl>(params, seed, resample_threshold);
+  impl_ = std::make_unique<Impl>(params, seed, resample_threshold, n_particles);
   auto& I = *impl_;
   const int N = n_particles;
   const Eigen::Matrix4d L = P0.llt().matrixL();
-  I.S.resize(N, Impl::kColumns);
-  I.S_next.resize(N, Impl::kColumns);
-  I.noise.resize(N, 4);
-  I.start.reserve(static_cast<std::size_t>(N) + 1);
-  I.rng.fill_normal(I.noise.data(), 4L * N);  // particle i: row i
+  I.rng.fill_normal(I.noise.col(0), 4L * I.noise.stride());
   for (int i = 0; i < N; ++i) {
-    State p = x0 + L * I.noise.row(i).transpose();
+    const Eigen::Vector4d e(I.noise.col(0)[i], I.noise.col(1)[i], I.noise.col(2)[i], I.noise.col(3)[i]);
+    State p = x0 + L * e;
     p[kV] = std::max(0.0, p[kV]);
     p[kTheta] = wrap_angle(p[kTheta]);
-    I.S.row(i).head<4>() = p.transpose();
-    I.S(i, Impl::kCos) = std::cos(p[kTheta]);
-    I.S(i, Impl::kSin) = std::sin(p[kTheta]);
+    for (int c = 0; c < 4; ++c) I.col(c)[i] = p[c];
+    I.col(Impl::kCos)[i] = std::cos(p[kTheta]);
+    I.col(Impl::kSin)[i] = std::sin(p[kTheta]);
   }
-  I.logw = Eigen::ArrayXd::Constant(N, -std::log(static_cast<double>(N)));
-  I.w = Eigen::ArrayXd::Constant(N, 1.0 / N);
-  I.ess = N;
+  I.reset_weights();
 }
 
 ParticleFilter::~ParticleFilter() = default;
@@ -670,10 +724,13 @@ int ParticleFilter::resample_count() const { return impl_->n_resampled; }
 State ParticleFilter::mean() const { return impl_->mean(); }
 StateCov ParticleFilter::covariance() const { return impl_->covariance(impl_->mean()); }
 StateCov ParticleFilter::covariance(const State& about) const { return impl_->covariance(about); }
-Eigen::VectorXd ParticleFilter::weights() const { return impl_->w.matrix(); }
+Eigen::VectorXd ParticleFilter::weights() const { return Eigen::Map<const Eigen::VectorXd>(impl_->w(), size()); }
 
 Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor> ParticleFilter::particles() const {
-  return impl_->S.leftCols<4>();
+  const auto& I = *impl_;
+  Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor> X(I.N, 4);
+  for (int c = 0; c < 4; ++c) X.col(c) = Eigen::Map<const Eigen::VectorXd>(I.col(c), I.N);
+  return X;
 }
 
 void ParticleFilter::predict(const Control& u) {
@@ -697,8 +754,8 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
     // Fast path: 2-D residuals, log-likelihood and NIS moments in one pass.
     const Eigen::Matrix2d Ri = R.inverse();
     const PositionParams a{z[0], z[1], 0.5 * Ri(0, 0), Ri(0, 1), 0.5 * Ri(1, 1)};
-    const Sums5 t = detail::dispatch<position_loglik<32>, position_loglik<16>>(N, I.col(kX), I.col(kY), I.w.data(),
-                                                                               I.logw.data(), &a);
+    const Sums5 t =
+        detail::dispatch<position_loglik<32>, position_loglik<16>>(N, I.col(kX), I.col(kY), I.w(), I.logw(), &a);
     const double* ps = t.s;
     const double s0 = ps[0], s1 = ps[1];
     const Eigen::Vector2d ybar(s0, s1);
@@ -712,20 +769,21 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
     I.zhat.resize(m);
     I.resid.resize(m);
     for (int i = 0; i < N; ++i) {
-      model.predict(I.S.row(i).head<4>().transpose(), I.zhat);
+      model.predict(I.particle(i), I.zhat);
       model.residual(z, I.zhat, I.resid);
       I.Y.col(i) = I.resid;
     }
     // NIS (diagnostic) of the prior predictive: mean residual ȳ, S = Cov_w(y) + R.
-    const Eigen::VectorXd ybar = I.Y * I.w.matrix();
+    const Eigen::Map<const Eigen::VectorXd> w(I.w(), N);
+    const Eigen::VectorXd ybar = I.Y * w;
     const Eigen::MatrixXd D = I.Y.colwise() - ybar;
-    const Eigen::MatrixXd S = D * I.w.matrix().asDiagonal() * D.transpose() + R;
+    const Eigen::MatrixXd S = D * w.asDiagonal() * D.transpose() + R;
     res.nis = ybar.dot(S.ldlt().solve(ybar));
     // log-likelihood −½ yᵀR⁻¹y = −½‖L⁻¹y‖², added to the log-weights.
     Eigen::LLT<Eigen::MatrixXd>(R).matrixL().solveInPlace(I.Y);
-    I.logw -= 0.5 * I.Y.colwise().squaredNorm().transpose().array();
+    Eigen::Map<Eigen::ArrayXd>(I.logw(), N) -= 0.5 * I.Y.colwise().squaredNorm().transpose().array();
   }
-  I.normalise(I.logw.maxCoeff());  // the maximum is exact in any order
+  I.normalise(Eigen::Map<const Eigen::ArrayXd>(I.logw(), N).maxCoeff());  // the maximum is exact in any order
   if (I.ess < I.resample_threshold * N) I.resample();
   return res;
 }
