@@ -125,6 +125,45 @@ def test_pf_is_deterministic_for_a_seed():
     assert not np.array_equal(a.states, c.states)
 
 
+_SAME_NUMBERS_SCRIPT = """
+import hashlib, sys
+import numpy as np
+import safenav
+u = np.tile([2.0, 0.03], (40, 1))
+truth = safenav.Bmm(safenav.BmmParams()).simulate([0.0, 0.0, 2.0, 0.2], u, seed=2)
+lm = np.array([[5.0, 5.0], [-3.0, 8.0]])
+d = lm[None] - truth[1:, None, :2]
+h = hashlib.sha256()
+for n in (1, 3, 6, 1000, 1001):
+    r = safenav.filter_trajectory(u, [0.0, 0.0, 2.0, 0.2], np.diag([0.04, 0.04, 0.01, 0.0025]), filter="pf",
+                                  position=truth[1:, :2], position_cov=np.eye(2) * 0.01,
+                                  ranges=np.hypot(d[..., 0], d[..., 1]), range_std=0.3, landmarks=lm,
+                                  n_particles=n, seed=n)
+    for a in (r.states, r.covariances, r.nis):
+        h.update(np.ascontiguousarray(a).tobytes())
+print(h.hexdigest())
+"""
+
+
+def test_pf_gives_the_same_numbers_with_and_without_avx2():
+    # The PF's hot loops have an AVX2 copy chosen at run time; SAFENAV_NO_AVX2
+    # forces the baseline copy.  Both must give the same bits for a seed (on a
+    # CPU without AVX2 both runs take the baseline copy).
+    import os
+    import subprocess
+    import sys
+
+    def digest(no_avx2):
+        env = {k: v for k, v in os.environ.items() if k != "SAFENAV_NO_AVX2"}
+        if no_avx2:
+            env["SAFENAV_NO_AVX2"] = "1"
+        out = subprocess.run([sys.executable, "-c", _SAME_NUMBERS_SCRIPT], env=env, capture_output=True, text=True,
+                             timeout=600, check=True)
+        return out.stdout.strip().splitlines()[-1]
+
+    assert digest(False) == digest(True)
+
+
 def test_stream_gaps_and_partial_landmark_visibility():
     n = 80
     u = np.tile([2.0, 0.03], (n, 1))

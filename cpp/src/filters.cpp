@@ -244,15 +244,20 @@ struct D4<16> {
   friend D4 operator-(D4 a, D4 b) { return {a.lo - b.lo, a.hi - b.hi}; }
   friend D4 operator*(D4 a, D4 b) { return {a.lo * b.lo, a.hi * b.hi}; }
   D4& operator+=(D4 b) { lo += b.lo; hi += b.hi; return *this; }
-  static D4 add_if_gt(D4 a, D4 b, D4 c) { return {a.lo > b.lo ? a.lo + c.lo : a.lo, a.hi > b.hi ? a.hi + c.hi : a.hi}; }
-  static D4 add_if_le(D4 a, D4 b, D4 c) { return {a.lo <= b.lo ? a.lo + c.lo : a.lo, a.hi <= b.hi ? a.hi + c.hi : a.hi}; }
+  static D4 add_if_gt(D4 a, D4 b, D4 c) {
+    return {a.lo > b.lo ? a.lo + c.lo : a.lo, a.hi > b.hi ? a.hi + c.hi : a.hi};
+  }
+  static D4 add_if_le(D4 a, D4 b, D4 c) {
+    return {a.lo <= b.lo ? a.lo + c.lo : a.lo, a.hi <= b.hi ? a.hi + c.hi : a.hi};
+  }
   double sum() const { return (lo[0] + lo[1]) + (hi[0] + hi[1]); }
 };
 
-/// Run body(i, loads) over particles in blocks of four.  The last, partial
-/// block is run on zero-padded copies of the K input columns whose weight
-/// column (one of them) is 0 beyond N, so that it adds exactly nothing to any
-/// weighted sum; `store` receives how many of its lanes are real.
+/// Run body(i, in, n) over the particles in blocks of four: in[c] holds
+/// column c of particles i..i+3, n how many of them are real.  The last,
+/// partial block is zero-padded, so a weight column is 0 beyond N and the
+/// padding adds exactly nothing to any weighted sum (the body stores only n
+/// lanes).
 template <int Bytes, int K, class Body>
 SAFENAV_ALWAYS_INLINE void blocks_of_four(int N, const double* const (&cols)[K], Body&& body) {
   using D = D4<Bytes>;
@@ -286,9 +291,9 @@ SAFENAV_ALWAYS_INLINE void store_lanes(const D4<Bytes>& a, double* p, int n) {
 
 /// One noisy BMM step (eqs. 3, 4, 6, 7/9, as Bmm::transition) for every
 /// particle.  θ moves by δ_i; (cos θ, sin θ) is rotated by δ_i with sin δ and
-/// cos δ from their Taylor series in Horner form (error < 1e-17 for
-/// |δ| ≤ kSmallTurn; larger turns are redone exactly by the caller, which is
-/// told how many there were).  Element-wise, so left to the auto-vectoriser;
+/// cos δ from their Taylor series (truncation error < 1e-17 for |δ| ≤
+/// kSmallTurn, rounding within 1.5 eps; larger turns are redone exactly by
+/// the caller, which is told how many there were).  Element-wise, so left to the auto-vectoriser;
 /// it needs -fno-trapping-math to if-convert the clamps.  (Kernels take their
 /// arrays as __restrict parameters: GCC honours restrict there, through
 /// inlining, and not on local copies.)
@@ -326,7 +331,8 @@ SAFENAV_ALWAYS_INLINE long particles_step(int N, double* __restrict x, double* _
     // short dependency chain, which is what bounds this loop
     const double u = d * d, u2 = u * u, u4 = u2 * u2;
     const double sd = d * (((1 + kSin[1] * u) + (kSin[2] + kSin[3] * u) * u2) + (kSin[4] + kSin[5] * u) * u4);
-    const double cd = ((1 + kCos[1] * u) + (kCos[2] + kCos[3] * u) * u2) + ((kCos[4] + kCos[5] * u) + kCos[6] * u2) * u4;
+    const double cd =
+        ((1 + kCos[1] * u) + (kCos[2] + kCos[3] * u) * u2) + ((kCos[4] + kCos[5] * u) + kCos[6] * u2) * u4;
     const double c1 = cs[i] * cd - sn[i] * sd;
     const double s1 = sn[i] * cd + cs[i] * sd;
     const double r = 1.5 - 0.5 * (c1 * c1 + s1 * s1);  // keep (c, s) on the unit circle

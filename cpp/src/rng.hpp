@@ -15,6 +15,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 
 #if (defined(__GNUC__) || defined(__clang__)) && defined(__x86_64__) && !defined(__AVX2__) && \
@@ -36,13 +37,15 @@
 
 namespace safenav::detail {
 
-/// True when the AVX2 copies of the hot loops run (checked once per process).
+/// True when the AVX2 copies of the hot loops run: the CPU has AVX2 and the
+/// environment variable SAFENAV_NO_AVX2 is not set (it forces the baseline
+/// copies, e.g. to check that both give the same numbers).  Read once.
 inline bool use_avx2() {
 #if defined(SAFENAV_AVX2_DISPATCH)
-  static const bool yes = __builtin_cpu_supports("avx2");
+  static const bool yes = __builtin_cpu_supports("avx2") && std::getenv("SAFENAV_NO_AVX2") == nullptr;
   return yes;
 #elif defined(SAFENAV_HAVE_AVX2_CODE)
-  return true;
+  return true;  // built for AVX2 (-march): there is no baseline copy
 #else
   return false;
 #endif
