@@ -142,7 +142,8 @@ def _experiment(args) -> int:
     opts = reproduce.ExperimentOptions(
         trials=args.trials, camera_trials=args.camera_trials, camera_position_every=args.position_every,
         particles=args.particles, workers=args.workers, scheduler=args.scheduler, seed=args.seed, out=args.out,
-        scenario=_load(args), path_types=tuple(args.path_types or ()), progress=not args.quiet)
+        scenario=_load(args), path_types=tuple(args.path_types or ()), placement=not args.no_placement,
+        progress=not args.quiet)
     results = reproduce.run_experiments(args.names, opts)
     report = reproduce.write_report(results, opts)
     files = [f for r in results for f in (*r.files, *r.figures)]
@@ -211,6 +212,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="trials per cell of the camera-in-the-loop variants of Tables II and IV (default 20; 0 = skip)")
     s.add_argument("--position-every", type=int, default=10, help="camera loop: a fix every n steps (default 10)")
     s.add_argument("--particles", type=int, default=1000, help="PF particles (default 1000)")
+    s.add_argument("--no-placement", action="store_true",
+                   help="skip Table II's variant with landmarks placed along the safe paths (ILP, ~1 min)")
     s.add_argument("--path-types", nargs="+", default=None, help="default: all of the scenario's")
     s.add_argument("--workers", type=int, default=None, help="local worker threads (default: all cores)")
     s.add_argument("--scheduler", default=None, help="Dask scheduler address: run the trials on that cluster")

@@ -100,7 +100,8 @@ class ExperimentOptions:
         """The options as plain values (for the report and ``parameters.json``)."""
         return {"trials": self.trials, "camera_trials": self.camera_trials,
                 "camera_position_every": self.camera_position_every, "particles": self.particles,
-                "placement": self.placement, "workers": self.workers, "scheduler": None if self.scheduler is None else str(self.scheduler),
+                "placement": self.placement, "workers": self.workers,
+                "scheduler": None if self.scheduler is None else str(self.scheduler),
                 "seed": int(self.seed), "scenario": self.scenario.name, "path_types": list(self.path_types)}
 
 
