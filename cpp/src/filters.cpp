@@ -214,7 +214,8 @@ constexpr Coefficients kInvFactorial(0, 1, false), kSin(1, 2, true), kCos(0, 2, 
 /// or two 16-byte ones (Bytes = 16, SSE2): the same lanes and the same IEEE
 /// operations either way.  Sums over particles accumulate in a D4 (lane j
 /// takes particles j, j+4, ...) and end in sum(), a fixed order, so reductions
-/// give identical bits on both paths.
+/// give identical bits on both paths.  (Arguments by reference: a 32-byte
+/// vector by value has a different ABI without AVX, which GCC remarks on.)
 template <int Bytes>
 struct D4;
 template <>
@@ -224,13 +225,13 @@ struct D4<32> {
   static D4 load(const double* p) { D4 r; std::memcpy(&r.v, p, 32); return r; }
   static D4 splat(double a) { return {V{a, a, a, a}}; }
   void store(double* p) const { std::memcpy(p, &v, 32); }
-  friend D4 operator+(D4 a, D4 b) { return {a.v + b.v}; }
-  friend D4 operator-(D4 a, D4 b) { return {a.v - b.v}; }
-  friend D4 operator*(D4 a, D4 b) { return {a.v * b.v}; }
-  D4& operator+=(D4 b) { v += b.v; return *this; }
+  friend D4 operator+(const D4& a, const D4& b) { return {a.v + b.v}; }
+  friend D4 operator-(const D4& a, const D4& b) { return {a.v - b.v}; }
+  friend D4 operator*(const D4& a, const D4& b) { return {a.v * b.v}; }
+  D4& operator+=(const D4& b) { v += b.v; return *this; }
   /// a > b ? a + c : a  (and a <= b ? a + c : a), lane-wise
-  static D4 add_if_gt(D4 a, D4 b, D4 c) { return {a.v > b.v ? a.v + c.v : a.v}; }
-  static D4 add_if_le(D4 a, D4 b, D4 c) { return {a.v <= b.v ? a.v + c.v : a.v}; }
+  static D4 add_if_gt(const D4& a, const D4& b, const D4& c) { return {a.v > b.v ? a.v + c.v : a.v}; }
+  static D4 add_if_le(const D4& a, const D4& b, const D4& c) { return {a.v <= b.v ? a.v + c.v : a.v}; }
   double sum() const { return (v[0] + v[1]) + (v[2] + v[3]); }
 };
 template <>
