@@ -63,6 +63,10 @@ class Ekf {
 };
 
 /// Particle filter on the BMM with log-weights and systematic resampling.
+/// A run is fixed by its seed: the same numbers on every x86-64 CPU, with or
+/// without AVX2 (its hot loops have an AVX2 copy chosen at run time that
+/// rounds exactly like the baseline one), unless the core is built with
+/// SAFENAV_NATIVE (the compiler may then fuse multiply-adds).
 class ParticleFilter {
  public:
   /// Particles are drawn from N(x0, P0) with the given seed.
@@ -77,7 +81,8 @@ class ParticleFilter {
   void predict(const Control& u);
   /// Multiply weights by the measurement likelihood (in log space); resample
   /// (systematic) when ESS < resample_threshold·N.  Returns the NIS of the
-  /// weighted-mean prediction (for diagnostics) and whether it resampled.
+  /// weighted-mean prediction (for diagnostics); resample_count() counts the
+  /// resamplings.
   UpdateResult update(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z);
   /// Effective sample size 1/Σw².
   double ess() const;
