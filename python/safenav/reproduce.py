@@ -173,7 +173,7 @@ def _path_average(summary: pd.DataFrame) -> pd.DataFrame:
 
 
 def _outcomes(raw: pd.DataFrame) -> str:
-    """'Metrics are means over the N arrived trials; M did not arrive (collision k, ...).'"""
+    """A sentence: how many trials arrived, and how the others ended."""
     fails = raw[~raw["success"]]
     why = ", ".join(f"{k} {v}" for k, v in fails["outcome"].value_counts().items())
     return (f"Metrics are means over the {len(raw) - len(fails)} of {len(raw)} trials that arrived"
@@ -189,9 +189,9 @@ def _fix_shares(raw: pd.DataFrame) -> str:
               "view, so between clusters it dead-reckons on the IMU; the emulated baselines fix at every step.")
 
 
-def _best(table: pd.DataFrame, col: str, rows=None) -> pd.Series:
-    t = table if rows is None else table[rows]
-    return t.loc[t[col].idxmin()]
+def _best(table: pd.DataFrame, col: str) -> pd.Series:
+    """The row of ``table`` with the smallest ``col``."""
+    return table.loc[table[col].idxmin()]
 
 
 # --------------------------------------------------------------------------- experiments
