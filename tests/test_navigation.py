@@ -411,3 +411,57 @@ def test_camera_loop_source_runs_the_vision_pipeline_in_the_sweep(small_sweep):
     assert row["position_fixes"] + row["dropouts"] == row["steps"] // 40
     assert row["position_fixes"] > 0
     assert row["loc_ade"] < 2.0
+
+
+def _source_residual_stats(residuals, profile):
+    """Per-trial (bias estimate, white std, outlier share, walk drift) of fix residuals (n_trials, n_fixes, 2)."""
+    r = np.asarray(residuals)
+    first, last = r[:, :200].mean(axis=1), r[:, -200:].mean(axis=1)
+    bias = r.mean(axis=1)
+    dev = r - np.median(r, axis=1, keepdims=True)
+    white = np.median(np.abs(np.diff(dev, axis=1)), axis=(0, 1)) / 0.6745 / np.sqrt(2)  # robust σ of w
+    far = (np.abs(dev) > 5 * np.asarray(profile.std)).any(axis=2).mean()
+    return bias, white, far, last - first
+
+
+@pytest.mark.parametrize("name", ["deeploc-gps", "deeploc-ekf-gps", "sensor-fusion"])
+def test_emulated_sources_have_their_stated_error_statistics(name):
+    """The measurement-level sources draw z = p + b + w (+ outliers) as their
+    profile says, in the C++ loop and in the synthetic data set alike."""
+    from dataclasses import replace
+
+    from scipy.stats import norm
+
+    from safenav.datasets import synthetic_trajectory
+    from safenav.experiments import source_config
+
+    scenario = safenav.default_scenario()
+    prof = nv.SOURCES[name]
+    assert prof.emulated and "(emulated)" in prof.label
+    n_trials, n_fix = 40, 1500
+    safe = nv.plan_safe_path(scenario, "P2").path
+    navigator = nv.make_navigator(scenario, safe, method="centroid", source=name)
+    loop = []
+    for s in range(n_trials):
+        t = navigator.run(100 + s)
+        loop.append((np.asarray(t.measured) - np.asarray(t.truth)[:, :2])[:n_fix])
+    cfg = replace(source_config(name), n_steps=n_fix)
+    syn = [synthetic_trajectory(cfg, 100 + s) for s in range(n_trials)]
+    syn = [d.position - d.states[1:, :2] for d in syn]
+    for residuals in (loop, syn):
+        bias, white, far, drift = _source_residual_stats(residuals, prof)
+        assert white == pytest.approx(prof.std, rel=0.1)
+        # a constant bias per trial: the per-trial means scatter with bias_std (40 trials: ±25 %)
+        # (plus the walk's and the white noise's share of a mean over n_fix fixes)
+        noise = np.asarray(prof.std) ** 2 + prof.outlier_probability * prof.outlier_std**2
+        spread = np.sqrt(prof.bias_std**2 + prof.bias_walk_std**2 * n_fix / 3 + noise / n_fix)
+        assert bias.std(axis=0) == pytest.approx(spread, rel=0.35)
+        # the walk moves the bias between the first and the last 200 fixes (the white noise of two means too)
+        walk = np.sqrt(prof.bias_walk_std**2 * (n_fix - 200) + 2 * noise / 200)
+        assert drift.std(axis=0) == pytest.approx(walk, rel=0.35)
+        # outliers: the share of fixes beyond 5σ of the white noise in either axis
+        out_std = np.hypot(prof.outlier_std, np.asarray(prof.std))
+        expect = prof.outlier_probability * (1 - np.prod(1 - 2 * norm.sf(5 * np.asarray(prof.std) / out_std)))
+        assert far == pytest.approx(expect, rel=0.3, abs=2e-4)
+    # the filter is told the profile's covariance, the same in both
+    np.testing.assert_allclose(cfg.position_cov(), prof.to_core().reported_cov(), rtol=0, atol=0)
