@@ -35,7 +35,7 @@ from . import navigation as nav
 from .scenario import Scenario
 
 __all__ = ["Sweep", "trial_seeds", "plan_safe_paths", "run_sweep", "map_ordered", "summarize", "write_table",
-           "METRICS"]
+           "atomic_write", "METRICS"]
 
 #: Per-trial metric columns averaged by :func:`summarize`.
 METRICS = ("ade", "fde", "path_error_percent", "awrs", "awrs_true", "loc_ade", "loc_fde", "max_deviation")
@@ -81,9 +81,19 @@ class Sweep:
         if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or self.seed < 0:
             raise ValueError(f"seed = {self.seed!r}: must be an integer >= 0")
 
+    def path_index(self, name: str) -> int:
+        """The index of path type ``name`` in the scenario: it keys the path's trial seeds."""
+        return _scenario_index(self.scenario, name)
+
+
+def _scenario_index(scenario: Scenario, name: str) -> int:
+    return [p.name for p in scenario.path_types].index(name)
+
 
 def trial_seeds(seed: int, path_index: int, n: int) -> np.ndarray:
-    """The n trial seeds of one path type (uint64)."""
+    """The n trial seeds of one path type (uint64); ``path_index`` is the path
+    type's index in the *scenario* (see :meth:`Sweep.path_index`), so a run
+    of a subset of the path types gives each the same trials as a full run."""
     return np.random.SeedSequence([int(seed), int(path_index)]).generate_state(n, dtype=np.uint64)
 
 
@@ -163,7 +173,8 @@ def _run_chunk(c: _Chunk) -> pd.DataFrame:
 
 def _chunks(sweep: Sweep, safe_paths: dict[str, np.ndarray], extra: dict) -> list[_Chunk]:
     out = []
-    for pi, name in enumerate(sweep.path_types):
+    for name in sweep.path_types:
+        pi = sweep.path_index(name)
         seeds = trial_seeds(sweep.seed, pi, sweep.trials)
         for method in sweep.methods:
             for filt in sweep.filters:
@@ -284,13 +295,22 @@ def write_table(df: pd.DataFrame, path, *, parquet: bool = True) -> list[Path]:
     if parquet:
         targets.append((path.with_suffix(".parquet"), lambda p: df.to_parquet(p, index=False)))
     for target, write in targets:
-        fd, tmp = tempfile.mkstemp(prefix=target.name + ".", suffix=".tmp", dir=target.parent)
-        os.close(fd)
-        try:
-            write(tmp)
-            os.replace(tmp, target)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
-        out.append(target)
+        out.append(atomic_write(target, write))
     return out
+
+
+def atomic_write(path, write) -> Path:
+    """Call ``write(tmp)`` on a fresh temporary file beside ``path``, then
+    rename it to ``path``: readers never see a half-written file, and a failed
+    write leaves nothing behind."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
