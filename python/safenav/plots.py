@@ -82,13 +82,16 @@ def _draw_corridor(ax, corridor, *, color="tab:green", label=None) -> None:
 
 
 def _save(fig, path, dpi=120) -> Path:
-    """Write ``path`` (PNG) and an SVG beside it; close the figure."""
+    """Write ``path`` (PNG) and an SVG beside it, atomically; close the figure."""
+    from .runner import atomic_write
+
     plt = _pyplot()
     out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=dpi)
-    fig.savefig(out.with_suffix(".svg"))
-    plt.close(fig)
+    try:
+        atomic_write(out, lambda p: fig.savefig(p, dpi=dpi, format="png"))
+        atomic_write(out.with_suffix(".svg"), lambda p: fig.savefig(p, format="svg"))
+    finally:
+        plt.close(fig)
     return out
 
 

@@ -567,6 +567,28 @@ def run_experiments(names, opts: ExperimentOptions, *, log=print) -> list[Experi
     opts.out.mkdir(parents=True, exist_ok=True)
     cache: dict = {}
     results = []
+    own_client = None
+    if opts.scheduler is not None and isinstance(opts.scheduler, str):
+        try:
+            from distributed import Client
+        except ImportError as exc:  # pragma: no cover - exercised only without the extra
+            raise RuntimeError("--scheduler needs Dask: pip install 'safenav[dask]'") from exc
+        own_client = Client(opts.scheduler)        # one connection for every sweep
+    try:
+        if own_client is not None:
+            opts.scheduler, address = own_client, opts.scheduler
+        results = _run_all(keys, opts, cache, log)
+    finally:
+        if own_client is not None:
+            opts.scheduler = address
+            own_client.close()
+    text = json.dumps(_parameters(opts), indent=1, default=str)
+    runner.atomic_write(opts.out / "parameters.json", lambda p: Path(p).write_text(text))
+    return results
+
+
+def _run_all(keys, opts: ExperimentOptions, cache: dict, log) -> list[ExperimentResult]:
+    results = []
     for k in keys:
         fn, desc = EXPERIMENTS[k]
         log(f"[experiment] {k}: {desc}")
@@ -577,8 +599,6 @@ def run_experiments(names, opts: ExperimentOptions, *, log=print) -> list[Experi
             log(f"\n{title}\n{df.to_string(index=False, float_format=lambda v: f'{v:.4g}')}")
         log(f"[experiment] {k}: {res.wall_s:.1f} s")
         results.append(res)
-    text = json.dumps(_parameters(opts), indent=1, default=str)
-    runner.atomic_write(opts.out / "parameters.json", lambda p: Path(p).write_text(text))
     return results
 
 
