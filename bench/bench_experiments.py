@@ -65,7 +65,7 @@ def main() -> None:
     print("\nPF rows: median time per trial, ours beside the paper's")
     print(f"{'method':<28}{'set':<15}{'ours ms':>10}{'paper ms':>12}{'paper / ours':>14}")
     for src in ex.PAPER_SOURCES:
-        label = ex._source_label(src)
+        label = ex.source_label(src)
         for name, df, paper, col in (("synthetic", syn, ex.PAPER_TABLE1, "ms_per_trial"),
                                      ("real-imitated", real, ex.PAPER_TABLE2, "time_ms")):
             ours = df[(df["source"] == src) & (df["filter"] == "pf")][col].median()

@@ -18,10 +18,11 @@ def _synthetic(args) -> int:
           f"time = median per trial")
     print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
     if args.out:
+        from .runner import write_table
+
         out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
-        _atomic_csv(raw, out / "synthetic_trials.csv")
-        _atomic_csv(table, out / "synthetic_summary.csv")
+        write_table(raw, out / "synthetic_trials", parquet=False)
+        write_table(table, out / "synthetic_summary", parquet=False)
         fig = _synthetic_figure(args, out / "synthetic_trial.png")
         print(f"wrote {out / 'synthetic_trials.csv'}, {out / 'synthetic_summary.csv'} and {fig}")
     return 0
@@ -34,12 +35,6 @@ def _synthetic_figure(args, path: Path) -> Path:
 
     data, results = synthetic_trial(0, filters=args.filters, seed=args.seed, n_particles=args.particles)
     return plot_synthetic_trial(data, {k.upper(): v for k, v in results.items()}, path)
-
-
-def _atomic_csv(df, path: Path) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    df.to_csv(tmp, index=False)
-    tmp.replace(path)
 
 
 def _load(args):
@@ -94,7 +89,8 @@ def _navigation(args, *, demo: bool) -> int:
         tag = f"{filt}_{source}"
         for name, df in ((f"table_percent_error_{tag}", pe), (f"table_navigation_{tag}", nt)):
             written += runner.write_table(df, out / name, parquet=False)
-            (out / f"{name}.md").write_text(markdown_table(df))
+            text = markdown_table(df)
+            written.append(runner.atomic_write(out / f"{name}.md", lambda p: Path(p).write_text(text)))
     failures = raw[~raw["success"]]
     if len(failures):
         print(f"\n{len(failures)} of {len(raw)} trials did not arrive: "

@@ -82,14 +82,11 @@ class SyntheticConfig:
         """The 2×2 covariance a filter is told for one position fix: white noise
         plus the bias and outlier variances (the C++ ``PositionSource.reported_cov``,
         so that the synthetic set and the navigation loop tell filters the same)."""
-        from . import _core
+        from .navigation import SourceProfile
 
-        s = _core.PositionSource()
-        s.std = np.asarray(self.position_std, dtype=float)
-        s.bias_std, s.bias_walk_std = self.position_bias_std, self.position_bias_walk_std
-        s.outlier_probability, s.outlier_std = self.outlier_probability, self.outlier_std
-        s.validate()
-        return np.asarray(s.reported_cov())
+        profile = SourceProfile("synthetic", "synthetic", tuple(self.position_std), self.position_bias_std,
+                                self.position_bias_walk_std, self.outlier_probability, self.outlier_std)
+        return np.asarray(profile.to_core().reported_cov())
 
     def params(self) -> BmmParams:
         """The true vehicle's BMM parameters with this data set's dt."""

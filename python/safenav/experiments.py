@@ -109,8 +109,8 @@ class _SyntheticChunk:
 
 
 def _synthetic_chunk(c: _SyntheticChunk):
-    """Rows of the raw table, and the per-step WRS summed over the chunk's trials per filter."""
-    rows, wrs_sum = [], {}
+    """Rows of the raw table, and the per-step WRS of each trial per filter."""
+    rows, wrs_trials = [], {}
     n_steps = c.config.n_steps
     for k, seeds in enumerate(c.seeds):
         data, results, times = _run_trial(c.config, seeds, c.filters, c.n_particles)
@@ -118,11 +118,11 @@ def _synthetic_chunk(c: _SyntheticChunk):
             est = res.states[:, :2]
             m = evaluate(est, data.states[:, :2], zones=c.zones)
             w = wrs(est, data.states[:, :2], c.zones)
-            wrs_sum[name] = wrs_sum.get(name, 0.0) + w
+            wrs_trials.setdefault(name, []).append(w)
             rows.append({"source": c.source, "trial": c.start + k, "filter": name, **m.as_dict(), "steps": n_steps,
                          "ms_per_trial": times[name] * 1e3, "us_per_step": times[name] * 1e6 / n_steps,
                          "n_gaps": res.n_gaps, "n_resampled": res.n_resampled})
-    return rows, wrs_sum
+    return rows, wrs_trials
 
 
 @dataclass(frozen=True)
@@ -140,9 +140,7 @@ def synthetic_experiment(trials: int = 100, *, sources=("lanbloc",), filters=("e
                          zones: RiskZones | None = None, workers: int | None = 1, scheduler=None,
                          chunk: int = 25, progress: bool = False) -> SyntheticResult:
     """Monte Carlo over ``trials`` synthetic trajectories per position source
-    (the paper's Table I grid: sources × filters).  ``wrs_mean`` (Fig. 3) is
-    summed per chunk, so its last bits may depend on ``chunk``; the raw table
-    does not.
+    (the paper's Table I grid: sources × filters).
 
     Trial i has the same truth, commands and white noise for every source
     (common random numbers); the sources differ in their error profile.  The
@@ -165,12 +163,13 @@ def synthetic_experiment(trials: int = 100, *, sources=("lanbloc",), filters=("e
             for src in sources for a in range(0, trials, chunk)]
     parts = map_ordered(_synthetic_chunk, jobs, workers=workers, scheduler=scheduler, progress=progress,
                         desc="synthetic")
-    rows, wrs_mean = [], {}
+    rows, wrs_trials = [], {}
     for job, (r, w) in zip(jobs, parts):
         rows += r
         for f, v in w.items():
-            wrs_mean[(job.source, f)] = wrs_mean.get((job.source, f), 0.0) + v
-    wrs_mean = {k: v / trials for k, v in wrs_mean.items()}
+            wrs_trials.setdefault((job.source, f), []).extend(v)
+    # a mean over the (trials, steps) stack in trial order: the same bits whatever the chunking
+    wrs_mean = {k: np.mean(np.stack(v), axis=0) for k, v in wrs_trials.items()}
     return SyntheticResult(pd.DataFrame(rows), wrs_mean)
 
 
@@ -206,7 +205,8 @@ def markdown_table(df: pd.DataFrame, digits: int = 3) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _source_label(source: str) -> str:
+def source_label(source: str) -> str:
+    """The table label of a position source ("LanBLoc-BMM", "DeepLoc-GPS (emulated)", ...)."""
     from .navigation import SOURCES
 
     if source == "lanbloc":
@@ -227,7 +227,7 @@ def localization_table(summary: pd.DataFrame, paper: dict) -> pd.DataFrame:
     rows = []
     for _, r in s.iterrows():
         p = paper.get((r["source"], r["filter"]), (np.nan,) * 4)
-        row = {"Algorithm": _source_label(r["source"]), "Filter": r["filter"].upper(),
+        row = {"Algorithm": source_label(r["source"]), "Filter": r["filter"].upper(),
                "ADE": r["ade"], "FDE": r["fde"], "AWRS": r["awrs"], "time ms": r["ms_per_trial"],
                "paper ADE": p[0], "paper FDE": p[1], "paper AWRS": p[2], "paper ms": p[3]}
         if "success_rate" in r:

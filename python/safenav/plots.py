@@ -165,7 +165,7 @@ def plot_wrs_comparison(wrs_mean: dict, t, path: str | Path, *, labels: dict | N
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
     for i, src in enumerate(sources):
-        ax = fig.add_subplot(gs[1, 2 * i: 2 * i + 2] if len(sources) <= n else gs[1, i])
+        ax = fig.add_subplot(gs[1, 2 * i: 2 * i + 2])
         for filt, style in (("ekf", "-"), ("pf", "--")):
             if (src, filt) in wrs_mean:
                 w = np.asarray(wrs_mean[(src, filt)])

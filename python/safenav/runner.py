@@ -83,11 +83,7 @@ class Sweep:
 
     def path_index(self, name: str) -> int:
         """The index of path type ``name`` in the scenario: it keys the path's trial seeds."""
-        return _scenario_index(self.scenario, name)
-
-
-def _scenario_index(scenario: Scenario, name: str) -> int:
-    return [p.name for p in scenario.path_types].index(name)
+        return [p.name for p in self.scenario.path_types].index(name)
 
 
 def trial_seeds(seed: int, path_index: int, n: int) -> np.ndarray:
