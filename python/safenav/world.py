@@ -259,11 +259,13 @@ class Polygon:
         verts = tuple(_vector(f"vertices[{i}]", v, (2,)) for i, v in enumerate(verts))
         object.__setattr__(self, "vertices", verts)
         v = np.array(verts)
+        if not _core.is_simple_polygon(v):      # CGAL's O(n log n) sweep, exact predicates
+            if np.linalg.matrix_rank(v - v[0]) < 2:
+                _fail("vertices", verts, "the polygon has zero area: its vertices lie on one line")
+            _fail("vertices", verts, "the polygon is not simple: two edges cross or touch, or a vertex repeats")
         area = 0.5 * abs(np.dot(v[:, 0], np.roll(v[:, 1], -1)) - np.dot(v[:, 1], np.roll(v[:, 0], -1)))
         if not area > 1e-12:
             _fail("vertices", verts, "the polygon has zero area")
-        if not _core.is_simple_polygon(v):      # CGAL's O(n log n) sweep, exact predicates
-            _fail("vertices", verts, "the polygon is not simple: two edges cross or touch, or a vertex repeats")
         object.__setattr__(self, "_path", _MplPath(np.vstack([v, v[:1]]), closed=True))
 
     def array(self) -> np.ndarray:
