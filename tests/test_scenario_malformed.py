@@ -18,8 +18,10 @@ import time
 
 import pytest
 import tomli_w
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
-from safenav.scenario import (_SECTIONS, MAX_FILE_BYTES, ScenarioError, default_scenario, dumps_scenario,
+from safenav.scenario import (_SECTIONS, MAX_FILE_BYTES, Scenario, ScenarioError, default_scenario, dumps_scenario,
                               load_scenario)
 from safenav.world import MAX_COORDINATE
 
@@ -412,3 +414,47 @@ def test_case_count():
     """The issue asks for at least the 77 malformed kinds it measured with."""
     assert len(CASES) >= 77 and len({c[0] for c in CASES}) == len(CASES)
     assert len(RANGE_CASES) == 6 * sum(len(c.RANGES) for c in _SECTIONS.values())
+
+
+# --------------------------------------------------------------------------- fuzz
+
+def _paths(node, here=()):
+    """Every key/index path in the scenario dict (tables, lists and leaves)."""
+    yield here
+    items = node.items() if isinstance(node, dict) else enumerate(node) if isinstance(node, list) else ()
+    for k, v in items:
+        yield from _paths(v, here + (k,))
+
+
+PATHS = [p for p in _paths(BASE) if p]
+FUZZ_EXAMPLES = 200
+
+_values = st.one_of(
+    st.none(), st.booleans(), st.integers(), st.integers(min_value=-2**1100, max_value=2**1100),
+    st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=400),
+    st.lists(st.one_of(st.floats(), st.integers(min_value=-10, max_value=10)), max_size=4),
+    st.dictionaries(st.text(max_size=4), st.integers(), max_size=2))
+
+
+@settings(max_examples=FUZZ_EXAMPLES, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow])
+@given(edits=st.lists(st.tuples(st.sampled_from(PATHS), st.one_of(st.just("delete"), _values)),
+                      min_size=1, max_size=3))
+def test_fuzzed_scenario_loads_or_fails_with_one_line(edits):
+    """Random fields of the default scenario set to random values (or deleted): ``from_dict`` either
+    builds a scenario or raises one short ``ScenarioError`` line; never another exception."""
+    d = copy.deepcopy(BASE)
+    for path, value in edits:
+        try:
+            parent = _at(d, path[:-1])
+            if value == "delete" and isinstance(parent, dict):
+                parent.pop(path[-1], None)
+            else:
+                parent[path[-1]] = value
+        except (KeyError, IndexError, TypeError):
+            pass                                  # an earlier edit removed or replaced the path
+    try:
+        Scenario.from_dict(d)
+    except ScenarioError as exc:
+        msg = str(exc)
+        assert "\n" not in msg and len(msg) < MAX_MESSAGE, msg

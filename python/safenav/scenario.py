@@ -71,7 +71,8 @@ but ``world`` and ``path_types`` is optional and defaults to the values below)::
 
 Loading validates every field; each problem is a :class:`ScenarioError`
 (a ``ValueError``) naming the file, the field path and the value, e.g.
-``scenario.toml: world.obstacles[3].radius = -2.0: must be > 0``.
+``scenario.toml: world.obstacles[3].radius = -2.0: must be in (0, 100000]``.
+Every field's range and every list's size limit are in docs/scenario.md.
 """
 
 from __future__ import annotations

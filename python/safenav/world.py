@@ -12,7 +12,7 @@ A rectangular :class:`Field` holding
 Every type is a frozen dataclass that validates itself on construction.  An
 error is a :class:`ScenarioError` (a ``ValueError``) whose message starts
 with the field's path relative to the object, then the bad value, e.g.
-``obstacles[3].radius = -2.0: must be > 0``; :mod:`safenav.scenario` prefixes
+``obstacles[3].radius = -2.0: must be in (0, 100000]``; :mod:`safenav.scenario` prefixes
 the path of the enclosing object (``world.obstacles[3].radius``).
 
 Geometry conventions: a point on an obstacle's boundary is inside it; the
@@ -89,9 +89,8 @@ MAX_PATH_CLUSTERS = 100      #: clusters on one path type
 MAX_NAME = 200               #: characters of a name or a landmark class
 
 
-def _interval(lo, hi, lo_open: bool = False, hi_open: bool = False) -> str:
-    return (f"{'(' if lo_open or lo is None else '['}{'-inf' if lo is None else f'{lo:g}'}, "
-            f"{'inf' if hi is None else f'{hi:g}'}{')' if hi_open or hi is None else ']'}")
+def _interval(lo: float, hi: float, lo_open: bool = False) -> str:
+    return f"{'(' if lo_open else '['}{lo:g}, {hi:g}]"
 
 
 @dataclass(frozen=True)
@@ -112,9 +111,8 @@ class Range:
         return f"[{int(self.lo)}, {int(self.hi)}]" if self.integer else _interval(self.lo, self.hi, self.lo_open)
 
 
-def _real(name: str, value, *, lo: float | None = None, lo_open: bool = False,
-          hi: float | None = None, hi_open: bool = False) -> float:
-    """``value`` as a finite float (ints accepted, bools and strings not), within bounds."""
+def _real(name: str, value, *, lo: float, hi: float, lo_open: bool = False) -> float:
+    """``value`` as a finite float (ints accepted, bools and strings not) in ``[lo, hi]`` (``(lo, hi]``)."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
         _fail(name, value, "must be a number")
     try:
@@ -123,8 +121,8 @@ def _real(name: str, value, *, lo: float | None = None, lo_open: bool = False,
         v = math.inf if value > 0 else -math.inf
     if not math.isfinite(v):
         _fail(name, value, "must be finite")
-    if (lo is not None and (v < lo or (lo_open and v == lo))) or (hi is not None and (v > hi or (hi_open and v == hi))):
-        _fail(name, value, f"must be in {_interval(lo, hi, lo_open, hi_open)}")
+    if not (lo < v <= hi if lo_open else lo <= v <= hi):
+        _fail(name, value, f"must be in {_interval(lo, hi, lo_open)}")
     return v
 
 
