@@ -4,15 +4,16 @@ import copy
 import dataclasses
 import math
 import os
+from pathlib import Path
 
 import numpy as np
 import pytest
 import tomli_w
 
 import safenav
-from safenav.generate import DEFAULT_SEED, generate_scenario
-from safenav.scenario import (BmmConfig, BufferParams, NoiseParams, PlannerParams, Scenario, ScenarioError,
-                              default_scenario, dumps_scenario, load_scenario, save_scenario)
+from safenav.generate import DEFAULT_SEED, GeneratorConfig, generate_scenario
+from safenav.scenario import (_SECTIONS, MAX_DEPTH, MAX_FILE_BYTES, BmmConfig, BufferParams, NoiseParams, PlannerParams,
+                              Scenario, ScenarioError, default_scenario, dumps_scenario, load_scenario, save_scenario)
 from safenav.world import Circle
 
 
@@ -38,7 +39,7 @@ def test_round_trip_toml_and_json_is_exact(tmp_path):
     odd = dataclasses.replace(
         s, description="line one\nline \"two\" ü",
         planner=PlannerParams(alpha=0.1 + 0.2, beta=1 / 3),
-        noise=NoiseParams(lanbloc_std=(1e-17, 5e-324), imu_speed_std=math.pi, imu_heading_std=0.0),
+        noise=NoiseParams(lanbloc_std=(1e-6, 0.1 + 0.2), imu_speed_std=math.pi, imu_heading_std=1e-6),
         buffer=BufferParams(half_width=7.000000000000001, weights=(1.5, 1.5, 2.0)))
     for sc in (s, odd):
         for name in ("a.toml", "a.json"):
@@ -87,6 +88,30 @@ def test_params_map_to_the_core_types():
         s.path_type("P9")
 
 
+def test_docs_state_every_range():
+    """docs/scenario.md gives each parameter's range exactly as the code checks it."""
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "scenario.md").read_text(encoding="utf-8")
+    rows = {line.split("|")[1].strip(): line for line in doc.splitlines() if line.startswith("| `")}
+    n = 0
+    for key, cls in _SECTIONS.items():
+        for name, rng in cls.RANGES.items():
+            assert f"| {rng} |" in rows[f"`{key}.{name}`"], (key, name, str(rng))
+            n += 1
+    assert n == 38
+    assert f"each {NoiseParams.LANBLOC_STD} |" in rows["`noise.lanbloc_std`"]
+    assert f"each {BufferParams.WEIGHT}, not decreasing |" in rows["`buffer.weights`"]
+    assert f"at most {MAX_FILE_BYTES // 2**20} MiB" in doc and f"at most {MAX_DEPTH} levels" in doc
+
+
+def test_generator_stays_within_the_limits():
+    with pytest.raises(ValueError, match=r"size = 200000.0: must be a number in \[1, 100000\]"):
+        GeneratorConfig(size=2e5)
+    with pytest.raises(ValueError, match=r"n_hazards = 1001: must be an integer in \[0, 1000\]"):
+        GeneratorConfig(n_hazards=1001)
+    s = generate_scenario(11, GeneratorConfig(size=120.0, n_obstacles=12, n_hazards=8, n_blocking=3))
+    assert Scenario.from_dict(s.to_dict()) == s and s.world.field.width == 120.0
+
+
 def _centroid(base, cluster):
     xy = [lm["position"][:2] for lm in base["world"]["landmarks"] if lm["cluster"] == cluster]
     return [float(v) for v in np.mean(xy, axis=0)]
@@ -132,7 +157,7 @@ CASES = [
     (_set(["world", "obstacles", 0, "radius"], float("nan")), ["world.obstacles[0].radius = nan", "finite"]),
     (_set(["bmm", "dt"], float("inf")), ["bmm.dt = inf", "finite"]),
     (_set(["bmm", "max_speed"], -1.0), ["bmm.max_speed = -1.0"]),
-    (_set(["world", "obstacles", 0, "radius"], -2.0), ["world.obstacles[0].radius = -2.0", "> 0"]),
+    (_set(["world", "obstacles", 0, "radius"], -2.0), ["world.obstacles[0].radius = -2.0", "(0, 100000]"]),
     (_set(["world", "field", "x_max"], -5.0), ["world.field.x_max = -5.0", "width"]),
     (_set(["world", "field", "y_max"], 0.0), ["world.field.y_max = 0.0", "height"]),
     (_set(["world", "field", "x_min"], float("nan")), ["world.field.x_min = nan"]),
@@ -146,7 +171,7 @@ CASES = [
     (_set(["world", "obstacles", 0], {"type": "circle", "center": [5.0, 5.0]}), ["world.obstacles[0].radius", "missing"]),
     (_set(["world", "hazards", 2, "risk"], 1.5), ["world.hazards[2].risk = 1.5"]),
     (_set(["world", "obstacles"], {"type": "circle"}), ["world.obstacles", "must be a list"]),
-    (_start_in_obstacle, ["path_types[0].clusters[0] = 6", "start", "inside world.obstacles[25]"]),
+    (_start_in_obstacle, ["path_types[0].clusters[0] = 6", "start", "within navigation.clearance = 2 m of world.obstacles[25]"]),
     (_set(["path_types", 1, "clusters"], [4, 1, 42, 3]), ["path_types[1].clusters[2] = 42", "unknown cluster"]),
     (_set(["path_types", 0, "start"], 5), ["path_types[0].start = 5", "clusters[0] = 6"]),
     (_set(["path_types", 2, "name"], "P1"), ["path_types[2].name = 'P1'", "duplicates"]),

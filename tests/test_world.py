@@ -1,12 +1,14 @@
 """World model: validation, geometry helpers against direct computation, the generator."""
 
 import math
+import time
 
 import numpy as np
 import pytest
 
 from safenav.generate import DEFAULT_SEED, GeneratorConfig, _dense, generate_scenario, generate_world
-from safenav.world import Circle, Field, Hazard, Landmark, PathType, Polygon, ScenarioError, World
+from safenav.world import (MAX_LANDMARKS, MAX_OBSTACLES, MAX_VERTICES, Circle, Field, Hazard, Landmark, PathType, Polygon,
+                           ScenarioError, World, _point_segment_distance)
 
 SQUARE = Polygon([(10, 10), (20, 10), (20, 20), (10, 20)])
 TRI = Polygon([(50, 50), (70, 52), (58, 68)])
@@ -57,6 +59,75 @@ def test_invalid_objects_name_field_and_value(make, needle):
     assert isinstance(exc.value, ValueError)
 
 
+def _star(n, crossing=False):
+    """A simple star polygon with ``n`` vertices; ``crossing`` moves one to the far side."""
+    k = np.arange(n)
+    r = np.where(k % 2, 40.0, 30.0)
+    v = np.c_[50 + r * np.cos(2 * np.pi * k / n), 50 + r * np.sin(2 * np.pi * k / n)]
+    if crossing:
+        v[n // 3] = 100 - v[n // 3]             # to the far side: its edges cross the others
+    return v.tolist()
+
+
+def test_large_polygon_validates_in_n_log_n():
+    """A 1000-vertex polygon (the limit) took ~11 s with the old pairwise loop (95 s for 3000)."""
+    t0 = time.perf_counter()
+    p = Polygon(_star(MAX_VERTICES))
+    assert len(p.vertices) == MAX_VERTICES and time.perf_counter() - t0 < 2.0
+    with pytest.raises(ScenarioError, match=r"^vertices = .{1,80}: the polygon is not simple"):
+        Polygon(_star(MAX_VERTICES, crossing=True))
+    with pytest.raises(ScenarioError, match=r"vertices = .*: has 1001 entries, at most 1000"):
+        Polygon(_star(MAX_VERTICES + 1))
+
+
+@pytest.mark.parametrize("verts, simple", [
+    ([(0, 0), (4, 0), (4, 4), (0, 4)], True),
+    ([(0, 0), (4, 0), (2, 1), (4, 4), (0, 4)], True),           # concave
+    ([(0, 0), (4, 2), (4, 0), (0, 3)], False),                  # bow tie
+    ([(0, 0), (4, 0), (2, 2), (4, 4), (0, 4), (2, 2)], False),  # touches itself at a vertex
+    ([(0, 0), (4, 0), (4, 4), (4, 4), (0, 4)], False),          # repeated vertex
+    ([(0, 0), (4, 0), (4, 4), (2, 0), (0, 4)], False),          # a vertex on another edge
+])
+def test_polygon_simplicity(verts, simple):
+    if simple:
+        assert Polygon(verts).vertices[0] == (0.0, 0.0)
+    else:
+        with pytest.raises(ScenarioError, match="not simple"):
+            Polygon(verts)
+
+
+def test_sizes_and_ranges_are_limited():
+    lm = Landmark(1, (5, 5))
+    with pytest.raises(ScenarioError, match=r"^obstacles = .*: has 1001 entries, at most 1000 allowed$"):
+        World(obstacles=(Circle((50, 50), 1),) * (MAX_OBSTACLES + 1))
+    with pytest.raises(ScenarioError, match=r"^landmarks = .*: has 10001 entries"):
+        World(landmarks=(lm,) * (MAX_LANDMARKS + 1))
+    with pytest.raises(ScenarioError, match=r"x_max = 1000000000000.0: must be in \[-1e\+06, 1e\+06\]"):
+        Field(0, 0, 1e12, 10)
+    with pytest.raises(ScenarioError, match=r"x_max = 1000000.0: makes the field's width 1e\+06 m"):
+        Field(0, 0, 1e6, 10)
+    with pytest.raises(ScenarioError, match=r"y_max = 0.5: makes the field's height 0.5 m"):
+        Field(0, 0, 10, 0.5)
+    assert Field(-5e4, -5e4, 5e4, 5e4).width == 1e5
+    with pytest.raises(ScenarioError, match=r"id = 2147483648: must be in \[0, 2147483647\]"):
+        Landmark(2**31, (1, 2))
+    with pytest.raises(ScenarioError, match=r"class = 'xxx.*: has 1000 characters"):
+        Landmark(1, (1, 2), "x" * 1000)
+    with pytest.raises(ScenarioError, match=r"^radius = 10+\.\.\.0+: must be finite$"):
+        Circle((1, 2), 10**400)
+    with pytest.raises(ScenarioError, match=r"clusters = .*: has 101 entries"):
+        PathType("P", list(range(101)))
+
+
+def test_error_values_are_cut():
+    with pytest.raises(ScenarioError) as exc:
+        Circle(list(range(10**6)), 1)
+    assert len(str(exc.value)) < 150 and "center = [0, 1, 2, 3, ...]" in str(exc.value)
+    with pytest.raises(ScenarioError) as exc:
+        Landmark(1, (1, 2), "c" * 10**7)
+    assert len(str(exc.value)) < 150
+
+
 def test_values_are_normalised_and_frozen():
     c = Circle([1, 2], 3)
     assert c.center == (1.0, 2.0) and isinstance(c.radius, float)
@@ -100,6 +171,19 @@ def _boundary_distance(poly: np.ndarray, p) -> float:
     return best
 
 
+def test_point_segment_distance_broadcasts():
+    rng = np.random.default_rng(3)
+    p, a, b = rng.uniform(-5, 5, (50, 2)), rng.uniform(-5, 5, (7, 2)), rng.uniform(-5, 5, (7, 2))
+    b[3] = a[3]                                 # a zero-length segment is a point
+    def direct(q, a, b):
+        ab = b - a
+        t = 0.0 if ab @ ab == 0 else np.clip((q - a) @ ab / (ab @ ab), 0, 1)
+        return np.linalg.norm(q - (a + t * ab))
+    want = np.array([[direct(q, ak, bk) for ak, bk in zip(a, b)] for q in p])
+    np.testing.assert_allclose(_point_segment_distance(p, a, b), want, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(_point_segment_distance(p, a[0], b[0]), want[:, 0], rtol=0, atol=1e-12)
+
+
 def test_point_in_obstacle_matches_direct_computation():
     w = small_world()
     rng = np.random.default_rng(1)
@@ -116,6 +200,10 @@ def test_point_in_obstacle_matches_direct_computation():
     assert w.point_in_obstacle((15, 15)) and w.point_in_obstacle((45, 70))   # inside square, on circle
     assert w.point_in_obstacle((20, 15)) and not w.point_in_obstacle((20.01, 15))  # boundary counts
     assert w.obstacles_at((15, 15)) == [1]
+    hazards_as_obstacles = World(w.field, tuple(h.shape for h in w.hazards))     # overlapping: first one wins
+    np.testing.assert_array_equal(hazards_as_obstacles.first_obstacle_at([(20, 20), (12, 12), (90, 10)]), [0, 1, -1])
+    np.testing.assert_array_equal(w.first_obstacle_at(pts[:300], 1.5),
+                                  [(w.obstacles_at(p, 1.5) or [-1])[0] for p in pts[:300]])
 
 
 def test_segment_hits_obstacle_agrees_with_dense_sampling():

@@ -97,3 +97,8 @@ void pybind_geometry(py::module_& m) {
       .def("segment_centroids", &PathSegments::segment_centroids, py::arg("k"))
       .def("nearest_centroid_ahead", &PathSegments::nearest_centroid_ahead, py::arg("point"));
 }
+
+void pybind_geometry_simple_polygon(py::module_& m) {
+  m.def("is_simple_polygon", &is_simple_polygon, py::arg("polygon"), release_gil(),
+        "Whether the (M, 2) polygon is simple (CGAL::is_simple_2, O(M log M)).");
+}

@@ -1,5 +1,7 @@
 #include "common.hpp"
 
+void pybind_geometry_simple_polygon(py::module_& m);  // appended to bindings/geometry.cpp
+
 PYBIND11_MODULE(_core, m) {
   m.doc() = "safenav C++ core (use the safenav package, not this module directly)";
   // std::invalid_argument -> ValueError and std::runtime_error -> RuntimeError
@@ -9,6 +11,7 @@ PYBIND11_MODULE(_core, m) {
   pybind_filters(m);
   pybind_metrics(m);
   pybind_geometry(m);
+  pybind_geometry_simple_polygon(m);
   pybind_planning(m);
   pybind_localization(m);
   pybind_stereo(m);

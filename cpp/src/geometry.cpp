@@ -402,3 +402,13 @@ CentroidTarget PathSegments::nearest_centroid_ahead(const Eigen::Vector2d& p) co
 }
 
 }  // namespace safenav
+
+namespace safenav {
+
+bool is_simple_polygon(const Eigen::Ref<const Points2>& polygon) {
+  check_points(polygon, "polygon", 3);
+  const std::vector<Point> poly = to_cgal(polygon);
+  return CGAL::is_simple_2(poly.begin(), poly.end(), K());
+}
+
+}  // namespace safenav

@@ -2,7 +2,28 @@
 
 from __future__ import annotations
 
+import reprlib
+
 import numpy as np
+
+_REPR = reprlib.Repr()
+_REPR.maxstring = _REPR.maxother = _REPR.maxlong = 60
+_REPR.maxlist = _REPR.maxtuple = _REPR.maxdict = _REPR.maxset = 4
+_REPR.maxlevel = 3
+
+
+def cut(value, limit: int = 80) -> str:
+    """``repr(value)`` cut to at most ``limit`` characters, for error messages.
+
+    A huge value (a 2-million-element list, a 50 MB string, an integer past
+    Python's 4300-digit ``repr`` limit) never makes a huge message.
+    """
+    try:
+        text = _REPR.repr(value)
+    except (ValueError, RecursionError):      # int beyond sys.get_int_max_str_digits()
+        text = (f"<integer of about {int(value.bit_length() * 0.30103) + 1} digits>" if isinstance(value, int)
+                else f"<{type(value).__name__}>")
+    return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
 def as_array(name: str, value, shape: tuple, *, allow_nan: bool = False) -> np.ndarray:
@@ -15,7 +36,7 @@ def as_array(name: str, value, shape: tuple, *, allow_nan: bool = False) -> np.n
     try:
         arr = np.ascontiguousarray(value, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be numeric, got {value!r}") from exc
+        raise ValueError(f"{name} must be numeric, got {cut(value)}") from exc
     if arr.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, arr.shape)):
         want = "(" + ", ".join("N" if s is None else str(s) for s in shape) + ("," if len(shape) == 1 else "") + ")"
         raise ValueError(f"{name} must have shape {want}, got {arr.shape}")
@@ -31,11 +52,11 @@ def as_array(name: str, value, shape: tuple, *, allow_nan: bool = False) -> np.n
 
 def as_positive_int(name: str, value) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-        raise ValueError(f"{name} must be a positive integer, got {value!r}")
+        raise ValueError(f"{name} must be a positive integer, got {cut(value)}")
     return int(value)
 
 
 def as_seed(name: str, value) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0 or value >= 2**64:
-        raise ValueError(f"{name} must be an integer in [0, 2**64), got {value!r}")
+        raise ValueError(f"{name} must be an integer in [0, 2**64), got {cut(value)}")
     return int(value)

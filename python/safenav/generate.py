@@ -46,7 +46,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .world import Circle, Field, Hazard, Landmark, PathType, Polygon, World, _point_segment_distance
+from ._checks import cut
+from .world import (FIELD_SIZE, MAX_HAZARDS, MAX_LANDMARKS, MAX_OBSTACLES, Circle, Field, Hazard, Landmark,
+                    PathType, Polygon, World, _point_segment_distance)
 
 __all__ = ["GeneratorConfig", "generate_world", "generate_scenario", "PAPER_PATH_TYPES",
            "CLUSTER_LAYOUT", "DEFAULT_SEED"]
@@ -102,17 +104,19 @@ class GeneratorConfig:
     max_tries: int = 20000
 
     def __post_init__(self):
-        if not (self.size > 0 and math.isfinite(self.size)):
-            raise ValueError(f"size = {self.size!r}: must be a positive number")
-        for n in ("n_obstacles", "n_hazards", "n_blocking"):
+        lo, hi = FIELD_SIZE
+        if isinstance(self.size, bool) or not isinstance(self.size, (int, float)) or not lo <= self.size <= hi:
+            raise ValueError(f"size = {cut(self.size)}: must be a number in [{lo:g}, {hi:g}] m (a scenario's field size)")
+        for n, hi in (("n_obstacles", MAX_OBSTACLES), ("n_hazards", MAX_HAZARDS), ("n_blocking", MAX_OBSTACLES)):
             v = getattr(self, n)
-            if not isinstance(v, int) or isinstance(v, bool) or v < 0:
-                raise ValueError(f"{n} = {v!r}: must be a non-negative integer")
+            if not isinstance(v, int) or isinstance(v, bool) or not 0 <= v <= hi:
+                raise ValueError(f"{n} = {cut(v)}: must be an integer in [0, {hi}] (a scenario's limit)")
         if self.n_blocking > self.n_obstacles:
             raise ValueError(f"n_blocking = {self.n_blocking}: must be <= n_obstacles = {self.n_obstacles}")
         lo, hi = self.landmarks_per_cluster
-        if not (3 <= lo <= hi):
-            raise ValueError(f"landmarks_per_cluster = {self.landmarks_per_cluster!r}: need 3 <= min <= max")
+        top = MAX_LANDMARKS // len(CLUSTER_LAYOUT)
+        if not (3 <= lo <= hi <= top):
+            raise ValueError(f"landmarks_per_cluster = {cut(self.landmarks_per_cluster)}: need 3 <= min <= max <= {top}")
 
 
 def _round(x) -> float:
@@ -189,7 +193,7 @@ def generate_world(seed: int = DEFAULT_SEED, config: GeneratorConfig | None = No
     """The real-imitated world for ``seed`` (same seed and config → identical world)."""
     cfg = config or GeneratorConfig()
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed = {seed!r}: must be a non-negative integer")
+        raise ValueError(f"seed = {cut(seed)}: must be a non-negative integer")
     rng = np.random.default_rng(int(seed))
     fld = Field(0.0, 0.0, float(cfg.size), float(cfg.size))
     landmarks = _clusters(rng, cfg)

@@ -71,14 +71,17 @@ but ``world`` and ``path_types`` is optional and defaults to the values below)::
 
 Loading validates every field; each problem is a :class:`ScenarioError`
 (a ``ValueError``) naming the file, the field path and the value, e.g.
-``scenario.toml: world.obstacles[3].radius = -2.0: must be > 0``.
+``scenario.toml: world.obstacles[3].radius = -2.0: must be in (0, 100000]``.
+Every field's range and every list's size limit are in docs/scenario.md.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
+import stat
 import tempfile
 import tomllib
 from dataclasses import dataclass, field, fields
@@ -90,8 +93,9 @@ from typing import Any
 import numpy as np
 import tomli_w
 
-from .world import (Circle, Field, Hazard, Landmark, PathType, Polygon, ScenarioError, World,  # noqa: F401
-                    _at, _fail, _integer, _items, _real, _table, _text, _vector)
+from ._checks import cut
+from .world import (Circle, Field, Hazard, Landmark, PathType, Polygon, Range, ScenarioError, World,  # noqa: F401
+                    _at, _fail, _integer, _items, _join, _table, _text, _vector)
 
 __all__ = [
     "ScenarioError", "CameraParams", "DetectionParams", "BmmConfig", "NoiseParams", "PlannerParams",
@@ -102,8 +106,32 @@ __all__ = [
 SCHEMA_VERSION = 1
 
 
+def _r(lo, hi, lo_open=False):
+    return Range(lo, hi, lo_open)
+
+
+def _n(lo, hi):
+    return Range(lo, hi, integer=True)
+
+
+MAX_STEPS = 10_000_000        #: navigation.max_steps, given or derived
+MAX_ITERATIONS = 1_000_000    #: RAw-RRT* iterations of one plan
+MAX_PATH_TYPES = 100
+MAX_ZONES = 64                #: buffer.weights entries
+MAX_DESCRIPTION = 10_000      #: characters
+
+
 class _Params:
-    """Mixin: ``to_dict``/``from_dict`` for a flat parameter table whose keys are the field names."""
+    """Mixin for a flat parameter table whose keys are the field names.
+
+    ``RANGES`` gives each scalar field's physical range (docs/scenario.md says
+    why); ``__post_init__`` checks and normalises every one of them."""
+
+    RANGES: dict = {}
+
+    def __post_init__(self):
+        for name, rng in self.RANGES.items():
+            object.__setattr__(self, name, rng.check(name, getattr(self, name)))
 
     def to_dict(self) -> dict:
         out = {}
@@ -128,13 +156,9 @@ class CameraParams(_Params):
     image_height_px: int = 1440
     field_of_view_deg: float = 85.0   #: horizontal field of view [deg]
 
-    def __post_init__(self):
-        for n in ("focal_length_px", "baseline_m"):
-            object.__setattr__(self, n, _real(n, getattr(self, n), lo=0.0, lo_open=True))
-        for n in ("image_width_px", "image_height_px"):
-            object.__setattr__(self, n, _integer(n, getattr(self, n), lo=1))
-        object.__setattr__(self, "field_of_view_deg",
-                           _real("field_of_view_deg", self.field_of_view_deg, lo=0.0, lo_open=True, hi=360.0))
+    RANGES = {"focal_length_px": _r(0, 1e5, True), "baseline_m": _r(0, 10, True),
+              "image_width_px": _n(1, 100_000), "image_height_px": _n(1, 100_000),
+              "field_of_view_deg": _r(0, 360, True)}
 
 
 @dataclass(frozen=True)
@@ -144,9 +168,7 @@ class DetectionParams(_Params):
     max_range_m: float = 30.0   #: landmarks farther than this (3D distance) are not detected [m]
     min_landmarks: int = 3      #: a cluster used on a path needs this many within range of its centroid
 
-    def __post_init__(self):
-        object.__setattr__(self, "max_range_m", _real("max_range_m", self.max_range_m, lo=0.0, lo_open=True))
-        object.__setattr__(self, "min_landmarks", _integer("min_landmarks", self.min_landmarks, lo=1))
+    RANGES = {"max_range_m": _r(0, 1e4, True), "min_landmarks": _n(1, 1000)}
 
 
 @dataclass(frozen=True)
@@ -163,10 +185,9 @@ class BmmConfig(_Params):
     heading_noise: float = 0.01      #: σ of ε_θ
     position_noise: float = 0.01     #: σ of ε_x, ε_y
 
-    def __post_init__(self):
-        for f in fields(self):
-            positive = f.name in ("acceleration", "deceleration", "max_speed", "max_heading_rate", "dt")
-            object.__setattr__(self, f.name, _real(f.name, getattr(self, f.name), lo=0.0, lo_open=positive))
+    RANGES = {"acceleration": _r(0, 100, True), "deceleration": _r(0, 100, True), "max_speed": _r(0, 100, True),
+              "max_heading_rate": _r(0, 100, True), "dt": _r(0, 10, True), "terrain_effect": _r(0, 100),
+              "speed_noise": _r(0, 10), "heading_noise": _r(0, math.pi), "position_noise": _r(0, 10)}
 
     def to_params(self):
         """The equivalent :class:`safenav.BmmParams` (needs the C++ core)."""
@@ -185,13 +206,15 @@ class NoiseParams(_Params):
     imu_speed_std: float = 0.05                         #: [m/s]
     imu_heading_std: float = 0.02                       #: [rad]
 
+    #: each entry of ``lanbloc_std``; a σ of 0 would make the filters' covariances singular
+    LANBLOC_STD = _r(1e-6, 100)
+    RANGES = {"imu_speed_std": _r(1e-6, 10), "imu_heading_std": _r(1e-6, math.pi)}
+
     def __post_init__(self):
+        super().__post_init__()
         v = _vector("lanbloc_std", self.lanbloc_std, (2,))
-        for i, s in enumerate(v):
-            _real(f"lanbloc_std[{i}]", s, lo=0.0)
-        object.__setattr__(self, "lanbloc_std", v)
-        for n in ("imu_speed_std", "imu_heading_std"):
-            object.__setattr__(self, n, _real(n, getattr(self, n), lo=0.0))
+        object.__setattr__(self, "lanbloc_std", tuple(self.LANBLOC_STD.check(f"lanbloc_std[{i}]", s)
+                                                      for i, s in enumerate(v)))
 
 
 @dataclass(frozen=True)
@@ -201,9 +224,7 @@ class PlannerParams(_Params):
     alpha: float = 1.0   #: α
     beta: float = 1.0    #: β
 
-    def __post_init__(self):
-        object.__setattr__(self, "alpha", _real("alpha", self.alpha, lo=0.0, lo_open=True))
-        object.__setattr__(self, "beta", _real("beta", self.beta, lo=0.0))
+    RANGES = {"alpha": _r(0, 1e6, True), "beta": _r(0, 1e6)}
 
 
 @dataclass(frozen=True)
@@ -213,12 +234,15 @@ class BufferParams(_Params):
     half_width: float = 8.0
     weights: tuple[float, ...] = (2.0, 4.0, 6.0, 8.0)
 
+    WEIGHT = _r(0, 1e6, True)   #: each entry of ``weights``
+    RANGES = {"half_width": _r(0, 1000, True)}
+
     def __post_init__(self):
-        object.__setattr__(self, "half_width", _real("half_width", self.half_width, lo=0.0, lo_open=True))
-        w = _items("weights", self.weights)
+        super().__post_init__()
+        w = _items("weights", self.weights, MAX_ZONES)
         if not w:
             _fail("weights", self.weights, "needs at least one zone weight")
-        w = tuple(_real(f"weights[{i}]", x, lo=0.0, lo_open=True) for i, x in enumerate(w))
+        w = tuple(self.WEIGHT.check(f"weights[{i}]", x) for i, x in enumerate(w))
         for i in range(1, len(w)):
             if w[i] < w[i - 1]:
                 _fail(f"weights[{i}]", w[i], f"must not be below weights[{i - 1}] = {w[i - 1]} (risk grows outward)")
@@ -255,16 +279,11 @@ class NavigationParams(_Params):
     lost_position_std: float = 10.0    #: lost localization above this position σ [m]
     max_steps: int = 0                 #: 0 = 3 × path length / (speed · dt) + 200
 
-    def __post_init__(self):
-        for n in ("cruise_speed", "arrival_radius", "segment_length", "lookahead", "step_back_speed",
-                  "sensing_range", "replan_lookahead", "lost_position_std"):
-            object.__setattr__(self, n, _real(n, getattr(self, n), lo=0.0, lo_open=True))
-        object.__setattr__(self, "clearance", _real("clearance", self.clearance, lo=0.0))
-        object.__setattr__(self, "corridor_bias", _real("corridor_bias", self.corridor_bias, lo=0.0, hi=1.0))
-        object.__setattr__(self, "sub_segments", _integer("sub_segments", self.sub_segments, lo=1))
-        for n in ("plan_iterations", "replan_iterations"):
-            object.__setattr__(self, n, _integer(n, getattr(self, n), lo=1))
-        object.__setattr__(self, "max_steps", _integer("max_steps", self.max_steps, lo=0))
+    RANGES = {"cruise_speed": _r(0.01, 100), "arrival_radius": _r(0, 100, True), "segment_length": _r(0, 1e5, True),
+              "sub_segments": _n(1, 1000), "lookahead": _r(0, 1e5, True), "step_back_speed": _r(0.01, 100),
+              "sensing_range": _r(0, 1e5, True), "replan_lookahead": _r(0, 1e5, True), "clearance": _r(0, 100),
+              "plan_iterations": _n(1, MAX_ITERATIONS), "replan_iterations": _n(1, MAX_ITERATIONS),
+              "corridor_bias": _r(0, 1), "lost_position_std": _r(0, 1e4, True), "max_steps": _n(0, MAX_STEPS)}
 
 
 @dataclass(frozen=True)
@@ -275,10 +294,8 @@ class Seeds(_Params):
     trials: int = 0
     planner: int = 0
 
-    def __post_init__(self):
-        for f in fields(self):
-            # TOML integers are signed 64-bit.
-            object.__setattr__(self, f.name, _integer(f.name, getattr(self, f.name), lo=0, hi=2**63 - 1))
+    # TOML integers are signed 64-bit.
+    RANGES = {"world": _n(0, 2**63 - 1), "trials": _n(0, 2**63 - 1), "planner": _n(0, 2**63 - 1)}
 
 
 _SECTIONS: dict[str, type] = {
@@ -291,11 +308,18 @@ _SECTIONS: dict[str, type] = {
 class Scenario:
     """A world, its path types and the run parameters.
 
-    Cross-checks on construction: path type names are unique; every cluster a
-    path names exists; a path's start and destination (cluster centroids) lie
-    outside every obstacle; every cluster on a path has at least
-    ``detection.min_landmarks`` landmarks within ``detection.max_range_m`` of
-    its centroid (the paper's trilateration sets).
+    Cross-checks on construction, so that nothing fails once planning has
+    started: path type names are unique; every cluster a path names exists; a
+    path's start and destination (cluster centroids) lie farther than
+    ``navigation.clearance`` from every obstacle (else the planner cannot
+    start or end) and farther apart than ``navigation.arrival_radius`` (else
+    every trial "arrives" before it moves); the cruise and step-back speeds do
+    not exceed ``bmm.max_speed``; with ``navigation.max_steps = 0`` the
+    derived step budget 3·L/(v·Δt·terrain factor) + 200 of each path's
+    polyline length L stays within ``MAX_STEPS``; every cluster on a path has
+    at least ``detection.min_landmarks`` landmarks within
+    ``detection.max_range_m`` of its centroid (the paper's trilateration sets).
+    Every check is linear in the scenario's size.
     """
 
     world: World
@@ -315,17 +339,23 @@ class Scenario:
         _text("name", self.name)
         if not isinstance(self.description, str):
             _fail("description", self.description, "must be a string")
+        if len(self.description) > MAX_DESCRIPTION:
+            _fail("description", self.description,
+                  f"has {len(self.description)} characters, at most {MAX_DESCRIPTION} allowed")
         if not isinstance(self.world, World):
             _fail("world", self.world, "must be a World")
         for key, cls in _SECTIONS.items():
             if not isinstance(getattr(self, key), cls):
                 _fail(key, getattr(self, key), f"must be a {cls.__name__}")
-        paths = _items("path_types", self.path_types)
+        paths = _items("path_types", self.path_types, MAX_PATH_TYPES)
         if not paths:
             _fail("path_types", self.path_types, "needs at least one path type")
         object.__setattr__(self, "path_types", paths)
-        w = self.world
-        known = set(w.cluster_ids)
+        w, nav = self.world, self.navigation
+        for n in ("cruise_speed", "step_back_speed"):
+            if getattr(nav, n) > self.bmm.max_speed:
+                _fail(f"navigation.{n}", getattr(nav, n), f"exceeds bmm.max_speed = {self.bmm.max_speed:g} m/s")
+        groups, cents = w.clusters(), w.cluster_centroids()
         names: dict[str, int] = {}
         for i, pt in enumerate(paths):
             where = f"path_types[{i}]"
@@ -335,20 +365,41 @@ class Scenario:
                 _fail(f"{where}.name", pt.name, f"duplicates path_types[{names[pt.name]}].name")
             names[pt.name] = i
             for k, c in enumerate(pt.clusters):
-                if c not in known:
-                    _fail(f"{where}.clusters[{k}]", c, f"unknown cluster (clusters with landmarks: {sorted(known)})")
-            for k, role in ((0, "start"), (len(pt.clusters) - 1, "destination")):
-                c = pt.clusters[k]
-                p = w.cluster_centroid(c)
-                hit = w.obstacles_at(p)
-                if hit:
-                    _fail(f"{where}.clusters[{k}]", c, f"the path's {role}, the centroid "
-                          f"({p[0]:.6g}, {p[1]:.6g}) of cluster {c}, lies inside world.obstacles[{hit[0]}]")
+                if c not in groups:
+                    _fail(f"{where}.clusters[{k}]", c, f"unknown cluster (clusters with landmarks: {cut(sorted(groups))})")
+        ends = np.array([cents[c] for pt in paths for c in (pt.start, pt.destination)])
+        hits = w.first_obstacle_at(ends, nav.clearance).reshape(-1, 2)
+        for i, pt in enumerate(paths):
+            where = f"path_types[{i}]"
+            for j, (k, role) in enumerate(((0, "start"), (len(pt.clusters) - 1, "destination"))):
+                if hits[i, j] >= 0:
+                    c, p = pt.clusters[k], ends[2 * i + j]
+                    _fail(f"{where}.clusters[{k}]", c, f"the path's {role}, the centroid ({p[0]:.6g}, {p[1]:.6g}) of "
+                          f"cluster {c}, lies within navigation.clearance = {nav.clearance:g} m of "
+                          f"world.obstacles[{hits[i, j]}]")
+            gap = float(np.hypot(*(ends[2 * i + 1] - ends[2 * i])))
+            if nav.arrival_radius >= gap:
+                _fail("navigation.arrival_radius", nav.arrival_radius,
+                      f"must be below the {gap:.6g} m between the start and the destination of {where} "
+                      f"({pt.name}); the vehicle would arrive before it moves")
+            if nav.max_steps == 0:
+                length = float(np.sum(np.hypot(*np.diff([cents[c] for c in pt.clusters], axis=0).T)))
+                steps = 3.0 * length * (1.0 + self.bmm.terrain_effect) / (nav.cruise_speed * self.bmm.dt) + 200
+                if steps > MAX_STEPS:
+                    _fail("navigation.cruise_speed", nav.cruise_speed,
+                          f"with bmm.dt = {self.bmm.dt:g} s and bmm.terrain_effect = {self.bmm.terrain_effect:g}, "
+                          f"{where} ({length:.6g} m) needs {steps:.3g} steps, more than {MAX_STEPS}; "
+                          f"raise the speed or set navigation.max_steps")
+        in_range = {}      # per cluster: its landmarks within range of its centroid (3D distance)
+        for c, lms in groups.items():
+            xyz = np.array([(*lm.xy, lm.height) for lm in lms])
+            in_range[c] = int(np.sum(np.hypot(np.hypot(*(xyz[:, :2] - cents[c]).T), xyz[:, 2])
+                                     <= self.detection.max_range_m))
+        for i, pt in enumerate(paths):
             for k, c in enumerate(pt.clusters):
-                n = len(w.landmarks_in_range(w.cluster_centroid(c), self.detection.max_range_m, cluster=c))
-                if n < self.detection.min_landmarks:
-                    _fail(f"{where}.clusters[{k}]", c,
-                          f"cluster {c} has {n} landmark(s) within detection.max_range_m = "
+                if in_range[c] < self.detection.min_landmarks:
+                    _fail(f"path_types[{i}].clusters[{k}]", c,
+                          f"cluster {c} has {in_range[c]} landmark(s) within detection.max_range_m = "
                           f"{self.detection.max_range_m:g} m of its centroid; trilateration needs "
                           f"detection.min_landmarks = {self.detection.min_landmarks}")
 
@@ -397,7 +448,7 @@ class Scenario:
         with _at("world"):
             kw["world"] = World.from_dict(d["world"])
         paths = []
-        for i, p in enumerate(_items("path_types", d["path_types"])):
+        for i, p in enumerate(_items("path_types", d["path_types"], MAX_PATH_TYPES)):
             with _at(f"path_types[{i}]"):
                 t = _table("", p, required=("name", "clusters"), optional=("start", "destination"))
                 pt = PathType(t["name"], t["clusters"])
@@ -418,18 +469,128 @@ def _is_json(path: Path) -> bool:
     return path.suffix.lower() == ".json"
 
 
-def load_scenario(path) -> Scenario:
-    """Read and validate a scenario file (TOML, or JSON by suffix)."""
-    path = Path(path)
+MAX_FILE_BYTES = 8 * 2**20    #: the largest scenario file read
+MAX_DEPTH = 8                  #: tables and lists nested in a scenario (a polygon's vertex is 6 deep)
+
+
+def _read(path: Path) -> bytes:
+    """The bytes of the regular file ``path``, at most ``MAX_FILE_BYTES``.
+
+    Opened non-blocking and checked with ``fstat`` before reading, so a FIFO,
+    a device (``/dev/zero``, also through a symlink) or a directory is
+    refused at once instead of blocking or filling memory."""
     try:
-        raw = path.read_bytes()
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
     except OSError as exc:
-        raise ScenarioError(f"{path}: cannot read the scenario file: {exc}") from exc
+        raise ScenarioError(f"{path}: cannot read the scenario file: {exc.strerror}") from None
     try:
-        data = json.loads(raw) if _is_json(path) else tomllib.loads(raw.decode("utf-8"))
-    except (tomllib.TOMLDecodeError, json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ScenarioError(f"{path}: not a valid {'JSON' if _is_json(path) else 'TOML'} file: {exc}") from exc
+        mode = os.fstat(fd).st_mode
+        if not stat.S_ISREG(mode):
+            raise ScenarioError(f"{path}: not a regular file (mode {stat.filemode(mode)}); "
+                                "a scenario must be a regular file")
+        raw = b""
+        while len(raw) <= MAX_FILE_BYTES and (chunk := os.read(fd, MAX_FILE_BYTES + 1 - len(raw))):
+            raw += chunk
+    finally:
+        os.close(fd)
+    if len(raw) > MAX_FILE_BYTES:
+        raise ScenarioError(f"{path}: larger than the {MAX_FILE_BYTES} bytes a scenario file may have")
+    return raw
+
+
+class _Pairs(dict):
+    """A JSON object that remembers its first repeated key (``object_pairs_hook``)."""
+
+    def __init__(self, pairs):
+        super().__init__()
+        self.repeated = None
+        for k, v in pairs:
+            if k in self and self.repeated is None:
+                self.repeated = k
+            self[k] = v
+
+
+def _check_tree(data) -> None:
+    """Reject nesting deeper than ``MAX_DEPTH`` and repeated JSON keys, naming the field path."""
+    todo = [(data, "", 0)] if isinstance(data, (dict, list)) else []
+    while todo:
+        node, where, depth = todo.pop()
+        if depth > MAX_DEPTH:
+            raise ScenarioError(f"{where} = {cut(node)}: nested deeper than {MAX_DEPTH} levels")
+        if isinstance(node, dict):
+            if getattr(node, "repeated", None) is not None:
+                k = node.repeated
+                raise ScenarioError(f"{_join(where, k[:40])} = {cut(node[k])}: "
+                                    "the key appears twice in its table")
+            todo.extend((v, _join(where, str(k)[:40]), depth + 1) for k, v in node.items()
+                        if isinstance(v, (dict, list)))
+        else:
+            todo.extend((v, f"{where}[{i}]", depth + 1) for i, v in enumerate(node) if isinstance(v, (dict, list)))
+
+
+_KEY = re.compile(r"""(?m)^[ \t]*\[{1,2}[ \t]*([A-Za-z0-9_.-]+)[ \t]*\]|["']?([A-Za-z0-9_.-]+)["']?[ \t]*[:=]""")
+_DIGITS = re.compile(r"[0-9_]{1000,}")
+
+
+def _where(text: str, pos: int) -> str:
+    """The key (TOML: ``table.key``) last named before offset ``pos`` of ``text``, and its line."""
+    table, key = "", ""
+    for m in _KEY.finditer(text, 0, pos):
+        if m.group(1):
+            table, key = m.group(1), ""
+        else:
+            key = m.group(2)
+    name = ".".join(x for x in (table, key) if x) or "(top level)"
+    return f"{name[:60]} (line {text.count(chr(10), 0, pos) + 1})"
+
+
+def _deepest(text: str) -> int:
+    """Offset where brackets first nest deeper than ``MAX_DEPTH`` (quoted strings skipped), else 0."""
+    depth = 0
+    for m in re.finditer(r'"(?:\\.|[^"\\\n])*"|\'[^\'\n]*\'|[\[{]|[\]}]', text):
+        c = m.group()
+        depth += 1 if c in "[{" else -1 if c in "]}" else 0
+        if depth > MAX_DEPTH + 1:
+            return m.start()
+    return 0
+
+
+def _parse(raw: bytes, path: Path):
+    fmt = "JSON" if _is_json(path) else "TOML"
     try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(f"{path}: not UTF-8 text: byte {exc.start} = {raw[exc.start]:#04x}") from None
+    try:
+        return json.loads(text, object_pairs_hook=_Pairs) if fmt == "JSON" else tomllib.loads(text)
+    except RecursionError:
+        raise ScenarioError(f"{path}: {_where(text, _deepest(text))}: nested deeper than {MAX_DEPTH} levels") from None
+    except json.JSONDecodeError as exc:
+        raise ScenarioError(f"{path}: {_where(text, exc.pos)}: not a valid JSON file: {exc.msg[:100]}") from None
+    except tomllib.TOMLDecodeError as exc:
+        m = re.search(r"\(at line (\d+), column (\d+)\)", str(exc))
+        pos = sum(len(x) + 1 for x in text.split("\n", int(m[1]) - 1)[:-1]) + int(m[2]) - 1 if m else 0
+        raise ScenarioError(f"{path}: {_where(text, pos)}: not a valid TOML file: {str(exc)[:150]}") from None
+    except ValueError as exc:     # Python's int-from-text digit limit (sys.get_int_max_str_digits)
+        m = _DIGITS.search(text)
+        if not m:
+            raise ScenarioError(f"{path}: not a valid {fmt} file: {str(exc)[:150]}") from None
+        raise ScenarioError(f"{path}: {_where(text, m.start())}: a number of {len(m.group())} digits; "
+                            "no field takes more than 19") from None
+
+
+def load_scenario(path) -> Scenario:
+    """Read and validate a scenario file (TOML, or JSON by suffix).
+
+    Only a regular file of at most ``MAX_FILE_BYTES`` is read; repeated keys
+    (TOML and JSON) and nesting deeper than ``MAX_DEPTH`` are refused; then
+    :meth:`Scenario.from_dict` checks every field against its range and every
+    list against its size limit (docs/scenario.md).  Every problem is one
+    :class:`ScenarioError` line naming the file, the field and the value."""
+    path = Path(path)
+    data = _parse(_read(path), path)
+    try:
+        _check_tree(data)
         return Scenario.from_dict(data)
     except ValueError as exc:
         raise ScenarioError(f"{path}: {exc}") from None

@@ -12,7 +12,7 @@ A rectangular :class:`Field` holding
 Every type is a frozen dataclass that validates itself on construction.  An
 error is a :class:`ScenarioError` (a ``ValueError``) whose message starts
 with the field's path relative to the object, then the bad value, e.g.
-``obstacles[3].radius = -2.0: must be > 0``; :mod:`safenav.scenario` prefixes
+``obstacles[3].radius = -2.0: must be in (0, 100000]``; :mod:`safenav.scenario` prefixes
 the path of the enclosing object (``world.obstacles[3].radius``).
 
 Geometry conventions: a point on an obstacle's boundary is inside it; the
@@ -28,6 +28,9 @@ from typing import Iterable, Sequence, Union
 
 import numpy as np
 from matplotlib.path import Path as _MplPath
+
+from . import _core
+from ._checks import cut
 
 __all__ = [
     "ScenarioError", "Field", "Circle", "Polygon", "Shape", "Hazard", "Landmark",
@@ -67,52 +70,94 @@ class _at:
 
 
 def _fail(name: str, value, problem: str):
-    raise ScenarioError(f"{name} = {value!r}: {problem}")
+    raise ScenarioError(f"{name} = {cut(value)}: {problem}")
 
 
-def _real(name: str, value, *, lo: float | None = None, lo_open: bool = False,
-          hi: float | None = None, hi_open: bool = False) -> float:
-    """``value`` as a finite float (ints accepted, bools and strings not), within bounds."""
+# --------------------------------------------------------------------------- limits
+# Every coordinate and collection is bounded (docs/scenario.md gives the reasons),
+# so that no file, however large its numbers or lists, hangs validation or planning.
+
+INT32_MAX = 2**31 - 1        #: ids and counts reach C++ ``int``
+MAX_COORDINATE = 1e6         #: |x|, |y|, |z| of every point [m]
+FIELD_SIZE = (1.0, 1e5)      #: the field's width and height [m]
+MAX_RADIUS = 1e5             #: of a circle [m]
+MAX_OBSTACLES = 1000
+MAX_HAZARDS = 1000
+MAX_LANDMARKS = 10_000
+MAX_VERTICES = 1000          #: of one polygon
+MAX_PATH_CLUSTERS = 100      #: clusters on one path type
+MAX_NAME = 200               #: characters of a name or a landmark class
+
+
+def _interval(lo: float, hi: float, lo_open: bool = False) -> str:
+    return f"{'(' if lo_open else '['}{lo:g}, {hi:g}]"
+
+
+@dataclass(frozen=True)
+class Range:
+    """The valid values of a scalar parameter: ``[lo, hi]`` (``(lo, hi]`` if ``lo_open``); ``integer`` for counts."""
+
+    lo: float
+    hi: float
+    lo_open: bool = False
+    integer: bool = False
+
+    def check(self, name: str, value):
+        if self.integer:
+            return _integer(name, value, lo=int(self.lo), hi=int(self.hi))
+        return _real(name, value, lo=self.lo, lo_open=self.lo_open, hi=self.hi)
+
+    def __str__(self) -> str:
+        return f"[{int(self.lo)}, {int(self.hi)}]" if self.integer else _interval(self.lo, self.hi, self.lo_open)
+
+
+def _real(name: str, value, *, lo: float, hi: float, lo_open: bool = False) -> float:
+    """``value`` as a finite float (ints accepted, bools and strings not) in ``[lo, hi]`` (``(lo, hi]``)."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
         _fail(name, value, "must be a number")
-    v = float(value)
+    try:
+        v = float(value)
+    except OverflowError:                       # an integer too large for a float
+        v = math.inf if value > 0 else -math.inf
     if not math.isfinite(v):
         _fail(name, value, "must be finite")
-    if lo is not None and (v < lo or (lo_open and v == lo)):
-        _fail(name, value, f"must be {'>' if lo_open else '>='} {lo}")
-    if hi is not None and (v > hi or (hi_open and v == hi)):
-        _fail(name, value, f"must be {'<' if hi_open else '<='} {hi}")
+    if not (lo < v <= hi if lo_open else lo <= v <= hi):
+        _fail(name, value, f"must be in {_interval(lo, hi, lo_open)}")
     return v
 
 
-def _integer(name: str, value, *, lo: int | None = None, hi: int | None = None) -> int:
+def _integer(name: str, value, *, lo: int = 0, hi: int = INT32_MAX) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         _fail(name, value, "must be an integer")
     v = int(value)
-    if lo is not None and v < lo:
-        _fail(name, value, f"must be >= {lo}")
-    if hi is not None and v > hi:
-        _fail(name, value, f"must be <= {hi}")
+    if not lo <= v <= hi:
+        _fail(name, value, f"must be in [{lo}, {hi}]")
     return v
 
 
-def _text(name: str, value) -> str:
+def _text(name: str, value, max_len: int = MAX_NAME) -> str:
     if not isinstance(value, str) or not value.strip():
         _fail(name, value, "must be a non-empty string")
+    if len(value) > max_len:
+        _fail(name, value, f"has {len(value)} characters, at most {max_len} allowed")
     return value
 
 
-def _vector(name: str, value, sizes: tuple[int, ...]) -> tuple[float, ...]:
+def _vector(name: str, value, sizes: tuple[int, ...], bound: float = MAX_COORDINATE) -> tuple[float, ...]:
+    """A list of ``sizes`` numbers, each in [-bound, bound]."""
     if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)):
         _fail(name, value, f"must be a list of {' or '.join(map(str, sizes))} numbers")
     if len(value) not in sizes:
         _fail(name, value, f"must have {' or '.join(map(str, sizes))} entries, got {len(value)}")
-    return tuple(_real(f"{name}[{i}]", v) for i, v in enumerate(value))
+    return tuple(_real(f"{name}[{i}]", v, lo=-bound, hi=bound) for i, v in enumerate(value))
 
 
-def _items(name: str, value) -> tuple:
+def _items(name: str, value, max_len: int) -> tuple:
+    """``value`` as a tuple: a list of at most ``max_len`` entries."""
     if isinstance(value, (str, bytes, dict)) or not isinstance(value, (Sequence, np.ndarray)):
         _fail(name, value, "must be a list")
+    if len(value) > max_len:
+        _fail(name, value, f"has {len(value)} entries, at most {max_len} allowed")
     return tuple(value)
 
 
@@ -129,11 +174,13 @@ class Field:
 
     def __post_init__(self):
         for n in ("x_min", "y_min", "x_max", "y_max"):
-            object.__setattr__(self, n, _real(n, getattr(self, n)))
-        if self.x_max <= self.x_min:
-            _fail("x_max", self.x_max, f"must be > x_min = {self.x_min} (the field's width must be positive)")
-        if self.y_max <= self.y_min:
-            _fail("y_max", self.y_max, f"must be > y_min = {self.y_min} (the field's height must be positive)")
+            object.__setattr__(self, n, _real(n, getattr(self, n), lo=-MAX_COORDINATE, hi=MAX_COORDINATE))
+        lo, hi = FIELD_SIZE
+        for n, size in (("x_max", self.width), ("y_max", self.height)):
+            if not lo <= size <= hi:
+                low = n.replace("max", "min")
+                _fail(n, getattr(self, n), f"makes the field's {'width' if n == 'x_max' else 'height'} {size:g} m "
+                      f"({n} - {low}, {low} = {getattr(self, low):g}); it must be in [{lo:g}, {hi:g}] m")
 
     @property
     def width(self) -> float:
@@ -169,7 +216,7 @@ class Circle:
 
     def __post_init__(self):
         object.__setattr__(self, "center", _vector("center", self.center, (2,)))
-        object.__setattr__(self, "radius", _real("radius", self.radius, lo=0.0, lo_open=True))
+        object.__setattr__(self, "radius", _real("radius", self.radius, lo=0.0, lo_open=True, hi=MAX_RADIUS))
 
     def bounding_circle(self) -> tuple[np.ndarray, float]:
         return np.array(self.center), self.radius
@@ -204,19 +251,16 @@ class Polygon:
     kind = "polygon"
 
     def __post_init__(self):
-        verts = _items("vertices", self.vertices)
+        verts = _items("vertices", self.vertices, MAX_VERTICES)
         if len(verts) < 3:
             _fail("vertices", self.vertices, f"a polygon needs at least 3 vertices, got {len(verts)}")
         verts = tuple(_vector(f"vertices[{i}]", v, (2,)) for i, v in enumerate(verts))
         object.__setattr__(self, "vertices", verts)
         v = np.array(verts)
-        n = len(v)
-        for i in range(n):
-            for j in range(i + 1, n):
-                if j == i + 1 or (i == 0 and j == n - 1):
-                    continue  # adjacent edges share a vertex
-                if _segments_distance(v[i], v[(i + 1) % n], v[j][None], v[(j + 1) % n][None])[0] == 0.0:
-                    _fail("vertices", verts, f"the polygon is not simple: edge {i} crosses edge {j}")
+        if not _core.is_simple_polygon(v):      # CGAL's O(n log n) sweep, exact predicates
+            if np.linalg.matrix_rank(v - v[0]) < 2:
+                _fail("vertices", verts, "the polygon has zero area: its vertices lie on one line")
+            _fail("vertices", verts, "the polygon is not simple: two edges cross or touch, or a vertex repeats")
         area = 0.5 * abs(np.dot(v[:, 0], np.roll(v[:, 1], -1)) - np.dot(v[:, 1], np.roll(v[:, 0], -1)))
         if not area > 1e-12:
             _fail("vertices", verts, "the polygon has zero area")
@@ -238,8 +282,7 @@ class Polygon:
     def contains(self, points, margin: float = 0.0) -> np.ndarray:
         p = np.asarray(points, dtype=float).reshape(-1, 2)
         inside = self._path.contains_points(p)
-        p0, p1 = self._edges()
-        d = np.min(np.stack([_point_segment_distance(p, a, b) for a, b in zip(p0, p1)]), axis=0)
+        d = _point_segment_distance(p, *self._edges()).min(axis=1)
         return inside | (d <= margin + 1e-9)
 
     def segment_hits(self, a, b, margin: float = 0.0) -> bool:
@@ -296,10 +339,10 @@ class Landmark:
     cluster: int = 0
 
     def __post_init__(self):
-        object.__setattr__(self, "id", _integer("id", self.id, lo=0))
+        object.__setattr__(self, "id", _integer("id", self.id))
         object.__setattr__(self, "position", _vector("position", self.position, (2, 3)))
         object.__setattr__(self, "class_name", _text("class", self.class_name))
-        object.__setattr__(self, "cluster", _integer("cluster", self.cluster, lo=0))
+        object.__setattr__(self, "cluster", _integer("cluster", self.cluster))
 
     @property
     def xy(self) -> np.ndarray:
@@ -328,10 +371,10 @@ class PathType:
 
     def __post_init__(self):
         _text("name", self.name)
-        ids = _items("clusters", self.clusters)
+        ids = _items("clusters", self.clusters, MAX_PATH_CLUSTERS)
         if len(ids) < 2:
             _fail("clusters", self.clusters, "a path needs a start and a destination cluster")
-        ids = tuple(_integer(f"clusters[{i}]", c, lo=0) for i, c in enumerate(ids))
+        ids = tuple(_integer(f"clusters[{i}]", c) for i, c in enumerate(ids))
         for i in range(1, len(ids)):
             if ids[i] == ids[i - 1]:
                 _fail(f"clusters[{i}]", ids[i], "repeats the previous cluster")
@@ -353,12 +396,16 @@ class PathType:
 # --------------------------------------------------------------------------- geometry kernels
 
 def _point_segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Distance of each of the ``(N, 2)`` points to the segment ``ab``."""
-    ab = b - a
-    den = float(ab @ ab)
-    t = np.zeros(len(p)) if den == 0.0 else np.clip((p - a) @ ab / den, 0.0, 1.0)
-    q = a + t[:, None] * ab
-    return np.hypot(p[:, 0] - q[:, 0], p[:, 1] - q[:, 1])
+    """Distance of each of the ``(N, 2)`` points to the segment ``ab``: shape ``(N,)``;
+    or, for ``(M, 2)`` end points ``a``, ``b``, to each segment ``a[k] b[k]``: shape ``(N, M)``."""
+    p = np.asarray(p, dtype=float)[:, None, :]
+    a2, b2 = np.atleast_2d(a)[None], np.atleast_2d(b)[None]
+    ab = b2 - a2
+    den = np.sum(ab * ab, axis=-1)
+    t = np.clip(np.sum((p - a2) * ab, axis=-1) / np.where(den == 0.0, 1.0, den), 0.0, 1.0)
+    q = a2 + t[..., None] * ab
+    d = np.hypot(p[..., 0] - q[..., 0], p[..., 1] - q[..., 1])
+    return d[:, 0] if np.ndim(a) == 1 else d
 
 
 def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -373,8 +420,7 @@ def _segments_distance(a: np.ndarray, b: np.ndarray, p: np.ndarray, q: np.ndarra
     proper = (d1 * d2 < 0) & (d3 * d4 < 0)
     ends = np.minimum.reduce([
         _point_segment_distance(p, a, b), _point_segment_distance(q, a, b),
-        np.array([_point_segment_distance(a[None], pk, qk)[0] for pk, qk in zip(p, q)]),
-        np.array([_point_segment_distance(b[None], pk, qk)[0] for pk, qk in zip(p, q)]),
+        _point_segment_distance(a[None], p, q)[0], _point_segment_distance(b[None], p, q)[0],
     ])
     return np.where(proper, 0.0, ends)
 
@@ -397,9 +443,9 @@ class World:
     def __post_init__(self):
         if not isinstance(self.field, Field):
             _fail("field", self.field, "must be a Field")
-        for name, kinds in (("obstacles", (Circle, Polygon)), ("hazards", (Hazard,)),
-                            ("landmarks", (Landmark,))):
-            items = _items(name, getattr(self, name))
+        for name, kinds, limit in (("obstacles", (Circle, Polygon), MAX_OBSTACLES), ("hazards", (Hazard,), MAX_HAZARDS),
+                                   ("landmarks", (Landmark,), MAX_LANDMARKS)):
+            items = _items(name, getattr(self, name), limit)
             for i, it in enumerate(items):
                 if not isinstance(it, kinds):
                     _fail(f"{name}[{i}]", it, f"must be a {' or '.join(k.__name__ for k in kinds)}")
@@ -449,6 +495,14 @@ class World:
         for ob in self.obstacles:
             hit |= ob.contains(p, margin)
         return hit
+
+    def first_obstacle_at(self, points, margin: float = 0.0) -> np.ndarray:
+        """Per ``(N, 2)`` point: the index of the first obstacle inflated by ``margin`` that contains it, or −1."""
+        p = np.asarray(points, dtype=float).reshape(-1, 2)
+        first = np.full(len(p), -1)
+        for i in reversed(range(len(self.obstacles))):
+            first[self.obstacles[i].contains(p, margin)] = i
+        return first
 
     def point_in_obstacle(self, point, margin: float = 0.0) -> bool:
         """Whether the (x, y) ``point`` lies in some obstacle inflated by ``margin``."""
@@ -505,7 +559,7 @@ class World:
     def cluster_landmarks(self, cluster: int) -> tuple[Landmark, ...]:
         lms = tuple(lm for lm in self.landmarks if lm.cluster == cluster)
         if not lms:
-            raise ScenarioError(f"cluster = {cluster!r}: no landmark belongs to it (known: {list(self.cluster_ids)})")
+            raise ScenarioError(f"cluster = {cut(cluster)}: no landmark belongs to it (known: {cut(list(self.cluster_ids))})")
         return lms
 
     def cluster_centroid(self, cluster: int) -> np.ndarray:
@@ -544,16 +598,16 @@ class World:
             f = _table("", d.get("field", {}), required=(), optional=("x_min", "y_min", "x_max", "y_max"))
             fld = Field(**f)
         obstacles = []
-        for i, o in enumerate(_items("obstacles", d.get("obstacles", []))):
+        for i, o in enumerate(_items("obstacles", d.get("obstacles", []), MAX_OBSTACLES)):
             with _at(f"obstacles[{i}]"):
                 obstacles.append(_shape_from_dict(o, extra=()))
         hazards = []
-        for i, h in enumerate(_items("hazards", d.get("hazards", []))):
+        for i, h in enumerate(_items("hazards", d.get("hazards", []), MAX_HAZARDS)):
             with _at(f"hazards[{i}]"):
                 shape = _shape_from_dict(h, extra=("risk",))
                 hazards.append(Hazard(shape, h.get("risk", 1.0)))
         landmarks = []
-        for i, lm in enumerate(_items("landmarks", d.get("landmarks", []))):
+        for i, lm in enumerate(_items("landmarks", d.get("landmarks", []), MAX_LANDMARKS)):
             with _at(f"landmarks[{i}]"):
                 t = _table("", lm, required=("id", "position"), optional=("class", "cluster"))
                 landmarks.append(Landmark(t["id"], t["position"], t.get("class", "landmark"), t.get("cluster", 0)))
@@ -563,12 +617,12 @@ class World:
 def _table(name: str, value, *, required: Sequence[str], optional: Sequence[str]) -> dict:
     """Check that ``value`` is a mapping with exactly the allowed keys."""
     if not isinstance(value, dict):
-        raise ScenarioError(_join(name, f"= {value!r}: must be a table"))
+        raise ScenarioError(_join(name, f"= {cut(value)}: must be a table"))
     allowed = set(required) | set(optional)
     for k in value:
         if k not in allowed:
-            where = _join(name, str(k))
-            raise ScenarioError(f"{where} = {value[k]!r}: unknown key (allowed: {', '.join(sorted(allowed))})")
+            where = _join(name, str(k) if len(str(k)) <= 40 else str(k)[:37] + "...")
+            raise ScenarioError(f"{where} = {cut(value[k])}: unknown key (allowed: {', '.join(sorted(allowed))})")
     for k in required:
         if k not in value:
             raise ScenarioError(f"{_join(name, k)}: missing (required: {', '.join(required)})")

@@ -185,3 +185,12 @@ class PathSegments {
 };
 
 }  // namespace safenav
+
+namespace safenav {
+
+/// Whether the open polygon (≥ 3 vertices, either orientation) is simple: no
+/// repeated vertex, and no two edges meet except adjacent ones at their shared
+/// vertex (CGAL::is_simple_2, an O(n log n) sweep with exact predicates).
+bool is_simple_polygon(const Eigen::Ref<const Points2>& polygon);
+
+}  // namespace safenav
