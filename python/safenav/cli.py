@@ -90,9 +90,9 @@ def _run_folder(args, out, *, seed=None) -> RunFolder:
     return RunFolder(out, command=["safenav", *args.argv], parameters=params, seed=seed)
 
 
-def _wrote(out, files) -> None:
-    console.info(f"wrote {len(files)} files and manifest.json under {out}")
-    console.detail("\n".join(f"  {f}" for f in files))
+def _wrote(run: RunFolder) -> None:
+    console.info(f"wrote {len(run.files)} files and manifest.json under {run.folder}")
+    console.detail("\n".join(f"  {f}" for f in sorted(run.files)))
 
 
 # --------------------------------------------------------------------------- commands
@@ -102,7 +102,7 @@ def _synthetic(args) -> int:
     from .results import write_table
 
     folder = _run_folder(args, args.out, seed=args.seed) if args.out else contextlib.nullcontext()
-    with folder:
+    with folder as run:
         raw = synthetic_experiment(args.trials, filters=args.filters, seed=args.seed, n_particles=args.particles,
                                    progress=True).raw
         table = summarize_synthetic(raw)
@@ -111,11 +111,11 @@ def _synthetic(args) -> int:
         print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
         if args.out:
             out = Path(args.out)
-            files = write_table(raw, out / "synthetic_trials", parquet=False)
-            files += write_table(table, out / "synthetic_summary", parquet=False)
+            write_table(raw, out / "synthetic_trials", parquet=False)
+            write_table(table, out / "synthetic_summary", parquet=False)
             with console.task("figure of trial 0"):
-                files.append(_synthetic_figure(args, out / "synthetic_trial.png"))
-            _wrote(out, files)
+                _synthetic_figure(args, out / "synthetic_trial.png")
+            _wrote(run)
     return 0
 
 
@@ -148,7 +148,7 @@ def _navigation(args, *, demo: bool) -> int:
                          n_particles=args.particles,
                          position_every=args.position_every or (10 if "lanbloc-camera" in args.sources else 1))
     out = Path(args.out)
-    with _scheduler(args.scheduler) as client, _run_folder(args, out, seed=sweep.seed):
+    with _scheduler(args.scheduler) as client, _run_folder(args, out, seed=sweep.seed) as run:
         console.info(f"safenav {'demo' if demo else 'run'}: scenario {scenario.name!r}, path types "
                      f"{list(sweep.path_types)}, {sweep.trials} trials per cell, seed {sweep.seed}")
         safe = runner.plan_safe_paths(scenario, sweep.path_types, progress=True)
@@ -158,8 +158,8 @@ def _navigation(args, *, demo: bool) -> int:
         raw = runner.run_sweep(sweep, workers=args.workers, scheduler=client, safe_paths=safe, progress=True)
         t_run = time.perf_counter() - t0 - t_plan
         summary = runner.summarize(raw)
-        files = write_table(raw, out / "trials")
-        files += write_table(summary, out / "summary", parquet=False)
+        write_table(raw, out / "trials")
+        write_table(summary, out / "summary", parquet=False)
         for (filt, source), part in summary.groupby(["filter", "source"], sort=False):
             label = (f"LanBLoc-BMM({filt.upper()})" if source == "lanbloc" else
                      f"LanBLoc camera loop, {filt.upper()}" if source == "lanbloc-camera" else
@@ -175,17 +175,17 @@ def _navigation(args, *, demo: bool) -> int:
             print(nt.to_string(index=False, float_format=fmt))
             tag = f"{filt}_{source}"
             for name, df in ((f"table_percent_error_{tag}", pe), (f"table_navigation_{tag}", nt)):
-                files += write_table(df, out / name, parquet=False, markdown="")
+                write_table(df, out / name, parquet=False, markdown="")
         failures = raw[~raw["success"]]
         if len(failures):
             print(f"\n{len(failures)} of {len(raw)} trials did not arrive: "
                   + ", ".join(f"{k} {v}" for k, v in failures["outcome"].value_counts().items()))
         # Figs. 4 and 5: one recorded trial (trial 0) per method and path type.
         with console.task("Figs. 4-5 (trial 0 of each path type, recorded)"):
-            files += navigation_figures(scenario, safe, sweep, out)
+            navigation_figures(scenario, safe, sweep, out)
         console.info(f"planning {t_plan:.1f} s, {len(raw)} trials {t_run:.1f} s, "
                      f"total {time.perf_counter() - t0:.1f} s")
-        _wrote(out, files)
+        _wrote(run)
     return 0
 
 
@@ -201,7 +201,7 @@ def _plan(args) -> int:
         if n not in have:
             raise ValueError(f"--path-types: {n!r} is not a path type of the scenario (have: {have})")
     out = Path(args.out)
-    with _run_folder(args, out, seed=scenario.seeds.planner):
+    with _run_folder(args, out, seed=scenario.seeds.planner) as run:
         result, trials = {}, {}
         with console.progress(len(names), "planning", unit="path") as bar:
             for name in names:
@@ -214,10 +214,9 @@ def _plan(args) -> int:
                 navigator = nv.make_navigator(scenario, path, method="chull")
                 trials[name] = (navigator, navigator.run(0))
                 bar.update()
-        files = [write_json(out / "safe_paths.json", result)]
-        files.append(plot_navigation(scenario, trials, out / "safe_paths.png",
-                                     title=f"{scenario.name}: safe paths (RAw-RRT*)"))
-        _wrote(out, files)
+        write_json(out / "safe_paths.json", result)
+        plot_navigation(scenario, trials, out / "safe_paths.png", title=f"{scenario.name}: safe paths (RAw-RRT*)")
+        _wrote(run)
     return 0
 
 
@@ -230,11 +229,10 @@ def _experiment(args) -> int:
         particles=args.particles, workers=args.workers, scheduler=args.scheduler, seed=args.seed, out=args.out,
         scenario=_load(args), path_types=tuple(args.path_types or ()), placement=not args.no_placement,
         progress=True)
-    with _run_folder(args, opts.out, seed=int(opts.seed)):   # the scheduler is connected before any work
+    with _run_folder(args, opts.out, seed=int(opts.seed)) as run:   # the scheduler is connected before any work
         results = reproduce.run_experiments(args.names, opts)
         report = reproduce.write_report(results, opts)
-        files = [f for r in results for f in (*r.files, *r.figures)]
-        _wrote(opts.out, [*files, report])
+        _wrote(run)
     print(f"report: {report}")
     bad = [c for r in results for c in r.claims if c.holds is False]
     if bad:

@@ -104,7 +104,7 @@ def _place(args) -> int:
         cand = P.candidate_grid(pts.min(axis=0), pts.max(axis=0), spacing, margin=margin)
     kw = dict(k=k, corners=corners, method=method, seed=args.seed, allow_uncovered=args.allow_uncovered)
     out = Path(args.out)
-    with _run_folder(args, out, seed=args.seed):
+    with _run_folder(args, out, seed=args.seed) as run:
         with console.task(f"placing landmarks ({method}, k = {k}, {len(cand)} candidates)"):
             if key == "route":
                 res = P.place_through_targets(None, cand, cam, route=pts, **kw)
@@ -114,15 +114,15 @@ def _place(args) -> int:
         summary["input"] = str(path)
         rep = res.check()
         summary["check"] = {"min_in_view": int(rep.min_count), "min_distance": float(rep.min_distance)}
-        sim, files = None, []
+        sim = None
         if args.simulate:
             with console.task("bearing-only EIF along the route"):
                 sim = P.simulate(res.route, res.landmarks, cam, seed=args.seed)
             summary["simulation"] = {"duration_s": float(sim.t[-1]), "inside_3sigma": sim.inside_3sigma(),
                                      "fraction_below_k_in_view": sim.gap_fraction(res.k)}
-            files.append(P.plot_simulation(sim, out / "placement_errors.png"))
-        files.append(write_json(out / "placement.json", summary))
-        files.append(P.plot_placement(res, out / "placement.png", simulation=sim))
+            P.plot_simulation(sim, out / "placement_errors.png")
+        write_json(out / "placement.json", summary)
+        P.plot_placement(res, out / "placement.png", simulation=sim)
         print(f"{res.method}: {res.count} landmarks for {len(res.route) - 1} edges "
               f"(route {P.tour_length(res.route):.2f} m, {len(cand)} candidates, {len(res.too_close)} within p), "
               f"{'covered' if res.covered else f'{len(res.uncovered)} stretches uncovered'}; min in view "
@@ -130,5 +130,5 @@ def _place(args) -> int:
         if sim is not None:
             ins = sim.inside_3sigma()
             print("EIF within 3 sigma: " + ", ".join(f"{n} {100 * v:.1f}%" for n, v in ins.items()))
-        _wrote(out, files)
+        _wrote(run)
     return 0
