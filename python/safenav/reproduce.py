@@ -14,18 +14,21 @@ numbers them one higher):
                    SafeNav-Centroid (with RAw-RRT*) per path type; plus LanBLoc
                    through the camera loop.
 
-Each experiment writes to ``<out>/<name>/``: the raw per-trial table
-(``trials.parquet`` and ``.csv``), summary tables (CSV and Markdown) and
-figures (PNG and SVG), and returns an :class:`ExperimentResult`;
+Each experiment writes to ``<out>/<name>/`` (through :mod:`safenav.results`):
+the raw per-trial table (``trials.parquet`` and ``.csv``, its wall times in
+``trials_timings.csv``), summary tables (CSV and Markdown, timings beside
+them) and figures (PNG and SVG), and returns an :class:`ExperimentResult`;
 :func:`write_report` turns the results into ``<out>/report.html``, one file
 with every table (ours beside the paper's), every figure (embedded), the
 parameters, seeds and software versions, the departures from the paper and
-which of the paper's claims hold.
+which of the paper's claims hold, each with a bootstrap confidence interval
+(:class:`Claim`).
 
 Navigation experiments reuse :func:`safenav.runner.run_sweep`; the synthetic
 one runs its trials through :func:`safenav.runner.map_ordered`.  With a fixed
 seed every per-trial number except the wall times is identical whatever the
-number of workers, locally or on a Dask cluster.
+number of workers, locally or on a Dask cluster, and every table file is
+byte-identical.
 
 Example::
 
