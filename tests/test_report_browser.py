@@ -70,6 +70,5 @@ def test_report_renders_in_headless_chromium_with_every_figure_and_no_console_er
     for img in probe["images"]:
         assert img["complete"] and img["w"] > 100 and img["h"] > 100, img
     assert probe["errors"] == []
-    # Chromium's own log of the page's console: no error-level message
-    console_errors = [line for line in run.stderr.splitlines() if "CONSOLE" in line and ":ERROR:" in line]
-    assert console_errors == []
+    # Chromium's own log of the page's console (it logs console.error at INFO level): the report logs nothing
+    assert [line for line in run.stderr.splitlines() if ":CONSOLE" in line] == []
