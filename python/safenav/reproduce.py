@@ -587,7 +587,8 @@ def run_navigation(opts: ExperimentOptions, cache: dict) -> ExperimentResult:
                    f"{opts.trials} trials per path type", pe)
     _write_summary(res, folder, "table4", f"Table IV: ADE / FDE [m], AWRS and median time per trial, "
                    f"LanBLoc-BMM(EKF), {opts.trials} trials per path type", nt)
-    res.figures += navigation_figures(opts.scenario, safe, sweep, folder)
+    with console.task("Figs. 4-5 (trial 0 of each path type, recorded)", enabled=opts.progress):
+        res.figures += navigation_figures(opts.scenario, safe, sweep, folder)
     res.claims += _navigation_claims(raw)
     res.notes.append("ADE is the mean distance of the estimate to the safe path (cross-track; our reading of eq. 21, "
                      "whose point-wise pairing is undefined for an untimed path), FDE the final estimate's distance to "
