@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+import safenav
 from safenav import cli, results, runner
 from safenav.scenario import default_scenario
 
@@ -97,7 +98,8 @@ def test_result_files_follow_the_umask(tmp_path, umask, mask, mode):
     ax.plot([0, 1])
     files.append(results.save_figure(fig, tmp_path / "fig.png", svg=True))
     files.append(tmp_path / "fig.svg")
-    assert len(files) == 7
+    files.append(safenav.save_scenario(default_scenario(), tmp_path / "s.toml"))
+    assert len(files) == 8
     for f in files:
         assert (f.stat().st_mode & 0o777) == mode, f
 
