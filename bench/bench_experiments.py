@@ -41,7 +41,7 @@ def main() -> None:
     opts = reproduce.ExperimentOptions(trials=args.trials, camera_trials=args.camera_trials,
                                        particles=args.particles, workers=args.workers, out=args.out)
     t0 = time.perf_counter()
-    results = reproduce.run_experiments(["all"], opts, log=lambda *a: None)
+    results = reproduce.run_experiments(["all"], opts, show=lambda *a: None)
     report = reproduce.write_report(results, opts)
     total = time.perf_counter() - t0
     cores = args.workers or os.cpu_count()

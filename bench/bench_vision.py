@@ -44,6 +44,7 @@ import numpy as np
 import safenav
 from safenav.lanbloc import STATUSES, CameraLoopSource, PIPELINE_SGBM
 from safenav.render import StereoRig
+from safenav.results import save_figure
 
 
 def _frames(sc, step: float):
@@ -124,7 +125,7 @@ def figure(path: str) -> None:
     ax[2].legend(fontsize=7, loc="lower left")
     ax[2].set_title(f"fix: {res.status}, error {np.linalg.norm(out[0] - p) if out else float('nan'):.2f} m")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     print(f"wrote {path}")
 
 

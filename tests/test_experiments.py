@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 
 import safenav
-from safenav import cli
+from safenav import cli, results
 from safenav.datasets import COLUMNS, SyntheticConfig, command_profile, synthetic_trajectory
 from safenav.experiments import PAPER_SYNTHETIC, run_synthetic, summarize_synthetic, synthetic_trial
 
@@ -93,12 +93,15 @@ def test_synthetic_command_prints_the_table_and_writes_files(tmp_path, capsys):
     assert cli.main(["synthetic", "--trials", "3", "--particles", "200", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "paper_ade" in out and "ekf" in out and "pf" in out
-    for name in ("synthetic_trials.csv", "synthetic_summary.csv", "synthetic_trial.png", "synthetic_trial.svg"):
+    for name in ("synthetic_trials.csv", "synthetic_trials_timings.csv", "synthetic_summary.csv",
+                 "synthetic_trial.png", "synthetic_trial.svg", "manifest.json"):
         assert (tmp_path / name).stat().st_size > 0
-    raw = pd.read_csv(tmp_path / "synthetic_trials.csv")
-    assert len(raw) == 6 and not list(tmp_path.glob("*.tmp"))
+    raw = results.read_table(tmp_path / "synthetic_trials.csv")
+    assert len(raw) == 6 and not list(tmp_path.glob(".safenav-tmp-*"))
+    assert raw["ms_per_trial"].gt(0).all() and "ms_per_trial" not in pd.read_csv(tmp_path / "synthetic_trials.csv")
+    assert len(results.verify_run(tmp_path)["files"]) == 6
 
 
 def test_cli_reports_bad_arguments_cleanly(capsys):
     assert cli.main(["synthetic", "--trials", "0"]) == 2
-    assert "trials must be a positive integer, got 0" in capsys.readouterr().err
+    assert capsys.readouterr().err == "safenav: error: argument --trials: must be an integer >= 1, got 0\n"

@@ -15,7 +15,7 @@ import pandas as pd
 import pytest
 
 import safenav
-from safenav import _core, metrics, runner
+from safenav import _core, metrics, results, runner
 from safenav import navigation as nv
 from safenav import planning as P
 from safenav.geometry import Corridor
@@ -345,11 +345,11 @@ def test_summary_is_computed_from_the_raw_table(small_sweep, tmp_path):
         for k in runner.METRICS:
             assert r[k] == pytest.approx(ok[k].mean())
         assert r["time_ms"] == pytest.approx(g.time_ms.median())
-    files = runner.write_table(raw, tmp_path / "trials")
-    assert sorted(p.name for p in files) == ["trials.csv", "trials.parquet"]
-    back = pd.read_parquet(tmp_path / "trials.parquet")
+    files = results.write_table(raw, tmp_path / "trials")
+    assert sorted(p.name for p in files) == ["trials.csv", "trials.parquet", "trials_timings.csv"]
+    back = results.read_table(tmp_path / "trials.parquet")
     pd.testing.assert_frame_equal(back, raw)
-    assert not list(tmp_path.glob("*.tmp"))
+    assert not list(tmp_path.glob(".safenav-tmp-*"))
 
 
 def test_dask_local_cluster_equals_local_run(small_sweep):
@@ -370,8 +370,9 @@ def test_demo_command_writes_tables_and_figures(tmp_path, capsys):
     assert main(["demo", "--trials", "3", "--out", str(tmp_path), "--quiet", "--path-types", "P2", "P3"]) == 0
     out = capsys.readouterr().out
     assert "SafeNav-CHull" in out and "SafeNav-Centroid" in out and "paper ADE" in out
-    for name in ("trials.csv", "trials.parquet", "summary.csv", "table_navigation_ekf_lanbloc.md",
-                 "table_percent_error_ekf_lanbloc.csv", "fig4_chull.png", "fig5_centroid.png", "fig5_centroid.svg"):
+    for name in ("trials.csv", "trials.parquet", "trials_timings.csv", "summary.csv",
+                 "table_navigation_ekf_lanbloc.md", "table_percent_error_ekf_lanbloc.csv", "fig4_chull.png",
+                 "fig5_centroid.png", "fig5_centroid.svg", "manifest.json"):
         assert (tmp_path / name).stat().st_size > 0, name
     raw = pd.read_parquet(tmp_path / "trials.parquet")
     assert len(raw) == 3 * 2 * 2
@@ -388,9 +389,10 @@ def test_run_and_plan_commands_on_a_scenario_file(tmp_path, capsys):
     sc = safenav.default_scenario()
     f = tmp_path / "s.toml"
     safenav.save_scenario(sc, f)
-    assert main(["plan", str(f), "--path-types", "P3", "--iterations", "800", "--out", str(tmp_path / "plan")]) == 0
+    assert main(["plan", "--scenario", str(f), "--path-types", "P3", "--iterations", "800",
+                 "--out", str(tmp_path / "plan")]) == 0
     assert (tmp_path / "plan" / "safe_paths.json").exists() and (tmp_path / "plan" / "safe_paths.png").exists()
-    assert main(["run", str(f), "--trials", "2", "--methods", "centroid", "--filters", "pf", "--particles", "100",
+    assert main(["run", "--scenario", str(f), "--trials", "2", "--methods", "centroid", "--filters", "pf", "--particles", "100",
                  "--path-types", "P3", "--out", str(tmp_path / "run"), "--quiet"]) == 0
     raw = pd.read_csv(tmp_path / "run" / "trials.csv")
     assert set(raw["filter"]) == {"pf"} and len(raw) == 2

@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from safenav import cli, experiments as ex, reproduce, runner
+from safenav import cli, experiments as ex, reproduce, results, runner
 
 TRIALS = 3
 
@@ -42,14 +42,21 @@ def test_every_experiment_writes_raw_summary_and_figures(run_all):
         assert (out / f"{table}.csv").stat().st_size > 0
         md = (out / f"{table}.md").read_text()
         assert md.count("\n|") >= 2
-    assert not list(out.rglob("*.tmp"))
+    assert not list(out.rglob(".safenav-tmp-*"))
+    # the manifest is written last and lists every file of the run
+    m = results.verify_run(out)
+    listed = {f["path"] for f in m["files"]}
+    written = {p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file() and p.name != "manifest.json"}
+    assert listed == written and {"report.html", "parameters.json", "navigation/trials_timings.csv"} <= listed
+    assert m["command"][:3] == ["safenav", "experiment", "all"] and m["parameters"]["trials"] == TRIALS
 
 
 def test_table1_has_the_papers_layout_and_is_the_mean_of_the_raw_table(run_all):
-    raw = pd.read_parquet(run_all / "synthetic" / "trials.parquet")
-    t1 = pd.read_csv(run_all / "synthetic" / "table1.csv")
-    assert list(t1.columns) == ["Algorithm", "Filter", "ADE", "FDE", "AWRS", "time ms", "paper ADE", "paper FDE",
-                                "paper AWRS", "paper ms"]
+    raw = results.read_table(run_all / "synthetic" / "trials.parquet")
+    assert "time ms" not in pd.read_csv(run_all / "synthetic" / "table1.csv")     # timings beside the table
+    t1 = results.read_table(run_all / "synthetic" / "table1.csv")
+    assert list(t1.columns) == ["Algorithm", "Filter", "ADE", "FDE", "AWRS", "paper ADE", "paper FDE",
+                                "paper AWRS", "paper ms", "time ms"]
     # the paper's row order: DeepLocGPS, DeepLocGPSEKF, Sensor Fusion, LanBLoc-BMM; EKF then PF
     assert [a.split(" (")[0] for a in t1["Algorithm"][::2]] == ["DeepLoc-GPS", "DeepLoc-EKF-GPS", "Sensor Fusion",
                                                                  "LanBLoc-BMM"]
@@ -61,8 +68,8 @@ def test_table1_has_the_papers_layout_and_is_the_mean_of_the_raw_table(run_all):
         assert row.ADE == pytest.approx(g["ade"].mean(), rel=1e-12)
         assert row.FDE == pytest.approx(g["fde"].mean(), rel=1e-12)
         assert row.AWRS == pytest.approx(g["awrs"].mean(), rel=1e-12)
-        assert getattr(row, "_6") == pytest.approx(g["ms_per_trial"].median(), rel=1e-12)
-        assert getattr(row, "_7") == ex.PAPER_TABLE1[(src, filt)][0]
+        assert getattr(row, "_10") == pytest.approx(g["ms_per_trial"].median(), rel=1e-12)
+        assert getattr(row, "_6") == ex.PAPER_TABLE1[(src, filt)][0]
 
 
 def test_table2_is_the_path_average_of_per_path_localization_errors(run_all):
@@ -93,9 +100,9 @@ def test_placed_landmarks_give_lanbloc_a_fix_at_almost_every_step(run_all):
 
 
 def test_tables3_and_4_are_recomputed_from_the_raw_table(run_all):
-    raw = pd.read_parquet(run_all / "navigation" / "trials.parquet")
+    raw = results.read_table(run_all / "navigation" / "trials.parquet")
     t3 = pd.read_csv(run_all / "navigation" / "table3.csv")
-    t4 = pd.read_csv(run_all / "navigation" / "table4.csv")
+    t4 = results.read_table(run_all / "navigation" / "table4.csv")
     assert list(t3.columns) == ["Approach", "P1", "paper P1", "P2", "paper P2", "P3", "paper P3", "Average",
                                 "paper Average"]
     assert list(t3["Approach"]) == ["SafeNav-CHull", "SafeNav-Centroid"]
@@ -133,55 +140,101 @@ def test_report_embeds_every_figure_and_lists_claims_departures_params_versions(
         assert title in report
     verdicts = re.findall(r"<li><span class='(\w+)'><b>([a-z ]+)</b></span>: Table (I|II|III|IV):", report)
     assert len(verdicts) >= 15
-    word = {"yes": "holds", "no": "does not hold", "na": "not comparable"}
-    assert all(word[cls] == w for cls, w, _ in verdicts)
+    # 3 trials per cell: nothing is judged; the CI is shown all the same
+    assert {(cls, w) for cls, w, _ in verdicts} == {("na", "too few trials to judge"), ("na", "not comparable")}
     assert {t for _, _, t in verdicts} == {"I", "II", "III", "IV"}
+    assert f"fewer than {reproduce.MIN_TRIALS} trials per cell" in report and "95% CI [" in report
     assert "Where we depart from the paper" in report and "emulated" in report
     assert "Parameters and seeds" in report and '&quot;seed&quot;: ' in report
     assert "numpy" in report and "python" in report
     assert (run_all / "parameters.json").stat().st_size > 0
 
 
-def _nav_table(ch, ce):
-    """A Table IV layout with the given (ADE, FDE, AWRS) averages for CHull and Centroid."""
-    rows = [{"Approach": a, "Path": "Average", "ADE": v[0], "FDE": v[1], "AWRS": v[2], "time ms": 1.0}
-            for a, v in (("SafeNav-CHull", ch), ("SafeNav-Centroid", ce))]
+def _nav_raw(means: dict, n: int, sd: float = 0.1, seed: int = 0) -> pd.DataFrame:
+    """A navigation raw table: ``means[method][metric]`` is a value or a {path: value} dict; trial 0 of every
+    cell did not arrive (its huge numbers must not count)."""
+    rng = np.random.default_rng(seed)
+    rows = []
+    for method, ms in means.items():
+        for p in ("P1", "P2", "P3"):
+            for t in range(n):
+                row = {"path_type": p, "method": method, "trial": t, "success": t != 0, "time_ms": 15.0}
+                for k, v in ms.items():
+                    v = v[p] if isinstance(v, dict) else v
+                    row[k] = 1e3 if t == 0 else v + sd * rng.standard_normal()
+                rows.append(row)
     return pd.DataFrame(rows)
 
 
-def test_claims_follow_the_numbers():
-    pe = pd.DataFrame({"Approach": ["SafeNav-CHull", "SafeNav-Centroid"], "P1": [5.0, 4.0], "P2": [7.0, 6.0],
-                       "P3": [6.0, 5.0], "Average": [6.0, 5.0]})
-    good = {c.text.split(":")[1][:40]: c.holds for c in reproduce._navigation_claims(pe, _nav_table((2, 3, 1.3),
-                                                                                                     (1, 0.9, 1.0)))}
-    assert all(v for v in good.values() if v is not None) and len(good) >= 6
-    swapped = pe.assign(Average=[5.0, 6.0], P2=[1.0, 1.0])
-    bad = reproduce._navigation_claims(swapped, _nav_table((1, 0.9, 1.0), (2, 3, 1.3)))
-    assert [c.holds for c in bad if c.holds is not None] == [False] * 4
+GOOD = {"chull": {"path_error_percent": {"P1": 5.0, "P2": 7.0, "P3": 6.0}, "ade": 2.0, "fde": 3.0, "awrs": 1.3},
+        "centroid": {"path_error_percent": {"P1": 4.0, "P2": 6.0, "P3": 5.0}, "ade": 1.0, "fde": 0.9, "awrs": 1.0}}
+
+
+def _verdicts(claims):
+    return {c.text.split(":")[1].strip()[:45]: c.verdict for c in claims}
+
+
+def test_navigation_claims_are_judged_by_their_confidence_interval():
+    good = reproduce._navigation_claims(_nav_raw(GOOD, 40))
+    judged = [c for c in good if c.interval is not None]
+    assert len(good) == 7 and len(judged) == 4
+    assert all(c.verdict == "holds" and c.holds is True and c.interval[0] > 0 for c in judged)
+    assert all("95% CI [" in c.evidence for c in judged)
     # FDE claims measure the arrival radius, not the method: never judged
-    assert [c.holds for c in bad if "FDE" in c.text] == [None, None]
-    # 3 % lower is not "1.67× lower"
-    close = reproduce._navigation_claims(pe, _nav_table((1.03, 1, 1), (1.0, 1, 1)))
-    assert [c.holds for c in close if "ADE is 1.67" in c.text] == [False]
-    t = pd.DataFrame({"Algorithm": ["DeepLoc-GPS (emulated)", "DeepLoc-GPS (emulated)", "LanBLoc-BMM", "LanBLoc-BMM"],
-                      "Filter": ["EKF", "PF", "EKF", "PF"], "ADE": [0.5, 0.9, 0.4, 0.8], "FDE": [0.5, 0.9, 0.6, 0.8],
-                      "AWRS": [0.3, 0.9, 0.2, 0.8], "time ms": [1.0, 50.0, 0.9, 40.0]})
-    claims = {c.text: c.holds for c in reproduce._localization_claims(t, "Table I", paper=ex.PAPER_TABLE1)}
-    assert claims["Table I: LanBLoc-BMM(EKF) has the lowest ADE of all rows"] is True
-    assert claims["Table I: LanBLoc-BMM(EKF) has the lowest FDE of all rows"] is False
-    assert claims["Table I: the EKF has a lower ADE than the PF for every method"] is True
-    assert [v for k, v in claims.items() if "the PF costs orders of magnitude" in k] == [False]   # 44-50x
-    assert claims["Table I: LanBLoc-BMM(EKF) has the lowest runtime"] is None      # same filter: not comparable
-    dear_pf = t.assign(**{"time ms": [1.0, 500.0, 0.9, 400.0]})
-    claims = {c.text: c.holds for c in reproduce._localization_claims(dear_pf, "Table I", paper=ex.PAPER_TABLE1)}
-    assert [v for k, v in claims.items() if "the PF costs orders of magnitude" in k] == [True]    # 444-500x
-    noise = t.assign(ADE=[0.5, 0.51, 0.4, 0.8])                                    # a 2 % gap is noise
-    claims = {c.text: c.holds for c in reproduce._localization_claims(noise, "Table I", paper=ex.PAPER_TABLE1)}
-    assert claims["Table I: the EKF has a lower ADE than the PF for every method"] is False
+    assert [c.verdict for c in good if "FDE" in c.text] == ["not comparable"] * 2
+    bad = reproduce._navigation_claims(_nav_raw({"chull": GOOD["centroid"], "centroid": {
+        **GOOD["chull"], "path_error_percent": {"P1": 7.0, "P2": 5.0, "P3": 6.0}}}, 40))
+    assert [c.verdict for c in bad if c.interval is not None] == ["does not hold"] * 4
+    assert [c.holds for c in bad if c.interval is not None] == [False] * 4
+    # 3 % lower with noisy trials: the interval spans the 5 % threshold
+    close = {m: {**v, "ade": a} for (m, v), a in zip(GOOD.items(), (1.03, 1.0))}
+    c = [c for c in reproduce._navigation_claims(_nav_raw(close, 40, sd=0.3)) if "ADE is 1.67" in c.text][0]
+    assert c.verdict == "undecided" and c.holds is None and c.interval[0] < 1.05 < c.interval[1]
+    # below MIN_TRIALS nothing is judged, whatever the numbers
+    few = reproduce._navigation_claims(_nav_raw(GOOD, reproduce.MIN_TRIALS - 1))
+    assert [c.verdict for c in few if c.interval is not None] == ["too few trials to judge"] * 4
+    # the point estimates are the tables' (means over arrived trials, averaged over path types)
+    raw = _nav_raw(GOOD, 40)
+    ok = raw[raw["success"]]
+    ratio = [c for c in good if "ADE is 1.67" in c.text][0]
+    expect = (ok[ok.method == "chull"].groupby("path_type")["ade"].mean().mean()
+              / ok[ok.method == "centroid"].groupby("path_type")["ade"].mean().mean())
+    assert f"ours: {expect:.2f}× lower" in ratio.evidence
+    # deterministic: the same table gives the same intervals
+    assert [c.interval for c in reproduce._navigation_claims(raw)] == [c.interval for c in good]
 
 
+def _loc_raw(means: dict, n: int = 40, sd: float = 0.005) -> pd.DataFrame:
+    """A Table I raw table: means[(source, filter)] = (ADE, FDE, AWRS, ms per trial)."""
+    rng = np.random.default_rng(1)
+    return pd.DataFrame([{"source": s, "filter": f, "trial": t,
+                          **{k: v + sd * rng.standard_normal() for k, v in zip(("ade", "fde", "awrs"), m)},
+                          "ms_per_trial": m[3]}
+                         for (s, f), m in means.items() for t in range(n)])
 
-def test_runs_are_bit_for_bit_reproducible_locally_and_on_dask():
+
+def test_localization_claims_are_judged_by_their_confidence_interval():
+    means = {("deeploc-gps", "ekf"): (0.5, 0.5, 0.3, 1.0), ("deeploc-gps", "pf"): (0.9, 0.9, 0.9, 50.0),
+             ("lanbloc", "ekf"): (0.4, 0.6, 0.2, 0.9), ("lanbloc", "pf"): (0.8, 0.8, 0.8, 40.0)}
+    cols = ("ade", "fde", "awrs", "ms_per_trial")
+    claims = {c.text: c for c in reproduce._localization_claims(_loc_raw(means), "Table I", paper=ex.PAPER_TABLE1,
+                                                                 columns=cols)}
+    assert claims["Table I: LanBLoc-BMM(EKF) has the lowest ADE of all rows"].verdict == "holds"
+    assert claims["Table I: LanBLoc-BMM(EKF) has the lowest FDE of all rows"].verdict == "does not hold"
+    assert claims["Table I: the EKF has a lower ADE than the PF for every method"].verdict == "holds"
+    assert [c.verdict for k, c in claims.items() if "orders of magnitude" in k] == ["does not hold"]   # 44-50x
+    assert claims["Table I: LanBLoc-BMM(EKF) has the lowest runtime"].verdict == "not comparable"
+    dear = {k: (*v[:3], v[3] * 10 if k[1] == "pf" else v[3]) for k, v in means.items()}
+    claims = reproduce._localization_claims(_loc_raw(dear), "Table I", paper=ex.PAPER_TABLE1, columns=cols)
+    assert [c.verdict for c in claims if "orders of magnitude" in c.text] == ["holds"]                # 444-500x
+    noise = {**means, ("deeploc-gps", "pf"): (0.51, 0.9, 0.9, 50.0)}                                   # a 2 % gap
+    claims = reproduce._localization_claims(_loc_raw(noise), "Table I", paper=ex.PAPER_TABLE1, columns=cols)
+    assert [c.verdict for c in claims if "lower ADE than the PF" in c.text] == ["does not hold"]
+    few = reproduce._localization_claims(_loc_raw(means, n=5), "Table I", paper=ex.PAPER_TABLE1, columns=cols)
+    assert {c.verdict for c in few} == {"too few trials to judge", "not comparable"}
+
+
+def test_runs_are_bit_for_bit_reproducible_locally_and_on_dask(tmp_path):
     distributed = pytest.importorskip("distributed")
     runs = {(w, c): ex.synthetic_experiment(4, sources=("lanbloc", "sensor-fusion"), seed=5, n_particles=100,
                                             workers=w, chunk=c) for w, c in ((1, 1), (2, 3))}
@@ -199,11 +252,19 @@ def test_runs_are_bit_for_bit_reproducible_locally_and_on_dask():
         nav["dask"] = runner.run_sweep(sweep, scheduler=client, safe_paths=safe)
         syn["dask"] = ex.synthetic_experiment(4, sources=("lanbloc", "sensor-fusion"), seed=5, n_particles=100,
                                               scheduler=client, chunk=1).raw
-    drop = lambda df: df.drop(columns=[c for c in reproduce.TIMING_COLUMNS if c in df])  # noqa: E731
+    drop = lambda df: df.drop(columns=[c for c in results.TIMING_COLUMNS if c in df])  # noqa: E731
     for runs in (syn, nav):
         ref = drop(runs[1])
         for k, df in runs.items():
             pd.testing.assert_frame_equal(drop(df), ref, check_exact=True)
+    # the written tables are byte-identical (the wall times go beside them)
+    for name, runs in (("syn", syn), ("nav", nav)):
+        written = {}
+        for k, df in runs.items():
+            folder = tmp_path / f"{name}_{k}"
+            results.write_table(df, folder / "trials", markdown="t")
+            written[k] = {f: (folder / f).read_bytes() for f in ("trials.csv", "trials.parquet", "trials.md")}
+        assert written[1] == written[2] == written["dask"]
     # different seeds give different numbers (the comparison above can fail)
     other = ex.synthetic_experiment(4, sources=("lanbloc",), seed=6, n_particles=100).raw
     assert not np.array_equal(other["ade"].to_numpy(), syn[1][syn[1]["source"] == "lanbloc"]["ade"].to_numpy())
@@ -216,7 +277,7 @@ def test_a_subset_of_path_types_runs_the_same_trials_as_a_full_run():
                                              trials=2), safe_paths=safe)
     only = runner.run_sweep(runner.Sweep(opts.scenario, path_types=("P3",), methods=("centroid",), trials=2, seed=3),
                             safe_paths=safe)
-    drop = list(reproduce.TIMING_COLUMNS[:2])
+    drop = ["time_ms", "time_per_step_us"]
     pd.testing.assert_frame_equal(only.drop(columns=drop),
                                   full[full["path_type"] == "P3"].drop(columns=drop).reset_index(drop=True))
     assert not np.array_equal(full[full["path_type"] == "P1"]["seed"], only["seed"])
@@ -226,11 +287,11 @@ def test_bad_experiment_arguments_give_clear_errors(capsys, tmp_path):
     assert cli.main(["experiment", "table9", "--out", str(tmp_path)]) == 2
     assert "experiment 'table9' is unknown" in capsys.readouterr().err
     assert cli.main(["experiment", "field", "--trials", "0", "--out", str(tmp_path)]) == 2
-    assert "trials = 0" in capsys.readouterr().err
+    assert "argument --trials: must be an integer >= 1, got 0" in capsys.readouterr().err
     assert cli.main(["experiment", "field", "--path-types", "P9", "--out", str(tmp_path)]) == 2
     assert "'P9' is not a path type" in capsys.readouterr().err
     assert cli.main(["experiment", "all", "--workers", "0", "--out", str(tmp_path)]) == 2
-    assert "workers = 0" in capsys.readouterr().err and not (tmp_path / "field").exists()
+    assert "argument --workers: must be" in capsys.readouterr().err and not (tmp_path / "field").exists()
     assert reproduce.resolve(["table4", "fig1", "table3"]) == ["field", "navigation"]
     with pytest.raises(ValueError, match="source = .gps.: unknown position source"):
         ex.synthetic_experiment(1, sources=("gps",))

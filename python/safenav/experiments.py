@@ -238,14 +238,14 @@ def localization_table(summary: pd.DataFrame, paper: dict) -> pd.DataFrame:
 
 # --------------------------------------------------------------------------- navigation (SafeNav V-D)
 
-#: The paper's Table IV (% path-length error per path type) of the extended
-#: version (Table III of the conference version).
+#: The paper's Table III (% path-length error per path type; Table IV of the
+#: extended version).
 PAPER_PERCENT_ERROR = {
     "chull": {"P1": 5.755, "P2": 7.42, "P3": 6.35, "Average": 6.51},
     "centroid": {"P1": 5.32, "P2": 5.60, "P3": 5.47, "Average": 5.46},
 }
-#: The paper's Table V (extended; Table IV of the conference version):
-#: ADE, FDE [m], AWRS and time per trial [ms].
+#: The paper's Table IV (Table V of the extended version): ADE, FDE [m], AWRS
+#: and time per trial [ms].
 PAPER_NAVIGATION = {
     "chull": {"P1": (2.73, 3.16, 1.31, 14.93), "P2": (2.72, 3.08, 1.11, 14.84), "P3": (3.46, 3.57, 1.71, 15.98),
               "Average": (2.97, 3.27, 1.38, 15.25)},
@@ -264,7 +264,7 @@ def _with_average(summary: pd.DataFrame) -> pd.DataFrame:
 
 
 def percent_error_table(summary: pd.DataFrame) -> pd.DataFrame:
-    """Table III/IV layout of the % path-length error (eq. 23): one row per
+    """Table III layout (the extended version's IV) of the % path-length error (eq. 23): one row per
     method, one column per path type plus the average; the paper's value beside
     each of ours (``paper P1`` …).  ``summary`` is :func:`safenav.runner.summarize`
     output for one filter and source."""
@@ -280,7 +280,7 @@ def percent_error_table(summary: pd.DataFrame) -> pd.DataFrame:
 
 
 def navigation_table(summary: pd.DataFrame) -> pd.DataFrame:
-    """Table IV/V layout: per method and path type (plus the average), ADE,
+    """Table IV layout (the extended version's V): per method and path type (plus the average), ADE,
     FDE, AWRS and the median time per trial, with the paper's numbers beside,
     then our success rate, steps and time per step."""
     s = _with_average(summary)

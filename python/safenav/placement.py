@@ -44,6 +44,7 @@ import numpy as np
 
 from . import _core
 from ._checks import as_array, as_positive_int, as_seed
+from .results import save_figure
 
 __all__ = [
     "CameraParams", "PlacementResult", "SimulationResult", "PAPER_TABLE_ONE",
@@ -862,11 +863,7 @@ def plot_placement(result: PlacementResult, path, *, simulation: SimulationResul
     ax.set_title(title or f"{result.method}: {result.count} landmarks, k = {result.k}\n"
                  f"R = {cam.range} m, alpha = {cam.angle_deg} deg, p = {cam.clearance} m", fontsize=9)
     fig.tight_layout()
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=130)
-    plt.close(fig)
-    return out
+    return save_figure(fig, path, dpi=130)
 
 
 def plot_simulation(sim: SimulationResult, path, *, title: str | None = None) -> Path:
@@ -894,11 +891,7 @@ def plot_simulation(sim: SimulationResult, path, *, title: str | None = None) ->
     axes[3].legend(loc="upper right", fontsize=7)
     fig.suptitle(title or "Bearing-only EIF on the placed landmarks", fontsize=10)
     fig.tight_layout()
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=130)
-    plt.close(fig)
-    return out
+    return save_figure(fig, path, dpi=130)
 
 
 def plot_corner_gap(demo: dict, path) -> Path:
@@ -925,11 +918,7 @@ def plot_corner_gap(demo: dict, path) -> Path:
         ax.set_xlabel("time [s]")
         ax.legend(loc="upper right", fontsize=7)
     fig.tight_layout()
-    out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=120)
-    plt.close(fig)
-    return out
+    return save_figure(fig, path, dpi=120)
 
 
 def paper_figures(folder="docs/figures", *, seed: int = 0) -> dict:
@@ -975,7 +964,6 @@ def paper_figures(folder="docs/figures", *, seed: int = 0) -> dict:
     ax.set_title(f"Table I: nine random instances (seed {seed}) beside the paper's counts", fontsize=9)
     ax.legend(fontsize=7, ncol=3)
     fig.tight_layout()
-    fig.savefig(folder / "placement_table1.png", dpi=120)
-    plt.close(fig)
+    save_figure(fig, folder / "placement_table1.png", dpi=120)
     numbers["table_one"] = df
     return numbers

@@ -3,7 +3,8 @@
 Reads targets (or a route), the camera parameters and the candidate set from
 a TOML or JSON file (see ``python/safenav/data/placement_example.toml``),
 places landmarks (:mod:`safenav.placement`) and writes ``placement.json`` and
-``placement.png`` (plus ``placement_errors.png`` with ``--simulate``).
+``placement.png`` (plus ``placement_errors.png`` with ``--simulate``) through
+:mod:`safenav.results`, ending with ``manifest.json``.
 """
 
 from __future__ import annotations
@@ -21,14 +22,16 @@ _SECTIONS = {
 }
 
 
-def register(sub) -> None:
-    """Add the ``place`` subcommand to the CLI's subparsers."""
-    s = sub.add_parser("place", help="place landmarks along a route or through targets (landmark placement paper)",
+def register(sub, *, parents=(), positive=int) -> None:
+    """Add the ``place`` subcommand to the CLI's subparsers (``parents``: the
+    options every command shares; ``positive``: the parser of integers >= 1)."""
+    s = sub.add_parser("place", parents=list(parents),
+                       help="place landmarks along a route or through targets (landmark placement paper)",
                        description="Place the fewest landmarks so that a camera on the route always sees k of them.")
     s.add_argument("file", help="TOML or JSON input: targets or route, [camera], [placement], [candidates]")
     s.add_argument("--out", default="out/place", help="folder for placement.json and placement.png (default out/place)")
     s.add_argument("--method", choices=["greedy", "reuse", "optimal"], help="override [placement].method")
-    s.add_argument("--k", type=int, help="override [placement].k")
+    s.add_argument("--k", type=positive, help="override [placement].k")
     s.add_argument("--corners", action=argparse.BooleanOptionalAction, help="override [placement].corners (--corners / --no-corners)")
     s.add_argument("--allow-uncovered", action="store_true",
                    help="write the best-effort placement instead of failing when a stretch cannot be covered")
@@ -71,9 +74,10 @@ def load_input(path) -> dict:
 
 
 def _place(args) -> int:
-    import numpy as np
-
+    from . import console
     from . import placement as P
+    from .cli import _run_folder, _wrote
+    from .results import write_json
 
     path = Path(args.file)
     data = load_input(path)
@@ -99,32 +103,32 @@ def _place(args) -> int:
                 raise ValueError(f"{path}: {name} = {v!r} must be a finite number >= 0")
         cand = P.candidate_grid(pts.min(axis=0), pts.max(axis=0), spacing, margin=margin)
     kw = dict(k=k, corners=corners, method=method, seed=args.seed, allow_uncovered=args.allow_uncovered)
-    if key == "route":
-        res = P.place_through_targets(None, cand, cam, route=pts, **kw)
-    else:
-        res = P.place_through_targets(pts, cand, cam, **kw)
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    summary = res.to_dict()
-    summary["input"] = str(path)
-    rep = res.check()
-    summary["check"] = {"min_in_view": int(rep.min_count), "min_distance": float(rep.min_distance)}
-    sim = None
-    if args.simulate:
-        sim = P.simulate(res.route, res.landmarks, cam, seed=args.seed)
-        summary["simulation"] = {"duration_s": float(sim.t[-1]), "inside_3sigma": sim.inside_3sigma(),
-                                 "fraction_below_k_in_view": sim.gap_fraction(res.k)}
-        P.plot_simulation(sim, out / "placement_errors.png")
-    tmp = out / "placement.json.tmp"
-    tmp.write_text(json.dumps(summary, indent=2))
-    tmp.replace(out / "placement.json")
-    fig = P.plot_placement(res, out / "placement.png", simulation=sim)
-    print(f"{res.method}: {res.count} landmarks for {len(res.route) - 1} edges "
-          f"(route {P.tour_length(res.route):.2f} m, {len(cand)} candidates, {len(res.too_close)} within p), "
-          f"{'covered' if res.covered else f'{len(res.uncovered)} stretches uncovered'}; min in view "
-          f"{rep.min_count}")
-    if sim is not None:
-        ins = sim.inside_3sigma()
-        print("EIF within 3 sigma: " + ", ".join(f"{n} {100 * v:.1f}%" for n, v in ins.items()))
-    print(f"wrote {out / 'placement.json'} and {fig}")
+    with _run_folder(args, out, seed=args.seed) as run:
+        with console.task(f"placing landmarks ({method}, k = {k}, {len(cand)} candidates)"):
+            if key == "route":
+                res = P.place_through_targets(None, cand, cam, route=pts, **kw)
+            else:
+                res = P.place_through_targets(pts, cand, cam, **kw)
+        summary = res.to_dict()
+        summary["input"] = str(path)
+        rep = res.check()
+        summary["check"] = {"min_in_view": int(rep.min_count), "min_distance": float(rep.min_distance)}
+        sim = None
+        if args.simulate:
+            with console.task("bearing-only EIF along the route"):
+                sim = P.simulate(res.route, res.landmarks, cam, seed=args.seed)
+            summary["simulation"] = {"duration_s": float(sim.t[-1]), "inside_3sigma": sim.inside_3sigma(),
+                                     "fraction_below_k_in_view": sim.gap_fraction(res.k)}
+            P.plot_simulation(sim, out / "placement_errors.png")
+        write_json(out / "placement.json", summary)
+        P.plot_placement(res, out / "placement.png", simulation=sim)
+        print(f"{res.method}: {res.count} landmarks for {len(res.route) - 1} edges "
+              f"(route {P.tour_length(res.route):.2f} m, {len(cand)} candidates, {len(res.too_close)} within p), "
+              f"{'covered' if res.covered else f'{len(res.uncovered)} stretches uncovered'}; min in view "
+              f"{rep.min_count}")
+        if sim is not None:
+            ins = sim.inside_3sigma()
+            print("EIF within 3 sigma: " + ", ".join(f"{n} {100 * v:.1f}%" for n, v in ins.items()))
+        _wrote(run)
     return 0

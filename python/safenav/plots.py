@@ -82,17 +82,10 @@ def _draw_corridor(ax, corridor, *, color="tab:green", label=None) -> None:
 
 
 def _save(fig, path, dpi=120) -> Path:
-    """Write ``path`` (PNG) and an SVG beside it, atomically; close the figure."""
-    from .runner import atomic_write
+    """Write ``path`` (PNG) and an SVG beside it with the one result writer; close the figure."""
+    from .results import save_figure
 
-    plt = _pyplot()
-    out = Path(path)
-    try:
-        atomic_write(out, lambda p: fig.savefig(p, dpi=dpi, format="png"))
-        atomic_write(out.with_suffix(".svg"), lambda p: fig.savefig(p, format="svg"))
-    finally:
-        plt.close(fig)
-    return out
+    return save_figure(fig, path, dpi=dpi, svg=True)
 
 
 def plot_field(scenario, safe_paths: dict, path: str | Path, *, title: str | None = None) -> Path:

@@ -14,18 +14,21 @@ numbers them one higher):
                    SafeNav-Centroid (with RAw-RRT*) per path type; plus LanBLoc
                    through the camera loop.
 
-Each experiment writes to ``<out>/<name>/``: the raw per-trial table
-(``trials.parquet`` and ``.csv``), summary tables (CSV and Markdown) and
-figures (PNG and SVG), and returns an :class:`ExperimentResult`;
+Each experiment writes to ``<out>/<name>/`` (through :mod:`safenav.results`):
+the raw per-trial table (``trials.parquet`` and ``.csv``, its wall times in
+``trials_timings.csv``), summary tables (CSV and Markdown, timings beside
+them) and figures (PNG and SVG), and returns an :class:`ExperimentResult`;
 :func:`write_report` turns the results into ``<out>/report.html``, one file
 with every table (ours beside the paper's), every figure (embedded), the
 parameters, seeds and software versions, the departures from the paper and
-which of the paper's claims hold.
+which of the paper's claims hold, each with a bootstrap confidence interval
+(:class:`Claim`).
 
 Navigation experiments reuse :func:`safenav.runner.run_sweep`; the synthetic
 one runs its trials through :func:`safenav.runner.map_ordered`.  With a fixed
 seed every per-trial number except the wall times is identical whatever the
-number of workers, locally or on a Dask cluster.
+number of workers, locally or on a Dask cluster, and every table file is
+byte-identical.
 
 Example::
 
@@ -40,25 +43,24 @@ from __future__ import annotations
 import base64
 import html
 import json
-import platform
-import subprocess
 import time
+import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from . import console
 from . import experiments as ex
 from . import navigation as nav
 from . import runner
+from .results import versions, write_json, write_table, write_text
 from .scenario import Scenario, default_scenario
 
 __all__ = ["ExperimentOptions", "ExperimentResult", "Claim", "EXPERIMENTS", "ALIASES", "resolve",
            "run_experiments", "write_report", "navigation_figures"]
 
-#: The columns that hold wall times: the only ones that differ between runs with one seed.
-TIMING_COLUMNS = ("time_ms", "time_per_step_us", "ms_per_trial", "us_per_step")
 
 
 @dataclass
@@ -98,6 +100,12 @@ class ExperimentOptions:
             if p not in names:
                 raise ValueError(f"path_types: {p!r} is not a path type of the scenario (have: {names})")
         self.out = Path(self.out)
+        if isinstance(self.scheduler, str):
+            try:
+                import distributed  # noqa: F401
+            except ImportError as exc:
+                raise ValueError(f"scheduler = {self.scheduler!r}: needs Dask, which is not installed "
+                                 "(pip install 'safenav[dask]')") from exc
 
     def describe(self) -> dict:
         """The options as plain values (for the report and ``parameters.json``)."""
@@ -108,13 +116,33 @@ class ExperimentOptions:
                 "seed": int(self.seed), "scenario": self.scenario.name, "path_types": list(self.path_types)}
 
 
+#: Below this many trials per cell a claim is not judged: "too few trials to judge".
+MIN_TRIALS = 30
+#: Bootstrap resamples of the trials, and the confidence of the claims' intervals.
+BOOTSTRAP, CONFIDENCE = 2000, 0.95
+
+
 @dataclass(frozen=True)
 class Claim:
-    """One of the paper's claims and whether our numbers bear it out."""
+    """One of the paper's claims and whether our numbers bear it out.
+
+    A judged claim compares one quantity (a difference or a ratio of table
+    entries) with a threshold: it *holds* when the whole 95 % bootstrap
+    interval of the quantity lies above the threshold, *does not hold* when it
+    lies at or below it, and is *undecided* when the interval spans it; with
+    fewer than :data:`MIN_TRIALS` trials per cell it is *too few trials to
+    judge*.  ``holds`` is None for every verdict but the first two."""
 
     text: str                  #: the claim, as the paper makes it
-    holds: bool | None         #: None: cannot be checked with what ran
-    evidence: str              #: our numbers
+    holds: bool | None         #: None: not judged (see ``verdict``)
+    evidence: str              #: our numbers, with the interval
+    verdict: str = ""          #: holds, does not hold, undecided, too few trials to judge, not comparable
+    interval: tuple | None = None   #: the judged quantity's bootstrap interval
+
+    def __post_init__(self):
+        if not self.verdict:
+            object.__setattr__(self, "verdict", {True: "holds", False: "does not hold",
+                                                 None: "not comparable"}[self.holds])
 
 
 @dataclass
@@ -135,11 +163,9 @@ class ExperimentResult:
 # --------------------------------------------------------------------------- helpers
 
 def _write_summary(res: ExperimentResult, folder: Path, name: str, title: str, df: pd.DataFrame) -> None:
-    """Add ``df`` to the result and write it as ``name.csv`` and ``name.md``."""
+    """Add ``df`` to the result and write it as ``name.csv`` and ``name.md`` (timings beside them)."""
     res.tables[title] = df
-    res.files += runner.write_table(df, folder / name, parquet=False)
-    text = f"**{title}**\n\n" + ex.markdown_table(df, 4)
-    res.files.append(runner.atomic_write(folder / f"{name}.md", lambda p: Path(p).write_text(text)))
+    res.files += write_table(df, folder / name, parquet=False, markdown=title)
 
 
 def _sweep(opts: ExperimentOptions, scenario: Scenario | None = None, **kw) -> runner.Sweep:
@@ -155,7 +181,7 @@ def _run(opts: ExperimentOptions, sweep: runner.Sweep, safe: dict) -> pd.DataFra
 def _safe_paths(opts: ExperimentOptions, cache: dict) -> dict:
     key = ("safe", opts.path_types)
     if key not in cache:
-        cache[key] = runner.plan_safe_paths(opts.scenario, list(opts.path_types))
+        cache[key] = runner.plan_safe_paths(opts.scenario, list(opts.path_types), progress=opts.progress)
     return cache[key]
 
 
@@ -194,11 +220,6 @@ def _fix_shares(raw: pd.DataFrame) -> str:
               "view, so between clusters it dead-reckons on the IMU; the emulated baselines fix at every step.")
 
 
-def _best(table: pd.DataFrame, col: str) -> pd.Series:
-    """The row of ``table`` with the smallest ``col``."""
-    return table.loc[table[col].idxmin()]
-
-
 # --------------------------------------------------------------------------- experiments
 
 def run_field(opts: ExperimentOptions, cache: dict) -> ExperimentResult:
@@ -232,7 +253,7 @@ def run_synthetic(opts: ExperimentOptions, cache: dict) -> ExperimentResult:
                                   n_particles=opts.particles, config=cfg, workers=opts.workers,
                                   scheduler=opts.scheduler, progress=opts.progress)
     raw = out.raw
-    res.files += runner.write_table(raw, folder / "trials")
+    res.files += write_table(raw, folder / "trials")
     summary = ex.summarize_synthetic(raw)
     table = ex.localization_table(summary, ex.PAPER_TABLE1)
     _write_summary(res, folder, "table1", f"Table I: synthetic trajectories, {opts.trials} trials "
@@ -242,54 +263,133 @@ def run_synthetic(opts: ExperimentOptions, cache: dict) -> ExperimentResult:
     t = (np.arange(cfg.n_steps + 1)) * cfg.dt
     res.figures.append(plot_wrs_comparison(out.wrs_mean, t, folder / "fig3_wrs.png", labels=labels,
                                            title=f"Fig. 3: mean WRS per step over {opts.trials} synthetic trials"))
-    res.claims += _localization_claims(table, "Table I", paper=ex.PAPER_TABLE1)
+    res.claims += _localization_claims(raw, "Table I", paper=ex.PAPER_TABLE1,
+                                       columns=("ade", "fde", "awrs", "ms_per_trial"))
     res.notes.append("The synthetic trajectory is the paper's a(t), θ(t) profile driving the noisy BMM; its "
                      "length (N = 200 steps), initial speed and IMU noise are ours (the paper does not give them). "
                      "AWRS is measured against the true trajectory as the central path.")
     return res
 
 
-def _localization_claims(table: pd.DataFrame, name: str, *, paper: dict) -> list:
+class _Resampled:
+    """The statistics of a raw table's cells as its tables compute them, and
+    their bootstrap replicates (percentile bootstrap over trials).
+
+    Every cell runs the same trials (common random numbers), so the trials are
+    resampled *paired*: one set of :data:`BOOTSTRAP` index draws per path type,
+    shared by every cell; the draws are seeded, so the intervals are
+    deterministic.  A statistic is, per path type, the mean over the arrived
+    trials (or the median over all trials), then the mean over path types."""
+
+    def __init__(self, raw: pd.DataFrame, *, seed: int = 0):
+        self.raw = raw
+        self.paths = list(dict.fromkeys(raw["path_type"])) if "path_type" in raw else [None]
+        rng = np.random.default_rng(seed)
+        self.n, self.idx = {}, {}
+        for p in self.paths:
+            self.n[p] = int((raw if p is None else raw[raw["path_type"] == p])["trial"].nunique())
+            self.idx[p] = rng.integers(0, self.n[p], size=(BOOTSTRAP, self.n[p]))
+        self.trials = min(self.n.values())
+
+    def has(self, **cell) -> bool:
+        return bool(self._mask(cell).any())
+
+    def _mask(self, cell) -> np.ndarray:
+        m = np.ones(len(self.raw), bool)
+        for k, v in cell.items():
+            m &= (self.raw[k] == v).to_numpy()
+        return m
+
+    def stat(self, metric: str, *, paths=None, how: str = "mean", **cell) -> tuple[float, np.ndarray]:
+        """(point estimate, BOOTSTRAP replicates) of ``metric`` in the cell given by column = value pairs."""
+        f = np.nanmean if how == "mean" else np.nanmedian
+        point, reps = [], []
+        for p in paths or self.paths:
+            m = self._mask(cell) if p is None else self._mask({**cell, "path_type": p})
+            g = self.raw[m].sort_values("trial")
+            if len(g) != self.n[p]:
+                raise ValueError(f"cell {cell} has {len(g)} trials on {p}, the table {self.n[p]}")
+            v = g[metric].to_numpy(float)
+            if how == "mean" and "success" in g:
+                v = np.where(g["success"].to_numpy(bool), v, np.nan)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)     # a resample without an arrived trial: NaN
+                point.append(f(v))
+                reps.append(f(v[self.idx[p]], axis=1))
+        return float(np.mean(point)), np.mean(reps, axis=0)
+
+
+def _judge(text: str, quantity: tuple, threshold: float, trials: int, evidence: str, what: str) -> Claim:
+    """A claim judged by whether ``what`` (point estimate and bootstrap replicates) exceeds ``threshold``."""
+    q, reps = quantity
+    tail = 50 * (1 - CONFIDENCE)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        lo, hi = (float(v) for v in np.nanpercentile(reps, [tail, 100 - tail]))
+    ev = (f"{evidence}. Judged: {what} = {q:.3g}, {CONFIDENCE:.0%} CI [{lo:.3g}, {hi:.3g}] over {trials} trials "
+          f"per cell; the claim needs it above {threshold:g}")
+    if trials < MIN_TRIALS:
+        return Claim(text, None, ev, "too few trials to judge", (lo, hi))
+    if lo > threshold:
+        return Claim(text, True, ev, interval=(lo, hi))
+    if hi <= threshold:
+        return Claim(text, False, ev, interval=(lo, hi))
+    return Claim(text, None, ev, "undecided", (lo, hi))
+
+
+def _combine(fn, *quantities) -> tuple:
+    """``fn`` applied to the point estimates and, element-wise, to the replicates."""
+    return fn(*(q for q, _ in quantities)), fn(*(r for _, r in quantities))
+
+
+def _localization_claims(raw: pd.DataFrame, name: str, *, paper: dict, columns: tuple) -> list:
+    """Table I/II claims from the raw table; ``columns`` are its ADE, FDE, AWRS and time columns."""
+    b = _Resampled(raw)
+    cells = list(dict.fromkeys(zip(raw["source"], raw["filter"])))
+    if ("lanbloc", "ekf") not in cells:
+        return []
+    label = lambda c: f"{ex.source_label(c[0])} ({c[1].upper()})"  # noqa: E731
     claims = []
-    t = table.reset_index(drop=True)
-    ekf = t["Filter"] == "EKF"
-    lan = (t["Algorithm"] == "LanBLoc-BMM") & ekf
-    if not lan.any():
-        return claims
-    lrow = t[lan].iloc[0]
-    for i, col in enumerate(("ADE", "FDE", "AWRS")):
-        best = _best(t, col)
-        holds = bool(best["Algorithm"] == "LanBLoc-BMM" and best["Filter"] == "EKF")
+    for i, (col, metric) in enumerate(zip(("ADE", "FDE", "AWRS"), columns)):
+        q = {c: b.stat(metric, source=c[0], filter=c[1]) for c in cells}
+        lan = q[("lanbloc", "ekf")]
+        others = [q[c] for c in cells if c != ("lanbloc", "ekf")]
+        gap = _combine(lambda *v: np.min([x - v[0] for x in v[1:]], axis=0), lan, *others)
+        best = min(cells, key=lambda c: q[c][0])
         own = min(paper, key=lambda k: paper[k][i])
         own_note = ("" if own == ("lanbloc", "ekf") else
                     f"; the paper's own table has {ex.source_label(own[0])} ({own[1].upper()}) lowest "
                     f"({paper[own][i]:.4g} against {paper[('lanbloc', 'ekf')][i]:.4g})")
-        claims.append(Claim(f"{name}: LanBLoc-BMM(EKF) has the lowest {col} of all rows", holds,
-                            f"LanBLoc-BMM(EKF) {lrow[col]:.4g}; lowest: {best['Algorithm']} ({best['Filter']}) "
-                            f"{best[col]:.4g}{own_note}"))
-    # (algorithm, EKF row, PF row) of every method run with both filters
-    pairs = [(alg, g[g["Filter"] == "EKF"].iloc[0], g[g["Filter"] == "PF"].iloc[0])
-             for alg, g in t.groupby("Algorithm", sort=False) if set(g["Filter"]) >= {"EKF", "PF"}]
+        claims.append(_judge(f"{name}: LanBLoc-BMM(EKF) has the lowest {col} of all rows", gap, 0, b.trials,
+                             f"LanBLoc-BMM(EKF) {lan[0]:.4g}; lowest: {label(best)} {q[best][0]:.4g}{own_note}",
+                             f"the smallest {col} of another row minus LanBLoc-BMM(EKF)'s"))
+    pairs = [s for s in dict.fromkeys(raw["source"]) if (s, "ekf") in cells and (s, "pf") in cells]
     if pairs:
-        holds = all(p["ADE"] > 1.05 * e["ADE"] for _, e, p in pairs)
-        claims.append(Claim(f"{name}: the EKF has a lower ADE than the PF for every method", holds,
-                            "; ".join(f"{a}: EKF {e['ADE']:.3g} vs PF {p['ADE']:.3g}" for a, e, p in pairs)
-                            + "; we count it as holding when every PF is worse by more than 5 % (the paper's PFs are "
-                              "2-7× worse)"))
-    times = t[ekf]["time ms"]
+        ade = {(s, f): b.stat(columns[0], source=s, filter=f) for s in pairs for f in ("ekf", "pf")}
+        ratio = _combine(lambda *v: np.min([p / e for e, p in zip(v[::2], v[1::2])], axis=0),
+                         *(ade[(s, f)] for s in pairs for f in ("ekf", "pf")))
+        claims.append(_judge(f"{name}: the EKF has a lower ADE than the PF for every method", ratio, 1.05, b.trials,
+                             "; ".join(f"{ex.source_label(s)}: EKF {ade[(s, 'ekf')][0]:.3g} vs PF "
+                                       f"{ade[(s, 'pf')][0]:.3g}" for s in pairs)
+                             + "; we count it as holding when every PF is worse by more than 5 % (the paper's PFs "
+                               "are 2-7× worse)", "the smallest PF/EKF ADE ratio"))
+    times = {c: b.stat(columns[3], how="median", source=c[0], filter=c[1]) for c in cells}
+    ekf_times = [times[c][0] for c in cells if c[1] == "ekf"]
     claims.append(Claim(f"{name}: LanBLoc-BMM(EKF) has the lowest runtime", None,
-                        f"ours: the EKF rows take {times.min():.3g}-{times.max():.3g} ms per trial; every source runs "
-                        "the same filter here and the emulated sources have no pipeline of their own to time, so "
-                        "runtimes do not separate the methods"))
+                        f"ours: the EKF rows take {min(ekf_times):.3g}-{max(ekf_times):.3g} ms per trial; every "
+                        "source runs the same filter here and the emulated sources have no pipeline of their own to "
+                        "time, so runtimes do not separate the methods"))
     if pairs:
         paper_ratio = np.median([paper[(s, "pf")][3] / paper[(s, "ekf")][3] for s in ex.PAPER_SOURCES])
-        ours_ratio = np.median([p["time ms"] / e["time ms"] for _, e, p in pairs])
+        ratio = _combine(lambda *v: np.median([p / e for e, p in zip(v[::2], v[1::2])], axis=0),
+                         *(times[(s, f)] for s in pairs for f in ("ekf", "pf")))
         paper_pf = min(v[3] for k, v in paper.items() if k[1] == "pf")
-        ours_pf = max(p["time ms"] for _, _, p in pairs)
-        claims.append(Claim(f"{name}: the PF costs orders of magnitude (≥ 100×) more than the EKF (paper: "
-                            f"{paper_ratio:.0f}× per trial)", bool(ours_ratio >= 100),
-                            f"ours: {ours_ratio:.0f}× (median over methods); our slowest PF trial median, "
-                            f"{ours_pf:.3g} ms, is {paper_pf / ours_pf:.0f}× faster than the paper's fastest PF row"))
+        ours_pf = max(times[(s, "pf")][0] for s in pairs)
+        claims.append(_judge(f"{name}: the PF costs orders of magnitude (≥ 100×) more than the EKF (paper: "
+                             f"{paper_ratio:.0f}× per trial)", ratio, 100, b.trials,
+                             f"ours: {ratio[0]:.0f}× (median over methods of the PF/EKF median time per trial); our "
+                             f"slowest PF trial median, {ours_pf:.3g} ms, is {paper_pf / ours_pf:.0f}× faster than "
+                             "the paper's fastest PF row", "the PF/EKF time ratio"))
     return claims
 
 
@@ -300,14 +400,15 @@ def run_real_imitated(opts: ExperimentOptions, cache: dict) -> ExperimentResult:
     safe = _safe_paths(opts, cache)
     raw = _run_cells(opts, safe, cache, methods=("centroid",), filters=("ekf", "pf"), sources=ex.PAPER_SOURCES,
                      trials=opts.trials, position_every=1)
-    res.files += runner.write_table(raw, folder / "trials")
+    res.files += write_table(raw, folder / "trials")
     summary = runner.summarize(raw)
-    res.files += runner.write_table(summary, folder / "summary_per_path", parquet=False)
+    res.files += write_table(summary, folder / "summary_per_path", parquet=False)
     table = ex.localization_table(_path_average(summary), ex.PAPER_TABLE2)
     _write_summary(res, folder, "table2", f"Table II: real-imitated world, mean over {', '.join(opts.path_types)}, "
                    f"{opts.trials} trials per path type (SafeNav-Centroid along the safe path; PF "
                    f"{opts.particles} particles); time = mean over path types of the median per trial", table)
-    res.claims += _localization_claims(table, "Table II", paper=ex.PAPER_TABLE2)
+    res.claims += _localization_claims(raw, "Table II", paper=ex.PAPER_TABLE2,
+                                       columns=("loc_ade", "loc_fde", "awrs", "time_ms"))
     res.notes.append("The paper does not say which controller drove its Table II trials; we follow each safe path "
                      "with SafeNav-Centroid (Algorithm 2), the same path and seeds for every source and filter. "
                      "ADE and FDE here are localization errors: the estimate against the true vehicle at each step "
@@ -381,12 +482,13 @@ def _placed_variant(opts, safe, folder, res, cache, raw):
     (the placement paper's method, ILP), beside LanBLoc in the scenario's own
     clusters, on the same trials."""
     t0 = time.perf_counter()
-    scenario, placed = placed_scenario(opts.scenario, safe)
+    with console.task("placing landmarks along the safe paths (ILP)", enabled=opts.progress):
+        scenario, placed = placed_scenario(opts.scenario, safe)
     t_place = time.perf_counter() - t0
     sweep = _sweep(opts, scenario, methods=("centroid",), filters=("ekf", "pf"), sources=("lanbloc",),
                    trials=opts.trials)
     placed_raw = _run(opts, sweep, safe).assign(source="lanbloc-placed")
-    res.files += runner.write_table(placed_raw, folder / "placed_trials")
+    res.files += write_table(placed_raw, folder / "placed_trials")
     both = pd.concat([raw[raw["source"] == "lanbloc"], placed_raw], ignore_index=True)
     summary = _path_average(runner.summarize(both))
     share = _fix_share(both, ["source", "filter"])
@@ -419,7 +521,7 @@ def _camera_variant(opts, safe, folder, res, cache, *, methods, filters, key, la
     cam = _run_cells(opts, safe, cache, sources=("lanbloc-camera",), chunk=1, **kw)
     res.camera_s += time.perf_counter() - t0
     raw = pd.concat([meas, cam], ignore_index=True)
-    res.files += runner.write_table(raw, folder / "camera_trials")
+    res.files += write_table(raw, folder / "camera_trials")
     s = runner.summarize(raw)
     keys = ["path_type", *key]
     rows = []
@@ -476,17 +578,18 @@ def run_navigation(opts: ExperimentOptions, cache: dict) -> ExperimentResult:
     safe = _safe_paths(opts, cache)
     sweep = _sweep(opts, methods=("chull", "centroid"), filters=("ekf",), sources=("lanbloc",), trials=opts.trials)
     raw = _run(opts, sweep, safe)
-    res.files += runner.write_table(raw, folder / "trials")
+    res.files += write_table(raw, folder / "trials")
     summary = runner.summarize(raw)
-    res.files += runner.write_table(summary, folder / "summary", parquet=False)
+    res.files += write_table(summary, folder / "summary", parquet=False)
     pe = ex.percent_error_table(summary)
     nt = ex.navigation_table(summary)
     _write_summary(res, folder, "table3", f"Table III: % path-length error (eq. 23), LanBLoc-BMM(EKF), "
                    f"{opts.trials} trials per path type", pe)
     _write_summary(res, folder, "table4", f"Table IV: ADE / FDE [m], AWRS and median time per trial, "
                    f"LanBLoc-BMM(EKF), {opts.trials} trials per path type", nt)
-    res.figures += navigation_figures(opts.scenario, safe, sweep, folder)
-    res.claims += _navigation_claims(pe, nt)
+    with console.task("Figs. 4-5 (trial 0 of each path type, recorded)", enabled=opts.progress):
+        res.figures += navigation_figures(opts.scenario, safe, sweep, folder)
+    res.claims += _navigation_claims(raw)
     res.notes.append("ADE is the mean distance of the estimate to the safe path (cross-track; our reading of eq. 21, "
                      "whose point-wise pairing is undefined for an untimed path), FDE the final estimate's distance to "
                      "the destination. " + _outcomes(raw))
@@ -496,39 +599,50 @@ def run_navigation(opts: ExperimentOptions, cache: dict) -> ExperimentResult:
     return res
 
 
-def _navigation_claims(pe: pd.DataFrame, nt: pd.DataFrame) -> list:
+def _navigation_claims(raw: pd.DataFrame) -> list:
+    """Table III/IV claims from the raw table of the navigation sweep."""
+    if not {"chull", "centroid"} <= set(raw["method"]):
+        return []
+    b = _Resampled(raw)
+    st = lambda metric, m, **kw: b.stat(metric, method=m, **kw)  # noqa: E731
     claims = []
-    pe = pe.set_index("Approach")
-    ch, ce = ex.METHOD_LABELS["chull"], ex.METHOD_LABELS["centroid"]
-    if ch in pe.index and ce in pe.index and "Average" in pe.columns:
-        a, b = pe.loc[ch, "Average"], pe.loc[ce, "Average"]
-        claims.append(Claim("Table III: SafeNav-Centroid has a lower average % path-length error than SafeNav-CHull "
-                            "(paper: 5.46 % vs 6.51 %)", bool(b < a), f"ours: {b:.3g} % vs {a:.3g} %"))
-        paths = [c for c in pe.columns if not c.startswith("paper") and c != "Average"]
-        if {"P1", "P2", "P3"} <= set(paths):
-            worst = {m: max(paths, key=lambda c: pe.loc[m, c]) for m in (ch, ce)}
-            claims.append(Claim("Table III: P2 has the highest % error for both methods", all(w == "P2" for w in
-                                worst.values()), "; ".join(f"{m}: highest on {w} ({pe.loc[m, w]:.3g} %)"
-                                                           for m, w in worst.items())))
-    avg = nt[nt["Path"] == "Average"].set_index("Approach")
-    if ch in avg.index and ce in avg.index:
-        r = avg.loc[ch, "ADE"] / avg.loc[ce, "ADE"]
-        claims.append(Claim("Table IV: SafeNav-Centroid's ADE is 1.67× lower than SafeNav-CHull's", bool(r > 1.05),
-                            f"ours: {r:.2f}× lower ({avg.loc[ce, 'ADE']:.3g} m vs {avg.loc[ch, 'ADE']:.3g} m); "
-                            "we count the claim as holding when Centroid is lower by more than 5 %"))
-        arrival = ("a trial ends when the estimate is inside the arrival radius, so the final estimate's distance to "
-                   "the destination measures the stopping rule, not the method")
-        claims.append(Claim("Table IV: SafeNav-Centroid's FDE is 3.30× lower than SafeNav-CHull's", None,
-                            f"ours: {avg.loc[ce, 'FDE']:.3g} m vs {avg.loc[ch, 'FDE']:.3g} m; {arrival}"))
-        a_ce, a_ch = avg.loc[ce, "AWRS"], avg.loc[ch, "AWRS"]
-        claims.append(Claim("Table IV: SafeNav-Centroid has a lower AWRS than SafeNav-CHull", bool(a_ce < a_ch),
-                            f"ours: {a_ce:.3g} vs {a_ch:.3g}"))
-        claims.append(Claim("Table IV: SafeNav-Centroid's FDE is lower than its ADE (it stops precisely at the "
-                            "destination)", None,
-                            f"ours: FDE {avg.loc[ce, 'FDE']:.3g} m, ADE {avg.loc[ce, 'ADE']:.3g} m; " + arrival))
-        claims.append(Claim("Table IV: a navigation trial takes about 15-17 ms", None,
-                            f"ours: CHull {avg.loc[ch, 'time ms']:.3g} ms, Centroid {avg.loc[ce, 'time ms']:.3g} ms "
-                            "per trial (the paper's trial length is unknown; compare per step)"))
+    pe = {m: st("path_error_percent", m) for m in ("chull", "centroid")}
+    claims.append(_judge("Table III: SafeNav-Centroid has a lower average % path-length error than SafeNav-CHull "
+                         "(paper: 5.46 % vs 6.51 %)", _combine(np.subtract, pe["chull"], pe["centroid"]), 0, b.trials,
+                         f"ours: {pe['centroid'][0]:.3g} % vs {pe['chull'][0]:.3g} %",
+                         "CHull's minus Centroid's % error"))
+    if {"P1", "P2", "P3"} <= set(b.paths):
+        per = {(m, p): st("path_error_percent", m, paths=[p]) for m in ("chull", "centroid") for p in b.paths}
+        margin = _combine(lambda *v: np.minimum(*(v[3 * i + 1] - np.maximum(v[3 * i], v[3 * i + 2])
+                                                  for i in range(2))),
+                          *(per[(m, p)] for m in ("chull", "centroid") for p in ("P1", "P2", "P3")))
+        worst = {m: max(b.paths, key=lambda p: per[(m, p)][0]) for m in ("chull", "centroid")}
+        claims.append(_judge("Table III: P2 has the highest % error for both methods", margin, 0, b.trials,
+                             "; ".join(f"{ex.METHOD_LABELS[m]}: highest on {w} ({per[(m, w)][0]:.3g} %)"
+                                       for m, w in worst.items()),
+                             "the smaller over methods of P2's % error minus the higher of P1's and P3's"))
+    avg = {(k, m): st(k, m) for k in ("ade", "fde", "awrs") for m in ("chull", "centroid")}
+    ch_ade, ce_ade = avg[("ade", "chull")], avg[("ade", "centroid")]
+    claims.append(_judge("Table IV: SafeNav-Centroid's ADE is 1.67× lower than SafeNav-CHull's",
+                         _combine(np.divide, ch_ade, ce_ade), 1.05, b.trials,
+                         f"ours: {ch_ade[0] / ce_ade[0]:.2f}× lower ({ce_ade[0]:.3g} m vs {ch_ade[0]:.3g} m); we "
+                         "count the claim as holding when Centroid is lower by more than 5 %",
+                         "CHull's ADE / Centroid's"))
+    arrival = ("a trial ends when the estimate is inside the arrival radius, so the final estimate's distance to "
+               "the destination measures the stopping rule, not the method")
+    ce_fde, ch_fde = avg[("fde", "centroid")][0], avg[("fde", "chull")][0]
+    claims.append(Claim("Table IV: SafeNav-Centroid's FDE is 3.30× lower than SafeNav-CHull's", None,
+                        f"ours: {ce_fde:.3g} m vs {ch_fde:.3g} m; {arrival}"))
+    claims.append(_judge("Table IV: SafeNav-Centroid has a lower AWRS than SafeNav-CHull",
+                         _combine(np.subtract, avg[("awrs", "chull")], avg[("awrs", "centroid")]), 0, b.trials,
+                         f"ours: {avg[('awrs', 'centroid')][0]:.3g} vs {avg[('awrs', 'chull')][0]:.3g}",
+                         "CHull's AWRS minus Centroid's"))
+    claims.append(Claim("Table IV: SafeNav-Centroid's FDE is lower than its ADE (it stops precisely at the "
+                        "destination)", None, f"ours: FDE {ce_fde:.3g} m, ADE {ce_ade[0]:.3g} m; " + arrival))
+    t = {m: st("time_ms", m, how="median")[0] for m in ("chull", "centroid")}
+    claims.append(Claim("Table IV: a navigation trial takes about 15-17 ms", None,
+                        f"ours: CHull {t['chull']:.3g} ms, Centroid {t['centroid']:.3g} ms per trial (the paper's "
+                        "trial length is unknown; compare per step)"))
     return claims
 
 
@@ -564,71 +678,49 @@ def resolve(names) -> list[str]:
     return [k for k in EXPERIMENTS if k in keys]
 
 
-def run_experiments(names, opts: ExperimentOptions, *, log=print) -> list[ExperimentResult]:
+def run_experiments(names, opts: ExperimentOptions, *, show=print) -> list[ExperimentResult]:
     """Run the named experiments (see :func:`resolve`); each writes its files
-    under ``opts.out``.  Returns their results in run order."""
+    under ``opts.out``.  Returns their results in run order.  ``show`` gets
+    each table as text (status lines go to :mod:`safenav.console`)."""
     keys = resolve(names)
     opts.out.mkdir(parents=True, exist_ok=True)
     cache: dict = {}
-    results = []
     own_client = None
-    if opts.scheduler is not None and isinstance(opts.scheduler, str):
+    if isinstance(opts.scheduler, str):
+        from distributed import Client    # importable: checked by ExperimentOptions
+
         try:
-            from distributed import Client
-        except ImportError as exc:  # pragma: no cover - exercised only without the extra
-            raise RuntimeError("--scheduler needs Dask: pip install 'safenav[dask]'") from exc
-        own_client = Client(opts.scheduler)        # one connection for every sweep
+            own_client = Client(opts.scheduler, timeout=10)     # one connection for every sweep
+        except (OSError, TimeoutError) as exc:
+            raise ValueError(f"scheduler = {opts.scheduler!r}: cannot connect ({exc})") from None
     try:
         if own_client is not None:
             opts.scheduler, address = own_client, opts.scheduler
-        results = _run_all(keys, opts, cache, log)
+        done = _run_all(keys, opts, cache, show)
     finally:
         if own_client is not None:
             opts.scheduler = address
             own_client.close()
-    text = json.dumps(_parameters(opts), indent=1, default=str)
-    runner.atomic_write(opts.out / "parameters.json", lambda p: Path(p).write_text(text))
-    return results
+    write_json(opts.out / "parameters.json", _parameters(opts))
+    return done
 
 
-def _run_all(keys, opts: ExperimentOptions, cache: dict, log) -> list[ExperimentResult]:
-    results = []
+def _run_all(keys, opts: ExperimentOptions, cache: dict, show) -> list[ExperimentResult]:
+    done = []
     for k in keys:
         fn, desc = EXPERIMENTS[k]
-        log(f"[experiment] {k}: {desc}")
+        console.info(f"[experiment] {k}: {desc}")
         t0 = time.perf_counter()
         res = fn(opts, cache)
         res.wall_s = time.perf_counter() - t0
         for title, df in res.tables.items():
-            log(f"\n{title}\n{df.to_string(index=False, float_format=lambda v: f'{v:.4g}')}")
-        log(f"[experiment] {k}: {res.wall_s:.1f} s")
-        results.append(res)
-    return results
+            show(f"\n{title}\n{df.to_string(index=False, float_format=lambda v: f'{v:.4g}')}")
+        console.info(f"[experiment] {k}: {res.wall_s:.1f} s")
+        done.append(res)
+    return done
 
 
 # --------------------------------------------------------------------------- report
-
-def _versions() -> dict:
-    import importlib.metadata as md
-
-    out = {"python": platform.python_version(), "platform": platform.platform()}
-    for pkg in ("safenav", "numpy", "scipy", "pandas", "matplotlib", "opencv-python-headless", "pybind11",
-                "distributed"):
-        try:
-            out[pkg] = md.version(pkg)
-        except md.PackageNotFoundError:
-            pass
-    try:  # the C++ libraries the core was built against (Debian packages)
-        q = subprocess.run(["dpkg-query", "-W", "-f", "${Package} ${Version}\n", "libeigen3-dev", "libcgal-dev",
-                            "libompl-dev", "libopencv-dev"], capture_output=True, text=True, timeout=10)
-        for line in q.stdout.splitlines():
-            name, _, ver = line.partition(" ")
-            if ver:
-                out[name] = ver
-    except (OSError, subprocess.SubprocessError):
-        pass
-    return out
-
 
 def _parameters(opts: ExperimentOptions) -> dict:
     sc = opts.scenario
@@ -706,11 +798,17 @@ def write_report(results, opts: ExperimentOptions, path=None) -> Path:
              "'paper …' columns are the paper's numbers; the others are ours.</p>"]
     claims = [c for r in results for c in r.claims]
     if claims:
-        parts.append("<h2>The paper's claims</h2><ul>")
+        parts.append("<h2>The paper's claims</h2>"
+                     f"<p>Each judged claim compares one quantity with a threshold. Its {CONFIDENCE:.0%} interval is "
+                     f"a percentile bootstrap over trials ({BOOTSTRAP} resamples, paired: every cell is resampled "
+                     "with the same trials, since every cell runs the same trials; seeded). A claim <b>holds</b> "
+                     "when the whole interval lies above the threshold, <b>does not hold</b> when it lies at or "
+                     "below it, and is <b>undecided</b> when the interval spans it. With fewer than "
+                     f"{MIN_TRIALS} trials per cell a claim is <b>too few trials to judge</b>.</p><ul>")
         for c in claims:
-            cls, word = {True: ("yes", "holds"), False: ("no", "does not hold"),
-                         None: ("na", "not comparable")}[c.holds]
-            parts.append(f"<li><span class='{cls}'><b>{word}</b></span>: {e(c.text)}. <i>{e(c.evidence)}</i></li>")
+            cls = {True: "yes", False: "no", None: "na"}[c.holds]
+            parts.append(f"<li><span class='{cls}'><b>{e(c.verdict)}</b></span>: {e(c.text)}. "
+                         f"<i>{e(c.evidence)}</i></li>")
         parts.append("</ul>")
     for r in results:
         parts.append(f"<h2>{e(r.title)}</h2><p>Experiment <code>{e(r.name)}</code>, {r.wall_s:.1f} s.</p>")
@@ -725,7 +823,7 @@ def write_report(results, opts: ExperimentOptions, path=None) -> Path:
     parts.append("</ul>")
     parts.append(f"<h2>Parameters and seeds</h2><pre>{e(json.dumps(_parameters(opts), indent=1, default=str))}</pre>")
     parts.append("<h2>Software</h2><table class='t'>" + "".join(
-        f"<tr><th>{e(k)}</th><td>{e(str(v))}</td></tr>" for k, v in _versions().items()) + "</table>")
+        f"<tr><th>{e(k)}</th><td>{e(str(v))}</td></tr>" for k, v in versions().items()) + "</table>")
     parts.append("</body></html>")
     text = "\n".join(parts)
-    return runner.atomic_write(path, lambda p: Path(p).write_text(text, encoding="utf-8"))
+    return write_text(path, text)

@@ -16,26 +16,25 @@ releases the GIL), so local workers are threads; a Dask cluster given by
 ``scheduler`` (an address, or a ``distributed.Client``) runs the same chunks.
 
 The result is a tidy :class:`pandas.DataFrame`, one row per trial;
-:func:`summarize` averages it per cell, and :func:`write_table` writes CSV and
-Parquet atomically.
+:func:`summarize` averages it per cell, and :func:`safenav.results.write_table`
+writes it (the wall-time columns to a separate file, so that the table itself
+is byte-identical for a fixed seed).
 """
 
 from __future__ import annotations
 
 import os
-import tempfile
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from . import console
 from . import navigation as nav
 from .scenario import Scenario
 
-__all__ = ["Sweep", "trial_seeds", "plan_safe_paths", "run_sweep", "map_ordered", "summarize", "write_table",
-           "atomic_write", "METRICS"]
+__all__ = ["Sweep", "trial_seeds", "plan_safe_paths", "run_sweep", "map_ordered", "summarize", "METRICS"]
 
 #: Per-trial metric columns averaged by :func:`summarize`.
 METRICS = ("ade", "fde", "path_error_percent", "awrs", "awrs_true", "loc_ade", "loc_fde", "max_deviation")
@@ -93,10 +92,15 @@ def trial_seeds(seed: int, path_index: int, n: int) -> np.ndarray:
     return np.random.SeedSequence([int(seed), int(path_index)]).generate_state(n, dtype=np.uint64)
 
 
-def plan_safe_paths(scenario: Scenario, path_types=None) -> dict[str, np.ndarray]:
+def plan_safe_paths(scenario: Scenario, path_types=None, *, progress: bool = False) -> dict[str, np.ndarray]:
     """RAw-RRT* safe path of each path type (deterministic: the scenario's planner seed)."""
-    names = path_types or [p.name for p in scenario.path_types]
-    return {name: np.asarray(nav.plan_safe_path(scenario, name).path) for name in names}
+    names = list(path_types or [p.name for p in scenario.path_types])
+    out = {}
+    with console.progress(len(names), "planning", unit="path", enabled=progress) as bar:
+        for name in names:
+            out[name] = np.asarray(nav.plan_safe_path(scenario, name).path)
+            bar.update()
+    return out
 
 
 @dataclass(frozen=True)
@@ -211,27 +215,20 @@ def map_ordered(fn, items, *, workers: int | None = None, scheduler=None, progre
     ``fn`` spends its time in C++ calls that release the GIL.  ``scheduler``: a
     Dask scheduler address or a ``distributed.Client``."""
     items = list(items)
-    bar = None
-    if progress:
-        from tqdm import tqdm
-        bar = tqdm(total=len(items), unit="chunk", desc=desc, leave=False)
-    try:
-        if scheduler is not None:
-            return _run_dask(fn, items, scheduler, bar)
+    if scheduler is None:
         n = workers if workers is not None else (os.cpu_count() or 1)
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
             raise ValueError(f"workers = {workers!r}: must be an integer >= 1")
+    with console.progress(len(items), desc, unit="chunk", enabled=progress) as bar:
+        if scheduler is not None:
+            return _run_dask(fn, items, scheduler, bar)
         out = [None] * len(items)
         with ThreadPoolExecutor(max_workers=int(n)) as pool:
             futures = {pool.submit(fn, c): i for i, c in enumerate(items)}
             for fut in as_completed(futures):
                 out[futures[fut]] = fut.result()
-                if bar is not None:
-                    bar.update(1)
+                bar.update()
         return out
-    finally:
-        if bar is not None:
-            bar.close()
 
 
 def _run_dask(fn, items, scheduler, bar):
@@ -247,8 +244,7 @@ def _run_dask(fn, items, scheduler, bar):
         out = [None] * len(items)
         for fut in dask_completed(futures):
             out[index[fut.key]] = fut.result()
-            if bar is not None:
-                bar.update(1)
+            bar.update()
         return out
     finally:
         if own:
@@ -279,34 +275,3 @@ def summarize(raw: pd.DataFrame) -> pd.DataFrame:
             row[f"n_{o}"] = int((g["outcome"] == o).sum())
         rows.append(row)
     return pd.DataFrame(rows)
-
-
-def write_table(df: pd.DataFrame, path, *, parquet: bool = True) -> list[Path]:
-    """Write ``df`` as CSV (and Parquet) next to ``path`` (suffix replaced),
-    atomically: each file is written to a temporary name, then renamed."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    out = []
-    targets = [(path.with_suffix(".csv"), lambda p: df.to_csv(p, index=False))]
-    if parquet:
-        targets.append((path.with_suffix(".parquet"), lambda p: df.to_parquet(p, index=False)))
-    for target, write in targets:
-        out.append(atomic_write(target, write))
-    return out
-
-
-def atomic_write(path, write) -> Path:
-    """Call ``write(tmp)`` on a fresh temporary file beside ``path``, then
-    rename it to ``path``: readers never see a half-written file, and a failed
-    write leaves nothing behind."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path

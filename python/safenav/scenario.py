@@ -82,7 +82,6 @@ import math
 import os
 import re
 import stat
-import tempfile
 import tomllib
 from dataclasses import dataclass, field, fields
 from functools import lru_cache
@@ -616,23 +615,10 @@ def _one_line(m: re.Match) -> str:
 
 
 def save_scenario(scenario: Scenario, path) -> Path:
-    """Write ``scenario`` atomically: a temporary file in the same folder, then ``os.replace``."""
-    path = Path(path)
-    text = dumps_scenario(scenario, json_format=_is_json(path))
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
-    return path
+    """Write ``scenario`` with the one result writer (:func:`safenav.results.write_text`: atomic, the user's umask)."""
+    from .results import write_text
+
+    return write_text(path, dumps_scenario(scenario, json_format=_is_json(Path(path))))
 
 
 DEFAULT_SCENARIO_FILE = "default_scenario.toml"
