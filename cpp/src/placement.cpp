@@ -39,11 +39,12 @@ std::string point_str(const Eigen::Vector2d& p) {
 
 void check_points(const Points2& p, const char* what) {
   for (Eigen::Index i = 0; i < p.rows(); ++i) {
+    const bool finite = p.row(i).allFinite();
+    if (finite && p.row(i).cwiseAbs().maxCoeff() <= kMaxCoordinate) continue;
     const std::string name = std::string(what) + "[" + std::to_string(i) + "] = " + point_str(p.row(i).transpose());
-    if (!p.row(i).allFinite()) fail(name + " is not finite");
-    if (p.row(i).cwiseAbs().maxCoeff() > kMaxCoordinate)
-      fail(name + " is farther than " + std::to_string(static_cast<long>(kMaxCoordinate)) +
-           " m from the origin: shift the coordinates to a local origin");
+    if (!finite) fail(name + " is not finite");
+    fail(name + " is farther than " + std::to_string(static_cast<long>(kMaxCoordinate)) +
+         " m from the origin: shift the coordinates to a local origin");
   }
 }
 
