@@ -294,10 +294,11 @@ def test_non_coincidence_rule():
     hits = 0
     for _ in range(6):
         route = feasible_route(rng, 6)
-        verbatim = P.place_along_route(route, TABLE_CAND, CAM, distinct_bearings=False)
+        verbatim = P.place_along_route(route, TABLE_CAND, CAM, distinct_bearings=False, allow_uncovered=True)
         ruled = P.place_along_route(route, TABLE_CAND, CAM)
         assert ruled.check().min_count >= 2
         if verbatim.check().min_count < 2:  # Algorithm 1 alone lets two picks align
+            assert not verbatim.covered  # and its certificate says so
             hits += 1
             assert ruled.count > verbatim.count
     assert hits >= 1
@@ -311,6 +312,85 @@ def test_reuse_never_needs_more_than_the_union():
         reuse = P.place_along_route(route, TABLE_CAND, CAM, reuse=True)
         assert reuse.check().min_count >= 2
         assert reuse.count <= union.count + 1  # greedy per edge; usually fewer
+
+
+# Issue #12: routes through candidate-grid nodes have candidates on each
+# edge's own line, which all share one bearing (0 ahead) wherever two are in
+# view.  The greedy used to certify such routes with min_count = 1 and the ILP
+# to raise KeyError on them.
+ON_NODE_ROUTES = [[[0, 0], [1.5, 0]], [[0, 0], [2, 0]], [[1, 1], [1, 3]], [[0, 0], [2, 0], [2, 2]],
+                  [[0, 0], [1, 0.5], [2, 1]]]
+
+
+@pytest.mark.parametrize("corners", [False, True])
+@pytest.mark.parametrize("route", ON_NODE_ROUTES)
+def test_on_node_routes_certificate_is_the_exact_check(route, corners):
+    route = np.array(route, float)
+    cand = P.candidate_grid(route.min(0), route.max(0), 0.5, margin=2.0)
+    optimum = P.place_optimal(route, cand, CAM, corners=corners, allow_uncovered=True)
+    for res in (P.place_along_route(route, cand, CAM, corners=corners, allow_uncovered=True),
+                P.place_along_route(route, cand, CAM, corners=corners, reuse=True, allow_uncovered=True), optimum):
+        rep = res.check()
+        assert res.covered == (rep.min_count >= 2 and len(rep.start) == 0), res.method
+        if res.covered:
+            assert dense_counts(route, res.landmarks, CAM) >= 2
+        else:  # the L-shaped route: the clearance of its second edge leaves a stretch of the first uncoverable
+            assert len(route) == 3 and not optimum.covered
+
+
+def test_on_line_candidates_one_per_side():
+    """On the edge (0, 0) -> (1.5, 0) the candidates (2, 0), (2.5, 0), (3, 0)...
+    lie ahead on the edge's line: the greedy takes at most one of them."""
+    route = np.array([[0.0, 0.0], [1.5, 0.0]])
+    cand = P.candidate_grid((0, 0), (1.5, 0), 0.5, margin=2.0)
+    res = P.place_along_route(route, cand, CAM)
+    ahead = [p for p in res.landmarks if p[1] == 0 and p[0] > 1.5]
+    assert len(ahead) <= 1 and res.check().min_count >= 2
+
+
+def test_ilp_handles_alpha_180_and_tiny_edges():
+    route = np.array([[0.0, 0.0], [1e-10, 0.0], [1e-10, 1.5]])
+    cand = P.candidate_grid((0, 0), (0, 1.5), 0.5, margin=2.0)
+    for cam in (CAM, P.CameraParams(angle_deg=180.0)):
+        for corners in (False, True):
+            o = P.place_optimal(route, cand, cam, corners=corners, allow_uncovered=True)
+            g = P.place_along_route(route, cand, cam, corners=corners, allow_uncovered=True)
+            for res in (o, g):
+                rep = res.check()
+                assert res.covered == (rep.min_count >= 2 and len(rep.start) == 0)
+            if g.covered:
+                assert o.count <= g.count
+
+
+def test_inputs_are_checked_alike_by_greedy_ilp_and_check():
+    route = np.array([[0.0, 0.0], [2.0, 0.0]])
+    calls = {"greedy": lambda c, k: P.place_along_route(route, c, CAM, k=k, allow_uncovered=True),
+             "ilp": lambda c, k: P.place_optimal(route, c, CAM, k=k, allow_uncovered=True),
+             "check": lambda c, k: P.check_coverage(route, c, CAM, k=k)}
+    dup = [[0, 1], [1, 1], [0, 1]]
+    for name, call in calls.items():
+        with pytest.raises(ValueError, match=r"\[0\] and \w+\[2\] coincide at \(0, 1\)"):
+            call(dup, 2)
+        for k in (0, -1, 1.5, True):
+            with pytest.raises(ValueError, match=r"k must be a positive integer"):
+                call(TABLE_CAND[:5], k)
+        for k in (_core.PLACEMENT_MAX_K + 1, 100_000, 2**31, 2**70):
+            with pytest.raises(ValueError, match=rf"k = {k} must be <= {_core.PLACEMENT_MAX_K}"):
+                call(TABLE_CAND[:5], k)
+    with pytest.raises(ValueError, match=r"k = 1001 must be in \[1, 1000\]"):  # the core checks too
+        _core.greedy_cover(np.array([[0.0, 1.0]]), 1.0, 1001, np.zeros((0, 2)))
+
+
+def test_largest_k_is_quick_and_honest():
+    """k at its bound: the greedy's cost does not grow with k (it used to run
+    for minutes at k = 100000), and the placement is honestly uncovered."""
+    route = np.array([[0.0, 0.0], [2.0, 0.0]])
+    cand = P.candidate_grid((0, 0), (2, 0), 0.5, margin=2.0)
+    res = P.place_along_route(route, cand, CAM, k=_core.PLACEMENT_MAX_K, allow_uncovered=True)
+    assert not res.covered and res.check().min_count < _core.PLACEMENT_MAX_K
+    chosen, unc = _core.greedy_cover(np.array([[0.0, 0.5], [0.2, 1.0]]), 1.0, _core.PLACEMENT_MAX_K,
+                                     np.zeros((0, 2)))
+    assert sorted(chosen) == [0, 1] and unc == [(0.0, 1.0)]
 
 
 # ---------------------------------------------------------------------------

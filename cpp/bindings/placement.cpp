@@ -19,6 +19,7 @@ std::vector<Interval> to_intervals(const Eigen::Ref<const RowMatrixIv>& m) {
 }  // namespace
 
 void pybind_placement(py::module_& m) {
+  m.attr("PLACEMENT_MAX_K") = kMaxLandmarksInView;
   py::enum_<FieldOfView>(m, "FieldOfView")
       .value("SECTOR", FieldOfView::Sector)
       .value("CIRCULAR", FieldOfView::Circular);

@@ -38,9 +38,14 @@ std::string point_str(const Eigen::Vector2d& p) {
 }
 
 void check_points(const Points2& p, const char* what) {
-  for (Eigen::Index i = 0; i < p.rows(); ++i)
-    if (!p.row(i).allFinite()) fail(std::string(what) + "[" + std::to_string(i) + "] = " +
-                                    point_str(p.row(i).transpose()) + " is not finite");
+  for (Eigen::Index i = 0; i < p.rows(); ++i) {
+    const bool finite = p.row(i).allFinite();
+    if (finite && p.row(i).cwiseAbs().maxCoeff() <= kMaxCoordinate) continue;
+    const std::string name = std::string(what) + "[" + std::to_string(i) + "] = " + point_str(p.row(i).transpose());
+    if (!finite) fail(name + " is not finite");
+    fail(name + " is farther than " + std::to_string(static_cast<long>(kMaxCoordinate)) +
+         " m from the origin: shift the coordinates to a local origin");
+  }
 }
 
 void check_route(const Points2& route) {
@@ -53,8 +58,9 @@ void check_route(const Points2& route) {
            std::to_string(i - 1) + "]: an edge of zero length has no direction");
 }
 
-void check_candidates(const Points2& c) {
-  check_points(c, "candidates");
+/// Finite and pairwise distinct: two landmarks at one spot are on one bearing.
+void check_candidates(const Points2& c, const char* what = "candidates") {
+  check_points(c, what);
   std::vector<int> order(c.rows());
   std::iota(order.begin(), order.end(), 0);
   std::sort(order.begin(), order.end(), [&](int a, int b) {
@@ -63,13 +69,14 @@ void check_candidates(const Points2& c) {
   for (size_t i = 1; i < order.size(); ++i)
     if (c(order[i], 0) == c(order[i - 1], 0) && c(order[i], 1) == c(order[i - 1], 1)) {
       int a = std::min(order[i], order[i - 1]), b = std::max(order[i], order[i - 1]);
-      fail("candidates[" + std::to_string(a) + "] and candidates[" + std::to_string(b) + "] coincide at " +
-           point_str(c.row(a).transpose()) + " (two landmarks on one bearing)");
+      fail(std::string(what) + "[" + std::to_string(a) + "] and " + what + "[" + std::to_string(b) +
+           "] coincide at " + point_str(c.row(a).transpose()) + " (two landmarks on one bearing)");
     }
 }
 
 void check_k(int k) {
-  if (k < 1) fail("k = " + std::to_string(k) + " must be >= 1");
+  if (k < 1 || k > kMaxLandmarksInView)
+    fail("k = " + std::to_string(k) + " must be in [1, " + std::to_string(kMaxLandmarksInView) + "]");
 }
 
 /// Uniform bucket grid over a point set (CSR layout).
@@ -181,6 +188,7 @@ std::vector<Seen> seen_on_edge(const Points2& route, Eigen::Index e, const Point
              std::max(a.y(), b.y()) + R, [&](int i) {
                if (!excluded.empty() && excluded[i]) return;
                Seen s{i, {}, f.to_local(pts.row(i).transpose())};
+               if (std::abs(s.local.y()) <= kEps) s.local.y() = 0.0;  // on the edge's line: bearing 0 or π
                if (fov.interval(s.local, f.length, &s.iv)) out.push_back(s);
              });
   std::sort(out.begin(), out.end(), [](const Seen& x, const Seen& y) { return x.idx < y.idx; });
@@ -190,7 +198,9 @@ std::vector<Seen> seen_on_edge(const Points2& route, Eigen::Index e, const Point
 double bearing_at(const Eigen::Vector2d& local, double t) { return std::atan2(local.y(), local.x() - t); }
 
 /// The point t where the line through two landmarks (edge frame) meets the
-/// edge's line with both on one ray from it; false when there is none.
+/// edge's line with both on one ray from it; false when there is none.  Two
+/// landmarks on the edge's line (y = 0) share a bearing everywhere, not at
+/// one point: the callers handle them.
 bool alignment_point(const Eigen::Vector2d& p, const Eigen::Vector2d& q, double* t) {
   if (!((p.y() > 0 && q.y() > 0) || (p.y() < 0 && q.y() < 0))) return false;
   if (p.y() == q.y()) return false;
@@ -200,53 +210,132 @@ bool alignment_point(const Eigen::Vector2d& p, const Eigen::Vector2d& q, double*
 
 bool contains(const Interval& iv, double t) { return iv.start - kEps <= t && t <= iv.end + kEps; }
 
-/// Number of distinct values in a list of bearings (tolerance kBearingTol).
-int distinct(std::vector<double>& bearings) {
+/// Two landmarks seen on one bearing from a point of the edge where both are in view.
+bool aligned_in_view(const Seen& a, const Seen& b, double* t) {
+  return alignment_point(a.local, b.local, t) && contains(a.iv, *t) && contains(b.iv, *t);
+}
+
+/// In view from (t, 0): inside its interval and not at the camera itself (no bearing there).
+bool in_view_at(const Seen& s, double t) {
+  return contains(s.iv, t) && (s.local - Eigen::Vector2d(t, 0.0)).norm() > kEps;
+}
+
+bool same_bearing(double a, double b) { return std::abs(wrap(a - b)) <= kBearingTol; }
+
+/// Number of distinct values in a list of bearings (tolerance kBearingTol, across ±π too).
+int distinct(std::vector<double> bearings) {
   if (bearings.empty()) return 0;
   std::sort(bearings.begin(), bearings.end());
   int n = 1;
   for (size_t i = 1; i < bearings.size(); ++i)
     if (bearings[i] - bearings[i - 1] > kBearingTol) ++n;
+  if (n > 1 && same_bearing(bearings.front(), bearings.back())) --n;
   return n;
 }
 
-/// Non-coincidence repair on one edge: wherever two landmarks of `set` align
-/// at a point that then has fewer than k distinct bearings in view, add the
-/// candidate in view there with a new bearing that reaches farthest.
-void repair_alignments(std::vector<Seen>& set, const std::vector<Seen>& pool, std::vector<char>& taken, int k,
-                       std::vector<int>* added, std::vector<Interval>* uncovered) {
-  for (int guard = 0; guard <= static_cast<int>(pool.size()); ++guard) {
-    bool changed = false;
-    for (size_t i = 0; i < set.size() && !changed; ++i)
-      for (size_t j = i + 1; j < set.size() && !changed; ++j) {
-        double t;
-        if (!alignment_point(set[i].local, set[j].local, &t)) continue;
-        if (!contains(set[i].iv, t) || !contains(set[j].iv, t)) continue;
-        std::vector<double> brg;
-        for (const auto& s : set)
-          if (contains(s.iv, t)) brg.push_back(bearing_at(s.local, t));
-        std::vector<double> sorted = brg;
-        if (distinct(sorted) >= k) continue;
-        int best = -1;
-        for (size_t c = 0; c < pool.size(); ++c) {
-          if (taken[c] || !contains(pool[c].iv, t)) continue;
-          const double bc = bearing_at(pool[c].local, t);
-          bool fresh = true;
-          for (double x : brg) fresh = fresh && std::abs(x - bc) > kBearingTol;
-          if (fresh && (best < 0 || pool[c].iv.end > pool[best].iv.end)) best = static_cast<int>(c);
-        }
-        if (best < 0) {
-          bool known = false;
-          for (const auto& u : *uncovered) known = known || (u.start == t && u.end == t);
-          if (!known) uncovered->push_back({t, t});
-          continue;
-        }
-        taken[best] = 1;
-        set.push_back(pool[best]);
-        added->push_back(best);
-        changed = true;
+/// Bearings (edge frame) of the landmarks in view from (t, 0).
+std::vector<double> bearings_on_edge(const std::vector<Seen>& seen, double t) {
+  std::vector<double> br;
+  for (const auto& s : seen)
+    if (in_view_at(s, t)) br.push_back(bearing_at(s.local, t));
+  return br;
+}
+
+/// Points of an edge where the number of distinct bearings can change:
+/// interval ends, alignment points, and the position of a landmark on the
+/// edge's line (its bearing flips from 0 to π there).
+std::vector<double> edge_events(const std::vector<Seen>& seen) {
+  std::vector<double> pts;
+  for (size_t i = 0; i < seen.size(); ++i) {
+    pts.push_back(seen[i].iv.start);
+    pts.push_back(seen[i].iv.end);
+    if (seen[i].local.y() == 0.0) pts.push_back(seen[i].local.x());
+    for (size_t j = i + 1; j < seen.size(); ++j) {
+      double t;
+      if (aligned_in_view(seen[i], seen[j], &t)) pts.push_back(t);
+    }
+  }
+  return pts;
+}
+
+/// A stretch [where.start, where.end] of an edge (or turn) with fewer than k
+/// distinct bearings in view, and the point `probe` that shows it.
+struct Deficit {
+  Interval where;
+  double probe;
+};
+
+/// Exact count over [0, length]: the distinct bearings at every point of
+/// `pts` (with 0 and length) and at the midpoint between consecutive ones,
+/// where the count is constant.  Returns the deficits in order; lowers *min_count.
+template <class Bearings>
+std::vector<Deficit> deficits(std::vector<double> pts, double length, int k, Bearings&& bearings_at,
+                              int* min_count) {
+  pts.push_back(0.0);
+  pts.push_back(length);
+  for (auto& p : pts) p = std::clamp(p, 0.0, length);
+  std::sort(pts.begin(), pts.end());
+  pts.erase(std::unique(pts.begin(), pts.end()), pts.end());
+  std::vector<Deficit> out;
+  auto note = [&](double a, double b, double probe) {
+    const int n = distinct(bearings_at(probe));
+    *min_count = std::min(*min_count, n);
+    if (n < k) out.push_back({{a, b}, probe});
+  };
+  for (size_t i = 0; i < pts.size(); ++i) {
+    note(pts[i], pts[i], pts[i]);
+    if (i + 1 < pts.size()) note(pts[i], pts[i + 1], 0.5 * (pts[i] + pts[i + 1]));
+  }
+  return out;
+}
+
+std::vector<Deficit> edge_deficits(const std::vector<Seen>& seen, double length, int k, int* min_count) {
+  return deficits(edge_events(seen), length, k, [&](double t) { return bearings_on_edge(seen, t); }, min_count);
+}
+
+/// Non-coincidence on one edge, part 1: candidates on the edge's own line
+/// (y = 0) share one bearing wherever two are in view (0 ahead, π behind;
+/// those on the edge itself are within p and gone).  On each side their
+/// intervals are nested, so keep only the longest, and none on a side where
+/// a landmark already placed (`pre`) sits: a second one there would add a
+/// count the exact check does not see.
+void one_per_line_side(std::vector<Seen>* pool, const std::vector<Seen>& pre) {
+  for (const bool ahead : {true, false}) {
+    auto on_side = [&](const Seen& s) { return s.local.y() == 0.0 && (s.local.x() > 0) == ahead; };
+    const bool placed = std::any_of(pre.begin(), pre.end(), on_side);
+    const Seen* keep = nullptr;
+    for (const auto& s : *pool)
+      if (on_side(s) && !placed && (!keep || s.iv.end - s.iv.start > keep->iv.end - keep->iv.start)) keep = &s;
+    const int keep_idx = keep ? keep->idx : -1;
+    pool->erase(std::remove_if(pool->begin(), pool->end(),
+                               [&](const Seen& s) { return on_side(s) && s.idx != keep_idx; }),
+                pool->end());
+  }
+}
+
+/// Non-coincidence on one edge, part 2: while the exact count finds a point
+/// with fewer than k distinct bearings where an unused candidate is in view
+/// with a fresh bearing, add at the first such point the one reaching
+/// farthest.  Each round takes one candidate, so it ends.
+void repair(std::vector<Seen>& set, const std::vector<Seen>& pool, std::vector<char>& taken, double length, int k,
+            std::vector<int>* added) {
+  for (;;) {
+    int worst = k;
+    int best = -1;
+    for (const Deficit& g : edge_deficits(set, length, k, &worst)) {
+      const std::vector<double> brg = bearings_on_edge(set, g.probe);
+      for (size_t c = 0; c < pool.size(); ++c) {
+        if (taken[c] || !in_view_at(pool[c], g.probe)) continue;
+        const double bc = bearing_at(pool[c].local, g.probe);
+        const bool fresh = std::none_of(brg.begin(), brg.end(), [&](double b) { return same_bearing(b, bc); });
+        if (fresh && (best < 0 || pool[c].iv.end > pool[best].iv.end)) best = static_cast<int>(c);
       }
-    if (!changed) return;
+      if (best >= 0) break;
+    }
+    if (best < 0) return;
+    taken[best] = 1;
+    set.push_back(pool[best]);
+    added->push_back(best);
   }
 }
 
@@ -257,15 +346,26 @@ CoverResult cover_pool(const std::vector<Seen>& pool, const std::vector<Interval
   return greedy_cover(iv, length, k, preplaced);
 }
 
-void merge_sorted(std::vector<Interval>* v) {
-  std::sort(v->begin(), v->end(), [](const Interval& a, const Interval& b) { return a.start < b.start; });
-  std::vector<Interval> out;
-  for (const auto& s : *v) {
-    if (!out.empty() && s.start <= out.back().end + kEps) out.back().end = std::max(out.back().end, s.end);
-    else out.push_back(s);
+/// Closed intervals kept as sorted starts and ends: the number covering
+/// just right of b is #(start ≤ b + ε) − #(end ≤ b + ε).
+class IntervalCount {
+ public:
+  void add(const Interval& s) {
+    starts_.insert(std::upper_bound(starts_.begin(), starts_.end(), s.start), s.start);
+    ends_.insert(std::upper_bound(ends_.begin(), ends_.end(), s.end), s.end);
   }
-  *v = std::move(out);
-}
+  int right_of(double b) const { return upto(starts_, b + kEps) - upto(ends_, b + kEps); }
+  int at_zero() const {  // start ≤ ε and end ≥ 0
+    return upto(starts_, kEps) - static_cast<int>(std::lower_bound(ends_.begin(), ends_.end(), 0.0) - ends_.begin());
+  }
+  const std::vector<double>& ends() const { return ends_; }
+
+ private:
+  static int upto(const std::vector<double>& v, double x) {
+    return static_cast<int>(std::upper_bound(v.begin(), v.end(), x) - v.begin());
+  }
+  std::vector<double> starts_, ends_;
+};
 
 /// Candidates around one interior vertex with their interval of turned angle.
 std::vector<Seen> seen_at_corner(const Eigen::Vector2d& v, double theta_in, double turn, const Points2& pts,
@@ -379,39 +479,41 @@ CoverResult greedy_cover(const std::vector<Interval>& intervals, double length, 
     if (!std::isfinite(intervals[i].start) || !std::isfinite(intervals[i].end) || intervals[i].end < intervals[i].start)
       fail("interval " + std::to_string(i) + " = [" + std::to_string(intervals[i].start) + ", " +
            std::to_string(intervals[i].end) + "] is not a finite interval");
+  for (size_t i = 0; i < preplaced.size(); ++i)
+    if (!std::isfinite(preplaced[i].start) || !std::isfinite(preplaced[i].end) || preplaced[i].end < preplaced[i].start)
+      fail("preplaced interval " + std::to_string(i) + " is not a finite interval");
   CoverResult res;
-  std::vector<Interval> have = preplaced;  // chosen + preplaced + skipped stretches
+  IntervalCount have;     // chosen + preplaced
+  IntervalCount skipped;  // stretches nothing covers: count as k, so the cost does not grow with k
+  for (const auto& s : preplaced) have.add(s);
   std::vector<char> used(intervals.size(), 0);
-  const size_t max_steps = intervals.size() + static_cast<size_t>(k) * (intervals.size() + 2) + 8;
-  for (size_t step = 0; step < max_steps; ++step) {
+  auto covers_right_of = [](const Interval& s, double c) { return s.start <= c + kEps && s.end > c + kEps; };
+  auto short_right_of = [&](double b) { return have.right_of(b) + (skipped.right_of(b) > 0 ? k : 0) < k; };
+  double last = 0.0;  // deficits only move right
+  // Each round takes an interval or skips to the next start: at most 2n + 2 rounds.
+  for (size_t round = 0; round < 2 * intervals.size() + 2; ++round) {
     // Leftmost point covered fewer than k times: 0 (closed) or just right of an end b.
-    auto covers_right_of = [&](const Interval& s, double c) { return s.start <= c + kEps && s.end > c + kEps; };
     double c = -1.0;
     bool open = false;
-    {
-      int n0 = 0;
-      for (const auto& s : have) n0 += (s.start <= kEps && s.end >= 0.0);
-      if (n0 < k) {
-        c = 0.0;
-      } else {
-        std::vector<double> ends{0.0};
-        for (const auto& s : have)
-          if (s.end < length - kEps) ends.push_back(std::max(s.end, 0.0));
-        std::sort(ends.begin(), ends.end());
-        ends.erase(std::unique(ends.begin(), ends.end()), ends.end());
-        for (double b : ends) {
-          if (b >= length - kEps) break;
-          int n = 0;
-          for (const auto& s : have) n += covers_right_of(s, b);
-          if (n < k) {
-            c = b;
-            open = true;
-            break;
-          }
+    if (have.at_zero() + (skipped.at_zero() > 0 ? k : 0) < k) {
+      c = 0.0;
+    } else {
+      std::vector<double> ends = have.ends();
+      ends.push_back(0.0);
+      ends.insert(ends.end(), skipped.ends().begin(), skipped.ends().end());
+      std::sort(ends.begin(), ends.end());
+      for (double b : ends) {
+        if (b < last) continue;
+        if (b >= length - kEps) break;
+        if (short_right_of(b)) {
+          c = b;
+          open = true;
+          break;
         }
       }
     }
     if (c < 0) break;  // covered
+    last = c;
     int best = -1;
     for (size_t i = 0; i < intervals.size(); ++i) {
       if (used[i]) continue;
@@ -422,14 +524,14 @@ CoverResult greedy_cover(const std::vector<Interval>& intervals, double length, 
     if (best >= 0) {
       used[best] = 1;
       res.chosen.push_back(best);
-      have.push_back(intervals[best]);
+      have.add(intervals[best]);
       continue;
     }
     // Stuck: nothing covers c.  Skip to where the next candidate starts.
     double next = length;
     for (size_t i = 0; i < intervals.size(); ++i)
       if (!used[i] && intervals[i].start > c + kEps) next = std::min(next, intervals[i].start);
-    have.push_back({c, std::max(next, c + 2 * kEps)});
+    skipped.add({c, std::max(next, c + 2 * kEps)});
   }
   std::vector<Interval> real = preplaced;
   for (int i : res.chosen) real.push_back(intervals[i]);
@@ -475,13 +577,13 @@ Placement place_landmarks(const Points2& route, const Points2& candidates, const
     std::vector<Seen> all = seen_on_edge(route, e, candidates, grid, close, camera);
     std::vector<Seen> pool, pre;
     for (const auto& s : all) (opt.reuse && picked[s.idx] ? pre : pool).push_back(s);
+    if (opt.distinct_bearings) one_per_line_side(&pool, pre);
     std::vector<Interval> pre_iv;
     for (const auto& s : pre) pre_iv.push_back(s.iv);
     const double d = (route.row(e + 1) - route.row(e)).norm();
     CoverResult r = cover_pool(pool, pre_iv, d, k);
     EdgePlacement ep;
     ep.n_candidates = static_cast<int>(all.size());
-    ep.uncovered = r.uncovered;
     std::vector<char> taken(pool.size(), 0);
     std::vector<Seen> set = pre;
     for (int i : r.chosen) {
@@ -489,7 +591,7 @@ Placement place_landmarks(const Points2& route, const Points2& candidates, const
       set.push_back(pool[i]);
     }
     std::vector<int> chosen = r.chosen;
-    if (opt.distinct_bearings) repair_alignments(set, pool, taken, k, &chosen, &ep.uncovered);
+    if (opt.distinct_bearings) repair(set, pool, taken, d, k, &chosen);
     for (int i : chosen) {
       ep.landmarks.push_back(pool[i].idx);
       picked[pool[i].idx] = 1;
@@ -529,7 +631,6 @@ Placement place_landmarks(const Points2& route, const Points2& candidates, const
       CornerPlacement cp;
       cp.vertex = static_cast<int>(v);
       cp.turn = turn;
-      cp.uncovered = r.uncovered;
       for (int i : r.chosen) {
         cp.landmarks.push_back(pool[i].idx);
         picked[pool[i].idx] = 1;
@@ -540,6 +641,19 @@ Placement place_landmarks(const Points2& route, const Points2& candidates, const
   }
   for (Eigen::Index i = 0; i < candidates.rows(); ++i)
     if (picked[i]) out.landmarks.push_back(static_cast<int>(i));
+  // The certificate: the exact check of the final landmarks, never the greedy's own count.
+  Points2 placed(static_cast<Eigen::Index>(out.landmarks.size()), 2);
+  for (size_t i = 0; i < out.landmarks.size(); ++i) placed.row(static_cast<Eigen::Index>(i)) = candidates.row(out.landmarks[i]);
+  const CoverageReport rep = check_coverage(route, placed, camera, k, opt.corners);
+  for (Eigen::Index i = 0; i < rep.start.size(); ++i) {
+    const Interval s{rep.start(i), rep.end(i)};
+    if (rep.kind(i) == 0) {
+      out.edges[rep.index(i)].uncovered.push_back(s);
+    } else {
+      for (auto& cp : out.corners)
+        if (cp.vertex == rep.index(i)) cp.uncovered.push_back(s);
+    }
+  }
   return out;
 }
 
@@ -568,7 +682,7 @@ VisibilityTable to_table(const std::vector<int>& e, const std::vector<Seen>& s) 
 VisibilityTable edge_visibility(const Points2& route, const Points2& candidates, const Camera& camera) {
   camera.validate();
   check_route(route);
-  check_points(candidates, "candidates");
+  check_candidates(candidates);
   const Grid grid(candidates, 0.5 * camera.range);
   const std::vector<char> close = within(route, candidates, grid, camera.clearance);
   std::vector<int> edge;
@@ -584,7 +698,7 @@ VisibilityTable edge_visibility(const Points2& route, const Points2& candidates,
 VisibilityTable corner_visibility(const Points2& route, const Points2& candidates, const Camera& camera) {
   camera.validate();
   const Eigen::VectorXd turns = turn_angles(route);
-  check_points(candidates, "candidates");
+  check_candidates(candidates);
   const Grid grid(candidates, 0.5 * camera.range);
   const std::vector<char> close = within(route, candidates, grid, camera.clearance);
   std::vector<int> vert;
@@ -604,7 +718,7 @@ VisibilityTable corner_visibility(const Points2& route, const Points2& candidate
 AlignmentTable alignments(const Points2& route, const Points2& candidates, const Camera& camera) {
   camera.validate();
   check_route(route);
-  check_points(candidates, "candidates");
+  check_candidates(candidates);
   const Grid grid(candidates, 0.5 * camera.range);
   const std::vector<char> close = within(route, candidates, grid, camera.clearance);
   std::vector<int> e_, f_, s_;
@@ -614,8 +728,7 @@ AlignmentTable alignments(const Points2& route, const Points2& candidates, const
     for (size_t i = 0; i < seen.size(); ++i)
       for (size_t j = i + 1; j < seen.size(); ++j) {
         double t;
-        if (!alignment_point(seen[i].local, seen[j].local, &t)) continue;
-        if (!contains(seen[i].iv, t) || !contains(seen[j].iv, t)) continue;
+        if (!aligned_in_view(seen[i], seen[j], &t)) continue;
         e_.push_back(static_cast<int>(e));
         f_.push_back(seen[i].idx);
         s_.push_back(seen[j].idx);
@@ -649,7 +762,7 @@ CoverageReport check_coverage(const Points2& route, const Points2& landmarks, co
                               bool corners) {
   camera.validate();
   check_route(route);
-  check_points(landmarks, "landmarks");
+  check_candidates(landmarks, "landmarks");
   check_k(k);
   CoverageReport rep;
   rep.min_count = std::numeric_limits<int>::max();
@@ -658,54 +771,24 @@ CoverageReport check_coverage(const Points2& route, const Points2& landmarks, co
   const Grid grid(landmarks, camera.range);
   std::vector<int> kind, index;
   std::vector<double> a_, b_;
-  // Counts distinct bearings at the points of `pts` and between them; records deficient stretches.
-  auto sweep = [&](std::vector<double> pts, double length, int kd, int idx, auto&& bearings_at) {
-    pts.push_back(0.0);
-    pts.push_back(length);
-    for (auto& p : pts) p = std::clamp(p, 0.0, length);
-    std::sort(pts.begin(), pts.end());
-    pts.erase(std::unique(pts.begin(), pts.end()), pts.end());
-    std::vector<Interval> bad;
-    auto note = [&](double a, double b, int n) {
-      rep.min_count = std::min(rep.min_count, n);
-      if (n >= k) return;
-      if (!bad.empty() && a <= bad.back().end) bad.back().end = std::max(bad.back().end, b);
-      else bad.push_back({a, b});
-    };
-    for (size_t i = 0; i < pts.size(); ++i) {
-      std::vector<double> br = bearings_at(pts[i]);
-      note(pts[i], pts[i], distinct(br));
-      if (i + 1 < pts.size()) {
-        std::vector<double> bm = bearings_at(0.5 * (pts[i] + pts[i + 1]));
-        note(pts[i], pts[i + 1], distinct(bm));
+  // Deficient stretches of one edge or turn, adjacent ones merged.
+  auto record = [&](const std::vector<Deficit>& found, int kd, int idx) {
+    const size_t first = a_.size();
+    for (const Deficit& g : found) {
+      if (a_.size() > first && g.where.start <= b_.back()) {
+        b_.back() = std::max(b_.back(), g.where.end);
+        continue;
       }
-    }
-    for (const auto& s : bad) {
       kind.push_back(kd);
       index.push_back(idx);
-      a_.push_back(s.start);
-      b_.push_back(s.end);
+      a_.push_back(g.where.start);
+      b_.push_back(g.where.end);
     }
   };
   for (Eigen::Index e = 0; e + 1 < route.rows(); ++e) {
     const auto seen = seen_on_edge(route, e, landmarks, grid, {}, camera);
     const double d = (route.row(e + 1) - route.row(e)).norm();
-    std::vector<double> pts;
-    for (size_t i = 0; i < seen.size(); ++i) {
-      pts.push_back(seen[i].iv.start);
-      pts.push_back(seen[i].iv.end);
-      for (size_t j = i + 1; j < seen.size(); ++j) {
-        double t;
-        if (alignment_point(seen[i].local, seen[j].local, &t) && contains(seen[i].iv, t) && contains(seen[j].iv, t))
-          pts.push_back(t);
-      }
-    }
-    sweep(pts, d, 0, static_cast<int>(e), [&](double t) {
-      std::vector<double> br;
-      for (const auto& s : seen)
-        if (contains(s.iv, t)) br.push_back(bearing_at(s.local, t));
-      return br;
-    });
+    record(edge_deficits(seen, d, k, &rep.min_count), 0, static_cast<int>(e));
   }
   if (corners) {
     const Eigen::VectorXd turns = turn_angles(route);
@@ -718,12 +801,13 @@ CoverageReport check_coverage(const Points2& route, const Points2& landmarks, co
         pts.push_back(s.iv.start);
         pts.push_back(s.iv.end);
       }
-      sweep(pts, std::abs(turns(v - 1)), 1, static_cast<int>(v), [&](double t) {
+      auto bearings = [&](double u) {
         std::vector<double> br;
         for (const auto& s : seen)
-          if (contains(s.iv, t)) br.push_back(std::atan2(s.local.y(), s.local.x()));
+          if (contains(s.iv, u)) br.push_back(std::atan2(s.local.y(), s.local.x()));
         return br;
-      });
+      };
+      record(deficits(pts, std::abs(turns(v - 1)), k, bearings, &rep.min_count), 1, static_cast<int>(v));
     }
   }
   if (rep.min_count == std::numeric_limits<int>::max()) rep.min_count = 0;

@@ -155,7 +155,11 @@ def _candidates(candidates) -> np.ndarray:
 
 
 def _k(k) -> int:
-    return as_positive_int("k", k)
+    """k in [1, the core's bound], checked before it reaches the core (a C int)."""
+    k = as_positive_int("k", k)
+    if k > _core.PLACEMENT_MAX_K:
+        raise ValueError(f"k = {k} must be <= {_core.PLACEMENT_MAX_K} (landmarks in view)")
+    return k
 
 
 def candidate_grid(lower, upper, spacing: float = PAPER_SPACING, margin: float = 0.0) -> np.ndarray:
@@ -348,7 +352,7 @@ def _describe_uncovered(route, uncovered, k) -> str:
     for where, i, a, b in uncovered[:5]:
         if where == "edge":
             p, q = route[i], route[i + 1]
-            what = f"at t = {a:.4g} m (two landmarks align there)" if a == b else f"from t = {a:.4g} to {b:.4g} m"
+            what = f"at the point t = {a:.4g} m (landmarks align there)" if a == b else f"from t = {a:.4g} to {b:.4g} m"
             lines.append(f"edge {i} from ({p[0]:.4g}, {p[1]:.4g}) to ({q[0]:.4g}, {q[1]:.4g}) {what}")
         else:
             lines.append(f"the turn at route[{i}] = ({route[i][0]:.4g}, {route[i][1]:.4g}) between "
@@ -366,15 +370,20 @@ def place_along_route(route, candidates, camera: CameraParams | dict | None = No
     greedy k-interval cover (Algorithm 1, generalised to k ≥ 1), then the
     union over the edges (section II-B).
 
-    ``distinct_bearings=False`` runs Algorithm 1 verbatim; with the default
-    ``True``, wherever two picks of an edge align on one bearing at a point
-    that then sees fewer than k bearings, one more landmark with a fresh
-    bearing is added (condition (2) of the LPP).  ``corners`` also covers the
-    in-place turn at each vertex; ``reuse`` lets an edge count landmarks
+    ``distinct_bearings=False`` runs Algorithm 1 verbatim.  With the default
+    ``True`` (condition (2) of the LPP, non-coincidence): of the candidates
+    on an edge's own line, which all share one bearing, only the one reaching
+    farthest is offered; and wherever the exact count of an edge's picks
+    falls below k (two picks aligned at a point), the candidate with a fresh
+    bearing there that reaches farthest is added.  ``corners`` also covers
+    the in-place turn at each vertex; ``reuse`` lets an edge count landmarks
     placed for earlier edges (our improvement; the paper's union does not).
 
-    Raises ``ValueError`` naming the first uncovered stretch unless
-    ``allow_uncovered`` (then :attr:`PlacementResult.uncovered` lists them).
+    The certificate (:attr:`PlacementResult.covered`,
+    :attr:`PlacementResult.uncovered`) is :func:`check_coverage` of the final
+    landmarks, in every mode: covered exactly when the exact check finds at
+    least k distinct bearings everywhere.  Raises ``ValueError`` naming the
+    first uncovered stretch unless ``allow_uncovered``.
     """
     cam = _camera(camera)
     r, c, k = _route(route), _candidates(candidates), _k(k)
@@ -397,9 +406,11 @@ def place_along_route(route, candidates, camera: CameraParams | dict | None = No
 
 def check_coverage(route, landmarks, camera: CameraParams | dict | None = None, *, k: int = 2,
                    corners: bool = False) -> "_core.CoverageReport":
-    """Exact check: at every interval endpoint, alignment point and between
-    them, count the distinct bearings in view (DESIGN: check coverage at
-    interval endpoints, not at sample points).  The report has ``min_count``,
+    """Exact check: at every interval endpoint, alignment point, on-line
+    landmark and the midpoint between consecutive ones, count the distinct
+    bearings in view (DESIGN: check coverage at interval endpoints, not at
+    sample points; the count is constant in between).  Landmarks must be
+    pairwise distinct.  The report has ``min_count``,
     ``min_distance`` (closest landmark to the route) and the deficient
     stretches (``kind`` 0 edge / 1 corner, ``index``, ``start``, ``end``)."""
     cam = _camera(camera)
@@ -411,13 +422,17 @@ def check_coverage(route, landmarks, camera: CameraParams | dict | None = None, 
 # Global optimum: integer program over interval endpoints (HiGHS)
 # ---------------------------------------------------------------------------
 
-def _groups(values: np.ndarray, tol: float) -> list[np.ndarray]:
-    """Indices of ``values`` grouped where consecutive sorted values differ by <= tol."""
-    if values.size == 0:
+def _bearing_groups(bearings: np.ndarray) -> list[np.ndarray]:
+    """Indices of ``bearings`` [rad, in (−π, π]] grouped where consecutive
+    sorted values differ by <= the bearing tolerance, across ±π too (as the
+    core's distinct-bearing count)."""
+    if bearings.size == 0:
         return []
-    order = np.argsort(values, kind="stable")
-    cut = np.flatnonzero(np.diff(values[order]) > tol) + 1
-    return np.split(order, cut)
+    order = np.argsort(bearings, kind="stable")
+    groups = np.split(order, np.flatnonzero(np.diff(bearings[order]) > _BEARING_TOL) + 1)
+    if len(groups) > 1 and bearings[order[0]] + 2 * math.pi - bearings[order[-1]] <= _BEARING_TOL:
+        groups = [np.concatenate([groups[-1], groups[0]])] + groups[1:-1]
+    return groups
 
 
 def place_optimal(route, candidates, camera: CameraParams | dict | None = None, *, k: int = 2,
@@ -433,8 +448,12 @@ def place_optimal(route, candidates, camera: CameraParams | dict | None = None, 
     consecutive such points — requires ``≥ k`` distinct bearings in view.
     Coverage is constant between those points, so the program is exact (the
     route is not sampled).  Candidates on one bearing at a point form a group
-    ``g`` counted once through ``z_g ≤ Σ_{ℓ∈g} x_ℓ``, ``0 ≤ z_g ≤ 1``.
+    ``g`` counted once through ``z_g ≤ Σ_{ℓ∈g} x_ℓ``, ``0 ≤ z_g ≤ 1`` (those
+    on the edge's own line share bearing 0 or π wherever they are in view).
     With ``corners`` the same is done over the turned angle at each vertex.
+    ``distinct_bearings=False`` drops the groups; the certificate
+    (:attr:`PlacementResult.uncovered`) is the exact check of the chosen
+    landmarks either way, as for the greedy.
     """
     from scipy.optimize import Bounds, LinearConstraint, milp
     from scipy.sparse import coo_matrix
@@ -460,8 +479,9 @@ def place_optimal(route, candidates, camera: CameraParams | dict | None = None, 
     def add_row(cands_groups: list[np.ndarray], where, idx, a, b):
         cols = []
         for g in cands_groups:
+            members = [col(i) for i in g]  # every candidate gets its own x, grouped or not
             if len(g) == 1:
-                cols.append(("x", col(g[0])))
+                cols.append(("x", members[0]))
             else:
                 key = tuple(sorted(int(i) for i in g))
                 cols.append(("z", z_groups.setdefault(key, len(z_groups))))
@@ -489,7 +509,7 @@ def place_optimal(route, candidates, camera: CameraParams | dict | None = None, 
             idx = np.flatnonzero(inview[pi])
             if distinct_bearings and idx.size > 1:
                 brg = np.arctan2(y[idx], x[idx] - t)
-                groups = [ci[idx[g]] for g in _groups(brg, _BEARING_TOL)]
+                groups = [ci[idx[g]] for g in _bearing_groups(brg)]
             else:
                 groups = [np.array([ci[i]]) for i in idx]
             lo = t if pi < len(pts) else pts[pi - len(pts)]
@@ -505,7 +525,7 @@ def place_optimal(route, candidates, camera: CameraParams | dict | None = None, 
             m = cv.edge == v
             a, b, ci = cv.start[m], cv.end[m], cv.candidate[m]
             brg = np.arctan2(cv.y[m], cv.x[m])
-            rays = _groups(brg, _BEARING_TOL) if distinct_bearings else [np.array([i]) for i in range(len(ci))]
+            rays = _bearing_groups(brg) if distinct_bearings else [np.array([i]) for i in range(len(ci))]
             pts = np.unique(np.clip(np.concatenate([a, b, [0.0, L]]), 0.0, L))
             probe = np.concatenate([pts, 0.5 * (pts[:-1] + pts[1:])])
             for pi, s in enumerate(probe):
@@ -520,10 +540,11 @@ def place_optimal(route, candidates, camera: CameraParams | dict | None = None, 
     cand_of_col = np.empty(nx, dtype=int)
     for cand, j in col_of.items():
         cand_of_col[j] = cand
+    method = "optimal" + ("+corners" if corners else "")
     if nx == 0:
-        return PlacementResult(route=r, candidates=c, indices=np.zeros(0, int), camera=cam, k=k,
-                               method="optimal" + ("+corners" if corners else ""), corners=bool(corners),
-                               uncovered=unc, too_close=too_close, seconds=time.perf_counter() - t0, optimal=True)
+        return PlacementResult(route=r, candidates=c, indices=np.zeros(0, int), camera=cam, k=k, method=method,
+                               corners=bool(corners), uncovered=_exact_uncovered(r, c[:0], cam, k, corners),
+                               too_close=too_close, seconds=time.perf_counter() - t0, optimal=True)
     ri, cj, vals, lb = [], [], [], []
     for row, (cols, need) in enumerate(rows):
         for kind, j in cols:
@@ -551,10 +572,17 @@ def place_optimal(route, candidates, camera: CameraParams | dict | None = None, 
     if res.x is None:
         raise ValueError(f"the placement integer program found no solution ({res.message})")
     chosen = np.sort(cand_of_col[res.x[:nx] > 0.5])
-    return PlacementResult(route=r, candidates=c, indices=chosen, camera=cam, k=k,
-                           method="optimal" + ("+corners" if corners else ""), corners=bool(corners),
-                           uncovered=unc, too_close=too_close, seconds=time.perf_counter() - t0,
-                           optimal=bool(res.status == 0))
+    return PlacementResult(route=r, candidates=c, indices=chosen, camera=cam, k=k, method=method,
+                           corners=bool(corners), uncovered=_exact_uncovered(r, c[chosen], cam, k, corners),
+                           too_close=too_close, seconds=time.perf_counter() - t0, optimal=bool(res.status == 0))
+
+
+def _exact_uncovered(route, landmarks, cam: CameraParams, k: int, corners: bool) -> list:
+    """The certificate: the stretches the exact check finds with fewer than k
+    distinct bearings, as ``[(where, index, start, end)]``."""
+    rep = _core.check_coverage(route, landmarks, cam.to_core(), k, corners)
+    return [("edge" if kind == 0 else "corner", int(i), float(a), float(b))
+            for kind, i, a, b in zip(rep.kind, rep.index, rep.start, rep.end)]
 
 
 def _merge_uncovered(unc):

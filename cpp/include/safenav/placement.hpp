@@ -16,16 +16,31 @@
 //   t_d = min(x_k + √(R² − y_k²), d).
 //
 // Non-coincidence (condition (2) of the LPP): two landmarks on one bearing
-// from the camera count as one.  Two landmarks align only at the single point
-// of the edge where the line through them meets it, so coverage is counted as
-// the number of *distinct bearings* in view (bearings equal within 1e-9 rad
-// are one).  Intervals are closed; gaps shorter than 1e-9 m are rounding.
+// from the camera count as one, so coverage is the number of *distinct
+// bearings* in view (bearings equal within 1e-9 rad are one; a landmark at the
+// camera's own position has no bearing and is not in view).  Two landmarks off
+// the edge's line align only at the single point where the line through them
+// meets it; two landmarks on the edge's line (|y| ≤ 1e-9 m in the edge frame,
+// snapped to y = 0) share one bearing wherever both are in view (0 ahead, π
+// behind).  Intervals are closed; gaps shorter than 1e-9 m are rounding.
+//
+// Certificates: every `uncovered` list and `covered()` below come from the
+// exact check (check_coverage) of the final landmark set, so a placement is
+// reported covered exactly when check_coverage finds ≥ k everywhere.
 #pragma once
 
 #include <vector>
 #include <Eigen/Core>
 
 namespace safenav {
+
+/// Upper bound on k (landmarks in view), checked up front everywhere: far
+/// beyond any camera's useful count, and it keeps every loop bounded.
+inline constexpr int kMaxLandmarksInView = 1000;
+
+/// Largest |coordinate| [m] accepted: beyond it a double's spacing exceeds
+/// the 1e-9 m rounding slack, and the checks would no longer be exact.
+inline constexpr double kMaxCoordinate = 1e6;
 
 /// Shape of the camera's field of view.
 enum class FieldOfView { Sector, Circular };
@@ -78,7 +93,7 @@ struct CoverResult {
   std::vector<Interval> uncovered;  ///< maximal stretches covered fewer than k times (empty: covered)
 };
 
-/// Algorithm 1 generalised to k ≥ 1: cover every point of [0, length] by at
+/// Algorithm 1 generalised to 1 ≤ k ≤ kMaxLandmarksInView: cover every point of [0, length] by at
 /// least k of the given closed intervals with the fewest intervals.  At the
 /// leftmost point covered fewer than k times, take the interval reaching
 /// farthest among those containing it (for k = 2 and no `preplaced`
@@ -93,10 +108,11 @@ CoverResult greedy_cover(const std::vector<Interval>& intervals, double length, 
 std::vector<Interval> deficient_stretches(const std::vector<Interval>& intervals, double length, int k);
 
 struct PlacementOptions {
-  int k = 2;                     ///< landmarks in view at every point (the paper: 2)
+  int k = 2;                     ///< landmarks in view at every point (the paper: 2), in [1, kMaxLandmarksInView]
   bool corners = false;          ///< also cover the in-place turn at every interior vertex
   bool reuse = false;            ///< edges after the first count landmarks already placed (the paper: false)
-  bool distinct_bearings = true; ///< enforce non-coincidence (the paper's Algorithm 1 does not)
+  bool distinct_bearings = true; ///< enforce non-coincidence (the paper's Algorithm 1 does not); the
+                                 ///< certificate counts distinct bearings either way
 };
 
 /// The landmarks picked for one edge (its own picks, candidate indices).
@@ -125,6 +141,11 @@ struct Placement {
 /// The paper's placement for a whole route: per edge the greedy cover, then
 /// the union over edges (section II-B), with candidates closer than p to the
 /// route removed first and, optionally, non-coincidence, reuse and corners.
+/// With non-coincidence, candidates on an edge's own line keep only the one
+/// reaching farthest (they all share one bearing), and a repair adds, at
+/// the first point of an edge the exact count finds below k, the candidate
+/// with a fresh bearing there that reaches farthest.  The stretches reported
+/// uncovered are those of check_coverage on the final landmarks.
 Placement place_landmarks(const Points2& route, const Points2& candidates, const Camera& camera,
                           const PlacementOptions& options = PlacementOptions());
 
@@ -154,8 +175,11 @@ AlignmentTable alignments(const Points2& route, const Points2& candidates, const
 /// Distance from each point to the route polyline.
 Eigen::VectorXd distance_to_route(const Points2& route, const Points2& points);
 
-/// Exact coverage check of a set of landmarks: at every interval endpoint,
-/// alignment point and between them, count distinct bearings in view.
+/// Exact coverage check of a set of landmarks (pairwise distinct): at every
+/// interval endpoint, alignment point, on-line landmark position and the
+/// midpoint between consecutive ones, count distinct bearings in view.  The
+/// count is constant between those points, so the check is exact.  Deficient
+/// stretches of zero length are single points (an alignment).
 struct CoverageReport {
   int min_count = 0;            ///< fewest distinct bearings in view anywhere checked
   double min_distance = 0.0;    ///< closest landmark to the route
