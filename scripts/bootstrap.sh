@@ -50,7 +50,9 @@ if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ] && "$PY" -c "import safena
 else
   say "installing build tools and safenav (editable, with the test extra)"
   "$PY" -m pip install -q --upgrade pip
-  "$PY" -m pip install -q "scikit-build-core>=0.11" "pybind11>=2.12" "pybind11-stubgen>=2.5"
+  # The build requirements of pyproject.toml (the build runs without isolation).
+  mapfile -t build_requires < <("$PY" -c "import tomllib; print(*tomllib.load(open('pyproject.toml', 'rb'))['build-system']['requires'], sep='\n')")
+  "$PY" -m pip install -q "${build_requires[@]}"
   "$PY" -m pip install -q --no-build-isolation -Ceditable.rebuild=true -Cbuild-dir=build/{wheel_tag} -e ".[test]"
   echo "$want" > "$stamp"
 fi
