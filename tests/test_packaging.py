@@ -22,8 +22,8 @@ def _debian_packages() -> list[str]:
 
 
 def test_bootstrap_installs_the_debian_package_list():
-    line = next(l for l in (ROOT / "scripts" / "bootstrap.sh").read_text().splitlines()
-                if l.startswith("mapfile -t DEB_PACKAGES"))
+    line = next(row for row in (ROOT / "scripts" / "bootstrap.sh").read_text().splitlines()
+                if row.startswith("mapfile -t DEB_PACKAGES"))
     out = subprocess.run(["bash", "-c", line + '\nprintf "%s\\n" "${DEB_PACKAGES[@]}"'], cwd=ROOT,
                          capture_output=True, text=True, check=True).stdout
     assert out.split() == _debian_packages()
@@ -38,11 +38,9 @@ def test_readme_quotes_the_debian_package_list():
 
 def test_wheel_metadata_carries_the_mit_license(tmp_path):
     # The build backend's metadata hook: no compiler involved.
-    script = ("import sys; from scikit_build_core.build import prepare_metadata_for_build_wheel as m;"
-              "print(m(sys.argv[1]))")
-    out = subprocess.run([sys.executable, "-c", script, str(tmp_path)], cwd=ROOT,
-                         capture_output=True, text=True, check=True).stdout
-    dist_info = tmp_path / out.split()[-1]
+    script = "import sys; from scikit_build_core.build import prepare_metadata_for_build_wheel as m; m(sys.argv[1])"
+    subprocess.run([sys.executable, "-c", script, str(tmp_path)], cwd=ROOT, capture_output=True, check=True)
+    (dist_info,) = tmp_path.glob("safenav-*.dist-info")
     assert "License-Expression: MIT" in (dist_info / "METADATA").read_text().splitlines()
     license_text = (dist_info / "licenses" / "LICENSE").read_text()
     assert license_text.startswith("MIT License") and "Copyright (c) 2026 the safenav authors" in license_text
