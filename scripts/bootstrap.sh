@@ -11,9 +11,8 @@ cd "$(dirname "$0")/.."
 
 PYTHON=${PYTHON:-python3}
 VENV=${VENV:-.venv}
-DEB_PACKAGES=(build-essential cmake ninja-build pkg-config
-              libeigen3-dev libcgal-dev libompl-dev libopencv-dev libboost-filesystem-dev
-              opencv-doc)  # opencv-doc: the real stereo chessboard pairs of the calibration test
+# One package per line; '#' starts a comment.
+mapfile -t DEB_PACKAGES < <(sed -e 's/#.*//' -e 's/[[:space:]]//g' -e '/^$/d' scripts/debian-packages.txt)
 
 say() { printf '[bootstrap] %s\n' "$*"; }
 
@@ -51,7 +50,9 @@ if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ] && "$PY" -c "import safena
 else
   say "installing build tools and safenav (editable, with the test extra)"
   "$PY" -m pip install -q --upgrade pip
-  "$PY" -m pip install -q "scikit-build-core>=0.10" "pybind11>=2.12"
+  # The build requirements of pyproject.toml (the build runs without isolation).
+  mapfile -t build_requires < <("$PY" -c "import tomllib; print(*tomllib.load(open('pyproject.toml', 'rb'))['build-system']['requires'], sep='\n')")
+  "$PY" -m pip install -q "${build_requires[@]}"
   "$PY" -m pip install -q --no-build-isolation -Ceditable.rebuild=true -Cbuild-dir=build/{wheel_tag} -e ".[test]"
   echo "$want" > "$stamp"
 fi

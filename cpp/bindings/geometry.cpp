@@ -51,6 +51,9 @@ void pybind_geometry(py::module_& m) {
                ", ahead=" + (t.ahead ? "True" : "False") + ")";
       });
 
+  // Registered before Corridor, whose segments() returns one (else its
+  // signature would name the C++ type).
+  py::class_<PathSegments> path_segments(m, "PathSegments");
   py::class_<Corridor>(m, "Corridor")
       .def(py::init<PtsRef, RiskZones>(), py::arg("path"), py::arg("zones"))
       .def_property_readonly("path", &Corridor::path)
@@ -76,8 +79,7 @@ void pybind_geometry(py::module_& m) {
       .def("points_at", &Corridor::points_at, py::arg("s"), release_gil())
       .def("segments", &Corridor::segments, py::arg("options"), release_gil());
 
-  py::class_<PathSegments>(m, "PathSegments")
-      .def_property_readonly("size", &PathSegments::size)
+  path_segments.def_property_readonly("size", &PathSegments::size)
       .def("__len__", &PathSegments::size)
       .def_property_readonly("options", &PathSegments::options)
       .def_property_readonly("breaks", &PathSegments::breaks)
