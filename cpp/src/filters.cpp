@@ -101,10 +101,23 @@ bool Ekf::gate_rejects(double nis, int dim) {
 void Ekf::predict(const Control& u) {
   // Eq. 11: x̂ = f(x̂, u); P = F P Fᵀ + G Σ_ε Gᵀ.
   Eigen::Matrix4d F, G;
-  x_ = bmm_.linearize(x_, u, &F, &G);
+  const State x1 = bmm_.linearize(x_, u, &F, &G);
   const Eigen::Vector4d sigma2 = bmm_.noise_cov().diagonal();
-  P_ = F * P_ * F.transpose() + G * sigma2.asDiagonal() * G.transpose();
-  P_ = 0.5 * (P_ + P_.transpose());
+  Eigen::Matrix4d P1 = F * P_ * F.transpose() + G * sigma2.asDiagonal() * G.transpose();
+  P1 = 0.5 * (P1 + P1.transpose());
+  commit(x1, P1, "EKF predict");
+}
+
+void Ekf::commit(const State& x, const StateCov& P, const char* step) {
+  // Finite inputs can still overflow (P = 1e308·I, say): refuse the step and keep the old state.
+  if (!P.allFinite() || !x.allFinite()) {
+    std::ostringstream os;
+    os << "P = " << P_(0, 0) << ", " << P_(1, 1) << ", " << P_(2, 2) << ", " << P_(3, 3) << " (diagonal)";
+    check_finite_result(x, (std::string(step) + " x").c_str(), os.str());
+    check_finite_result(P, (std::string(step) + " P").c_str(), os.str());
+  }
+  x_ = x;
+  P_ = P;
 }
 
 template <int M>
@@ -134,11 +147,11 @@ UpdateResult Ekf::update_fixed(const MeasurementModel& model, const Eigen::Ref<c
     return res;
   }
   const Eigen::Matrix<double, 4, M> K = llt.solve(PHt.transpose()).transpose();  // eq. 13
-  x_ += K * y;                                                                    // eq. 14
-  x_[kTheta] = wrap_angle(x_[kTheta]);
+  State x1 = x_ + K * y;                                                          // eq. 14
+  x1[kTheta] = wrap_angle(x1[kTheta]);
   const Eigen::Matrix4d IKH = Eigen::Matrix4d::Identity() - K * H;
-  P_ = IKH * P_ * IKH.transpose() + K * R * K.transpose();  // Joseph form of eq. 14
-  P_ = 0.5 * (P_ + P_.transpose());
+  Eigen::Matrix4d P1 = IKH * P_ * IKH.transpose() + K * R * K.transpose();  // Joseph form of eq. 14
+  commit(x1, 0.5 * (P1 + P1.transpose()), "EKF update");
   return res;
 }
 
@@ -160,12 +173,12 @@ UpdateResult Ekf::update_position(const Eigen::Ref<const Eigen::VectorXd>& z, co
     return res;
   }
   const Eigen::Matrix<double, 4, 2> K = llt.solve(PHt.transpose()).transpose();
-  x_ += K * y;
-  x_[kTheta] = wrap_angle(x_[kTheta]);
+  State x1 = x_ + K * y;
+  x1[kTheta] = wrap_angle(x1[kTheta]);
   // Joseph form: A = (I − KH) P = P − K P[:2, :]; P = A (I − KH)ᵀ + K R Kᵀ = A − A[:, :2] Kᵀ + K R Kᵀ.
   const Eigen::Matrix4d A = P_ - K * P_.topRows<2>();
-  P_ = A - A.leftCols<2>() * K.transpose() + K * R * K.transpose();
-  P_ = 0.5 * (P_ + P_.transpose());
+  const Eigen::Matrix4d P1 = A - A.leftCols<2>() * K.transpose() + K * R * K.transpose();
+  commit(x1, 0.5 * (P1 + P1.transpose()), "EKF position update");
   return res;
 }
 
@@ -747,6 +760,17 @@ void ParticleFilter::predict(const Control& u) {
     throw std::invalid_argument(os.str());
   }
   impl_->predict(u[0], impl_->bmm.clipped_heading_change(u[1]));
+  // Finite inputs can still overflow (positions near 1e308, a huge dt·v_max); v and θ stay bounded.
+  for (int c : {kX, kY}) {
+    const Eigen::Map<const Eigen::ArrayXd> col(impl_->col(c), impl_->n());
+    if (!col.allFinite()) {
+      std::ostringstream os;
+      os << "particle filter predict: particle " << (c == kX ? "x" : "y") << " overflows (control (" << u[0]
+         << ", " << u[1] << "), dt = " << impl_->bmm.params().dt << ", max_speed = "
+         << impl_->bmm.params().max_speed << ")";
+      throw std::invalid_argument(os.str());
+    }
+  }
 }
 
 UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z) {
@@ -754,9 +778,10 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
   auto& I = *impl_;
   const int m = model.dim();
   const int N = I.n();
-  const Eigen::MatrixXd& R = model.noise().cov();
+  const Eigen::MatrixXd R = model.noise().cov();
   UpdateResult res;
   res.dim = m;
+  const Eigen::ArrayXd prior_logw = Eigen::Map<const Eigen::ArrayXd>(I.logw(), N);
   if (model.kind() == MeasurementKind::Position) {
     // Fast path: 2-D residuals, log-likelihood and NIS moments in one pass.
     const Eigen::Matrix2d Ri = R.inverse();
@@ -787,10 +812,18 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
     const Eigen::MatrixXd S = D * w.asDiagonal() * D.transpose() + R;
     res.nis = ybar.dot(S.ldlt().solve(ybar));
     // log-likelihood −½ yᵀR⁻¹y = −½‖L⁻¹y‖², added to the log-weights.
-    Eigen::LLT<Eigen::MatrixXd>(R).matrixL().solveInPlace(I.Y);
+    model.noise().whiten(I.Y);
     Eigen::Map<Eigen::ArrayXd>(I.logw(), N) -= 0.5 * I.Y.colwise().squaredNorm().transpose().array();
   }
-  I.normalise(Eigen::Map<const Eigen::ArrayXd>(I.logw(), N).maxCoeff());  // the maximum is exact in any order
+  const double mx = Eigen::Map<const Eigen::ArrayXd>(I.logw(), N).maxCoeff();  // exact in any order
+  if (!std::isfinite(mx)) {  // every likelihood underflowed (residuals beyond ~1e154 σ): keep the prior
+    Eigen::Map<Eigen::ArrayXd>(I.logw(), N) = prior_logw;
+    std::ostringstream os;
+    os << "particle filter " << to_string(model.kind()) << " update: the measurement has zero likelihood under "
+       << "every particle (log-likelihood " << mx << ")";
+    throw std::invalid_argument(os.str());
+  }
+  I.normalise(mx);
   if (I.ess < I.resample_threshold * N) I.resample();
   return res;
 }
@@ -836,7 +869,7 @@ UpdateResult InformationFilter::update(const MeasurementModel& model, const Eige
   const Eigen::MatrixXd H = model.jacobian(xb);
   Eigen::VectorXd zhat = model.predict(xb), nu(model.dim());
   model.residual(z, zhat, nu);
-  const Eigen::MatrixXd& R = model.noise().cov();
+  const Eigen::MatrixXd R = model.noise().cov();
   const Eigen::MatrixXd RinvH = R.ldlt().solve(H);  // R⁻¹ H
   UpdateResult res;
   res.dim = model.dim();
