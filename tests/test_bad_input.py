@@ -395,7 +395,7 @@ def test_range_model_on_10k_landmarks_stores_per_row_noise():
     assert model.dim == 10_000 and z.shape == (10_000,) and H.shape == (10_000, 4)
     np.testing.assert_allclose(z, np.hypot(*(lm - 50.5).T), rtol=1e-14)
     small = MeasurementModel.range_bearing(lm[:3], 0.5, 0.1)  # R is still the public dense covariance
-    np.testing.assert_array_equal(small.R, np.diag(np.tile([0.25, 0.01], 3)))
+    np.testing.assert_array_equal(small.R, np.diag(np.tile(np.square([0.5, 0.1]), 3)))
 
 
 def test_segments_and_chull_control_on_10k_point_path_are_fast():
@@ -411,11 +411,11 @@ def test_segments_and_chull_control_on_10k_point_path_are_fast():
                  for x in np.linspace(0.0, 99_990.0, 50)]
     assert time.perf_counter() - t0 < 3.0
     assert len(seg) == np.ceil(corridor.length / 10.0) and all(d.kind == 0 for d in decisions)
-    # the polyline of a segment is exactly its vertices between the cuts
+    # the polyline of a segment runs through the path vertices between its cuts
     k = 5678
-    pts = seg.points(k)
-    inner = path[(s > seg.breaks[k]) & (s < seg.breaks[k + 1])]
-    assert all(np.min(np.hypot(*(pts - v).T)) == 0.0 for v in inner)
+    pts, cum = seg.points(k), corridor.vertex_arc_lengths
+    inner = path[(cum > seg.breaks[k]) & (cum < seg.breaks[k + 1])]
+    assert len(inner) > 0 and all(np.min(np.hypot(*(pts - v).T)) < 1e-9 for v in inner)
 
 
 @pytest.mark.parametrize("args, match", [
@@ -450,14 +450,14 @@ def test_ekf_predict_overflow_raises_and_keeps_the_state():
 
 def test_bmm_overflow_raises():
     x, u = np.array([0.0, 0.0, 1.0, 0.3]), np.array([1.0, 0.1])
-    with pytest.raises(ValueError, match=r"Bmm noise Jacobian G\[0, 3\] = -?inf .*dt = 1e\+308"):
+    with pytest.raises(ValueError, match=r"Bmm.process_cov Q\[0, 0\] = inf is not finite: it overflows .*dt = 1e\+308"):
         Bmm(BmmParams(dt=1e308)).process_cov(x, u)
     with pytest.raises(ValueError, match=r"Bmm.transition x'\[0\] = inf .*state \(1e\+308"):
         Bmm().transition([1e308, 0.0, 1.0, 0.0], u, [1e308, 0.0, 0.0, 0.0])
-    with pytest.raises(ValueError, match=r"Bmm.process_cov Q\[0, 0\] = inf"):
-        Bmm(BmmParams(position_noise=1e200)).process_cov(x, u)
+    with pytest.raises(ValueError, match=r"BmmParams.position_noise = 1e\+200 is invalid: must be >= 0 with a finite square"):
+        BmmParams(position_noise=1e200)
     with pytest.raises(ValueError, match=r"Bmm f\(x, u\)\[0\] = inf"):
-        Bmm(BmmParams(dt=1e308)).predict(x, u)
+        Bmm(BmmParams(dt=1e308)).predict([1e308, 0.0, 1.0, 0.0], u)
 
 
 @pytest.mark.parametrize("bad, exc, match", [
@@ -498,6 +498,7 @@ def test_distances_on_huge_coordinates_are_exact_or_raise():
     d = metrics.distance_to_path(far, path)
     np.testing.assert_allclose(d, [1e300, np.hypot(1e308 - 10.0, 1e308), 4.0], rtol=1e-15)
     np.testing.assert_allclose(Corridor(path).signed_offset(far), [1e300, d[1], -4.0], rtol=1e-15)
+    np.testing.assert_allclose(Corridor(path).arc_length(far), [5.0, 10.0, 3.0], rtol=1e-15)
     assert Corridor([[0.0, 0.0], [1e200, 0.0]]).length == 1e200
     # not representable: a clear error naming the values
     with pytest.raises(ValueError, match=r"ADE: the distance from \(1e\+308, 0\) to \(-1e\+308, 0\) overflows"):

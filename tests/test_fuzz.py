@@ -39,6 +39,7 @@ import tempfile
 import threading
 import time
 from collections import Counter
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import fields, is_dataclass
 
 import numpy as np
@@ -436,33 +437,29 @@ def _child(seed, start, stop, stderr):
                             stderr=stderr, text=True, env=dict(os.environ, OMP_NUM_THREADS="1"))
 
 
-def fuzz(seed: int, n_calls: int, batch: int = 2500) -> tuple[Counter, list[dict]]:
-    """Run calls 0 … n_calls−1; return the outcome counts and the failures."""
+def _supervise(seed: int, start: int, stop: int) -> tuple[Counter, list[dict]]:
+    """Run calls start … stop−1 in child processes, a new child after each crash or hang."""
     counts: Counter = Counter()
     failures: list[dict] = []
-    i = 0
-    while i < n_calls:
-        stop, first = min(i + batch, n_calls), i
+    i = start
+    while i < stop:
+        first, started = i, None
         err = tempfile.TemporaryFile("w+")
         proc = _child(seed, i, stop, err)
         lines: queue.Queue = queue.Queue()
         threading.Thread(target=lambda p=proc: [lines.put(x) for x in p.stdout] + [lines.put(None)],
                          daemon=True).start()
-        started = None
         while True:
             try:
                 line = lines.get(timeout=HANG_S)
             except queue.Empty:
                 proc.kill()
-                failures.append({"i": started, "why": f"hang: no result within {HANG_S} s"})
+                proc.wait()
+                why = f"hang: no result within {HANG_S} s"
                 break
             if line is None:
                 proc.wait()
-                if started is None and i == first:  # no call ran: the child could not start
-                    err.seek(0)
-                    raise RuntimeError(f"fuzz child failed to start: {err.read()[-2000:]}")
-                if started is not None:
-                    failures.append({"i": started, "why": f"child died (exit code {proc.returncode})"})
+                why = f"child died (exit code {proc.returncode})"
                 break
             try:
                 rec = json.loads(line)
@@ -479,12 +476,25 @@ def fuzz(seed: int, n_calls: int, batch: int = 2500) -> tuple[Counter, list[dict
             if rec["out"] == "fail":
                 failures.append(rec)
             i = rec["i"] + 1
-        if started is not None:  # the crashed or hung call counts; go on after it
+        if started is not None:  # the call that crashed or hung fails; go on after it
             counts["fail"] += 1
+            failures.append({"i": started, "why": why})
             i = started + 1
+        elif i == first and i < stop:  # not a single call ran: the child cannot start
+            err.seek(0)
+            raise RuntimeError(f"fuzz child ({why}) ran no call: {err.read()[-2000:]}")
         proc.stdout.close()
         err.close()
     return counts, failures
+
+
+def fuzz(seed: int, n_calls: int, batch: int = 2500, jobs: int = 2) -> tuple[Counter, list[dict]]:
+    """Run calls 0 … n_calls−1 in batches, ``jobs`` children at a time; return the counts and the failures."""
+    ranges = [(a, min(a + batch, n_calls)) for a in range(0, n_calls, batch)]
+    with ThreadPoolExecutor(jobs) as pool:
+        results = list(pool.map(lambda r: _supervise(seed, *r), ranges))
+    counts: Counter = sum((c for c, _ in results), Counter())
+    return counts, sorted((f for _, fs in results for f in fs), key=lambda f: f["i"])
 
 
 def _report(seed, counts, failures):
@@ -517,7 +527,7 @@ def test_fuzz_public_api_long():
 def test_supervisor_counts_a_crash_and_goes_on(monkeypatch):
     """A call that kills its process is a failure, and the calls after it still run."""
     monkeypatch.setenv("SAFENAV_FUZZ_CRASH_AT", "3")
-    counts, failures = fuzz(SEED, 6, batch=6)
+    counts, failures = fuzz(SEED, 6, batch=6, jobs=1)
     assert [f["i"] for f in failures] == [3]
     assert "child died" in failures[0]["why"]
     assert counts["ok"] + counts["raised"] == 5

@@ -100,9 +100,15 @@ PathProjection Corridor::project(const Eigen::Vector2d& p) const {
   PathProjection best;
   double best_d2 = std::numeric_limits<double>::infinity();
   double best_t = 0.0;
+  // Scaled, a short edge's squared length can underflow: take its direction from the unscaled edge.
+  auto along_scaled = [&](const Eigen::Vector2d& w, Eigen::Index k) {
+    const Eigen::Vector2d e = (path_.row(k + 1) - path_.row(k)).transpose();
+    const double len = std::hypot(e.x(), e.y()), den = len * sc;
+    return den > 0.0 ? w.dot(e / len) / den : 0.0;
+  };
   for (Eigen::Index k = 0; k + 1 < path.rows(); ++k) {
     const Eigen::Vector2d a = path.row(k).transpose(), ab = path.row(k + 1).transpose() - a;
-    const double t = std::clamp((q - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+    const double t = std::clamp(sc == 1.0 ? (q - a).dot(ab) / ab.squaredNorm() : along_scaled(q - a, k), 0.0, 1.0);
     const Eigen::Vector2d foot = a + t * ab;
     const double d2 = (q - foot).squaredNorm();
     if (d2 < best_d2) {
@@ -189,7 +195,7 @@ Eigen::VectorXd Corridor::wrs(const Eigen::Ref<const Points2>& pts) const {
 }
 double Corridor::awrs(const Eigen::Ref<const Points2>& pts) const {
   check_points(pts, "points", 1);
-  return wrs(pts).mean();
+  return finite_mean(wrs(pts));
 }
 Points2 Corridor::points_at(const Eigen::Ref<const Eigen::VectorXd>& s) const {
   Points2 out(s.size(), 2);

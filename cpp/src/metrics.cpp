@@ -33,6 +33,11 @@ double overflow_scale(double max_abs) {
   return e > 500 ? std::ldexp(1.0, -e) : 1.0;
 }
 
+double finite_mean(const Eigen::Ref<const Eigen::VectorXd>& values) {
+  const double m = values.mean();  // divide before summing only when the sum overflows
+  return std::isfinite(m) ? m : (values / static_cast<double>(values.size())).sum();
+}
+
 namespace {
 /// ‖a − b‖ without overflow in the squares (std::hypot); throws naming `what`
 /// and both points when the distance itself is not representable.
@@ -62,9 +67,7 @@ double ade(const Eigen::Ref<const Points2>& est, const Eigen::Ref<const Points2>
   const Eigen::Index n = est.rows();
   Eigen::VectorXd d(n);
   for (Eigen::Index i = 0; i < n; ++i) d[i] = distance(row(est, i), row(truth, i), "ADE");
-  // The mean of finite distances is finite: divide before summing when the sum overflows.
-  const double m = d.mean();
-  return std::isfinite(m) ? m : (d / static_cast<double>(n)).sum();
+  return finite_mean(d);
 }
 
 double fde(const Eigen::Ref<const Points2>& est, const Eigen::Ref<const Points2>& truth) {
@@ -119,24 +122,30 @@ void RiskZones::validate() const {
 Eigen::VectorXd distance_to_path(const Eigen::Ref<const Points2>& points, const Eigen::Ref<const Points2>& path) {
   check_points(points, "points", 0);
   check_points(path, "path");
-  // Coordinates beyond 2^500 are scaled by a power of two (exact) so the squares below cannot overflow.
-  const double sc = overflow_scale(std::max(points.rows() ? points.cwiseAbs().maxCoeff() : 0.0,
-                                            path.cwiseAbs().maxCoeff()));
-  const Points2 P = points * sc, Q = path * sc;
-  Eigen::VectorXd d(P.rows());
-  for (Eigen::Index i = 0; i < P.rows(); ++i) {
-    const Eigen::RowVector2d p = P.row(i);
-    double best = (p - Q.row(0)).squaredNorm();
-    for (Eigen::Index k = 0; k + 1 < Q.rows(); ++k) {
-      const Eigen::RowVector2d a = Q.row(k), ab = Q.row(k + 1) - a;
+  auto nearest2 = [](const Eigen::RowVector2d& p, const Points2& q) {  // squared distance to the polyline q
+    double best = (p - q.row(0)).squaredNorm();
+    for (Eigen::Index k = 0; k + 1 < q.rows(); ++k) {
+      const Eigen::RowVector2d a = q.row(k), ab = q.row(k + 1) - a;
       const double L2 = ab.squaredNorm();
       const double t = L2 > 0.0 ? std::clamp((p - a).dot(ab) / L2, 0.0, 1.0) : 0.0;
       best = std::min(best, (p - (a + t * ab)).squaredNorm());
     }
-    d[i] = std::sqrt(best) / sc;
+    return best;
+  };
+  // A point whose coordinates (or the path's) exceed 2^500 is measured with
+  // everything scaled by one power of two (exact), so the squares cannot overflow.
+  const Points2 Q = path;
+  const double path_max = Q.cwiseAbs().maxCoeff();
+  const double sc = overflow_scale(std::max(points.rows() ? points.cwiseAbs().maxCoeff() : 0.0, path_max));
+  const Points2 Qs = Q * sc;
+  Eigen::VectorXd d(points.rows());
+  for (Eigen::Index i = 0; i < points.rows(); ++i) {
+    const Eigen::RowVector2d p = points.row(i);
+    const bool big = overflow_scale(std::max(p.cwiseAbs().maxCoeff(), path_max)) != 1.0;
+    d[i] = big ? std::sqrt(nearest2(p * sc, Qs)) / sc : std::sqrt(nearest2(p, Q));
     if (!std::isfinite(d[i])) {
       std::ostringstream os;
-      os << "distance_to_path: point " << i << " = (" << points(i, 0) << ", " << points(i, 1)
+      os << "distance_to_path: point " << i << " = (" << p.x() << ", " << p.y()
          << ") is farther than 1.8e308 from the path";
       throw std::invalid_argument(os.str());
     }
@@ -170,7 +179,7 @@ Eigen::VectorXd wrs(const Eigen::Ref<const Points2>& points, const Eigen::Ref<co
 
 double awrs(const Eigen::Ref<const Points2>& points, const Eigen::Ref<const Points2>& path, const RiskZones& zones) {
   check_points(points, "points");
-  return wrs(points, path, zones).mean();
+  return finite_mean(wrs(points, path, zones));
 }
 
 Eigen::VectorXd nees(const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>& est,

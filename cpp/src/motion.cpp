@@ -26,6 +26,8 @@ void require(bool ok, const char* field, double value, const char* rule) {
 }
 bool finite_nonneg(double v) { return std::isfinite(v) && v >= 0.0; }
 bool finite_pos(double v) { return std::isfinite(v) && v > 0.0; }
+/// A noise sigma enters as its square (Σ_ε, eq. 6): the square must be finite too.
+bool finite_sigma(double v) { return v >= 0.0 && std::isfinite(v * v); }
 }  // namespace
 
 void BmmParams::validate() const {
@@ -35,9 +37,9 @@ void BmmParams::validate() const {
   require(finite_pos(max_heading_rate), "max_heading_rate", max_heading_rate, "finite and > 0");
   require(finite_pos(dt), "dt", dt, "finite and > 0");
   require(finite_nonneg(terrain_effect), "terrain_effect", terrain_effect, "finite and >= 0");
-  require(finite_nonneg(speed_noise), "speed_noise", speed_noise, "finite and >= 0");
-  require(finite_nonneg(heading_noise), "heading_noise", heading_noise, "finite and >= 0");
-  require(finite_nonneg(position_noise), "position_noise", position_noise, "finite and >= 0");
+  require(finite_sigma(speed_noise), "speed_noise", speed_noise, ">= 0 with a finite square");
+  require(finite_sigma(heading_noise), "heading_noise", heading_noise, ">= 0 with a finite square");
+  require(finite_sigma(position_noise), "position_noise", position_noise, ">= 0 with a finite square");
 }
 
 void check_finite_state(const State& x, const char* what) {

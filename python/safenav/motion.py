@@ -14,7 +14,9 @@ State ``x = (x, y, v, θ)``, control ``u = (desired speed, heading change)``.
   ``transition``/``simulate``; the filters use ``Q = G Σ_ε Gᵀ`` with the noise
   Jacobian G (the paper leaves Q unspecified).
 
-Parameter defaults are ours: the paper gives no values.
+Parameter defaults are ours: the paper gives no values.  Finite inputs whose
+result overflows (a state near 1e308, dt = 1e308) raise ``ValueError`` naming
+the result entry and the inputs; no call returns inf or NaN.
 """
 
 from __future__ import annotations

@@ -21,6 +21,9 @@ void check_points(const Eigen::Ref<const Points2>& points, const char* what, Eig
 /// two is exact, so results in the ordinary range keep every bit.
 double overflow_scale(double max_abs);
 
+/// Mean of finite values without overflow in the sum (values near 1.8e308).
+double finite_mean(const Eigen::Ref<const Eigen::VectorXd>& values);
+
 /// ADE = (1/N) Σ ‖Ŷ_t − Y_t‖ (eq. 21).  Both trajectories must have the same
 /// number of points (the definition pairs them by time).
 double ade(const Eigen::Ref<const Points2>& estimate, const Eigen::Ref<const Points2>& truth);
