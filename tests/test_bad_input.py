@@ -501,13 +501,13 @@ def test_distances_on_huge_coordinates_are_exact_or_raise():
     np.testing.assert_allclose(Corridor(path).arc_length(far), [5.0, 10.0, 3.0], rtol=1e-15)
     assert Corridor([[0.0, 0.0], [1e200, 0.0]]).length == 1e200
     # not representable: a clear error naming the values
-    with pytest.raises(ValueError, match=r"ADE: the distance from \(1e\+308, 0\) to \(-1e\+308, 0\) overflows"):
+    with pytest.raises(ValueError, match=r"ADE: the distance from \(1e\+308, 0\) to \(-1e\+308, -?0\) overflows"):
         metrics.ade(a, -a)
     with pytest.raises(ValueError, match=r"FDE: the distance"):
         metrics.fde(a, -a)
     with pytest.raises(ValueError, match=r"path length overflows"):
         metrics.path_length([[0.0, 0.0], [1.5e308, 0.0], [0.0, 0.0]])
-    with pytest.raises(ValueError, match=r"point 0 = \(-1\.7e\+308, 1\.7e\+308\) is farther than 1\.8e\+308"):
+    with pytest.raises(ValueError, match=r"point 0 = \(-1\.7e\+308, 1\.7e\+308\) is farther than 1\.8e308"):
         metrics.distance_to_path([[-1.7e308, 1.7e308]], path)
-    with pytest.raises(ValueError, match=r"point \(-1\.7e\+308, 1\.7e\+308\) is farther than 1\.8e\+308"):
+    with pytest.raises(ValueError, match=r"point \(-1\.7e\+308, 1\.7e\+308\) is farther than 1\.8e308"):
         Corridor(path).signed_offset([[-1.7e308, 1.7e308]])
