@@ -165,7 +165,8 @@ class Draw:
 
         if self.rng.random() < 0.5:
             return None
-        return RiskZones(half_width=self.pos(0.1, 5.0), weights=[self.pos(0.1, 10.0) for _ in range(self.count(1, 5))])
+        return RiskZones(half_width=self.pos(0.1, 5.0),
+                         weights=[self.pos(0.1, 10.0) for _ in range(int(self.rng.integers(0, 6)))])
 
 
 # ---------------------------------------------------------------------------

@@ -60,6 +60,15 @@ void check_gate(double p) {
     throw std::invalid_argument(os.str());
   }
 }
+/// Throws when the NIS yᵀS⁻¹y of an update overflows (a measurement ~1e308 from
+/// the prediction): called before any state changes.
+void check_nis(double nis, const char* filter, MeasurementKind kind) {
+  if (std::isfinite(nis)) return;
+  std::ostringstream os;
+  os << filter << " " << to_string(kind) << " update: NIS = " << nis
+     << " is not finite (the measurement is too far from the prediction for its covariance)";
+  throw std::invalid_argument(os.str());
+}
 void check_prior(const State& x0, const StateCov& P0, const char* xname = "x0", const char* pname = "P0") {
   check_finite_state(x0, xname);
   check_covariance(P0, pname);
@@ -142,6 +151,7 @@ UpdateResult Ekf::update_fixed(const MeasurementModel& model, const Eigen::Ref<c
   UpdateResult res;
   res.dim = m;
   res.nis = y.dot(llt.solve(y));
+  check_nis(res.nis, "EKF", model.kind());
   if (gate_rejects(res.nis, m)) {
     res.accepted = false;
     return res;
@@ -168,6 +178,7 @@ UpdateResult Ekf::update_position(const Eigen::Ref<const Eigen::VectorXd>& z, co
   UpdateResult res;
   res.dim = 2;
   res.nis = y.dot(llt.solve(y));
+  check_nis(res.nis, "EKF", MeasurementKind::Position);
   if (gate_rejects(res.nis, 2)) {
     res.accepted = false;
     return res;
@@ -816,8 +827,10 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
     Eigen::Map<Eigen::ArrayXd>(I.logw(), N) -= 0.5 * I.Y.colwise().squaredNorm().transpose().array();
   }
   const double mx = Eigen::Map<const Eigen::ArrayXd>(I.logw(), N).maxCoeff();  // exact in any order
-  if (!std::isfinite(mx)) {  // every likelihood underflowed (residuals beyond ~1e154 σ): keep the prior
+  if (!std::isfinite(mx) || !std::isfinite(res.nis)) {  // keep the prior weights, then say why
     Eigen::Map<Eigen::ArrayXd>(I.logw(), N) = prior_logw;
+    check_nis(res.nis, "particle filter", model.kind());
+    // every likelihood underflowed (residuals beyond ~1e154 σ)
     std::ostringstream os;
     os << "particle filter " << to_string(model.kind()) << " update: the measurement has zero likelihood under "
        << "every particle (log-likelihood " << mx << ")";
@@ -848,6 +861,11 @@ void InformationFilter::predict(const Control& u) {
   const Eigen::Vector4d sigma2 = bmm_.noise_cov().diagonal();
   Eigen::Matrix4d Pp = F * P() * F.transpose() + G * sigma2.asDiagonal() * G.transpose();
   Pp = 0.5 * (Pp + Pp.transpose());
+  if (!Pp.allFinite()) {
+    std::ostringstream os;
+    os << "dt = " << bmm_.params().dt << " and the prior P (diagonal " << P().diagonal().transpose() << ")";
+    check_finite_result(Pp, "information filter predict P", os.str());
+  }
   const Eigen::LLT<Eigen::Matrix4d> llt(Pp);
   if (llt.info() != Eigen::Success || !(llt.matrixL().toDenseMatrix().diagonal().minCoeff() > 1e-12)) {
     // Zero uncertainty in some direction: infinite information, which the
@@ -875,9 +893,16 @@ UpdateResult InformationFilter::update(const MeasurementModel& model, const Eige
   res.dim = model.dim();
   const Eigen::MatrixXd S = H * P() * H.transpose() + R;
   res.nis = nu.dot(S.ldlt().solve(nu));
-  Y_ += H.transpose() * RinvH;
-  Y_ = 0.5 * (Y_ + Y_.transpose());
-  y_ += RinvH.transpose() * (nu + H * xb);
+  check_nis(res.nis, "information filter", model.kind());
+  Eigen::Matrix4d Y1 = Y_ + H.transpose() * RinvH;
+  Y1 = 0.5 * (Y1 + Y1.transpose());
+  const State y1 = y_ + RinvH.transpose() * (nu + H * xb);
+  if (!Y1.allFinite() || !y1.allFinite()) {
+    throw std::invalid_argument(std::string("information filter ") + to_string(model.kind()) +
+                                " update: the information overflows (measurement noise too small for its scale)");
+  }
+  Y_ = Y1;
+  y_ = y1;
   return res;
 }
 
