@@ -676,6 +676,11 @@ struct ParticleFilter::Impl {
          s[1], s[4], s[5], s[6],
          s[2], s[5], s[7], s[8],
          s[3], s[6], s[8], s[9];
+    if (!P.allFinite()) {  // deviations beyond ~1e154 (e.g. one ulp of positions near 1e308) square to inf
+      std::ostringstream os;
+      os << "particle covariance about (" << m[0] << ", " << m[1] << ", " << m[2] << ", " << m[3] << ")";
+      check_finite_result(P, "particle filter P", os.str());
+    }
     return P;
   }
 
