@@ -511,3 +511,25 @@ def test_distances_on_huge_coordinates_are_exact_or_raise():
         metrics.distance_to_path([[-1.7e308, 1.7e308]], path)
     with pytest.raises(ValueError, match=r"point \(-1\.7e\+308, 1\.7e\+308\) is farther than 1\.8e308"):
         Corridor(path).signed_offset([[-1.7e308, 1.7e308]])
+
+
+def test_fuzz_findings_ranges_nees_and_filters():
+    # found by tests/test_fuzz.py; each returned inf or NaN before
+    far = MeasurementModel.range([[-1e308, 0.0], [3.0, 4.0]], 1.0)
+    np.testing.assert_allclose(far.predict([4.0, 0.0, 1.0, 0.0]), [1e308, np.hypot(1.0, 4.0)], rtol=1e-15)
+    assert np.isfinite(far.jacobian([4.0, 0.0, 1.0, 0.0])).all()
+    with pytest.raises(ValueError, match=r"landmark 0 at \(-1e\+308, 0\) is farther than 1\.8e308 from the vehicle"):
+        far.predict([1e308, 0.0, 1.0, 0.0])
+    with pytest.raises(ValueError, match=r"NEES: row 0: e\^T P\^-1 e = -?(inf|nan) is not finite \(covariance diagonal 1e-310"):
+        metrics.nees(np.ones((1, 4)), np.zeros((1, 4)), np.eye(4)[None] * 1e-310)
+    ekf = make_ekf(x0=np.array([-1e308, -1e308, 1.0, 0.0]))
+    with pytest.raises(ValueError, match=r"EKF position update: NIS = -?(inf|nan) is not finite"):
+        ekf.update(MeasurementModel.position(), [5.0, 5.0])
+    assert ekf.x[0] == -1e308
+    pf = ParticleFilter(BmmParams(max_speed=1e154, dt=1e300), X0, P0, n_particles=50, seed=1)
+    with pytest.raises(ValueError, match=r"particle filter predict: particle x overflows"):
+        for _ in range(3):
+            pf.predict([1e154, 0.0])
+    eif = InformationFilter(BmmParams(dt=1e308, max_speed=0.1), X0, P0)
+    with pytest.raises(ValueError, match=r"information filter predict P\[\d, \d\] = inf"):
+        eif.predict([0.1, 0.0])

@@ -139,6 +139,24 @@ constexpr double kMinDist2 = 1e-18;
      << "): range/bearing undefined";
   throw std::invalid_argument(os.str());
 }
+
+/// Landmark i relative to the vehicle: (dx, dy), q = dx² + dy² and the range r
+/// (std::hypot when q overflows, so any representable range comes back).
+struct Offset {
+  double dx, dy, q, r;
+};
+Offset offset(const Landmarks& lm, Eigen::Index i, const State& x) {
+  const double dx = lm(i, 0) - x[kX], dy = lm(i, 1) - x[kY];
+  if (!std::isfinite(dx) || !std::isfinite(dy)) {
+    std::ostringstream os;
+    os << "landmark " << i << " at (" << lm(i, 0) << ", " << lm(i, 1) << ") is farther than 1.8e308 from the vehicle ("
+       << x[kX] << ", " << x[kY] << ")";
+    throw std::invalid_argument(os.str());
+  }
+  const double q = dx * dx + dy * dy;
+  if (q < kMinDist2) landmark_at_vehicle(static_cast<int>(i), x);
+  return {dx, dy, q, std::isfinite(q) ? std::sqrt(q) : std::hypot(dx, dy)};
+}
 }  // namespace
 
 MeasurementModel::MeasurementModel(MeasurementKind kind, GaussianNoise noise, Landmarks landmarks)
@@ -214,10 +232,7 @@ void MeasurementModel::predict(const State& x, Eigen::Ref<Eigen::VectorXd> zhat)
     default: break;
   }
   for (Eigen::Index i = 0; i < landmarks_.rows(); ++i) {
-    const double dx = landmarks_(i, 0) - x[kX], dy = landmarks_(i, 1) - x[kY];
-    const double q = dx * dx + dy * dy;
-    if (q < kMinDist2) landmark_at_vehicle(static_cast<int>(i), x);
-    const double r = std::sqrt(q);
+    const auto [dx, dy, q, r] = offset(landmarks_, i, x);
     const double b = wrap_angle(std::atan2(dy, dx) - x[kTheta]);
     if (kind_ == MeasurementKind::Range) zhat[i] = r;
     else if (kind_ == MeasurementKind::Bearing) zhat[i] = b;
@@ -248,10 +263,7 @@ void MeasurementModel::jacobian(const State& x, Eigen::Ref<Eigen::MatrixXd> H) c
     default: break;
   }
   for (Eigen::Index i = 0; i < landmarks_.rows(); ++i) {
-    const double dx = landmarks_(i, 0) - x[kX], dy = landmarks_(i, 1) - x[kY];
-    const double q = dx * dx + dy * dy;
-    if (q < kMinDist2) landmark_at_vehicle(static_cast<int>(i), x);
-    const double r = std::sqrt(q);
+    const auto [dx, dy, q, r] = offset(landmarks_, i, x);
     // ∂r/∂(x,y) = −(dx, dy)/r ; ∂b/∂(x,y) = (dy, −dx)/q ; ∂b/∂θ = −1
     Eigen::Index rr = -1, rb = -1;
     if (kind_ == MeasurementKind::Range) rr = i;

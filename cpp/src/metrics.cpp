@@ -217,6 +217,11 @@ Eigen::VectorXd nees(const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic
       throw std::invalid_argument(os.str());
     }
     out[k] = e.dot(llt.solve(e));
+    if (!std::isfinite(out[k])) {  // finite inputs, but P near-singular at its scale (1e-310) or e, P near 1e308
+      os << "NEES: row " << k << ": e^T P^-1 e = " << out[k] << " is not finite (covariance diagonal "
+         << P.diagonal().transpose() << ")";
+      throw std::invalid_argument(os.str());
+    }
   }
   return out;
 }

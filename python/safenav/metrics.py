@@ -11,6 +11,11 @@
   so a point just inside zone 2 scores lower than one just inside zone 1's
   outer edge; we keep it as written and call it the paper's WRS.
 * NEES and NIS with their two-sided chi-square acceptance intervals.
+
+Distances do not overflow in their squares (``std::hypot``; coordinates beyond
+2^500 are scaled by a power of two, which is exact), so any distance that is
+representable comes back finite; one beyond 1.8e308 raises ``ValueError``
+naming the points.
 """
 
 from __future__ import annotations
