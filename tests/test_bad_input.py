@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 
@@ -376,3 +378,158 @@ def test_metric_points_named():
     with pytest.raises(ValueError, match=r"estimate must have shape \(N, 2\), got \(3, 3\)"):
         metrics.fde(np.zeros((3, 3)), np.zeros((3, 2)))
 
+
+
+# ---------------------------------------------------------------------------
+# Issue #12, item 4: hangs and silent infinities.  Each test failed before its fix.
+# ---------------------------------------------------------------------------
+
+def test_range_model_on_10k_landmarks_stores_per_row_noise():
+    # A dense 10⁴×10⁴ R (and its Cholesky) took over 60 s; per-row noise is O(n).
+    lm = np.random.default_rng(0).random((10_000, 2)) * 100.0
+    t0 = time.perf_counter()
+    model = MeasurementModel.range(lm, 1.0)
+    z = model.predict([50.5, 50.5, 1.0, 0.0])
+    H = model.jacobian([50.5, 50.5, 1.0, 0.0])
+    assert time.perf_counter() - t0 < 5.0
+    assert model.dim == 10_000 and z.shape == (10_000,) and H.shape == (10_000, 4)
+    np.testing.assert_allclose(z, np.hypot(*(lm - 50.5).T), rtol=1e-14)
+    small = MeasurementModel.range_bearing(lm[:3], 0.5, 0.1)  # R is still the public dense covariance
+    np.testing.assert_array_equal(small.R, np.diag(np.tile(np.square([0.5, 0.1]), 3)))
+
+
+def test_segments_and_chull_control_on_10k_point_path_are_fast():
+    from safenav import Corridor
+    from safenav.navigation import chull_control
+
+    s = np.linspace(0.0, 100_000.0, 10_000)  # 10⁴ vertices, ~10⁴ segments of 10 m: 7 s before
+    path = np.column_stack([s, 5.0 * np.sin(s / 50.0)])
+    t0 = time.perf_counter()
+    corridor = Corridor(path)
+    seg = corridor.segments()
+    decisions = [chull_control(seg, Bmm(), [x, 5.0 * np.sin(x / 50.0) + 0.3, 1.0, 0.0], 1.0, 3.0, 0.5)
+                 for x in np.linspace(0.0, 99_990.0, 50)]
+    assert time.perf_counter() - t0 < 3.0
+    assert len(seg) == np.ceil(corridor.length / 10.0) and all(d.kind == 0 for d in decisions)
+    # the polyline of a segment runs through the path vertices between its cuts
+    k = 5678
+    pts, cum = seg.points(k), corridor.vertex_arc_lengths
+    inner = path[(cum > seg.breaks[k]) & (cum < seg.breaks[k + 1])]
+    assert len(inner) > 0 and all(np.min(np.hypot(*(pts - v).T)) < 1e-9 for v in inner)
+
+
+@pytest.mark.parametrize("args, match", [
+    ((0,), r"dof must be a positive integer, got 0"),
+    ((4, 0), r"n_runs must be a positive integer, got 0"),
+    ((4, 1, 1.5), r"probability = 1\.5 must be in \(0, 1\)"),
+    ((4, 1, float("nan")), r"probability = nan must be in \(0, 1\)"),
+    ((2.5,), r"dof must be a positive integer, got 2\.5"),
+    ((10**300,), r"dof·n_runs = 10+·1 exceeds 1000000000"),
+    ((4, 10**9), r"dof·n_runs = 4·1000000000 exceeds"),
+])
+def test_chi2_interval_validates(args, match):
+    with pytest.raises(ValueError, match=match):
+        metrics.chi2_interval(*args)
+
+
+def test_chi2_interval_values():
+    # chi-square with 2 dof is exponential with mean 2: quantile(p) = −2·ln(1 − p)
+    lo, hi = metrics.chi2_interval(2, 1, 0.95)
+    assert (lo, hi) == pytest.approx((-2 * np.log(0.975), -2 * np.log(0.025)), rel=1e-12)
+    lo, hi = metrics.chi2_interval(4, 10**6, 0.95)  # large dof·n_runs: near 4 ± 1.96·sqrt(8/10⁶)
+    assert (lo, hi) == pytest.approx((4 - 1.96 * np.sqrt(8e-6), 4 + 1.96 * np.sqrt(8e-6)), abs=1e-4)
+
+
+def test_ekf_predict_overflow_raises_and_keeps_the_state():
+    f = Ekf(PARAMS, X0, np.eye(4) * 1e308)
+    with pytest.raises(ValueError, match=r"EKF predict P\[\d, \d\] = inf is not finite.*P = 1e\+308"):
+        f.predict([1.0, 0.1])
+    np.testing.assert_array_equal(f.P, np.eye(4) * 1e308)
+    np.testing.assert_array_equal(f.x, X0)
+
+
+def test_bmm_overflow_raises():
+    x, u = np.array([0.0, 0.0, 1.0, 0.3]), np.array([1.0, 0.1])
+    with pytest.raises(ValueError, match=r"Bmm.process_cov Q\[0, 0\] = inf is not finite: it overflows .*dt = 1e\+308"):
+        Bmm(BmmParams(dt=1e308)).process_cov(x, u)
+    with pytest.raises(ValueError, match=r"Bmm.transition x'\[0\] = inf .*state \(1e\+308"):
+        Bmm().transition([1e308, 0.0, 1.0, 0.0], u, [1e308, 0.0, 0.0, 0.0])
+    with pytest.raises(ValueError, match=r"BmmParams.position_noise = 1e\+200 is invalid: must be >= 0 with a finite square"):
+        BmmParams(position_noise=1e200)
+    with pytest.raises(ValueError, match=r"Bmm f\(x, u\)\[0\] = inf"):
+        Bmm(BmmParams(dt=1e308)).predict([1e308, 0.0, 1.0, 0.0], u)
+
+
+@pytest.mark.parametrize("bad, exc, match", [
+    (None, TypeError, r"angle must be a number .*got NoneType"),
+    ([1.0, None], TypeError, r"angle must be a number .*got list"),
+    ("1", TypeError, r"got str"),
+    (float("nan"), ValueError, r"angle = nan is not finite"),
+    ([0.0, float("inf")], ValueError, r"angle\[1\] = inf is not finite"),
+])
+def test_wrap_angle_bad_input(bad, exc, match):
+    from safenav import wrap_angle
+
+    with pytest.raises(exc, match=match):
+        wrap_angle(bad)
+
+
+def test_wrap_angle_keeps_scalars_and_shapes():
+    from safenav import wrap_angle
+
+    assert isinstance(wrap_angle(4.0), float) and wrap_angle(4.0) == pytest.approx(4.0 - 2 * np.pi)
+    assert wrap_angle(np.zeros((2, 3))).shape == (2, 3)
+
+
+def test_wrs_tiny_weight_raises():
+    with pytest.raises(ValueError, match=r"half_width = 2 with weight 1e-310 gives WRS"):
+        metrics.wrs(np.array([[0.0, 1.0]]), np.array([[0.0, 0.0], [1.0, 0.0]]),
+                    RiskZones(weights=[1e-310, 4.0, 6.0, 8.0]))
+
+
+def test_distances_on_huge_coordinates_are_exact_or_raise():
+    from safenav import Corridor
+
+    a, b = np.array([[1e308, 0.0]]), np.array([[0.9e308, 0.0]])
+    assert metrics.ade(a, b) == metrics.fde(a, b) == pytest.approx(1e307, rel=1e-15)
+    assert metrics.path_length([[0.0, 0.0], [1e200, 1e200]]) == pytest.approx(np.sqrt(2) * 1e200, rel=1e-15)
+    far = np.array([[5.0, 1e300], [1e308, 1e308], [3.0, -4.0]])
+    path = np.array([[0.0, 0.0], [10.0, 0.0]])
+    d = metrics.distance_to_path(far, path)
+    np.testing.assert_allclose(d, [1e300, np.hypot(1e308 - 10.0, 1e308), 4.0], rtol=1e-15)
+    np.testing.assert_allclose(Corridor(path).signed_offset(far), [1e300, d[1], -4.0], rtol=1e-15)
+    np.testing.assert_allclose(Corridor(path).arc_length(far), [5.0, 10.0, 3.0], rtol=1e-15)
+    assert Corridor([[0.0, 0.0], [1e200, 0.0]]).length == 1e200
+    # not representable: a clear error naming the values
+    with pytest.raises(ValueError, match=r"ADE: the distance from \(1e\+308, 0\) to \(-1e\+308, -?0\) overflows"):
+        metrics.ade(a, -a)
+    with pytest.raises(ValueError, match=r"FDE: the distance"):
+        metrics.fde(a, -a)
+    with pytest.raises(ValueError, match=r"path length overflows"):
+        metrics.path_length([[0.0, 0.0], [1.5e308, 0.0], [0.0, 0.0]])
+    with pytest.raises(ValueError, match=r"point 0 = \(-1\.7e\+308, 1\.7e\+308\) is farther than 1\.8e308"):
+        metrics.distance_to_path([[-1.7e308, 1.7e308]], path)
+    with pytest.raises(ValueError, match=r"point \(-1\.7e\+308, 1\.7e\+308\) is farther than 1\.8e308"):
+        Corridor(path).signed_offset([[-1.7e308, 1.7e308]])
+
+
+def test_fuzz_findings_ranges_nees_and_filters():
+    # found by tests/test_fuzz.py; each returned inf or NaN before
+    far = MeasurementModel.range([[-1e308, 0.0], [3.0, 4.0]], 1.0)
+    np.testing.assert_allclose(far.predict([4.0, 0.0, 1.0, 0.0]), [1e308, np.hypot(1.0, 4.0)], rtol=1e-15)
+    assert np.isfinite(far.jacobian([4.0, 0.0, 1.0, 0.0])).all()
+    with pytest.raises(ValueError, match=r"landmark 0 at \(-1e\+308, 0\) is farther than 1\.8e308 from the vehicle"):
+        far.predict([1e308, 0.0, 1.0, 0.0])
+    with pytest.raises(ValueError, match=r"NEES: row 0: e\^T P\^-1 e = -?(inf|nan) is not finite \(covariance diagonal 1e-310"):
+        metrics.nees(np.ones((1, 4)), np.zeros((1, 4)), np.eye(4)[None] * 1e-310)
+    ekf = make_ekf(x0=np.array([-1e308, -1e308, 1.0, 0.0]))
+    with pytest.raises(ValueError, match=r"EKF position update: NIS = -?(inf|nan) is not finite"):
+        ekf.update(MeasurementModel.position(), [5.0, 5.0])
+    assert ekf.x[0] == -1e308
+    pf = ParticleFilter(BmmParams(max_speed=1e154, dt=1e300), X0, P0, n_particles=50, seed=1)
+    with pytest.raises(ValueError, match=r"particle filter predict: particle x overflows"):
+        for _ in range(3):
+            pf.predict([1e154, 0.0])
+    eif = InformationFilter(BmmParams(dt=1e308, max_speed=0.1), X0, P0)
+    with pytest.raises(ValueError, match=r"information filter predict P\[\d, \d\] = inf"):
+        eif.predict([0.1, 0.0])

@@ -16,6 +16,11 @@ void pybind_measurement(py::module_& m) {
              return MeasurementModel(kind, GaussianNoise(R, "R"), landmarks);
            }),
            py::arg("kind"), py::arg("R"), py::arg("landmarks") = Landmarks())
+      .def(py::init([](MeasurementKind kind, const Eigen::VectorXd& sigmas, const Landmarks& landmarks) {
+             return MeasurementModel(kind, GaussianNoise::Sigmas(sigmas, "sigmas"), landmarks);
+           }),
+           py::arg("kind"), py::kw_only(), py::arg("sigmas"), py::arg("landmarks") = Landmarks(),
+           "Independent rows: R = diag(sigmas²), stored per row (O(n) for n rows).")
       .def_static("position", &MeasurementModel::position, py::arg("R"))
       .def_static("speed_heading", &MeasurementModel::speed_heading, py::arg("R"))
       .def_static("range", &MeasurementModel::range, py::arg("landmarks"), py::arg("sigma"))
@@ -24,7 +29,8 @@ void pybind_measurement(py::module_& m) {
                   py::arg("sigma_bearing"))
       .def_property_readonly("kind", &MeasurementModel::kind)
       .def_property_readonly("dim", &MeasurementModel::dim)
-      .def_property_readonly("R", [](const MeasurementModel& mm) { return mm.noise().cov(); })
+      .def_property_readonly("R", [](const MeasurementModel& mm) { return mm.noise().cov(); },
+                             "The dense noise covariance (built on each access).")
       .def_property_readonly("landmarks", &MeasurementModel::landmarks)
       .def("is_angle", &MeasurementModel::is_angle, py::arg("i"))
       .def("predict", py::overload_cast<const State&>(&MeasurementModel::predict, py::const_), py::arg("x"))

@@ -60,6 +60,15 @@ void check_gate(double p) {
     throw std::invalid_argument(os.str());
   }
 }
+/// Throws when the NIS yᵀS⁻¹y of an update overflows (a measurement ~1e308 from
+/// the prediction): called before any state changes.
+void check_nis(double nis, const char* filter, MeasurementKind kind) {
+  if (std::isfinite(nis)) return;
+  std::ostringstream os;
+  os << filter << " " << to_string(kind) << " update: NIS = " << nis
+     << " is not finite (the measurement is too far from the prediction for its covariance)";
+  throw std::invalid_argument(os.str());
+}
 void check_prior(const State& x0, const StateCov& P0, const char* xname = "x0", const char* pname = "P0") {
   check_finite_state(x0, xname);
   check_covariance(P0, pname);
@@ -101,10 +110,23 @@ bool Ekf::gate_rejects(double nis, int dim) {
 void Ekf::predict(const Control& u) {
   // Eq. 11: x̂ = f(x̂, u); P = F P Fᵀ + G Σ_ε Gᵀ.
   Eigen::Matrix4d F, G;
-  x_ = bmm_.linearize(x_, u, &F, &G);
+  const State x1 = bmm_.linearize(x_, u, &F, &G);
   const Eigen::Vector4d sigma2 = bmm_.noise_cov().diagonal();
-  P_ = F * P_ * F.transpose() + G * sigma2.asDiagonal() * G.transpose();
-  P_ = 0.5 * (P_ + P_.transpose());
+  Eigen::Matrix4d P1 = F * P_ * F.transpose() + G * sigma2.asDiagonal() * G.transpose();
+  P1 = 0.5 * (P1 + P1.transpose());
+  commit(x1, P1, "EKF predict");
+}
+
+void Ekf::commit(const State& x, const StateCov& P, const char* step) {
+  // Finite inputs can still overflow (P = 1e308·I, say): refuse the step and keep the old state.
+  if (!P.allFinite() || !x.allFinite()) {
+    std::ostringstream os;
+    os << "P = " << P_(0, 0) << ", " << P_(1, 1) << ", " << P_(2, 2) << ", " << P_(3, 3) << " (diagonal)";
+    check_finite_result(x, (std::string(step) + " x").c_str(), os.str());
+    check_finite_result(P, (std::string(step) + " P").c_str(), os.str());
+  }
+  x_ = x;
+  P_ = P;
 }
 
 template <int M>
@@ -129,16 +151,17 @@ UpdateResult Ekf::update_fixed(const MeasurementModel& model, const Eigen::Ref<c
   UpdateResult res;
   res.dim = m;
   res.nis = y.dot(llt.solve(y));
+  check_nis(res.nis, "EKF", model.kind());
   if (gate_rejects(res.nis, m)) {
     res.accepted = false;
     return res;
   }
   const Eigen::Matrix<double, 4, M> K = llt.solve(PHt.transpose()).transpose();  // eq. 13
-  x_ += K * y;                                                                    // eq. 14
-  x_[kTheta] = wrap_angle(x_[kTheta]);
+  State x1 = x_ + K * y;                                                          // eq. 14
+  x1[kTheta] = wrap_angle(x1[kTheta]);
   const Eigen::Matrix4d IKH = Eigen::Matrix4d::Identity() - K * H;
-  P_ = IKH * P_ * IKH.transpose() + K * R * K.transpose();  // Joseph form of eq. 14
-  P_ = 0.5 * (P_ + P_.transpose());
+  Eigen::Matrix4d P1 = IKH * P_ * IKH.transpose() + K * R * K.transpose();  // Joseph form of eq. 14
+  commit(x1, 0.5 * (P1 + P1.transpose()), "EKF update");
   return res;
 }
 
@@ -155,17 +178,18 @@ UpdateResult Ekf::update_position(const Eigen::Ref<const Eigen::VectorXd>& z, co
   UpdateResult res;
   res.dim = 2;
   res.nis = y.dot(llt.solve(y));
+  check_nis(res.nis, "EKF", MeasurementKind::Position);
   if (gate_rejects(res.nis, 2)) {
     res.accepted = false;
     return res;
   }
   const Eigen::Matrix<double, 4, 2> K = llt.solve(PHt.transpose()).transpose();
-  x_ += K * y;
-  x_[kTheta] = wrap_angle(x_[kTheta]);
+  State x1 = x_ + K * y;
+  x1[kTheta] = wrap_angle(x1[kTheta]);
   // Joseph form: A = (I − KH) P = P − K P[:2, :]; P = A (I − KH)ᵀ + K R Kᵀ = A − A[:, :2] Kᵀ + K R Kᵀ.
   const Eigen::Matrix4d A = P_ - K * P_.topRows<2>();
-  P_ = A - A.leftCols<2>() * K.transpose() + K * R * K.transpose();
-  P_ = 0.5 * (P_ + P_.transpose());
+  const Eigen::Matrix4d P1 = A - A.leftCols<2>() * K.transpose() + K * R * K.transpose();
+  commit(x1, 0.5 * (P1 + P1.transpose()), "EKF position update");
   return res;
 }
 
@@ -652,6 +676,11 @@ struct ParticleFilter::Impl {
          s[1], s[4], s[5], s[6],
          s[2], s[5], s[7], s[8],
          s[3], s[6], s[8], s[9];
+    if (!P.allFinite()) {  // deviations beyond ~1e154 (e.g. one ulp of positions near 1e308) square to inf
+      std::ostringstream os;
+      os << "particle covariance about (" << m[0] << ", " << m[1] << ", " << m[2] << ", " << m[3] << ")";
+      check_finite_result(P, "particle filter P", os.str());
+    }
     return P;
   }
 
@@ -747,6 +776,17 @@ void ParticleFilter::predict(const Control& u) {
     throw std::invalid_argument(os.str());
   }
   impl_->predict(u[0], impl_->bmm.clipped_heading_change(u[1]));
+  // Finite inputs can still overflow (positions near 1e308, a huge dt·v_max); v and θ stay bounded.
+  for (int c : {kX, kY}) {
+    const Eigen::Map<const Eigen::ArrayXd> col(impl_->col(c), impl_->n());
+    if (!col.allFinite()) {
+      std::ostringstream os;
+      os << "particle filter predict: particle " << (c == kX ? "x" : "y") << " overflows (control (" << u[0]
+         << ", " << u[1] << "), dt = " << impl_->bmm.params().dt << ", max_speed = "
+         << impl_->bmm.params().max_speed << ")";
+      throw std::invalid_argument(os.str());
+    }
+  }
 }
 
 UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z) {
@@ -754,9 +794,10 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
   auto& I = *impl_;
   const int m = model.dim();
   const int N = I.n();
-  const Eigen::MatrixXd& R = model.noise().cov();
+  const Eigen::MatrixXd R = model.noise().cov();
   UpdateResult res;
   res.dim = m;
+  const Eigen::ArrayXd prior_logw = Eigen::Map<const Eigen::ArrayXd>(I.logw(), N);
   if (model.kind() == MeasurementKind::Position) {
     // Fast path: 2-D residuals, log-likelihood and NIS moments in one pass.
     const Eigen::Matrix2d Ri = R.inverse();
@@ -787,10 +828,20 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
     const Eigen::MatrixXd S = D * w.asDiagonal() * D.transpose() + R;
     res.nis = ybar.dot(S.ldlt().solve(ybar));
     // log-likelihood −½ yᵀR⁻¹y = −½‖L⁻¹y‖², added to the log-weights.
-    Eigen::LLT<Eigen::MatrixXd>(R).matrixL().solveInPlace(I.Y);
+    model.noise().whiten(I.Y);
     Eigen::Map<Eigen::ArrayXd>(I.logw(), N) -= 0.5 * I.Y.colwise().squaredNorm().transpose().array();
   }
-  I.normalise(Eigen::Map<const Eigen::ArrayXd>(I.logw(), N).maxCoeff());  // the maximum is exact in any order
+  const double mx = Eigen::Map<const Eigen::ArrayXd>(I.logw(), N).maxCoeff();  // exact in any order
+  if (!std::isfinite(mx) || !std::isfinite(res.nis)) {  // keep the prior weights, then say why
+    Eigen::Map<Eigen::ArrayXd>(I.logw(), N) = prior_logw;
+    check_nis(res.nis, "particle filter", model.kind());
+    // every likelihood underflowed (residuals beyond ~1e154 σ)
+    std::ostringstream os;
+    os << "particle filter " << to_string(model.kind()) << " update: the measurement has zero likelihood under "
+       << "every particle (log-likelihood " << mx << ")";
+    throw std::invalid_argument(os.str());
+  }
+  I.normalise(mx);
   if (I.ess < I.resample_threshold * N) I.resample();
   return res;
 }
@@ -815,6 +866,11 @@ void InformationFilter::predict(const Control& u) {
   const Eigen::Vector4d sigma2 = bmm_.noise_cov().diagonal();
   Eigen::Matrix4d Pp = F * P() * F.transpose() + G * sigma2.asDiagonal() * G.transpose();
   Pp = 0.5 * (Pp + Pp.transpose());
+  if (!Pp.allFinite()) {
+    std::ostringstream os;
+    os << "dt = " << bmm_.params().dt << " and the prior P (diagonal " << P().diagonal().transpose() << ")";
+    check_finite_result(Pp, "information filter predict P", os.str());
+  }
   const Eigen::LLT<Eigen::Matrix4d> llt(Pp);
   if (llt.info() != Eigen::Success || !(llt.matrixL().toDenseMatrix().diagonal().minCoeff() > 1e-12)) {
     // Zero uncertainty in some direction: infinite information, which the
@@ -836,15 +892,22 @@ UpdateResult InformationFilter::update(const MeasurementModel& model, const Eige
   const Eigen::MatrixXd H = model.jacobian(xb);
   Eigen::VectorXd zhat = model.predict(xb), nu(model.dim());
   model.residual(z, zhat, nu);
-  const Eigen::MatrixXd& R = model.noise().cov();
+  const Eigen::MatrixXd R = model.noise().cov();
   const Eigen::MatrixXd RinvH = R.ldlt().solve(H);  // R⁻¹ H
   UpdateResult res;
   res.dim = model.dim();
   const Eigen::MatrixXd S = H * P() * H.transpose() + R;
   res.nis = nu.dot(S.ldlt().solve(nu));
-  Y_ += H.transpose() * RinvH;
-  Y_ = 0.5 * (Y_ + Y_.transpose());
-  y_ += RinvH.transpose() * (nu + H * xb);
+  check_nis(res.nis, "information filter", model.kind());
+  Eigen::Matrix4d Y1 = Y_ + H.transpose() * RinvH;
+  Y1 = 0.5 * (Y1 + Y1.transpose());
+  const State y1 = y_ + RinvH.transpose() * (nu + H * xb);
+  if (!Y1.allFinite() || !y1.allFinite()) {
+    throw std::invalid_argument(std::string("information filter ") + to_string(model.kind()) +
+                                " update: the information overflows (measurement noise too small for its scale)");
+  }
+  Y_ = Y1;
+  y_ = y1;
   return res;
 }
 

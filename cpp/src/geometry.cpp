@@ -77,10 +77,11 @@ Corridor::Corridor(const Eigen::Ref<const Points2>& path, RiskZones zones) : zon
   }
   path_.resize(static_cast<Eigen::Index>(keep.size()), 2);
   for (size_t i = 0; i < keep.size(); ++i) path_.row(static_cast<Eigen::Index>(i)) = path.row(keep[i]);
+  const double sc = overflow_scale(path_.cwiseAbs().maxCoeff());  // exact; squares cannot overflow
   cumulative_.resize(path_.rows());
   cumulative_[0] = 0.0;
   for (Eigen::Index i = 1; i < path_.rows(); ++i)
-    cumulative_[i] = cumulative_[i - 1] + (path_.row(i) - path_.row(i - 1)).norm();
+    cumulative_[i] = cumulative_[i - 1] + (path_.row(i) * sc - path_.row(i - 1) * sc).norm() / sc;
   if (!(length() > 0.0) || !std::isfinite(length())) {
     std::ostringstream os;
     os << "path length = " << length() << " must be finite and > 0";
@@ -90,23 +91,40 @@ Corridor::Corridor(const Eigen::Ref<const Points2>& path, RiskZones zones) : zon
 
 PathProjection Corridor::project(const Eigen::Vector2d& p) const {
   check_point(p, "point");
+  // Coordinates beyond 2^500 are scaled by a power of two (exact, so ordinary
+  // inputs keep every bit): the squared distances below cannot overflow.
+  const double sc = overflow_scale(std::max(p.cwiseAbs().maxCoeff(), path_.cwiseAbs().maxCoeff()));
+  const Points2 scaled = sc == 1.0 ? Points2() : Points2(path_ * sc);
+  const Points2& path = sc == 1.0 ? path_ : scaled;
+  const Eigen::Vector2d q = p * sc;
   PathProjection best;
   double best_d2 = std::numeric_limits<double>::infinity();
   double best_t = 0.0;
-  for (Eigen::Index k = 0; k + 1 < path_.rows(); ++k) {
-    const Eigen::Vector2d a = path_.row(k).transpose(), ab = path_.row(k + 1).transpose() - a;
-    const double t = std::clamp((p - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+  // Scaled, a short edge's squared length can underflow: take its direction from the unscaled edge.
+  auto along_scaled = [&](const Eigen::Vector2d& w, Eigen::Index k) {
+    const Eigen::Vector2d e = (path_.row(k + 1) - path_.row(k)).transpose();
+    const double len = std::hypot(e.x(), e.y()), den = len * sc;
+    return den > 0.0 ? w.dot(e / len) / den : 0.0;
+  };
+  for (Eigen::Index k = 0; k + 1 < path.rows(); ++k) {
+    const Eigen::Vector2d a = path.row(k).transpose(), ab = path.row(k + 1).transpose() - a;
+    const double t = std::clamp(sc == 1.0 ? (q - a).dot(ab) / ab.squaredNorm() : along_scaled(q - a, k), 0.0, 1.0);
     const Eigen::Vector2d foot = a + t * ab;
-    const double d2 = (p - foot).squaredNorm();
+    const double d2 = (q - foot).squaredNorm();
     if (d2 < best_d2) {
       best_d2 = d2;
       best_t = t;
       best.edge = static_cast<int>(k);
-      best.foot = foot;
+      best.foot = foot / sc;
     }
   }
   const Eigen::Index k = best.edge;
-  best.distance = std::sqrt(best_d2);
+  best.distance = std::sqrt(best_d2) / sc;
+  if (!std::isfinite(best.distance)) {
+    std::ostringstream os;
+    os << "point (" << p.x() << ", " << p.y() << ") is farther than 1.8e308 from the path";
+    throw std::invalid_argument(os.str());
+  }
   best.arc_length = std::min(cumulative_[k] + best_t * (cumulative_[k + 1] - cumulative_[k]), length());
   if (best.distance > 0.0) {
     const CGAL::Orientation o = CGAL::orientation(Point(path_(k, 0), path_(k, 1)),
@@ -177,7 +195,7 @@ Eigen::VectorXd Corridor::wrs(const Eigen::Ref<const Points2>& pts) const {
 }
 double Corridor::awrs(const Eigen::Ref<const Points2>& pts) const {
   check_points(pts, "points", 1);
-  return wrs(pts).mean();
+  return finite_mean(wrs(pts));
 }
 Points2 Corridor::points_at(const Eigen::Ref<const Eigen::VectorXd>& s) const {
   Points2 out(s.size(), 2);
@@ -297,9 +315,12 @@ int PathSegments::segment_at(double s) const {
 
 Points2 PathSegments::polyline(double s0, double s1) const {
   const Eigen::VectorXd& cum = corridor_.vertex_arc_lengths();
+  // The vertices strictly between s0 and s1, found by binary search: O(log M + vertices in range).
+  const double* begin = cum.data();
+  const Eigen::Index i0 = std::upper_bound(begin, begin + cum.size(), s0) - begin;
+  const Eigen::Index i1 = std::max(i0, static_cast<Eigen::Index>(std::lower_bound(begin, begin + cum.size(), s1) - begin));
   std::vector<Eigen::RowVector2d> rows{corridor_.point_at(s0).transpose()};
-  for (Eigen::Index i = 0; i < cum.size(); ++i)
-    if (cum[i] > s0 && cum[i] < s1) rows.push_back(corridor_.path().row(i));
+  for (Eigen::Index i = i0; i < i1; ++i) rows.push_back(corridor_.path().row(i));
   rows.push_back(corridor_.point_at(s1).transpose());
   Points2 out(static_cast<Eigen::Index>(rows.size()), 2);
   for (size_t i = 0; i < rows.size(); ++i) out.row(static_cast<Eigen::Index>(i)) = rows[i];

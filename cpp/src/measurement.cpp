@@ -1,6 +1,7 @@
 #include "safenav/measurement.hpp"
 
 #include <Eigen/Cholesky>
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -20,42 +21,96 @@ const char* to_string(MeasurementKind kind) {
 
 // ------------------------------- GaussianNoise ------------------------------
 
-GaussianNoise::GaussianNoise(const Eigen::MatrixXd& R, const char* what) : R_(R) {
+GaussianNoise::GaussianNoise(const Eigen::MatrixXd& R, const char* what) { add_block(R, what); }
+
+void GaussianNoise::add_block(const Eigen::MatrixXd& R, const char* what) {
   std::ostringstream os;
   if (R.rows() != R.cols() || R.rows() == 0) {
     os << what << " must be a non-empty square matrix, got " << R.rows() << "x" << R.cols();
     throw std::invalid_argument(os.str());
   }
-  if (!R.allFinite()) {
-    os << what << " has non-finite entries:\n" << R;
-    throw std::invalid_argument(os.str());
-  }
+  for (Eigen::Index j = 0; j < R.cols(); ++j)
+    for (Eigen::Index i = 0; i < R.rows(); ++i)
+      if (!std::isfinite(R(i, j))) {
+        os << what << "[" << dim_ + i << ", " << dim_ + j << "] = " << R(i, j) << " is not finite";
+        throw std::invalid_argument(os.str());
+      }
   const double scale = std::max(1.0, R.cwiseAbs().maxCoeff());
-  if ((R - R.transpose()).cwiseAbs().maxCoeff() > 1e-9 * scale) {
-    os << what << " is not symmetric:\n" << R;
+  Eigen::Index i, j;
+  if ((R - R.transpose()).cwiseAbs().maxCoeff(&i, &j) > 1e-9 * scale) {
+    os << what << " is not symmetric: [" << dim_ + i << ", " << dim_ + j << "] = " << R(i, j) << " but ["
+       << dim_ + j << ", " << dim_ + i << "] = " << R(j, i);
     throw std::invalid_argument(os.str());
   }
   Eigen::LLT<Eigen::MatrixXd> llt(R);
   if (llt.info() != Eigen::Success) {
-    os << what << " is not positive definite:\n" << R;
+    os << what << " (" << R.rows() << "x" << R.cols() << " block at row " << dim_ << ") is not positive definite";
     throw std::invalid_argument(os.str());
   }
-  L_ = llt.matrixL();
+  blocks_.push_back(Block{dim_, R, Eigen::MatrixXd(llt.matrixL())});
+  dim_ += static_cast<int>(R.rows());
 }
 
 GaussianNoise GaussianNoise::Sigmas(const Eigen::VectorXd& sigmas, const char* what) {
+  GaussianNoise out;
+  out.blocks_.reserve(static_cast<size_t>(sigmas.size()));
   for (Eigen::Index i = 0; i < sigmas.size(); ++i) {
-    if (!(std::isfinite(sigmas[i]) && sigmas[i] > 0.0)) {
+    const double s = sigmas[i], s2 = s * s;
+    if (!(std::isfinite(s2) && s > 0.0 && s2 > 0.0)) {
       std::ostringstream os;
-      os << what << "[" << i << "] = " << sigmas[i] << " must be finite and > 0";
+      os << what << "[" << i << "] = " << s << " must be > 0 with a finite, non-zero square";
       throw std::invalid_argument(os.str());
     }
+    out.blocks_.push_back(Block{out.dim_++, Eigen::MatrixXd::Constant(1, 1, s2), Eigen::MatrixXd::Constant(1, 1, s)});
   }
-  return GaussianNoise(Eigen::MatrixXd(sigmas.array().square().matrix().asDiagonal()), what);
+  if (out.dim_ == 0) throw std::invalid_argument(std::string(what) + " must not be empty");
+  return out;
+}
+
+Eigen::MatrixXd GaussianNoise::cov() const {
+  Eigen::MatrixXd R = Eigen::MatrixXd::Zero(dim_, dim_);
+  for (const Block& b : blocks_) R.block(b.start, b.start, b.R.rows(), b.R.cols()) = b.R;
+  return R;
 }
 
 double GaussianNoise::mahalanobis2(const Eigen::Ref<const Eigen::VectorXd>& y) const {
-  return L_.triangularView<Eigen::Lower>().solve(y).squaredNorm();
+  Eigen::MatrixXd w = y;
+  whiten(w);
+  return w.squaredNorm();
+}
+
+void GaussianNoise::whiten(Eigen::Ref<Eigen::MatrixXd> Y) const {
+  for (const Block& b : blocks_)
+    b.L.triangularView<Eigen::Lower>().solveInPlace(Y.middleRows(b.start, b.L.rows()));
+}
+
+size_t GaussianNoise::block_of(int row) const {
+  const auto it = std::upper_bound(blocks_.begin(), blocks_.end(), row,
+                                   [](int r, const Block& b) { return r < b.start; });
+  return static_cast<size_t>(it - blocks_.begin()) - 1;
+}
+
+GaussianNoise GaussianNoise::subset(const std::vector<int>& rows) const {
+  GaussianNoise out;
+  std::vector<bool> used(blocks_.size(), false);
+  for (size_t a = 0; a < rows.size();) {
+    const size_t k = block_of(rows[a]);
+    size_t b = a + 1;
+    while (b < rows.size() && block_of(rows[b]) == k) ++b;
+    if (used[k]) {
+      throw std::invalid_argument("noise subset: rows of the correlated block at row " +
+                                  std::to_string(blocks_[k].start) + " are not consecutive");
+    }
+    used[k] = true;
+    const Block& B = blocks_[k];
+    const Eigen::Index n = static_cast<Eigen::Index>(b - a);
+    Eigen::MatrixXd R(n, n);
+    for (Eigen::Index i = 0; i < n; ++i)
+      for (Eigen::Index j = 0; j < n; ++j) R(i, j) = B.R(rows[a + i] - B.start, rows[a + j] - B.start);
+    out.add_block(R, "subset R");
+    a = b;
+  }
+  return out;
 }
 
 // ------------------------------ MeasurementModel ----------------------------
@@ -83,6 +138,24 @@ constexpr double kMinDist2 = 1e-18;
   os << "landmark " << i << " coincides with the vehicle position (" << x[kX] << ", " << x[kY]
      << "): range/bearing undefined";
   throw std::invalid_argument(os.str());
+}
+
+/// Landmark i relative to the vehicle: (dx, dy), q = dx² + dy² and the range r
+/// (std::hypot when q overflows, so any representable range comes back).
+struct Offset {
+  double dx, dy, q, r;
+};
+Offset offset(const Landmarks& lm, Eigen::Index i, const State& x) {
+  const double dx = lm(i, 0) - x[kX], dy = lm(i, 1) - x[kY];
+  if (!std::isfinite(dx) || !std::isfinite(dy)) {
+    std::ostringstream os;
+    os << "landmark " << i << " at (" << lm(i, 0) << ", " << lm(i, 1) << ") is farther than 1.8e308 from the vehicle ("
+       << x[kX] << ", " << x[kY] << ")";
+    throw std::invalid_argument(os.str());
+  }
+  const double q = dx * dx + dy * dy;
+  if (q < kMinDist2) landmark_at_vehicle(static_cast<int>(i), x);
+  return {dx, dy, q, std::isfinite(q) ? std::sqrt(q) : std::hypot(dx, dy)};
 }
 }  // namespace
 
@@ -159,10 +232,7 @@ void MeasurementModel::predict(const State& x, Eigen::Ref<Eigen::VectorXd> zhat)
     default: break;
   }
   for (Eigen::Index i = 0; i < landmarks_.rows(); ++i) {
-    const double dx = landmarks_(i, 0) - x[kX], dy = landmarks_(i, 1) - x[kY];
-    const double q = dx * dx + dy * dy;
-    if (q < kMinDist2) landmark_at_vehicle(static_cast<int>(i), x);
-    const double r = std::sqrt(q);
+    const auto [dx, dy, q, r] = offset(landmarks_, i, x);
     const double b = wrap_angle(std::atan2(dy, dx) - x[kTheta]);
     if (kind_ == MeasurementKind::Range) zhat[i] = r;
     else if (kind_ == MeasurementKind::Bearing) zhat[i] = b;
@@ -193,10 +263,7 @@ void MeasurementModel::jacobian(const State& x, Eigen::Ref<Eigen::MatrixXd> H) c
     default: break;
   }
   for (Eigen::Index i = 0; i < landmarks_.rows(); ++i) {
-    const double dx = landmarks_(i, 0) - x[kX], dy = landmarks_(i, 1) - x[kY];
-    const double q = dx * dx + dy * dy;
-    if (q < kMinDist2) landmark_at_vehicle(static_cast<int>(i), x);
-    const double r = std::sqrt(q);
+    const auto [dx, dy, q, r] = offset(landmarks_, i, x);
     // ∂r/∂(x,y) = −(dx, dy)/r ; ∂b/∂(x,y) = (dy, −dx)/q ; ∂b/∂θ = −1
     Eigen::Index rr = -1, rb = -1;
     if (kind_ == MeasurementKind::Range) rr = i;
@@ -255,11 +322,7 @@ MeasurementModel MeasurementModel::subset(const std::vector<int>& rows) const {
     lm.row(static_cast<Eigen::Index>(j)) = landmarks_.row(rows[j]);
     for (int c = 0; c < per; ++c) idx.push_back(per * rows[j] + c);
   }
-  const Eigen::Index n = static_cast<Eigen::Index>(idx.size());
-  Eigen::MatrixXd R(n, n);
-  for (Eigen::Index a = 0; a < n; ++a)
-    for (Eigen::Index b = 0; b < n; ++b) R(a, b) = noise_.cov()(idx[a], idx[b]);
-  return MeasurementModel(kind_, GaussianNoise(R, "subset R"), lm);
+  return MeasurementModel(kind_, noise_.subset(idx), lm);
 }
 
 }  // namespace safenav

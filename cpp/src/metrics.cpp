@@ -27,6 +27,35 @@ void check_points(const Eigen::Ref<const Points2>& p, const char* what, Eigen::I
   }
 }
 
+double overflow_scale(double max_abs) {
+  int e = 0;
+  std::frexp(max_abs, &e);
+  return e > 500 ? std::ldexp(1.0, -e) : 1.0;
+}
+
+double finite_mean(const Eigen::Ref<const Eigen::VectorXd>& values) {
+  const double m = values.mean();  // divide before summing only when the sum overflows
+  return std::isfinite(m) ? m : (values / static_cast<double>(values.size())).sum();
+}
+
+namespace {
+/// ‖a − b‖ without overflow in the squares (std::hypot); throws naming `what`
+/// and both points when the distance itself is not representable.
+double distance(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const char* what) {
+  const double d = std::hypot(a.x() - b.x(), a.y() - b.y());
+  if (!std::isfinite(d)) {
+    std::ostringstream os;
+    os << what << ": the distance from (" << a.x() << ", " << a.y() << ") to (" << b.x() << ", " << b.y()
+       << ") overflows";
+    throw std::invalid_argument(os.str());
+  }
+  return d;
+}
+
+Eigen::Vector2d row(const Eigen::Ref<const Points2>& p, Eigen::Index i) { return p.row(i).transpose(); }
+
+}  // namespace
+
 double ade(const Eigen::Ref<const Points2>& est, const Eigen::Ref<const Points2>& truth) {
   check_points(est, "estimate");
   check_points(truth, "truth");
@@ -35,25 +64,37 @@ double ade(const Eigen::Ref<const Points2>& est, const Eigen::Ref<const Points2>
     os << "ADE pairs points by time: estimate has " << est.rows() << " points but truth has " << truth.rows();
     throw std::invalid_argument(os.str());
   }
-  return (est - truth).rowwise().norm().mean();
+  const Eigen::Index n = est.rows();
+  Eigen::VectorXd d(n);
+  for (Eigen::Index i = 0; i < n; ++i) d[i] = distance(row(est, i), row(truth, i), "ADE");
+  return finite_mean(d);
 }
 
 double fde(const Eigen::Ref<const Points2>& est, const Eigen::Ref<const Points2>& truth) {
   check_points(est, "estimate");
   check_points(truth, "truth");
-  return (est.row(est.rows() - 1) - truth.row(truth.rows() - 1)).norm();
+  return distance(row(est, est.rows() - 1), row(truth, truth.rows() - 1), "FDE");
 }
 
 double path_length(const Eigen::Ref<const Points2>& path) {
   check_points(path, "path");
-  if (path.rows() < 2) return 0.0;
-  return (path.bottomRows(path.rows() - 1) - path.topRows(path.rows() - 1)).rowwise().norm().sum();
+  Eigen::VectorXd d(path.rows() - 1);
+  for (Eigen::Index i = 0; i + 1 < path.rows(); ++i) d[i] = distance(row(path, i + 1), row(path, i), "path length");
+  const double L = d.sum();
+  if (!std::isfinite(L)) throw std::invalid_argument("path length overflows (sum of edge lengths > 1.8e308)");
+  return L;
 }
 
 double path_length_error_percent(const Eigen::Ref<const Points2>& est, const Eigen::Ref<const Points2>& truth) {
-  const double lt = path_length(truth);
+  const double lt = path_length(truth), le = path_length(est);
   if (!(lt > 0.0)) throw std::invalid_argument("percent path-length error: the true path has zero length");
-  return std::abs(path_length(est) - lt) / lt * 100.0;
+  const double e = std::abs(le - lt) / lt * 100.0;
+  if (!std::isfinite(e)) {
+    std::ostringstream os;
+    os << "percent path-length error overflows: estimate length " << le << ", true length " << lt;
+    throw std::invalid_argument(os.str());
+  }
+  return e;
 }
 
 void RiskZones::validate() const {
@@ -69,22 +110,45 @@ void RiskZones::validate() const {
       throw std::invalid_argument(os.str());
     }
   }
+  // The largest WRS is below d_max·(d_max/w_min) (eq. 18): it must be representable.
+  const double wmin = *std::min_element(weights.begin(), weights.end());
+  if (!std::isfinite(half_width * (half_width / wmin))) {
+    os << "RiskZones: half_width = " << half_width << " with weight " << wmin
+       << " gives WRS = d_max^2/w beyond 1.8e308";
+    throw std::invalid_argument(os.str());
+  }
 }
 
 Eigen::VectorXd distance_to_path(const Eigen::Ref<const Points2>& points, const Eigen::Ref<const Points2>& path) {
   check_points(points, "points", 0);
   check_points(path, "path");
-  Eigen::VectorXd d(points.rows());
-  for (Eigen::Index i = 0; i < points.rows(); ++i) {
-    const Eigen::RowVector2d p = points.row(i);
-    double best = (p - path.row(0)).squaredNorm();
-    for (Eigen::Index k = 0; k + 1 < path.rows(); ++k) {
-      const Eigen::RowVector2d a = path.row(k), ab = path.row(k + 1) - a;
+  auto nearest2 = [](const Eigen::RowVector2d& p, const Points2& q) {  // squared distance to the polyline q
+    double best = (p - q.row(0)).squaredNorm();
+    for (Eigen::Index k = 0; k + 1 < q.rows(); ++k) {
+      const Eigen::RowVector2d a = q.row(k), ab = q.row(k + 1) - a;
       const double L2 = ab.squaredNorm();
       const double t = L2 > 0.0 ? std::clamp((p - a).dot(ab) / L2, 0.0, 1.0) : 0.0;
       best = std::min(best, (p - (a + t * ab)).squaredNorm());
     }
-    d[i] = std::sqrt(best);
+    return best;
+  };
+  // A point whose coordinates (or the path's) exceed 2^500 is measured with
+  // everything scaled by one power of two (exact), so the squares cannot overflow.
+  const Points2 Q = path;
+  const double path_max = Q.cwiseAbs().maxCoeff();
+  const double sc = overflow_scale(std::max(points.rows() ? points.cwiseAbs().maxCoeff() : 0.0, path_max));
+  const Points2 Qs = Q * sc;
+  Eigen::VectorXd d(points.rows());
+  for (Eigen::Index i = 0; i < points.rows(); ++i) {
+    const Eigen::RowVector2d p = points.row(i);
+    const bool big = overflow_scale(std::max(p.cwiseAbs().maxCoeff(), path_max)) != 1.0;
+    d[i] = big ? std::sqrt(nearest2(p * sc, Qs)) / sc : std::sqrt(nearest2(p, Q));
+    if (!std::isfinite(d[i])) {
+      std::ostringstream os;
+      os << "distance_to_path: point " << i << " = (" << p.x() << ", " << p.y()
+         << ") is farther than 1.8e308 from the path";
+      throw std::invalid_argument(os.str());
+    }
   }
   return d;
 }
@@ -115,7 +179,7 @@ Eigen::VectorXd wrs(const Eigen::Ref<const Points2>& points, const Eigen::Ref<co
 
 double awrs(const Eigen::Ref<const Points2>& points, const Eigen::Ref<const Points2>& path, const RiskZones& zones) {
   check_points(points, "points");
-  return wrs(points, path, zones).mean();
+  return finite_mean(wrs(points, path, zones));
 }
 
 Eigen::VectorXd nees(const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>& est,
@@ -153,6 +217,11 @@ Eigen::VectorXd nees(const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic
       throw std::invalid_argument(os.str());
     }
     out[k] = e.dot(llt.solve(e));
+    if (!std::isfinite(out[k])) {  // finite inputs, but P near-singular at its scale (1e-310) or e, P near 1e308
+      os << "NEES: row " << k << ": e^T P^-1 e = " << out[k] << " is not finite (covariance diagonal "
+         << P.diagonal().transpose() << ")";
+      throw std::invalid_argument(os.str());
+    }
   }
   return out;
 }

@@ -26,6 +26,8 @@ void require(bool ok, const char* field, double value, const char* rule) {
 }
 bool finite_nonneg(double v) { return std::isfinite(v) && v >= 0.0; }
 bool finite_pos(double v) { return std::isfinite(v) && v > 0.0; }
+/// A noise sigma enters as its square (Σ_ε, eq. 6): the square must be finite too.
+bool finite_sigma(double v) { return v >= 0.0 && std::isfinite(v * v); }
 }  // namespace
 
 void BmmParams::validate() const {
@@ -35,9 +37,9 @@ void BmmParams::validate() const {
   require(finite_pos(max_heading_rate), "max_heading_rate", max_heading_rate, "finite and > 0");
   require(finite_pos(dt), "dt", dt, "finite and > 0");
   require(finite_nonneg(terrain_effect), "terrain_effect", terrain_effect, "finite and >= 0");
-  require(finite_nonneg(speed_noise), "speed_noise", speed_noise, "finite and >= 0");
-  require(finite_nonneg(heading_noise), "heading_noise", heading_noise, "finite and >= 0");
-  require(finite_nonneg(position_noise), "position_noise", position_noise, "finite and >= 0");
+  require(finite_sigma(speed_noise), "speed_noise", speed_noise, ">= 0 with a finite square");
+  require(finite_sigma(heading_noise), "heading_noise", heading_noise, ">= 0 with a finite square");
+  require(finite_sigma(position_noise), "position_noise", position_noise, ">= 0 with a finite square");
 }
 
 void check_finite_state(const State& x, const char* what) {
@@ -51,7 +53,30 @@ void check_finite_state(const State& x, const char* what) {
   }
 }
 
+void check_finite_result(const Eigen::Ref<const Eigen::MatrixXd>& r, const char* what, const std::string& cause) {
+  for (Eigen::Index j = 0; j < r.cols(); ++j)
+    for (Eigen::Index i = 0; i < r.rows(); ++i)
+      if (!std::isfinite(r(i, j))) {
+        std::ostringstream os;
+        os << what << "[" << i;
+        if (r.cols() > 1) os << ", " << j;
+        os << "] = " << r(i, j) << " is not finite: it overflows for " << cause;
+        throw std::invalid_argument(os.str());
+      }
+}
+
 namespace {
+/// Throws (via check_finite_result) when `r` has a non-finite entry, naming
+/// the inputs; the message is built only then.
+void check_result(const Eigen::Ref<const Eigen::MatrixXd>& r, const char* what, const State& x, const Control& u,
+                  const BmmParams& p) {
+  if (r.allFinite()) return;
+  std::ostringstream os;
+  os << "state (" << x[0] << ", " << x[1] << ", " << x[2] << ", " << x[3] << "), control (" << u[0] << ", " << u[1]
+     << "), dt = " << p.dt;
+  check_finite_result(r, what, os.str());
+}
+
 void check_control(const Control& u) {
   if (!std::isfinite(u[0]) || !std::isfinite(u[1])) {
     std::ostringstream os;
@@ -68,6 +93,11 @@ State Bmm::predict(const State& x, const Control& u) const { return linearize(x,
 State Bmm::transition(const State& x, const Control& u, const Eigen::Vector4d& eps) const {
   check_finite_state(x, "state");
   check_control(u);
+  if (!eps.allFinite()) {
+    std::ostringstream os;
+    os << "noise eps = (" << eps[0] << ", " << eps[1] << ", " << eps[2] << ", " << eps[3] << ") is not finite";
+    throw std::invalid_argument(os.str());
+  }
   // eqs. 3, 4 and 6: speed and heading with their noise; eq. 7/9: the position
   // moves with the *updated* speed and heading.
   const double v1 = std::clamp(next_speed(x[kV], u[0]) + eps[2], 0.0, params_.max_speed);
@@ -75,6 +105,7 @@ State Bmm::transition(const State& x, const Control& u, const Eigen::Vector4d& e
   const double k = params_.terrain_factor() * params_.dt;
   State out;
   out << x[kX] + k * v1 * std::cos(th1) + eps[0], x[kY] + k * v1 * std::sin(th1) + eps[1], v1, th1;
+  check_result(out, "Bmm.transition x'", x, u, params_);
   return out;
 }
 
@@ -114,6 +145,9 @@ State Bmm::linearize(const State& x, const Control& u, Eigen::Matrix4d* F, Eigen
   }
   State out;
   out << x[kX] + k * v1 * c, x[kY] + k * v1 * s, v1, th1;
+  check_result(out, "Bmm f(x, u)", x, u, p);
+  if (F) check_result(*F, "Bmm Jacobian F", x, u, p);
+  if (G) check_result(*G, "Bmm noise Jacobian G", x, u, p);
   return out;
 }
 
@@ -138,7 +172,9 @@ Eigen::Matrix4d Bmm::noise_cov() const {
 
 Eigen::Matrix4d Bmm::process_cov(const State& x, const Control& u) const {
   const Eigen::Matrix4d G = noise_jacobian(x, u);
-  return G * noise_cov() * G.transpose();
+  const Eigen::Matrix4d Q = G * noise_cov() * G.transpose();
+  check_result(Q, "Bmm.process_cov Q", x, u, params_);
+  return Q;
 }
 
 Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor> Bmm::simulate(

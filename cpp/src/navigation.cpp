@@ -204,6 +204,8 @@ void NavigationSettings::validate() const {
 // Algorithms 1 and 2
 
 Control centroid_control(const PathSegments& segments, const State& estimate, double cruise_speed) {
+  check_finite_state(estimate, "estimate");
+  require_finite_positive(cruise_speed, "cruise_speed");
   const Eigen::Vector2d p = estimate.head<2>();
   const CentroidTarget t = segments.nearest_centroid_ahead(p);
   const Eigen::Vector2d target = t.ahead ? t.point : Eigen::Vector2d(segments.corridor().path().bottomRows<1>().transpose());
@@ -212,6 +214,10 @@ Control centroid_control(const PathSegments& segments, const State& estimate, do
 
 ChullDecision chull_control(const PathSegments& segments, const Bmm& bmm, const State& estimate, double cruise_speed,
                             double lookahead, double step_back_speed, const ObstacleChecker* obstacles) {
+  check_finite_state(estimate, "estimate");
+  require_finite_positive(cruise_speed, "cruise_speed");
+  require_finite_positive(lookahead, "lookahead");
+  require_finite_positive(step_back_speed, "step_back_speed");
   const Corridor& corridor = segments.corridor();
   const Eigen::Vector2d p = estimate.head<2>();
   const PathProjection proj = corridor.project(p);

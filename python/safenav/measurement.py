@@ -8,6 +8,10 @@ angle-aware ``residual`` (angles wrapped to (−π, π]):
 * ``bearing``       — ``atan2(ℓ_y − y, ℓ_x − x) − θ``, relative to the heading;
 * ``range_bearing`` — ``(r_1, b_1, r_2, b_2, …)``;
 * ``speed_heading`` — IMU ``(v, θ)``.
+
+The noise covariance R is kept block by block (one 1×1 block per row for the
+range/bearing models built here), so a model over n landmarks costs O(n);
+``R`` gives the dense matrix on request.
 """
 
 from __future__ import annotations
@@ -44,23 +48,22 @@ class MeasurementModel(_core.MeasurementModel):
 
     @classmethod
     def range(cls, landmarks, sigma: float) -> "MeasurementModel":
+        """Ranges to ``landmarks`` with independent noise ``sigma`` per row (stored per row)."""
         lm = _landmarks(landmarks)
-        return cls(MeasurementKind.RANGE, np.eye(len(lm)) * float(sigma) ** 2, lm) if sigma > 0 else _bad("sigma", sigma)
+        return cls(MeasurementKind.RANGE, sigmas=np.full(len(lm), _positive("sigma", sigma)), landmarks=lm)
 
     @classmethod
     def bearing(cls, landmarks, sigma: float) -> "MeasurementModel":
+        """Relative bearings to ``landmarks`` with independent noise ``sigma`` per row."""
         lm = _landmarks(landmarks)
-        return cls(MeasurementKind.BEARING, np.eye(len(lm)) * float(sigma) ** 2, lm) if sigma > 0 else _bad("sigma", sigma)
+        return cls(MeasurementKind.BEARING, sigmas=np.full(len(lm), _positive("sigma", sigma)), landmarks=lm)
 
     @classmethod
     def range_bearing(cls, landmarks, sigma_range: float, sigma_bearing: float) -> "MeasurementModel":
+        """``(r_1, b_1, r_2, b_2, …)`` with independent noise per row."""
         lm = _landmarks(landmarks)
-        if not sigma_range > 0:
-            _bad("sigma_range", sigma_range)
-        if not sigma_bearing > 0:
-            _bad("sigma_bearing", sigma_bearing)
-        sig = np.tile([float(sigma_range), float(sigma_bearing)], len(lm))
-        return cls(MeasurementKind.RANGE_BEARING, np.diag(sig**2), lm)
+        sig = np.tile([_positive("sigma_range", sigma_range), _positive("sigma_bearing", sigma_bearing)], len(lm))
+        return cls(MeasurementKind.RANGE_BEARING, sigmas=sig, landmarks=lm)
 
     def predict(self, x) -> np.ndarray:
         return super().predict(as_array("x", x, (4,)))
@@ -72,5 +75,10 @@ class MeasurementModel(_core.MeasurementModel):
         return super().residual(as_array("z", z, (self.dim,)), as_array("zhat", zhat, (self.dim,)))
 
 
-def _bad(name, value):
-    raise ValueError(f"{name} = {value!r} must be > 0")
+def _positive(name, value) -> float:
+    """``value`` as a float > 0, or a ValueError/TypeError that names it."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{name} must be a number, got {type(value).__name__}")
+    if not (np.isfinite(value) and value > 0):
+        raise ValueError(f"{name} = {value!r} must be > 0 and finite")
+    return float(value)

@@ -11,6 +11,11 @@
   so a point just inside zone 2 scores lower than one just inside zone 1's
   outer edge; we keep it as written and call it the paper's WRS.
 * NEES and NIS with their two-sided chi-square acceptance intervals.
+
+Distances do not overflow in their squares (``std::hypot``; coordinates beyond
+2^500 are scaled by a power of two, which is exact), so any distance that is
+representable comes back finite; one beyond 1.8e308 raises ``ValueError``
+naming the points.
 """
 
 from __future__ import annotations
@@ -21,7 +26,7 @@ import numpy as np
 from scipy import stats
 
 from . import _core
-from ._checks import as_array
+from ._checks import as_array, as_positive_int
 
 RiskZones = _core.RiskZones
 
@@ -82,11 +87,24 @@ def nees(estimates, truth, covariances, *, angle_index: int | None = 3) -> np.nd
     return _core.nees(est, tru, cov.reshape(est.shape[0], n * n), -1 if angle_index is None else angle_index)
 
 
+#: Largest dof·n_runs that chi2_interval accepts: far beyond any NEES test
+#: (4 states × 10⁴ runs = 4·10⁴), and scipy's quantile stays fast below it.
+MAX_CHI2_DOF = 10**9
+
+
 def chi2_interval(dof: int, n_runs: int = 1, probability: float = 0.95) -> tuple[float, float]:
     """Two-sided acceptance interval for the average of ``n_runs`` chi-square(dof) values.
 
     For NEES averaged over M Monte Carlo runs: M·ANEES ~ χ²(M·n) (Bar-Shalom, Li
-    & Kirubarajan, 2001, section 5.4)."""
+    & Kirubarajan, 2001, section 5.4).  ``dof`` and ``n_runs`` are positive
+    integers with ``dof·n_runs <= MAX_CHI2_DOF``; ``probability`` is in (0, 1)."""
+    dof, n_runs = as_positive_int("dof", dof), as_positive_int("n_runs", n_runs)
+    if dof * n_runs > MAX_CHI2_DOF:
+        raise ValueError(f"dof·n_runs = {dof}·{n_runs} exceeds {MAX_CHI2_DOF}")
+    if isinstance(probability, bool) or not isinstance(probability, (int, float, np.integer, np.floating)):
+        raise TypeError(f"probability must be a number, got {type(probability).__name__}")
+    if not 0.0 < probability < 1.0:
+        raise ValueError(f"probability = {probability!r} must be in (0, 1)")
     alpha = 1.0 - probability
     lo = stats.chi2.ppf(alpha / 2, dof * n_runs) / n_runs
     hi = stats.chi2.ppf(1 - alpha / 2, dof * n_runs) / n_runs

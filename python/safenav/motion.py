@@ -14,7 +14,9 @@ State ``x = (x, y, v, θ)``, control ``u = (desired speed, heading change)``.
   ``transition``/``simulate``; the filters use ``Q = G Σ_ε Gᵀ`` with the noise
   Jacobian G (the paper leaves Q unspecified).
 
-Parameter defaults are ours: the paper gives no values.
+Parameter defaults are ours: the paper gives no values.  Finite inputs whose
+result overflows (a state near 1e308, dt = 1e308) raise ``ValueError`` naming
+the result entry and the inputs; no call returns inf or NaN.
 """
 
 from __future__ import annotations
@@ -25,7 +27,25 @@ from . import _core
 from ._checks import as_array, as_seed
 
 BmmParams = _core.BmmParams
-wrap_angle = _core.wrap_angle
+
+
+def wrap_angle(angle):
+    """Wrap angles to (−π, π] (DESIGN decision 2: every angle residual is wrapped).
+
+    A number gives a float, an array an array of the same shape.  Raises
+    ``TypeError`` for non-numbers and ``ValueError`` naming a NaN or inf."""
+    try:
+        a = np.asarray(angle)
+    except ValueError:  # ragged nested sequences
+        raise TypeError(f"angle must be a number or an array of numbers, got {type(angle).__name__}") from None
+    if a.dtype.kind not in "iuf":  # None would become NaN through float64
+        raise TypeError(f"angle must be a number or an array of numbers, got {type(angle).__name__} ({a.dtype})")
+    a = a.astype(np.float64)
+    bad = ~np.isfinite(a)
+    if bad.any():
+        where = tuple(int(i) for i in np.argwhere(bad)[0])
+        raise ValueError(f"angle{list(where) if where else ''} = {a[where]} is not finite")
+    return _core.wrap_angle(a)
 
 
 class Bmm(_core.Bmm):

@@ -51,6 +51,8 @@ class Ekf {
 
  private:
   UpdateResult update_position(const Eigen::Ref<const Eigen::VectorXd>& z, const Eigen::Matrix2d& R);
+  /// x̂, P ← x, P unless an entry overflowed (then throws, naming the step and keeping the old state).
+  void commit(const State& x, const StateCov& P, const char* step);
   template <int M>
   UpdateResult update_fixed(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z);
   bool gate_rejects(double nis, int dim);

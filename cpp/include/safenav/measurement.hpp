@@ -25,21 +25,40 @@ const char* to_string(MeasurementKind kind);
 
 using Landmarks = Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor>;
 
-/// Gaussian measurement noise N(0, R), validated once: R must be finite,
-/// symmetric and positive definite.  Holds the Cholesky factor for likelihoods.
+/// Gaussian measurement noise N(0, R) with a block-diagonal R, validated
+/// once: each block must be finite, symmetric and positive definite.  R is
+/// stored block by block with each block's Cholesky factor, so a model with
+/// one independent row per landmark costs O(n), not O(n²), in memory and
+/// work (a dense n×n matrix made MeasurementModel.range on 10⁴ landmarks
+/// take over a minute).
 class GaussianNoise {
  public:
   GaussianNoise() = default;
+  /// One dense block R.
   explicit GaussianNoise(const Eigen::MatrixXd& R, const char* what = "R");
-  /// Isotropic/diagonal helper: R = diag(sigmas²).
+  /// R = diag(sigmas²): one 1×1 block per row.
   static GaussianNoise Sigmas(const Eigen::VectorXd& sigmas, const char* what = "sigmas");
-  const Eigen::MatrixXd& cov() const { return R_; }
-  int dim() const { return static_cast<int>(R_.rows()); }
+  int dim() const { return dim_; }
+  /// The dense R (dim()² doubles, built on each call).
+  Eigen::MatrixXd cov() const;
   /// Squared Mahalanobis norm yᵀ R⁻¹ y.
   double mahalanobis2(const Eigen::Ref<const Eigen::VectorXd>& y) const;
+  /// Y ← L⁻¹ Y with R = L Lᵀ (each column of Y a residual), block by block.
+  void whiten(Eigen::Ref<Eigen::MatrixXd> Y) const;
+  /// The noise of rows `rows`, in that order.  Rows of one block must be
+  /// consecutive in `rows`, so that no correlation is lost.
+  GaussianNoise subset(const std::vector<int>& rows) const;
+
  private:
-  Eigen::MatrixXd R_;
-  Eigen::MatrixXd L_;  // lower Cholesky factor of R
+  struct Block {
+    int start;          // first row of the block in R
+    Eigen::MatrixXd R;  // the block
+    Eigen::MatrixXd L;  // its lower Cholesky factor
+  };
+  void add_block(const Eigen::MatrixXd& R, const char* what);
+  size_t block_of(int row) const;
+  std::vector<Block> blocks_;
+  int dim_ = 0;
 };
 
 /// A measurement model with its noise.  Landmarks are used by the Range,

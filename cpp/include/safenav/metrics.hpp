@@ -15,6 +15,15 @@ using Points2 = Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor>;
 /// all finite; the message names `what` and the first bad point.
 void check_points(const Eigen::Ref<const Points2>& points, const char* what, Eigen::Index min_rows = 1);
 
+/// Power-of-two factor 2^−e that brings coordinates as large as `max_abs`
+/// below 1 when they exceed 2^500, else 1.  Distances computed on points
+/// scaled by it cannot overflow in their squares, and scaling by a power of
+/// two is exact, so results in the ordinary range keep every bit.
+double overflow_scale(double max_abs);
+
+/// Mean of finite values without overflow in the sum (values near 1.8e308).
+double finite_mean(const Eigen::Ref<const Eigen::VectorXd>& values);
+
 /// ADE = (1/N) Σ ‖Ŷ_t − Y_t‖ (eq. 21).  Both trajectories must have the same
 /// number of points (the definition pairs them by time).
 double ade(const Eigen::Ref<const Points2>& estimate, const Eigen::Ref<const Points2>& truth);

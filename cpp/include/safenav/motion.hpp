@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <string>
 #include <Eigen/Core>
 
 namespace safenav {
@@ -106,5 +107,11 @@ class Bmm {
 
 /// Throws std::invalid_argument if any entry of x is not finite, naming `what`.
 void check_finite_state(const State& x, const char* what);
+
+/// Throws std::invalid_argument if an entry of a computed result is not
+/// finite (finite inputs whose result overflows), naming `what`, the entry
+/// and its value; `cause` says which inputs produced it.
+void check_finite_result(const Eigen::Ref<const Eigen::MatrixXd>& result, const char* what,
+                         const std::string& cause);
 
 }  // namespace safenav

@@ -1,0 +1,551 @@
+"""Seeded fuzz test of the public API (issue #12, item 4).
+
+The rule for every call: it returns a result whose floats are all finite, or
+it raises an ordinary exception (``ValueError``, ``TypeError``,
+``IndexError``, ``KeyError``, ``RuntimeError``, ``OverflowError``) with a
+short message.  Anything else fails: a crash (segfault, abort), a hang or a
+call slower than ``CALL_LIMIT_S``, a NaN or inf in the result,
+``MemoryError``, ``SystemError`` or any other exception type, or a message
+longer than ``MAX_MESSAGE`` characters (pybind11's own TypeError for
+arguments of the wrong type lists the signatures and is allowed as it is).
+``FilterResult.nis`` is NaN by design on steps without an update; only its
+other entries are checked.  Localization (``trilaterate``,
+``triangulate_bearings``) is not fuzzed here: it reports failures as a
+status with a NaN position, by design of that module.
+
+Each call draws its arguments from ``np.random.default_rng([seed, i])``: valid
+values most of the time (so calls get past validation into the numerics) and
+hostile ones otherwise (NaN, ±inf, ±1e308, 1e-310, 0, negatives, empty and
+wrongly shaped arrays, None, strings, bools, huge integers, values scaled by
+1e308 or 1e-310).  A call depends on its index alone, so any one reproduces
+by itself::
+
+    python tests/test_fuzz.py SEED I I+1      # prints the call and its outcome
+
+The calls run in batches in a child process (this file run as a script).  The
+child reports each call before and after running it, so the parent knows
+which call crashed or hung; it then starts a new child at the next call.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import queue
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections import Counter
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import fields, is_dataclass
+
+import numpy as np
+import pytest
+
+SEED = 12
+CALL_LIMIT_S = 10.0         # a call slower than this (measured in the child) fails
+HANG_S = 60.0               # no word from the child for this long: the call hung
+MAX_MESSAGE = 400
+PYBIND_GENERIC = "incompatible"  # pybind11's "incompatible function/constructor arguments"
+ALLOWED = (ValueError, TypeError, IndexError, KeyError, RuntimeError, OverflowError)
+
+HOSTILE = [math.nan, math.inf, -math.inf, 1e308, -1e308, 1e-310, -1e-310, 0.0, -1.0, 1e154, 5e-324,
+           None, "1", True, [], 2**70]
+
+
+class Draw:
+    """Argument generator for one call; records what it drew, for the report."""
+
+    def __init__(self, seed: int, i: int, hostility: float = 0.15):
+        self.rng = np.random.default_rng([seed, i])
+        self.p = hostility
+        self.log: list[str] = []
+
+    def _note(self, v):
+        r = repr(v) if not isinstance(v, np.ndarray) else f"array{v.shape}:{np.array2string(v.ravel()[:6], precision=3)}"
+        self.log.append(r[:120])
+        return v
+
+    def hostile(self) -> bool:
+        return self.rng.random() < self.p
+
+    def _pick(self, seq):
+        return seq[int(self.rng.integers(len(seq)))]
+
+    # -- scalars -----------------------------------------------------------
+    def num(self, lo=-10.0, hi=10.0):
+        if self.hostile():
+            return self._note(self._pick(HOSTILE))
+        return self._note(float(self.rng.uniform(lo, hi)))
+
+    def pos(self, lo=1e-3, hi=10.0):
+        if self.hostile():
+            return self._note(self._pick(HOSTILE))
+        return self._note(float(np.exp(self.rng.uniform(np.log(lo), np.log(hi)))))
+
+    def prob(self):
+        return self.num(0.0, 1.0)
+
+    def count(self, lo=1, hi=20):
+        if self.hostile():
+            return self._note(self._pick([0, -1, 1.5, None, True, 2**31, 2**63, "3", math.nan]))
+        return self._note(int(self.rng.integers(lo, hi + 1)))
+
+    # -- arrays ------------------------------------------------------------
+    def arr(self, shape, scale=10.0, positive=False):
+        """A float array of ``shape`` (``None`` entries: a random size 0..40)."""
+        shp = tuple(int(self.rng.integers(1, 41)) if s is None else s for s in shape)
+        a = self.rng.uniform(0.0 if positive else -scale, scale, shp)
+        if self.hostile():
+            kind = int(self.rng.integers(8))
+            if kind == 0 and a.size:
+                a.flat[int(self.rng.integers(a.size))] = self._pick([math.nan, math.inf, -math.inf, 1e308, -1e308])
+            elif kind == 1:
+                a = a * self._pick([1e308, 1e300, 1e-310, 1e154, -1e308])
+            elif kind == 2:
+                a = np.zeros((0,) + shp[1:])
+            elif kind == 3:
+                a = self.rng.uniform(-scale, scale, tuple(int(self.rng.integers(0, 5)) for _ in range(int(self.rng.integers(0, 4)))))
+            elif kind == 4:
+                a = self._pick([None, "abc", [["a", "b"]], 3.0, [[1.0, 2.0], [3.0]]])
+            elif kind == 5:
+                a = np.zeros(shp)
+            elif kind == 6:
+                a = np.full(shp, self._pick([1e308, -1e308, 1e-310, 5e-324]))
+            else:
+                a = a.astype(self._pick([np.int64, np.float32, np.complex128, object]))
+        return self._note(a)
+
+    def points(self, n=None, scale=20.0):
+        return self.arr((n, 2), scale)
+
+    def path(self):
+        """A polyline, mostly well formed: a random walk."""
+        if self.hostile():
+            return self.points()
+        n = int(self.rng.integers(2, 60))
+        steps = self.rng.normal(0.0, 3.0, (n - 1, 2)) + [2.0, 0.0]
+        return self._note(np.vstack([[0.0, 0.0], np.cumsum(steps, axis=0)]))
+
+    def state(self):
+        x = self.arr((4,), 10.0)
+        if isinstance(x, np.ndarray) and x.shape == (4,) and x.dtype == np.float64:
+            x[2] = abs(x[2]) / 3.0
+        return x
+
+    def control(self):
+        return self.arr((2,), 2.0)
+
+    def cov(self, n):
+        if self.hostile():
+            kind = int(self.rng.integers(6))
+            if kind == 0:
+                return self._note(np.eye(n) * self._pick([1e308, 1e300, 1e-310, 0.0, -1.0, 1e154]))
+            if kind == 1:
+                return self._note(self.rng.uniform(-1, 1, (n, n)))
+            return self.arr((n, n))
+        A = self.rng.normal(0.0, 1.0, (n, n))
+        return self._note(A @ A.T * self.rng.uniform(1e-4, 1.0) + np.eye(n) * 1e-3)
+
+    def params(self):
+        from safenav import BmmParams
+
+        kw = {}
+        for name in ("acceleration", "deceleration", "max_speed", "max_heading_rate", "dt", "terrain_effect",
+                     "speed_noise", "heading_noise", "position_noise"):
+            if self.rng.random() < 0.15:
+                kw[name] = self.pos(1e-2, 5.0) if self.rng.random() < 0.5 else self._note(self._pick(HOSTILE))
+        return BmmParams(**kw)
+
+    def zones(self):
+        from safenav import RiskZones
+
+        if self.rng.random() < 0.5:
+            return None
+        return RiskZones(half_width=self.pos(0.1, 5.0),
+                         weights=[self.pos(0.1, 10.0) for _ in range(int(self.rng.integers(0, 6)))])
+
+
+# ---------------------------------------------------------------------------
+# The calls
+# ---------------------------------------------------------------------------
+
+def _model(d: Draw):
+    from safenav import MeasurementModel
+
+    kind = int(d.rng.integers(5))
+    if kind == 0:
+        return MeasurementModel.position(d.cov(2) if d.rng.random() < 0.7 else None)
+    if kind == 1:
+        return MeasurementModel.speed_heading(d.cov(2))
+    lm = d.points(scale=30.0)
+    if kind == 2:
+        return MeasurementModel.range(lm, d.pos())
+    if kind == 3:
+        return MeasurementModel.bearing(lm, d.pos(1e-3, 1.0))
+    return MeasurementModel.range_bearing(lm, d.pos(), d.pos(1e-3, 1.0))
+
+
+def _measurement(d: Draw):
+    model = _model(d)
+    op = int(d.rng.integers(4))
+    if op == 0:
+        return model.predict(d.state())
+    if op == 1:
+        return model.jacobian(d.state())
+    if op == 2:
+        return model.residual(d.arr((model.dim,)), d.arr((model.dim,)))
+    return model.R if model.dim <= 400 else model.dim
+
+
+def _filter(d: Draw):
+    from safenav import Ekf, InformationFilter, ParticleFilter
+
+    kind = int(d.rng.integers(3))
+    params, x0, P0 = d.params(), d.state(), d.cov(4)
+    if kind == 0:
+        f = Ekf(params, x0, P0, gate=d.prob() if d.rng.random() < 0.3 else 0.0)
+    elif kind == 1:
+        f = ParticleFilter(params, x0, P0, n_particles=d.count(1, 300), seed=d.count(0, 99))
+    else:
+        f = InformationFilter(params, x0, P0)
+    out = []
+    for _ in range(int(d.rng.integers(1, 6))):
+        if d.rng.random() < 0.5:
+            f.predict(d.control())
+        else:
+            model = _model(d)
+            truth = np.asarray(f.x, dtype=float) + d.rng.normal(0.0, 0.1, 4)
+            z = model.predict(truth) if d.rng.random() < 0.7 else d.arr((model.dim,))
+            out.append(f.update(model, z))
+    return f.x, f.P, out
+
+
+def _filter_trajectory(d: Draw):
+    from safenav import filter_trajectory
+
+    n = int(d.rng.integers(1, 30))
+    controls = d.arr((n, 2), 2.0)
+    kw = {}
+    if d.rng.random() < 0.7:
+        kw["position"] = d.arr((n, 2), 20.0)
+    if d.rng.random() < 0.3:
+        lm = d.points(5)
+        kw.update(landmarks=lm, ranges=d.arr((n, 5), 20.0, positive=True), range_std=d.pos())
+    return filter_trajectory(controls, d.state(), d.cov(4), params=d.params(),
+                             filter=d._pick(["ekf", "pf", "eif", "ukf"]), n_particles=d.count(1, 200), **kw)
+
+
+def _bmm(d: Draw):
+    from safenav import Bmm
+
+    bmm = Bmm(d.params())
+    op = d._pick(["predict", "jacobian", "noise_jacobian", "process_cov", "transition", "simulate", "next_speed",
+                  "clipped_heading_change"])
+    if op == "transition":
+        return bmm.transition(d.state(), d.control(), d.arr((4,), 0.1))
+    if op == "simulate":
+        return bmm.simulate(d.state(), d.arr((None, 2), 2.0), seed=d.count(0, 99))
+    if op == "next_speed":
+        return bmm.next_speed(d.num(0, 5), d.num(0, 5))
+    if op == "clipped_heading_change":
+        return bmm.clipped_heading_change(d.num(-3, 3))
+    return getattr(bmm, op)(d.state(), d.control())
+
+
+def _wrap_angle(d: Draw):
+    from safenav import wrap_angle
+
+    return wrap_angle(d.num(-100, 100) if d.rng.random() < 0.5 else d.arr((None,), 100.0))
+
+
+def _metrics(d: Draw):
+    from safenav import metrics
+
+    op = d._pick(["ade", "fde", "path_length", "path_length_error_percent", "distance_to_path", "wrs",
+                  "wrs_of_deviation", "awrs", "nees", "chi2_interval", "evaluate"])
+    if op == "ade":
+        n = int(d.rng.integers(1, 30))
+        return metrics.ade(d.points(n), d.points(n))
+    if op in ("fde", "path_length_error_percent", "evaluate"):
+        n = int(d.rng.integers(1, 30))
+        return getattr(metrics, op)(d.points(n), d.path())
+    if op == "path_length":
+        return metrics.path_length(d.path())
+    if op == "distance_to_path":
+        return metrics.distance_to_path(d.points(), d.path())
+    if op in ("wrs", "awrs"):
+        return getattr(metrics, op)(d.points(), d.path(), d.zones())
+    if op == "wrs_of_deviation":
+        return metrics.wrs_of_deviation(d.arr((None,), 5.0), d.zones())
+    if op == "nees":
+        n = int(d.rng.integers(1, 10))
+        covs = np.stack([d.cov(4) for _ in range(n)]) if d.rng.random() < 0.9 else d.arr((n, 4, 4))
+        return metrics.nees(d.arr((n, 4)), d.arr((n, 4)), covs)
+    return metrics.chi2_interval(d.count(1, 50), d.count(1, 1000), d.prob())
+
+
+def _corridor(d: Draw):
+    from safenav import Corridor
+
+    c = Corridor(d.path(), d.zones(), half_width=d.pos(0.1, 5.0) if d.rng.random() < 0.3 else None)
+    op = d._pick(["project", "point_at", "tangent_at", "distance", "arc_length", "signed_offset", "side", "zone",
+                  "contains", "wrs", "awrs", "points_at"])
+    if op == "project":
+        return c.project(d.arr((2,), 50.0))
+    if op in ("point_at", "tangent_at"):
+        return getattr(c, op)(d.num(-10, 200))
+    if op == "points_at":
+        return c.points_at(d.arr((None,), 200.0))
+    return getattr(c, op)(d.points(scale=50.0))
+
+
+def _segments(d: Draw):
+    from safenav import Bmm, Corridor
+    from safenav import navigation
+
+    c = Corridor(d.path(), d.zones())
+    if d.rng.random() < 0.5:
+        seg = c.segments(count=d.count(1, 30), spacing=d.pos(0.05, 5.0), sub_segments=d.count(1, 6),
+                         disc_sides=d.count(3, 24))
+    else:
+        seg = c.segments(length=d.pos(0.5, 50.0), sub_segments=d.count(1, 6))
+    op = d._pick(["hull", "points", "hull_input", "hull_contains", "in_current_or_next", "segments_containing",
+                  "locate", "centroids", "nearest_centroid_ahead", "segment_at", "centroid_control",
+                  "chull_control"])
+    k = d.count(0, len(seg)) if d.rng.random() < 0.9 else d.count(-3, 3)
+    if op in ("hull", "points", "hull_input"):
+        return getattr(seg, op)(k)
+    if op == "hull_contains":
+        return seg.hull_contains(k, d.points(scale=50.0))
+    if op == "in_current_or_next":
+        return seg.in_current_or_next(k, d.arr((2,), 50.0))
+    if op in ("segments_containing", "nearest_centroid_ahead"):
+        return getattr(seg, op)(d.arr((2,), 50.0))
+    if op == "locate":
+        return seg.locate(d.points(scale=50.0))
+    if op == "centroids":
+        return seg.centroids, seg.centroid_arc_lengths, seg.breaks
+    if op == "segment_at":
+        return seg.segment_at(d.num(-10, 200))
+    est = d.state()
+    if op == "centroid_control":
+        return navigation.centroid_control(seg, est, d.pos(0.1, 5.0))
+    return navigation.chull_control(seg, Bmm(d.params()), est, d.pos(0.1, 5.0), d.pos(0.5, 10.0), d.pos(0.1, 2.0))
+
+
+def _hull(d: Draw):
+    from safenav import geometry
+
+    if d.rng.random() < 0.5:
+        return geometry.convex_hull(d.points())
+    square = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]])
+    poly = square if d.rng.random() < 0.6 else d.points()
+    return geometry.points_in_polygon(d.points(), poly)
+
+
+def _constructors(d: Draw):
+    from safenav import BmmParams, MeasurementKind, MeasurementModel, RiskZones
+
+    op = int(d.rng.integers(3))
+    if op == 0:
+        return d.params()
+    if op == 1:
+        return RiskZones(half_width=d.pos(), weights=[d.pos() for _ in range(int(d.rng.integers(0, 5)))])
+    kind = d._pick(list(MeasurementKind.__members__.values()))
+    n = int(d.rng.integers(1, 6))
+    m = MeasurementModel(kind, d.cov(n if d.rng.random() < 0.5 else 2), d.points(n))
+    return m.dim, BmmParams()
+
+
+TARGETS = {"wrap_angle": _wrap_angle, "bmm": _bmm, "measurement": _measurement, "filter": _filter,
+           "filter_trajectory": _filter_trajectory, "metrics": _metrics, "corridor": _corridor,
+           "segments": _segments, "hull": _hull, "constructors": _constructors}
+NAMES = sorted(TARGETS)
+
+
+# ---------------------------------------------------------------------------
+# Checking one call
+# ---------------------------------------------------------------------------
+
+def nonfinite(obj, where="result", depth=0):
+    """Where ``obj`` holds a NaN or inf (a path like ``result[2].x``), or None."""
+    if depth > 4 or obj is None or isinstance(obj, (bool, str, int, np.integer, np.bool_)):
+        return None
+    if isinstance(obj, (float, np.floating, complex, np.complexfloating)):
+        return None if np.isfinite(obj) else f"{where} = {obj}"
+    if isinstance(obj, np.ndarray):
+        if obj.dtype.kind in "fc" and not np.isfinite(obj).all():
+            return f"{where} has {np.count_nonzero(~np.isfinite(obj))} non-finite entries"
+        return None
+    if isinstance(obj, (list, tuple)):
+        return next((w for j, v in enumerate(obj) if (w := nonfinite(v, f"{where}[{j}]", depth + 1))), None)
+    if isinstance(obj, dict):
+        return next((w for k, v in obj.items() if (w := nonfinite(v, f"{where}[{k!r}]", depth + 1))), None)
+    if is_dataclass(obj):
+        if hasattr(obj, "nis_dof"):  # FilterResult: NaN NIS marks a step without an update (documented)
+            obj = {"states": obj.states, "covariances": obj.covariances, "nis": obj.nis[obj.nis_dof > 0]}
+            return nonfinite(obj, where, depth + 1)
+        return next((w for f in fields(obj) if (w := nonfinite(getattr(obj, f.name), f"{where}.{f.name}",
+                                                               depth + 1))), None)
+    if type(obj).__module__.startswith("safenav"):
+        for name in dir(obj):
+            if name.startswith("_"):
+                continue
+            v = getattr(obj, name)
+            if not callable(v) and (w := nonfinite(v, f"{where}.{name}", depth + 1)):
+                return w
+    return None
+
+
+def run_call(seed: int, i: int, verbose: bool = False) -> dict:
+    """Run call ``i``; return its outcome: ok, raised (allowed) or fail (with why)."""
+    d = Draw(seed, i)
+    name = NAMES[int(d.rng.integers(len(NAMES)))]
+    t0 = time.perf_counter()
+    try:
+        result = TARGETS[name](d)
+    except ALLOWED as exc:
+        msg = str(exc)
+        out = {"out": "raised", "kind": type(exc).__name__}
+        if isinstance(exc, TypeError) and PYBIND_GENERIC in msg:
+            out["kind"] = "pybind11 TypeError"  # its own wording, with the signatures: allowed at any length
+        elif len(msg) > MAX_MESSAGE:
+            out = {"out": "fail", "why": f"{type(exc).__name__} message of {len(msg)} chars: {msg[:200]}..."}
+    except BaseException as exc:  # noqa: BLE001 - any other exception is what we look for
+        out = {"out": "fail", "why": f"{type(exc).__name__}: {str(exc)[:300]}"}
+    else:
+        bad = nonfinite(result)
+        out = {"out": "fail", "why": f"non-finite result: {bad}"} if bad else {"out": "ok"}
+    sec = time.perf_counter() - t0
+    if sec > CALL_LIMIT_S and out["out"] != "fail":
+        out = {"out": "fail", "why": f"took {sec:.1f} s (limit {CALL_LIMIT_S} s)"}
+    out.update(i=i, target=name, sec=round(sec, 4))
+    if out["out"] == "fail" or verbose:
+        out["args"] = d.log
+    return out
+
+
+# ---------------------------------------------------------------------------
+# Supervision: calls run in child processes
+# ---------------------------------------------------------------------------
+
+def _child(seed, start, stop, stderr):
+    return subprocess.Popen([sys.executable, __file__, str(seed), str(start), str(stop)], stdout=subprocess.PIPE,
+                            stderr=stderr, text=True, env=dict(os.environ, OMP_NUM_THREADS="1"))
+
+
+def _supervise(seed: int, start: int, stop: int) -> tuple[Counter, list[dict]]:
+    """Run calls start … stop−1 in child processes, a new child after each crash or hang."""
+    counts: Counter = Counter()
+    failures: list[dict] = []
+    i = start
+    while i < stop:
+        first, started = i, None
+        err = tempfile.TemporaryFile("w+")
+        proc = _child(seed, i, stop, err)
+        lines: queue.Queue = queue.Queue()
+        threading.Thread(target=lambda p=proc: [lines.put(x) for x in p.stdout] + [lines.put(None)],
+                         daemon=True).start()
+        while True:
+            try:
+                line = lines.get(timeout=HANG_S)
+            except queue.Empty:
+                proc.kill()
+                proc.wait()
+                why = f"hang: no result within {HANG_S} s"
+                break
+            if line is None:
+                proc.wait()
+                why = f"child died (exit code {proc.returncode})"
+                break
+            try:
+                rec = json.loads(line)
+            except json.JSONDecodeError:
+                continue  # something the library printed
+            if "start" in rec:
+                started = rec["start"]
+                continue
+            started = None
+            counts[rec["out"]] += 1
+            counts[f"{rec['target']}:{rec['out']}"] += 1
+            if rec["out"] == "raised":
+                counts[f"raised {rec['kind']}"] += 1
+            if rec["out"] == "fail":
+                failures.append(rec)
+            i = rec["i"] + 1
+        if started is not None:  # the call that crashed or hung fails; go on after it
+            counts["fail"] += 1
+            failures.append({"i": started, "why": why})
+            i = started + 1
+        elif i == first and i < stop:  # not a single call ran: the child cannot start
+            err.seek(0)
+            raise RuntimeError(f"fuzz child ({why}) ran no call: {err.read()[-2000:]}")
+        proc.stdout.close()
+        err.close()
+    return counts, failures
+
+
+def fuzz(seed: int, n_calls: int, batch: int = 2500, jobs: int = 2) -> tuple[Counter, list[dict]]:
+    """Run calls 0 … n_calls−1 in batches, ``jobs`` children at a time; return the counts and the failures."""
+    ranges = [(a, min(a + batch, n_calls)) for a in range(0, n_calls, batch)]
+    with ThreadPoolExecutor(jobs) as pool:
+        results = list(pool.map(lambda r: _supervise(seed, *r), ranges))
+    counts: Counter = sum((c for c, _ in results), Counter())
+    return counts, sorted((f for _, fs in results for f in fs), key=lambda f: f["i"])
+
+
+def _report(seed, counts, failures):
+    lines = [f"fuzz seed {seed}: {counts['ok']} returned finite results, {counts['raised']} raised an allowed "
+             f"error, {counts['fail']} failed"]
+    for f in failures[:20]:
+        lines.append(f"  call {f.get('i')} ({f.get('target', '?')}): {f['why']}  args={f.get('args')}")
+        lines.append(f"    reproduce: python tests/test_fuzz.py {seed} {f.get('i')} {(f.get('i') or 0) + 1}")
+    return "\n".join(lines)
+
+
+def test_fuzz_public_api():
+    """10⁴ seeded calls of the public API, each finite or an allowed error."""
+    counts, failures = fuzz(SEED, 10_000)
+    print(_report(SEED, counts, failures))
+    assert counts["ok"] + counts["raised"] + counts["fail"] == 10_000
+    assert not failures, _report(SEED, counts, failures)
+    # The draw reaches the numerics, not only the validation: most calls return.
+    assert counts["ok"] > 3_000 and counts["raised"] > 1_000
+
+
+@pytest.mark.slow
+def test_fuzz_public_api_long():
+    """10⁵ seeded calls (another seed), behind the slow marker."""
+    counts, failures = fuzz(SEED + 1, 100_000, batch=10_000)
+    print(_report(SEED + 1, counts, failures))
+    assert not failures, _report(SEED + 1, counts, failures)
+
+
+def test_supervisor_counts_a_crash_and_goes_on(monkeypatch):
+    """A call that kills its process is a failure, and the calls after it still run."""
+    monkeypatch.setenv("SAFENAV_FUZZ_CRASH_AT", "3")
+    counts, failures = fuzz(SEED, 6, batch=6, jobs=1)
+    assert [f["i"] for f in failures] == [3]
+    assert "child died" in failures[0]["why"]
+    assert counts["ok"] + counts["raised"] == 5
+
+
+def _main(argv):
+    import safenav.navigation  # noqa: F401 - import before the clock runs: the first call is timed too
+
+    seed, start, stop = (int(a) for a in argv[:3])
+    crash_at = int(os.environ.get("SAFENAV_FUZZ_CRASH_AT", -1))
+    for i in range(start, stop):
+        print(json.dumps({"start": i}), flush=True)
+        if i == crash_at:
+            os.abort()
+        rec = run_call(seed, i, verbose=stop - start == 1)
+        print(json.dumps(rec), flush=True)
+
+
+if __name__ == "__main__":
+    _main(sys.argv[1:])
