@@ -362,6 +362,16 @@ def test_ilp_handles_alpha_180_and_tiny_edges():
                 assert o.count <= g.count
 
 
+def test_abeam_landmark_at_180_degrees_is_in_view():
+    """α = 180°: cot(α/2) is 6e-17, not 0, so Lemma 2 gave an interval empty
+    by 1e-17 m for a landmark abeam of the edge's start; found by the
+    property tests (the brute force sees it there)."""
+    cam = P.CameraParams(range=1.5, angle_deg=180.0, clearance=0.0)
+    assert _core.visibility_interval(np.array([0.0, 1.0]), 1.0, cam.to_core()) == (0.0, 0.0)
+    route = np.array([[0.0, 0.0], [1e-10, 0.0], [1e-10, 1.0]])
+    assert P.check_coverage(route, [[-1.0, 1.0], [0.0, -1.5]], cam, k=1).min_count == 1
+
+
 def test_inputs_are_checked_alike_by_greedy_ilp_and_check():
     route = np.array([[0.0, 0.0], [2.0, 0.0]])
     calls = {"greedy": lambda c, k: P.place_along_route(route, c, CAM, k=k, allow_uncovered=True),

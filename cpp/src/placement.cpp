@@ -160,8 +160,8 @@ struct Fov {
     const double a = std::max(x - h, 0.0);                                       // eq. (1)/(3)
     const double b = circular ? std::min(x + h, length)                          // eq. (4), typo fixed
                               : std::min(x - ay * cot_half, length);             // eq. (2)
-    if (b < a) return false;
-    *out = {a, b};
+    if (b < a - kEps) return false;  // empty by more than the rounding slack (α = 180°: cot(α/2) ≈ 6e-17)
+    *out = {a, std::max(a, b)};
     return true;
   }
   double R, R2;
@@ -382,7 +382,8 @@ std::vector<Seen> seen_at_corner(const Eigen::Vector2d& v, double theta_in, doub
       double u = wrap(sgn * (std::atan2(rel.y(), rel.x()) - theta_in));
       if (u + half < -kEps) u += 2.0 * kPi;
       iv = {std::max(u - half, 0.0), std::min(u + half, L)};
-      if (iv.end < iv.start) return;
+      if (iv.end < iv.start - kEps) return;
+      iv.end = std::max(iv.end, iv.start);
     }
     out.push_back({i, iv, rel});
   });
