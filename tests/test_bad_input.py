@@ -533,3 +533,27 @@ def test_fuzz_findings_ranges_nees_and_filters():
     eif = InformationFilter(BmmParams(dt=1e308, max_speed=0.1), X0, P0)
     with pytest.raises(ValueError, match=r"information filter predict P\[\d, \d\] = inf"):
         eif.predict([0.1, 0.0])
+
+
+def test_complex_input_is_refused_not_truncated():
+    # numpy would drop the imaginary part with only a ComplexWarning
+    with pytest.raises(ValueError, match=r"landmarks must be real, got complex values"):
+        MeasurementModel.range([[1.0 + 2j, 0.0]], 1.0)
+
+
+@pytest.mark.parametrize("field, value, message", [
+    ("max_steps", 2**31, r"max_steps = 2147483648 is too large \(at most 2147483647\)"),
+    ("max_steps", -1, r"max_steps must be an integer >= 0, got -1"),
+    ("n_particles", 0, r"n_particles must be a positive integer, got 0"),
+    ("n_particles", 2**40, r"n_particles = 1099511627776 is too large"),
+    ("position_every", 1.5, r"position_every must be a positive integer, got 1\.5"),
+    ("planner_seed", -3, r"planner_seed must be an integer in \[0, 2\*\*64\), got -3"),
+])
+def test_make_navigator_checks_its_overrides(field, value, message):
+    # before: int() then pybind's TypeError (2**31), or a silent int(1.5) = 1
+    from safenav import navigation as nv
+    from safenav.scenario import default_scenario
+
+    path = [[10.0, 10.0], [60.0, 10.0]]
+    with pytest.raises(ValueError, match=message):
+        nv.make_navigator(default_scenario(), path, **{field: value})

@@ -34,9 +34,14 @@ def as_array(name: str, value, shape: tuple, *, allow_nan: bool = False) -> np.n
     non-finite entry.
     """
     try:
-        arr = np.ascontiguousarray(value, dtype=np.float64)
+        arr = np.asarray(value)
+        complex_ = np.iscomplexobj(arr)
+        if not complex_:
+            arr = np.ascontiguousarray(arr, dtype=np.float64)
     except (TypeError, ValueError) as exc:
         raise ValueError(f"{name} must be numeric, got {cut(value)}") from exc
+    if complex_:        # numpy would drop the imaginary part with only a warning
+        raise ValueError(f"{name} must be real, got complex values {cut(value)}")
     if arr.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, arr.shape)):
         want = "(" + ", ".join("N" if s is None else str(s) for s in shape) + ("," if len(shape) == 1 else "") + ")"
         raise ValueError(f"{name} must have shape {want}, got {arr.shape}")
@@ -50,10 +55,22 @@ def as_array(name: str, value, shape: tuple, *, allow_nan: bool = False) -> np.n
     return arr
 
 
-def as_positive_int(name: str, value) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-        raise ValueError(f"{name} must be a positive integer, got {cut(value)}")
+INT32_MAX = 2**31 - 1      #: the largest C++ ``int``: ids and counts that reach the core
+
+
+def as_int(name: str, value, lo: int = 1, hi: int = INT32_MAX) -> int:
+    """``value`` as an int in [``lo``, ``hi``] (default: positive, up to the
+    largest C++ ``int``), else a ``ValueError`` that names it."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo:
+        kind = "a positive integer" if lo == 1 else f"an integer >= {lo}"
+        raise ValueError(f"{name} must be {kind}, got {cut(value)}")
+    if value > hi:
+        raise ValueError(f"{name} = {cut(value)} is too large (at most {hi})")
     return int(value)
+
+
+def as_positive_int(name: str, value, hi: int = INT32_MAX) -> int:
+    return as_int(name, value, 1, hi)
 
 
 def as_seed(name: str, value) -> int:

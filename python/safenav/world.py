@@ -30,7 +30,7 @@ import numpy as np
 from matplotlib.path import Path as _MplPath
 
 from . import _core
-from ._checks import cut
+from ._checks import INT32_MAX, cut
 
 __all__ = [
     "ScenarioError", "Field", "Circle", "Polygon", "Shape", "Hazard", "Landmark",
@@ -77,7 +77,6 @@ def _fail(name: str, value, problem: str):
 # Every coordinate and collection is bounded (docs/scenario.md gives the reasons),
 # so that no file, however large its numbers or lists, hangs validation or planning.
 
-INT32_MAX = 2**31 - 1        #: ids and counts reach C++ ``int``
 MAX_COORDINATE = 1e6         #: |x|, |y|, |z| of every point [m]
 FIELD_SIZE = (1.0, 1e5)      #: the field's width and height [m]
 MAX_RADIUS = 1e5             #: of a circle [m]
