@@ -557,3 +557,23 @@ def test_make_navigator_checks_its_overrides(field, value, message):
     path = [[10.0, 10.0], [60.0, 10.0]]
     with pytest.raises(ValueError, match=message):
         nv.make_navigator(default_scenario(), path, **{field: value})
+
+
+def test_an_automatic_step_budget_beyond_the_core_limit_is_refused():
+    # before: 3·L/(v·dt) + 200 overflowed int, max_steps = -2147483448, then "vector::reserve"
+    from safenav import _core
+    from safenav.scenario import default_scenario
+
+    sc = default_scenario()
+    assert _core.NAVIGATION_MAX_STEPS == 10_000_000
+    problem = _core.NavigationProblem()
+    problem.path = np.array([[0.0, 0.0], [5e6, 0.0]])
+    problem.zones = sc.risk_zones()
+    problem.bmm = sc.bmm_params()
+    s = _core.NavigationSettings()
+    s.cruise_speed = 1e-6
+    with pytest.raises(ValueError, match=r"automatic max_steps = .* exceeds 10000000 \(path length L = 5e\+06 m"):
+        _core.Navigator(problem, s, _core.SensorSettings())
+    s.max_steps = 10_000_001
+    with pytest.raises(ValueError, match=r"settings.max_steps = 10000001: must be in \[0, 10000000\]"):
+        _core.Navigator(problem, s, _core.SensorSettings())

@@ -213,6 +213,50 @@ def test_a_command_that_fails_midway_leaves_no_manifest(tmp_path, monkeypatch):
     assert (out / "safe_paths.json").exists() and not (out / results.MANIFEST).exists() and not _temps(out)
 
 
+@pytest.mark.parametrize("manifest", [
+    '{"files": [{"path": "a.txt"}]}',                       # no sha256
+    '{"files": {"path": "a.txt"}}',                         # not a list
+    '[1, 2]',                                               # not an object
+    '{"files": [{"path": "../outside.txt", "sha256": "0"}]}',   # outside the folder
+    '{"files": [{"path": "/etc/passwd", "sha256": "0"}]}',
+])
+def test_a_malformed_manifest_is_an_incomplete_run_not_a_traceback(tmp_path, capsys, manifest):
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "a.txt").write_text("x")
+    (out / results.MANIFEST).write_text(manifest)
+    with pytest.raises(results.IncompleteRunError, match="not a safenav manifest"):
+        results.verify_run(out)
+    assert cli.main(["verify", str(out)]) == 2
+    assert capsys.readouterr().err.count("\n") == 1
+
+
+def test_a_bad_scheduler_leaves_the_previous_runs_manifest(tmp_path, capsys):
+    out = tmp_path / "exp"
+    with results.RunFolder(out, command=["safenav"]):
+        results.write_text(out / "a.txt", "complete")
+    assert cli.main(["experiment", "field", "--scheduler", "tcp://127.0.0.1:9", "--out", str(out)]) == 2
+    assert "cannot connect" in capsys.readouterr().err
+    results.verify_run(out)       # still complete
+
+
+def test_a_failing_item_cancels_the_queued_ones():
+    import threading
+
+    ran = []
+    lock = threading.Lock()
+
+    def fn(i):
+        with lock:
+            ran.append(i)
+        if i == 0:
+            raise RuntimeError("item 0 failed")
+        time.sleep(0.05)
+    with pytest.raises(RuntimeError, match="item 0 failed"):
+        runner.map_ordered(fn, range(200), workers=1)
+    assert len(ran) < 5          # before: all 200 ran before the error got out
+
+
 # --------------------------------------------------------------------------- tables
 
 def test_timings_are_kept_beside_the_table_and_read_back(tmp_path):
@@ -228,6 +272,10 @@ def test_timings_are_kept_beside_the_table_and_read_back(tmp_path):
                                                                          "time_per_step_us"]
     for name in ("trials.parquet", "trials.csv"):
         pd.testing.assert_frame_equal(results.read_table(tmp_path / name), df)
+    # a rewrite without wall times drops the old timings instead of having them joined back
+    results.write_table(df.drop(columns=["time_ms", "time_per_step_us"]).assign(ade=[5.0, 6.0]), tmp_path / "trials")
+    assert not (tmp_path / "trials_timings.csv").exists()
+    assert "time_ms" not in results.read_table(tmp_path / "trials.parquet").columns
 
 
 def test_tables_are_byte_identical_with_one_or_two_workers(tmp_path):

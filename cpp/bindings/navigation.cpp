@@ -23,6 +23,7 @@ py::dict metrics_dict(const TrialMetrics& m) {
 }  // namespace
 
 void pybind_navigation(py::module_& m) {
+  m.attr("NAVIGATION_MAX_STEPS") = NavigationSettings::kMaxSteps;
   py::enum_<NavigationMethod>(m, "NavigationMethod")
       .value("CHULL", NavigationMethod::CHull)
       .value("CENTROID", NavigationMethod::Centroid);

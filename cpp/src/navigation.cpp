@@ -178,7 +178,9 @@ void NavigationProblem::validate() const {
 void NavigationSettings::validate() const {
   require_finite_positive(cruise_speed, "settings.cruise_speed");
   require_finite_positive(arrival_radius, "settings.arrival_radius");
-  if (max_steps < 0) bad("settings.max_steps = " + std::to_string(max_steps) + ": must be >= 0 (0 = automatic)");
+  if (max_steps < 0 || max_steps > kMaxSteps)
+    bad("settings.max_steps = " + std::to_string(max_steps) + ": must be in [0, " + std::to_string(kMaxSteps) +
+        "] (0 = automatic)");
   segments.validate();
   require_finite_positive(lookahead, "settings.lookahead");
   require_finite_positive(step_back_speed, "settings.step_back_speed");
@@ -298,10 +300,14 @@ struct Navigator::Impl {
                                          sensors.imu_heading_std * sensors.imu_heading_std).asDiagonal();
     imu_model = MeasurementModel::speed_heading(Ri);
     const double L = segments->corridor().length();
-    max_steps = settings.max_steps > 0
-                    ? settings.max_steps
-                    : static_cast<int>(std::ceil(3.0 * L / (settings.cruise_speed * problem.bmm.dt *
-                                                            problem.bmm.terrain_factor()))) + 200;
+    const double automatic =
+        std::ceil(3.0 * L / (settings.cruise_speed * problem.bmm.dt * problem.bmm.terrain_factor())) + 200.0;
+    if (settings.max_steps == 0 && !(automatic <= NavigationSettings::kMaxSteps))
+      bad("automatic max_steps = 3·L/(cruise_speed·dt·terrain factor) + 200 = " + num(automatic) + " exceeds " +
+          std::to_string(NavigationSettings::kMaxSteps) + " (path length L = " + num(L) + " m, cruise_speed = " +
+          num(settings.cruise_speed) + " m/s, dt = " + num(problem.bmm.dt) + " s, terrain factor = " +
+          num(problem.bmm.terrain_factor()) + "): raise the speed or dt, or set settings.max_steps");
+    max_steps = settings.max_steps > 0 ? settings.max_steps : static_cast<int>(automatic);
   }
 
   /// Algorithm 4, line 8: whether the way ahead of a vehicle at p (arc length

@@ -58,19 +58,21 @@ def as_array(name: str, value, shape: tuple, *, allow_nan: bool = False) -> np.n
 INT32_MAX = 2**31 - 1      #: the largest C++ ``int``: ids and counts that reach the core
 
 
-def as_int(name: str, value, lo: int = 1, hi: int = INT32_MAX) -> int:
+def as_int(name: str, value, lo: int = 1, hi: int | None = INT32_MAX) -> int:
     """``value`` as an int in [``lo``, ``hi``] (default: positive, up to the
-    largest C++ ``int``), else a ``ValueError`` that names it."""
+    largest C++ ``int``; ``hi = None``: no upper bound), else a ``ValueError``
+    that names it."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < lo:
         kind = "a positive integer" if lo == 1 else f"an integer >= {lo}"
         raise ValueError(f"{name} must be {kind}, got {cut(value)}")
-    if value > hi:
+    if hi is not None and value > hi:
         raise ValueError(f"{name} = {cut(value)} is too large (at most {hi})")
     return int(value)
 
 
-def as_positive_int(name: str, value, hi: int = INT32_MAX) -> int:
-    return as_int(name, value, 1, hi)
+def as_positive_int(name: str, value) -> int:
+    """``value`` as an int >= 1 (callers check their own upper bound)."""
+    return as_int(name, value, 1, None)
 
 
 def as_seed(name: str, value) -> int:

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import signal
 import sys
 import threading
@@ -63,25 +64,6 @@ def _load(args):
             raise ValueError(f"scenario given twice: {positional!r} and --scenario {path!r}")
         path = positional
     return default_scenario() if path in (None, "default") else load_scenario(path)
-
-
-@contextlib.contextmanager
-def _scheduler(address):
-    """A Dask client connected to ``address`` (None: run locally), before any work starts."""
-    if address is None:
-        yield None
-        return
-    try:
-        from distributed import Client
-    except ImportError:
-        raise ValueError(f"--scheduler {address}: needs Dask, which is not installed "
-                         "(pip install 'safenav[dask]')") from None
-    try:
-        client = Client(address, timeout=10)
-    except (OSError, TimeoutError, ValueError) as exc:
-        raise ValueError(f"--scheduler {address}: cannot connect ({exc})") from None
-    with client:
-        yield client
 
 
 def _run_folder(args, out, *, seed=None) -> RunFolder:
@@ -148,7 +130,7 @@ def _navigation(args, *, demo: bool) -> int:
                          n_particles=args.particles,
                          position_every=args.position_every or (10 if "lanbloc-camera" in args.sources else 1))
     out = Path(args.out)
-    with _scheduler(args.scheduler) as client, _run_folder(args, out, seed=sweep.seed) as run:
+    with runner.connect(args.scheduler) as client, _run_folder(args, out, seed=sweep.seed) as run:
         console.info(f"safenav {'demo' if demo else 'run'}: scenario {scenario.name!r}, path types "
                      f"{list(sweep.path_types)}, {sweep.trials} trials per cell, seed {sweep.seed}")
         safe = runner.plan_safe_paths(scenario, sweep.path_types, progress=True)
@@ -221,7 +203,7 @@ def _plan(args) -> int:
 
 
 def _experiment(args) -> int:
-    from . import reproduce
+    from . import reproduce, runner
 
     reproduce.resolve(args.names)
     opts = reproduce.ExperimentOptions(
@@ -229,8 +211,9 @@ def _experiment(args) -> int:
         particles=args.particles, workers=args.workers, scheduler=args.scheduler, seed=args.seed, out=args.out,
         scenario=_load(args), path_types=tuple(args.path_types or ()), placement=not args.no_placement,
         progress=True)
-    with _run_folder(args, opts.out, seed=int(opts.seed)) as run:   # the scheduler is connected before any work
-        results = reproduce.run_experiments(args.names, opts)
+    # connected before the run folder is opened: a bad address leaves a previous run's manifest alone
+    with runner.connect(opts.scheduler) as client, _run_folder(args, opts.out, seed=int(opts.seed)) as run:
+        results = reproduce.run_experiments(args.names, dataclasses.replace(opts, scheduler=client))
         report = reproduce.write_report(results, opts)
         _wrote(run)
     print(f"report: {report}")
@@ -243,7 +226,7 @@ def _experiment(args) -> int:
 def _verify(args) -> int:
     m = verify_run(args.folder)
     print(f"{args.folder}: complete; the {len(m['files'])} files of its manifest match "
-          f"(command: {' '.join(m['command'])})")
+          f"(command: {' '.join(map(str, m.get('command') or ['?']))})")
     return 0
 
 

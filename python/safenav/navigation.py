@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import _core
-from ._checks import as_array, as_int, as_positive_int, as_seed
+from ._checks import as_array, as_int, as_seed
 from .planning import PlanningProblem, PlannerSettings, map_from_world, plan
 
 Navigator = _core.Navigator
@@ -185,7 +185,7 @@ def make_navigator(scenario, safe_path, *, method: str = "centroid", filter: str
     s.lost_position_std = nav.lost_position_std
     fo = _core.FilterOptions()
     fo.type = _choice("filter", filter, FILTERS)
-    fo.n_particles = as_positive_int("n_particles", n_particles)
+    fo.n_particles = as_int("n_particles", n_particles)
     s.filter = fo
     s.record = bool(record)
 
@@ -195,7 +195,7 @@ def make_navigator(scenario, safe_path, *, method: str = "centroid", filter: str
     se.max_range = scenario.detection.max_range_m
     se.field_of_view = np.deg2rad(scenario.camera.field_of_view_deg)
     se.min_landmarks = scenario.detection.min_landmarks
-    se.position_every = as_positive_int("position_every", position_every)
+    se.position_every = as_int("position_every", position_every)
     se.imu_speed_std = scenario.noise.imu_speed_std
     se.imu_heading_std = scenario.noise.imu_heading_std
     if tuple(scenario.noise.lanbloc_std) != SOURCES["lanbloc"].std and source == "lanbloc":

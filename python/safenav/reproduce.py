@@ -100,12 +100,6 @@ class ExperimentOptions:
             if p not in names:
                 raise ValueError(f"path_types: {p!r} is not a path type of the scenario (have: {names})")
         self.out = Path(self.out)
-        if isinstance(self.scheduler, str):
-            try:
-                import distributed  # noqa: F401
-            except ImportError as exc:
-                raise ValueError(f"scheduler = {self.scheduler!r}: needs Dask, which is not installed "
-                                 "(pip install 'safenav[dask]')") from exc
 
     def describe(self) -> dict:
         """The options as plain values (for the report and ``parameters.json``)."""
@@ -685,22 +679,13 @@ def run_experiments(names, opts: ExperimentOptions, *, show=print) -> list[Exper
     keys = resolve(names)
     opts.out.mkdir(parents=True, exist_ok=True)
     cache: dict = {}
-    own_client = None
-    if isinstance(opts.scheduler, str):
-        from distributed import Client    # importable: checked by ExperimentOptions
-
+    address = opts.scheduler
+    with runner.connect(address) as client:         # one connection for every sweep
+        opts.scheduler = client
         try:
-            own_client = Client(opts.scheduler, timeout=10)     # one connection for every sweep
-        except (OSError, TimeoutError) as exc:
-            raise ValueError(f"scheduler = {opts.scheduler!r}: cannot connect ({exc})") from None
-    try:
-        if own_client is not None:
-            opts.scheduler, address = own_client, opts.scheduler
-        done = _run_all(keys, opts, cache, show)
-    finally:
-        if own_client is not None:
+            done = _run_all(keys, opts, cache, show)
+        finally:
             opts.scheduler = address
-            own_client.close()
     write_json(opts.out / "parameters.json", _parameters(opts))
     return done
 

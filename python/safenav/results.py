@@ -150,10 +150,12 @@ def write_table(df: pd.DataFrame, path, *, parquet: bool = True, markdown: str |
     if markdown is not None:
         text = (f"**{markdown}**\n\n" if markdown else "") + markdown_table(table, 4)
         out.append(write_text(path.with_suffix(".md"), text))
+    times_path = path.with_name(path.stem + "_timings.csv")
     if timing:
         times = df[_key_columns(table) + timing]
-        out.append(atomic_write(path.with_name(path.stem + "_timings.csv"),
-                                lambda fh: fh.write(times.to_csv(index=False).encode())))
+        out.append(atomic_write(times_path, lambda fh: fh.write(times.to_csv(index=False).encode())))
+    else:       # an older run's timings must not be joined to this table by read_table
+        times_path.unlink(missing_ok=True)
     return out
 
 
@@ -263,6 +265,10 @@ def verify_run(folder) -> dict:
     try:
         data = json.loads(m.read_text(encoding="utf-8"))
         files = data["files"]
+        if not isinstance(files, list) or not all(
+                isinstance(f, dict) and isinstance(f.get("path"), str) and isinstance(f.get("sha256"), str)
+                and not Path(f["path"]).is_absolute() and ".." not in Path(f["path"]).parts for f in files):
+            raise TypeError("'files' must list {path, sha256} entries inside the folder")
     except (ValueError, KeyError, TypeError) as exc:
         raise IncompleteRunError(f"{m}: not a safenav manifest ({exc})") from exc
     for f in files:

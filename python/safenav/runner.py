@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import os
 from concurrent.futures import ThreadPoolExecutor, as_completed
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -223,22 +224,45 @@ def map_ordered(fn, items, *, workers: int | None = None, scheduler=None, progre
         if scheduler is not None:
             return _run_dask(fn, items, scheduler, bar)
         out = [None] * len(items)
-        with ThreadPoolExecutor(max_workers=int(n)) as pool:
+        pool = ThreadPoolExecutor(max_workers=int(n))
+        try:
             futures = {pool.submit(fn, c): i for i, c in enumerate(items)}
             for fut in as_completed(futures):
                 out[futures[fut]] = fut.result()
                 bar.update()
+        except BaseException:       # a failed item, Ctrl-C or SIGTERM: drop the queued items, don't run them
+            pool.shutdown(wait=False, cancel_futures=True)
+            raise
+        pool.shutdown()
         return out
 
 
+@contextmanager
+def connect(scheduler):
+    """A ``distributed.Client`` for a run: connected to ``scheduler`` (an
+    address; 10 s time-out) and closed afterwards, or ``scheduler`` itself
+    when it is a client already or None (local threads).  Errors name the
+    address."""
+    if scheduler is None or not isinstance(scheduler, str):
+        yield scheduler
+        return
+    try:
+        from distributed import Client
+    except ImportError:
+        raise ValueError(f"scheduler {scheduler!r}: needs Dask, which is not installed "
+                         "(pip install 'safenav[dask]')") from None
+    try:
+        client = Client(scheduler, timeout=10)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise ValueError(f"scheduler {scheduler!r}: cannot connect ({exc})") from None
+    with client:
+        yield client
+
+
 def _run_dask(fn, items, scheduler, bar):
-    try:
-        from distributed import Client, as_completed as dask_completed
-    except ImportError as exc:  # pragma: no cover - exercised only without the extra
-        raise RuntimeError("--scheduler needs Dask: pip install 'safenav[dask]'") from exc
-    own = not isinstance(scheduler, Client)
-    client = Client(scheduler) if own else scheduler
-    try:
+    from distributed import as_completed as dask_completed
+
+    with connect(scheduler) as client:
         futures = client.map(fn, items, pure=False)
         index = {f.key: i for i, f in enumerate(futures)}
         out = [None] * len(items)
@@ -246,9 +270,6 @@ def _run_dask(fn, items, scheduler, bar):
             out[index[fut.key]] = fut.result()
             bar.update()
         return out
-    finally:
-        if own:
-            client.close()
 
 
 def summarize(raw: pd.DataFrame) -> pd.DataFrame:

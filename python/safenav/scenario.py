@@ -92,6 +92,7 @@ from typing import Any
 import numpy as np
 import tomli_w
 
+from . import _core
 from ._checks import cut
 from .world import (Circle, Field, Hazard, Landmark, PathType, Polygon, Range, ScenarioError, World,  # noqa: F401
                     _at, _fail, _integer, _items, _join, _table, _text, _vector)
@@ -113,7 +114,7 @@ def _n(lo, hi):
     return Range(lo, hi, integer=True)
 
 
-MAX_STEPS = 10_000_000        #: navigation.max_steps, given or derived
+MAX_STEPS = _core.NAVIGATION_MAX_STEPS   #: navigation.max_steps, given or derived (the core's limit)
 MAX_ITERATIONS = 1_000_000    #: RAw-RRT* iterations of one plan
 MAX_PATH_TYPES = 100
 MAX_ZONES = 64                #: buffer.weights entries
@@ -307,8 +308,8 @@ _SECTIONS: dict[str, type] = {
 class Scenario:
     """A world, its path types and the run parameters.
 
-    Cross-checks on construction, so that nothing fails once planning has
-    started: path type names are unique; every cluster a path names exists; a
+    Cross-checks on construction, so that a bad combination of fields is
+    refused before planning starts: path type names are unique; every cluster a path names exists; a
     path's start and destination (cluster centroids) lie farther than
     ``navigation.clearance`` from every obstacle (else the planner cannot
     start or end) and farther apart than ``navigation.arrival_radius`` (else

@@ -107,7 +107,9 @@ struct NavigationSettings {
   NavigationMethod method = NavigationMethod::Centroid;
   double cruise_speed = 2.0;       ///< desired speed [m/s]
   double arrival_radius = 1.0;     ///< arrived when the estimate is this close to the destination [m]
-  int max_steps = 0;               ///< 0 = 3·L/(cruise_speed·Δt) + 200
+  int max_steps = 0;               ///< 0 = 3·L/(cruise_speed·Δt) + 200; at most kMaxSteps either way
+  /// The largest step budget, given or derived: 1e7 steps at Δt = 0.05 s is 139 h.
+  static constexpr int kMaxSteps = 10'000'000;
   SegmentOptions segments;         ///< segments, hulls and sub-segment centroids (Algorithms 1–2)
   double lookahead = 5.0;          ///< Algorithm 1's corrective control aims this far ahead on the path [m]
   double step_back_speed = 0.5;    ///< Algorithm 1's step back: speed toward the path [m/s]
