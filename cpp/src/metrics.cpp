@@ -64,6 +64,10 @@ double ade(const Eigen::Ref<const Points2>& est, const Eigen::Ref<const Points2>
     os << "ADE pairs points by time: estimate has " << est.rows() << " points but truth has " << truth.rows();
     throw std::invalid_argument(os.str());
   }
+  // The plain expression first (its bits are the tables' since the start); the
+  // overflow-safe one only when a square overflowed.
+  const double m = (est - truth).rowwise().norm().mean();
+  if (std::isfinite(m)) return m;
   const Eigen::Index n = est.rows();
   Eigen::VectorXd d(n);
   for (Eigen::Index i = 0; i < n; ++i) d[i] = distance(row(est, i), row(truth, i), "ADE");
@@ -73,11 +77,15 @@ double ade(const Eigen::Ref<const Points2>& est, const Eigen::Ref<const Points2>
 double fde(const Eigen::Ref<const Points2>& est, const Eigen::Ref<const Points2>& truth) {
   check_points(est, "estimate");
   check_points(truth, "truth");
-  return distance(row(est, est.rows() - 1), row(truth, truth.rows() - 1), "FDE");
+  const double d = (est.row(est.rows() - 1) - truth.row(truth.rows() - 1)).norm();
+  return std::isfinite(d) ? d : distance(row(est, est.rows() - 1), row(truth, truth.rows() - 1), "FDE");
 }
 
 double path_length(const Eigen::Ref<const Points2>& path) {
   check_points(path, "path");
+  if (path.rows() < 2) return 0.0;
+  const double plain = (path.bottomRows(path.rows() - 1) - path.topRows(path.rows() - 1)).rowwise().norm().sum();
+  if (std::isfinite(plain)) return plain;
   Eigen::VectorXd d(path.rows() - 1);
   for (Eigen::Index i = 0; i + 1 < path.rows(); ++i) d[i] = distance(row(path, i + 1), row(path, i), "path length");
   const double L = d.sum();
