@@ -33,7 +33,6 @@ The heavy lifting is in the C++ core (``safenav._core``: ``place_landmarks``,
 
 from __future__ import annotations
 
-import itertools
 import math
 import time
 from dataclasses import dataclass, field
