@@ -2,10 +2,14 @@
 
 #include "common.hpp"
 #include "safenav/motion.hpp"
+#include "safenav/rng.hpp"
 
 using namespace safenav;
 
 void pybind_motion(py::module_& m) {
+  m.def("derive_seed", &derive_seed, py::arg("seed"), py::arg("stream"),
+        "The core's one seed rule (safenav/rng.hpp): an independent sub-seed of `seed` for random\n"
+        "source `stream` (splitmix64).  Both are unsigned 64-bit integers.");
   m.def("wrap_angle", py::vectorize(&wrap_angle), py::arg("angle"), "Wrap angles to (-pi, pi].");
 
   const BmmParams d;

@@ -35,14 +35,6 @@ void require_finite_nonneg(double v, const char* name) {
   if (!std::isfinite(v) || v < 0.0) bad(std::string(name) + " = " + num(v) + ": must be finite and >= 0");
 }
 
-/// Independent, reproducible sub-seeds of a trial seed (splitmix64 finaliser).
-std::uint64_t derive_seed(std::uint64_t seed, std::uint64_t stream) {
-  std::uint64_t z = seed + 0x9e3779b97f4a7c15ULL * (stream + 1);
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-  return z ^ (z >> 31);
-}
-
 double heading_to(const State& x, const Eigen::Vector2d& target) {
   const Eigen::Vector2d d = target - x.head<2>();
   if (d.squaredNorm() < 1e-18) return 0.0;

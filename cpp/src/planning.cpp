@@ -35,6 +35,7 @@
 
 #include "cgal_util.hpp"
 #include "safenav/geometry.hpp"
+#include "safenav/rng.hpp"
 
 namespace safenav {
 namespace {
@@ -305,13 +306,9 @@ class SeededSimplifier : public og::PathSimplifier {
   }
 };
 
-// splitmix64: independent 32-bit seeds for each random source.
-std::uint_fast32_t derive_seed(std::uint64_t seed, std::uint64_t stream) {
-  std::uint64_t z = seed + 0x9E3779B97F4A7C15ULL * (stream + 1);
-  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
-  z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
-  z ^= z >> 31;
-  return static_cast<std::uint_fast32_t>(z & 0xFFFFFFFFULL);
+// OMPL's generators take 32-bit seeds: the low half of the core's derive_seed.
+std::uint_fast32_t derive_seed32(std::uint64_t seed, std::uint64_t stream) {
+  return static_cast<std::uint_fast32_t>(derive_seed(seed, stream) & 0xFFFFFFFFULL);
 }
 
 Points2 to_points(const og::PathGeometric& path) {
@@ -497,7 +494,7 @@ PlanResult plan(const PlanningProblem& problem, const PlannerSettings& settings)
   bounds.setHigh(0, map.upper.x());
   bounds.setHigh(1, map.upper.y());
   space->setBounds(bounds);
-  const std::uint_fast32_t sampler_seed = derive_seed(settings.seed, 0);
+  const std::uint_fast32_t sampler_seed = derive_seed32(settings.seed, 0);
   const CentralPath* central = settings.corridor_bias > 0.0 ? &risk : nullptr;
   const double bias = settings.corridor_bias, half_width = problem.zones.half_width;
   space->setStateSamplerAllocator([sampler_seed, central, bias, half_width](const ob::StateSpace* s) {
@@ -532,7 +529,7 @@ PlanResult plan(const PlanningProblem& problem, const PlannerSettings& settings)
   pdef->setStartAndGoalStates(start, goal, settings.goal_tolerance);
   pdef->setOptimizationObjective(objective);
 
-  auto planner = std::make_shared<SeededRRTstar>(si, derive_seed(settings.seed, 1));
+  auto planner = std::make_shared<SeededRRTstar>(si, derive_seed32(settings.seed, 1));
   if (settings.range > 0.0) planner->setRange(settings.range);
   planner->setGoalBias(settings.goal_bias);
   // Radius neighbourhoods (r ≤ range) instead of k-nearest: no long edges, each
@@ -579,7 +576,7 @@ PlanResult plan(const PlanningProblem& problem, const PlannerSettings& settings)
   og::PathGeometric solution(*path);
   Points2 points = to_points(solution);
   if (settings.smooth && solution.getStateCount() > 2) {
-    SeededSimplifier simplifier(si, objective, derive_seed(settings.seed, 2));
+    SeededSimplifier simplifier(si, objective, derive_seed32(settings.seed, 2));
     og::PathGeometric smoothed(solution);
     // Cost-aware shortcuts (the objective judges every shortcut), then a
     // dense re-check: the smoothed path is kept only if it is free and cheaper.

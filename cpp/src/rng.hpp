@@ -18,6 +18,8 @@
 #include <cstdlib>
 #include <cstring>
 
+#include "safenav/rng.hpp"
+
 #if (defined(__GNUC__) || defined(__clang__)) && defined(__x86_64__) && !defined(__AVX2__) && \
     !defined(SAFENAV_NO_DISPATCH)
 // The build targets baseline x86-64 (no -march): hot loops get a second copy
@@ -72,12 +74,7 @@ inline auto dispatch(A... a) {
 }
 
 inline std::uint64_t rotl64(std::uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
-inline std::uint64_t splitmix64(std::uint64_t& x) {
-  std::uint64_t z = (x += 0x9e3779b97f4a7c15ULL);
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-  return z ^ (z >> 31);
-}
+inline std::uint64_t splitmix64(std::uint64_t& x) { return splitmix64_mix(x += kSplitmix64Gamma); }
 
 /// Ziggurat tables with K layers (Marsaglia & Tsang 2000).  A 32-bit draw hz
 /// picks layer iz = hz & (K−1); x = hz·wn[iz] is accepted at once when
