@@ -26,6 +26,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
+import safenav.scenario
 from safenav import metrics
 from safenav.metrics import RiskZones
 
@@ -219,7 +220,7 @@ def _deviations_to_probe(d_max, n_zones, g):
 
 def test_wrs_of_deviation_matches_paper_formula_default_zones():
     d = _deviations_to_probe(2.0, 4, rng(10))
-    ours = metrics.wrs_of_deviation(d)
+    ours = metrics.wrs_of_deviation(d, Z2)
     ref = np.array([paper_wrs(x) for x in d])
     np.testing.assert_allclose(ours, ref, rtol=1e-15, atol=0.0)
 
@@ -227,22 +228,26 @@ def test_wrs_of_deviation_matches_paper_formula_default_zones():
 def test_default_risk_zones_are_the_papers():
     z = RiskZones()
     assert list(z.weights) == list(PAPER_WEIGHTS)
-    assert z.half_width > 0.0
-    assert z.half_width == 2.0  # DESIGN/metrics.hpp default d_max
+    # one default, declared in the core: the scenario's buffer reads it from there
+    assert z.half_width == 8.0 == safenav.scenario.BufferParams().half_width
+
+
+#: the zones of width 0.5 that the exact-value tests below are written for
+Z2 = RiskZones(half_width=2.0, weights=list(PAPER_WEIGHTS))
 
 
 def test_wrs_exact_values_at_zone_borders_default_zones():
     # zones of width 0.5: [0, .5) w=2, [.5, 1) w=4, [1, 1.5) w=6, [1.5, 2) w=8, >= 2: 2*2/8
     d = np.array([0.0, 0.25, 0.5, 1.0, 1.5, 2.0, 3.0])
     expect = np.array([0.0, 0.25**2 / 2, 0.5**2 / 4, 1.0**2 / 6, 1.5**2 / 8, 2.0 * 2.0 / 8, 2.0 * 2.0 / 8])
-    np.testing.assert_array_equal(metrics.wrs_of_deviation(d), expect)
+    np.testing.assert_array_equal(metrics.wrs_of_deviation(d, Z2), expect)
 
 
 @pytest.mark.parametrize("border,w_below,w_above", [(0.5, 2.0, 4.0), (1.0, 4.0, 6.0), (1.5, 6.0, 8.0)])
 def test_wrs_drops_at_zone_borders_as_documented(border, w_below, w_above):
     below = math.nextafter(border, 0.0)
     above = math.nextafter(border, math.inf)
-    w = metrics.wrs_of_deviation([below, border, above])
+    w = metrics.wrs_of_deviation([below, border, above], Z2)
     assert w[0] > w[1]  # it falls at the border ...
     assert w[1] == border * border / w_above  # ... the border belongs to the outer zone
     assert w[0] == pytest.approx(border * border / w_below, rel=1e-12)
@@ -251,10 +256,10 @@ def test_wrs_drops_at_zone_borders_as_documented(border, w_below, w_above):
 
 
 def test_wrs_saturates_at_and_beyond_d_max():
-    w = metrics.wrs_of_deviation([2.0, 2.5, 100.0, -2.0, -1e9])
+    w = metrics.wrs_of_deviation([2.0, 2.5, 100.0, -2.0, -1e9], Z2)
     np.testing.assert_array_equal(w, np.full(5, 2.0 * (2.0 / 8.0)))
     # with the paper's weights the outermost zone has w_max, so WRS is continuous at d_max
-    assert metrics.wrs_of_deviation([math.nextafter(2.0, 0.0)])[0] == pytest.approx(0.5, rel=1e-12)
+    assert metrics.wrs_of_deviation([math.nextafter(2.0, 0.0)], Z2)[0] == pytest.approx(0.5, rel=1e-12)
 
 
 @pytest.mark.parametrize("half_width,weights", [
@@ -303,11 +308,11 @@ def test_wrs_of_points_equals_wrs_of_distance_to_path():
     g = rng(13)
     path = random_walk(g, 12, step=2.0)
     points = path[g.integers(0, len(path), 400)] + g.normal(scale=1.2, size=(400, 2))
-    for zones in (None, RiskZones(half_width=3.0, weights=[1.0, 2.0, 3.0])):
+    for zones in (Z2, RiskZones(half_width=3.0, weights=[1.0, 2.0, 3.0])):
         d = metrics.distance_to_path(points, path)
         np.testing.assert_array_equal(metrics.wrs(points, path, zones), metrics.wrs_of_deviation(d, zones))
         # and the whole chain against the paper formula
-        hw, ws = (2.0, PAPER_WEIGHTS) if zones is None else (3.0, [1.0, 2.0, 3.0])
+        hw, ws = (2.0, PAPER_WEIGHTS) if zones is Z2 else (3.0, [1.0, 2.0, 3.0])
         np.testing.assert_allclose(metrics.wrs(points, path, zones), [paper_wrs(x, hw, ws) for x in d],
                                    rtol=1e-15, atol=0.0)
     # the probe covers every zone and the saturated region
@@ -321,7 +326,7 @@ def test_awrs_is_mean_of_wrs():
     for zones in (None, RiskZones(half_width=1.5, weights=[10.0, 1.0, 5.0])):
         w = metrics.wrs(points, path, zones)
         assert metrics.awrs(points, path, zones) == pytest.approx(np.mean(w), rel=1e-12)
-    hw = 2.0
+    hw = RiskZones().half_width  # the default zones
     ref = np.mean([paper_wrs(x, hw) for x in metrics.distance_to_path(points, path)])
     assert metrics.awrs(points, path) == pytest.approx(ref, rel=1e-12)
 

@@ -1,4 +1,5 @@
 #include "common.hpp"
+#include "params.hpp"
 #include "safenav/metrics.hpp"
 
 using namespace safenav;
@@ -11,7 +12,7 @@ void pybind_metrics(py::module_& m) {
         release_gil());
 
   const RiskZones d;
-  py::class_<RiskZones>(m, "RiskZones", "Safe-buffer risk zones of SafeNav section V-A(iii), eq. 18.")
+  def_params<RiskZones>(py::class_<RiskZones>(m, "RiskZones", "Safe-buffer risk zones of SafeNav section V-A(iii), eq. 18."))
       .def(py::init([](double half_width, std::vector<double> weights) {
              RiskZones z{half_width, std::move(weights)};
              z.validate();

@@ -1,6 +1,7 @@
 #include <sstream>
 
 #include "common.hpp"
+#include "params.hpp"
 #include "safenav/motion.hpp"
 #include "safenav/rng.hpp"
 
@@ -12,8 +13,26 @@ void pybind_motion(py::module_& m) {
         "source `stream` (splitmix64).  Both are unsigned 64-bit integers.");
   m.def("wrap_angle", py::vectorize(&wrap_angle), py::arg("angle"), "Wrap angles to (-pi, pi].");
 
+  py::enum_<ParamKind>(m, "ParamKind")
+      .value("REAL", ParamKind::Real)
+      .value("INTEGER", ParamKind::Integer)
+      .value("REAL_LIST", ParamKind::RealList);
+  py::class_<ParamSpec>(m, "ParamSpec", "One declared parameter (safenav/params.hpp).")
+      .def_readonly("name", &ParamSpec::name)
+      .def_readonly("kind", &ParamSpec::kind)
+      .def_readonly("unit", &ParamSpec::unit)
+      .def_readonly("lo", &ParamSpec::lo)
+      .def_readonly("hi", &ParamSpec::hi)
+      .def_readonly("lo_open", &ParamSpec::lo_open)
+      .def_readonly("max_size", &ParamSpec::max_size)
+      .def_readonly("doc", &ParamSpec::doc)
+      .def("range_text", &ParamSpec::range_text)
+      .def("__repr__", [](const ParamSpec& s) {
+        return "ParamSpec(" + s.name + " in " + s.range_text() + (s.unit.empty() ? "" : " " + s.unit) + ")";
+      });
+
   const BmmParams d;
-  py::class_<BmmParams>(m, "BmmParams", "Parameters of the Battlefield Motion Model (SafeNav eqs. 3-9).")
+  def_params<BmmParams>(py::class_<BmmParams>(m, "BmmParams", "Parameters of the Battlefield Motion Model (SafeNav eqs. 3-9)."))
       .def(py::init([](double acceleration, double deceleration, double max_speed, double max_heading_rate,
                        double dt, double terrain_effect, double speed_noise, double heading_noise,
                        double position_noise) {

@@ -1,6 +1,7 @@
 #include <pybind11/numpy.h>
 
 #include "common.hpp"
+#include "params.hpp"
 #include "safenav/navigation.hpp"
 
 using namespace safenav;
@@ -73,7 +74,7 @@ void pybind_navigation(py::module_& m) {
       .def_readwrite("bmm", &NavigationProblem::bmm)
       .def("validate", &NavigationProblem::validate);
 
-  py::class_<NavigationSettings>(m, "NavigationSettings")
+  def_params<NavigationSettings>(py::class_<NavigationSettings>(m, "NavigationSettings"))
       .def(py::init<>())
       .def_readwrite("method", &NavigationSettings::method)
       .def_readwrite("cruise_speed", &NavigationSettings::cruise_speed)

@@ -1,4 +1,5 @@
 #include "common.hpp"
+#include "params.hpp"
 #include "safenav/planning.hpp"
 
 using namespace safenav;
@@ -15,7 +16,7 @@ void pybind_planning(py::module_& m) {
       });
 
   const PlanningMap dm;
-  py::class_<PlanningMap>(m, "PlanningMap", "The field (rectangle) and its circle and polygon obstacles.")
+  def_params<PlanningMap>(py::class_<PlanningMap>(m, "PlanningMap", "The field (rectangle) and its circle and polygon obstacles."))
       .def(py::init([](const Eigen::Vector2d& lower, const Eigen::Vector2d& upper, std::vector<CircleObstacle> circles,
                        std::vector<Points2> polygons, double clearance) {
              PlanningMap map{lower, upper, std::move(circles), std::move(polygons), clearance};
@@ -54,7 +55,7 @@ void pybind_planning(py::module_& m) {
       .def("validate", &PlanningProblem::validate);
 
   const PlannerSettings ds;
-  py::class_<PlannerSettings>(m, "PlannerSettings", "RAw-RRT* settings (alpha, beta of SafeNav eq. 16).")
+  def_params<PlannerSettings>(py::class_<PlannerSettings>(m, "PlannerSettings", "RAw-RRT* settings (alpha, beta of SafeNav eq. 16)."))
       .def(py::init([](double alpha, double beta, double range, double goal_bias, std::int64_t max_iterations,
                        double max_time, std::uint64_t seed, double resolution, double goal_tolerance, bool smooth,
                        bool stay_in_corridor, bool allow_approximate, double corridor_bias) {

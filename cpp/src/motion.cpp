@@ -1,4 +1,5 @@
 #include "safenav/motion.hpp"
+#include "safenav/params.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -40,6 +41,7 @@ void BmmParams::validate() const {
   require(finite_sigma(speed_noise), "speed_noise", speed_noise, ">= 0 with a finite square");
   require(finite_sigma(heading_noise), "heading_noise", heading_noise, ">= 0 with a finite square");
   require(finite_sigma(position_noise), "position_noise", position_noise, ">= 0 with a finite square");
+  param_set<BmmParams>().check(*this);
 }
 
 void check_finite_state(const State& x, const char* what) {

@@ -192,6 +192,7 @@ void NavigationSettings::validate() const {
     bad("settings.filter.gate_probability = " + num(filter.gate_probability) + ": must be in [0, 1)");
   if (filter.type == FilterType::InformationFilter)
     bad("settings.filter.type = InformationFilter: navigation supports the EKF and the particle filter");
+  param_set<NavigationSettings>().check(*this, "settings.");
 }
 
 // ---------------------------------------------------------------------------

@@ -35,6 +35,7 @@
 
 #include "cgal_util.hpp"
 #include "safenav/geometry.hpp"
+#include "safenav/params.hpp"
 #include "safenav/rng.hpp"
 
 namespace safenav {
@@ -406,6 +407,7 @@ void PlannerSettings::validate() const {
   finite_nonneg(goal_tolerance, "goal_tolerance");
   if (!(corridor_bias >= 0.0 && corridor_bias <= 1.0))
     bad("corridor_bias must be in [0, 1], got " + std::to_string(corridor_bias));
+  param_set<PlannerSettings>().check(*this);
 }
 
 std::string to_string(PlanStatus status) {

@@ -141,10 +141,9 @@ def plan_safe_path(scenario, path_type: str, *, seed: int | None = None, iterati
     gt = scenario.path_polyline(path_type)
     world_map = map_from_world(scenario.world, clearance=nav.clearance)
     problem = PlanningProblem(map=world_map, start=gt[0], goal=gt[-1], central_path=gt, zones=scenario.risk_zones())
-    settings = PlannerSettings(alpha=scenario.planner.alpha, beta=scenario.planner.beta,
-                               max_iterations=int(iterations or nav.plan_iterations),
-                               seed=int(scenario.seeds.planner if seed is None else seed),
-                               corridor_bias=nav.corridor_bias, smooth=True)
+    settings = scenario.planner.apply(nav.apply(PlannerSettings(smooth=True)))
+    settings.max_iterations = int(iterations or nav.plan_iterations)
+    settings.seed = int(scenario.seeds.planner if seed is None else seed)
     result = plan(problem, settings)
     if not result.success:
         raise RuntimeError(f"path type {path_type}: RAw-RRT* found no safe path ({result.status}, "
@@ -170,19 +169,13 @@ def make_navigator(scenario, safe_path, *, method: str = "centroid", filter: str
     problem.map = world_map if world_map is not None else map_from_world(scenario.world, clearance=nav.clearance)
     problem.bmm = scenario.bmm_params()
 
-    s = NavigationSettings()
+    s = nav.apply(NavigationSettings())
     s.method = _choice("method", method, METHODS)
-    s.cruise_speed = nav.cruise_speed
-    s.arrival_radius = nav.arrival_radius
-    s.max_steps = nav.max_steps if max_steps is None else as_int("max_steps", max_steps, 0)  # 0: from the path
-    s.segments = _core.SegmentOptions(count=0, length=nav.segment_length, sub_segments=nav.sub_segments)
-    s.lookahead, s.step_back_speed = nav.lookahead, nav.step_back_speed
+    if max_steps is not None:
+        s.max_steps = as_int("max_steps", max_steps, 0)  # 0: from the path
     s.replan = bool(replan)
-    s.sensing_range, s.replan_lookahead = nav.sensing_range, nav.replan_lookahead
-    s.planner = PlannerSettings(alpha=scenario.planner.alpha, beta=scenario.planner.beta,
-                                max_iterations=nav.replan_iterations, corridor_bias=nav.corridor_bias,
-                                smooth=True, seed=as_seed("planner_seed", planner_seed or 0))
-    s.lost_position_std = nav.lost_position_std
+    scenario.planner.apply(s.planner)
+    s.planner.seed = as_seed("planner_seed", planner_seed or 0)
     fo = _core.FilterOptions()
     fo.type = _choice("filter", filter, FILTERS)
     fo.n_particles = as_int("n_particles", n_particles)

@@ -117,7 +117,6 @@ def _n(lo, hi):
 MAX_STEPS = _core.NAVIGATION_MAX_STEPS   #: navigation.max_steps, given or derived (the core's limit)
 MAX_ITERATIONS = 1_000_000    #: RAw-RRT* iterations of one plan
 MAX_PATH_TYPES = 100
-MAX_ZONES = 64                #: buffer.weights entries
 MAX_DESCRIPTION = 10_000      #: characters
 
 
@@ -128,10 +127,25 @@ class _Params:
     why); ``__post_init__`` checks and normalises every one of them."""
 
     RANGES: dict = {}
+    LISTS: dict = {}   #: list fields: name -> (range of each entry, most entries)
 
     def __post_init__(self):
         for name, rng in self.RANGES.items():
             object.__setattr__(self, name, rng.check(name, getattr(self, name)))
+        for name, (rng, max_len) in self.LISTS.items():
+            v = _items(name, getattr(self, name), max_len)
+            if not v:
+                _fail(name, getattr(self, name), "needs at least one entry")
+            object.__setattr__(self, name, tuple(rng.check(f"{name}[{i}]", x) for i, x in enumerate(v)))
+
+    def apply(self, core):
+        """Set each of this section's fields that the core settings object
+        ``core`` declares (``core.params()``) onto it; returns ``core``."""
+        declared = {sp.name for sp in core.params()}
+        for f in fields(self):
+            if f.name in declared:
+                core.set_param(f.name, getattr(self, f.name))
+        return core
 
     def to_dict(self) -> dict:
         out = {}
@@ -171,32 +185,42 @@ class DetectionParams(_Params):
     RANGES = {"max_range_m": _r(0, 1e4, True), "min_landmarks": _n(1, 1000)}
 
 
-@dataclass(frozen=True)
-class BmmConfig(_Params):
-    """BMM parameters (eqs. 3–9) under :class:`safenav.BmmParams`' field names and defaults."""
+def _core_section(name: str, doc: str, keys, *, defaults=None, extra=None) -> type:
+    """A frozen section class whose fields are parameters declared in the core
+    (``safenav/params.hpp``): each key's default, range and documentation come
+    from the core declaration, none is repeated here.
 
-    acceleration: float = 3.0        #: a [m/s²]
-    deceleration: float = 3.0        #: d [m/s²]
-    max_speed: float = 10.0          #: v_max [m/s]
-    max_heading_rate: float = 1.5    #: m [rad/s]
-    dt: float = 0.05                 #: Δt [s]
-    terrain_effect: float = 0.0      #: τ
-    speed_noise: float = 0.05        #: σ of ε_v
-    heading_noise: float = 0.01      #: σ of ε_θ
-    position_noise: float = 0.01     #: σ of ε_x, ε_y
+    ``keys``: ``(key, core_type, core_name)`` triples (a plain ``(core_type, key)``
+    pair when the names agree); ``defaults``: the few scenario defaults that
+    differ from the core struct's own, each with its reason at the call;
+    ``extra``: methods and class attributes of the section."""
+    defaults = defaults or {}
+    spec_fields, ranges, lists = [], {}, {}
+    for entry in keys:
+        key, core_type, core_name = entry if len(entry) == 3 else (entry[1], entry[0], entry[1])
+        spec = next(sp for sp in core_type.params() if sp.name == core_name)
+        rng = Range(spec.lo, spec.hi, spec.lo_open, integer=spec.kind == _core.ParamKind.INTEGER)
+        default = defaults.get(key, core_type().get_param(core_name))
+        if spec.kind == _core.ParamKind.REAL_LIST:
+            lists[key] = (rng, spec.max_size)
+            spec_fields.append((key, tuple, field(default=tuple(default), metadata={"doc": spec.doc})))
+        else:
+            ranges[key] = rng
+            kind = int if rng.integer else float
+            spec_fields.append((key, kind, field(default=default, metadata={"doc": spec.doc, "unit": spec.unit})))
+    namespace = {"RANGES": ranges, "LISTS": lists, "__doc__": doc, **(extra or {})}
+    return dataclass(frozen=True)(type(name, (_Params,), {"__annotations__": {k: t for k, t, _ in spec_fields},
+                                                          **{k: f for k, _, f in spec_fields}, **namespace}))
 
-    RANGES = {"acceleration": _r(0, 100, True), "deceleration": _r(0, 100, True), "max_speed": _r(0, 100, True),
-              "max_heading_rate": _r(0, 100, True), "dt": _r(0, 10, True), "terrain_effect": _r(0, 100),
-              "speed_noise": _r(0, 10), "heading_noise": _r(0, math.pi), "position_noise": _r(0, 10)}
 
-    def to_params(self):
-        """The equivalent :class:`safenav.BmmParams` (needs the C++ core)."""
-        from .motion import BmmParams
-        p = BmmParams()
-        for f in fields(self):
-            setattr(p, f.name, getattr(self, f.name))
-        return p
+def _to_params(self):
+    """The equivalent :class:`safenav.BmmParams`."""
+    return self.apply(_core.BmmParams())
 
+
+BmmConfig = _core_section(
+    "BmmConfig", "BMM parameters (eqs. 3-9): :class:`safenav.BmmParams`' fields, defaults and ranges.",
+    [(_core.BmmParams, sp.name) for sp in _core.BmmParams.params()], extra={"to_params": _to_params})
 
 @dataclass(frozen=True)
 class NoiseParams(_Params):
@@ -217,74 +241,47 @@ class NoiseParams(_Params):
                                                       for i, s in enumerate(v)))
 
 
-@dataclass(frozen=True)
-class PlannerParams(_Params):
-    """RAw-RRT* weights: cost = α·length + β·ΣWRS (eqs. 16, 19); β = 0 is plain RRT*."""
-
-    alpha: float = 1.0   #: α
-    beta: float = 1.0    #: β
-
-    RANGES = {"alpha": _r(0, 1e6, True), "beta": _r(0, 1e6)}
+PlannerParams = _core_section(
+    "PlannerParams", "RAw-RRT* weights: cost = alpha*length + beta*sum(WRS) (eqs. 16, 19); beta = 0 is plain RRT*.",
+    [(_core.PlannerSettings, "alpha"), (_core.PlannerSettings, "beta")])
 
 
-@dataclass(frozen=True)
-class BufferParams(_Params):
-    """The safe buffer (eq. 18): ``half_width`` [m] split into equal zones with these weights."""
-
-    half_width: float = 8.0
-    weights: tuple[float, ...] = (2.0, 4.0, 6.0, 8.0)
-
-    WEIGHT = _r(0, 1e6, True)   #: each entry of ``weights``
-    RANGES = {"half_width": _r(0, 1000, True)}
-
-    def __post_init__(self):
-        super().__post_init__()
-        w = _items("weights", self.weights, MAX_ZONES)
-        if not w:
-            _fail("weights", self.weights, "needs at least one zone weight")
-        w = tuple(self.WEIGHT.check(f"weights[{i}]", x) for i, x in enumerate(w))
-        for i in range(1, len(w)):
-            if w[i] < w[i - 1]:
-                _fail(f"weights[{i}]", w[i], f"must not be below weights[{i - 1}] = {w[i - 1]} (risk grows outward)")
-        object.__setattr__(self, "weights", w)
-
-    def risk_zones(self):
-        """The equivalent :class:`safenav.RiskZones` (needs the C++ core)."""
-        from .metrics import RiskZones
-        return RiskZones(half_width=self.half_width, weights=list(self.weights))
+def _check_weights(self):
+    _Params.__post_init__(self)
+    w = self.weights
+    for i in range(1, len(w)):
+        if w[i] < w[i - 1]:
+            _fail(f"weights[{i}]", w[i], f"must not be below weights[{i - 1}] = {w[i - 1]} (risk grows outward)")
 
 
-@dataclass(frozen=True)
-class NavigationParams(_Params):
+def _risk_zones(self):
+    """The equivalent :class:`safenav.RiskZones`."""
+    return self.apply(_core.RiskZones())
+
+
+BufferParams = _core_section(
+    "BufferParams", "The safe buffer (eq. 18): ``half_width`` [m] split into equal zones with these weights.",
+    [(_core.RiskZones, "half_width"), (_core.RiskZones, "weights")],
+    extra={"__post_init__": _check_weights, "risk_zones": _risk_zones})
+BufferParams.WEIGHT = BufferParams.LISTS["weights"][0]   #: each entry of ``weights``
+
+_NAV = _core.NavigationSettings
+NavigationParams = _core_section(
+    "NavigationParams",
     """SafeNav navigation (Algorithms 1, 2 and 4).  The paper gives none of these
-    numbers; ours are stated here and in the README.
+    numbers; ours are declared with the core's settings (``NavigationSettings``,
+    ``PlanningMap.clearance``, ``PlannerSettings.max_iterations``).
 
     ``clearance`` keeps planned paths (the safe path and detours) that far from
     obstacles; ``plan_iterations`` is the RAw-RRT* budget of the safe path,
     ``replan_iterations`` that of a detour; ``corridor_bias`` their share of
-    samples drawn inside the corridor (0 = uniform, as in the paper)."""
-
-    cruise_speed: float = 2.0          #: desired speed [m/s]
-    arrival_radius: float = 1.0        #: arrived when the estimate is this close to the destination [m]
-    segment_length: float = 10.0       #: longest path segment of Algorithms 1-2 [m]
-    sub_segments: int = 4              #: Algorithm 2's sub-segments per segment
-    lookahead: float = 5.0             #: Algorithm 1's corrective look-ahead [m]
-    step_back_speed: float = 0.5       #: Algorithm 1's step-back speed [m/s]
-    sensing_range: float = 10.0        #: obstacles this far ahead on the path are detected [m]
-    replan_lookahead: float = 20.0     #: a detour rejoins the path this far ahead [m]
-    clearance: float = 2.0             #: planned paths keep this far from obstacles [m]
-    plan_iterations: int = 5000        #: RAw-RRT* iterations for the safe path
-    replan_iterations: int = 3000      #: RAw-RRT* iterations for a detour
-    corridor_bias: float = 0.5         #: share of corridor samples in RAw-RRT*
-    lost_position_std: float = 10.0    #: lost localization above this position σ [m]
-    max_steps: int = 0                 #: 0 = 3 × path length / (speed · dt) + 200
-
-    RANGES = {"cruise_speed": _r(0.01, 100), "arrival_radius": _r(0, 100, True), "segment_length": _r(0, 1e5, True),
-              "sub_segments": _n(1, 1000), "lookahead": _r(0, 1e5, True), "step_back_speed": _r(0.01, 100),
-              "sensing_range": _r(0, 1e5, True), "replan_lookahead": _r(0, 1e5, True), "clearance": _r(0, 100),
-              "plan_iterations": _n(1, MAX_ITERATIONS), "replan_iterations": _n(1, MAX_ITERATIONS),
-              "corridor_bias": _r(0, 1), "lost_position_std": _r(0, 1e4, True), "max_steps": _n(0, MAX_STEPS)}
-
+    samples drawn inside the corridor (0 = uniform, as in the paper).""",
+    [(_NAV, "cruise_speed"), (_NAV, "arrival_radius"), (_NAV, "segment_length"), (_NAV, "sub_segments"),
+     (_NAV, "lookahead"), (_NAV, "step_back_speed"), (_NAV, "sensing_range"), (_NAV, "replan_lookahead"),
+     ("clearance", _core.PlanningMap, "clearance"), ("plan_iterations", _core.PlannerSettings, "max_iterations"),
+     (_NAV, "replan_iterations"), (_NAV, "corridor_bias"), (_NAV, "lost_position_std"), (_NAV, "max_steps")],
+    # The core map's own default is no clearance; a scenario's vehicle keeps 2 m.
+    defaults={"clearance": 2.0})
 
 @dataclass(frozen=True)
 class Seeds(_Params):

@@ -39,7 +39,7 @@ double path_length_error_percent(const Eigen::Ref<const Points2>& estimate,
 /// d_max around a central polyline, split on each side into equal-width zones
 /// with weights w_j (2, 4, 6, 8 in the paper).
 struct RiskZones {
-  double half_width = 2.0;                          ///< d_max [m]
+  double half_width = 8.0;                          ///< d_max [m] (the real-imitated field's buffer, as the scenario)
   std::vector<double> weights = {2.0, 4.0, 6.0, 8.0};  ///< w_1 … w_n; w_max = max
   void validate() const;
 };

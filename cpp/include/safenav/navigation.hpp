@@ -31,6 +31,7 @@
 #include "safenav/geometry.hpp"
 #include "safenav/metrics.hpp"
 #include "safenav/motion.hpp"
+#include "safenav/params.hpp"
 #include "safenav/planning.hpp"
 
 namespace safenav {
@@ -119,7 +120,15 @@ struct NavigationSettings {
   int obstacle_check_every = 5;    ///< steps between obstacle checks
   double replan_lookahead = 20.0;  ///< the detour rejoins the path this far ahead (slid past the obstacle) [m]
   int max_replans = 10;
-  PlannerSettings planner;         ///< RAw-RRT* settings for detours (seed derived per trial and replan)
+  /// RAw-RRT* settings for detours (seed derived per trial and replan):
+  /// 3000 iterations, half the samples inside the corridor, smoothed.
+  PlannerSettings planner = [] {
+    PlannerSettings p;
+    p.max_iterations = 3000;
+    p.corridor_bias = 0.5;
+    p.smooth = true;
+    return p;
+  }();
   // Failure thresholds.
   double corridor_margin = 0.0;    ///< left the corridor: deviation > half_width + margin
   double lost_position_std = 10.0; ///< lost localization: √λ_max(P_xy) above this [m]
