@@ -1,6 +1,8 @@
-// safenav/filters.hpp — EKF (SafeNav eqs. 10–14), particle filter
-// (LanBLoc-BMM PF) and extended information filter (landmark placement
-// paper, section III) over the BMM state (x, y, v, θ).
+// safenav/filters.hpp — EKF [SafeNav eqs. 10–14], particle filter (the
+// LanBLoc-BMM(PF) rows of [SafeNav-ext Tables II–III]; the paper prints no PF
+// equations) and extended information filter (the EIF of [Placement §III-A],
+// which prints none either) over the BMM state (x, y, v, θ).
+// Citations follow docs/paper_map.md.
 #pragma once
 
 #include <cstdint>
@@ -28,10 +30,10 @@ void check_covariance(const Eigen::MatrixXd& P, const char* what);
 double chi2_quantile(double probability, int dof);
 
 /// Extended Kalman filter on the BMM.
-///  predict: x̂ = f(x̂, u), P = F P Fᵀ + Q                      (eq. 11)
-///  update:  y = z ⊖ h(x̂), S = H P Hᵀ + R                      (eq. 12)
-///           K = P Hᵀ S⁻¹                                      (eq. 13)
-///           x̂ = x̂ + K y, P = (I−KH) P (I−KH)ᵀ + K R Kᵀ        (eq. 14, Joseph form)
+///  predict: x̂ = f(x̂, u), P = F P Fᵀ + Q                      [SafeNav eq. 11]
+///  update:  y = z ⊖ h(x̂), S = H P Hᵀ + R                      [SafeNav eq. 12]
+///           K = P Hᵀ S⁻¹                                      [SafeNav eq. 13]
+///           x̂ = x̂ + K y, P = (I−KH) P (I−KH)ᵀ + K R Kᵀ        [SafeNav eq. 14], Joseph form
 class Ekf {
  public:
   Ekf(const BmmParams& params, const State& x0, const StateCov& P0);
@@ -79,7 +81,7 @@ class ParticleFilter {
   ParticleFilter& operator=(ParticleFilter&&) noexcept;
 
   int size() const;
-  /// Propagate every particle through the noisy BMM (eqs. 6–9).
+  /// Propagate every particle through the noisy BMM [SafeNav eqs. 6–9].
   void predict(const Control& u);
   /// Multiply weights by the measurement likelihood (in log space); resample
   /// (systematic) when ESS < resample_threshold·N.  Returns the NIS of the
@@ -105,7 +107,8 @@ class ParticleFilter {
 };
 
 /// Extended information filter (information form Y = P⁻¹, y = Y x̂), as used
-/// with bearing measurements in the landmark placement paper.
+/// with bearing measurements in [Placement §III-A] (standard equations; the
+/// paper prints none).
 ///  predict: x̂ = Y⁻¹y, P⁻ = F Y⁻¹ Fᵀ + Q, Y = (P⁻)⁻¹, y = Y f(x̂, u)
 ///  update:  Y += Hᵀ R⁻¹ H,  y += Hᵀ R⁻¹ (z ⊖ h(x̂) + H x̂)
 class InformationFilter {

@@ -1,7 +1,7 @@
-// safenav/geometry.hpp — the safe-path corridor of SafeNav section V-A(iii)
-// (safe buffer, risk zones, eqs. 17–18) and the path segments, convex hulls
-// and sub-segment centroids used by SafeNav-CHull (Algorithm 1) and
-// SafeNav-Centroid (Algorithm 2).
+// safenav/geometry.hpp — the safe-path corridor of [SafeNav-ext §V-A3(iii)]
+// (safe buffer, risk zones, [SafeNav eqs. 17–18]) and the path segments, convex
+// hulls and sub-segment centroids used by SafeNav-CHull [SafeNav Alg. 1] and
+// SafeNav-Centroid [SafeNav Alg. 2].  Citations follow docs/paper_map.md.
 //
 // Only Eigen and std types appear here; CGAL (convex hulls, orientation and
 // point location) stays inside geometry.cpp.
@@ -41,7 +41,7 @@ struct SegmentOptions;
 
 /// The safe buffer: a corridor of half-width W = d_max around a central
 /// polyline, cut into n equal-width zones per side with weights w_j
-/// (SafeNav section V-A(iii); RiskZones, default W = 2, w = 2, 4, 6, 8).
+/// ([SafeNav-ext §V-A3(iii)]; RiskZones, default W = 2, w = 2, 4, 6, 8).
 ///
 /// Consecutive duplicate path vertices are dropped; a path needs ≥ 2 distinct
 /// vertices and a positive length.  Arc length s runs from 0 at the first
@@ -79,7 +79,7 @@ class Corridor {
   Eigen::VectorXi zone(const Eigen::Ref<const Points2>& points) const;
   BoolVector contains(const Eigen::Ref<const Points2>& points) const;
   Eigen::VectorXd wrs(const Eigen::Ref<const Points2>& points) const;
-  /// AWRS (eq. 20): mean WRS over the points (≥ 1 point).
+  /// AWRS [SafeNav-ext eq. 20]: mean WRS over the points (≥ 1 point).
   double awrs(const Eigen::Ref<const Points2>& points) const;
   Points2 points_at(const Eigen::Ref<const Eigen::VectorXd>& s) const;
 
@@ -153,7 +153,8 @@ class PathSegments {
   /// Inside or on the boundary of hull k (CGAL point location).
   bool hull_contains(int k, const Eigen::Vector2d& p) const;
   BoolVector hull_contains(int k, const Eigen::Ref<const Points2>& points) const;
-  /// Algorithm 1, line 13: inside hull k or hull k+1 (when it exists).
+  /// [SafeNav-ext Alg. 1 l. 13] (= [SafeNav-conf Alg. 1 l. 10]): inside hull k or
+  /// hull k+1 (when it exists).
   bool in_current_or_next(int k, const Eigen::Vector2d& p) const;
   /// All segments whose hull contains p, ascending.
   std::vector<int> segments_containing(const Eigen::Vector2d& p) const;

@@ -1,6 +1,7 @@
 // safenav/localization.hpp — LanBLoc position fixes from landmark anchors
-// (SafeNav paper section IV-A: "recognized landmarks as anchor nodes for
-// trilateration ... with further position optimization").
+// ([SafeNav-ext §IV-A]: "recognized landmarks as anchor nodes for
+// trilateration ... with further position optimization"; the LanBLoc paper
+// itself is not among our sources, see docs/paper_map.md).
 //
 //  * trilateration from >= 3 ranges r_i = ‖p − a_i‖ + v_i, v_i ~ N(0, σ_i²):
 //    linear least squares start, then weighted Gauss–Newton with

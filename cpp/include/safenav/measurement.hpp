@@ -1,5 +1,6 @@
 // safenav/measurement.hpp — measurement models z = h(x) + v, v ~ N(0, R)
-// (SafeNav eq. 10; range/bearing models as in the landmark placement paper).
+// ([SafeNav eq. 10]; the bearing model is the sensor of [Placement §III-A];
+// range and range+bearing are ours, for real data; see docs/paper_map.md).
 //
 // Every model has the same form (as in GTSAM): a prediction h(x), an analytic
 // Jacobian H = ∂h/∂x, and an angle-aware residual z − h(x).

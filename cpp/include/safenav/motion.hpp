@@ -1,4 +1,5 @@
-// safenav/motion.hpp — the Battlefield Motion Model (SafeNav paper, eqs. 3–9).
+// safenav/motion.hpp — the Battlefield Motion Model [SafeNav eqs. 3–9].
+// Citations follow docs/paper_map.md; a bare "eq. 3" below means [SafeNav eq. 3].
 //
 // State x = (x, y, v, θ): position [m], speed [m/s], heading [rad, wrapped to (−π, π]].
 // Control u = (desired speed v_desired [m/s], heading change Δθ [rad]).
@@ -31,8 +32,9 @@ inline double wrap_angle(double a) {
   return wrap_angle_slow(a);
 }
 
-/// Parameters of the BMM. Defaults are ours (the paper gives no values) and
-/// are chosen to cover the synthetic data set of SafeNav section V-A.
+/// Parameters of the BMM (named in [SafeNav-ext Table I]). Defaults are ours
+/// (the paper gives no values) and are chosen to cover the synthetic data set
+/// of [SafeNav-ext §V-A3(i)] (= [SafeNav-conf §V-A.2(i)]).
 struct BmmParams {
   double acceleration = 3.0;       ///< a   [m/s²] acceleration capability (eq. 3)
   double deceleration = 3.0;       ///< d   [m/s²] deceleration capability (eq. 3)

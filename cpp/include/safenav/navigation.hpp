@@ -1,7 +1,8 @@
 // safenav/navigation.hpp — SafeNav safe-path navigation: SafeNav-CHull
-// (Algorithm 1), SafeNav-Centroid (Algorithm 2) and the safe path navigation
-// loop with RAw-RRT* replanning (Algorithm 4 of the extended paper, Algorithm
-// 3 of the conference paper), with LanBLoc-BMM (EKF or PF) in the loop.
+// [SafeNav Alg. 1], SafeNav-Centroid [SafeNav Alg. 2] and the safe path
+// navigation loop with RAw-RRT* replanning [SafeNav-ext Alg. 4] (= [SafeNav-conf
+// Alg. 3]), with LanBLoc-BMM (EKF or PF) in the loop.  Citations follow
+// docs/paper_map.md: algorithm line numbers differ between the versions.
 //
 // One trial: a true vehicle (the BMM with process noise and terrain) follows a
 // safe path from its first to its last vertex.  Each step the navigator
@@ -137,7 +138,7 @@ struct NavigationSettings {
   void validate() const;
 };
 
-/// Per-trial metrics.  ADE/FDE/% error/AWRS follow SafeNav eqs. 20–23 with
+/// Per-trial metrics.  ADE/FDE/% error/AWRS follow [SafeNav-ext eqs. 20–23] with
 /// the safe path as ground truth (see Navigator::run); loc_* compare the
 /// estimate with the true vehicle.
 struct TrialMetrics {
@@ -205,27 +206,28 @@ class Navigator {
   std::unique_ptr<Impl> impl_;
 };
 
-/// Algorithm 2's control: steer toward the nearest sub-segment centroid ahead
+/// [SafeNav Alg. 2]'s control: steer toward the nearest sub-segment centroid ahead
 /// of the estimate (the destination when none is ahead) at cruise speed.
 /// Δθ = atan2(Δy, Δx) − θ̂, wrapped (DESIGN.md: the paper's arctan(Δx/Δy)).
 Control centroid_control(const PathSegments& segments, const State& estimate, double cruise_speed);
 
-/// Algorithm 1's decision.
+/// [SafeNav Alg. 1]'s decision.
 struct ChullDecision {
   Control control{0, 0};
   int segment = 0;     ///< current segment k
   int kind = 0;        ///< 0 default command kept, 1 corrective control, 2 step back
   Eigen::Vector2d predicted{0, 0};  ///< BMM prediction with the chosen control
 };
-/// Algorithm 1 (SafeNav-CHull), our reading of it (DESIGN.md, decision 4):
+/// [SafeNav Alg. 1] (SafeNav-CHull), our reading of it (DESIGN.md, decision 4):
 ///  * the estimate is outside hulls k−1, k and k+1 → step back: head for the
 ///    nearest path point at step_back_speed;
 ///  * otherwise the default command heads for the look-ahead point
 ///    `lookahead` metres ahead on the path (shortened, by halving, while the
 ///    chord to it crosses an obstacle of `obstacles`, when given); it is kept
-///    if the BMM-predicted position lies in hull k or hull k+1 (line 13);
+///    if the BMM-predicted position lies in hull k or hull k+1
+///    ([SafeNav-ext Alg. 1 l. 13] = [SafeNav-conf Alg. 1 l. 10]);
 ///  * else a corrective control heads back to the path, 1 m ahead of the
-///    nearest path point (line 17).
+///    nearest path point ([SafeNav-ext Alg. 1 l. 17] = [SafeNav-conf Alg. 1 l. 13]).
 ChullDecision chull_control(const PathSegments& segments, const Bmm& bmm, const State& estimate,
                             double cruise_speed, double lookahead, double step_back_speed,
                             const ObstacleChecker* obstacles = nullptr);

@@ -1,21 +1,24 @@
 // safenav/placement.hpp — landmark placement for guaranteed observability
-// (the landmark placement paper, section II), with k-cover, corner coverage
-// and the tables the global-optimum ILP (python/safenav/placement.py) needs.
+// [Placement §II], with k-cover, corner coverage
+// and the tables the global-optimum ILP (Python, safenav.placement) needs.
 //
 // A route is a polyline of n ≥ 2 points (n−1 edges).  A landmark is in view
 // of the camera at a route point when its distance is ≤ R and its bearing
 // relative to the direction of travel is within ±α/2 (sector field of view)
 // or anywhere (circular field of view, Corollary 1).
 //
-// Edge frame (section II-A): each edge (t_i, t_{i+1}) is moved by a rigid
+// Citations follow docs/paper_map.md; every number below is the placement
+// paper's (its Algorithm 1 is the greedy, not SafeNav's CHull).
+//
+// Edge frame [Placement §II-A]: each edge (t_i, t_{i+1}) is moved by a rigid
 // transform to (0, 0) → (d, 0); a landmark at (x_k, y_k) in that frame is in
-// view from (t, 0) for t in the interval of Lemma 2,
+// view from (t, 0) for t in the interval of [Placement Lemma 2, eqs. 1–2],
 //   t_s = max(x_k − √(R² − y_k²), 0),  t_d = min(x_k − |y_k|·cot(α/2), d),
-// and, for a circular field of view (Corollary 1, with the paper's typo fixed:
+// and, for a circular field of view ([Placement Cor. 1, eq. 4], with the typo fixed:
 // the printed "0" in t_d is d),
 //   t_d = min(x_k + √(R² − y_k²), d).
 //
-// Non-coincidence (condition (2) of the LPP): two landmarks on one bearing
+// Non-coincidence ([Placement LPP cond. 2], §I-B): two landmarks on one bearing
 // from the camera count as one, so coverage is the number of *distinct
 // bearings* in view (bearings equal within 1e-9 rad are one; a landmark at the
 // camera's own position has no bearing and is not in view).  Two landmarks off
@@ -63,7 +66,7 @@ struct Interval {
   double end = 0.0;
 };
 
-/// Rigid transform of the edge a → b to (0, 0) → (d, 0) (section II-A, steps 1–2).
+/// Rigid transform of the edge a → b to (0, 0) → (d, 0) ([Placement §II-A], steps 1–2).
 struct EdgeFrame {
   EdgeFrame(const Eigen::Vector2d& a, const Eigen::Vector2d& b);
   Eigen::Vector2d origin;  ///< t_i
@@ -76,13 +79,13 @@ struct EdgeFrame {
   double cos_, sin_;       // of heading
 };
 
-/// Lemma 1, the four conditions as printed (sector field of view): necessary
+/// [Placement Lemma 1], the four conditions as printed (sector field of view): necessary
 /// for the landmark at `local` (edge frame) to be in view from some point of
 /// an edge of length `length`.  For the circular field of view: within R of
 /// the edge.
 bool in_region_of_influence(const Eigen::Vector2d& local, double length, const Camera& camera);
 
-/// Lemma 2 (sector) or Corollary 1 (circular): the closed interval of the
+/// [Placement Lemma 2] (sector) or [Placement Cor. 1] (circular): the closed interval of the
 /// edge [0, length] from which the landmark at `local` is in view.  Returns
 /// false (and leaves `out` alone) when it is never in view.
 bool visibility_interval(const Eigen::Vector2d& local, double length, const Camera& camera, Interval* out);
@@ -93,11 +96,11 @@ struct CoverResult {
   std::vector<Interval> uncovered;  ///< maximal stretches covered fewer than k times (empty: covered)
 };
 
-/// Algorithm 1 generalised to 1 ≤ k ≤ kMaxLandmarksInView: cover every point of [0, length] by at
+/// [Placement Alg. 1] generalised to 1 ≤ k ≤ kMaxLandmarksInView: cover every point of [0, length] by at
 /// least k of the given closed intervals with the fewest intervals.  At the
 /// leftmost point covered fewer than k times, take the interval reaching
 /// farthest among those containing it (for k = 2 and no `preplaced`
-/// intervals this is the paper's Algorithm 1).  Optimal (Proposition 1);
+/// intervals this is [Placement Alg. 1]).  Optimal ([Placement Prop. 1]);
 /// `preplaced` intervals count as already chosen and cost nothing.  When a
 /// point cannot be covered the greedy skips the stretch, carries on, and
 /// reports the stretch in `uncovered`.
@@ -139,7 +142,7 @@ struct Placement {
 };
 
 /// The paper's placement for a whole route: per edge the greedy cover, then
-/// the union over edges (section II-B), with candidates closer than p to the
+/// the union over edges [Placement §II-B], with candidates closer than p to the
 /// route removed first and, optionally, non-coincidence, reuse and corners.
 /// With non-coincidence, candidates on an edge's own line keep only the one
 /// reaching farthest (they all share one bearing), and a repair adds, at

@@ -1,6 +1,8 @@
-// safenav/planning.hpp — RAw-RRT* (SafeNav eqs. 15–19, Algorithm 3).
+// safenav/planning.hpp — RAw-RRT* [SafeNav eqs. 15–19, SafeNav-ext Alg. 3]
+// (SafeNav-conf has no RAw-RRT* algorithm; [SafeNav-conf Alg. 3] is the navigation loop).
+// Citations follow docs/paper_map.md; a bare "eq. 18" means [SafeNav eq. 18].
 //
-// Cost of a path p (eq. 19, integrated along the motion):
+// Cost of a path p (eqs. 16 and 19, integrated along the motion):
 //   C_total = α·C_length + β·C_risk,
 //   C_length = Σ ‖p_{i+1} − p_i‖                        (eq. 15)
 //   C_risk   = ∫ WRS(d(s)) ds  along the path, with d the deviation from the
@@ -103,13 +105,14 @@ struct PlanResult {
   Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> cost_history;
 };
 
-/// RAw-RRT* from problem.start to problem.goal (Algorithm 3).
+/// RAw-RRT* from problem.start to problem.goal [SafeNav-ext Alg. 3].
 PlanResult plan(const PlanningProblem& problem, const PlannerSettings& settings = {});
 
-/// Replanning for SafeNav Algorithm 4, line 9: plan from `position` to the
-/// point `lookahead` metres (arc length) ahead of position's projection on the
-/// central path; if that point is blocked, the goal slides further along the
-/// path to the first free point (the path's end at most).
+/// Replanning for [SafeNav-ext Alg. 4 l. 9] (= [SafeNav-conf Alg. 3 l. 7]):
+/// plan from `position` to the point `lookahead` metres (arc length) ahead of
+/// position's projection on the central path; if that point is blocked, the
+/// goal slides further along the path to the first free point (the path's end
+/// at most).
 PlanResult replan(const PlanningProblem& problem, const Eigen::Vector2d& position, double lookahead,
                   const PlannerSettings& settings = {});
 /// Replanning to an explicit goal.

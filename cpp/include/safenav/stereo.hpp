@@ -1,5 +1,5 @@
-// safenav/stereo.hpp — stereo ranging for LanBLoc (SafeNav paper section
-// IV-A: "distances between the moving entity and the identified landmark
+// safenav/stereo.hpp — stereo ranging for LanBLoc ([SafeNav §IV-A]:
+// "distances between the moving entity and the identified landmark
 // anchors are calculated using an efficient stereo-matching technique").
 //
 //  * rectification from a stereo calibration (OpenCV stereoRectify +
