@@ -52,7 +52,7 @@ void pybind_navigation(py::module_& m) {
       .def("validate", &PositionSource::validate)
       .def("reported_cov", &PositionSource::reported_cov);
 
-  py::class_<SensorSettings>(m, "SensorSettings")
+  def_params<SensorSettings>(py::class_<SensorSettings>(m, "SensorSettings"))
       .def(py::init<>())
       .def_readwrite("position", &SensorSettings::position)
       .def_readwrite("landmarks", &SensorSettings::landmarks)

@@ -137,6 +137,7 @@ void SensorSettings::validate() const {
   if (position_every < 1) bad("sensors.position_every = " + std::to_string(position_every) + ": must be >= 1");
   require_finite_positive(imu_speed_std, "sensors.imu_speed_std");
   require_finite_positive(imu_heading_std, "sensors.imu_heading_std");
+  param_set<SensorSettings>().check(*this, "sensors.");
 }
 
 int SensorSettings::landmarks_in_view(const State& x) const {

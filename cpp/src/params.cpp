@@ -236,7 +236,23 @@ const ParamSet<NavigationSettings>& param_set<NavigationSettings>() {
   return s;
 }
 
+template <>
+const ParamSet<SensorSettings>& param_set<SensorSettings>() {
+  using S = SensorSettings;
+  static const ParamSet<S> s =
+      Declare<S>{}
+          .real("max_range", SN_REF(S, max_range), "m", above(0, 1e4), "landmarks farther than this are not detected")
+          .real("field_of_view", SN_REF(S, field_of_view), "rad", above(0, 2 * kPi), "full horizontal field of view, centred on the heading; 2 pi = all round")
+          .integer("min_landmarks", SN_REF(S, min_landmarks), closed(1, 1000), "a position fix needs this many landmarks in view [SafeNav-ext §V-A1: clusters of >= 3]")
+          .integer("position_every", SN_REF(S, position_every), closed(1, 1e6), "a position fix every n steps")
+          .real("imu_speed_std", SN_REF(S, imu_speed_std), "m/s", closed(1e-6, 10), "sigma of the IMU's speed")
+          .real("imu_heading_std", SN_REF(S, imu_heading_std), "rad", closed(1e-6, kPi), "sigma of the IMU's heading")
+          .set;
+  return s;
+}
+
 template class ParamSet<BmmParams>;
+template class ParamSet<SensorSettings>;
 template class ParamSet<RiskZones>;
 template class ParamSet<PlannerSettings>;
 template class ParamSet<PlanningMap>;

@@ -185,9 +185,8 @@ def make_navigator(scenario, safe_path, *, method: str = "centroid", filter: str
     se = SensorSettings()
     se.position = position_source(source).to_core()
     se.landmarks = scenario.world.landmark_array()[:, :2]
-    se.max_range = scenario.detection.max_range_m
     se.field_of_view = np.deg2rad(scenario.camera.field_of_view_deg)
-    se.min_landmarks = scenario.detection.min_landmarks
+    scenario.detection.apply(se)
     se.position_every = as_int("position_every", position_every)
     se.imu_speed_std = scenario.noise.imu_speed_std
     se.imu_heading_std = scenario.noise.imu_heading_std

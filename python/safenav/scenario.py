@@ -128,6 +128,7 @@ class _Params:
 
     RANGES: dict = {}
     LISTS: dict = {}   #: list fields: name -> (range of each entry, most entries)
+    CORE: dict = {}    #: fields declared in the core: name -> (core settings type, its parameter name)
 
     def __post_init__(self):
         for name, rng in self.RANGES.items():
@@ -139,12 +140,11 @@ class _Params:
             object.__setattr__(self, name, tuple(rng.check(f"{name}[{i}]", x) for i, x in enumerate(v)))
 
     def apply(self, core):
-        """Set each of this section's fields that the core settings object
-        ``core`` declares (``core.params()``) onto it; returns ``core``."""
-        declared = {sp.name for sp in core.params()}
-        for f in fields(self):
-            if f.name in declared:
-                core.set_param(f.name, getattr(self, f.name))
+        """Set this section's fields that are parameters of the core settings
+        object ``core`` (by their core names) onto it; returns ``core``."""
+        for key, (core_type, core_name) in self.CORE.items():
+            if isinstance(core, core_type):
+                core.set_param(core_name, getattr(self, key))
         return core
 
     def to_dict(self) -> dict:
@@ -175,16 +175,6 @@ class CameraParams(_Params):
               "field_of_view_deg": _r(0, 360, True)}
 
 
-@dataclass(frozen=True)
-class DetectionParams(_Params):
-    """Landmark detection: the range limit and the trilateration minimum (paper: ≥ 3 landmarks)."""
-
-    max_range_m: float = 30.0   #: landmarks farther than this (3D distance) are not detected [m]
-    min_landmarks: int = 3      #: a cluster used on a path needs this many within range of its centroid
-
-    RANGES = {"max_range_m": _r(0, 1e4, True), "min_landmarks": _n(1, 1000)}
-
-
 def _core_section(name: str, doc: str, keys, *, defaults=None, extra=None) -> type:
     """A frozen section class whose fields are parameters declared in the core
     (``safenav/params.hpp``): each key's default, range and documentation come
@@ -195,10 +185,11 @@ def _core_section(name: str, doc: str, keys, *, defaults=None, extra=None) -> ty
     differ from the core struct's own, each with its reason at the call;
     ``extra``: methods and class attributes of the section."""
     defaults = defaults or {}
-    spec_fields, ranges, lists = [], {}, {}
+    spec_fields, ranges, lists, core = [], {}, {}, {}
     for entry in keys:
         key, core_type, core_name = entry if len(entry) == 3 else (entry[1], entry[0], entry[1])
         spec = next(sp for sp in core_type.params() if sp.name == core_name)
+        core[key] = (core_type, core_name)
         rng = Range(spec.lo, spec.hi, spec.lo_open, integer=spec.kind == _core.ParamKind.INTEGER)
         default = defaults.get(key, core_type().get_param(core_name))
         if spec.kind == _core.ParamKind.REAL_LIST:
@@ -208,7 +199,7 @@ def _core_section(name: str, doc: str, keys, *, defaults=None, extra=None) -> ty
             ranges[key] = rng
             kind = int if rng.integer else float
             spec_fields.append((key, kind, field(default=default, metadata={"doc": spec.doc, "unit": spec.unit})))
-    namespace = {"RANGES": ranges, "LISTS": lists, "__doc__": doc, **(extra or {})}
+    namespace = {"RANGES": ranges, "LISTS": lists, "CORE": core, "__doc__": doc, **(extra or {})}
     return dataclass(frozen=True)(type(name, (_Params,), {"__annotations__": {k: t for k, t, _ in spec_fields},
                                                           **{k: f for k, _, f in spec_fields}, **namespace}))
 
@@ -240,6 +231,12 @@ class NoiseParams(_Params):
         object.__setattr__(self, "lanbloc_std", tuple(self.LANBLOC_STD.check(f"lanbloc_std[{i}]", s)
                                                       for i, s in enumerate(v)))
 
+
+DetectionParams = _core_section(
+    "DetectionParams", "Landmark detection: the range limit and the trilateration minimum (paper: >= 3 landmarks).\n\n"
+    "``max_range_m`` (3D distance) also bounds a path cluster's landmarks: each cluster on a path needs "
+    "``min_landmarks`` within it of its centroid.",
+    [("max_range_m", _core.SensorSettings, "max_range"), (_core.SensorSettings, "min_landmarks")])
 
 PlannerParams = _core_section(
     "PlannerParams", "RAw-RRT* weights: cost = alpha*length + beta*sum(WRS) (eqs. 16, 19); beta = 0 is plain RRT*.",
