@@ -327,7 +327,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", default="out/experiments", help="output folder (default out/experiments)")
     s.set_defaults(func=_experiment)
 
-    from .placement_cli import register as register_place
+    from .placement.cli import register as register_place
     register_place(sub, parents=[common], positive=_at_least(1))
 
     s = sub.add_parser("verify", parents=[common],

@@ -74,10 +74,11 @@ def load_input(path) -> dict:
 
 
 def _place(args) -> int:
-    from . import console
-    from . import placement as P
-    from .cli import _run_folder, _wrote
-    from .results import write_json
+    from .. import console
+    from .. import placement as P
+    from .._checks import as_array
+    from ..cli import _run_folder, _wrote
+    from ..results import write_json
 
     path = Path(args.file)
     data = load_input(path)
@@ -89,12 +90,12 @@ def _place(args) -> int:
     if not isinstance(corners, bool):
         raise ValueError(f"{path}: placement.corners = {corners!r} must be true or false")
     key = "route" if "route" in data else "targets"
-    pts = P.as_array(key, data[key], (None, 2))
+    pts = as_array(key, data[key], (None, 2))
     cs = data.get("candidates", {})
     if "points" in cs:
         if "spacing" in cs or "margin" in cs:
             raise ValueError(f"{path}: candidates.points excludes candidates.spacing and candidates.margin")
-        cand = P.as_array("candidates.points", cs["points"], (None, 2))
+        cand = as_array("candidates.points", cs["points"], (None, 2))
     else:
         spacing = cs.get("spacing", P.PAPER_SPACING)
         margin = cs.get("margin", cam.range)
