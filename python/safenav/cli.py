@@ -117,9 +117,8 @@ def _navigation(args, *, demo: bool) -> int:
 
     from . import navigation as nv
     from . import runner
-    from .experiments import navigation_table, percent_error_table
+    from .experiments import navigation_figures, navigation_table, percent_error_table
     from .metrics import path_length
-    from .experiments import navigation_figures
     from .results import write_table
 
     t0 = time.perf_counter()
