@@ -26,7 +26,6 @@ import time
 import pandas as pd
 
 from safenav import experiments as ex
-from safenav import reproduce
 
 
 def main() -> None:
@@ -38,11 +37,11 @@ def main() -> None:
     ap.add_argument("--out", default="out/bench_experiments")
     args = ap.parse_args()
 
-    opts = reproduce.ExperimentOptions(trials=args.trials, camera_trials=args.camera_trials,
+    opts = ex.ExperimentOptions(trials=args.trials, camera_trials=args.camera_trials,
                                        particles=args.particles, workers=args.workers, out=args.out)
     t0 = time.perf_counter()
-    results = reproduce.run_experiments(["all"], opts, show=lambda *a: None)
-    report = reproduce.write_report(results, opts)
+    results = ex.run_experiments(["all"], opts, show=lambda *a: None)
+    report = ex.write_report(results, opts)
     total = time.perf_counter() - t0
     cores = args.workers or os.cpu_count()
 

@@ -13,7 +13,7 @@ Run from the repository root::
    disparities must agree (same algorithm); the script checks the fraction of
    equal pixels.  ms per frame, median over repeats, and the ratio.
 2. Trilateration of one fix from 6 ranges (noisy, σ = 0.1 m):
-   ``safenav.localization.trilaterate`` (linear start + LM, covariance, GDOP,
+   ``safenav.vision.localization.trilaterate`` (linear start + LM, covariance, GDOP,
    mirror-ambiguity check; outlier rejection off, since the peer has none) against ``scipy.optimize.least_squares`` (method "lm")
    started from the true position + 1 m on the same problem.  µs per fix,
    median over repeats, and the ratio.  The positions must agree to 1e-6 m.
@@ -31,8 +31,8 @@ import cv2
 import numpy as np
 from scipy import optimize
 
-from safenav.localization import trilaterate
-from safenav.stereo import StereoCalibration, StereoMatcher
+from safenav.vision.localization import trilaterate
+from safenav.vision.stereo import StereoCalibration, StereoMatcher
 
 
 def _median(xs):

@@ -15,15 +15,15 @@ camera is the scenario's scaled to 640×480 (f = 350 px, B = 0.3 m), markers
 
 Stages, each timed per frame (median over frames and repeats), in one process:
 
-* render — :class:`safenav.render.StereoRenderer` (both images);
-* detect — :class:`safenav.detect.FiducialDetector` on the left image;
+* render — :class:`safenav.vision.render.StereoRenderer` (both images);
+* detect — :class:`safenav.vision.detect.FiducialDetector` on the left image;
 * disparity — the pipeline's SGBM (C++ core, OpenCV 4.6, on the band of rows
   holding the boxes) and, as the peer, ``cv2.StereoSGBM`` of pip's OpenCV on
   the whole pair with the same parameters (3-way, 64 disparities, block 5);
 * range — box-median ranges of all detections;
 * localize — trilateration;
 * pipeline — ``LanBLoc.localize`` (detect … localize) and camera loop —
-  render + pipeline, i.e. :class:`safenav.lanbloc.CameraLoopSource` per call.
+  render + pipeline, i.e. :class:`safenav.vision.lanbloc.CameraLoopSource` per call.
 
 Ratios are the peer SGBM's time over each stage's.  The script also reports
 what the camera loop measures along the three paths: how often a fix is made,
@@ -42,8 +42,8 @@ import cv2
 import numpy as np
 
 import safenav
-from safenav.lanbloc import STATUSES, CameraLoopSource, PIPELINE_SGBM
-from safenav.render import StereoRig
+from safenav.vision.lanbloc import STATUSES, CameraLoopSource, PIPELINE_SGBM
+from safenav.vision.render import StereoRig
 from safenav.results import save_figure
 
 
@@ -184,7 +184,7 @@ def main() -> None:
             t["range"].append(dt)
             ok = [o for o in obs if o.ok]
             if len(ok) >= 3:
-                _, dt = _timed(safenav.localization.trilaterate, np.array([o.anchor[:2] for o in ok]),
+                _, dt = _timed(safenav.vision.localization.trilaterate, np.array([o.anchor[:2] for o in ok]),
                                [o.range for o in ok], [o.sigma for o in ok])
                 t["localize"].append(dt)
             _, dt = _timed(lb.localize, left, right)

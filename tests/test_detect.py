@@ -13,9 +13,9 @@ onnx = pytest.importorskip("onnx")
 from onnx import TensorProto, helper, numpy_helper  # noqa: E402
 
 import safenav  # noqa: E402,F401  (builds the core)
-from safenav.detect import (Detection, FiducialDetector, YoloOnnxDetector, aruco_dictionary,  # noqa: E402
+from safenav.vision.detect import (Detection, FiducialDetector, YoloOnnxDetector, aruco_dictionary,  # noqa: E402
                             decode_yolo, letterbox, marker_image)
-from safenav.render import StereoRenderer, StereoRig  # noqa: E402
+from safenav.vision.render import StereoRenderer, StereoRig  # noqa: E402
 from safenav.world import Landmark  # noqa: E402
 
 

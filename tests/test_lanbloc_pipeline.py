@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 import safenav
-from safenav.detect import FiducialDetector
-from safenav.lanbloc import STATUSES, CameraLoopSource, LanBLoc
-from safenav.render import StereoRenderer, StereoRig
-from safenav.stereo import RectifiedCamera, StereoCalibration
+from safenav.vision.detect import FiducialDetector
+from safenav.vision.lanbloc import STATUSES, CameraLoopSource, LanBLoc
+from safenav.vision.render import StereoRenderer, StereoRig
+from safenav.vision.stereo import RectifiedCamera, StereoCalibration
 from safenav.world import Landmark, World
 
 RIG = StereoRig()           # 640x480, f = 350 px, B = 0.3 m, h = 1.5 m: f·B = 105 px·m

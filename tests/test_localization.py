@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy import optimize, stats
 
-from safenav.localization import horizontal_range, triangulate_bearings, trilaterate
+from safenav.vision.localization import horizontal_range, triangulate_bearings, trilaterate
 
 SQUARE = np.array([[0.0, 0.0], [40.0, 0.0], [40.0, 30.0], [0.0, 30.0], [20.0, 45.0]])
 

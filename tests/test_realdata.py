@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from safenav.stereo import StereoCalibration, StereoMatcher
+from safenav.vision.stereo import StereoCalibration, StereoMatcher
 
 pytest.importorskip("skimage")
 
@@ -35,7 +35,7 @@ def test_motorcycle_sgbm_and_box_depths_against_ground_truth():
       40×40 box removes most of it, so median relative error < 1 %; boxes
       that straddle a depth edge carry the rest: 90th percentile < 5 %.
     """
-    from safenav.realdata import middlebury_motorcycle, motorcycle_evaluation
+    from safenav.experiments.real import middlebury_motorcycle, motorcycle_evaluation
 
     ev = motorcycle_evaluation()
     assert ev["bad2"] < 0.08
@@ -57,7 +57,7 @@ def test_motorcycle_sgbm_and_box_depths_against_ground_truth():
 @pytest.fixture(scope="module")
 def plaza():
     pytest.importorskip("gtsam")
-    from safenav.realdata import load_plaza1
+    from safenav.experiments.real import load_plaza1
 
     return load_plaza1()
 
@@ -85,7 +85,7 @@ def test_plaza1_ekf_with_online_range_scale(plaza):
     of a metre; Plaza1 results in the range-only SLAM literature are of that
     order.  The estimated scale must agree with a least-squares fit of the
     range error against the true distance (truth used only to check)."""
-    from safenav.realdata import plaza1_ekf
+    from safenav.experiments.real import plaza1_ekf
 
     res = plaza1_ekf(plaza)
     plain = plaza1_ekf(plaza, estimate_scale=False)
@@ -106,7 +106,7 @@ def test_plaza1_ekf_with_online_range_scale(plaza):
 def test_plaza1_core_filters(plaza, kind, bound):
     """The core BMM EKF and PF with ranges de-biased by the scale the augmented
     EKF estimated.  Measured RMSE: EKF 0.36 m, PF 0.47 m (2000 particles)."""
-    from safenav.realdata import plaza1_core_filter
+    from safenav.experiments.real import plaza1_core_filter
 
     res = plaza1_core_filter(kind, plaza, n_particles=2000)
     assert res.rmse < bound

@@ -3,7 +3,7 @@ markers, disparity f·B/Z of markers and of the ground, zero disparity of the
 background, culling, the matching calibration, determinism and bad input.
 
 The expected pixel positions are computed here from the pinhole model written
-out independently of ``safenav.render`` (camera x right, y down, z forward;
+out independently of ``safenav.vision.render`` (camera x right, y down, z forward;
 pixel centres at integer coordinates; the vehicle's position is the left
 camera's centre)."""
 
@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 import safenav
-from safenav.detect import FiducialDetector
-from safenav.render import StereoRenderer, StereoRig
-from safenav.stereo import StereoMatcher
+from safenav.vision.detect import FiducialDetector
+from safenav.vision.render import StereoRenderer, StereoRig
+from safenav.vision.stereo import StereoMatcher
 from safenav.world import Landmark, World
 
 RIG = StereoRig()   # 640x480, f = 350 px, B = 0.3 m, h = 1.5 m

@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from safenav import cli, experiments as ex, reproduce, results, runner
+from safenav import cli, experiments as ex, results, runner
 
 TRIALS = 3
 
@@ -143,7 +143,7 @@ def test_report_embeds_every_figure_and_lists_claims_departures_params_versions(
     # 3 trials per cell: nothing is judged; the CI is shown all the same
     assert {(cls, w) for cls, w, _ in verdicts} == {("na", "too few trials to judge"), ("na", "not comparable")}
     assert {t for _, _, t in verdicts} == {"I", "II", "III", "IV"}
-    assert f"fewer than {reproduce.MIN_TRIALS} trials per cell" in report and "95% CI [" in report
+    assert f"fewer than {ex.MIN_TRIALS} trials per cell" in report and "95% CI [" in report
     assert "Where we depart from the paper" in report and "emulated" in report
     assert "Parameters and seeds" in report and '&quot;seed&quot;: ' in report
     assert "numpy" in report and "python" in report
@@ -175,23 +175,23 @@ def _verdicts(claims):
 
 
 def test_navigation_claims_are_judged_by_their_confidence_interval():
-    good = reproduce._navigation_claims(_nav_raw(GOOD, 40))
+    good = ex.navigation_claims(_nav_raw(GOOD, 40))
     judged = [c for c in good if c.interval is not None]
     assert len(good) == 7 and len(judged) == 4
     assert all(c.verdict == "holds" and c.holds is True and c.interval[0] > 0 for c in judged)
     assert all("95% CI [" in c.evidence for c in judged)
     # FDE claims measure the arrival radius, not the method: never judged
     assert [c.verdict for c in good if "FDE" in c.text] == ["not comparable"] * 2
-    bad = reproduce._navigation_claims(_nav_raw({"chull": GOOD["centroid"], "centroid": {
+    bad = ex.navigation_claims(_nav_raw({"chull": GOOD["centroid"], "centroid": {
         **GOOD["chull"], "path_error_percent": {"P1": 7.0, "P2": 5.0, "P3": 6.0}}}, 40))
     assert [c.verdict for c in bad if c.interval is not None] == ["does not hold"] * 4
     assert [c.holds for c in bad if c.interval is not None] == [False] * 4
     # 3 % lower with noisy trials: the interval spans the 5 % threshold
     close = {m: {**v, "ade": a} for (m, v), a in zip(GOOD.items(), (1.03, 1.0))}
-    c = [c for c in reproduce._navigation_claims(_nav_raw(close, 40, sd=0.3)) if "ADE is 1.67" in c.text][0]
+    c = [c for c in ex.navigation_claims(_nav_raw(close, 40, sd=0.3)) if "ADE is 1.67" in c.text][0]
     assert c.verdict == "undecided" and c.holds is None and c.interval[0] < 1.05 < c.interval[1]
     # below MIN_TRIALS nothing is judged, whatever the numbers
-    few = reproduce._navigation_claims(_nav_raw(GOOD, reproduce.MIN_TRIALS - 1))
+    few = ex.navigation_claims(_nav_raw(GOOD, ex.MIN_TRIALS - 1))
     assert [c.verdict for c in few if c.interval is not None] == ["too few trials to judge"] * 4
     # the point estimates are the tables' (means over arrived trials, averaged over path types)
     raw = _nav_raw(GOOD, 40)
@@ -201,7 +201,7 @@ def test_navigation_claims_are_judged_by_their_confidence_interval():
               / ok[ok.method == "centroid"].groupby("path_type")["ade"].mean().mean())
     assert f"ours: {expect:.2f}× lower" in ratio.evidence
     # deterministic: the same table gives the same intervals
-    assert [c.interval for c in reproduce._navigation_claims(raw)] == [c.interval for c in good]
+    assert [c.interval for c in ex.navigation_claims(raw)] == [c.interval for c in good]
 
 
 def _loc_raw(means: dict, n: int = 40, sd: float = 0.005) -> pd.DataFrame:
@@ -217,7 +217,7 @@ def test_localization_claims_are_judged_by_their_confidence_interval():
     means = {("deeploc-gps", "ekf"): (0.5, 0.5, 0.3, 1.0), ("deeploc-gps", "pf"): (0.9, 0.9, 0.9, 50.0),
              ("lanbloc", "ekf"): (0.4, 0.6, 0.2, 0.9), ("lanbloc", "pf"): (0.8, 0.8, 0.8, 40.0)}
     cols = ("ade", "fde", "awrs", "ms_per_trial")
-    claims = {c.text: c for c in reproduce._localization_claims(_loc_raw(means), "Table I", paper=ex.PAPER_TABLE1,
+    claims = {c.text: c for c in ex.localization_claims(_loc_raw(means), "Table I", paper=ex.PAPER_TABLE1,
                                                                  columns=cols)}
     assert claims["Table I: LanBLoc-BMM(EKF) has the lowest ADE of all rows"].verdict == "holds"
     assert claims["Table I: LanBLoc-BMM(EKF) has the lowest FDE of all rows"].verdict == "does not hold"
@@ -225,12 +225,12 @@ def test_localization_claims_are_judged_by_their_confidence_interval():
     assert [c.verdict for k, c in claims.items() if "orders of magnitude" in k] == ["does not hold"]   # 44-50x
     assert claims["Table I: LanBLoc-BMM(EKF) has the lowest runtime"].verdict == "not comparable"
     dear = {k: (*v[:3], v[3] * 10 if k[1] == "pf" else v[3]) for k, v in means.items()}
-    claims = reproduce._localization_claims(_loc_raw(dear), "Table I", paper=ex.PAPER_TABLE1, columns=cols)
+    claims = ex.localization_claims(_loc_raw(dear), "Table I", paper=ex.PAPER_TABLE1, columns=cols)
     assert [c.verdict for c in claims if "orders of magnitude" in c.text] == ["holds"]                # 444-500x
     noise = {**means, ("deeploc-gps", "pf"): (0.51, 0.9, 0.9, 50.0)}                                   # a 2 % gap
-    claims = reproduce._localization_claims(_loc_raw(noise), "Table I", paper=ex.PAPER_TABLE1, columns=cols)
+    claims = ex.localization_claims(_loc_raw(noise), "Table I", paper=ex.PAPER_TABLE1, columns=cols)
     assert [c.verdict for c in claims if "lower ADE than the PF" in c.text] == ["does not hold"]
-    few = reproduce._localization_claims(_loc_raw(means, n=5), "Table I", paper=ex.PAPER_TABLE1, columns=cols)
+    few = ex.localization_claims(_loc_raw(means, n=5), "Table I", paper=ex.PAPER_TABLE1, columns=cols)
     assert {c.verdict for c in few} == {"too few trials to judge", "not comparable"}
 
 
@@ -242,9 +242,9 @@ def test_runs_are_bit_for_bit_reproducible_locally_and_on_dask(tmp_path):
     # Fig. 3's curves too: the same bits whatever the chunking
     for k, v in runs[(1, 1)].wrs_mean.items():
         np.testing.assert_array_equal(runs[(2, 3)].wrs_mean[k], v)
-    opts = reproduce.ExperimentOptions(trials=4, particles=100, seed=5, path_types=("P2",), out="unused", workers=1)
+    opts = ex.ExperimentOptions(trials=4, particles=100, seed=5, path_types=("P2",), out="unused", workers=1)
     safe = runner.plan_safe_paths(opts.scenario, ["P2"])
-    sweep = reproduce._sweep(opts, methods=("centroid",), filters=("ekf", "pf"), sources=("deeploc-ekf-gps",),
+    sweep = opts.sweep(methods=("centroid",), filters=("ekf", "pf"), sources=("deeploc-ekf-gps",),
                              trials=4, chunk=1)
     nav = {1: runner.run_sweep(sweep, workers=1, safe_paths=safe), 2: runner.run_sweep(sweep, workers=2, safe_paths=safe)}
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cl, \
@@ -271,9 +271,9 @@ def test_runs_are_bit_for_bit_reproducible_locally_and_on_dask(tmp_path):
 
 
 def test_a_subset_of_path_types_runs_the_same_trials_as_a_full_run():
-    opts = reproduce.ExperimentOptions(trials=2, seed=3, out="unused")
+    opts = ex.ExperimentOptions(trials=2, seed=3, out="unused")
     safe = runner.plan_safe_paths(opts.scenario)
-    full = runner.run_sweep(reproduce._sweep(opts, methods=("centroid",), filters=("ekf",), sources=("lanbloc",),
+    full = runner.run_sweep(opts.sweep(methods=("centroid",), filters=("ekf",), sources=("lanbloc",),
                                              trials=2), safe_paths=safe)
     only = runner.run_sweep(runner.Sweep(opts.scenario, path_types=("P3",), methods=("centroid",), trials=2, seed=3),
                             safe_paths=safe)
@@ -292,6 +292,6 @@ def test_bad_experiment_arguments_give_clear_errors(capsys, tmp_path):
     assert "'P9' is not a path type" in capsys.readouterr().err
     assert cli.main(["experiment", "all", "--workers", "0", "--out", str(tmp_path)]) == 2
     assert "argument --workers: must be" in capsys.readouterr().err and not (tmp_path / "field").exists()
-    assert reproduce.resolve(["table4", "fig1", "table3"]) == ["field", "navigation"]
+    assert ex.resolve(["table4", "fig1", "table3"]) == ["field", "navigation"]
     with pytest.raises(ValueError, match="source = .gps.: unknown position source"):
         ex.synthetic_experiment(1, sources=("gps",))

@@ -203,7 +203,7 @@ def test_an_interrupted_run_has_no_manifest_and_no_temp_files_and_says_so(tmp_pa
 
 
 def test_a_command_that_fails_midway_leaves_no_manifest(tmp_path, monkeypatch):
-    from safenav import plots
+    from safenav.experiments import figures as plots
 
     def broken(*a, **k):
         raise RuntimeError("figure failed")

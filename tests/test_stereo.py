@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
-from safenav.stereo import BoxRange, RectifiedCamera, StereoCalibration, StereoMatcher
+from safenav.vision.stereo import BoxRange, RectifiedCamera, StereoCalibration, StereoMatcher
 
 K1 = np.array([[620.0, 0.0, 318.0], [0.0, 615.0, 243.0], [0.0, 0.0, 1.0]])
 K2 = np.array([[610.0, 0.0, 325.0], [0.0, 612.0, 238.0], [0.0, 0.0, 1.0]])

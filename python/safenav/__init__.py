@@ -13,8 +13,7 @@ from .motion import Bmm, BmmParams, wrap_angle
 from .geometry import Corridor, PathSegments
 from .scenario import Scenario, default_scenario, load_scenario, save_scenario
 from .world import World, ScenarioError
-from .localization import trilaterate, triangulate_bearings
-from .stereo import RectifiedCamera, StereoCalibration, StereoMatcher
+from .vision import RectifiedCamera, StereoCalibration, StereoMatcher, triangulate_bearings, trilaterate
 from . import navigation, runner
 
 __version__ = "0.1.0"

@@ -104,7 +104,7 @@ def _synthetic(args) -> int:
 def _synthetic_figure(args, path: Path) -> Path:
     """Figure of trial 0 (same seeds as the Monte Carlo's first trial)."""
     from .experiments import synthetic_trial
-    from .plots import plot_synthetic_trial
+    from .experiments.figures import plot_synthetic_trial
 
     data, results = synthetic_trial(0, filters=args.filters, seed=args.seed, n_particles=args.particles)
     return plot_synthetic_trial(data, {k.upper(): v for k, v in results.items()}, path)
@@ -117,9 +117,8 @@ def _navigation(args, *, demo: bool) -> int:
 
     from . import navigation as nv
     from . import runner
-    from .experiments import navigation_table, percent_error_table
+    from .experiments import navigation_figures, navigation_table, percent_error_table
     from .metrics import path_length
-    from .reproduce import navigation_figures
     from .results import write_table
 
     t0 = time.perf_counter()
@@ -174,7 +173,7 @@ def _navigation(args, *, demo: bool) -> int:
 def _plan(args) -> int:
     from . import navigation as nv
     from .metrics import path_length
-    from .plots import plot_navigation
+    from .experiments.figures import plot_navigation
 
     scenario = _load(args)
     have = [p.name for p in scenario.path_types]
@@ -203,18 +202,18 @@ def _plan(args) -> int:
 
 
 def _experiment(args) -> int:
-    from . import reproduce, runner
+    from . import experiments, runner
 
-    reproduce.resolve(args.names)
-    opts = reproduce.ExperimentOptions(
+    experiments.resolve(args.names)
+    opts = experiments.ExperimentOptions(
         trials=args.trials, camera_trials=args.camera_trials, camera_position_every=args.position_every,
         particles=args.particles, workers=args.workers, scheduler=args.scheduler, seed=args.seed, out=args.out,
         scenario=_load(args), path_types=tuple(args.path_types or ()), placement=not args.no_placement,
         progress=True)
     # connected before the run folder is opened: a bad address leaves a previous run's manifest alone
     with runner.connect(opts.scheduler) as client, _run_folder(args, opts.out, seed=int(opts.seed)) as run:
-        results = reproduce.run_experiments(args.names, dataclasses.replace(opts, scheduler=client))
-        report = reproduce.write_report(results, opts)
+        results = experiments.run_experiments(args.names, dataclasses.replace(opts, scheduler=client))
+        report = experiments.write_report(results, opts)
         _wrote(run)
     print(f"report: {report}")
     bad = [c for r in results for c in r.claims if c.holds is False]
@@ -327,8 +326,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", default="out/experiments", help="output folder (default out/experiments)")
     s.set_defaults(func=_experiment)
 
-    from .placement_cli import register as register_place
-    register_place(sub, parents=[common], positive=_at_least(1))
+    from .placement.cli import register as register_place
+    register_place(sub, parents=[common], positive=_at_least(1), run_folder=_run_folder, wrote=_wrote)
 
     s = sub.add_parser("verify", parents=[common],
                        help="check that a run folder is complete: its manifest.json and the files it lists")

@@ -207,6 +207,11 @@ class PathSegments:
         return self._s.size
 
     @property
+    def core(self) -> _core.PathSegments:
+        """The core's segments, for the core's navigation functions."""
+        return self._s
+
+    @property
     def breaks(self) -> np.ndarray:
         """Cut arc lengths s_0 = 0 < … < s_K = L."""
         return np.array(self._s.breaks)

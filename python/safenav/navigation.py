@@ -40,6 +40,7 @@ import numpy as np
 
 from . import _core
 from ._checks import as_array, as_int, as_seed
+from .geometry import PathSegments
 from .planning import PlanningProblem, PlannerSettings, map_from_world, plan
 
 Navigator = _core.Navigator
@@ -197,7 +198,7 @@ def make_navigator(scenario, safe_path, *, method: str = "centroid", filter: str
 
 def centroid_control(segments, estimate, cruise_speed: float) -> np.ndarray:
     """Algorithm 2's control (v, Δθ) toward the nearest sub-segment centroid ahead."""
-    seg = getattr(segments, "_s", segments)
+    seg = segments.core if isinstance(segments, PathSegments) else segments
     return _core.centroid_control(seg, as_array("estimate", estimate, (4,)), float(cruise_speed))
 
 
@@ -207,6 +208,6 @@ def chull_control(segments, bmm, estimate, cruise_speed: float, lookahead: float
     ``kind`` (0 default kept, 1 corrective, 2 step back) and ``predicted``.
     ``obstacles`` (an ``ObstacleChecker``) shortens the look-ahead while the
     chord to it crosses an obstacle."""
-    seg = getattr(segments, "_s", segments)
+    seg = segments.core if isinstance(segments, PathSegments) else segments
     return _core.chull_control(seg, bmm, as_array("estimate", estimate, (4,)), float(cruise_speed),
                                float(lookahead), float(step_back_speed), obstacles)

@@ -1,21 +1,31 @@
-"""Monte Carlo runner for SafeNav navigation (section V-D: 1000 trials per
-path type and method).
+"""Monte Carlo runner for every experiment: SafeNav navigation sweeps
+(section V-D: 1000 trials per path type and method) and the synthetic data
+set (:mod:`safenav.experiments.synthetic`).
 
 A *sweep* is the grid path types × methods × filters × sources, with N trials
-in each cell.  Trial i of path type p has the seed
-``SeedSequence([seed, p_index]).generate_state(N)[i]``: it depends only on the
-base seed, the path type and i, so
+in each cell.  :func:`run_trials` runs the trials of any grid of cells in
+chunks, on local threads or a Dask cluster given by ``scheduler`` (an
+address, or a ``distributed.Client``); navigation trials run inside the C++
+core (``Navigator.run_many``, which releases the GIL), so threads suffice.
+
+The seed rule, for every trial of every experiment
+---------------------------------------------------
+Trial i of a trial set gets the seed (:func:`trial_seeds`)::
+
+    SeedSequence([seed, stream]).generate_state(N, uint64)[i]
+
+where ``seed`` is the base seed and ``stream`` names the trial set: a
+sweep's path type (its index in the scenario, :meth:`Sweep.path_index`), or
+0 for the synthetic data set.  A random source inside a trial gets the
+sub-seed ``_core.derive_seed(trial_seed, k)`` (:func:`sub_seed`), k its
+number.  A trial's seed depends only on the base seed, the stream and i, so
 
 * every method, filter and source sees the same random trials (common random
   numbers: paired comparisons), and
-* the results are identical whatever the number of workers or chunks, locally
-  or on a Dask cluster.
+* the results are identical whatever the number of trials, workers or
+  chunks, locally or on a Dask cluster.
 
-Trials run in chunks inside the C++ core (``Navigator.run_many``, which
-releases the GIL), so local workers are threads; a Dask cluster given by
-``scheduler`` (an address, or a ``distributed.Client``) runs the same chunks.
-
-The result is a tidy :class:`pandas.DataFrame`, one row per trial;
+The result of a sweep is a tidy :class:`pandas.DataFrame`, one row per trial;
 :func:`summarize` averages it per cell, and :func:`safenav.results.write_table`
 writes it (the wall-time columns to a separate file, so that the table itself
 is byte-identical for a fixed seed).
@@ -27,15 +37,21 @@ import os
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 import pandas as pd
 
-from . import console
+from . import _core, console
 from . import navigation as nav
 from .scenario import Scenario
 
-__all__ = ["Sweep", "trial_seeds", "plan_safe_paths", "run_sweep", "map_ordered", "summarize", "METRICS"]
+__all__ = ["Sweep", "trial_seeds", "sub_seed", "SEED_RULE", "plan_safe_paths", "run_sweep", "run_trials",
+           "map_ordered", "summarize", "METRICS"]
+
+#: The seed rule in one line (for ``parameters.json`` and the report).
+SEED_RULE = ("trial i of stream p: SeedSequence([seed, p]).generate_state(N)[i], p the path type's index in the "
+             "scenario (0 for the synthetic data set); random source k inside a trial: derive_seed(trial seed, k)")
 
 #: Per-trial metric columns averaged by :func:`summarize`.
 METRICS = ("ade", "fde", "path_error_percent", "awrs", "awrs_true", "loc_ade", "loc_fde", "max_deviation")
@@ -86,11 +102,18 @@ class Sweep:
         return [p.name for p in self.scenario.path_types].index(name)
 
 
-def trial_seeds(seed: int, path_index: int, n: int) -> np.ndarray:
-    """The n trial seeds of one path type (uint64); ``path_index`` is the path
-    type's index in the *scenario* (see :meth:`Sweep.path_index`), so a run
-    of a subset of the path types gives each the same trials as a full run."""
-    return np.random.SeedSequence([int(seed), int(path_index)]).generate_state(n, dtype=np.uint64)
+def trial_seeds(seed: int, stream: int, n: int) -> np.ndarray:
+    """The n trial seeds (uint64) of trial set ``stream`` (the seed rule
+    above).  For a sweep ``stream`` is the path type's index in the
+    *scenario* (see :meth:`Sweep.path_index`), so a run of a subset of the
+    path types gives each the same trials as a full run."""
+    return np.random.SeedSequence([int(seed), int(stream)]).generate_state(n, dtype=np.uint64)
+
+
+def sub_seed(trial_seed, k: int) -> int:
+    """The seed of random source ``k`` inside the trial of seed ``trial_seed``
+    (the seed rule above: the core's ``derive_seed``, splitmix64)."""
+    return int(_core.derive_seed(int(trial_seed), int(k)))
 
 
 def plan_safe_paths(scenario: Scenario, path_types=None, *, progress: bool = False) -> dict[str, np.ndarray]:
@@ -105,18 +128,15 @@ def plan_safe_paths(scenario: Scenario, path_types=None, *, progress: bool = Fal
 
 
 @dataclass(frozen=True)
-class _Chunk:
-    """A work unit: trials [start, stop) of one cell.  Picklable (for Dask)."""
+class _Cell:
+    """One cell of a sweep: a path type with a method, filter and source.  Picklable (for Dask)."""
 
     scenario: Scenario
     path_type: str
-    path_index: int
     safe_path: np.ndarray
     method: str
     filter: str
     source: str
-    seeds: np.ndarray
-    start: int
     n_particles: int
     position_every: int
     extra: dict = field(default_factory=dict)
@@ -126,15 +146,15 @@ class _Chunk:
 CAMERA_SOURCES = ("lanbloc-camera",)
 
 
-def _camera_trials(navigator, c: "_Chunk") -> dict:
+def _camera_trials(navigator, c: _Cell, seeds) -> dict:
     """Trials with LanBLoc through the camera loop (render, detect, SGBM,
     trilaterate) as the position callback: Python per fix, so slower."""
-    from .lanbloc import CameraLoopSource
+    from .vision import CameraLoopSource
 
     keys = ("outcome", "steps", "replans", "position_fixes", "dropouts", "rejected", "chull_default",
             "chull_corrective", "chull_step_back", "time_s", "reason", *METRICS)
     d = {k: [] for k in keys}
-    for s in c.seeds:
+    for s in seeds:
         source = CameraLoopSource(c.scenario.world, seed=int(s) % 2**32)
         r = navigator.run(int(s), position=source)
         for k in keys:
@@ -149,16 +169,17 @@ def _camera_trials(navigator, c: "_Chunk") -> dict:
     return d
 
 
-def _run_chunk(c: _Chunk) -> pd.DataFrame:
+def _run_chunk(c: _Cell, seeds: np.ndarray, start: int) -> pd.DataFrame:
+    """Trials [start, start + len(seeds)) of cell ``c``: one row each."""
     camera = c.source in CAMERA_SOURCES
     navigator = nav.make_navigator(c.scenario, c.safe_path, method=c.method, filter=c.filter,
                                    source="lanbloc" if camera else c.source, n_particles=c.n_particles,
                                    position_every=c.position_every, record=False, **c.extra)
-    d = _camera_trials(navigator, c) if camera else navigator.run_many([int(s) for s in c.seeds])
-    n = len(c.seeds)
+    d = _camera_trials(navigator, c, seeds) if camera else navigator.run_many([int(s) for s in seeds])
+    n = len(seeds)
     df = pd.DataFrame({
         "path_type": [c.path_type] * n, "method": [c.method] * n, "filter": [c.filter] * n,
-        "source": [c.source] * n, "trial": np.arange(c.start, c.start + n), "seed": c.seeds.astype(np.uint64),
+        "source": [c.source] * n, "trial": np.arange(start, start + n), "seed": seeds.astype(np.uint64),
     })
     df["outcome"] = [nav.OUTCOMES[o] for o in d["outcome"]]
     df["success"] = np.asarray(d["outcome"]) == 0
@@ -172,19 +193,11 @@ def _run_chunk(c: _Chunk) -> pd.DataFrame:
     return df
 
 
-def _chunks(sweep: Sweep, safe_paths: dict[str, np.ndarray], extra: dict) -> list[_Chunk]:
-    out = []
-    for name in sweep.path_types:
-        pi = sweep.path_index(name)
-        seeds = trial_seeds(sweep.seed, pi, sweep.trials)
-        for method in sweep.methods:
-            for filt in sweep.filters:
-                for source in sweep.sources:
-                    for a in range(0, sweep.trials, sweep.chunk):
-                        out.append(_Chunk(sweep.scenario, name, pi, safe_paths[name], method, filt, source,
-                                          seeds[a:a + sweep.chunk], a, sweep.n_particles, sweep.position_every,
-                                          dict(extra)))
-    return out
+def _cells(sweep: Sweep, safe_paths: dict[str, np.ndarray], extra: dict) -> list[tuple[int, _Cell]]:
+    return [(sweep.path_index(name), _Cell(sweep.scenario, name, safe_paths[name], method, filt, source,
+                                           sweep.n_particles, sweep.position_every, dict(extra)))
+            for name in sweep.path_types for method in sweep.methods for filt in sweep.filters
+            for source in sweep.sources]
 
 
 def run_sweep(sweep: Sweep, *, workers: int | None = None, scheduler=None, safe_paths=None,
@@ -201,9 +214,43 @@ def run_sweep(sweep: Sweep, *, workers: int | None = None, scheduler=None, safe_
     missing = [p for p in sweep.path_types if p not in safe_paths]
     if missing:
         raise ValueError(f"safe_paths: no path for {missing}")
-    chunks = _chunks(sweep, safe_paths, navigator_options)
-    return pd.concat(map_ordered(_run_chunk, chunks, workers=workers, scheduler=scheduler, progress=progress,
-                                 desc="trials"), ignore_index=True)
+    parts = run_trials(_run_chunk, _cells(sweep, safe_paths, navigator_options), seed=sweep.seed,
+                       trials=sweep.trials, chunk=sweep.chunk, workers=workers, scheduler=scheduler,
+                       progress=progress)
+    return pd.concat([df for _, df in parts], ignore_index=True)
+
+
+@dataclass(frozen=True)
+class _TrialChunk:
+    """A work unit of :func:`run_trials`: trials [start, start + len(seeds))
+    of one cell.  Picklable (for Dask) when ``run`` is a module-level
+    function and ``cell`` a dataclass."""
+
+    run: Callable
+    cell: object
+    seeds: np.ndarray
+    start: int
+
+
+def _run_trial_chunk(c: _TrialChunk):
+    return c.run(c.cell, c.seeds, c.start)
+
+
+def run_trials(run, cells, *, seed: int, trials: int, chunk: int, workers: int | None = None, scheduler=None,
+               progress: bool = False, desc: str = "trials") -> list:
+    """``run(cell, seeds, start)`` for trials [start, start + len(seeds)) of
+    every cell, in chunks of ``chunk`` trials; ``cells`` is a list of
+    ``(stream, cell)`` pairs, and the ``trials`` trials of a cell have the
+    seeds ``trial_seeds(seed, stream, trials)`` (the seed rule above), so
+    cells of one stream share their trials.  Returns ``[(cell, result)]``,
+    one per chunk, in the order of ``cells`` and then of the trials, whatever
+    ``workers``, ``chunk`` or ``scheduler`` (see :func:`map_ordered`)."""
+    chunks = []
+    for stream, cell in cells:
+        seeds = trial_seeds(seed, stream, trials)
+        chunks += [_TrialChunk(run, cell, seeds[a:a + chunk], a) for a in range(0, trials, chunk)]
+    out = map_ordered(_run_trial_chunk, chunks, workers=workers, scheduler=scheduler, progress=progress, desc=desc)
+    return [(c.cell, r) for c, r in zip(chunks, out)]
 
 
 def map_ordered(fn, items, *, workers: int | None = None, scheduler=None, progress: bool = False,

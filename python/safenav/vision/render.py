@@ -26,10 +26,10 @@ coordinates, so a camera point ``(X, Y, Z)`` projects to
 ``u = f·X/Z + c_x``, ``v = f·Y/Z + c_y``, and a point at depth ``Z`` has
 disparity ``u_L − u_R = f·B/Z`` (the pair is rectified by construction,
 ``doffs = 0``).  :meth:`StereoRig.calibration` gives the matching
-:class:`safenav.stereo.StereoCalibration` (zero distortion, ``R = I``,
+:class:`safenav.vision.stereo.StereoCalibration` (zero distortion, ``R = I``,
 ``T = (−B, 0, 0)``; ``cv2.stereoRectify`` of it is the identity) and
 :meth:`StereoRig.rectified_camera` the equivalent
-:class:`safenav.stereo.RectifiedCamera`, so the LanBLoc pipeline can skip
+:class:`safenav.vision.stereo.RectifiedCamera`, so the LanBLoc pipeline can skip
 rectification.
 
 Only landmarks inside the horizontal field of view and within
@@ -46,8 +46,8 @@ from typing import Mapping
 import cv2
 import numpy as np
 
+from ..world import Landmark, World
 from .detect import aruco_dictionary, marker_image
-from .world import Landmark, World
 
 __all__ = ["StereoRig", "StereoRenderer", "camera_rotation", "periodic_noise"]
 
@@ -124,14 +124,14 @@ class StereoRig:
         return self.focal_length_px * self.baseline_m
 
     def calibration(self):
-        """The matching :class:`safenav.stereo.StereoCalibration` (no distortion, R = I, T = (−B, 0, 0))."""
+        """The matching :class:`safenav.vision.stereo.StereoCalibration` (no distortion, R = I, T = (−B, 0, 0))."""
         from .stereo import StereoCalibration
         K = self.K
         return StereoCalibration(K, np.zeros(5), K, np.zeros(5), np.eye(3), np.array([-self.baseline_m, 0.0, 0.0]),
                                  (self.width, self.height))
 
     def rectified_camera(self):
-        """The rig as a :class:`safenav.stereo.RectifiedCamera` (``Z = f·B/d``, doffs = 0): no rectification."""
+        """The rig as a :class:`safenav.vision.stereo.RectifiedCamera` (``Z = f·B/d``, doffs = 0): no rectification."""
         from .stereo import RectifiedCamera
         return RectifiedCamera(self.focal_length_px, self.cx, self.cy, self.baseline_m, 0.0, self.width,
                                self.height)
@@ -298,7 +298,7 @@ class StereoRenderer:
 
     # ---- public API
     def calibration(self):
-        """The rig's :class:`safenav.stereo.StereoCalibration` (images are already rectified)."""
+        """The rig's :class:`safenav.vision.stereo.StereoCalibration` (images are already rectified)."""
         return self.rig.calibration()
 
     def project(self, pose, points, camera: str = "left") -> tuple[np.ndarray, np.ndarray]:

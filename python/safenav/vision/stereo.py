@@ -1,7 +1,7 @@
 """Stereo ranging for LanBLoc (SafeNav paper, section IV-A).
 
 LanBLoc measures the distance from the vehicle to each recognised landmark
-with stereo matching, then trilaterates (:mod:`safenav.localization`).  This
+with stereo matching, then trilaterates (:mod:`safenav.vision.localization`).  This
 module is the ranging half, in C++ over OpenCV:
 
 * :class:`StereoCalibration` — ``K1, D1, K2, D2, R, T`` and the image size,
@@ -30,8 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from . import _core
-from ._checks import as_array
+from .. import _core
+from .._checks import as_array
 
 SgbmMode = _core.SgbmMode
 

@@ -39,8 +39,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import _core
-from ._checks import as_array
+from .. import _core
+from .._checks import as_array
 
 LocalizationStatus = _core.LocalizationStatus
 

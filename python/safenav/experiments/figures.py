@@ -1,10 +1,15 @@
-"""Figures.  Plots live beside the metrics, not inside them (evo's habit)."""
+"""Figures of the experiments and of ``safenav demo``/``run``.  Plots live
+beside the metrics, not inside them (evo's habit)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
+
+from .. import navigation as nav
+from .. import runner
+from .paper import METHOD_LABELS
 
 
 def _pyplot():
@@ -51,7 +56,7 @@ def _draw_world(ax, world, *, hazard_label=None, obstacle_label=None) -> None:
     """Hazards (orange, darker = riskier) and obstacles (grey) of ``world``."""
     from matplotlib.patches import Circle as _Circle, Polygon as _Polygon
 
-    from .world import Circle
+    from ..world import Circle
 
     for i, h in enumerate(world.hazards):
         patch = (_Circle(tuple(h.shape.center), h.shape.radius) if isinstance(h.shape, Circle)
@@ -83,7 +88,7 @@ def _draw_corridor(ax, corridor, *, color="tab:green", label=None) -> None:
 
 def _save(fig, path, dpi=120) -> Path:
     """Write ``path`` (PNG) and an SVG beside it with the one result writer; close the figure."""
-    from .results import save_figure
+    from ..results import save_figure
 
     return save_figure(fig, path, dpi=dpi, svg=True)
 
@@ -93,7 +98,7 @@ def plot_field(scenario, safe_paths: dict, path: str | Path, *, title: str | Non
     centroids), obstacles, hazards and, per path type, the safe path with its
     buffer (the risk-zone corridor).  ``safe_paths`` maps a path type name to
     its (M, 2) safe path.  Writes a PNG and an SVG; returns the PNG path."""
-    from . import _core
+    from .. import _core
 
     plt = _pyplot()
     world = scenario.world
@@ -183,7 +188,7 @@ def plot_navigation(scenario, trials: dict, path: str | Path, *, title: str | No
     a PNG and an SVG beside it; returns the PNG path."""
     from matplotlib.patches import Polygon as _Polygon
 
-    from . import _core
+    from .. import _core
 
     plt = _pyplot()
     n = len(trials)
@@ -226,3 +231,23 @@ def plot_navigation(scenario, trials: dict, path: str | Path, *, title: str | No
         fig.suptitle(title)
     fig.tight_layout()
     return _save(fig, path)
+
+
+def navigation_figures(scenario, safe: dict, sweep, folder: Path) -> list:
+    """Figs. 4 (CHull) and 5 (Centroid): trial 0 of each path type, recorded,
+    with the sweep's first filter and source (the measurement-level LanBLoc
+    stands in for the camera loop)."""
+    figs = []
+    source = sweep.sources[0] if sweep.sources[0] in nav.SOURCES else "lanbloc"
+    for method in sweep.methods:
+        trials = {}
+        for name in sweep.path_types:
+            navigator = nav.make_navigator(scenario, safe[name], method=method, filter=sweep.filters[0],
+                                           source=source, n_particles=sweep.n_particles)
+            seed = runner.trial_seeds(sweep.seed, sweep.path_index(name), 1)[0]
+            trials[name] = (navigator, navigator.run(int(seed)))
+        fig_name = {"chull": "fig4_chull", "centroid": "fig5_centroid"}.get(method, f"fig_{method}")
+        figs.append(plot_navigation(scenario, trials, Path(folder) / f"{fig_name}.png",
+                                    title=f"{METHOD_LABELS.get(method, method)} with RAw-RRT*, "
+                                          f"LanBLoc-BMM({sweep.filters[0].upper()}): trial 0"))
+    return figs

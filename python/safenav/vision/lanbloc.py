@@ -5,22 +5,22 @@ by stereo matching, and trilaterates with the recognised landmarks as anchors
 ("with further position optimization").  :class:`LanBLoc` runs, per frame:
 
 1. rectification (skipped when the camera is a
-   :class:`~safenav.stereo.RectifiedCamera`, e.g. the renderer's);
-2. detection on the rectified left image (:mod:`safenav.detect`; default the
-   ArUco :class:`~safenav.detect.FiducialDetector`);
-3. SGBM disparity (:class:`~safenav.stereo.StereoMatcher`), by default only on
+   :class:`~safenav.vision.stereo.RectifiedCamera`, e.g. the renderer's);
+2. detection on the rectified left image (:mod:`safenav.vision.detect`; default the
+   ArUco :class:`~safenav.vision.detect.FiducialDetector`);
+3. SGBM disparity (:class:`~safenav.vision.stereo.StereoMatcher`), by default only on
    the band of rows that holds the boxes (plus a margin);
 4. per detection, the box-median depth ``Z`` with ``σ_Z ≈ Z²·σ_d/(f·B)``
-   (:meth:`~safenav.stereo.StereoMatcher.box_range`, on the box shrunk by
+   (:meth:`~safenav.vision.stereo.StereoMatcher.box_range`, on the box shrunk by
    ``box_shrink`` per side so that background pixels at the edges stay out);
    the slant distance ``s = ‖P‖`` of the box centre ``P`` at that depth; the
    horizontal range ``ρ = sqrt(s² − (z_ℓ − h)²)`` from the landmark's known
    height ``z_ℓ`` and the camera height ``h``
-   (:func:`~safenav.localization.horizontal_range`, ``σ_ρ = σ_s·s/ρ``); and
+   (:func:`~safenav.vision.localization.horizontal_range`, ``σ_ρ = σ_s·s/ρ``); and
    the bearing of the box centre relative to the heading (counter-clockwise,
    as in :meth:`safenav.MeasurementModel.bearing`);
 5. trilateration of the ranges to the landmarks' map positions
-   (:func:`~safenav.localization.trilaterate`: linear start, weighted
+   (:func:`~safenav.vision.localization.trilaterate`: linear start, weighted
    Levenberg–Marquardt, covariance ``(JᵀWJ)⁻¹``, GDOP, outlier consensus).
    A forward-looking camera sees all its landmarks on one side, so the
    mirror image of the fix across them may fit the ranges nearly as well;
@@ -36,11 +36,11 @@ filter can use the ranges directly (``result.range_measurements()`` →
 anchors, ranges, σ for :meth:`safenav.MeasurementModel.range`).
 
 The fix is the position of the **left camera's centre** projected on the
-ground: the rig's reference point (see :mod:`safenav.render`).
+ground: the rig's reference point (see :mod:`safenav.vision.render`).
 
 :class:`CameraLoopSource` closes the camera loop for the navigation
 experiments: it renders the pair at the true vehicle pose
-(:class:`~safenav.render.StereoRenderer`), runs the pipeline and returns the
+(:class:`~safenav.vision.render.StereoRenderer`), runs the pipeline and returns the
 fix and its covariance, or ``None`` (a dropout) when localization fails.
 
 Bad input raises ``ValueError`` naming the value: images of different sizes
@@ -58,11 +58,12 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from .detect import Detection, Detector, FiducialDetector, _check_image
+from ..motion import wrap_angle
+from ..world import Landmark, World
+from .detect import Detection, Detector, FiducialDetector, check_image
 from .localization import LocalizationResult, horizontal_range, trilaterate
 from .render import StereoRenderer, StereoRig, camera_rotation
 from .stereo import RectifiedCamera, StereoCalibration, StereoMatcher
-from .world import Landmark, World
 
 __all__ = ["LandmarkObservation", "LanBLocResult", "LanBLoc", "CameraLoopSource", "STATUSES"]
 
@@ -130,7 +131,7 @@ class LanBLocResult:
         :class:`safenav.MeasurementModel` of kind RANGE over the ranged
         landmarks with ``R = diag(σ²)``, and ``z`` the horizontal ranges;
         ``None`` when no range was measured.  ``filter.update(model, z)``."""
-        from .measurement import MeasurementKind, MeasurementModel
+        from ..measurement import MeasurementKind, MeasurementModel
         _, anchors, z, sigma = self.range_measurements()
         if len(z) == 0:
             return None
@@ -194,13 +195,13 @@ class LanBLoc:
         ``z`` is the height of the landmark's reference point (the marker
         centre) above the ground.
     camera:
-        A :class:`~safenav.render.StereoRig` (rendered, rectified pairs), a
-        :class:`~safenav.stereo.RectifiedCamera`, a
-        :class:`~safenav.stereo.StereoCalibration` (pairs are rectified first)
-        or a ready :class:`~safenav.stereo.StereoMatcher`.
+        A :class:`~safenav.vision.render.StereoRig` (rendered, rectified pairs), a
+        :class:`~safenav.vision.stereo.RectifiedCamera`, a
+        :class:`~safenav.vision.stereo.StereoCalibration` (pairs are rectified first)
+        or a ready :class:`~safenav.vision.stereo.StereoMatcher`.
     detector:
-        A :class:`~safenav.detect.Detector`; default a
-        :class:`~safenav.detect.FiducialDetector` on the landmark ids.
+        A :class:`~safenav.vision.detect.Detector`; default a
+        :class:`~safenav.vision.detect.FiducialDetector` on the landmark ids.
     camera_height_m, pitch_rad:
         The camera centres' height above the ground and the pitch (positive
         up); taken from the rig when ``camera`` is a StereoRig.
@@ -227,10 +228,10 @@ class LanBLoc:
         with it (see :meth:`_bearings_agree`); collinear anchors and large
         GDOP stay degenerate.
     sgbm:
-        SGBM parameters (:data:`safenav.stereo.SGBM_DEFAULTS` names), over
+        SGBM parameters (:data:`safenav.vision.stereo.SGBM_DEFAULTS` names), over
         :data:`PIPELINE_SGBM`.
     trilateration:
-        Keyword arguments for :func:`~safenav.localization.trilaterate`.
+        Keyword arguments for :func:`~safenav.vision.localization.trilaterate`.
     """
 
     def __init__(self, landmarks, camera, detector: Detector | None = None, *,
@@ -261,7 +262,7 @@ class LanBLoc:
         self.detector = FiducialDetector(landmarks if isinstance(landmarks, World) else
                                          {k: k for k in self.landmarks}) if detector is None else detector
         if not isinstance(self.detector, Detector):
-            raise ValueError(f"detector = {detector!r}: must be a safenav.detect.Detector")
+            raise ValueError(f"detector = {detector!r}: must be a safenav.vision.detect.Detector")
         self.sigma_d = _finite("sigma_d", sigma_d, positive=True)
         if isinstance(min_landmarks, bool) or not isinstance(min_landmarks, (int, np.integer)) or min_landmarks < 3:
             raise ValueError(f"min_landmarks = {min_landmarks!r}: must be an integer >= 3 (2D trilateration)")
@@ -293,8 +294,8 @@ class LanBLoc:
     # ---------------------------------------------------------------- stages
     def check_pair(self, left, right) -> tuple[np.ndarray, np.ndarray]:
         """Validate a stereo pair (uint8, non-empty, same shape, the calibration's size)."""
-        left = _check_image(left, "left image")
-        right = _check_image(right, "right image")
+        left = check_image(left, "left image")
+        right = check_image(right, "right image")
         if left.shape != right.shape:
             raise ValueError(f"left and right images differ in size: {left.shape} vs {right.shape}")
         want = (self.camera.height, self.camera.width)
@@ -376,7 +377,7 @@ class LanBLoc:
             var.append(o.bearing_sigma ** 2 + float(n @ P @ n) / rho ** 2)
         res = np.asarray(res)
         theta = math.atan2(np.sin(res).mean(), np.cos(res).mean())
-        r = (res - theta + math.pi) % (2 * math.pi) - math.pi
+        r = wrap_angle(res - theta)
         chi2 = float(np.sum(r * r / np.asarray(var)))
         return chi2 <= _chi2_999(len(obs) - 1)
 

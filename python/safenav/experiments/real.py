@@ -39,10 +39,10 @@ __all__ = ["middlebury_motorcycle", "motorcycle_evaluation", "Plaza1", "load_pla
 def middlebury_motorcycle():
     """``(left, right, disparity_gt, camera)``: uint8 RGB images (500, 741, 3),
     ground-truth disparity (NaN where unknown; the file marks those inf) and
-    the :class:`~safenav.stereo.RectifiedCamera` in metres."""
+    the :class:`~safenav.vision.RectifiedCamera` in metres."""
     from skimage import data
 
-    from .stereo import RectifiedCamera
+    from ..vision import RectifiedCamera
 
     left, right, gt = data.stereo_motorcycle()
     gt = np.where(np.isfinite(gt), gt, np.nan).astype(np.float32)
@@ -63,7 +63,7 @@ def motorcycle_evaluation(*, box: int = 40, num_disparities: int = 64, block_siz
     (array), ``depth_median_rel_error`` and ``depth_p90_rel_error``, and
     ``n_boxes``/``n_ranged``.
     """
-    from .stereo import StereoMatcher
+    from ..vision import StereoMatcher
 
     left, right, gt, cam = middlebury_motorcycle()
     m = StereoMatcher(cam, num_disparities=num_disparities, block_size=block_size, mode=mode, **sgbm)
@@ -213,8 +213,8 @@ def plaza1_core_filter(filter: str = "ekf", data: Plaza1 | None = None, *, scale
     has none (its likelihood is Gaussian, so gross outliers are absorbed by
     the spread of ``range_std``).
     """
-    from .filters import filter_trajectory
-    from .motion import BmmParams
+    from ..filters import filter_trajectory
+    from ..motion import BmmParams
 
     d = data or load_plaza1()
     if scale is None:

@@ -10,6 +10,7 @@ places landmarks (:mod:`safenav.placement`) and writes ``placement.json`` and
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import math
 from pathlib import Path
@@ -22,9 +23,11 @@ _SECTIONS = {
 }
 
 
-def register(sub, *, parents=(), positive=int) -> None:
+def register(sub, *, parents=(), positive=int, run_folder, wrote) -> None:
     """Add the ``place`` subcommand to the CLI's subparsers (``parents``: the
-    options every command shares; ``positive``: the parser of integers >= 1)."""
+    options every command shares; ``positive``: the parser of integers >= 1;
+    ``run_folder(args, out, seed=)`` and ``wrote(run)``: the CLI's output
+    folder and its closing status line)."""
     s = sub.add_parser("place", parents=list(parents),
                        help="place landmarks along a route or through targets (landmark placement paper)",
                        description="Place the fewest landmarks so that a camera on the route always sees k of them.")
@@ -38,7 +41,7 @@ def register(sub, *, parents=(), positive=int) -> None:
     s.add_argument("--simulate", action="store_true",
                    help="also drive the route with the bearing-only EIF and plot the errors with 3-sigma bounds")
     s.add_argument("--seed", type=int, default=0, help="seed of the tour restarts and the simulation (default 0)")
-    s.set_defaults(func=_place)
+    s.set_defaults(func=functools.partial(_place, run_folder=run_folder, wrote=wrote))
 
 
 def load_input(path) -> dict:
@@ -73,11 +76,11 @@ def load_input(path) -> dict:
     return data
 
 
-def _place(args) -> int:
-    from . import console
-    from . import placement as P
-    from .cli import _run_folder, _wrote
-    from .results import write_json
+def _place(args, *, run_folder, wrote) -> int:
+    from .. import console
+    from .. import placement as P
+    from .._checks import as_array
+    from ..results import write_json
 
     path = Path(args.file)
     data = load_input(path)
@@ -89,12 +92,12 @@ def _place(args) -> int:
     if not isinstance(corners, bool):
         raise ValueError(f"{path}: placement.corners = {corners!r} must be true or false")
     key = "route" if "route" in data else "targets"
-    pts = P.as_array(key, data[key], (None, 2))
+    pts = as_array(key, data[key], (None, 2))
     cs = data.get("candidates", {})
     if "points" in cs:
         if "spacing" in cs or "margin" in cs:
             raise ValueError(f"{path}: candidates.points excludes candidates.spacing and candidates.margin")
-        cand = P.as_array("candidates.points", cs["points"], (None, 2))
+        cand = as_array("candidates.points", cs["points"], (None, 2))
     else:
         spacing = cs.get("spacing", P.PAPER_SPACING)
         margin = cs.get("margin", cam.range)
@@ -104,7 +107,7 @@ def _place(args) -> int:
         cand = P.candidate_grid(pts.min(axis=0), pts.max(axis=0), spacing, margin=margin)
     kw = dict(k=k, corners=corners, method=method, seed=args.seed, allow_uncovered=args.allow_uncovered)
     out = Path(args.out)
-    with _run_folder(args, out, seed=args.seed) as run:
+    with run_folder(args, out, seed=args.seed) as run:
         with console.task(f"placing landmarks ({method}, k = {k}, {len(cand)} candidates)"):
             if key == "route":
                 res = P.place_through_targets(None, cand, cam, route=pts, **kw)
@@ -130,5 +133,5 @@ def _place(args) -> int:
         if sim is not None:
             ins = sim.inside_3sigma()
             print("EIF within 3 sigma: " + ", ".join(f"{n} {100 * v:.1f}%" for n, v in ins.items()))
-        _wrote(run)
+        wrote(run)
     return 0

@@ -37,7 +37,7 @@ import numpy as np
 
 __all__ = [
     "Detection", "Detector", "FiducialDetector", "YoloOnnxDetector", "aruco_dictionary",
-    "marker_image", "letterbox", "decode_yolo", "as_gray",
+    "marker_image", "letterbox", "decode_yolo", "as_gray", "check_image",
 ]
 
 
@@ -79,14 +79,16 @@ class Detection:
 
 def as_gray(image, name: str = "image") -> np.ndarray:
     """``image`` (H, W) or (H, W, 3|4) uint8 as a (H, W) uint8 grey image; errors name ``name``."""
-    img = _check_image(image, name)
+    img = check_image(image, name)
     if img.ndim == 2:
         return img
     code = cv2.COLOR_BGRA2GRAY if img.shape[2] == 4 else cv2.COLOR_BGR2GRAY
     return cv2.cvtColor(img, code)
 
 
-def _check_image(image, name: str) -> np.ndarray:
+def check_image(image, name: str) -> np.ndarray:
+    """``image`` as a (H, W) or (H, W, 3|4) uint8 array ((H, W, 1) loses its last
+    axis); ``ValueError`` naming ``name`` otherwise."""
     if image is None:
         raise ValueError(f"{name} is None, expected an image array")
     img = np.asarray(image)
@@ -146,7 +148,7 @@ def marker_image(dictionary, marker_id: int, cell_px: int = 8, border_cells: int
 
 def _landmark_table(landmark_map) -> tuple[dict[int, int], dict[int, str]]:
     """``(marker id → landmark id, landmark id → class name)`` from a mapping or a World."""
-    from .world import World
+    from ..world import World
     if isinstance(landmark_map, World):
         return ({lm.id: lm.id for lm in landmark_map.landmarks},
                 {lm.id: lm.class_name for lm in landmark_map.landmarks})
@@ -409,7 +411,7 @@ class YoloOnnxDetector(Detector):
 
     def raw_output(self, image) -> tuple[np.ndarray, tuple[float, float], tuple[int, int]]:
         """The network's raw output on the letterboxed ``image``, with the letterbox scale and padding."""
-        img = _check_image(image, "image")
+        img = check_image(image, "image")
         if img.ndim == 2:
             img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
         elif img.shape[2] == 4:

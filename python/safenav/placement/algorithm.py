@@ -1,0 +1,514 @@
+"""The placement algorithms of the landmark placement paper (section II):
+the greedy per-edge cover (Algorithm 1), the global integer program, the
+exact coverage check, and placement through targets or along a SafeNav path.
+See :mod:`safenav.placement` for the overview."""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import _core
+from .._checks import as_array, as_positive_int
+from ..motion import wrap_angle
+from .tour import plan_tour, tour_length
+
+#: Table I setup: a 4 × 8 area, candidates on a 0.5 grid.
+PAPER_AREA = (4.0, 8.0)
+PAPER_SPACING = 0.5
+
+_EPS = 1e-9          # [m] or [rad], the same rounding slack as the C++ core
+_BEARING_TOL = 1e-9  # [rad], bearings closer than this are one bearing
+
+
+# ---------------------------------------------------------------------------
+# Camera and inputs
+# ---------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class CameraParams:
+    """The bearing sensor and the collision-avoidance distance.
+
+    ``range`` is the paper's R [m], ``angle_deg`` its viewing angle α [deg]
+    (full angle, in (0°, 180°]), ``clearance`` its p [m] (landmarks must be
+    farther than p from the route), ``fov`` ``"sector"`` (Lemma 2) or
+    ``"circular"`` (Corollary 1).  Defaults are the paper's section III.
+    """
+
+    range: float = 2.0
+    angle_deg: float = 50.0
+    clearance: float = 0.05
+    fov: str = "sector"
+
+    def __post_init__(self):
+        for name in ("range", "angle_deg", "clearance"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) or not math.isfinite(v):
+                raise ValueError(f"camera {name} = {v!r} must be a finite number")
+        if self.fov not in ("sector", "circular"):
+            raise ValueError(f"camera fov = {self.fov!r} must be 'sector' or 'circular'")
+        if self.range <= 0:
+            raise ValueError(f"camera range R = {self.range} must be > 0")
+        if self.clearance < 0:
+            raise ValueError(f"camera clearance p = {self.clearance} must be >= 0")
+        if self.range <= self.clearance:
+            raise ValueError(f"camera range R = {self.range} must exceed the clearance p = {self.clearance}: "
+                             "no landmark could be both farther than p and in view")
+        if self.fov == "sector" and not (0.0 < self.angle_deg <= 180.0):
+            raise ValueError(f"camera angle alpha = {self.angle_deg} deg must be in (0, 180] "
+                             "for a sector field of view")
+
+    @property
+    def angle(self) -> float:
+        """α in radians."""
+        return math.radians(self.angle_deg)
+
+    def to_core(self) -> _core.Camera:
+        cam = _core.Camera()
+        cam.range, cam.angle, cam.clearance = float(self.range), self.angle, float(self.clearance)
+        cam.fov = _core.FieldOfView.SECTOR if self.fov == "sector" else _core.FieldOfView.CIRCULAR
+        return cam
+
+    def in_view(self, position, heading: float, points) -> np.ndarray:
+        """Which ``points`` a camera at ``position`` looking along ``heading`` sees (direct geometry)."""
+        rel = np.asarray(points, float).reshape(-1, 2) - np.asarray(position, float)[:2]
+        dist = np.hypot(rel[:, 0], rel[:, 1])
+        ok = (dist <= self.range) & (dist > 0)
+        if self.fov == "sector":
+            rel_b = wrap_angle(np.arctan2(rel[:, 1], rel[:, 0]) - heading)
+            ok &= np.abs(rel_b) <= self.angle / 2
+        return ok
+
+
+def camera_params(camera) -> CameraParams:
+    """``camera`` as :class:`CameraParams`: None gives the paper's defaults, a dict its fields."""
+    if camera is None:
+        return CameraParams()
+    if isinstance(camera, CameraParams):
+        return camera
+    if isinstance(camera, dict):
+        known = ("range", "angle_deg", "clearance", "fov")
+        bad = sorted(set(camera) - set(known))
+        if bad:
+            raise ValueError(f"camera: unknown parameter {bad[0]!r} (known: {', '.join(known)})")
+        return CameraParams(**camera)
+    raise ValueError(f"camera must be a CameraParams or a dict, got {camera!r}")
+
+
+def check_route(route) -> np.ndarray:
+    """``route`` as an (n, 2) array of n >= 2 points, with no edge of zero length."""
+    r = as_array("route", route, (None, 2))
+    if r.shape[0] < 2:
+        raise ValueError(f"route must have at least 2 points, got {r.shape[0]}")
+    step = np.hypot(*np.diff(r, axis=0).T)
+    if (step <= 1e-12).any():
+        i = int(np.argmax(step <= 1e-12)) + 1
+        raise ValueError(f"route[{i}] = ({r[i, 0]:g}, {r[i, 1]:g}) repeats route[{i - 1}]: an edge of zero length has no direction")
+    return r
+
+
+def _candidates(candidates) -> np.ndarray:
+    c = as_array("candidates", candidates, (None, 2))
+    if c.shape[0] == 0:
+        raise ValueError("candidates must hold at least one candidate location, got 0")
+    return c
+
+
+def _k(k) -> int:
+    """k in [1, the core's bound], checked before it reaches the core (a C int)."""
+    k = as_positive_int("k", k)
+    if k > _core.PLACEMENT_MAX_K:
+        raise ValueError(f"k = {k} must be <= {_core.PLACEMENT_MAX_K} (landmarks in view)")
+    return k
+
+
+def candidate_grid(lower, upper, spacing: float = PAPER_SPACING, margin: float = 0.0) -> np.ndarray:
+    """Candidate locations on a square grid of ``spacing`` covering the box
+    ``[lower − margin, upper + margin]`` (grid lines through ``lower − margin``)."""
+    for name, v in (("spacing", spacing), ("margin", margin)):
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not math.isfinite(v):
+            raise ValueError(f"{name} = {v!r} must be a finite number")
+    if spacing <= 0:
+        raise ValueError(f"spacing = {spacing!r} must be finite and > 0")
+    lo = as_array("lower", lower, (2,)) - margin
+    hi = as_array("upper", upper, (2,)) + margin
+    if (hi < lo).any():
+        raise ValueError(f"upper = {tuple(hi)} must not be below lower = {tuple(lo)}")
+    n = np.floor((hi - lo) / spacing + 1e-9).astype(int) + 1
+    if n.prod() > 5_000_000:
+        raise ValueError(f"candidate grid of {n[0]} x {n[1]} points is too large; raise spacing = {spacing}")
+    xs = lo[0] + spacing * np.arange(n[0])
+    ys = lo[1] + spacing * np.arange(n[1])
+    return np.stack(np.meshgrid(xs, ys, indexing="ij"), axis=-1).reshape(-1, 2)
+
+
+# ---------------------------------------------------------------------------
+# Placement results
+# ---------------------------------------------------------------------------
+
+@dataclass
+class PlacementResult:
+    """A placement: the chosen candidate indices and where they are."""
+
+    route: np.ndarray                 #: (n, 2) the route
+    candidates: np.ndarray            #: (m, 2) all candidate locations
+    indices: np.ndarray               #: chosen candidate indices, sorted
+    camera: CameraParams
+    k: int
+    method: str                       #: "greedy", "greedy+corners", "optimal", ...
+    corners: bool
+    edge_landmarks: list = field(default_factory=list)   #: per edge, its own picks (greedy only)
+    uncovered: list = field(default_factory=list)        #: [(where, index, start, end)] stretches with < k
+    too_close: np.ndarray = field(default_factory=lambda: np.zeros(0, int))  #: candidates within p (removed)
+    seconds: float = 0.0
+    optimal: bool | None = None       #: ILP only: proven optimal within the time limit
+
+    @property
+    def landmarks(self) -> np.ndarray:
+        """(L, 2) positions of the placed landmarks."""
+        return self.candidates[self.indices]
+
+    @property
+    def count(self) -> int:
+        return int(len(self.indices))
+
+    @property
+    def covered(self) -> bool:
+        return not self.uncovered
+
+    def check(self, *, corners: bool | None = None) -> "_core.CoverageReport":
+        """Exact coverage check of this placement (see :func:`check_coverage`)."""
+        return check_coverage(self.route, self.landmarks, self.camera, k=self.k,
+                              corners=self.corners if corners is None else corners)
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary."""
+        cam = self.camera
+        return {
+            "method": self.method, "k": self.k, "corners": self.corners,
+            "camera": {"range": cam.range, "angle_deg": cam.angle_deg, "clearance": cam.clearance, "fov": cam.fov},
+            "route": self.route.tolist(),
+            "route_length": tour_length(self.route),
+            "n_candidates": int(len(self.candidates)),
+            "n_too_close": int(len(self.too_close)),
+            "n_landmarks": self.count,
+            "landmark_indices": [int(i) for i in self.indices],
+            "landmarks": self.landmarks.tolist(),
+            "edge_landmarks": [[int(i) for i in e] for e in self.edge_landmarks],
+            "covered": self.covered,
+            "uncovered": [{"where": w, "index": int(i), "start": float(a), "end": float(b)}
+                          for w, i, a, b in self.uncovered],
+            "optimal": self.optimal,
+            "seconds": self.seconds,
+        }
+
+
+def _describe_uncovered(route, uncovered, k) -> str:
+    lines = []
+    for where, i, a, b in uncovered[:5]:
+        if where == "edge":
+            p, q = route[i], route[i + 1]
+            what = f"at the point t = {a:.4g} m (landmarks align there)" if a == b else f"from t = {a:.4g} to {b:.4g} m"
+            lines.append(f"edge {i} from ({p[0]:.4g}, {p[1]:.4g}) to ({q[0]:.4g}, {q[1]:.4g}) {what}")
+        else:
+            lines.append(f"the turn at route[{i}] = ({route[i][0]:.4g}, {route[i][1]:.4g}) between "
+                         f"{math.degrees(a):.3g} and {math.degrees(b):.3g} deg into the turn")
+    more = f" (and {len(uncovered) - 5} more)" if len(uncovered) > 5 else ""
+    return (f"cannot keep {k} landmarks in view on " + "; ".join(lines) + more +
+            ": too few candidates there; add candidates (denser grid or a wider candidate area), "
+            "or pass allow_uncovered=True to get the best-effort placement")
+
+
+def place_along_route(route, candidates, camera: CameraParams | dict | None = None, *, k: int = 2,
+                      corners: bool = False, reuse: bool = False, distinct_bearings: bool = True,
+                      allow_uncovered: bool = False) -> PlacementResult:
+    """The paper's placement on a given route (section II): per edge the
+    greedy k-interval cover (Algorithm 1, generalised to k ≥ 1), then the
+    union over the edges (section II-B).
+
+    ``distinct_bearings=False`` runs Algorithm 1 verbatim.  With the default
+    ``True`` (condition (2) of the LPP, non-coincidence): of the candidates
+    on an edge's own line, which all share one bearing, only the one reaching
+    farthest is offered; and wherever the exact count of an edge's picks
+    falls below k (two picks aligned at a point), the candidate with a fresh
+    bearing there that reaches farthest is added.  ``corners`` also covers
+    the in-place turn at each vertex; ``reuse`` lets an edge count landmarks
+    placed for earlier edges (our improvement; the paper's union does not).
+
+    The certificate (:attr:`PlacementResult.covered`,
+    :attr:`PlacementResult.uncovered`) is :func:`check_coverage` of the final
+    landmarks, in every mode: covered exactly when the exact check finds at
+    least k distinct bearings everywhere.  Raises ``ValueError`` naming the
+    first uncovered stretch unless ``allow_uncovered``.
+    """
+    cam = camera_params(camera)
+    r, c, k = check_route(route), _candidates(candidates), _k(k)
+    opt = _core.PlacementOptions()
+    opt.k, opt.corners, opt.reuse, opt.distinct_bearings = k, bool(corners), bool(reuse), bool(distinct_bearings)
+    t0 = time.perf_counter()
+    p = _core.place_landmarks(r, c, cam.to_core(), opt)
+    sec = time.perf_counter() - t0
+    unc = [("edge", i, a, b) for i, e in enumerate(p.edges) for a, b in e.uncovered]
+    unc += [("corner", cp.vertex, a, b) for cp in p.corners for a, b in cp.uncovered]
+    if unc and not allow_uncovered:
+        raise ValueError(_describe_uncovered(r, unc, k))
+    method = "greedy" + ("+reuse" if reuse else "") + ("+corners" if corners else "")
+    if not distinct_bearings:
+        method += " (Algorithm 1 verbatim)"
+    return PlacementResult(route=r, candidates=c, indices=np.array(p.landmarks, dtype=int), camera=cam, k=k,
+                           method=method, corners=bool(corners), edge_landmarks=[list(e.landmarks) for e in p.edges],
+                           uncovered=unc, too_close=np.array(p.too_close, dtype=int), seconds=sec)
+
+
+def check_coverage(route, landmarks, camera: CameraParams | dict | None = None, *, k: int = 2,
+                   corners: bool = False) -> "_core.CoverageReport":
+    """Exact check: at every interval endpoint, alignment point, on-line
+    landmark and the midpoint between consecutive ones, count the distinct
+    bearings in view (DESIGN: check coverage at interval endpoints, not at
+    sample points; the count is constant in between).  Landmarks must be
+    pairwise distinct.  The report has ``min_count``,
+    ``min_distance`` (closest landmark to the route) and the deficient
+    stretches (``kind`` 0 edge / 1 corner, ``index``, ``start``, ``end``)."""
+    cam = camera_params(camera)
+    lm = as_array("landmarks", landmarks, (None, 2))
+    return _core.check_coverage(check_route(route), lm, cam.to_core(), _k(k), bool(corners))
+
+
+# ---------------------------------------------------------------------------
+# Global optimum: integer program over interval endpoints (HiGHS)
+# ---------------------------------------------------------------------------
+
+def _bearing_groups(bearings: np.ndarray) -> list[np.ndarray]:
+    """Indices of ``bearings`` [rad, in (−π, π]] grouped where consecutive
+    sorted values differ by <= the bearing tolerance, across ±π too (as the
+    core's distinct-bearing count)."""
+    if bearings.size == 0:
+        return []
+    order = np.argsort(bearings, kind="stable")
+    groups = np.split(order, np.flatnonzero(np.diff(bearings[order]) > _BEARING_TOL) + 1)
+    if len(groups) > 1 and bearings[order[0]] + 2 * math.pi - bearings[order[-1]] <= _BEARING_TOL:
+        groups = [np.concatenate([groups[-1], groups[0]])] + groups[1:-1]
+    return groups
+
+
+def place_optimal(route, candidates, camera: CameraParams | dict | None = None, *, k: int = 2,
+                  corners: bool = False, distinct_bearings: bool = True, time_limit: float = 120.0,
+                  allow_uncovered: bool = False) -> PlacementResult:
+    """The fewest landmarks for the whole route at once: an integer program
+    solved with ``scipy.optimize.milp`` (HiGHS).
+
+    Variables: ``x_ℓ ∈ {0, 1}`` per candidate with a non-empty Lemma 2
+    interval on some edge (or turn); minimise ``Σ x_ℓ``.  One row per point of
+    each edge where coverage can change — every interval endpoint, every
+    alignment point of two candidates, and the midpoint of every gap between
+    consecutive such points — requires ``≥ k`` distinct bearings in view.
+    Coverage is constant between those points, so the program is exact (the
+    route is not sampled).  Candidates on one bearing at a point form a group
+    ``g`` counted once through ``z_g ≤ Σ_{ℓ∈g} x_ℓ``, ``0 ≤ z_g ≤ 1`` (those
+    on the edge's own line share bearing 0 or π wherever they are in view).
+    With ``corners`` the same is done over the turned angle at each vertex.
+    ``distinct_bearings=False`` drops the groups; the certificate
+    (:attr:`PlacementResult.uncovered`) is the exact check of the chosen
+    landmarks either way, as for the greedy.
+    """
+    from scipy.optimize import Bounds, LinearConstraint, milp
+    from scipy.sparse import coo_matrix
+
+    cam = camera_params(camera)
+    r, c, k = check_route(route), _candidates(candidates), _k(k)
+    if isinstance(time_limit, bool) or not isinstance(time_limit, (int, float, np.integer, np.floating)) \
+            or not (math.isfinite(time_limit) and time_limit > 0):
+        raise ValueError(f"time_limit = {time_limit!r} must be a finite number of seconds > 0")
+    core_cam = cam.to_core()
+    t0 = time.perf_counter()
+    vis = _core.edge_visibility(r, c, core_cam)
+    too_close = np.flatnonzero(_core.distance_to_route(r, c) <= cam.clearance)
+    col_of: dict[int, int] = {}
+    z_groups: dict[tuple, int] = {}
+    rows: list[tuple[list[int], int]] = []   # (columns, required)
+    seen_rows: set = set()
+    unc: list = []
+
+    def col(i: int) -> int:
+        return col_of.setdefault(int(i), len(col_of))
+
+    def add_row(cands_groups: list[np.ndarray], where, idx, a, b):
+        cols = []
+        for g in cands_groups:
+            members = [col(i) for i in g]  # every candidate gets its own x, grouped or not
+            if len(g) == 1:
+                cols.append(("x", members[0]))
+            else:
+                key = tuple(sorted(int(i) for i in g))
+                cols.append(("z", z_groups.setdefault(key, len(z_groups))))
+        need = k
+        if len(cols) < k:
+            unc.append((where, idx, a, b))
+            need = len(cols)
+        if need == 0:
+            return
+        key = (tuple(sorted(cols)), need)
+        if key not in seen_rows:
+            seen_rows.add(key)
+            rows.append((cols, need))
+
+    al = _core.alignments(r, c, core_cam) if distinct_bearings else None
+    for e in range(len(r) - 1):
+        d = float(np.hypot(*(r[e + 1] - r[e])))
+        m = vis.edge == e
+        a, b, x, y, ci = vis.start[m], vis.end[m], vis.x[m], vis.y[m], vis.candidate[m]
+        pts = np.concatenate([a, b, [0.0, d]] + ([al.t[al.edge == e]] if al is not None else []))
+        pts = np.unique(np.clip(pts, 0.0, d))
+        probe = np.concatenate([pts, 0.5 * (pts[:-1] + pts[1:])])
+        inview = (a[None, :] - _EPS <= probe[:, None]) & (probe[:, None] <= b[None, :] + _EPS)
+        for pi, t in enumerate(probe):
+            idx = np.flatnonzero(inview[pi])
+            if distinct_bearings and idx.size > 1:
+                brg = np.arctan2(y[idx], x[idx] - t)
+                groups = [ci[idx[g]] for g in _bearing_groups(brg)]
+            else:
+                groups = [np.array([ci[i]]) for i in idx]
+            lo = t if pi < len(pts) else pts[pi - len(pts)]
+            hi = t if pi < len(pts) else pts[pi - len(pts) + 1]
+            add_row(groups, "edge", e, lo, hi)
+    if corners:
+        cv = _core.corner_visibility(r, c, core_cam)
+        turns = _core.turn_angles(r)
+        for v in range(1, len(r) - 1):
+            L = abs(float(turns[v - 1]))
+            if L <= _EPS:
+                continue
+            m = cv.edge == v
+            a, b, ci = cv.start[m], cv.end[m], cv.candidate[m]
+            brg = np.arctan2(cv.y[m], cv.x[m])
+            rays = _bearing_groups(brg) if distinct_bearings else [np.array([i]) for i in range(len(ci))]
+            pts = np.unique(np.clip(np.concatenate([a, b, [0.0, L]]), 0.0, L))
+            probe = np.concatenate([pts, 0.5 * (pts[:-1] + pts[1:])])
+            for pi, s in enumerate(probe):
+                groups = [ci[g] for g in rays if ((a[g] - _EPS <= s) & (s <= b[g] + _EPS)).any()]
+                lo = s if pi < len(pts) else pts[pi - len(pts)]
+                hi = s if pi < len(pts) else pts[pi - len(pts) + 1]
+                add_row(groups, "corner", v, lo, hi)
+    unc = _merge_uncovered(unc)
+    if unc and not allow_uncovered:
+        raise ValueError(_describe_uncovered(r, unc, k))
+    nx, nz = len(col_of), len(z_groups)
+    cand_of_col = np.empty(nx, dtype=int)
+    for cand, j in col_of.items():
+        cand_of_col[j] = cand
+    method = "optimal" + ("+corners" if corners else "")
+    if nx == 0:
+        return PlacementResult(route=r, candidates=c, indices=np.zeros(0, int), camera=cam, k=k, method=method,
+                               corners=bool(corners), uncovered=_exact_uncovered(r, c[:0], cam, k, corners),
+                               too_close=too_close, seconds=time.perf_counter() - t0, optimal=True)
+    ri, cj, vals, lb = [], [], [], []
+    for row, (cols, need) in enumerate(rows):
+        for kind, j in cols:
+            ri.append(row)
+            cj.append(j if kind == "x" else nx + j)
+            vals.append(1.0)
+        lb.append(need)
+    nrow = len(rows)
+    for key, j in z_groups.items():   # z_g - sum_{l in g} x_l <= 0
+        ri.append(nrow)
+        cj.append(nx + j)
+        vals.append(1.0)
+        for cand in key:
+            ri.append(nrow)
+            cj.append(col_of[cand])
+            vals.append(-1.0)
+        nrow += 1
+    A = coo_matrix((vals, (ri, cj)), shape=(nrow, nx + nz)).tocsr()
+    lo = np.concatenate([lb, np.full(nz, -np.inf)])
+    hi = np.concatenate([np.full(len(rows), np.inf), np.zeros(nz)])
+    cost = np.concatenate([np.ones(nx), np.zeros(nz)])
+    integrality = np.concatenate([np.ones(nx), np.zeros(nz)])
+    res = milp(cost, constraints=LinearConstraint(A, lo, hi), integrality=integrality, bounds=Bounds(0, 1),
+               options={"time_limit": float(time_limit), "presolve": True})
+    if res.x is None:
+        raise ValueError(f"the placement integer program found no solution ({res.message})")
+    chosen = np.sort(cand_of_col[res.x[:nx] > 0.5])
+    return PlacementResult(route=r, candidates=c, indices=chosen, camera=cam, k=k, method=method,
+                           corners=bool(corners), uncovered=_exact_uncovered(r, c[chosen], cam, k, corners),
+                           too_close=too_close, seconds=time.perf_counter() - t0, optimal=bool(res.status == 0))
+
+
+def _exact_uncovered(route, landmarks, cam: CameraParams, k: int, corners: bool) -> list:
+    """The certificate: the stretches the exact check finds with fewer than k
+    distinct bearings, as ``[(where, index, start, end)]``."""
+    rep = _core.check_coverage(route, landmarks, cam.to_core(), k, corners)
+    return [("edge" if kind == 0 else "corner", int(i), float(a), float(b))
+            for kind, i, a, b in zip(rep.kind, rep.index, rep.start, rep.end)]
+
+
+def _merge_uncovered(unc):
+    out = []
+    for w, i, a, b in sorted(unc, key=lambda u: (u[0], u[1], u[2], u[3])):
+        if out and out[-1][0] == w and out[-1][1] == i and a <= out[-1][3] + _EPS:
+            out[-1] = (w, i, out[-1][2], max(out[-1][3], b))
+        else:
+            out.append((w, i, a, b))
+    return out
+
+
+# ---------------------------------------------------------------------------
+# Through targets, along a SafeNav path
+# ---------------------------------------------------------------------------
+
+def place_through_targets(targets, candidates, camera: CameraParams | dict | None = None, *, k: int = 2,
+                          corners: bool = False, method: str = "greedy", source: int = 0, destination: int = -1,
+                          route=None, seed: int = 0, **kwargs) -> PlacementResult:
+    """Route through ``targets`` (open tour ``source`` → ``destination``,
+    :func:`plan_tour`), or the explicit ``route`` if given, then placement by
+    ``method``: ``"greedy"`` (the paper), ``"reuse"`` (greedy reusing earlier
+    edges' landmarks) or ``"optimal"`` (ILP)."""
+    if route is None:
+        t = as_array("targets", targets, (None, 2))
+        route = t[plan_tour(t, source=source, destination=destination, seed=seed)]
+    if method == "greedy":
+        return place_along_route(route, candidates, camera, k=k, corners=corners, **kwargs)
+    if method == "reuse":
+        return place_along_route(route, candidates, camera, k=k, corners=corners, reuse=True, **kwargs)
+    if method == "optimal":
+        return place_optimal(route, candidates, camera, k=k, corners=corners, **kwargs)
+    raise ValueError(f"method = {method!r} must be 'greedy', 'reuse' or 'optimal'")
+
+
+def place_along_path(path, camera: CameraParams | dict | None = None, *, candidates=None, spacing: float = 0.5,
+                     world=None, k: int = 2, corners: bool = True, method: str = "reuse",
+                     allow_uncovered: bool = False) -> PlacementResult:
+    """Landmarks along a SafeNav safe path (a polyline, e.g. from
+    :meth:`safenav.World.path_polyline`, or a :func:`safenav.planning.plan`
+    result) so
+    that a vehicle on it always has ``k`` landmarks in view.
+
+    Without ``candidates`` a grid of ``spacing`` within R of the path is used;
+    with a ``world`` candidates inside obstacles or outside the field are
+    dropped.  Consecutive repeated path points are merged.
+    """
+    cam = camera_params(camera)
+    if hasattr(path, "path") and not isinstance(path, np.ndarray):  # a planner's PlanResult
+        if not getattr(path, "success", True):
+            raise ValueError("the plan has no path (planning did not succeed)")
+        path = path.path
+    p = as_array("path", path, (None, 2))
+    if p.shape[0] < 2:
+        raise ValueError(f"path must have at least 2 points, got {p.shape[0]}")
+    keep = np.concatenate([[True], np.hypot(*np.diff(p, axis=0).T) > 1e-12])
+    p = check_route(p[keep])
+    if candidates is None:
+        c = candidate_grid(p.min(axis=0), p.max(axis=0), spacing, margin=cam.range)
+        c = c[_core.distance_to_route(p, c) <= cam.range]
+    else:
+        c = _candidates(candidates)
+    if world is not None:
+        c = c[~world.obstacle_mask(c) & world.field.contains(c)]
+    if len(c) == 0:
+        raise ValueError("no candidate locations left around the path (all inside obstacles or outside the field)")
+    return place_through_targets(None, c, cam, k=k, corners=corners, method=method, route=p,
+                                 allow_uncovered=allow_uncovered)
+
+
