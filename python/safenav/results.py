@@ -174,6 +174,17 @@ def read_table(path) -> pd.DataFrame:
     return df
 
 
+def pyplot():
+    """matplotlib.pyplot on the non-interactive Agg backend (figures are only
+    ever written to files)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
 def save_figure(fig, path, *, dpi: int = 120, svg: bool = False) -> Path:
     """Write ``fig`` to ``path`` as PNG (and an SVG beside it) with
     :func:`atomic_write`, without time stamps in the files; close the figure.

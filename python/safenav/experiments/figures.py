@@ -9,16 +9,8 @@ import numpy as np
 
 from .. import navigation as nav
 from .. import runner
+from ..results import pyplot
 from .paper import METHOD_LABELS
-
-
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def plot_synthetic_trial(data, estimates: dict, path: str | Path, *, title: str | None = None) -> Path:
@@ -26,7 +18,7 @@ def plot_synthetic_trial(data, estimates: dict, path: str | Path, *, title: str 
 
     ``estimates`` maps a label ("EKF", "PF", …) to a :class:`~safenav.filters.FilterResult`.
     Writes a PNG (and an SVG beside it) and returns the PNG path."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, (ax, ax_err) = plt.subplots(1, 2, figsize=(11, 4.6), gridspec_kw={"width_ratios": [1.35, 1]})
     ax.plot(data.states[:, 0], data.states[:, 1], "k-", lw=2.0, label="truth")
     fix = data.position[~np.isnan(data.position[:, 0])]
@@ -100,7 +92,7 @@ def plot_field(scenario, safe_paths: dict, path: str | Path, *, title: str | Non
     its (M, 2) safe path.  Writes a PNG and an SVG; returns the PNG path."""
     from .. import _core
 
-    plt = _pyplot()
+    plt = pyplot()
     world = scenario.world
     fig, ax = plt.subplots(figsize=(8.2, 7.6))
     b = world.field.bounds
@@ -143,7 +135,7 @@ def plot_wrs_comparison(wrs_mean: dict, t, path: str | Path, *, labels: dict | N
     the trials.  Top row: (a) every method with the EKF, (b) with the PF.
     Bottom row: per method, EKF against PF.  ``wrs_mean`` maps (source,
     filter) to a per-step mean WRS array; ``t`` is the time of each step."""
-    plt = _pyplot()
+    plt = pyplot()
     labels = labels or {}
     sources = list(dict.fromkeys(s for s, _ in wrs_mean))
     n = max(len(sources), 2)
@@ -190,7 +182,7 @@ def plot_navigation(scenario, trials: dict, path: str | Path, *, title: str | No
 
     from .. import _core
 
-    plt = _pyplot()
+    plt = pyplot()
     n = len(trials)
     fig, axes = plt.subplots(1, n, figsize=(5.2 * n, 5.4), squeeze=False)
     world = scenario.world

@@ -8,26 +8,17 @@ from pathlib import Path
 
 import numpy as np
 
-from ..results import save_figure
+from ..results import pyplot, save_figure
 from .algorithm import PAPER_AREA, PAPER_SPACING, CameraParams, PlacementResult, candidate_grid, place_along_route
 from .study import SimulationResult, corner_gap_demo, random_instance, simulate, table_one
 from .tour import plan_tour
-
-
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def plot_placement(result: PlacementResult, path, *, simulation: SimulationResult | None = None,
                    title: str | None = None) -> Path:
     """Route, candidates, placed landmarks (numbered) and, if given, the true
     and estimated paths (the paper's Figs. 6–7).  Writes a PNG; returns its path."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(5.2, 7.0))
     c, lm, r = result.candidates, result.landmarks, result.route
     ax.plot(c[:, 0], c[:, 1], ".", ms=1.5, color="0.8", label="candidates")
@@ -56,7 +47,7 @@ def plot_placement(result: PlacementResult, path, *, simulation: SimulationResul
 def plot_simulation(sim: SimulationResult, path, *, title: str | None = None) -> Path:
     """X, Y and heading errors with ±3σ bounds over time (the paper's Figs. 8–9),
     with the number of landmarks in view.  Writes a PNG; returns its path."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, axes = plt.subplots(4, 1, figsize=(7.5, 8.0), sharex=True)
     err, sig = sim.errors, sim.sigmas
     inside = sim.inside_3sigma()
@@ -84,7 +75,7 @@ def plot_simulation(sim: SimulationResult, path, *, title: str | None = None) ->
 def plot_corner_gap(demo: dict, path) -> Path:
     """Landmarks in view and heading 3σ over time without and with corner
     coverage (:func:`corner_gap_demo`).  Writes a PNG; returns its path."""
-    plt = _pyplot()
+    plt = pyplot()
     fig, axes = plt.subplots(2, 2, figsize=(10, 5.2), sharex="col")
     for j, key in enumerate(("plain", "corners")):
         d = demo[key]
@@ -137,7 +128,7 @@ def paper_figures(folder="docs/figures", *, seed: int = 0) -> dict:
     numbers["corners"] = {k: {"landmarks": v["placement"].count, "turn_gap": v["turn_gap"], "gap": v["gap"],
                               "inside_3sigma": v["inside_3sigma"]} for k, v in demo.items()}
     df = table_one(seed=seed)
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7.5, 3.4))
     idx = np.arange(len(df))
     cols = (("paper", "paper (its own instances)", "0.6"), ("greedy_paper", "greedy (Alg. 1)", "tab:blue"),
