@@ -49,8 +49,9 @@ void InformationFilter::predict(const Control& u) {
 UpdateResult InformationFilter::update(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z) {
   model.check(z);
   const State xb = x();
-  const Eigen::MatrixXd H = model.jacobian(xb);
-  Eigen::VectorXd zhat = model.predict(xb), nu(model.dim());
+  Eigen::MatrixXd H(model.dim(), 4);
+  Eigen::VectorXd zhat(model.dim()), nu(model.dim());
+  model.predict(xb, zhat, H);
   model.residual(z, zhat, nu);
   const Eigen::MatrixXd R = model.noise().cov();
   const Eigen::MatrixXd RinvH = R.ldlt().solve(H);  // R⁻¹ H

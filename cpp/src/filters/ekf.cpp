@@ -78,8 +78,7 @@ UpdateResult Ekf::update_fixed(const MeasurementModel& model, const Eigen::Ref<c
   const int m = model.dim();
   VecM zhat(m), y(m);
   MatM4 H(m, 4);
-  model.predict(x_, zhat);
-  model.jacobian(x_, H);
+  model.predict(x_, zhat, H);
   model.residual(z, zhat, y);  // eq. 12, angle-aware
   const MatMM R = model.noise().cov();
   const Eigen::Matrix<double, 4, M> PHt = P_ * H.transpose();
