@@ -19,7 +19,6 @@ namespace safenav {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kEps = 1e-9;         // [m] or [rad]: rounding slack of interval ends
 constexpr double kBearingTol = 1e-9;  // [rad]: bearings closer than this are one bearing
 

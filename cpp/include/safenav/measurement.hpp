@@ -23,7 +23,7 @@ enum class MeasurementKind {
 
 const char* to_string(MeasurementKind kind);
 
-using Landmarks = Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor>;
+using Landmarks = Points2;
 
 /// Gaussian measurement noise N(0, R) with a block-diagonal R, validated
 /// once: each block must be finite, symmetric and positive definite.  R is
