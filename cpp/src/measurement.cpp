@@ -220,29 +220,20 @@ bool MeasurementModel::is_angle(int i) const {
 }
 
 namespace {
-// The measurement functions, one per kind, in GTSAM's form (a factor's
-// evaluateError with an optional Jacobian): each writes h(x) into its rows of
-// zhat and, when H is given, ∂h/∂x into the same rows of *H, whose other
-// entries stay zero.
+// The measurement functions (position and speed/heading share one), in
+// GTSAM's form (a factor's evaluateError with an optional Jacobian): each
+// writes h(x) into its rows of zhat and, when H is given, ∂h/∂x into the same
+// rows of *H, whose other entries stay zero.
 using Jacobian = Eigen::Ref<Eigen::MatrixXd>;
 
-/// Position: h(x) = (x, y), H = [I₂ 0].
-void position(const State& x, Eigen::Ref<Eigen::VectorXd> zhat, Jacobian* H) {
-  zhat[0] = x[kX];
-  zhat[1] = x[kY];
+/// Two state components observed directly: h(x) = (x_i, x_j), H = rows i and
+/// j of I₄.  Position is (x, y), speed and heading (v, θ).
+void components(const State& x, StateIndex i, StateIndex j, Eigen::Ref<Eigen::VectorXd> zhat, Jacobian* H) {
+  zhat[0] = x[i];
+  zhat[1] = x[j];
   if (H) {
-    (*H)(0, kX) = 1.0;
-    (*H)(1, kY) = 1.0;
-  }
-}
-
-/// Speed and heading: h(x) = (v, θ), H = [0 I₂].
-void speed_heading(const State& x, Eigen::Ref<Eigen::VectorXd> zhat, Jacobian* H) {
-  zhat[0] = x[kV];
-  zhat[1] = x[kTheta];
-  if (H) {
-    (*H)(0, kV) = 1.0;
-    (*H)(1, kTheta) = 1.0;
+    (*H)(0, i) = 1.0;
+    (*H)(1, j) = 1.0;
   }
 }
 
@@ -272,8 +263,8 @@ void evaluate(MeasurementKind kind, const Landmarks& lm, const State& x, Eigen::
   if (H) H->setZero();
   const Eigen::Index n = lm.rows();
   switch (kind) {
-    case MeasurementKind::Position: return position(x, zhat, H);
-    case MeasurementKind::SpeedHeading: return speed_heading(x, zhat, H);
+    case MeasurementKind::Position: return components(x, kX, kY, zhat, H);
+    case MeasurementKind::SpeedHeading: return components(x, kV, kTheta, zhat, H);
     case MeasurementKind::Range:
       for (Eigen::Index i = 0; i < n; ++i) range(offset(lm, i, x), i, zhat, H);
       return;
