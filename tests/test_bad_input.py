@@ -400,7 +400,7 @@ def test_range_model_on_10k_landmarks_stores_per_row_noise():
 
 def test_segments_and_chull_control_on_10k_point_path_are_fast():
     from safenav import Corridor
-    from safenav.navigation import chull_control
+    from safenav.navigation import ChullAction, chull_control
 
     s = np.linspace(0.0, 100_000.0, 10_000)  # 10⁴ vertices, ~10⁴ segments of 10 m: 7 s before
     path = np.column_stack([s, 5.0 * np.sin(s / 50.0)])
@@ -410,7 +410,7 @@ def test_segments_and_chull_control_on_10k_point_path_are_fast():
     decisions = [chull_control(seg, Bmm(), [x, 5.0 * np.sin(x / 50.0) + 0.3, 1.0, 0.0], 1.0, 3.0, 0.5)
                  for x in np.linspace(0.0, 99_990.0, 50)]
     assert time.perf_counter() - t0 < 3.0
-    assert len(seg) == np.ceil(corridor.length / 10.0) and all(d.kind == 0 for d in decisions)
+    assert len(seg) == np.ceil(corridor.length / 10.0) and all(d.action == ChullAction.KEEP for d in decisions)
     # the polyline of a segment runs through the path vertices between its cuts
     k = 5678
     pts, cum = seg.points(k), corridor.vertex_arc_lengths

@@ -96,7 +96,7 @@ def test_chull_keeps_the_default_command_inside_the_hulls():
     bmm = Bmm(bmm_params())
     est = np.array([12.0, 21.0, 2.0, 0.0])
     d = nv.chull_control(segs, bmm, est, 2.0, 5.0, 0.5)
-    assert d.kind == 0
+    assert d.action == nv.ChullAction.KEEP
     aim = corridor.point_at(corridor.project(est[:2]).arc_length + 5.0)  # the look-ahead point
     assert d.control[1] == pytest.approx(math.atan2(aim[1] - 21.0, aim[0] - 12.0), abs=1e-12)
     assert d.control[0] == 2.0
@@ -117,7 +117,7 @@ def test_chull_corrects_when_the_prediction_leaves_both_hulls():
     default_pred = bmm.predict(est, np.array([2.0, 0.0]))[:2]
     assert not segs.in_current_or_next(segs.segment_at(corridor.project(est[:2]).arc_length), default_pred)
     d = nv.chull_control(segs, bmm, est, 2.0, 5.0, 0.5)
-    assert d.kind == 1
+    assert d.action == nv.ChullAction.CORRECTIVE
     aim = corridor.point_at(corridor.project(est[:2]).arc_length + 1.0)
     assert d.control[1] == pytest.approx(safenav.wrap_angle(math.atan2(aim[1] - edge_y, aim[0] - 22.0) - math.pi / 2))
 
@@ -128,7 +128,7 @@ def test_chull_steps_back_outside_every_adjacent_hull():
     bmm = Bmm(bmm_params())
     est = np.array([30.0, 20.0 + 3 * ZONES.half_width, 1.0, 0.0])
     d = nv.chull_control(segs, bmm, est, 2.0, 5.0, 0.5)
-    assert d.kind == 2
+    assert d.action == nv.ChullAction.STEP_BACK
     assert d.control[0] == 0.5                     # step-back speed
     foot = corridor.project(est[:2]).foot          # toward the nearest path point: straight down
     assert d.control[1] == pytest.approx(math.atan2(foot[1] - est[1], foot[0] - est[0]))

@@ -211,10 +211,14 @@ void pybind_navigation(py::module_& m) {
           "Trials for each seed (measurement-level source), metrics only, as a dict of arrays.  Releases the GIL.");
 
   m.def("centroid_control", &centroid_control, py::arg("segments"), py::arg("estimate"), py::arg("cruise_speed"));
+  py::enum_<ChullAction>(m, "ChullAction", "What Algorithm 1 did with the default command.")
+      .value("KEEP", ChullAction::Keep, "the default command's prediction lies in hull k or k+1: kept (line 13)")
+      .value("CORRECTIVE", ChullAction::Corrective, "a corrective control back to the path (line 17)")
+      .value("STEP_BACK", ChullAction::StepBack, "outside hulls k-1, k and k+1: step back toward the path");
   py::class_<ChullDecision>(m, "ChullDecision")
       .def_readonly("control", &ChullDecision::control)
       .def_readonly("segment", &ChullDecision::segment)
-      .def_readonly("kind", &ChullDecision::kind)
+      .def_readonly("action", &ChullDecision::action)
       .def_readonly("predicted", &ChullDecision::predicted);
   m.def("chull_control", &chull_control, py::arg("segments"), py::arg("bmm"), py::arg("estimate"),
         py::arg("cruise_speed"), py::arg("lookahead"), py::arg("step_back_speed"),

@@ -37,7 +37,7 @@ void LocalizationOptions::validate() const {
     os << "max_gdop = " << max_gdop << " must be > 0";
   else if (!(std::isfinite(ambiguity_margin) && ambiguity_margin >= 0.0))
     os << "ambiguity_margin = " << ambiguity_margin << " must be finite and >= 0";
-  else if (!(std::isfinite(min_crossing_angle) && min_crossing_angle >= 0.0 && min_crossing_angle < M_PI / 2))
+  else if (!(std::isfinite(min_crossing_angle) && min_crossing_angle >= 0.0 && min_crossing_angle < kPi / 2))
     os << "min_crossing_angle = " << min_crossing_angle << " must be in [0, pi/2)";
   else if (max_subsets < 1)
     os << "max_subsets = " << max_subsets << " must be >= 1";
@@ -48,11 +48,6 @@ void LocalizationOptions::validate() const {
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-
-double wrap(double a) {
-  a = std::remainder(a, 2.0 * M_PI);
-  return a <= -M_PI ? a + 2.0 * M_PI : a;
-}
 
 void check_inputs(const Eigen::Ref<const Anchors>& anchors, const Eigen::Ref<const Eigen::VectorXd>& z,
                   const Eigen::Ref<const Eigen::VectorXd>& sigmas, const char* zname, bool nonnegative) {
@@ -99,7 +94,7 @@ struct BearingModel {
   static constexpr int kMinimal = 2;
   static constexpr const char* kWhat = "bearings";
   double residual(const Eigen::Vector2d& p, const Eigen::Vector2d& a, double z) const {
-    return wrap(z - std::atan2(a.y() - p.y(), a.x() - p.x()));
+    return wrap_angle(z - std::atan2(a.y() - p.y(), a.x() - p.x()));
   }
   Eigen::RowVector2d jacobian(const Eigen::Vector2d& p, const Eigen::Vector2d& a) const {
     const double dx = a.x() - p.x(), dy = a.y() - p.y();
@@ -323,7 +318,7 @@ LocalizationResult solve_subset(const Model& m, const Problem& pr, const std::ve
   if (kBearings) {
     // The bearing lines' intersection must lie behind every anchor's bearing.
     for (int i : idx) {
-      if (std::abs(m.residual(p0, pr.a(i), pr.z[i])) > M_PI / 2) {
+      if (std::abs(m.residual(p0, pr.a(i), pr.z[i])) > kPi / 2) {
         res.status = LocalizationStatus::Degenerate;
         os << "bearing " << i << " points away from anchor " << i << " at the lines' intersection " << point_str(p0);
         res.reason = os.str();
@@ -369,7 +364,7 @@ LocalizationResult solve_subset(const Model& m, const Problem& pr, const std::ve
     }
   } else {
     for (int i : idx) {
-      if (std::abs(m.residual(f.p, pr.a(i), pr.z[i])) > M_PI / 2) {
+      if (std::abs(m.residual(f.p, pr.a(i), pr.z[i])) > kPi / 2) {
         res.status = LocalizationStatus::Degenerate;
         os << "bearing " << i << " points away from anchor " << i << " at the solution " << point_str(f.p);
         res.reason = os.str();

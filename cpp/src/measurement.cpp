@@ -219,28 +219,75 @@ bool MeasurementModel::is_angle(int i) const {
   return false;
 }
 
+namespace {
+// The measurement functions (position and speed/heading share one), in
+// GTSAM's form (a factor's evaluateError with an optional Jacobian): each
+// writes h(x) into its rows of zhat and, when H is given, ∂h/∂x into the same
+// rows of *H, whose other entries stay zero.
+using Jacobian = Eigen::Ref<Eigen::MatrixXd>;
+
+/// Two state components observed directly: h(x) = (x_i, x_j), H = rows i and
+/// j of I₄.  Position is (x, y), speed and heading (v, θ).
+void components(const State& x, StateIndex i, StateIndex j, Eigen::Ref<Eigen::VectorXd> zhat, Jacobian* H) {
+  zhat[0] = x[i];
+  zhat[1] = x[j];
+  if (H) {
+    (*H)(0, i) = 1.0;
+    (*H)(1, j) = 1.0;
+  }
+}
+
+/// Range to a landmark at offset o, in row `row`: r = ‖ℓ − p‖, ∂r/∂(x,y) = −(dx, dy)/r.
+void range(const Offset& o, Eigen::Index row, Eigen::Ref<Eigen::VectorXd> zhat, Jacobian* H) {
+  zhat[row] = o.r;
+  if (H) {
+    (*H)(row, kX) = -o.dx / o.r;
+    (*H)(row, kY) = -o.dy / o.r;
+  }
+}
+
+/// Relative bearing to a landmark at offset o, in row `row`:
+/// b = wrap(atan2(dy, dx) − θ), ∂b/∂(x,y) = (dy, −dx)/q, ∂b/∂θ = −1.
+void bearing(const Offset& o, const State& x, Eigen::Index row, Eigen::Ref<Eigen::VectorXd> zhat, Jacobian* H) {
+  zhat[row] = wrap_angle(std::atan2(o.dy, o.dx) - x[kTheta]);
+  if (H) {
+    (*H)(row, kX) = o.dy / o.q;
+    (*H)(row, kY) = -o.dx / o.q;
+    (*H)(row, kTheta) = -1.0;
+  }
+}
+
+/// h(x) and, when H is given, ∂h/∂x of a model of this kind.
+void evaluate(MeasurementKind kind, const Landmarks& lm, const State& x, Eigen::Ref<Eigen::VectorXd> zhat,
+              Jacobian* H) {
+  if (H) H->setZero();
+  const Eigen::Index n = lm.rows();
+  switch (kind) {
+    case MeasurementKind::Position: return components(x, kX, kY, zhat, H);
+    case MeasurementKind::SpeedHeading: return components(x, kV, kTheta, zhat, H);
+    case MeasurementKind::Range:
+      for (Eigen::Index i = 0; i < n; ++i) range(offset(lm, i, x), i, zhat, H);
+      return;
+    case MeasurementKind::Bearing:
+      for (Eigen::Index i = 0; i < n; ++i) bearing(offset(lm, i, x), x, i, zhat, H);
+      return;
+    case MeasurementKind::RangeBearing:
+      for (Eigen::Index i = 0; i < n; ++i) {
+        const Offset o = offset(lm, i, x);
+        range(o, 2 * i, zhat, H);
+        bearing(o, x, 2 * i + 1, zhat, H);
+      }
+      return;
+  }
+}
+}  // namespace
+
 void MeasurementModel::predict(const State& x, Eigen::Ref<Eigen::VectorXd> zhat) const {
-  switch (kind_) {
-    case MeasurementKind::Position:
-      zhat[0] = x[kX];
-      zhat[1] = x[kY];
-      return;
-    case MeasurementKind::SpeedHeading:
-      zhat[0] = x[kV];
-      zhat[1] = x[kTheta];
-      return;
-    default: break;
-  }
-  for (Eigen::Index i = 0; i < landmarks_.rows(); ++i) {
-    const auto [dx, dy, q, r] = offset(landmarks_, i, x);
-    const double b = wrap_angle(std::atan2(dy, dx) - x[kTheta]);
-    if (kind_ == MeasurementKind::Range) zhat[i] = r;
-    else if (kind_ == MeasurementKind::Bearing) zhat[i] = b;
-    else {
-      zhat[2 * i] = r;
-      zhat[2 * i + 1] = b;
-    }
-  }
+  evaluate(kind_, landmarks_, x, zhat, nullptr);
+}
+
+void MeasurementModel::predict(const State& x, Eigen::Ref<Eigen::VectorXd> zhat, Eigen::Ref<Eigen::MatrixXd> H) const {
+  evaluate(kind_, landmarks_, x, zhat, &H);
 }
 
 Eigen::VectorXd MeasurementModel::predict(const State& x) const {
@@ -250,38 +297,8 @@ Eigen::VectorXd MeasurementModel::predict(const State& x) const {
 }
 
 void MeasurementModel::jacobian(const State& x, Eigen::Ref<Eigen::MatrixXd> H) const {
-  H.setZero();
-  switch (kind_) {
-    case MeasurementKind::Position:
-      H(0, kX) = 1.0;
-      H(1, kY) = 1.0;
-      return;
-    case MeasurementKind::SpeedHeading:
-      H(0, kV) = 1.0;
-      H(1, kTheta) = 1.0;
-      return;
-    default: break;
-  }
-  for (Eigen::Index i = 0; i < landmarks_.rows(); ++i) {
-    const auto [dx, dy, q, r] = offset(landmarks_, i, x);
-    // ∂r/∂(x,y) = −(dx, dy)/r ; ∂b/∂(x,y) = (dy, −dx)/q ; ∂b/∂θ = −1
-    Eigen::Index rr = -1, rb = -1;
-    if (kind_ == MeasurementKind::Range) rr = i;
-    else if (kind_ == MeasurementKind::Bearing) rb = i;
-    else {
-      rr = 2 * i;
-      rb = 2 * i + 1;
-    }
-    if (rr >= 0) {
-      H(rr, kX) = -dx / r;
-      H(rr, kY) = -dy / r;
-    }
-    if (rb >= 0) {
-      H(rb, kX) = dy / q;
-      H(rb, kY) = -dx / q;
-      H(rb, kTheta) = -1.0;
-    }
-  }
+  Eigen::VectorXd zhat(dim_);
+  evaluate(kind_, landmarks_, x, zhat, &H);
 }
 
 Eigen::MatrixXd MeasurementModel::jacobian(const State& x) const {

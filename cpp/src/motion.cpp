@@ -10,13 +10,6 @@
 
 namespace safenav {
 
-double wrap_angle_slow(double a) {
-  if (!std::isfinite(a)) return a;
-  double r = std::remainder(a, 2.0 * kPi);  // in [−π, π]
-  if (r <= -kPi) r += 2.0 * kPi;
-  return r;
-}
-
 namespace {
 void require(bool ok, const char* field, double value, const char* rule) {
   if (!ok) {

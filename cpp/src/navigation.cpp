@@ -227,7 +227,7 @@ ChullDecision chull_control(const PathSegments& segments, const Bmm& bmm, const 
                                      ? proj.foot
                                      : Eigen::Vector2d(proj.foot + corridor.tangent_at(proj.arc_length));
     d.control = Control(step_back_speed, heading_to(estimate, foot));
-    d.kind = 2;
+    d.action = ChullAction::StepBack;
     d.predicted = bmm.predict(estimate, d.control).head<2>();
     return d;
   }
@@ -245,14 +245,14 @@ ChullDecision chull_control(const PathSegments& segments, const Bmm& bmm, const 
   State pred = bmm.predict(estimate, u);
   if (segments.in_current_or_next(k, pred.head<2>())) {  // line 13
     d.control = u;
-    d.kind = 0;
+    d.action = ChullAction::Keep;
     d.predicted = pred.head<2>();
     return d;
   }
   // Corrective control (line 17): back toward the path, 1 m ahead of the foot.
   u = Control(cruise_speed, heading_to(estimate, corridor.point_at(proj.arc_length + 1.0)));
   d.control = u;
-  d.kind = 1;
+  d.action = ChullAction::Corrective;
   d.predicted = bmm.predict(estimate, u).head<2>();
   return d;
 }
@@ -540,7 +540,11 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
                                             st.step_back_speed, &im.obstacles);
       u = d.control;
       pred = d.predicted;
-      (d.kind == 0 ? res.chull_default : d.kind == 1 ? res.chull_corrective : res.chull_step_back)++;
+      switch (d.action) {
+        case ChullAction::Keep: ++res.chull_default; break;
+        case ChullAction::Corrective: ++res.chull_corrective; break;
+        case ChullAction::StepBack: ++res.chull_step_back; break;
+      }
     }
     ++step;
     if (rec) res.controls.row(step - 1) = u.transpose();

@@ -50,11 +50,12 @@ NavigationSettings = _core.NavigationSettings
 SensorSettings = _core.SensorSettings
 PositionSource = _core.PositionSource
 TrialOutcome = _core.TrialOutcome
+ChullAction = _core.ChullAction
 TrialResult = _core.TrialResult
 
 __all__ = [
     "Navigator", "NavigationMethod", "NavigationProblem", "NavigationSettings", "SensorSettings",
-    "PositionSource", "TrialOutcome", "TrialResult", "SourceProfile", "SOURCES", "METHODS", "FILTERS",
+    "PositionSource", "TrialOutcome", "ChullAction", "TrialResult", "SourceProfile", "SOURCES", "METHODS", "FILTERS",
     "OUTCOMES", "position_source", "plan_safe_path", "make_navigator", "chull_control", "centroid_control",
 ]
 
@@ -205,7 +206,7 @@ def centroid_control(segments, estimate, cruise_speed: float) -> np.ndarray:
 def chull_control(segments, bmm, estimate, cruise_speed: float, lookahead: float, step_back_speed: float,
                   obstacles=None):
     """Algorithm 1's decision: ``ChullDecision`` with ``control``, ``segment``,
-    ``kind`` (0 default kept, 1 corrective, 2 step back) and ``predicted``.
+    ``action`` (a ``ChullAction``: KEEP, CORRECTIVE or STEP_BACK) and ``predicted``.
     ``obstacles`` (an ``ObstacleChecker``) shortens the look-ahead while the
     chord to it crosses an obstacle."""
     seg = segments.core if isinstance(segments, PathSegments) else segments

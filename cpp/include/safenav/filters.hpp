@@ -131,11 +131,6 @@ class InformationFilter {
 // Batch filtering of a whole trajectory.
 // ---------------------------------------------------------------------------
 
-using RowMatrixX2 = Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor>;
-using RowMatrixX4 = Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>;
-using RowMatrixX16 = Eigen::Matrix<double, Eigen::Dynamic, 16, Eigen::RowMajor>;
-using RowMatrixXd = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-
 /// Measurements aligned with the N control steps: row k is measured after
 /// the k-th prediction.  Each stream is optional (0 rows = absent).  A row of
 /// NaN (position, speed_heading) or a NaN entry (ranges, bearings: landmark not

@@ -15,8 +15,6 @@
 
 namespace safenav {
 
-using BoolVector = Eigen::Matrix<bool, Eigen::Dynamic, 1>;
-
 /// Convex hull of a point set (CGAL::convex_hull_2): the extreme points in
 /// counter-clockwise order, collinear boundary points dropped.  The vertices
 /// are a subset of the input rows.  Needs ≥ 1 finite point.

@@ -22,6 +22,8 @@
 #include <vector>
 #include <Eigen/Core>
 
+#include "safenav/types.hpp"
+
 namespace safenav {
 
 enum class LocalizationStatus {
@@ -59,7 +61,7 @@ struct LocalizationOptions {
   void validate() const;
 };
 
-using Anchors = Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor>;
+using Anchors = Points2;
 
 struct LocalizationResult {
   LocalizationStatus status = LocalizationStatus::TooFew;

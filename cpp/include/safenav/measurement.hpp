@@ -24,7 +24,7 @@ enum class MeasurementKind {
 
 const char* to_string(MeasurementKind kind);
 
-using Landmarks = Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor>;
+using Landmarks = Points2;
 
 /// Gaussian measurement noise N(0, R) with a block-diagonal R, validated
 /// once: each block must be finite, symmetric and positive definite.  R is
@@ -85,6 +85,8 @@ class MeasurementModel {
   /// a range/bearing landmark coincides with the vehicle position (undefined).
   void predict(const State& x, Eigen::Ref<Eigen::VectorXd> zhat) const;
   Eigen::VectorXd predict(const State& x) const;
+  /// h(x) and H = ∂h/∂x together (dim() and dim()×4), from one evaluation.
+  void predict(const State& x, Eigen::Ref<Eigen::VectorXd> zhat, Eigen::Ref<Eigen::MatrixXd> H) const;
   /// H = ∂h/∂x (dim()×4), analytic.
   void jacobian(const State& x, Eigen::Ref<Eigen::MatrixXd> H) const;
   Eigen::MatrixXd jacobian(const State& x) const;

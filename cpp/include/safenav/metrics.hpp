@@ -7,9 +7,9 @@
 #include <vector>
 #include <Eigen/Core>
 
-namespace safenav {
+#include "safenav/types.hpp"
 
-using Points2 = Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor>;
+namespace safenav {
 
 /// Throws std::invalid_argument unless `points` has at least `min_rows` rows,
 /// all finite; the message names `what` and the first bad point.

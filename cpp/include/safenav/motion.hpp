@@ -11,26 +11,9 @@
 #include <string>
 #include <Eigen/Core>
 
+#include "safenav/types.hpp"
+
 namespace safenav {
-
-using State = Eigen::Vector4d;        ///< (x, y, v, θ)
-using StateCov = Eigen::Matrix4d;     ///< covariance of State
-using Control = Eigen::Vector2d;      ///< (v_desired, Δθ)
-
-constexpr double kPi = 3.14159265358979323846;
-
-/// Index of each state component.
-enum StateIndex : int { kX = 0, kY = 1, kV = 2, kTheta = 3 };
-
-/// Wrap an angle to (−π, π].  Non-finite input is returned unchanged.
-double wrap_angle_slow(double a);
-inline double wrap_angle(double a) {
-  constexpr double two_pi = 2.0 * kPi;
-  if (a > -kPi && a <= kPi) return a;
-  if (a > kPi && a <= 3.0 * kPi) return a - two_pi;
-  if (a <= -kPi && a > -3.0 * kPi) return a + two_pi;
-  return wrap_angle_slow(a);
-}
 
 /// Parameters of the BMM (named in [SafeNav-ext Table I]). Defaults are ours
 /// (the paper gives no values) and are chosen to cover the synthetic data set

@@ -211,11 +211,18 @@ class Navigator {
 /// Δθ = atan2(Δy, Δx) − θ̂, wrapped (DESIGN.md: the paper's arctan(Δx/Δy)).
 Control centroid_control(const PathSegments& segments, const State& estimate, double cruise_speed);
 
+/// What [SafeNav Alg. 1] did with the default command.
+enum class ChullAction {
+  Keep,        ///< the default command's prediction lies in hull k or k+1: kept (line 13)
+  Corrective,  ///< a corrective control back to the path (line 17)
+  StepBack,    ///< the estimate is outside hulls k−1, k and k+1: step back
+};
+
 /// [SafeNav Alg. 1]'s decision.
 struct ChullDecision {
   Control control{0, 0};
   int segment = 0;     ///< current segment k
-  int kind = 0;        ///< 0 default command kept, 1 corrective control, 2 step back
+  ChullAction action = ChullAction::Keep;
   Eigen::Vector2d predicted{0, 0};  ///< BMM prediction with the chosen control
 };
 /// [SafeNav Alg. 1] (SafeNav-CHull), our reading of it (DESIGN.md, decision 4):

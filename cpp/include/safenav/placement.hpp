@@ -35,6 +35,8 @@
 #include <vector>
 #include <Eigen/Core>
 
+#include "safenav/types.hpp"
+
 namespace safenav {
 
 /// Upper bound on k (landmarks in view), checked up front everywhere: far
@@ -51,14 +53,12 @@ enum class FieldOfView { Sector, Circular };
 /// The camera and the collision-avoidance distance (the paper's R, α, p).
 struct Camera {
   double range = 2.0;                            ///< R [m], viewing range (> clearance)
-  double angle = 50.0 * 3.14159265358979323846 / 180.0;  ///< α [rad], full viewing angle, in (0, π]
+  double angle = 50.0 * kPi / 180.0;  ///< α [rad], full viewing angle, in (0, π]
   double clearance = 0.05;                       ///< p [m], landmarks must be farther than p from the route
   FieldOfView fov = FieldOfView::Sector;
   /// Throws std::invalid_argument naming the first bad field.
   void validate() const;
 };
-
-using Points2 = Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor>;
 
 /// A closed interval [start, end] of an edge (arc length) or of a turn (angle).
 struct Interval {

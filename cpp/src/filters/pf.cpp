@@ -1,0 +1,319 @@
+// Particle filter (the Battlefield Motion Model's SIR filter): storage, weights,
+// resampling and the measurement update; the per-particle passes are the
+// kernels in pf_kernels.hpp.
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
+#include <new>
+#include <sstream>
+#include <stdexcept>
+#include <vector>
+
+#include "checks.hpp"
+#include "pf_kernels.hpp"
+#include "safenav/filters.hpp"
+
+namespace safenav {
+
+using namespace detail;  // the kernels of pf_kernels.hpp
+
+/// Columns of doubles for the particle filter, each starting on a 64-byte
+/// boundary (the column stride is padded to 8 doubles): vector loads then
+/// never split a cache line, whichever allocator the host process uses.
+class Columns {
+ public:
+  void resize(int rows, int cols) {
+    stride_ = (rows + 7) / 8 * 8;
+    data_.assign(static_cast<std::size_t>(stride_) * cols, 0.0);
+  }
+  int stride() const { return stride_; }
+  double* col(int c) { return data_.data() + static_cast<std::ptrdiff_t>(c) * stride_; }
+  const double* col(int c) const { return data_.data() + static_cast<std::ptrdiff_t>(c) * stride_; }
+  void swap(Columns& o) noexcept {
+    data_.swap(o.data_);
+    std::swap(stride_, o.stride_);
+  }
+
+ private:
+  template <class T>
+  struct Allocator {
+    using value_type = T;
+    Allocator() = default;
+    template <class U>
+    Allocator(const Allocator<U>&) noexcept {}
+    T* allocate(std::size_t n) { return static_cast<T*>(::operator new(n * sizeof(T), std::align_val_t{64})); }
+    void deallocate(T* p, std::size_t) noexcept { ::operator delete(p, std::align_val_t{64}); }
+    friend bool operator==(const Allocator&, const Allocator&) { return true; }
+    friend bool operator!=(const Allocator&, const Allocator&) { return false; }
+  };
+  std::vector<double, Allocator<double>> data_;
+  int stride_ = 0;
+};
+
+struct ParticleFilter::Impl {
+  // Particle columns: x, y, v, θ, cos θ, sin θ; weight columns: log w, w.
+  enum Column : int { kCos = 4, kSin = 5, kParticleColumns = 6 };
+  enum WeightColumn : int { kLogW = 0, kW = 1 };
+  Bmm bmm;
+  detail::BatchRng rng;
+  double resample_threshold;
+  int N = 0;
+  Columns S, S_next;          // particles; S_next receives a resampled set
+  Columns W;                  // log-weights and normalised weights
+  double ess = 0.0;           // 1/Σw², kept with w
+  int n_resampled = 0;
+  // scratch
+  Columns noise;              // ε_x, ε_y, ε_v, ε_θ of every particle
+  std::vector<int> start;     // resampling: the particle of each pointer
+  Eigen::MatrixXd Y;          // residuals of a general measurement model
+  Eigen::VectorXd zhat, resid;
+
+  Impl(const BmmParams& p, std::uint64_t seed, double thr, int n)
+      : bmm(p), rng(seed), resample_threshold(thr), N(n) {
+    S.resize(N, kParticleColumns);
+    S_next.resize(N, kParticleColumns);
+    W.resize(N, 2);
+    noise.resize(N, 4);
+    start.resize(static_cast<std::size_t>(N) + 1);
+  }
+
+  int n() const { return N; }
+  double* col(int c) { return S.col(c); }
+  const double* col(int c) const { return S.col(c); }
+  double* logw() { return W.col(kLogW); }
+  double* w() { return W.col(kW); }
+  const double* w() const { return W.col(kW); }
+  State particle(int i) const { return State(S.col(kX)[i], S.col(kY)[i], S.col(kV)[i], S.col(kTheta)[i]); }
+  void reset_weights() {
+    std::fill_n(logw(), N, -std::log(static_cast<double>(N)));
+    std::fill_n(w(), N, 1.0 / N);
+    ess = N;
+  }
+
+  /// Normalise the log-weights (mx = their maximum).  Weights below e^−300 of
+  /// the best particle's are floored there: such particles are dead either
+  /// way, and the floor keeps exp() and w² out of subnormal numbers, which are
+  /// ~100× slower.
+  void normalise(double mx) {
+    constexpr double kLogFloor = -300.0;
+    detail::dispatch<exp_weights>(N, logw(), w(), mx, kLogFloor);
+    const double sum = detail::dispatch<sum_weights<32>, sum_weights<16>>(N, w());  // ≥ 1: exp(0) is in it
+    ess = 1.0 / detail::dispatch<scale_weights<32>, scale_weights<16>>(N, logw(), w(), 1.0 / sum, mx + std::log(sum));
+  }
+
+  /// Systematic resampling: pointers u_j = (j + U)/N, j = 0..N−1, one
+  /// U ~ U[0, 1); particle i gets the pointers in (C_{i−1}, C_i], C_i = Σ_{k≤i} w_k:
+  /// n_i = #{j : u_j ≤ C_i} − #{j : u_j ≤ C_{i−1}} copies, so E[n_i] = N w_i and
+  /// n_i is ⌊N w_i⌋ or ⌈N w_i⌉.  Branch-free (the old while-loop search
+  /// mispredicted about once per particle): with c_i = #{j : u_j ≤ C_i},
+  /// pointers from c_i on belong to particles after i, so start[c_i] = i + 1
+  /// (the last such i wins), and a running maximum of `start` gives every
+  /// pointer its particle.
+  void resample() {
+    const double U = rng.uniform();
+    std::fill(start.begin(), start.end(), 0);
+    int* st = start.data();
+    const double* ww = w();
+    double acc = 0.0;
+    for (int i = 0; i < N - 1; ++i) {
+      acc += ww[i];
+      const double t = acc * N - U;  // u_j ≤ C_i  ⇔  j ≤ t
+      const int c = t < 0.0 ? 0 : std::min(static_cast<int>(t) + 1, N);
+      st[c] = i + 1;
+    }
+    static_assert(kParticleColumns == 6, "one copy per column below");
+    copy_selected(N, st, S.col(0), S.col(1), S.col(2), S.col(3), S.col(4), S.col(5), S_next.col(0), S_next.col(1),
+                  S_next.col(2), S_next.col(3), S_next.col(4), S_next.col(5));
+    S.swap(S_next);
+    reset_weights();
+    ++n_resampled;
+  }
+
+  State mean() const {
+    const Sums5 s = detail::dispatch<mean_sums<32>, mean_sums<16>>(N, col(kX), col(kY), col(kV), col(kCos),
+                                                                    col(kSin), w());
+    return State(s.s[0], s.s[1], s.s[2], std::atan2(s.s[4], s.s[3]));  // circular mean for θ
+  }
+
+  /// Weighted covariance Σ w_i d_i d_iᵀ about m, θ deviations wrapped.
+  StateCov covariance(const State& m) const {
+    const Sums10 t = detail::dispatch<covariance_sums<32>, covariance_sums<16>>(N, col(kX), col(kY), col(kV),
+                                                                                col(kTheta), w(), &m);
+    const double* s = t.s;
+    StateCov P;
+    P << s[0], s[1], s[2], s[3],
+         s[1], s[4], s[5], s[6],
+         s[2], s[5], s[7], s[8],
+         s[3], s[6], s[8], s[9];
+    if (!P.allFinite()) {  // deviations beyond ~1e154 (e.g. one ulp of positions near 1e308) square to inf
+      std::ostringstream os;
+      os << "particle covariance about (" << m[0] << ", " << m[1] << ", " << m[2] << ", " << m[3] << ")";
+      check_finite_result(P, "particle filter P", os.str());
+    }
+    return P;
+  }
+
+  /// Noisy BMM for every particle (eqs. 6–9, the body of Bmm::transition).
+  /// θ moves by a small δ_i per step, so cos/sin of the new heading come from
+  /// rotating the cached (cos θ, sin θ) by δ_i (particles_step); turns larger
+  /// than kSmallTurn are redone with std::cos/std::sin.
+  void predict(double desired_speed, double heading_step) {
+    const auto& p = bmm.params();
+    const double k = p.terrain_factor() * p.dt;
+    rng.fill_normal(noise.col(0), 4L * noise.stride());  // all four columns (and their padding)
+    double* x = col(kX);
+    double* y = col(kY);
+    double* v = col(kV);
+    double* th = col(kTheta);
+    double* cs = col(kCos);
+    double* sn = col(kSin);
+    const double* ex = noise.col(0);
+    const double* ey = noise.col(1);
+    const double* ev = noise.col(2);
+    const double* et = noise.col(3);
+    const StepParams a{desired_speed, heading_step, p.acceleration * p.dt, p.deceleration * p.dt,
+                       p.max_speed,   k,            p.speed_noise,         p.heading_noise,
+                       p.position_noise};
+    const long n_big = detail::dispatch<particles_step>(N, x, y, v, th, cs, sn, ex, ey, ev, et, &a);
+    if (n_big > 0) {  // rare: large turns get exact trigonometry
+      for (int i = 0; i < N; ++i) {
+        const double d = heading_step + p.heading_noise * et[i];  // as in particles_step
+        if (d > kSmallTurn || d < -kSmallTurn) {
+          th[i] = wrap_angle(th[i]);
+          const double ce = std::cos(th[i]), se = std::sin(th[i]);
+          x[i] += k * v[i] * (ce - cs[i]);
+          y[i] += k * v[i] * (se - sn[i]);
+          cs[i] = ce;
+          sn[i] = se;
+        }
+      }
+    }
+  }
+};
+
+ParticleFilter::ParticleFilter(const BmmParams& params, const State& x0, const StateCov& P0, int n_particles,
+                               std::uint64_t seed, double resample_threshold) {
+  if (n_particles < 1) {
+    throw std::invalid_argument("n_particles = " + std::to_string(n_particles) + " must be >= 1");
+  }
+  if (!(std::isfinite(resample_threshold) && resample_threshold >= 0.0 && resample_threshold <= 1.0)) {
+    std::ostringstream os;
+    os << "resample_threshold = " << resample_threshold << " must be in [0, 1]";
+    throw std::invalid_argument(os.str());
+  }
+  check_prior(x0, P0);
+  impl_ = std::make_unique<Impl>(params, seed, resample_threshold, n_particles);
+  auto& I = *impl_;
+  const int N = n_particles;
+  const Eigen::Matrix4d L = P0.llt().matrixL();
+  I.rng.fill_normal(I.noise.col(0), 4L * I.noise.stride());
+  for (int i = 0; i < N; ++i) {
+    const Eigen::Vector4d e(I.noise.col(0)[i], I.noise.col(1)[i], I.noise.col(2)[i], I.noise.col(3)[i]);
+    State p = x0 + L * e;
+    p[kV] = std::max(0.0, p[kV]);
+    p[kTheta] = wrap_angle(p[kTheta]);
+    for (int c = 0; c < 4; ++c) I.col(c)[i] = p[c];
+    I.col(Impl::kCos)[i] = std::cos(p[kTheta]);
+    I.col(Impl::kSin)[i] = std::sin(p[kTheta]);
+  }
+  I.reset_weights();
+}
+
+ParticleFilter::~ParticleFilter() = default;
+ParticleFilter::ParticleFilter(ParticleFilter&&) noexcept = default;
+ParticleFilter& ParticleFilter::operator=(ParticleFilter&&) noexcept = default;
+
+int ParticleFilter::size() const { return impl_->n(); }
+double ParticleFilter::ess() const { return impl_->ess; }
+int ParticleFilter::resample_count() const { return impl_->n_resampled; }
+State ParticleFilter::mean() const { return impl_->mean(); }
+StateCov ParticleFilter::covariance() const { return impl_->covariance(impl_->mean()); }
+StateCov ParticleFilter::covariance(const State& about) const { return impl_->covariance(about); }
+Eigen::VectorXd ParticleFilter::weights() const { return Eigen::Map<const Eigen::VectorXd>(impl_->w(), size()); }
+
+Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor> ParticleFilter::particles() const {
+  const auto& I = *impl_;
+  Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor> X(I.N, 4);
+  for (int c = 0; c < 4; ++c) X.col(c) = Eigen::Map<const Eigen::VectorXd>(I.col(c), I.N);
+  return X;
+}
+
+void ParticleFilter::predict(const Control& u) {
+  if (!u.allFinite()) {
+    std::ostringstream os;
+    os << "control (desired_speed, heading_change) = (" << u[0] << ", " << u[1] << ") is not finite";
+    throw std::invalid_argument(os.str());
+  }
+  impl_->predict(u[0], impl_->bmm.clipped_heading_change(u[1]));
+  // Finite inputs can still overflow (positions near 1e308, a huge dt·v_max); v and θ stay bounded.
+  for (int c : {kX, kY}) {
+    const Eigen::Map<const Eigen::ArrayXd> col(impl_->col(c), impl_->n());
+    if (!col.allFinite()) {
+      std::ostringstream os;
+      os << "particle filter predict: particle " << (c == kX ? "x" : "y") << " overflows (control (" << u[0]
+         << ", " << u[1] << "), dt = " << impl_->bmm.params().dt << ", max_speed = "
+         << impl_->bmm.params().max_speed << ")";
+      throw std::invalid_argument(os.str());
+    }
+  }
+}
+
+UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z) {
+  model.check(z);
+  auto& I = *impl_;
+  const int m = model.dim();
+  const int N = I.n();
+  const Eigen::MatrixXd R = model.noise().cov();
+  UpdateResult res;
+  res.dim = m;
+  const Eigen::ArrayXd prior_logw = Eigen::Map<const Eigen::ArrayXd>(I.logw(), N);
+  if (model.kind() == MeasurementKind::Position) {
+    // Fast path: 2-D residuals, log-likelihood and NIS moments in one pass.
+    const Eigen::Matrix2d Ri = R.inverse();
+    const PositionParams a{z[0], z[1], 0.5 * Ri(0, 0), Ri(0, 1), 0.5 * Ri(1, 1)};
+    const Sums5 t =
+        detail::dispatch<position_loglik<32>, position_loglik<16>>(N, I.col(kX), I.col(kY), I.w(), I.logw(), &a);
+    const double* ps = t.s;
+    const double s0 = ps[0], s1 = ps[1];
+    const Eigen::Vector2d ybar(s0, s1);
+    Eigen::Matrix2d S;
+    S << ps[2] - s0 * s0, ps[3] - s0 * s1, ps[3] - s0 * s1, ps[4] - s1 * s1;
+    S += R;
+    res.nis = ybar.dot(S.ldlt().solve(ybar));
+  } else {
+    // Residual of every particle, y_i = z ⊖ h(x_i), one per column.
+    I.Y.resize(m, N);
+    I.zhat.resize(m);
+    I.resid.resize(m);
+    for (int i = 0; i < N; ++i) {
+      model.predict(I.particle(i), I.zhat);
+      model.residual(z, I.zhat, I.resid);
+      I.Y.col(i) = I.resid;
+    }
+    // NIS (diagnostic) of the prior predictive: mean residual ȳ, S = Cov_w(y) + R.
+    const Eigen::Map<const Eigen::VectorXd> w(I.w(), N);
+    const Eigen::VectorXd ybar = I.Y * w;
+    const Eigen::MatrixXd D = I.Y.colwise() - ybar;
+    const Eigen::MatrixXd S = D * w.asDiagonal() * D.transpose() + R;
+    res.nis = ybar.dot(S.ldlt().solve(ybar));
+    // log-likelihood −½ yᵀR⁻¹y = −½‖L⁻¹y‖², added to the log-weights.
+    model.noise().whiten(I.Y);
+    Eigen::Map<Eigen::ArrayXd>(I.logw(), N) -= 0.5 * I.Y.colwise().squaredNorm().transpose().array();
+  }
+  const double mx = Eigen::Map<const Eigen::ArrayXd>(I.logw(), N).maxCoeff();  // exact in any order
+  if (!std::isfinite(mx) || !std::isfinite(res.nis)) {  // keep the prior weights, then say why
+    Eigen::Map<Eigen::ArrayXd>(I.logw(), N) = prior_logw;
+    check_nis(res.nis, "particle filter", model.kind());
+    // every likelihood underflowed (residuals beyond ~1e154 σ)
+    std::ostringstream os;
+    os << "particle filter " << to_string(model.kind()) << " update: the measurement has zero likelihood under "
+       << "every particle (log-likelihood " << mx << ")";
+    throw std::invalid_argument(os.str());
+  }
+  I.normalise(mx);
+  if (I.ess < I.resample_threshold * N) I.resample();
+  return res;
+}
+
+}  // namespace safenav

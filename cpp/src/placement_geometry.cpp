@@ -1,0 +1,335 @@
+// Landmark placement, the geometry (the landmark placement paper, section II):
+// input checks, the candidates near a route, edge frames, Lemma 1, Lemma 2
+// and Corollary 1, the turns at the route's vertices, and the tables the ILP
+// is built from.  Candidates are found per edge through a uniform bucket grid,
+// so a route costs O(edges · candidates near an edge), not O(edges · all
+// candidates).
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <sstream>
+#include <string>
+
+#include "placement_internal.hpp"
+
+namespace safenav {
+namespace placement_detail {
+
+namespace {
+
+std::string point_str(const Eigen::Vector2d& p) {
+  std::ostringstream os;
+  os << "(" << p.x() << ", " << p.y() << ")";
+  return os.str();
+}
+
+double segment_distance(const Eigen::Vector2d& p, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  const Eigen::Vector2d ab = b - a;
+  const double l2 = ab.squaredNorm();
+  const double s = l2 > 0 ? std::clamp((p - a).dot(ab) / l2, 0.0, 1.0) : 0.0;
+  return (p - (a + s * ab)).norm();
+}
+
+/// Lemma 2 / Corollary 1 with the camera's constants computed once.
+struct Fov {
+  explicit Fov(const Camera& cam)
+      : R(cam.range), R2(cam.range * cam.range), circular(cam.fov == FieldOfView::Circular),
+        ymax(circular ? cam.range : cam.range * std::sin(0.5 * cam.angle)),
+        cot_half(circular ? 0.0 : std::cos(0.5 * cam.angle) / std::sin(0.5 * cam.angle)) {}
+  bool interval(const Eigen::Vector2d& local, double length, Interval* out) const {
+    const double x = local.x(), y = local.y(), ay = std::abs(y);
+    if (ay > ymax || x < -R || x > length + R) return false;  // Lemma 1, condition 1 (and |x| bounds)
+    const double h = std::sqrt(std::max(R2 - y * y, 0.0));
+    const double a = std::max(x - h, 0.0);                                       // eq. (1)/(3)
+    const double b = circular ? std::min(x + h, length)                          // eq. (4), typo fixed
+                              : std::min(x - ay * cot_half, length);             // eq. (2)
+    if (b < a - kEps) return false;  // empty by more than the rounding slack (α = 180°: cot(α/2) ≈ 6e-17)
+    *out = {a, std::max(a, b)};
+    return true;
+  }
+  double R, R2;
+  bool circular;
+  double ymax, cot_half;
+};
+
+/// The point t where the line through two landmarks (edge frame) meets the
+/// edge's line with both on one ray from it; false when there is none.  Two
+/// landmarks on the edge's line (y = 0) share a bearing everywhere, not at
+/// one point: the callers handle them.
+bool alignment_point(const Eigen::Vector2d& p, const Eigen::Vector2d& q, double* t) {
+  if (!((p.y() > 0 && q.y() > 0) || (p.y() < 0 && q.y() < 0))) return false;
+  if (p.y() == q.y()) return false;
+  *t = p.x() - p.y() * (q.x() - p.x()) / (q.y() - p.y());
+  return true;
+}
+
+}  // namespace
+
+void check_points(const Points2& p, const char* what) {
+  for (Eigen::Index i = 0; i < p.rows(); ++i) {
+    const bool finite = p.row(i).allFinite();
+    if (finite && p.row(i).cwiseAbs().maxCoeff() <= kMaxCoordinate) continue;
+    const std::string name = std::string(what) + "[" + std::to_string(i) + "] = " + point_str(p.row(i).transpose());
+    if (!finite) fail(name + " is not finite");
+    fail(name + " is farther than " + std::to_string(static_cast<long>(kMaxCoordinate)) +
+         " m from the origin: shift the coordinates to a local origin");
+  }
+}
+
+void check_route(const Points2& route) {
+  if (route.rows() < 2)
+    fail("route must have at least 2 points, got " + std::to_string(route.rows()));
+  check_points(route, "route");
+  for (Eigen::Index i = 1; i < route.rows(); ++i)
+    if ((route.row(i) - route.row(i - 1)).norm() <= 1e-12)
+      fail("route[" + std::to_string(i) + "] = " + point_str(route.row(i).transpose()) + " repeats route[" +
+           std::to_string(i - 1) + "]: an edge of zero length has no direction");
+}
+
+void check_candidates(const Points2& c, const char* what) {
+  check_points(c, what);
+  std::vector<int> order(c.rows());
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](int a, int b) {
+    return c(a, 0) < c(b, 0) || (c(a, 0) == c(b, 0) && c(a, 1) < c(b, 1));
+  });
+  for (size_t i = 1; i < order.size(); ++i)
+    if (c(order[i], 0) == c(order[i - 1], 0) && c(order[i], 1) == c(order[i - 1], 1)) {
+      int a = std::min(order[i], order[i - 1]), b = std::max(order[i], order[i - 1]);
+      fail(std::string(what) + "[" + std::to_string(a) + "] and " + what + "[" + std::to_string(b) +
+           "] coincide at " + point_str(c.row(a).transpose()) + " (two landmarks on one bearing)");
+    }
+}
+
+void check_k(int k) {
+  if (k < 1 || k > kMaxLandmarksInView)
+    fail("k = " + std::to_string(k) + " must be in [1, " + std::to_string(kMaxLandmarksInView) + "]");
+}
+
+std::vector<char> within(const Points2& route, const Points2& pts, const Grid& grid, double p) {
+  std::vector<char> close(pts.rows(), 0);
+  for (Eigen::Index e = 0; e + 1 < route.rows(); ++e) {
+    const Eigen::Vector2d a = route.row(e).transpose(), b = route.row(e + 1).transpose();
+    grid.query(std::min(a.x(), b.x()) - p, std::min(a.y(), b.y()) - p, std::max(a.x(), b.x()) + p,
+               std::max(a.y(), b.y()) + p, [&](int i) {
+                 if (!close[i] && segment_distance(pts.row(i).transpose(), a, b) <= p) close[i] = 1;
+               });
+  }
+  return close;
+}
+
+std::vector<Seen> seen_on_edge(const Points2& route, Eigen::Index e, const Points2& pts, const Grid& grid,
+                               const std::vector<char>& excluded, const Camera& cam) {
+  const Eigen::Vector2d a = route.row(e).transpose(), b = route.row(e + 1).transpose();
+  const EdgeFrame f(a, b);
+  const double R = cam.range;
+  const Fov fov(cam);
+  std::vector<Seen> out;
+  grid.query(std::min(a.x(), b.x()) - R, std::min(a.y(), b.y()) - R, std::max(a.x(), b.x()) + R,
+             std::max(a.y(), b.y()) + R, [&](int i) {
+               if (!excluded.empty() && excluded[i]) return;
+               Seen s{i, {}, f.to_local(pts.row(i).transpose())};
+               if (std::abs(s.local.y()) <= kEps) s.local.y() = 0.0;  // on the edge's line: bearing 0 or π
+               if (fov.interval(s.local, f.length, &s.iv)) out.push_back(s);
+             });
+  std::sort(out.begin(), out.end(), [](const Seen& x, const Seen& y) { return x.idx < y.idx; });
+  return out;
+}
+
+bool aligned_in_view(const Seen& a, const Seen& b, double* t) {
+  return alignment_point(a.local, b.local, t) && contains(a.iv, *t) && contains(b.iv, *t);
+}
+
+std::vector<Seen> seen_at_corner(const Eigen::Vector2d& v, double theta_in, double turn, const Points2& pts,
+                                 const Grid& grid, const std::vector<char>& excluded, const Camera& cam) {
+  const double R = cam.range, half = 0.5 * cam.angle, L = std::abs(turn), sgn = turn >= 0 ? 1.0 : -1.0;
+  std::vector<Seen> out;
+  grid.query(v.x() - R, v.y() - R, v.x() + R, v.y() + R, [&](int i) {
+    if (!excluded.empty() && excluded[i]) return;
+    const Eigen::Vector2d rel = pts.row(i).transpose() - v;
+    const double r = rel.norm();
+    if (r > R || r == 0.0) return;
+    Interval iv{0.0, L};
+    if (cam.fov == FieldOfView::Sector) {
+      double u = wrap(sgn * (std::atan2(rel.y(), rel.x()) - theta_in));
+      if (u + half < -kEps) u += 2.0 * kPi;
+      iv = {std::max(u - half, 0.0), std::min(u + half, L)};
+      if (iv.end < iv.start - kEps) return;
+      iv.end = std::max(iv.end, iv.start);
+    }
+    out.push_back({i, iv, rel});
+  });
+  std::sort(out.begin(), out.end(), [](const Seen& x, const Seen& y) { return x.idx < y.idx; });
+  return out;
+}
+
+}  // namespace placement_detail
+
+using namespace placement_detail;
+
+void Camera::validate() const {
+  auto bad = [](const std::string& name, double v, const std::string& why) {
+    std::ostringstream os;
+    os << "camera " << name << " = " << v << " " << why;
+    fail(os.str());
+  };
+  if (!std::isfinite(range) || range <= 0) bad("range R", range, "must be finite and > 0");
+  if (!std::isfinite(clearance) || clearance < 0) bad("clearance p", clearance, "must be finite and >= 0");
+  if (range <= clearance) {
+    std::ostringstream os;
+    os << "camera range R = " << range << " must exceed the clearance p = " << clearance
+       << ": no landmark could be both farther than p and in view";
+    fail(os.str());
+  }
+  if (fov == FieldOfView::Sector && !(angle > 0 && angle <= kPi + 1e-12))
+    bad("angle alpha", angle * 180.0 / kPi, "deg must be in (0, 180] for a sector field of view");
+}
+
+EdgeFrame::EdgeFrame(const Eigen::Vector2d& a, const Eigen::Vector2d& b)
+    : origin(a), heading(std::atan2(b.y() - a.y(), b.x() - a.x())), length((b - a).norm()) {
+  cos_ = length > 0 ? (b.x() - a.x()) / length : 1.0;
+  sin_ = length > 0 ? (b.y() - a.y()) / length : 0.0;
+}
+
+Eigen::Vector2d EdgeFrame::to_local(const Eigen::Vector2d& p) const {
+  const Eigen::Vector2d q = p - origin;
+  return {cos_ * q.x() + sin_ * q.y(), -sin_ * q.x() + cos_ * q.y()};
+}
+
+Eigen::Vector2d EdgeFrame::to_world(const Eigen::Vector2d& q) const {
+  return origin + Eigen::Vector2d(cos_ * q.x() - sin_ * q.y(), sin_ * q.x() + cos_ * q.y());
+}
+
+bool in_region_of_influence(const Eigen::Vector2d& local, double length, const Camera& cam) {
+  const double x = local.x(), y = local.y(), R = cam.range;
+  if (cam.fov == FieldOfView::Circular) {
+    const double dx = x < 0 ? x : (x > length ? x - length : 0.0);
+    return dx * dx + y * y <= R * R;
+  }
+  const double half = 0.5 * cam.angle;
+  if (std::abs(y) > R * std::sin(half)) return false;                      // 1) |y_k| ≤ R sin(α/2)
+  if (!(x > 0)) return false;                                               // 2) x_k > 0
+  if (std::abs(std::atan2(y, x)) > half) return false;                      // 3) |atan(y_k/x_k)| ≤ α/2
+  if (x > length && (x - length) * (x - length) + y * y > R * R) return false;  // 4)
+  return true;
+}
+
+bool visibility_interval(const Eigen::Vector2d& local, double length, const Camera& cam, Interval* out) {
+  return Fov(cam).interval(local, length, out);
+}
+
+Eigen::VectorXd turn_angles(const Points2& route) {
+  check_route(route);
+  const Eigen::Index n = route.rows();
+  Eigen::VectorXd out(std::max<Eigen::Index>(n - 2, 0));
+  for (Eigen::Index i = 1; i + 1 < n; ++i) {
+    const double a = std::atan2(route(i, 1) - route(i - 1, 1), route(i, 0) - route(i - 1, 0));
+    const double b = std::atan2(route(i + 1, 1) - route(i, 1), route(i + 1, 0) - route(i, 0));
+    out(i - 1) = wrap(b - a);
+  }
+  return out;
+}
+
+namespace {
+VisibilityTable to_table(const std::vector<int>& e, const std::vector<Seen>& s) {
+  VisibilityTable t;
+  const Eigen::Index n = static_cast<Eigen::Index>(s.size());
+  t.edge.resize(n);
+  t.candidate.resize(n);
+  t.start.resize(n);
+  t.end.resize(n);
+  t.x.resize(n);
+  t.y.resize(n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    t.edge(i) = e[i];
+    t.candidate(i) = s[i].idx;
+    t.start(i) = s[i].iv.start;
+    t.end(i) = s[i].iv.end;
+    t.x(i) = s[i].local.x();
+    t.y(i) = s[i].local.y();
+  }
+  return t;
+}
+}  // namespace
+
+VisibilityTable edge_visibility(const Points2& route, const Points2& candidates, const Camera& camera) {
+  camera.validate();
+  check_route(route);
+  check_candidates(candidates);
+  const Grid grid(candidates, 0.5 * camera.range);
+  const std::vector<char> close = within(route, candidates, grid, camera.clearance);
+  std::vector<int> edge;
+  std::vector<Seen> rows;
+  for (Eigen::Index e = 0; e + 1 < route.rows(); ++e)
+    for (const auto& s : seen_on_edge(route, e, candidates, grid, close, camera)) {
+      edge.push_back(static_cast<int>(e));
+      rows.push_back(s);
+    }
+  return to_table(edge, rows);
+}
+
+VisibilityTable corner_visibility(const Points2& route, const Points2& candidates, const Camera& camera) {
+  camera.validate();
+  const Eigen::VectorXd turns = turn_angles(route);
+  check_candidates(candidates);
+  const Grid grid(candidates, 0.5 * camera.range);
+  const std::vector<char> close = within(route, candidates, grid, camera.clearance);
+  std::vector<int> vert;
+  std::vector<Seen> rows;
+  for (Eigen::Index v = 1; v + 1 < route.rows(); ++v) {
+    if (std::abs(turns(v - 1)) <= kEps) continue;
+    const double theta_in = std::atan2(route(v, 1) - route(v - 1, 1), route(v, 0) - route(v - 1, 0));
+    for (const auto& s : seen_at_corner(route.row(v).transpose(), theta_in, turns(v - 1), candidates, grid, close,
+                                        camera)) {
+      vert.push_back(static_cast<int>(v));
+      rows.push_back(s);
+    }
+  }
+  return to_table(vert, rows);
+}
+
+AlignmentTable alignments(const Points2& route, const Points2& candidates, const Camera& camera) {
+  camera.validate();
+  check_route(route);
+  check_candidates(candidates);
+  const Grid grid(candidates, 0.5 * camera.range);
+  const std::vector<char> close = within(route, candidates, grid, camera.clearance);
+  std::vector<int> e_, f_, s_;
+  std::vector<double> t_;
+  for (Eigen::Index e = 0; e + 1 < route.rows(); ++e) {
+    const auto seen = seen_on_edge(route, e, candidates, grid, close, camera);
+    for (size_t i = 0; i < seen.size(); ++i)
+      for (size_t j = i + 1; j < seen.size(); ++j) {
+        double t;
+        if (!aligned_in_view(seen[i], seen[j], &t)) continue;
+        e_.push_back(static_cast<int>(e));
+        f_.push_back(seen[i].idx);
+        s_.push_back(seen[j].idx);
+        t_.push_back(t);
+      }
+  }
+  AlignmentTable out;
+  const Eigen::Index n = static_cast<Eigen::Index>(t_.size());
+  out.edge = Eigen::Map<Eigen::VectorXi>(e_.data(), n);
+  out.first = Eigen::Map<Eigen::VectorXi>(f_.data(), n);
+  out.second = Eigen::Map<Eigen::VectorXi>(s_.data(), n);
+  out.t = Eigen::Map<Eigen::VectorXd>(t_.data(), n);
+  return out;
+}
+
+Eigen::VectorXd distance_to_route(const Points2& route, const Points2& points) {
+  check_route(route);
+  check_points(points, "points");
+  Eigen::VectorXd d(points.rows());
+  for (Eigen::Index i = 0; i < points.rows(); ++i) {
+    double best = std::numeric_limits<double>::infinity();
+    for (Eigen::Index e = 0; e + 1 < route.rows(); ++e)
+      best = std::min(best, segment_distance(points.row(i).transpose(), route.row(e).transpose(),
+                                             route.row(e + 1).transpose()));
+    d(i) = best;
+  }
+  return d;
+}
+
+}  // namespace safenav
