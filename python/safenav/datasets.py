@@ -15,7 +15,7 @@ initial speed is, or how noise enters; our choices (documented on
 * the true vehicle follows the noisy BMM (eqs. 6–9) under those commands,
   seeded, so that truth and commands differ as they would in the field;
 * measurements are drawn around the truth from the chosen model: position
-  fixes from a :class:`~safenav.navigation.PositionNoise` (default LanBLoc:
+  fixes from a :class:`~safenav.measurement.PositionNoise` (default LanBLoc:
   σ = 0.0142 m in X, 0.039 m in Y, the paper's RMSE; its
   ``dropout_probability`` removes a random fraction of the fixes), drawn by
   the core's sampler exactly as the navigation loop draws them, an IMU
@@ -36,9 +36,8 @@ import pandas as pd
 
 from . import _core
 from ._checks import as_positive_int, as_seed
+from .measurement import PositionNoise
 from .motion import Bmm, BmmParams, wrap_angle
-
-PositionNoise = _core.PositionNoise
 
 COLUMNS = ("px", "sx", "ax", "py", "sy", "ay", "theta")
 

@@ -38,6 +38,7 @@ import numpy as np
 
 from . import _core
 from ._checks import as_array, as_int, as_seed
+from .measurement import PositionNoise
 from .planning import PlanningProblem, PlannerSettings, map_from_world, plan
 
 Navigator = _core.Navigator
@@ -45,7 +46,6 @@ NavigationMethod = _core.NavigationMethod
 NavigationProblem = _core.NavigationProblem
 NavigationSettings = _core.NavigationSettings
 SensorSettings = _core.SensorSettings
-PositionNoise = _core.PositionNoise
 TrialOutcome = _core.TrialOutcome
 TrialResult = _core.TrialResult
 
