@@ -75,7 +75,7 @@ def make_case(n_steps: int, seed: int):
     rng = np.random.default_rng(seed + 1)
     x0 = data.x0 + rng.standard_normal(4) * PRIOR_STD
     P0 = np.diag(PRIOR_STD**2)
-    R = np.diag(np.square(cfg.position_std))
+    R = cfg.position_cov()
     return cfg.params(), data, x0, P0, R
 
 

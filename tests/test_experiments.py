@@ -45,7 +45,7 @@ def test_synthetic_trajectory_has_the_seven_variables_and_is_seeded():
 
 
 def test_synthetic_dropout_makes_gaps_that_the_filter_bridges():
-    cfg = SyntheticConfig(n_steps=200, dropout=0.5)
+    cfg = SyntheticConfig(n_steps=200, position=safenav.PositionNoise(dropout_probability=0.5))
     data = synthetic_trajectory(cfg, seed=0)
     gaps = np.isnan(data.position[:, 0])
     assert 60 < gaps.sum() < 140
@@ -63,8 +63,12 @@ def test_synthetic_config_rejects_bad_values():
         SyntheticConfig(n_steps=0)
     with pytest.raises(ValueError, match=r"SyntheticConfig.dt = -0.05"):
         SyntheticConfig(dt=-0.05)
-    with pytest.raises(ValueError, match=r"dropout = 1.0"):
-        SyntheticConfig(dropout=1.0)
+    noise = safenav.PositionNoise()
+    noise.dropout_probability = 1.5
+    with pytest.raises(ValueError, match=r"position.dropout_probability = 1.5: must be in \[0, 1\]"):
+        SyntheticConfig(position=noise)
+    with pytest.raises(TypeError, match=r"SyntheticConfig.position must be a PositionNoise, got tuple"):
+        SyntheticConfig(position=(0.1, 0.1))
 
 
 def test_run_synthetic_summary_is_recomputed_from_the_raw_table():

@@ -276,12 +276,12 @@ def test_measurement_sources_are_selectable_and_the_emulations_say_so():
     from safenav import navigation as nv
 
     lanbloc = nv.position_source("lanbloc")
-    assert lanbloc.std == (0.0142, 0.039) and not lanbloc.emulated
+    assert tuple(lanbloc.std) == (0.0142, 0.039) and not lanbloc.emulated
     assert nv.make_navigator.__kwdefaults__["source"] == "lanbloc"
     for name, label in (("deeploc-gps", "DeepLoc-GPS"), ("deeploc-ekf-gps", "DeepLoc-EKF-GPS"),
                         ("sensor-fusion", "Sensor Fusion")):
         s = nv.position_source(name)
-        assert s.emulated and s.to_core().emulated and s.label == f"{label} (emulated)" and "emulated" in s.note
+        assert s.emulated and s.label == f"{label} (emulated)" and "emulated" in s.note
     assert CameraLoopSource.name == "lanbloc-camera" and not CameraLoopSource.emulated
     with pytest.raises(ValueError, match="unknown position source"):
         nv.position_source("gps")

@@ -57,7 +57,7 @@ def parts(path, *, method="centroid", circles=(), polygons=(), noise=True, filte
     fo.n_particles = n_particles
     s.filter = fo
     se = nv.SensorSettings()
-    se.position = nv.position_source("lanbloc").to_core()
+    se.position = nv.position_source("lanbloc")
     if source_std is not None:
         se.position.std = np.asarray(source_std, float)
     if not noise:
@@ -426,6 +426,29 @@ def _source_residual_stats(residuals, profile):
     return bias, white, far, last - first
 
 
+def test_navigation_loop_draws_its_fixes_from_the_same_sampler():
+    """The loop seeds its sensors with derive_seed(trial seed, 1) and draws its
+    first fix (the initial estimate) first: the same fix the synthetic set's
+    sampler gives for that seed.  A bias-only profile then shows one bias for
+    the whole trial, the sampler's."""
+    every_term = nv.PositionNoise(std=(0.2, 0.1), bias_std=0.3, bias_walk_std=0.01, outlier_probability=0.2,
+                                  outlier_std=1.0, needs_landmarks=False)
+    bias_only = nv.PositionNoise(std=(1e-5, 1e-5), bias_std=0.5, needs_landmarks=False)
+    for noise in (every_term, bias_only, nv.position_source("lanbloc")):
+        pr, s, se = parts(STRAIGHT)
+        se.position = noise
+        nav = nv.Navigator(pr, s, se)
+        for seed in (3, 4):
+            t = nav.run(seed)
+            truth, measured = np.asarray(t.truth)[:, :2], np.asarray(t.measured)
+            first = noise.sample(truth[:1], _core.derive_seed(seed, 1))
+            np.testing.assert_array_equal(measured[:1], first)
+            if noise is bias_only:
+                e = measured - truth
+                assert np.abs(e - (first - truth[:1])).max() < 1e-4
+                assert np.abs(e).max() > 0.05  # a real bias, not zero
+
+
 @pytest.mark.parametrize("name", ["deeploc-gps", "deeploc-ekf-gps", "sensor-fusion"])
 def test_emulated_sources_have_their_stated_error_statistics(name):
     """The measurement-level sources draw z = p + b + w (+ outliers) as their
@@ -466,4 +489,4 @@ def test_emulated_sources_have_their_stated_error_statistics(name):
         expect = prof.outlier_probability * (1 - np.prod(1 - 2 * norm.sf(5 * np.asarray(prof.std) / out_std)))
         assert far == pytest.approx(expect, rel=0.3, abs=2e-4)
     # the filter is told the profile's covariance, the same in both
-    np.testing.assert_allclose(cfg.position_cov(), prof.to_core().reported_cov(), rtol=0, atol=0)
+    np.testing.assert_array_equal(cfg.position_cov(), navigator.sensors.position.reported_cov())

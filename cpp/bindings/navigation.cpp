@@ -37,21 +37,6 @@ void pybind_navigation(py::module_& m) {
       .value("NO_PATH", TrialOutcome::NoPath);
   m.def("outcome_name", [](TrialOutcome o) { return to_string(o); });
 
-  py::class_<PositionSource>(m, "PositionSource",
-                             "Measurement-level position source (LanBLoc or an emulated baseline's error profile).")
-      .def(py::init<>())
-      .def_readwrite("name", &PositionSource::name)
-      .def_readwrite("std", &PositionSource::std)
-      .def_readwrite("bias_std", &PositionSource::bias_std)
-      .def_readwrite("bias_walk_std", &PositionSource::bias_walk_std)
-      .def_readwrite("outlier_probability", &PositionSource::outlier_probability)
-      .def_readwrite("outlier_std", &PositionSource::outlier_std)
-      .def_readwrite("dropout_probability", &PositionSource::dropout_probability)
-      .def_readwrite("needs_landmarks", &PositionSource::needs_landmarks)
-      .def_readwrite("emulated", &PositionSource::emulated)
-      .def("validate", &PositionSource::validate)
-      .def("reported_cov", &PositionSource::reported_cov);
-
   def_params<SensorSettings>(py::class_<SensorSettings>(m, "SensorSettings"))
       .def(py::init<>())
       .def_readwrite("position", &SensorSettings::position)

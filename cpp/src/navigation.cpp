@@ -110,24 +110,6 @@ std::string to_string(TrialOutcome outcome) {
   return "unknown";
 }
 
-void PositionSource::validate() const {
-  if (!std.allFinite() || (std.array() <= 0.0).any())
-    bad("position.std = (" + num(std[0]) + ", " + num(std[1]) + "): both must be finite and > 0");
-  require_finite_nonneg(bias_std, "position.bias_std");
-  require_finite_nonneg(bias_walk_std, "position.bias_walk_std");
-  require_finite_nonneg(outlier_std, "position.outlier_std");
-  if (!(outlier_probability >= 0.0 && outlier_probability <= 1.0))
-    bad("position.outlier_probability = " + num(outlier_probability) + ": must be in [0, 1]");
-  if (!(dropout_probability >= 0.0 && dropout_probability <= 1.0))
-    bad("position.dropout_probability = " + num(dropout_probability) + ": must be in [0, 1]");
-}
-
-Eigen::Matrix2d PositionSource::reported_cov() const {
-  Eigen::Matrix2d R = std.array().square().matrix().asDiagonal();
-  R.diagonal().array() += bias_std * bias_std + outlier_probability * outlier_std * outlier_std;
-  return R;
-}
-
 void SensorSettings::validate() const {
   position.validate();
   if (!landmarks.allFinite()) bad("sensors.landmarks: every landmark position must be finite");
@@ -422,9 +404,9 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
   }
 
   // Position source: the callback, or the measurement-level profile.
-  const PositionSource& src = se.position;
-  Eigen::Vector2d bias = Eigen::Vector2d::Zero();
-  if (src.bias_std > 0.0) bias << src.bias_std * sensor_rng.normal(), src.bias_std * sensor_rng.normal();
+  const PositionNoise& src = se.position;
+  RandomSourceOf<detail::Rng> sensor_draws(sensor_rng);
+  PositionNoise::Trial source_noise(src, sensor_draws);
   auto fix = [&](const State& x, int step, Eigen::Vector2d& z, Eigen::Matrix2d& R) -> bool {
     if (position_cb) {
       if (!position_cb(x, step, z, R)) return false;
@@ -433,11 +415,7 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
       return true;
     }
     if (src.needs_landmarks && se.landmarks_in_view(x) < se.min_landmarks) return false;
-    if (src.bias_walk_std > 0.0) bias += src.bias_walk_std * Eigen::Vector2d(sensor_rng.normal(), sensor_rng.normal());
-    if (src.dropout_probability > 0.0 && sensor_rng.uniform() < src.dropout_probability) return false;
-    z << x[kX] + bias[0] + src.std[0] * sensor_rng.normal(), x[kY] + bias[1] + src.std[1] * sensor_rng.normal();
-    if (src.outlier_probability > 0.0 && sensor_rng.uniform() < src.outlier_probability)
-      z += src.outlier_std * Eigen::Vector2d(sensor_rng.normal(), sensor_rng.normal());
+    if (!source_noise.sample(x.head<2>(), sensor_draws, z)) return false;
     R = src.reported_cov();
     return true;
   };

@@ -7,7 +7,7 @@ paper.  The heavy lifting is in the C++ core ``safenav._core``.
 
 from .datasets import SyntheticConfig, SyntheticTrajectory, synthetic_trajectory
 from .filters import Ekf, FilterResult, InformationFilter, ParticleFilter, filter_trajectory
-from .measurement import LANBLOC_STD, MeasurementKind, MeasurementModel
+from .measurement import LANBLOC_STD, MeasurementKind, MeasurementModel, PositionNoise
 from .metrics import RiskZones, TrajectoryMetrics, evaluate
 from .motion import Bmm, BmmParams, wrap_angle
 from .geometry import Corridor, PathSegments
@@ -20,7 +20,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "Bmm", "BmmParams", "wrap_angle",
-    "MeasurementKind", "MeasurementModel", "LANBLOC_STD",
+    "MeasurementKind", "MeasurementModel", "PositionNoise", "LANBLOC_STD",
     "Ekf", "ParticleFilter", "InformationFilter", "filter_trajectory", "FilterResult",
     "RiskZones", "TrajectoryMetrics", "evaluate",
     "SyntheticConfig", "SyntheticTrajectory", "synthetic_trajectory",

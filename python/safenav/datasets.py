@@ -14,10 +14,17 @@ initial speed is, or how noise enters; our choices (documented on
   change ``θ(t_{k+1}) − θ(t_k)``;
 * the true vehicle follows the noisy BMM (eqs. 6–9) under those commands,
   seeded, so that truth and commands differ as they would in the field;
-* measurements are drawn around the truth from the chosen model: LanBLoc
-  position fixes (default σ = 0.0142 m in X, 0.039 m in Y, the paper's RMSE),
-  an IMU speed/heading, or ranges/bearings to landmarks placed around the
-  route; ``dropout`` removes a random fraction of the position fixes.
+* measurements are drawn around the truth from the chosen model: position
+  fixes from a :class:`~safenav.measurement.PositionNoise` (default LanBLoc:
+  σ = 0.0142 m in X, 0.039 m in Y, the paper's RMSE; its
+  ``dropout_probability`` removes a random fraction of the fixes), drawn by
+  the core's sampler exactly as the navigation loop draws them, an IMU
+  speed/heading, or ranges/bearings to landmarks placed around the route.
+
+Seeds follow the core's one rule (``safenav/rng.hpp``): trial seed ``s``
+gives the true vehicle ``derive_seed(s, 0)``, the position source
+``derive_seed(s, 1)`` (the navigation loop's sensor stream) and the IMU and
+landmark measurements ``derive_seed(s, 2)``.
 """
 
 from __future__ import annotations
@@ -27,9 +34,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from . import _core
 from ._checks import as_positive_int, as_seed
-from .measurement import LANBLOC_STD
-from .motion import Bmm, BmmParams
+from .measurement import PositionNoise
+from .motion import Bmm, BmmParams, wrap_angle
 
 COLUMNS = ("px", "sx", "ax", "py", "sy", "ay", "theta")
 
@@ -44,19 +52,13 @@ class SyntheticConfig:
     accel_amplitude: float = 3.0               #: paper: a(t) = 3 sin(4πt/T)
     heading_amplitude: float = np.pi / 2       #: paper: θ(t) = π/2 sin(2πt/T)
     bmm: BmmParams = field(default_factory=BmmParams)  #: the true vehicle's BMM (dt is overridden)
-    position_std: tuple[float, float] = LANBLOC_STD    #: LanBLoc fix noise (paper's RMSE)
-    #: Error profile of the position source beyond white noise (see
-    #: :class:`safenav.navigation.SourceProfile`): a constant bias drawn per
-    #: trial, a bias random walk per fix, and occasional outliers.  All 0 for
-    #: LanBLoc; the emulated baselines set them.
-    position_bias_std: float = 0.0
-    position_bias_walk_std: float = 0.0
-    outlier_probability: float = 0.0
-    outlier_std: float = 0.0
+    #: The position source's error model (white noise, bias, bias walk,
+    #: outliers, dropouts); the named ones are ``PositionNoise.named(name)``.
+    #: Its ``needs_landmarks`` is ignored: the synthetic set fixes at every step.
+    position: PositionNoise = field(default_factory=lambda: PositionNoise.named("lanbloc"))
     imu: bool = True                           #: also measure (v, θ)
     speed_std: float = 0.05                    #: IMU speed noise [m/s]
     heading_std: float = 0.02                  #: IMU heading noise [rad]
-    dropout: float = 0.0                       #: fraction of steps without a position fix
     landmarks: np.ndarray | None = None        #: (K, 2) for range/bearing measurements
     range_std: float = 0.1                     #: range noise [m]
     bearing_std: float = 0.02                  #: bearing noise [rad]
@@ -67,32 +69,20 @@ class SyntheticConfig:
             v = getattr(self, name)
             if not (np.isfinite(v) and (v > 0 or (v == 0 and name == "initial_speed"))):
                 raise ValueError(f"SyntheticConfig.{name} = {v!r} must be finite and > 0")
-        if not (0.0 <= self.dropout < 1.0):
-            raise ValueError(f"SyntheticConfig.dropout = {self.dropout!r} must be in [0, 1)")
-        for name in ("position_bias_std", "position_bias_walk_std", "outlier_std"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v >= 0):
-                raise ValueError(f"SyntheticConfig.{name} = {v!r} must be finite and >= 0")
-        if not (0.0 <= self.outlier_probability <= 1.0):
-            raise ValueError(f"SyntheticConfig.outlier_probability = {self.outlier_probability!r} must be in [0, 1]")
-        if len(self.position_std) != 2 or not all(np.isfinite(s) and s > 0 for s in self.position_std):
-            raise ValueError(f"SyntheticConfig.position_std = {self.position_std!r} must be two values > 0")
+        if not isinstance(self.position, PositionNoise):
+            raise TypeError(f"SyntheticConfig.position must be a PositionNoise, got {type(self.position).__name__}")
+        self.position.validate()
 
     def position_cov(self) -> np.ndarray:
-        """The 2×2 covariance a filter is told for one position fix: white noise
-        plus the bias and outlier variances (the C++ ``PositionSource.reported_cov``,
-        so that the synthetic set and the navigation loop tell filters the same)."""
-        from .navigation import SourceProfile
-
-        profile = SourceProfile("synthetic", "synthetic", tuple(self.position_std), self.position_bias_std,
-                                self.position_bias_walk_std, self.outlier_probability, self.outlier_std)
-        return np.asarray(profile.to_core().reported_cov())
+        """The 2×2 covariance a filter is told for one position fix
+        (``PositionNoise.reported_cov``, as in the navigation loop)."""
+        return np.asarray(self.position.reported_cov())
 
     def params(self) -> BmmParams:
         """The true vehicle's BMM parameters with this data set's dt."""
-        p = BmmParams(**{k: getattr(self.bmm, k) for k in (
-            "acceleration", "deceleration", "max_speed", "max_heading_rate", "terrain_effect", "speed_noise",
-            "heading_noise", "position_noise")}, dt=self.dt)
+        p = BmmParams()
+        for spec in BmmParams.params():
+            p.set_param(spec.name, self.dt if spec.name == "dt" else self.bmm.get_param(spec.name))
         return p
 
 
@@ -134,48 +124,29 @@ def command_profile(cfg: SyntheticConfig) -> tuple[np.ndarray, np.ndarray, np.nd
     return t, speed, heading
 
 
-def _source_errors(cfg: SyntheticConfig, n: int, rng) -> np.ndarray:
-    """(n, 2) bias + bias walk + outliers of the position source, in the order
-    the C++ navigation loop draws them (bias once, then per fix: walk, outlier)."""
-    err = np.zeros((n, 2))
-    if cfg.position_bias_std > 0:
-        err += rng.standard_normal(2) * cfg.position_bias_std
-    if cfg.position_bias_walk_std > 0:
-        err += np.cumsum(rng.standard_normal((n, 2)) * cfg.position_bias_walk_std, axis=0)
-    if cfg.outlier_probability > 0:
-        hit = rng.random(n) < cfg.outlier_probability
-        err += hit[:, None] * rng.standard_normal((n, 2)) * cfg.outlier_std
-    return err
-
-
 def synthetic_trajectory(config: SyntheticConfig | None = None, seed: int = 0) -> SyntheticTrajectory:
     """Generate one seeded synthetic trial (SafeNav section V-A(3)(i))."""
     cfg = config or SyntheticConfig()
     seed = as_seed("seed", seed)
     t, speed, heading = command_profile(cfg)
     controls = np.column_stack([speed[1:], np.diff(heading)])
-    ss = np.random.SeedSequence(seed)
-    motion_seed, meas_seed, error_seed = ss.spawn(3)  # the first two as before the error profile existed
     x0 = np.array([0.0, 0.0, speed[0], heading[0]])
-    states = Bmm(cfg.params()).simulate(x0, controls, int(motion_seed.generate_state(1, np.uint64)[0]))
-    rng = np.random.default_rng(meas_seed)
-    n = cfg.n_steps
+    states = Bmm(cfg.params()).simulate(x0, controls, _core.derive_seed(seed, 0))
     truth = states[1:]
-    position = truth[:, :2] + rng.standard_normal((n, 2)) * np.asarray(cfg.position_std)
-    position += _source_errors(cfg, n, np.random.default_rng(error_seed))
-    if cfg.dropout > 0:
-        position[rng.random(n) < cfg.dropout] = np.nan
+    position = cfg.position.sample(truth[:, :2], _core.derive_seed(seed, 1))
+    rng = np.random.default_rng(_core.derive_seed(seed, 2))
+    n = cfg.n_steps
     speed_heading = None
     if cfg.imu:
         speed_heading = truth[:, 2:] + rng.standard_normal((n, 2)) * [cfg.speed_std, cfg.heading_std]
-        speed_heading[:, 1] = (speed_heading[:, 1] + np.pi) % (2 * np.pi) - np.pi
+        speed_heading[:, 1] = wrap_angle(speed_heading[:, 1])
     ranges = bearings = None
     if cfg.landmarks is not None:
         lm = np.asarray(cfg.landmarks, dtype=float)
         d = lm[None, :, :] - truth[:, None, :2]
         ranges = np.hypot(d[..., 0], d[..., 1]) + rng.standard_normal((n, len(lm))) * cfg.range_std
         b = np.arctan2(d[..., 1], d[..., 0]) - truth[:, 3:4] + rng.standard_normal((n, len(lm))) * cfg.bearing_std
-        bearings = (b + np.pi) % (2 * np.pi) - np.pi
+        bearings = wrap_angle(b)
     return SyntheticTrajectory(config=cfg, t=t, controls=controls, states=states, position=position,
                                speed_heading=speed_heading, ranges=ranges, bearings=bearings)
 

@@ -22,9 +22,12 @@ from . import _core
 from ._checks import as_array
 
 MeasurementKind = _core.MeasurementKind
+#: The error model of a position source (bias, walk, dropouts, white noise,
+#: outliers; ``safenav/measurement.hpp``): ``PositionNoise.named(name)``.
+PositionNoise = _core.PositionNoise
 
-# Default LanBLoc noise: the paper's RMSE 0.0142 m in X and 0.039 m in Y.
-LANBLOC_STD = (0.0142, 0.039)
+#: Default LanBLoc noise: the paper's RMSE in X and Y (the core's "lanbloc" profile).
+LANBLOC_STD = tuple(float(s) for s in PositionNoise.named("lanbloc").std)
 
 
 def _landmarks(landmarks) -> np.ndarray:

@@ -34,13 +34,12 @@ Example::
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from . import _core
 from ._checks import as_array, as_int, as_seed
 from .geometry import PathSegments
+from .measurement import PositionNoise
 from .planning import PlanningProblem, PlannerSettings, map_from_world, plan
 
 Navigator = _core.Navigator
@@ -48,14 +47,13 @@ NavigationMethod = _core.NavigationMethod
 NavigationProblem = _core.NavigationProblem
 NavigationSettings = _core.NavigationSettings
 SensorSettings = _core.SensorSettings
-PositionSource = _core.PositionSource
 TrialOutcome = _core.TrialOutcome
 ChullAction = _core.ChullAction
 TrialResult = _core.TrialResult
 
 __all__ = [
     "Navigator", "NavigationMethod", "NavigationProblem", "NavigationSettings", "SensorSettings",
-    "PositionSource", "TrialOutcome", "ChullAction", "TrialResult", "SourceProfile", "SOURCES", "METHODS", "FILTERS",
+    "PositionNoise", "TrialOutcome", "ChullAction", "TrialResult", "SOURCES", "METHODS", "FILTERS",
     "OUTCOMES", "position_source", "plan_safe_path", "make_navigator", "chull_control", "centroid_control",
 ]
 
@@ -65,64 +63,20 @@ FILTERS = {"ekf": _core.FilterType.EKF, "pf": _core.FilterType.PF}
 OUTCOMES = ("arrived", "collision", "left_corridor", "step_limit", "lost_localization", "no_path")
 
 
-@dataclass(frozen=True)
-class SourceProfile:
-    """A measurement-level position source: z = p + b + w (see ``PositionSource``).
-
-    ``emulated`` marks the paper's comparison methods, whose originals (trained
-    networks, GNSS/INS fusion) cannot be had here: they are error profiles we
-    chose, not the methods themselves (DESIGN.md, decision 8)."""
-
-    name: str
-    label: str
-    std: tuple[float, float]
-    bias_std: float = 0.0
-    bias_walk_std: float = 0.0
-    outlier_probability: float = 0.0
-    outlier_std: float = 0.0
-    needs_landmarks: bool = True
-    emulated: bool = False
-    note: str = ""
-
-    def to_core(self) -> PositionSource:
-        s = PositionSource()
-        s.name = self.name
-        s.std = np.asarray(self.std, dtype=float)
-        s.bias_std, s.bias_walk_std = self.bias_std, self.bias_walk_std
-        s.outlier_probability, s.outlier_std = self.outlier_probability, self.outlier_std
-        s.needs_landmarks, s.emulated = self.needs_landmarks, self.emulated
-        s.validate()
-        return s
+#: The named position sources (:class:`PositionNoise`, declared once in the
+#: core): LanBLoc with the paper's RMSE, and the paper's three comparison
+#: methods as *emulations*, error profiles of our choosing (``emulated`` is
+#: set and the label says so; DESIGN.md decision 8).  Read-only use: take a
+#: fresh copy to change with :func:`position_source`.
+SOURCES: dict[str, PositionNoise] = {name: PositionNoise.named(name) for name in PositionNoise.names()}
 
 
-#: The position sources.  LanBLoc's σ is the paper's RMSE (0.0142 m X, 0.039 m Y).
-#: The three baselines are *emulations* with error profiles of our choosing:
-#: none was tuned to land on a number of the paper's.
-SOURCES: dict[str, SourceProfile] = {
-    "lanbloc": SourceProfile(
-        "lanbloc", "LanBLoc", (0.0142, 0.039),
-        note="LanBLoc at the measurement level: the paper's RMSE, fixes only with >= min_landmarks in view"),
-    "deeploc-gps": SourceProfile(
-        "deeploc-gps", "DeepLoc-GPS (emulated)", (0.30, 0.30), bias_std=0.10, needs_landmarks=False, emulated=True,
-        note="emulated: CNN pose regression fused with (degraded) GPS: 0.30 m white noise, 0.10 m constant bias"),
-    "deeploc-ekf-gps": SourceProfile(
-        "deeploc-ekf-gps", "DeepLoc-EKF-GPS (emulated)", (0.20, 0.20), bias_walk_std=0.005, needs_landmarks=False,
-        emulated=True,
-        note="emulated: DeepLoc with an EKF over GPS: 0.20 m white noise, a slowly drifting bias (5 mm/fix walk)"),
-    "sensor-fusion": SourceProfile(
-        "sensor-fusion", "Sensor Fusion (emulated)", (0.25, 0.25), bias_std=0.15, outlier_probability=0.02,
-        outlier_std=2.0, needs_landmarks=False, emulated=True,
-        note="emulated: multi-source fusion: 0.25 m noise, 0.15 m bias, 2 % outliers of 2 m"),
-}
-
-
-def position_source(name: str) -> SourceProfile:
-    """The :data:`SOURCES` profile ``name``; a clear error for an unknown one."""
-    try:
-        return SOURCES[name]
-    except KeyError:
+def position_source(name: str) -> PositionNoise:
+    """A fresh copy of the named :data:`SOURCES` profile; a clear error for an unknown one."""
+    if name not in SOURCES:
         raise ValueError(f"source = {name!r}: unknown position source (have: {sorted(SOURCES)}; "
-                         f"the camera loop is passed as a callback to Navigator.run)") from None
+                         f"the camera loop is passed as a callback to Navigator.run)")
+    return PositionNoise.named(name)
 
 
 def _choice(kind: str, value: str, table: dict):
@@ -185,14 +139,14 @@ def make_navigator(scenario, safe_path, *, method: str = "centroid", filter: str
     s.record = bool(record)
 
     se = SensorSettings()
-    se.position = position_source(source).to_core()
+    se.position = position_source(source)
     se.landmarks = scenario.world.landmark_array()[:, :2]
     se.field_of_view = np.deg2rad(scenario.camera.field_of_view_deg)
     scenario.detection.apply(se)
     se.position_every = as_int("position_every", position_every)
     se.imu_speed_std = scenario.noise.imu_speed_std
     se.imu_heading_std = scenario.noise.imu_heading_std
-    if tuple(scenario.noise.lanbloc_std) != SOURCES["lanbloc"].std and source == "lanbloc":
+    if source == "lanbloc":
         se.position.std = np.asarray(scenario.noise.lanbloc_std, dtype=float)
     return Navigator(problem, s, se)
 

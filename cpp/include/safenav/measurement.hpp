@@ -6,6 +6,7 @@
 // Jacobian H = ∂h/∂x, and an angle-aware residual z − h(x).
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 #include <Eigen/Core>
@@ -104,6 +105,90 @@ class MeasurementModel {
   GaussianNoise noise_;
   Landmarks landmarks_;
   int dim_;
+};
+
+// ---------------------------------------------------------------------------
+// Position noise: the error model of a position source
+
+/// The draws a noise model takes: standard normals and uniforms in [0, 1).
+/// RandomSourceOf adapts a generator; a vehicle program may pass its own.
+class RandomSource {
+ public:
+  virtual ~RandomSource() = default;
+  virtual double normal() = 0;
+  virtual double uniform() = 0;
+};
+
+/// A RandomSource over a generator G with normal() and uniform() members.
+template <class G>
+class RandomSourceOf final : public RandomSource {
+ public:
+  explicit RandomSourceOf(G& g) : g_(g) {}
+  double normal() override { return g_.normal(); }
+  double uniform() override { return g_.uniform(); }
+
+ private:
+  G& g_;
+};
+
+/// The error model of a position source at the measurement level: LanBLoc
+/// with the paper's RMSE (SafeNav section III), or an emulated baseline
+/// (DeepLoc-GPS, DeepLoc-EKF-GPS, Sensor Fusion: error profiles we chose,
+/// DESIGN.md decision 8).  A trial draws a bias b ~ N(0, bias_std² I) once
+/// (Trial); then each fix
+///   1. walks the bias: b += N(0, bias_walk_std² I);
+///   2. is lost with probability dropout_probability;
+///   3. is z = p + b + w, w ~ N(0, diag(std²));
+///   4. with probability outlier_probability gets an extra N(0, outlier_std² I).
+/// A term whose σ or probability is 0 draws nothing.  Filters are told
+/// reported_cov().  The named profiles (named(), names()) are declared once,
+/// here; Python and the synthetic data set use them.
+struct PositionNoise {
+  using Fixes = Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor>;
+
+  std::string name = "lanbloc";
+  std::string label = "LanBLoc";        ///< for tables
+  Eigen::Vector2d std{0.0142, 0.039};   ///< σ of w in X and Y [m]; LanBLoc's RMSE (SafeNav section III)
+  double bias_std = 0.0;                ///< σ of the per-trial bias [m]
+  double bias_walk_std = 0.0;           ///< σ of the bias's random walk per fix [m]
+  double outlier_probability = 0.0;     ///< in [0, 1]
+  double outlier_std = 0.0;             ///< σ of an outlier's extra error [m]
+  double dropout_probability = 0.0;     ///< a fix is lost at random with this probability, in [0, 1]
+  bool needs_landmarks = true;          ///< a fix needs ≥ min_landmarks landmarks in view (the navigation loop checks)
+  bool emulated = false;                ///< an emulated error profile, not the real method
+  std::string note;                     ///< what the profile stands for
+
+  /// The named profile `name` (one of names()); std::invalid_argument otherwise.
+  static PositionNoise named(const std::string& name);
+  /// The named profiles, LanBLoc first.
+  static std::vector<std::string> names();
+
+  /// Throws std::invalid_argument naming the first bad field.
+  void validate() const;
+  /// The R filters are told: diag(std²) + (bias_std² + outlier_probability·outlier_std²) I.
+  /// The bias walk is left out (it has no stationary variance).
+  Eigen::Matrix2d reported_cov() const;
+
+  /// One trial's state: the bias, drawn on construction, and its walk.
+  /// Keeps a pointer to its PositionNoise, which must outlive it.
+  class Trial {
+   public:
+    Trial(const PositionNoise& noise, RandomSource& rng);
+    /// The next fix of a vehicle at p, into z (steps 1–4 above); false
+    /// when the fix is lost.
+    bool sample(const Eigen::Vector2d& p, RandomSource& rng, Eigen::Vector2d& z);
+    const Eigen::Vector2d& bias() const { return bias_; }
+
+   private:
+    const PositionNoise* noise_;
+    Eigen::Vector2d bias_ = Eigen::Vector2d::Zero();
+  };
+
+  /// The fixes of one trial at the true positions `truth` (one row per fix),
+  /// drawn from the core's generator seeded with `seed` (the navigation loop
+  /// seeds its sensors with derive_seed(trial_seed, 1)); NaN rows are lost
+  /// fixes.  Validates the profile first.
+  Fixes sample(const Eigen::Ref<const Fixes>& truth, std::uint64_t seed) const;
 };
 
 }  // namespace safenav

@@ -30,6 +30,7 @@
 
 #include "safenav/filters.hpp"
 #include "safenav/geometry.hpp"
+#include "safenav/measurement.hpp"
 #include "safenav/metrics.hpp"
 #include "safenav/motion.hpp"
 #include "safenav/params.hpp"
@@ -54,27 +55,6 @@ enum class TrialOutcome {
 };
 std::string to_string(TrialOutcome outcome);
 
-/// A position source at the measurement level: LanBLoc, or an emulated
-/// baseline (DeepLoc-GPS, DeepLoc-EKF-GPS, Sensor Fusion) described by its
-/// error profile.  A fix is  z = p_true + b + w,  w ~ N(0, diag(std²)),
-/// with a bias b drawn once per trial from N(0, bias_std² I) that then
-/// random-walks with σ = bias_walk_std per fix; with probability
-/// outlier_probability a fix gets an extra N(0, outlier_std² I) error.  The
-/// filter is told R = diag(std²) + bias_std² I (+ outlier variance·p).
-struct PositionSource {
-  std::string name = "lanbloc";
-  Eigen::Vector2d std{0.0142, 0.039};  ///< LanBLoc's RMSE in X and Y (SafeNav section III)
-  double bias_std = 0.0;
-  double bias_walk_std = 0.0;
-  double outlier_probability = 0.0;
-  double outlier_std = 0.0;
-  double dropout_probability = 0.0;    ///< a fix is lost at random with this probability
-  bool needs_landmarks = true;         ///< a fix needs ≥ min_landmarks landmarks in view
-  bool emulated = false;               ///< an emulated error profile, not the real method
-  void validate() const;
-  Eigen::Matrix2d reported_cov() const;
-};
-
 /// A position fix from a user callback (e.g. the camera-in-the-loop LanBLoc
 /// pipeline): given the true state and the step, fill z and its covariance R
 /// and return true, or return false when localization failed (a dropout).
@@ -82,7 +62,7 @@ using PositionCallback = std::function<bool(const State& truth, int step, Eigen:
 
 /// What the vehicle senses.
 struct SensorSettings {
-  PositionSource position;
+  PositionNoise position;              ///< the measurement-level source (LanBLoc by default)
   Landmarks landmarks;                 ///< K×2 landmark positions (map)
   double max_range = 30.0;             ///< landmark detection range [m]
   double field_of_view = 85.0 * kPi / 180.0;  ///< full horizontal FOV [rad], centred on the heading; ≥ 2π = all round

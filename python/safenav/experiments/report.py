@@ -9,7 +9,7 @@ import base64
 import html
 import json
 import time
-from dataclasses import asdict
+from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
@@ -42,13 +42,20 @@ def parameters(opts) -> dict:
                   "rule": SEED_RULE},
         "scenario": {k: v for k, v in sc.to_dict().items() if k not in ("world", "path_types")},
         "path_types": {p.name: list(p.clusters) for p in sc.path_types},
-        "synthetic": {k: (asdict(v) if hasattr(v, "__dataclass_fields__") else v)
-                      for k, v in asdict(SyntheticConfig()).items() if k != "landmarks"},
+        "synthetic": _synthetic_parameters(SyntheticConfig()),
         "sources": {k: {"label": s.label, "std": list(s.std), "bias_std": s.bias_std,
                         "bias_walk_std": s.bias_walk_std, "outlier_probability": s.outlier_probability,
                         "outlier_std": s.outlier_std, "emulated": s.emulated, "note": s.note}
                     for k, s in nav.SOURCES.items()},
     }
+
+
+def _synthetic_parameters(cfg: SyntheticConfig) -> dict:
+    """The synthetic set's parameters as JSON values (core objects by their declared parameters)."""
+    out = {f.name: getattr(cfg, f.name) for f in fields(cfg) if f.name not in ("landmarks", "position", "bmm")}
+    out["bmm"] = {sp.name: cfg.bmm.get_param(sp.name) for sp in cfg.bmm.params()}
+    out["position"] = cfg.position.name
+    return out
 
 
 #: Where we depart from the paper (the report's list; DESIGN.md has the reasoning).

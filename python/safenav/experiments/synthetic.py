@@ -25,15 +25,11 @@ PRIOR_STD = np.array([0.1, 0.1, 0.1, 0.05])
 
 def source_config(source: str, base: SyntheticConfig | None = None) -> SyntheticConfig:
     """The synthetic data set with the position fixes of ``source`` (a key of
-    :data:`safenav.navigation.SOURCES`): its white noise, bias, bias walk and
-    outliers.  The synthetic set has no landmarks, so every source fixes at
-    every step."""
+    :data:`safenav.navigation.SOURCES`).  The synthetic set has no landmarks,
+    so every source fixes at every step."""
     from ..navigation import position_source
 
-    p = position_source(source)
-    return replace(base or SyntheticConfig(), position_std=tuple(p.std), position_bias_std=p.bias_std,
-                   position_bias_walk_std=p.bias_walk_std, outlier_probability=p.outlier_probability,
-                   outlier_std=p.outlier_std)
+    return replace(base or SyntheticConfig(), position=position_source(source))
 
 
 #: The synthetic set's stream in the seed rule (:mod:`safenav.runner`).
