@@ -144,8 +144,7 @@ def make_navigator(scenario, safe_path, *, method: str = "centroid", filter: str
     se.field_of_view = np.deg2rad(scenario.camera.field_of_view_deg)
     scenario.detection.apply(se)
     se.position_every = as_int("position_every", position_every)
-    se.imu_speed_std = scenario.noise.imu_speed_std
-    se.imu_heading_std = scenario.noise.imu_heading_std
+    scenario.noise.apply(se)
     if source == "lanbloc":
         se.position.std = np.asarray(scenario.noise.lanbloc_std, dtype=float)
     return Navigator(problem, s, se)

@@ -29,7 +29,7 @@ but ``world`` and ``path_types`` is optional and defaults to the values below)::
     ...
 
     [noise]
-    lanbloc_std = [0.0142, 0.039]   # the paper's LanBLoc RMSE in X and Y [m]
+    lanbloc_std = [0.0142, 0.039]   # the paper's LanBLoc RMSE in X and Y [m] (the core's default)
     imu_speed_std = 0.05
     imu_heading_std = 0.02
 
@@ -175,7 +175,7 @@ class CameraParams(_Params):
               "field_of_view_deg": _r(0, 360, True)}
 
 
-def _core_section(name: str, doc: str, keys, *, defaults=None, extra=None) -> type:
+def _core_section(name: str, doc: str, keys, *, defaults=None, extra=None, own=()) -> type:
     """A frozen section class whose fields are parameters declared in the core
     (``safenav/params.hpp``): each key's default, range and documentation come
     from the core declaration, none is repeated here.
@@ -183,7 +183,8 @@ def _core_section(name: str, doc: str, keys, *, defaults=None, extra=None) -> ty
     ``keys``: ``(key, core_type, core_name)`` triples (a plain ``(core_type, key)``
     pair when the names agree); ``defaults``: the few scenario defaults that
     differ from the core struct's own, each with its reason at the call;
-    ``extra``: methods and class attributes of the section."""
+    ``extra``: methods and class attributes of the section; ``own``: extra
+    ``(name, type, dataclasses.field)`` fields that the section checks itself."""
     defaults = defaults or {}
     spec_fields, ranges, lists, core = [], {}, {}, {}
     for entry in keys:
@@ -199,6 +200,7 @@ def _core_section(name: str, doc: str, keys, *, defaults=None, extra=None) -> ty
             ranges[key] = rng
             kind = int if rng.integer else float
             spec_fields.append((key, kind, field(default=default, metadata={"doc": spec.doc, "unit": spec.unit})))
+    spec_fields += list(own)
     namespace = {"RANGES": ranges, "LISTS": lists, "CORE": core, "__doc__": doc, **(extra or {})}
     return dataclass(frozen=True)(type(name, (_Params,), {"__annotations__": {k: t for k, t, _ in spec_fields},
                                                           **{k: f for k, _, f in spec_fields}, **namespace}))
@@ -213,30 +215,27 @@ BmmConfig = _core_section(
     "BmmConfig", "BMM parameters (eqs. 3-9): :class:`safenav.BmmParams`' fields, defaults and ranges.",
     [(_core.BmmParams, sp.name) for sp in _core.BmmParams.params()], extra={"to_params": _to_params})
 
-@dataclass(frozen=True)
-class NoiseParams(_Params):
-    """Measurement noise: LanBLoc position σ (paper's RMSE 0.0142 m X, 0.039 m Y) and the IMU's σ."""
-
-    lanbloc_std: tuple[float, float] = (0.0142, 0.039)  #: [m] in X and Y
-    imu_speed_std: float = 0.05                         #: [m/s]
-    imu_heading_std: float = 0.02                       #: [rad]
-
-    #: each entry of ``lanbloc_std``; a σ of 0 would make the filters' covariances singular
-    LANBLOC_STD = _r(1e-6, 100)
-    RANGES = {"imu_speed_std": _r(1e-6, 10), "imu_heading_std": _r(1e-6, math.pi)}
-
-    def __post_init__(self):
-        super().__post_init__()
-        v = _vector("lanbloc_std", self.lanbloc_std, (2,))
-        object.__setattr__(self, "lanbloc_std", tuple(self.LANBLOC_STD.check(f"lanbloc_std[{i}]", s)
-                                                      for i, s in enumerate(v)))
-
-
 DetectionParams = _core_section(
     "DetectionParams", "Landmark detection: the range limit and the trilateration minimum (paper: >= 3 landmarks).\n\n"
     "``max_range_m`` (3D distance) also bounds a path cluster's landmarks: each cluster on a path needs "
     "``min_landmarks`` within it of its centroid.",
     [("max_range_m", _core.SensorSettings, "max_range"), (_core.SensorSettings, "min_landmarks")])
+
+def _check_lanbloc_std(self):
+    _Params.__post_init__(self)
+    v = _vector("lanbloc_std", self.lanbloc_std, (2,))
+    object.__setattr__(self, "lanbloc_std", tuple(self.LANBLOC_STD.check(f"lanbloc_std[{i}]", s)
+                                                  for i, s in enumerate(v)))
+
+
+NoiseParams = _core_section(
+    "NoiseParams", "Measurement noise: the LanBLoc position sigma (the core's ``PositionNoise.named('lanbloc')``: "
+    "the paper's RMSE) and the IMU's sigma (``SensorSettings``).",
+    [(_core.SensorSettings, "imu_speed_std"), (_core.SensorSettings, "imu_heading_std")],
+    own=[("lanbloc_std", tuple, field(default=tuple(float(v) for v in _core.PositionNoise.named("lanbloc").std),
+                                      metadata={"doc": "LanBLoc's position sigma in X and Y", "unit": "m"}))],
+    #: each entry of ``lanbloc_std``; a sigma of 0 would make the filters' covariances singular
+    extra={"LANBLOC_STD": Range(1e-6, 100), "__post_init__": _check_lanbloc_std})
 
 PlannerParams = _core_section(
     "PlannerParams", "RAw-RRT* weights: cost = alpha*length + beta*sum(WRS) (eqs. 16, 19); beta = 0 is plain RRT*.",
