@@ -97,9 +97,9 @@ def plan_safe_path(scenario, path_type: str, *, seed: int | None = None, iterati
     gt = scenario.path_polyline(path_type)
     world_map = map_from_world(scenario.world, clearance=nav.clearance)
     problem = PlanningProblem(map=world_map, start=gt[0], goal=gt[-1], central_path=gt, zones=scenario.risk_zones())
-    settings = scenario.planner.apply(nav.apply(PlannerSettings(smooth=True)))
-    settings.max_iterations = int(iterations or nav.plan_iterations)
-    settings.seed = int(scenario.seeds.planner if seed is None else seed)
+    settings = scenario.planner.apply(PlannerSettings(
+        max_iterations=int(iterations or nav.plan_iterations), corridor_bias=nav.corridor_bias, smooth=True,
+        seed=int(scenario.seeds.planner if seed is None else seed)))
     result = plan(problem, settings)
     if not result.success:
         raise RuntimeError(f"path type {path_type}: RAw-RRT* found no safe path ({result.status}, "
