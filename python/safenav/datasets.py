@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ._checks import as_positive_int, as_seed
+from .validation import as_positive_int, as_seed
 from .measurement import LANBLOC_STD
 from .motion import Bmm, BmmParams
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pandas as pd
 
-from ._checks import as_positive_int, as_seed
+from .validation import as_positive_int, as_seed
 from .datasets import SyntheticConfig, synthetic_trajectory
 from .filters import filter_trajectory
 from .metrics import RiskZones, evaluate, wrs

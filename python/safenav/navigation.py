@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import _core
-from ._checks import as_array, as_int, as_seed
+from .validation import as_array, as_seed, integer
 from .planning import PlanningProblem, PlannerSettings, map_from_world, plan
 
 Navigator = _core.Navigator
@@ -174,7 +174,7 @@ def make_navigator(scenario, safe_path, *, method: str = "centroid", filter: str
     s.method = _choice("method", method, METHODS)
     s.cruise_speed = nav.cruise_speed
     s.arrival_radius = nav.arrival_radius
-    s.max_steps = nav.max_steps if max_steps is None else as_int("max_steps", max_steps, 0)  # 0: from the path
+    s.max_steps = nav.max_steps if max_steps is None else integer("max_steps", max_steps, 0)  # 0: from the path
     s.segments = _core.SegmentOptions(count=0, length=nav.segment_length, sub_segments=nav.sub_segments)
     s.lookahead, s.step_back_speed = nav.lookahead, nav.step_back_speed
     s.replan = bool(replan)
@@ -185,7 +185,7 @@ def make_navigator(scenario, safe_path, *, method: str = "centroid", filter: str
     s.lost_position_std = nav.lost_position_std
     fo = _core.FilterOptions()
     fo.type = _choice("filter", filter, FILTERS)
-    fo.n_particles = as_int("n_particles", n_particles)
+    fo.n_particles = integer("n_particles", n_particles)
     s.filter = fo
     s.record = bool(record)
 
@@ -195,7 +195,7 @@ def make_navigator(scenario, safe_path, *, method: str = "centroid", filter: str
     se.max_range = scenario.detection.max_range_m
     se.field_of_view = np.deg2rad(scenario.camera.field_of_view_deg)
     se.min_landmarks = scenario.detection.min_landmarks
-    se.position_every = as_int("position_every", position_every)
+    se.position_every = integer("position_every", position_every)
     se.imu_speed_std = scenario.noise.imu_speed_std
     se.imu_heading_std = scenario.noise.imu_heading_std
     if tuple(scenario.noise.lanbloc_std) != SOURCES["lanbloc"].std and source == "lanbloc":

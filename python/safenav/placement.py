@@ -42,7 +42,7 @@ from typing import Sequence
 import numpy as np
 
 from . import _core
-from ._checks import as_array, as_positive_int, as_seed
+from .validation import as_array, as_positive_int, as_seed
 from .results import save_figure
 
 __all__ = [
