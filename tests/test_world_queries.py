@@ -178,6 +178,15 @@ def test_degenerate_segments_and_boundary_points():
     assert not w.point_in_obstacle((23, 24), margin=4.999999)
 
 
+def test_a_polygons_farthest_vertex_is_not_culled():
+    """The bounding-circle cull squared a rounded square root: radius² fell below the
+    farthest vertex's d², so that vertex itself counted as outside (and as free for
+    the planner).  Found by test_point_query_matches_the_reference."""
+    tri = Polygon([(41, 40), (43, 40), (39, 39.5)])
+    assert tri.contains([(39, 39.5)])[0] and tri.segment_hits((30, 39.5), (39, 39.5))
+    assert not _core.point_is_free(_core.PlanningMap(polygons=[tri.array()]), (39.0, 39.5))
+
+
 def test_the_margin_is_exact_with_no_hidden_tolerance():
     """The old NumPy kernel counted points within 1e-9 m outside a polygon's edge as inside
     (a tolerance for matplotlib's ambiguous boundary test); the core's exact

@@ -15,9 +15,11 @@ with the field's path relative to the object, then the bad value, e.g.
 ``obstacles[3].radius = -2.0: must be in (0, 100000]``; :mod:`safenav.scenario` prefixes
 the path of the enclosing object (``world.obstacles[3].radius``).
 
-Geometry conventions: a point on an obstacle's boundary is inside it; the
-``margin`` argument inflates every obstacle by that distance.  Segment tests
-are exact (no sampling), so a segment that grazes a corner is caught.
+Collision queries are the core's (``safenav/world.hpp``, ``ObstacleChecker`` on
+CGAL's exact predicates): a world builds the core's map of itself on first use.
+A point on an obstacle's boundary is inside it; the ``margin`` argument grows
+every obstacle by exactly that distance.  Segment tests are exact (no
+sampling), so a segment that grazes a corner is caught.
 """
 
 from __future__ import annotations
