@@ -22,7 +22,8 @@ void pybind_world(py::module_& m) {
           },
           py::arg("center"), py::arg("radius"), py::arg("risk") = 1.0)
       .def_static(
-          "from_polygon", [](const Points2& vertices, double risk) { return HazardZone{vertices, CircleObstacle{}, risk}; },
+          "from_polygon",
+          [](const Points2& vertices, double risk) { return HazardZone{vertices, CircleObstacle{}, risk}; },
           py::arg("vertices"), py::arg("risk") = 1.0)
       .def_readonly("polygon", &HazardZone::polygon)
       .def_readonly("disc", &HazardZone::disc)

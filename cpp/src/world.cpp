@@ -39,7 +39,8 @@ Vec2 row(const Eigen::Ref<const Points2>& p, Eigen::Index i) { return Vec2(p(i, 
 
 void check_finite(const Eigen::Ref<const Points2>& p, const char* what) {
   for (Eigen::Index i = 0; i < p.rows(); ++i)
-    if (!p.row(i).allFinite()) bad(std::string(what) + " " + std::to_string(i) + " " + fmt(row(p, i)) + " is not finite");
+    if (!p.row(i).allFinite())
+      bad(std::string(what) + " " + std::to_string(i) + " " + fmt(row(p, i)) + " is not finite");
 }
 
 void check_margin(double margin) {

@@ -6,7 +6,6 @@
 // point location) stays inside geometry.cpp.
 #pragma once
 
-#include <vector>
 #include <Eigen/Core>
 
 #include "safenav/metrics.hpp"
