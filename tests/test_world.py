@@ -8,7 +8,7 @@ import pytest
 
 from safenav.generate import DEFAULT_SEED, GeneratorConfig, _dense, generate_scenario, generate_world
 from safenav.world import (MAX_LANDMARKS, MAX_OBSTACLES, MAX_VERTICES, Circle, Field, Hazard, Landmark, PathType, Polygon,
-                           ScenarioError, World, _point_segment_distance)
+                           ScenarioError, World)
 
 SQUARE = Polygon([(10, 10), (20, 10), (20, 20), (10, 20)])
 TRI = Polygon([(50, 50), (70, 52), (58, 68)])
@@ -169,19 +169,6 @@ def _boundary_distance(poly: np.ndarray, p) -> float:
         t = np.clip(np.dot(p - a, b - a) / np.dot(b - a, b - a), 0, 1)
         best = min(best, np.linalg.norm(p - (a + t * (b - a))))
     return best
-
-
-def test_point_segment_distance_broadcasts():
-    rng = np.random.default_rng(3)
-    p, a, b = rng.uniform(-5, 5, (50, 2)), rng.uniform(-5, 5, (7, 2)), rng.uniform(-5, 5, (7, 2))
-    b[3] = a[3]                                 # a zero-length segment is a point
-    def direct(q, a, b):
-        ab = b - a
-        t = 0.0 if ab @ ab == 0 else np.clip((q - a) @ ab / (ab @ ab), 0, 1)
-        return np.linalg.norm(q - (a + t * ab))
-    want = np.array([[direct(q, ak, bk) for ak, bk in zip(a, b)] for q in p])
-    np.testing.assert_allclose(_point_segment_distance(p, a, b), want, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(_point_segment_distance(p, a[0], b[0]), want[:, 0], rtol=0, atol=1e-12)
 
 
 def test_point_in_obstacle_matches_direct_computation():

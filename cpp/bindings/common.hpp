@@ -12,6 +12,8 @@ void pybind_measurement(py::module_& m);
 void pybind_filters(py::module_& m);
 void pybind_metrics(py::module_& m);
 void pybind_geometry(py::module_& m);
+void pybind_corridor(py::module_& m);
+void pybind_world(py::module_& m);
 void pybind_planning(py::module_& m);
 void pybind_localization(py::module_& m);
 void pybind_stereo(py::module_& m);

@@ -12,6 +12,8 @@ PYBIND11_MODULE(_core, m) {
   pybind_metrics(m);
   pybind_geometry(m);
   pybind_geometry_simple_polygon(m);
+  pybind_corridor(m);
+  pybind_world(m);
   pybind_planning(m);
   pybind_localization(m);
   pybind_stereo(m);

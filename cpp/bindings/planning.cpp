@@ -5,39 +5,6 @@
 using namespace safenav;
 
 void pybind_planning(py::module_& m) {
-  py::class_<CircleObstacle>(m, "CircleObstacle", "A disc obstacle (center [m], radius [m]).")
-      .def(py::init([](const Eigen::Vector2d& center, double radius) { return CircleObstacle{center, radius}; }),
-           py::arg("center"), py::arg("radius"))
-      .def_readwrite("center", &CircleObstacle::center)
-      .def_readwrite("radius", &CircleObstacle::radius)
-      .def("__repr__", [](const CircleObstacle& c) {
-        return "CircleObstacle(center=(" + std::to_string(c.center.x()) + ", " + std::to_string(c.center.y()) +
-               "), radius=" + std::to_string(c.radius) + ")";
-      });
-
-  const PlanningMap dm;
-  def_params<PlanningMap>(py::class_<PlanningMap>(m, "PlanningMap", "The field (rectangle) and its circle and polygon obstacles."))
-      .def(py::init([](const Eigen::Vector2d& lower, const Eigen::Vector2d& upper, std::vector<CircleObstacle> circles,
-                       std::vector<Points2> polygons, double clearance) {
-             PlanningMap map{lower, upper, std::move(circles), std::move(polygons), clearance};
-             map.validate();
-             return map;
-           }),
-           py::kw_only(), py::arg("lower") = dm.lower, py::arg("upper") = dm.upper,
-           py::arg("circles") = std::vector<CircleObstacle>{}, py::arg("polygons") = std::vector<Points2>{},
-           py::arg("clearance") = dm.clearance)
-      .def_readwrite("lower", &PlanningMap::lower)
-      .def_readwrite("upper", &PlanningMap::upper)
-      .def_readwrite("circles", &PlanningMap::circles)
-      .def_readwrite("polygons", &PlanningMap::polygons)
-      .def_readwrite("clearance", &PlanningMap::clearance)
-      .def("validate", &PlanningMap::validate);
-
-  py::class_<ObstacleChecker>(m, "ObstacleChecker", "Repeated collision queries against one PlanningMap.")
-      .def(py::init<const PlanningMap&>(), py::arg("map"))
-      .def("point_free", &ObstacleChecker::point_free, py::arg("point"))
-      .def("segment_free", &ObstacleChecker::segment_free, py::arg("a"), py::arg("b"));
-
   py::class_<PlanningProblem>(m, "PlanningProblem", "Map, start, goal and the central path of the risk term.")
       .def(py::init([](PlanningMap map, const Eigen::Vector2d& start, const Eigen::Vector2d& goal,
                        const Points2& central_path, RiskZones zones) {
@@ -113,9 +80,6 @@ void pybind_planning(py::module_& m) {
   m.def("replan_to", &replan_to, py::arg("problem"), py::arg("position"), py::arg("goal"),
         py::arg("settings") = PlannerSettings{}, release_gil());
   m.def("point_ahead", &point_ahead, py::arg("path"), py::arg("position"), py::arg("distance"), release_gil());
-  m.def("point_is_free", &point_is_free, py::arg("map"), py::arg("point"));
-  m.def("segment_is_free", &segment_is_free, py::arg("map"), py::arg("a"), py::arg("b"));
-  m.def("path_is_free", &path_is_free, py::arg("map"), py::arg("path"), release_gil());
   m.def("path_cost", &path_cost, py::arg("path"), py::arg("problem"), py::arg("settings") = PlannerSettings{},
         release_gil());
 }

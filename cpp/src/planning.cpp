@@ -33,8 +33,7 @@
 #include <ompl/util/Console.h>
 #include <ompl/util/RandomNumbers.h>
 
-#include "cgal_util.hpp"
-#include "safenav/geometry.hpp"
+#include "safenav/corridor.hpp"
 #include "safenav/params.hpp"
 #include "safenav/rng.hpp"
 
@@ -52,90 +51,6 @@ std::string fmt(const Vec2& p) {
   s << "(" << p.x() << ", " << p.y() << ")";
   return s.str();
 }
-
-// ---------------------------------------------------------------- geometry
-// Polygon with a repeated closing vertex removed.
-Points2 open_polygon(const Points2& poly) {
-  if (poly.rows() > 1 && poly.row(0) == poly.row(poly.rows() - 1)) return poly.topRows(poly.rows() - 1);
-  return poly;
-}
-
-bool in_bounds(const PlanningMap& map, const Vec2& p) {
-  return p.x() >= map.lower.x() && p.x() <= map.upper.x() && p.y() >= map.lower.y() && p.y() <= map.upper.y();
-}
-
-// A map's obstacles as CGAL objects, built once per map.  A point or segment
-// collides when it is inside or on a polygon (CGAL::bounded_side_2), crosses
-// an edge (CGAL::do_intersect) or comes within the clearance of an obstacle
-// (CGAL::squared_distance); the boundary counts as a collision.
-class Obstacles {
- public:
-  explicit Obstacles(const PlanningMap& map) : map_(map) {
-    for (const auto& raw : map.polygons) {
-      const Points2 open = open_polygon(raw);
-      polygons_.push_back(cgal::to_cgal(open));
-      const auto& poly = polygons_.back();
-      std::vector<cgal::Segment> edges;
-      for (std::size_t i = 0; i < poly.size(); ++i) edges.emplace_back(poly[i], poly[(i + 1) % poly.size()]);
-      edges_.push_back(std::move(edges));
-      // Bounding circle (vertex mean, farthest vertex) for a cheap reject.
-      const Vec2 c = open.colwise().mean().transpose();
-      const double r = (open.rowwise() - c.transpose()).rowwise().norm().maxCoeff();
-      bounds_.push_back({c, r + map.clearance});
-    }
-  }
-
-  bool point_free(const Vec2& p) const {
-    if (!in_bounds(map_, p)) return false;
-    for (const auto& c : map_.circles)
-      if ((p - c.center).norm() <= c.radius + map_.clearance) return false;
-    const cgal::Point q = cgal::point(p);
-    const double c2 = map_.clearance * map_.clearance;
-    for (std::size_t k = 0; k < polygons_.size(); ++k) {
-      if ((p - bounds_[k].center).squaredNorm() > bounds_[k].radius2()) continue;
-      if (cgal::inside_or_on(polygons_[k], q)) return false;
-      for (const auto& e : edges_[k])
-        if (CGAL::squared_distance(q, e) <= c2) return false;
-    }
-    return true;
-  }
-
-  bool segment_free(const Vec2& a, const Vec2& b) const {
-    // The field is convex: both ends inside means the whole segment is.
-    if (!in_bounds(map_, a) || !in_bounds(map_, b)) return false;
-    const cgal::Segment ab(cgal::point(a), cgal::point(b));
-    for (const auto& c : map_.circles) {
-      const double r = c.radius + map_.clearance;
-      if (CGAL::squared_distance(cgal::point(c.center), ab) <= r * r) return false;
-    }
-    const double c2 = map_.clearance * map_.clearance;
-    for (std::size_t k = 0; k < polygons_.size(); ++k) {
-      if (segment_point_distance2(a, b, bounds_[k].center) > bounds_[k].radius2()) continue;
-      // A segment inside the polygon touches no edge.
-      if (cgal::inside_or_on(polygons_[k], ab.source())) return false;
-      for (const auto& e : edges_[k])
-        if (CGAL::do_intersect(ab, e) || CGAL::squared_distance(ab, e) <= c2) return false;
-    }
-    return true;
-  }
-
- private:
-  struct Bound {
-    Vec2 center;
-    double radius;  // bounding radius plus clearance
-    double radius2() const { return radius * radius; }
-  };
-  static double segment_point_distance2(const Vec2& a, const Vec2& b, const Vec2& p) {
-    const Vec2 ab = b - a;
-    const double L2 = ab.squaredNorm();
-    const double t = L2 > 0.0 ? std::clamp((p - a).dot(ab) / L2, 0.0, 1.0) : 0.0;
-    return (a + t * ab - p).squaredNorm();
-  }
-  PlanningMap map_;
-  std::vector<std::vector<cgal::Point>> polygons_;
-  std::vector<std::vector<cgal::Segment>> edges_;
-  std::vector<Bound> bounds_;
-};
 
 // The central path of the risk term: a Corridor (deviation, eq. 17; WRS,
 // eq. 18), or, when the path has a single distinct point, that point.
@@ -180,7 +95,7 @@ const double* xy(const ob::State* s) { return s->as<ob::RealVectorStateSpace::St
 
 class Checker : public ob::StateValidityChecker {
  public:
-  Checker(const ob::SpaceInformationPtr& si, const Obstacles& obstacles, const CentralPath* corridor,
+  Checker(const ob::SpaceInformationPtr& si, const ObstacleChecker& obstacles, const CentralPath* corridor,
           double half_width)
       : ob::StateValidityChecker(si), obstacles_(obstacles), corridor_(corridor), half_width_(half_width) {}
   bool isValid(const ob::State* s) const override {
@@ -191,7 +106,7 @@ class Checker : public ob::StateValidityChecker {
   }
 
  private:
-  const Obstacles& obstacles_;
+  const ObstacleChecker& obstacles_;
   const CentralPath* corridor_;
   double half_width_;
 };
@@ -200,7 +115,7 @@ class Checker : public ob::StateValidityChecker {
 // constraint is checked every `step` metres.
 class MotionChecker : public ob::MotionValidator {
  public:
-  MotionChecker(const ob::SpaceInformationPtr& si, const Obstacles& obstacles, const CentralPath* corridor,
+  MotionChecker(const ob::SpaceInformationPtr& si, const ObstacleChecker& obstacles, const CentralPath* corridor,
                 double half_width, double step)
       : ob::MotionValidator(si), obstacles_(obstacles), corridor_(corridor), half_width_(half_width), step_(step) {}
 
@@ -240,7 +155,7 @@ class MotionChecker : public ob::MotionValidator {
     }
     return true;
   }
-  const Obstacles& obstacles_;
+  const ObstacleChecker& obstacles_;
   const CentralPath* corridor_;
   double half_width_, step_;
 };
@@ -322,10 +237,10 @@ Points2 to_points(const og::PathGeometric& path) {
   return out;
 }
 
-void check_point(const PlanningProblem& problem, const PlannerSettings& settings, const Obstacles& obstacles,
+void check_point(const PlanningProblem& problem, const PlannerSettings& settings, const ObstacleChecker& obstacles,
                  const CentralPath& central, const Vec2& p, const std::string& name) {
   if (!p.allFinite()) bad(name + " " + fmt(p) + " is not finite");
-  if (!in_bounds(problem.map, p))
+  if (!problem.map.in_field(p))
     bad(name + " " + fmt(p) + " is outside the field " + fmt(problem.map.lower) + "–" + fmt(problem.map.upper));
   if (!obstacles.point_free(p)) bad(name + " " + fmt(p) + " is inside an obstacle (or within its clearance)");
   if (settings.stay_in_corridor) {
@@ -366,24 +281,6 @@ PathCost cost_of(const Eigen::Ref<const Points2>& path, const CentralPath& risk,
 }  // namespace
 
 // ---------------------------------------------------------------- validation
-void PlanningMap::validate() const {
-  if (!lower.allFinite() || !upper.allFinite()) bad("field bounds " + fmt(lower) + "–" + fmt(upper) + " are not finite");
-  if (!(upper.x() > lower.x()) || !(upper.y() > lower.y()))
-    bad("field upper corner " + fmt(upper) + " must exceed lower corner " + fmt(lower));
-  if (!std::isfinite(clearance) || clearance < 0.0) bad("clearance must be >= 0, got " + std::to_string(clearance));
-  for (std::size_t i = 0; i < circles.size(); ++i) {
-    const auto& c = circles[i];
-    if (!c.center.allFinite()) bad("circle " + std::to_string(i) + " has non-finite center " + fmt(c.center));
-    if (!std::isfinite(c.radius) || c.radius <= 0.0)
-      bad("circle " + std::to_string(i) + " radius must be > 0, got " + std::to_string(c.radius));
-  }
-  for (std::size_t i = 0; i < polygons.size(); ++i) {
-    const Points2 p = open_polygon(polygons[i]);
-    if (p.rows() < 3) bad("polygon " + std::to_string(i) + " needs >= 3 vertices, got " + std::to_string(p.rows()));
-    if (!p.allFinite()) bad("polygon " + std::to_string(i) + " has a non-finite vertex");
-  }
-}
-
 void PlanningProblem::validate() const {
   map.validate();
   if (central_path.rows() > 0) {
@@ -419,44 +316,7 @@ std::string to_string(PlanStatus status) {
   return "unknown";
 }
 
-// ---------------------------------------------------------------- geometry API
-struct ObstacleChecker::Impl : Obstacles {
-  using Obstacles::Obstacles;
-};
-
-ObstacleChecker::ObstacleChecker(const PlanningMap& map) {
-  map.validate();
-  impl_ = std::make_shared<const Impl>(map);
-}
-
-bool ObstacleChecker::point_free(const Vec2& p) const {
-  if (!p.allFinite()) bad("point " + fmt(p) + " is not finite");
-  return impl_->point_free(p);
-}
-
-bool ObstacleChecker::segment_free(const Vec2& a, const Vec2& b) const {
-  if (!a.allFinite() || !b.allFinite()) bad("segment " + fmt(a) + "–" + fmt(b) + " is not finite");
-  return impl_->segment_free(a, b);
-}
-
-bool point_is_free(const PlanningMap& map, const Vec2& p) { return Obstacles(map).point_free(p); }
-
-bool segment_is_free(const PlanningMap& map, const Vec2& a, const Vec2& b) {
-  if (!a.allFinite() || !b.allFinite()) bad("segment " + fmt(a) + "–" + fmt(b) + " is not finite");
-  return Obstacles(map).segment_free(a, b);
-}
-
-bool path_is_free(const PlanningMap& map, const Eigen::Ref<const Points2>& path) {
-  const Obstacles obstacles(map);
-  if (path.rows() == 1) return obstacles.point_free(Vec2(path(0, 0), path(0, 1)));
-  for (Eigen::Index i = 0; i + 1 < path.rows(); ++i) {
-    const Vec2 a(path(i, 0), path(i, 1)), b(path(i + 1, 0), path(i + 1, 1));
-    if (!a.allFinite() || !b.allFinite()) bad("segment " + fmt(a) + "–" + fmt(b) + " is not finite");
-    if (!obstacles.segment_free(a, b)) return false;
-  }
-  return true;
-}
-
+// ---------------------------------------------------------------- path queries
 Vec2 point_ahead(const Eigen::Ref<const Points2>& path, const Vec2& position, double distance) {
   if (path.rows() == 0) bad("point_ahead needs a non-empty path");
   if (!path.allFinite()) bad("path has a non-finite point");
@@ -481,7 +341,7 @@ PlanResult plan(const PlanningProblem& problem, const PlannerSettings& settings)
   if (settings.stay_in_corridor && !has_risk) bad("stay_in_corridor needs a central_path");
   if (settings.alpha == 0.0 && !has_risk) bad("alpha = 0 needs a central_path for the risk term");
   const PlanningMap& map = problem.map;
-  const Obstacles obstacles(map);
+  const ObstacleChecker obstacles(map);
   const CentralPath risk(problem.central_path, problem.zones);
   const CentralPath* corridor = settings.stay_in_corridor ? &risk : nullptr;
   check_point(problem, settings, obstacles, risk, problem.start, "start");

@@ -29,6 +29,7 @@ import numpy as np
 
 from . import __version__, console
 from .results import RunFolder, verify_run, write_json
+from .validation import integer
 
 #: The paper's navigation tables, in the one numbering safenav uses (the conference version's).
 TABLE_NUMBERING = "conference numbering; the extended version's Table {ext}"
@@ -42,14 +43,17 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _at_least(lo: int):
+    """An argparse type: an integer >= ``lo`` (the range checked by :func:`safenav.validation.integer`,
+    the message in argparse's words)."""
     def parse(text: str) -> int:
         try:
             v = int(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-        if v < lo:
-            raise argparse.ArgumentTypeError(f"must be an integer >= {lo}, got {v}")
-        return v
+        try:
+            return integer(text, v, lo, None)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be an integer >= {lo}, got {v}") from None
     return parse
 
 

@@ -35,7 +35,7 @@ import numpy as np
 import pandas as pd
 
 from . import _core
-from ._checks import as_positive_int, as_seed
+from .validation import as_positive_int, as_seed
 from .measurement import PositionNoise
 from .motion import Bmm, BmmParams, wrap_angle
 

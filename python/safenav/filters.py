@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import _core
-from ._checks import as_array, as_positive_int, as_seed
+from .validation import as_array, as_positive_int, as_seed
 from .measurement import LANBLOC_STD
 from .motion import BmmParams
 

@@ -46,9 +46,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._checks import cut
-from .world import (FIELD_SIZE, MAX_HAZARDS, MAX_LANDMARKS, MAX_OBSTACLES, Circle, Field, Hazard, Landmark,
-                    PathType, Polygon, World, _point_segment_distance)
+from . import _core
+from .validation import FIELD_SIZE, MAX_HAZARDS, MAX_LANDMARKS, MAX_OBSTACLES, cut
+from .world import Circle, Field, Hazard, Landmark, PathType, Polygon, World
 
 __all__ = ["GeneratorConfig", "generate_world", "generate_scenario", "PAPER_PATH_TYPES",
            "CLUSTER_LAYOUT", "DEFAULT_SEED"]
@@ -146,11 +146,8 @@ def _make_shape(rng: np.random.Generator, center: np.ndarray, radius: float) -> 
 
 
 def _polyline_distance(points: np.ndarray, polylines: list[np.ndarray]) -> np.ndarray:
-    d = np.full(len(points), np.inf)
-    for pl in polylines:
-        for a, b in zip(pl[:-1], pl[1:]):
-            d = np.minimum(d, _point_segment_distance(points, a, b))
-    return d
+    """Distance of each point to the nearest of the polylines (the core's eq. 17 deviation)."""
+    return np.min([_core.distance_to_path(points, pl) for pl in polylines], axis=0)
 
 
 def _dense(polyline: np.ndarray, step: float = 0.25) -> np.ndarray:

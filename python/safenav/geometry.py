@@ -37,7 +37,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _core
-from ._checks import as_array, as_positive_int
+from .validation import as_array, as_positive_int
 from .metrics import RiskZones
 
 PathProjection = _core.PathProjection

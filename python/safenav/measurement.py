@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _core
-from ._checks import as_array
+from .validation import as_array
 
 MeasurementKind = _core.MeasurementKind
 #: The error model of a position source (bias, walk, dropouts, white noise,

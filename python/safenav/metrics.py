@@ -26,7 +26,7 @@ import numpy as np
 from scipy import stats
 
 from . import _core
-from ._checks import as_array, as_positive_int
+from .validation import as_array, as_positive_int
 
 RiskZones = _core.RiskZones
 

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _core
-from ._checks import as_array, as_seed
+from .validation import as_array, as_seed
 
 BmmParams = _core.BmmParams
 

@@ -37,7 +37,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _core
-from ._checks import as_array, as_int, as_seed
+from .validation import as_array, integer, as_seed
 from .geometry import PathSegments
 from .measurement import PositionNoise
 from .planning import PlanningProblem, PlannerSettings, map_from_world, plan
@@ -128,13 +128,13 @@ def make_navigator(scenario, safe_path, *, method: str = "centroid", filter: str
     s = nav.apply(NavigationSettings())
     s.method = _choice("method", method, METHODS)
     if max_steps is not None:
-        s.max_steps = as_int("max_steps", max_steps, 0)  # 0: from the path
+        s.max_steps = integer("max_steps", max_steps, 0)  # 0: from the path
     s.replan = bool(replan)
     scenario.planner.apply(s.planner)
     s.planner.seed = as_seed("planner_seed", planner_seed or 0)
     fo = _core.FilterOptions()
     fo.type = _choice("filter", filter, FILTERS)
-    fo.n_particles = as_int("n_particles", n_particles)
+    fo.n_particles = integer("n_particles", n_particles)
     s.filter = fo
     s.record = bool(record)
 
@@ -143,7 +143,7 @@ def make_navigator(scenario, safe_path, *, method: str = "centroid", filter: str
     se.landmarks = scenario.world.landmark_array()[:, :2]
     se.field_of_view = np.deg2rad(scenario.camera.field_of_view_deg)
     scenario.detection.apply(se)
-    se.position_every = as_int("position_every", position_every)
+    se.position_every = integer("position_every", position_every)
     scenario.noise.apply(se)
     if source == "lanbloc":
         se.position.std = np.asarray(scenario.noise.lanbloc_std, dtype=float)

@@ -27,7 +27,7 @@ from collections.abc import Iterable
 import numpy as np
 
 from . import _core
-from ._checks import as_array
+from .validation import as_array
 
 CircleObstacle = _core.CircleObstacle
 #: Repeated collision queries against one map: ``ObstacleChecker(map).segment_free(a, b)``.

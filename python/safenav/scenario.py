@@ -93,9 +93,9 @@ import numpy as np
 import tomli_w
 
 from . import _core
-from ._checks import cut
-from .world import (Circle, Field, Hazard, Landmark, PathType, Polygon, Range, ScenarioError, World,  # noqa: F401
-                    _at, _fail, _integer, _items, _join, _table, _text, _vector)
+from . import validation
+from .validation import Range, ScenarioError
+from .world import Circle, Field, Hazard, Landmark, PathType, Polygon, World  # noqa: F401
 
 __all__ = [
     "ScenarioError", "CameraParams", "DetectionParams", "BmmConfig", "NoiseParams", "PlannerParams",
@@ -134,9 +134,9 @@ class _Params:
         for name, rng in self.RANGES.items():
             object.__setattr__(self, name, rng.check(name, getattr(self, name)))
         for name, (rng, max_len) in self.LISTS.items():
-            v = _items(name, getattr(self, name), max_len)
+            v = validation.items(name, getattr(self, name), max_len)
             if not v:
-                _fail(name, getattr(self, name), "needs at least one entry")
+                validation.fail(name, getattr(self, name), "needs at least one entry")
             object.__setattr__(self, name, tuple(rng.check(f"{name}[{i}]", x) for i, x in enumerate(v)))
 
     def apply(self, core):
@@ -156,7 +156,7 @@ class _Params:
 
     @classmethod
     def from_dict(cls, data):
-        t = _table("", data, required=(), optional=tuple(f.name for f in fields(cls)))
+        t = validation.table("", data, required=(), optional=tuple(f.name for f in fields(cls)))
         return cls(**t)
 
 
@@ -223,7 +223,7 @@ DetectionParams = _core_section(
 
 def _check_lanbloc_std(self):
     _Params.__post_init__(self)
-    v = _vector("lanbloc_std", self.lanbloc_std, (2,))
+    v = validation.vector("lanbloc_std", self.lanbloc_std, (2,))
     object.__setattr__(self, "lanbloc_std", tuple(self.LANBLOC_STD.check(f"lanbloc_std[{i}]", s)
                                                   for i, s in enumerate(v)))
 
@@ -247,7 +247,7 @@ def _check_weights(self):
     w = self.weights
     for i in range(1, len(w)):
         if w[i] < w[i - 1]:
-            _fail(f"weights[{i}]", w[i], f"must not be below weights[{i - 1}] = {w[i - 1]} (risk grows outward)")
+            validation.fail(f"weights[{i}]", w[i], f"must not be below weights[{i - 1}] = {w[i - 1]} (risk grows outward)")
 
 
 def _risk_zones(self):
@@ -329,37 +329,37 @@ class Scenario:
     navigation: NavigationParams = field(default_factory=NavigationParams)
 
     def __post_init__(self):
-        _text("name", self.name)
+        validation.text("name", self.name)
         if not isinstance(self.description, str):
-            _fail("description", self.description, "must be a string")
+            validation.fail("description", self.description, "must be a string")
         if len(self.description) > MAX_DESCRIPTION:
-            _fail("description", self.description,
+            validation.fail("description", self.description,
                   f"has {len(self.description)} characters, at most {MAX_DESCRIPTION} allowed")
         if not isinstance(self.world, World):
-            _fail("world", self.world, "must be a World")
+            validation.fail("world", self.world, "must be a World")
         for key, cls in _SECTIONS.items():
             if not isinstance(getattr(self, key), cls):
-                _fail(key, getattr(self, key), f"must be a {cls.__name__}")
-        paths = _items("path_types", self.path_types, MAX_PATH_TYPES)
+                validation.fail(key, getattr(self, key), f"must be a {cls.__name__}")
+        paths = validation.items("path_types", self.path_types, MAX_PATH_TYPES)
         if not paths:
-            _fail("path_types", self.path_types, "needs at least one path type")
+            validation.fail("path_types", self.path_types, "needs at least one path type")
         object.__setattr__(self, "path_types", paths)
         w, nav = self.world, self.navigation
         for n in ("cruise_speed", "step_back_speed"):
             if getattr(nav, n) > self.bmm.max_speed:
-                _fail(f"navigation.{n}", getattr(nav, n), f"exceeds bmm.max_speed = {self.bmm.max_speed:g} m/s")
+                validation.fail(f"navigation.{n}", getattr(nav, n), f"exceeds bmm.max_speed = {self.bmm.max_speed:g} m/s")
         groups, cents = w.clusters(), w.cluster_centroids()
         names: dict[str, int] = {}
         for i, pt in enumerate(paths):
             where = f"path_types[{i}]"
             if not isinstance(pt, PathType):
-                _fail(where, pt, "must be a PathType")
+                validation.fail(where, pt, "must be a PathType")
             if pt.name in names:
-                _fail(f"{where}.name", pt.name, f"duplicates path_types[{names[pt.name]}].name")
+                validation.fail(f"{where}.name", pt.name, f"duplicates path_types[{names[pt.name]}].name")
             names[pt.name] = i
             for k, c in enumerate(pt.clusters):
                 if c not in groups:
-                    _fail(f"{where}.clusters[{k}]", c, f"unknown cluster (clusters with landmarks: {cut(sorted(groups))})")
+                    validation.fail(f"{where}.clusters[{k}]", c, f"unknown cluster (clusters with landmarks: {validation.cut(sorted(groups))})")
         ends = np.array([cents[c] for pt in paths for c in (pt.start, pt.destination)])
         hits = w.first_obstacle_at(ends, nav.clearance).reshape(-1, 2)
         for i, pt in enumerate(paths):
@@ -367,19 +367,19 @@ class Scenario:
             for j, (k, role) in enumerate(((0, "start"), (len(pt.clusters) - 1, "destination"))):
                 if hits[i, j] >= 0:
                     c, p = pt.clusters[k], ends[2 * i + j]
-                    _fail(f"{where}.clusters[{k}]", c, f"the path's {role}, the centroid ({p[0]:.6g}, {p[1]:.6g}) of "
+                    validation.fail(f"{where}.clusters[{k}]", c, f"the path's {role}, the centroid ({p[0]:.6g}, {p[1]:.6g}) of "
                           f"cluster {c}, lies within navigation.clearance = {nav.clearance:g} m of "
                           f"world.obstacles[{hits[i, j]}]")
             gap = float(np.hypot(*(ends[2 * i + 1] - ends[2 * i])))
             if nav.arrival_radius >= gap:
-                _fail("navigation.arrival_radius", nav.arrival_radius,
+                validation.fail("navigation.arrival_radius", nav.arrival_radius,
                       f"must be below the {gap:.6g} m between the start and the destination of {where} "
                       f"({pt.name}); the vehicle would arrive before it moves")
             if nav.max_steps == 0:
                 length = float(np.sum(np.hypot(*np.diff([cents[c] for c in pt.clusters], axis=0).T)))
                 steps = 3.0 * length * (1.0 + self.bmm.terrain_effect) / (nav.cruise_speed * self.bmm.dt) + 200
                 if steps > MAX_STEPS:
-                    _fail("navigation.cruise_speed", nav.cruise_speed,
+                    validation.fail("navigation.cruise_speed", nav.cruise_speed,
                           f"with bmm.dt = {self.bmm.dt:g} s and bmm.terrain_effect = {self.bmm.terrain_effect:g}, "
                           f"{where} ({length:.6g} m) needs {steps:.3g} steps, more than {MAX_STEPS}; "
                           f"raise the speed or set navigation.max_steps")
@@ -391,7 +391,7 @@ class Scenario:
         for i, pt in enumerate(paths):
             for k, c in enumerate(pt.clusters):
                 if in_range[c] < self.detection.min_landmarks:
-                    _fail(f"path_types[{i}].clusters[{k}]", c,
+                    validation.fail(f"path_types[{i}].clusters[{k}]", c,
                           f"cluster {c} has {in_range[c]} landmark(s) within detection.max_range_m = "
                           f"{self.detection.max_range_m:g} m of its centroid; trilateration needs "
                           f"detection.min_landmarks = {self.detection.min_landmarks}")
@@ -427,27 +427,27 @@ class Scenario:
     @classmethod
     def from_dict(cls, data) -> "Scenario":
         """Validate and build; a :class:`ScenarioError` names the field path and the value."""
-        d = _table("scenario", data, required=("world", "path_types"),
+        d = validation.table("scenario", data, required=("world", "path_types"),
                    optional=("schema_version", "name", "description", *_SECTIONS))
         if "schema_version" in d:
-            _integer("schema_version", d["schema_version"])
+            validation.integer("schema_version", d["schema_version"], 0, field=True)
             if d["schema_version"] != SCHEMA_VERSION:
-                _fail("schema_version", d["schema_version"], f"unsupported (this safenav reads {SCHEMA_VERSION})")
+                validation.fail("schema_version", d["schema_version"], f"unsupported (this safenav reads {SCHEMA_VERSION})")
         kw: dict[str, Any] = {}
         for key, sec in _SECTIONS.items():
             if key in d:
-                with _at(key):
+                with validation.at(key):
                     kw[key] = sec.from_dict(d[key])
-        with _at("world"):
+        with validation.at("world"):
             kw["world"] = World.from_dict(d["world"])
         paths = []
-        for i, p in enumerate(_items("path_types", d["path_types"], MAX_PATH_TYPES)):
-            with _at(f"path_types[{i}]"):
-                t = _table("", p, required=("name", "clusters"), optional=("start", "destination"))
+        for i, p in enumerate(validation.items("path_types", d["path_types"], MAX_PATH_TYPES)):
+            with validation.at(f"path_types[{i}]"):
+                t = validation.table("", p, required=("name", "clusters"), optional=("start", "destination"))
                 pt = PathType(t["name"], t["clusters"])
                 for key, want, k in (("start", pt.start, 0), ("destination", pt.destination, -1)):
                     if key in t and (isinstance(t[key], bool) or t[key] != want):
-                        _fail(key, t[key], f"must equal clusters[{k}] = {want}")
+                        validation.fail(key, t[key], f"must equal clusters[{k}] = {want}")
                 paths.append(pt)
         kw["path_types"] = tuple(paths)
         for key in ("name", "description"):
@@ -509,13 +509,13 @@ def _check_tree(data) -> None:
     while todo:
         node, where, depth = todo.pop()
         if depth > MAX_DEPTH:
-            raise ScenarioError(f"{where} = {cut(node)}: nested deeper than {MAX_DEPTH} levels")
+            raise ScenarioError(f"{where} = {validation.cut(node)}: nested deeper than {MAX_DEPTH} levels")
         if isinstance(node, dict):
             if getattr(node, "repeated", None) is not None:
                 k = node.repeated
-                raise ScenarioError(f"{_join(where, k[:40])} = {cut(node[k])}: "
+                raise ScenarioError(f"{validation.join(where, k[:40])} = {validation.cut(node[k])}: "
                                     "the key appears twice in its table")
-            todo.extend((v, _join(where, str(k)[:40]), depth + 1) for k, v in node.items()
+            todo.extend((v, validation.join(where, str(k)[:40]), depth + 1) for k, v in node.items()
                         if isinstance(v, (dict, list)))
         else:
             todo.extend((v, f"{where}[{i}]", depth + 1) for i, v in enumerate(node) if isinstance(v, (dict, list)))

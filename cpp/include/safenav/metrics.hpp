@@ -1,7 +1,8 @@
-// safenav/metrics.hpp — trajectory metrics of SafeNav section V-B:
-// ADE (eq. 21), FDE (eq. 22), percent path-length error (eq. 23),
-// WRS (eq. 18) and AWRS (eq. 20); plus the filter consistency statistics
-// NEES and NIS.
+// safenav/metrics.hpp — trajectory metrics of [SafeNav §V-B]: ADE, FDE and
+// percent path-length error [SafeNav-ext eqs. 21–23]; plus the filter
+// consistency statistics NEES and NIS.  WRS [SafeNav eq. 18] and AWRS
+// [SafeNav-ext eq. 20] measure a trajectory against the safe corridor:
+// corridor.hpp.  Citations follow docs/paper_map.md.
 #pragma once
 
 #include <vector>
@@ -34,31 +35,6 @@ double path_length(const Eigen::Ref<const Points2>& path);
 /// |L_est − L_true| / L_true × 100 (eq. 23).  Lengths may differ.
 double path_length_error_percent(const Eigen::Ref<const Points2>& estimate,
                                  const Eigen::Ref<const Points2>& truth);
-
-/// The safe buffer of SafeNav section V-A(iii): a corridor of half-width
-/// d_max around a central polyline, split on each side into equal-width zones
-/// with weights w_j (2, 4, 6, 8 in the paper).
-struct RiskZones {
-  double half_width = 8.0;                          ///< d_max [m] (the real-imitated field's buffer, as the scenario)
-  std::vector<double> weights = {2.0, 4.0, 6.0, 8.0};  ///< w_1 … w_n; w_max = max
-  void validate() const;
-};
-
-/// Distance from each point to the nearest point of the polyline (eq. 17).
-Eigen::VectorXd distance_to_path(const Eigen::Ref<const Points2>& points,
-                                 const Eigen::Ref<const Points2>& path);
-
-/// WRS(d) of eq. 18 for one absolute deviation d:
-///   d·(d/w_j)          if a_j ≤ d < b_j  (zone j = [ (j−1)·d_max/n, j·d_max/n ))
-///   d_max·(d_max/w_max) if d ≥ d_max.
-/// As written in the paper, WRS drops at each zone border (d²/w_j → d²/w_{j+1}).
-double wrs(double deviation, const RiskZones& zones);
-/// WRS of each point against the central path.
-Eigen::VectorXd wrs(const Eigen::Ref<const Points2>& points, const Eigen::Ref<const Points2>& path,
-                    const RiskZones& zones);
-/// AWRS = mean WRS over the trajectory (eq. 20).
-double awrs(const Eigen::Ref<const Points2>& points, const Eigen::Ref<const Points2>& path,
-            const RiskZones& zones);
 
 /// NEES_k = e_kᵀ P_k⁻¹ e_k per row, e = estimate ⊖ truth (θ residual wrapped
 /// when `angle_index` ≥ 0).  errors: N×n, covariances: N×(n·n) row-major.

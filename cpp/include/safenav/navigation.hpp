@@ -28,13 +28,14 @@
 
 #include <Eigen/Core>
 
+#include "safenav/corridor.hpp"
 #include "safenav/filters.hpp"
-#include "safenav/geometry.hpp"
 #include "safenav/measurement.hpp"
 #include "safenav/metrics.hpp"
 #include "safenav/motion.hpp"
 #include "safenav/params.hpp"
 #include "safenav/planning.hpp"
+#include "safenav/world.hpp"
 
 namespace safenav {
 

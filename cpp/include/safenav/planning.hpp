@@ -12,8 +12,9 @@
 // motion-cost interpolation integrates a state cost, and path_cost()
 // reports exactly that number.  β = 0 is plain RRT* (the baseline).
 //
-// Built on OMPL's RRTstar; OMPL stays inside cpp/src/planning.cpp: this header
-// exposes only Eigen and std types.
+// The map and its collision checker are world.hpp's.  Built on OMPL's
+// RRTstar; OMPL stays inside cpp/src/planning.cpp: this header exposes only
+// Eigen and std types.
 #pragma once
 
 #include <cstdint>
@@ -23,25 +24,10 @@
 
 #include <Eigen/Core>
 
-#include "safenav/metrics.hpp"
+#include "safenav/corridor.hpp"
+#include "safenav/world.hpp"
 
 namespace safenav {
-
-/// A disc obstacle.
-struct CircleObstacle {
-  Eigen::Vector2d center = Eigen::Vector2d::Zero();
-  double radius = 1.0;  ///< [m], > 0
-};
-
-/// The field and its obstacles: what a state validity checker needs.
-struct PlanningMap {
-  Eigen::Vector2d lower = Eigen::Vector2d(0.0, 0.0);      ///< field's lower-left corner [m]
-  Eigen::Vector2d upper = Eigen::Vector2d(200.0, 200.0);  ///< field's upper-right corner [m] (SafeNav V-A)
-  std::vector<CircleObstacle> circles;
-  std::vector<Points2> polygons;  ///< simple polygons, ≥ 3 vertices each, open (first ≠ last) or closed
-  double clearance = 0.0;         ///< keep this far from every obstacle [m] (vehicle radius)
-  void validate() const;          ///< throws std::invalid_argument naming the bad value
-};
 
 /// What to plan: map, start, goal and the central (safe) path of the risk term.
 struct PlanningProblem {
@@ -122,28 +108,6 @@ PlanResult replan_to(const PlanningProblem& problem, const Eigen::Vector2d& posi
 /// The point `distance` metres of arc length ahead of the projection of
 /// `position` on `path` (clamped to the path's end).
 Eigen::Vector2d point_ahead(const Eigen::Ref<const Points2>& path, const Eigen::Vector2d& position, double distance);
-
-/// Repeated collision queries against one map (the map's geometry is prepared
-/// once; polygons are culled by bounding circles).  Copies share the data.
-class ObstacleChecker {
- public:
-  explicit ObstacleChecker(const PlanningMap& map);
-  /// Inside the field and at least `clearance` away from every obstacle.
-  bool point_free(const Eigen::Vector2d& p) const;
-  /// The whole segment a–b is free (exact tests, not sampling).
-  bool segment_free(const Eigen::Vector2d& a, const Eigen::Vector2d& b) const;
-
- private:
-  struct Impl;
-  std::shared_ptr<const Impl> impl_;
-};
-
-/// Whether p is inside the field and at least `clearance` away from every obstacle.
-bool point_is_free(const PlanningMap& map, const Eigen::Vector2d& p);
-/// Whether the whole segment a–b is free (exact segment/obstacle tests, not sampling).
-bool segment_is_free(const PlanningMap& map, const Eigen::Vector2d& a, const Eigen::Vector2d& b);
-/// Whether every edge of the polyline is free.
-bool path_is_free(const PlanningMap& map, const Eigen::Ref<const Points2>& path);
 
 /// Cost of a path under eq. 19 with the settings' α, β and resolution.
 PathCost path_cost(const Eigen::Ref<const Points2>& path, const PlanningProblem& problem,

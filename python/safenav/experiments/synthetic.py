@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from .. import runner
-from .._checks import as_positive_int, as_seed
+from ..validation import as_positive_int, as_seed
 from ..datasets import SyntheticConfig, synthetic_trajectory
 from ..filters import filter_trajectory
 from ..metrics import RiskZones, evaluate, wrs

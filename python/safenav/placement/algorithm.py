@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import _core
-from .._checks import as_array, as_positive_int
+from ..validation import as_array, as_positive_int
 from ..motion import wrap_angle
 from .tour import plan_tour, tour_length
 

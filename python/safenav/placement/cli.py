@@ -79,7 +79,7 @@ def load_input(path) -> dict:
 def _place(args, *, run_folder, wrote) -> int:
     from .. import console
     from .. import placement as P
-    from .._checks import as_array
+    from ..validation import as_array
     from ..results import write_json
 
     path = Path(args.file)

@@ -10,7 +10,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .._checks import as_array, as_positive_int, as_seed
+from ..validation import as_array, as_positive_int, as_seed
 from ..filters import filter_trajectory
 from ..motion import Bmm, BmmParams, wrap_angle
 from .algorithm import (PAPER_AREA, PAPER_SPACING, CameraParams, camera_params, candidate_grid, check_route,

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from .._checks import as_array, as_seed
+from ..validation import as_array, as_seed
 
 def tour_length(points) -> float:
     p = np.asarray(points, float)

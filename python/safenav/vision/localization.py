@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import _core
-from .._checks import as_array
+from ..validation import as_array
 
 LocalizationStatus = _core.LocalizationStatus
 

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import _core
-from .._checks import as_array
+from ..validation import as_array
 
 SgbmMode = _core.SgbmMode
 

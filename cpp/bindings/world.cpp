@@ -1,0 +1,67 @@
+#include "common.hpp"
+#include "params.hpp"
+#include "safenav/world.hpp"
+
+using namespace safenav;
+
+void pybind_world(py::module_& m) {
+  py::class_<CircleObstacle>(m, "CircleObstacle", "A disc obstacle (center [m], radius [m]).")
+      .def(py::init([](const Eigen::Vector2d& center, double radius) { return CircleObstacle{center, radius}; }),
+           py::arg("center"), py::arg("radius"))
+      .def_readwrite("center", &CircleObstacle::center)
+      .def_readwrite("radius", &CircleObstacle::radius)
+      .def("__repr__", [](const CircleObstacle& c) {
+        return "CircleObstacle(center=(" + std::to_string(c.center.x()) + ", " + std::to_string(c.center.y()) +
+               "), radius=" + std::to_string(c.radius) + ")";
+      });
+
+  py::class_<HazardZone>(m, "HazardZone", "A hazard zone: a disc or a simple polygon, with a risk level in (0, 1].")
+      .def_static(
+          "from_circle",
+          [](const Eigen::Vector2d& center, double radius, double risk) {
+            return HazardZone{Points2(0, 2), CircleObstacle{center, radius}, risk};
+          },
+          py::arg("center"), py::arg("radius"), py::arg("risk") = 1.0)
+      .def_static(
+          "from_polygon",
+          [](const Points2& vertices, double risk) { return HazardZone{vertices, CircleObstacle{}, risk}; },
+          py::arg("vertices"), py::arg("risk") = 1.0)
+      .def_readonly("polygon", &HazardZone::polygon)
+      .def_readonly("disc", &HazardZone::disc)
+      .def_readonly("risk", &HazardZone::risk);
+
+  const PlanningMap dm;
+  def_params<PlanningMap>(py::class_<PlanningMap>(m, "PlanningMap", "The field (rectangle), its circle and polygon obstacles and its hazards."))
+      .def(py::init([](const Eigen::Vector2d& lower, const Eigen::Vector2d& upper, std::vector<CircleObstacle> circles,
+                       std::vector<Points2> polygons, double clearance, std::vector<HazardZone> hazards) {
+             PlanningMap map{lower, upper, std::move(circles), std::move(polygons), clearance, std::move(hazards)};
+             map.validate();
+             return map;
+           }),
+           py::kw_only(), py::arg("lower") = dm.lower, py::arg("upper") = dm.upper,
+           py::arg("circles") = std::vector<CircleObstacle>{}, py::arg("polygons") = std::vector<Points2>{},
+           py::arg("clearance") = dm.clearance, py::arg("hazards") = std::vector<HazardZone>{})
+      .def_readwrite("lower", &PlanningMap::lower)
+      .def_readwrite("upper", &PlanningMap::upper)
+      .def_readwrite("circles", &PlanningMap::circles)
+      .def_readwrite("polygons", &PlanningMap::polygons)
+      .def_readwrite("clearance", &PlanningMap::clearance)
+      .def_readwrite("hazards", &PlanningMap::hazards)
+      .def("validate", &PlanningMap::validate);
+
+  py::class_<ObstacleChecker>(m, "ObstacleChecker", "Repeated collision queries against one PlanningMap.")
+      .def(py::init<const PlanningMap&>(), py::arg("map"))
+      .def("point_free", &ObstacleChecker::point_free, py::arg("point"))
+      .def("segment_free", &ObstacleChecker::segment_free, py::arg("a"), py::arg("b"))
+      .def_property_readonly("obstacle_count", &ObstacleChecker::obstacle_count)
+      .def("obstacles_at", &ObstacleChecker::obstacles_at, py::arg("points"), py::arg("margin") = 0.0, release_gil(),
+           "(N, M) bool: point i lies in obstacle j (circles, then polygons) grown by clearance + margin.")
+      .def("obstacles_hit", &ObstacleChecker::obstacles_hit, py::arg("a"), py::arg("b"), py::arg("margin") = 0.0,
+           release_gil(), "(N, M) bool: segment a[i]-b[i] touches obstacle j grown by clearance + margin.")
+      .def("hazard_risk", &ObstacleChecker::hazard_risk, py::arg("points"), release_gil(),
+           "(N,): the highest risk of the hazards containing each point, 0 outside every hazard.");
+
+  m.def("point_is_free", &point_is_free, py::arg("map"), py::arg("point"));
+  m.def("segment_is_free", &segment_is_free, py::arg("map"), py::arg("a"), py::arg("b"));
+  m.def("path_is_free", &path_is_free, py::arg("map"), py::arg("path"), release_gil());
+}

@@ -1,0 +1,91 @@
+// safenav/world.hpp — the map of SafeNav's battlefield (section V-A(3)(ii),
+// Fig. 1): a rectangular field with circle and polygon obstacles, which the
+// vehicle may not enter, and hazard zones, which it may cross at a risk; and
+// the collision checker that the planner (RAw-RRT*), the navigation loop and
+// Python's safenav.world.World all ask.
+//
+// Geometry conventions: a point on an obstacle's boundary is inside it; a
+// clearance or margin grows every obstacle by that distance (the Minkowski sum
+// with a disc); segment tests are exact (CGAL's exact predicates for polygon
+// containment and edge crossings), so a segment that grazes a corner is caught.
+//
+// CGAL stays inside cpp/src/world.cpp: this header exposes only Eigen and std types.
+#pragma once
+
+#include <cstddef>
+#include <memory>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "safenav/types.hpp"
+
+namespace safenav {
+
+/// A disc obstacle.
+struct CircleObstacle {
+  Eigen::Vector2d center = Eigen::Vector2d::Zero();
+  double radius = 1.0;  ///< [m], > 0
+};
+
+/// A hazard zone: a simple polygon, or (polygon with 0 rows) a disc, with a
+/// risk level.  The paper gives hazards no numeric scale; the level is ours.
+struct HazardZone {
+  Points2 polygon = Points2(0, 2);  ///< ≥ 3 vertices, or 0 rows for the disc
+  CircleObstacle disc;              ///< used when polygon has 0 rows
+  double risk = 1.0;                ///< in (0, 1], 1 = most dangerous
+};
+
+/// The field, its obstacles and its hazards: what a state validity checker needs.
+struct PlanningMap {
+  Eigen::Vector2d lower = Eigen::Vector2d(0.0, 0.0);      ///< field's lower-left corner [m]
+  Eigen::Vector2d upper = Eigen::Vector2d(200.0, 200.0);  ///< field's upper-right corner [m] (SafeNav V-A)
+  std::vector<CircleObstacle> circles;
+  std::vector<Points2> polygons;  ///< simple polygons, ≥ 3 vertices each, open (first ≠ last) or closed
+  double clearance = 0.0;         ///< keep this far from every obstacle [m] (vehicle radius)
+  std::vector<HazardZone> hazards;  ///< passable; only hazard_risk() reads them
+  void validate() const;          ///< throws std::invalid_argument naming the bad value
+  bool in_field(const Eigen::Vector2d& p) const;  ///< within [lower, upper] (boundary included)
+};
+
+using BoolMatrix = Eigen::Matrix<bool, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+/// Repeated collision queries against one map (the map's geometry is prepared
+/// once; polygons are culled by bounding circles).  Copies share the data.
+///
+/// The batch queries number the obstacles circles first, then polygons, in
+/// the map's order; `margin` (≥ 0) adds to the map's clearance.
+class ObstacleChecker {
+ public:
+  explicit ObstacleChecker(const PlanningMap& map);
+  /// Inside the field and at least `clearance` away from every obstacle.
+  bool point_free(const Eigen::Vector2d& p) const;
+  /// The whole segment a–b is free (exact tests, not sampling).
+  bool segment_free(const Eigen::Vector2d& a, const Eigen::Vector2d& b) const;
+
+  /// Number of obstacles (circles + polygons): the columns of the batch queries.
+  std::size_t obstacle_count() const;
+  /// N×M: point i lies in obstacle j grown by clearance + margin (boundary
+  /// included).  The field's bounds play no part.
+  BoolMatrix obstacles_at(const Eigen::Ref<const Points2>& points, double margin = 0.0) const;
+  /// N×M: the segment a_i–b_i touches obstacle j grown by clearance + margin
+  /// (a zero-length segment is its point).
+  BoolMatrix obstacles_hit(const Eigen::Ref<const Points2>& a, const Eigen::Ref<const Points2>& b,
+                           double margin = 0.0) const;
+  /// The highest risk of the hazards containing each point (boundary
+  /// included), 0 outside every hazard.
+  Eigen::VectorXd hazard_risk(const Eigen::Ref<const Points2>& points) const;
+
+ private:
+  struct Impl;
+  std::shared_ptr<const Impl> impl_;
+};
+
+/// Whether p is inside the field and at least `clearance` away from every obstacle.
+bool point_is_free(const PlanningMap& map, const Eigen::Vector2d& p);
+/// Whether the whole segment a–b is free (exact segment/obstacle tests, not sampling).
+bool segment_is_free(const PlanningMap& map, const Eigen::Vector2d& a, const Eigen::Vector2d& b);
+/// Whether every edge of the polyline is free.
+bool path_is_free(const PlanningMap& map, const Eigen::Ref<const Points2>& path);
+
+}  // namespace safenav
