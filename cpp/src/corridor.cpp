@@ -24,7 +24,6 @@ using cgal::Point;
 using cgal::from_cgal;
 using cgal::inside_or_on;
 using cgal::to_cgal;
-constexpr double kPi = 3.14159265358979323846;
 
 void check_point(const Eigen::Vector2d& p, const char* what) {
   if (!p.allFinite()) {
