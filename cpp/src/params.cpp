@@ -219,7 +219,7 @@ const ParamSet<NavigationSettings>& param_set<NavigationSettings>() {
       Declare<N>{}
           .real("cruise_speed", SN_REF(N, cruise_speed), "m/s", closed(0.01, 100), "desired speed")
           .real("arrival_radius", SN_REF(N, arrival_radius), "m", above(0, 100), "arrived when the estimate is this close to the destination")
-          .real("segment_length", SN_REF(N, segments.length), "m", above(0, 1e5), "longest path segment [SafeNav Alg. 1-2]")
+          .real("segment_length", SN_REF(N, segments.length), "m", above(0, 1e5), "longest path segment [SafeNav Alg. 1], [SafeNav Alg. 2]")
           .integer("sub_segments", SN_REF(N, segments.sub_segments), closed(1, 1000), "sub-segments per segment [SafeNav Alg. 2]")
           .real("lookahead", SN_REF(N, lookahead), "m", above(0, 1e5), "the corrective control aims this far ahead [SafeNav Alg. 1]")
           .real("step_back_speed", SN_REF(N, step_back_speed), "m/s", closed(0.01, 100), "speed of the step back [SafeNav Alg. 1]")
@@ -243,7 +243,7 @@ const ParamSet<SensorSettings>& param_set<SensorSettings>() {
       Declare<S>{}
           .real("max_range", SN_REF(S, max_range), "m", above(0, 1e4), "landmarks farther than this are not detected")
           .real("field_of_view", SN_REF(S, field_of_view), "rad", above(0, 2 * kPi), "full horizontal field of view, centred on the heading; 2 pi = all round")
-          .integer("min_landmarks", SN_REF(S, min_landmarks), closed(1, 1000), "a position fix needs this many landmarks in view [SafeNav-ext §V-A1: clusters of >= 3]")
+          .integer("min_landmarks", SN_REF(S, min_landmarks), closed(1, 1000), "a position fix needs this many landmarks in view [SafeNav-ext §V-A3(ii)]: clusters of >= 3")
           .integer("position_every", SN_REF(S, position_every), closed(1, 1e6), "a position fix every n steps")
           .real("imu_speed_std", SN_REF(S, imu_speed_std), "m/s", closed(1e-6, 10), "sigma of the IMU's speed")
           .real("imu_heading_std", SN_REF(S, imu_heading_std), "rad", closed(1e-6, kPi), "sigma of the IMU's heading")
