@@ -10,13 +10,13 @@ namespace {
 
 py::dict metrics_dict(const TrialMetrics& m) {
   py::dict d;
-  d["ade"] = m.ade;
-  d["fde"] = m.fde;
+  d["path_ade"] = m.path_ade;
+  d["goal_fde"] = m.goal_fde;
   d["path_error_percent"] = m.path_error_percent;
   d["awrs"] = m.awrs;
   d["awrs_true"] = m.awrs_true;
-  d["loc_ade"] = m.loc_ade;
-  d["loc_fde"] = m.loc_fde;
+  d["truth_ade"] = m.truth_ade;
+  d["truth_fde"] = m.truth_fde;
   d["max_deviation"] = m.max_deviation;
   return d;
 }
@@ -145,8 +145,8 @@ void pybind_navigation(py::module_& m) {
             const auto n = static_cast<py::ssize_t>(rs.size());
             py::array_t<int> outcome(n), steps(n), replans(n), fixes(n), dropouts(n), rejected(n), cdef(n), ccor(n),
                 cback(n);
-            py::array_t<double> ade(n), fde(n), perr(n), awrs(n), awrs_true(n), loc_ade(n), loc_fde(n), maxdev(n),
-                wall(n);
+            py::array_t<double> path_ade(n), goal_fde(n), perr(n), awrs(n), awrs_true(n), truth_ade(n), truth_fde(n),
+                maxdev(n), wall(n);
             for (py::ssize_t i = 0; i < n; ++i) {
               const TrialResult& r = rs[static_cast<std::size_t>(i)];
               outcome.mutable_at(i) = static_cast<int>(r.outcome);
@@ -158,13 +158,13 @@ void pybind_navigation(py::module_& m) {
               cdef.mutable_at(i) = r.chull_default;
               ccor.mutable_at(i) = r.chull_corrective;
               cback.mutable_at(i) = r.chull_step_back;
-              ade.mutable_at(i) = r.metrics.ade;
-              fde.mutable_at(i) = r.metrics.fde;
+              path_ade.mutable_at(i) = r.metrics.path_ade;
+              goal_fde.mutable_at(i) = r.metrics.goal_fde;
               perr.mutable_at(i) = r.metrics.path_error_percent;
               awrs.mutable_at(i) = r.metrics.awrs;
               awrs_true.mutable_at(i) = r.metrics.awrs_true;
-              loc_ade.mutable_at(i) = r.metrics.loc_ade;
-              loc_fde.mutable_at(i) = r.metrics.loc_fde;
+              truth_ade.mutable_at(i) = r.metrics.truth_ade;
+              truth_fde.mutable_at(i) = r.metrics.truth_fde;
               maxdev.mutable_at(i) = r.metrics.max_deviation;
               wall.mutable_at(i) = r.wall_time;
             }
@@ -181,13 +181,13 @@ void pybind_navigation(py::module_& m) {
             d["chull_default"] = cdef;
             d["chull_corrective"] = ccor;
             d["chull_step_back"] = cback;
-            d["ade"] = ade;
-            d["fde"] = fde;
+            d["path_ade"] = path_ade;
+            d["goal_fde"] = goal_fde;
             d["path_error_percent"] = perr;
             d["awrs"] = awrs;
             d["awrs_true"] = awrs_true;
-            d["loc_ade"] = loc_ade;
-            d["loc_fde"] = loc_fde;
+            d["truth_ade"] = truth_ade;
+            d["truth_fde"] = truth_fde;
             d["max_deviation"] = maxdev;
             d["time_s"] = wall;
             return d;

@@ -599,13 +599,13 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
   Points2 est(rows, 2);
   for (Eigen::Index i = 0; i < rows; ++i) est.row(i) = est_points[static_cast<std::size_t>(i)].transpose();
   TrialMetrics& m = res.metrics;
-  m.ade = safe.distance(est).mean();
-  m.fde = (est.bottomRows<1>().transpose() - destination).norm();
+  m.path_ade = safe.distance(est).mean();
+  m.goal_fde = (est.bottomRows<1>().transpose() - destination).norm();
   m.path_error_percent = std::abs(est_length - safe.length()) / safe.length() * 100.0;
   m.awrs = wrs_est / double(rows);
   m.awrs_true = wrs_true / double(rows);
-  m.loc_ade = loc_sum / double(rows);
-  m.loc_fde = (xe.head<2>() - truth.head<2>()).norm();
+  m.truth_ade = loc_sum / double(rows);
+  m.truth_fde = (xe.head<2>() - truth.head<2>()).norm();
   m.max_deviation = max_dev;
   res.wall_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return res;

@@ -151,7 +151,8 @@ def _navigation(args, *, demo: bool) -> int:
             print(f"\n% path-length error (eq. 23), {label}; paper = SafeNav Table III "
                   f"({TABLE_NUMBERING.format(ext='IV')})")
             print(pe.to_string(index=False, float_format=fmt))
-            print(f"\nADE / FDE [m], AWRS, median time per trial, {label}; paper = SafeNav Table IV "
+            print(f"\nADE (estimate to the safe path) / FDE (final estimate to the destination) [m], AWRS, "
+                  f"median time per trial, {label}; paper = SafeNav Table IV "
                   f"({TABLE_NUMBERING.format(ext='V')})")
             print(nt.to_string(index=False, float_format=fmt))
             tag = f"{filt}_{source}"

@@ -118,17 +118,18 @@ struct NavigationSettings {
   void validate() const;
 };
 
-/// Per-trial metrics.  ADE/FDE/% error/AWRS follow [SafeNav-ext eqs. 20–23] with
-/// the safe path as ground truth (see Navigator::run); loc_* compare the
-/// estimate with the true vehicle.
+/// Per-trial metrics [SafeNav-ext eqs. 20–23], each named by what it compares
+/// against (as evo's results name their reference): `path_*` and `goal_*` take
+/// the safe path as ground truth (see Navigator::run), `truth_*` the true
+/// vehicle.
 struct TrialMetrics {
-  double ade = 0.0;             ///< eq. 21: mean distance of the estimate to the safe path (our reading, see navigation.py)
-  double fde = 0.0;             ///< eq. 22: final estimate vs the destination
-  double path_error_percent = 0.0;  ///< eq. 23: |L_est − L_path| / L_path · 100
-  double awrs = 0.0;            ///< eq. 20: mean WRS of the estimated trajectory (eq. 18, about the safe path)
+  double path_ade = 0.0;        ///< ext eq. 21: mean distance of the estimate to the safe path (our reading)
+  double goal_fde = 0.0;        ///< ext eq. 22: final estimate vs the destination
+  double path_error_percent = 0.0;  ///< ext eq. 23: |L_est − L_path| / L_path · 100
+  double awrs = 0.0;            ///< ext eq. 20: mean WRS of the estimated trajectory (eq. 18, about the safe path)
   double awrs_true = 0.0;       ///< mean WRS of the true trajectory
-  double loc_ade = 0.0;         ///< mean ‖estimate − truth‖
-  double loc_fde = 0.0;         ///< final ‖estimate − truth‖
+  double truth_ade = 0.0;       ///< mean ‖estimate − truth‖
+  double truth_fde = 0.0;       ///< final ‖estimate − truth‖
   double max_deviation = 0.0;   ///< largest deviation of the true vehicle from the safe path [m]
 };
 

@@ -215,7 +215,7 @@ def plot_navigation(scenario, trials: dict, path: str | Path, *, title: str | No
         ax.set_ylim(lo[1], hi[1])
         ax.set_aspect("equal")
         m = trial.metrics
-        ax.set_title(f"{name}: {trial.outcome_name}, ADE {m['ade']:.2f} m, FDE {m['fde']:.2f} m", fontsize=10)
+        ax.set_title(f"{name}: {trial.outcome_name}, ADE {m['path_ade']:.2f} m, FDE {m['goal_fde']:.2f} m", fontsize=10)
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
     axes[0][0].legend(loc="best", fontsize=7)

@@ -33,7 +33,7 @@ PAPER_TABLE2 = {
     ("lanbloc", "ekf"): (0.2393, 0.3095, 0.1528, 14.94), ("lanbloc", "pf"): (1.5162, 1.4024, 3.1623, 185502.0),
 }
 #: The LanBLoc-BMM rows of Table I by filter (kept for the filter benchmark).
-PAPER_SYNTHETIC = {f: dict(zip(("ade", "fde", "awrs", "ms_per_trial"), PAPER_TABLE1[("lanbloc", f)]))
+PAPER_SYNTHETIC = {f: dict(zip(("truth_ade", "truth_fde", "awrs", "ms_per_trial"), PAPER_TABLE1[("lanbloc", f)]))
                    for f in ("ekf", "pf")}
 
 #: The paper's Table III (% path-length error per path type; Table IV of the
@@ -67,9 +67,10 @@ def source_label(source: str) -> str:
 
 def localization_table(summary: pd.DataFrame, paper: dict) -> pd.DataFrame:
     """Table I/II layout: one row per (algorithm, filter) in the paper's order,
-    ADE, FDE, AWRS and the median time per trial, with the paper's numbers
-    beside.  ``summary`` has columns source, filter, ade, fde, awrs and
-    ms_per_trial (one row per source and filter)."""
+    ADE and FDE against the true trajectory, AWRS and the median time per
+    trial, with the paper's numbers beside.  ``summary`` has columns source,
+    filter, truth_ade, truth_fde, awrs and ms_per_trial (one row per source
+    and filter)."""
     order = {s: i for i, s in enumerate((*PAPER_SOURCES, "lanbloc-camera"))}
     s = summary.assign(_o=summary["source"].map(lambda v: order.get(v, len(order))),
                        _f=summary["filter"].map({"ekf": 0, "pf": 1})).sort_values(["_o", "_f"], kind="stable")
@@ -77,7 +78,7 @@ def localization_table(summary: pd.DataFrame, paper: dict) -> pd.DataFrame:
     for _, r in s.iterrows():
         p = paper.get((r["source"], r["filter"]), (np.nan,) * 4)
         row = {"Algorithm": source_label(r["source"]), "Filter": r["filter"].upper(),
-               "ADE": r["ade"], "FDE": r["fde"], "AWRS": r["awrs"], "time ms": r["ms_per_trial"],
+               "ADE": r["truth_ade"], "FDE": r["truth_fde"], "AWRS": r["awrs"], "time ms": r["ms_per_trial"],
                "paper ADE": p[0], "paper FDE": p[1], "paper AWRS": p[2], "paper ms": p[3]}
         if "success_rate" in r:
             row["arrived"] = r["success_rate"]   # metrics are over the arrived trials
@@ -86,7 +87,8 @@ def localization_table(summary: pd.DataFrame, paper: dict) -> pd.DataFrame:
 
 
 def _with_average(summary: pd.DataFrame) -> pd.DataFrame:
-    cols = ["ade", "fde", "awrs", "path_error_percent", "time_ms", "time_per_step_us", "success_rate", "steps"]
+    cols = ["path_ade", "goal_fde", "awrs", "path_error_percent", "time_ms", "time_per_step_us", "success_rate",
+            "steps"]
     avg = summary.groupby("method", sort=False)[cols].mean().reset_index()
     avg["path_type"] = "Average"
     return pd.concat([summary[["method", "path_type", *cols]], avg[["method", "path_type", *cols]]],
@@ -110,8 +112,9 @@ def percent_error_table(summary: pd.DataFrame) -> pd.DataFrame:
 
 
 def navigation_table(summary: pd.DataFrame) -> pd.DataFrame:
-    """Table IV layout (the extended version's V): per method and path type (plus the average), ADE,
-    FDE, AWRS and the median time per trial, with the paper's numbers beside,
+    """Table IV layout (the extended version's V): per method and path type (plus the average), ADE
+    (mean distance of the estimate to the safe path), FDE (final estimate to the
+    destination), AWRS and the median time per trial, with the paper's numbers beside,
     then our success rate, steps and time per step."""
     s = _with_average(summary)
     rows = []
@@ -119,7 +122,7 @@ def navigation_table(summary: pd.DataFrame) -> pd.DataFrame:
         paper = PAPER_NAVIGATION.get(r["method"], {}).get(r["path_type"], (np.nan,) * 4)
         rows.append({
             "Approach": METHOD_LABELS.get(r["method"], r["method"]), "Path": r["path_type"],
-            "ADE": r["ade"], "FDE": r["fde"], "AWRS": r["awrs"], "time ms": r["time_ms"],
+            "ADE": r["path_ade"], "FDE": r["goal_fde"], "AWRS": r["awrs"], "time ms": r["time_ms"],
             "paper ADE": paper[0], "paper FDE": paper[1], "paper AWRS": paper[2], "paper ms": paper[3],
             "success": r["success_rate"], "steps": r["steps"], "µs/step": r["time_per_step_us"],
         })

@@ -78,6 +78,13 @@ class _SyntheticCell:
     zones: RiskZones
 
 
+def _truth_named(metrics: dict) -> dict:
+    """:meth:`TrajectoryMetrics.as_dict` with ADE and FDE named by their
+    reference, the true trajectory (``truth_ade``, ``truth_fde``), as in the
+    navigation tables."""
+    return {(f"truth_{k}" if k in ("ade", "fde") else k): v for k, v in metrics.items()}
+
+
 def _synthetic_trials(c: _SyntheticCell, seeds, start: int):
     """Rows of the raw table for trials [start, start + len(seeds)), and the
     per-step WRS of each trial per filter."""
@@ -90,9 +97,10 @@ def _synthetic_trials(c: _SyntheticCell, seeds, start: int):
             m = evaluate(est, data.states[:, :2], zones=c.zones)
             w = wrs(est, data.states[:, :2], c.zones)
             wrs_trials.setdefault(name, []).append(w)
-            rows.append({"source": c.source, "trial": start + k, "filter": name, **m.as_dict(), "steps": n_steps,
-                         "ms_per_trial": times[name] * 1e3, "us_per_step": times[name] * 1e6 / n_steps,
-                         "n_gaps": res.n_gaps, "n_resampled": res.n_resampled})
+            rows.append({"source": c.source, "trial": start + k, "filter": name, **_truth_named(m.as_dict()),
+                         "steps": n_steps, "ms_per_trial": times[name] * 1e3,
+                         "us_per_step": times[name] * 1e6 / n_steps, "n_gaps": res.n_gaps,
+                         "n_resampled": res.n_resampled})
     return rows, wrs_trials
 
 
@@ -154,9 +162,10 @@ def summarize_synthetic(raw: pd.DataFrame) -> pd.DataFrame:
     if raw.empty:
         raise ValueError("summarize_synthetic: the raw table has no rows")
     agg = raw.groupby(["source", "filter"], sort=False).agg(
-        trials=("trial", "count"), ade=("ade", "mean"), fde=("fde", "mean"), awrs=("awrs", "mean"),
+        trials=("trial", "count"), truth_ade=("truth_ade", "mean"), truth_fde=("truth_fde", "mean"),
+        awrs=("awrs", "mean"),
         path_err_pct=("path_length_error_percent", "mean"), ms_per_trial=("ms_per_trial", "median"),
         us_per_step=("us_per_step", "median")).reset_index()
-    for i, col in enumerate(("ade", "fde", "awrs", "ms_per_trial")):
+    for i, col in enumerate(("truth_ade", "truth_fde", "awrs", "ms_per_trial")):
         agg[f"paper_{col}"] = [PAPER_TABLE1.get((s, f), (np.nan,) * 4)[i] for s, f in zip(agg["source"], agg["filter"])]
     return agg
