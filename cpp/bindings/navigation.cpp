@@ -103,7 +103,9 @@ void pybind_navigation(py::module_& m) {
       .def_readonly("position_std", &TrialResult::position_std)
       .def_readonly("followed_path", &TrialResult::followed_path);
 
-  py::class_<Navigator>(m, "Navigator", "Runs SafeNav trials (Algorithms 1, 2 and 4) on one problem.")
+  py::class_<Navigator>(m, "Navigator",
+                        "Runs SafeNav trials (SafeNav Algorithms 1 and 2; the extended paper's Algorithm 4) on one "
+                        "problem.")
       .def(py::init<NavigationProblem, NavigationSettings, SensorSettings>(), py::arg("problem"),
            py::arg("settings"), py::arg("sensors"))
       .def_property_readonly("problem", &Navigator::problem)
@@ -196,9 +198,12 @@ void pybind_navigation(py::module_& m) {
           "Trials for each seed (measurement-level source), metrics only, as a dict of arrays.  Releases the GIL.");
 
   m.def("centroid_control", &centroid_control, py::arg("segments"), py::arg("estimate"), py::arg("cruise_speed"));
-  py::enum_<ChullAction>(m, "ChullAction", "What Algorithm 1 did with the default command.")
-      .value("KEEP", ChullAction::Keep, "the default command's prediction lies in hull k or k+1: kept (line 13)")
-      .value("CORRECTIVE", ChullAction::Corrective, "a corrective control back to the path (line 17)")
+  py::enum_<ChullAction>(m, "ChullAction", "What SafeNav Algorithm 1 (SafeNav-CHull) did with the default command.")
+      .value("KEEP", ChullAction::Keep,
+             "the default command's prediction lies in hull k or k+1: kept (extended paper's line 13; conference "
+             "line 10)")
+      .value("CORRECTIVE", ChullAction::Corrective,
+             "a corrective control back to the path (extended paper's line 17; conference line 13)")
       .value("STEP_BACK", ChullAction::StepBack, "outside hulls k-1, k and k+1: step back toward the path");
   py::class_<ChullDecision>(m, "ChullDecision")
       .def_readonly("control", &ChullDecision::control)

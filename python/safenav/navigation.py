@@ -11,15 +11,15 @@ view, plus IMU speed and heading) and updates the EKF or PF.  A trial ends at
 the destination or with an explicit outcome: ``collision``,
 ``left_corridor``, ``step_limit``, ``lost_localization`` or ``no_path``.
 
-Metrics (SafeNav eqs. 20-23) compare the *estimated* trajectory with the safe
+Metrics [SafeNav-ext eqs. 20–23] compare the *estimated* trajectory with the safe
 path it was told to follow, the paper's "ground truth trajectory".  That path
-has no time stamps, so eq. 21's point-wise pairing Ŷ(t)-Y(t) is undefined;
+has no time stamps, so ext eq. 21's point-wise pairing Ŷ(t)-Y(t) is undefined;
 we pair each estimate with its nearest point of the safe path (``path_ade`` =
 mean cross-track distance; our reading).  Pairing by equal arc-length
 fractions was tried and rejected: a 1 % longer trajectory then shows a metre
 of "error" mid-way that is only a phase shift.  ``goal_fde`` is the distance
 of the final estimate to the destination, % error the path-length error
-(eq. 23).  ``truth_ade``/``truth_fde`` compare the estimate with the true
+(ext eq. 23).  ``truth_ade``/``truth_fde`` compare the estimate with the true
 vehicle instead (localization error).  Each name says what it compares
 against; :func:`safenav.metrics.ade` takes its reference as an argument.
 
@@ -89,7 +89,7 @@ def _choice(kind: str, value: str, table: dict):
 
 
 def plan_safe_path(scenario, path_type: str, *, seed: int | None = None, iterations: int | None = None):
-    """Plan the safe path of a path type with RAw-RRT* (Algorithm 3): from the
+    """Plan the safe path of a path type with RAw-RRT* [SafeNav-ext Alg. 3]: from the
     start cluster's centroid to the destination's, around the obstacles (kept
     ``navigation.clearance`` away), with the ground-truth polyline through the
     clusters as the central path of the risk term.  Returns the

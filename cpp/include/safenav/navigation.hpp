@@ -66,7 +66,7 @@ struct SensorSettings {
   Landmarks landmarks;                 ///< K×2 landmark positions (map)
   double max_range = 30.0;             ///< landmark detection range [m]
   double field_of_view = 85.0 * kPi / 180.0;  ///< full horizontal FOV [rad], centred on the heading; ≥ 2π = all round
-  int min_landmarks = 3;               ///< trilateration needs ≥ 3 (SafeNav V-A: clusters of ≥ 3)
+  int min_landmarks = 3;               ///< trilateration needs ≥ 3 ([SafeNav-ext §V-A3(ii)]: clusters of ≥ 3)
   int position_every = 1;              ///< a fix every n steps
   bool imu = true;                     ///< IMU speed and heading every step
   double imu_speed_std = 0.05;         ///< [m/s]
@@ -95,7 +95,7 @@ struct NavigationSettings {
   SegmentOptions segments;         ///< segments, hulls and sub-segment centroids (Algorithms 1–2)
   double lookahead = 5.0;          ///< Algorithm 1's corrective control aims this far ahead on the path [m]
   double step_back_speed = 0.5;    ///< Algorithm 1's step back: speed toward the path [m/s]
-  // Obstacles ahead (Algorithm 4, lines 7–9).
+  // Obstacles ahead [SafeNav-ext Alg. 4 ll. 7–9] (= [SafeNav-conf Alg. 3 ll. 5–7]).
   bool replan = true;
   double sensing_range = 10.0;     ///< obstacles within this arc length ahead on the path are detected [m]
   int obstacle_check_every = 5;    ///< steps between obstacle checks
@@ -194,8 +194,9 @@ Control centroid_control(const PathSegments& segments, const State& estimate, do
 
 /// What [SafeNav Alg. 1] did with the default command.
 enum class ChullAction {
-  Keep,        ///< the default command's prediction lies in hull k or k+1: kept (line 13)
-  Corrective,  ///< a corrective control back to the path (line 17)
+  /// the default command's prediction lies in hull k or k+1: kept ([SafeNav-ext Alg. 1 l. 13], conf l. 10)
+  Keep,
+  Corrective,  ///< a corrective control back to the path ([SafeNav-ext Alg. 1 l. 17], conf l. 13)
   StepBack,    ///< the estimate is outside hulls k−1, k and k+1: step back
 };
 

@@ -71,8 +71,9 @@ DEPARTURES = (
     "estimate's distance to the destination. Tables I and II's ADE and FDE are against the true trajectory "
     "(truth_ade, truth_fde).",
     "WRS follows eq. 18 as written: inside zone j, WRS = d·(d / w_j), which falls at zone borders.",
-    "Algorithm 1 line 10's 'or next_hull is not None' is read as 'inside the current or the next hull'; outside both "
-    "adjacent hulls the vehicle steps back. Algorithm 2 steers to the nearest sub-segment centroid ahead.",
+    "Line 10 of SafeNav-conf's Algorithm 1 (line 13 of SafeNav-ext's), 'or next_hull is not None', is read as "
+    "'inside the current or the next hull'; outside both adjacent hulls the vehicle steps back. Algorithm 2 steers "
+    "to the nearest sub-segment centroid ahead.",
     "The heading command is atan2(Δy, Δx) minus the heading, wrapped (the paper prints arctan(Δx/Δy)).",
     "The real-imitated world is generated from the scenario's seed to the paper's description (200×200 m, 25 "
     "obstacles, 25 hazards, landmark clusters); it is not the paper's world, which was not published.",

@@ -369,7 +369,7 @@ def run_navigation(opts: ExperimentOptions, cache: dict) -> ExperimentResult:
     res.files += write_table(summary, folder / "summary", parquet=False)
     pe = percent_error_table(summary)
     nt = navigation_table(summary)
-    _write_summary(res, folder, "table3", f"Table III: % path-length error (eq. 23), LanBLoc-BMM(EKF), "
+    _write_summary(res, folder, "table3", f"Table III: % path-length error (SafeNav-ext eq. 23), LanBLoc-BMM(EKF), "
                    f"{opts.trials} trials per path type", pe)
     _write_summary(res, folder, "table4", "Table IV: ADE (estimate to the safe path) / FDE (final estimate to "
                    "the destination) [m], AWRS and median time per trial, "
@@ -378,8 +378,8 @@ def run_navigation(opts: ExperimentOptions, cache: dict) -> ExperimentResult:
         res.figures += navigation_figures(opts.scenario, safe, sweep, folder)
     res.claims += navigation_claims(raw)
     res.notes.append("ADE (path_ade) is the mean distance of the estimate to the safe path (cross-track; our reading "
-                     "of eq. 21, whose point-wise pairing is undefined for an untimed path), FDE (goal_fde) the final "
-                     "estimate's distance to the destination. " + _outcomes(raw))
+                     "of SafeNav-ext eq. 21, whose point-wise pairing is undefined for an untimed path), FDE "
+                     "(goal_fde) the final estimate's distance to the destination. " + _outcomes(raw))
     if opts.camera_trials:
         _camera_variant(opts, safe, folder, res, cache, methods=("chull", "centroid"), filters=("ekf",),
                         key=["method"], label="Table IV")

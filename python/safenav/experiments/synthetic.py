@@ -1,5 +1,5 @@
-"""The SafeNav paper's synthetic data set experiment (Table I of the
-conference version, Table II of the extended one): every position source ×
+"""The SafeNav paper's synthetic data set experiment, [SafeNav-conf Table I]
+(= [SafeNav-ext Table II]): every position source ×
 EKF/PF on synthetic trajectories, run by :func:`safenav.runner.run_trials`
 under its seed rule (stream 0; in a trial, sub-seed 0 draws the data, 1
 the prior, 2 the filter)."""
@@ -119,7 +119,7 @@ def synthetic_experiment(trials: int = 100, *, sources=("lanbloc",), filters=("e
                          zones: RiskZones | None = None, workers: int | None = 1, scheduler=None,
                          chunk: int = 25, progress: bool = False) -> SyntheticResult:
     """Monte Carlo over ``trials`` synthetic trajectories per position source
-    (the paper's Table I grid: sources × filters).
+    ([SafeNav-conf Table I]'s grid: sources × filters).
 
     Trial i has the same truth, commands and white noise for every source
     (common random numbers); the sources differ in their error profile.  The
@@ -158,7 +158,7 @@ def run_synthetic(trials: int = 100, *, filters=("ekf", "pf"), seed: int = 0, n_
 
 
 def summarize_synthetic(raw: pd.DataFrame) -> pd.DataFrame:
-    """Mean per (source, filter), with the paper's Table I numbers beside ours."""
+    """Mean per (source, filter), with [SafeNav-conf Table I]'s numbers beside ours."""
     if raw.empty:
         raise ValueError("summarize_synthetic: the raw table has no rows")
     agg = raw.groupby(["source", "filter"], sort=False).agg(
