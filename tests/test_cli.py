@@ -103,7 +103,7 @@ def test_quiet_normal_and_verbose_output(tmp_path, capsys):
     normal = capsys.readouterr()
     assert cli.main([*argv, "--out", str(tmp_path / "v"), "--verbose"]) == 0
     verbose = capsys.readouterr()
-    assert quiet.err == "" and "paper_ade" in quiet.out          # results only
+    assert quiet.err == "" and "paper_truth_ade" in quiet.out          # results only
     assert len({len(c.out.splitlines()) for c in (quiet, normal, verbose)}) == 1     # the same table
     assert "wrote 6 files and manifest.json" in normal.err and "synthetic_trials.csv" not in normal.err
     assert "synthetic_trials.csv" in verbose.err

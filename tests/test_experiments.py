@@ -77,14 +77,14 @@ def test_run_synthetic_summary_is_recomputed_from_the_raw_table():
     summary = summarize_synthetic(raw).set_index("filter")
     for f in ("ekf", "pf"):
         rows = raw[raw["filter"] == f]
-        assert summary.loc[f, "ade"] == pytest.approx(rows["ade"].mean())
+        assert summary.loc[f, "truth_ade"] == pytest.approx(rows["truth_ade"].mean())
         assert summary.loc[f, "awrs"] == pytest.approx(rows["awrs"].mean())
         assert summary.loc[f, "path_err_pct"] == pytest.approx(rows["path_length_error_percent"].mean())
-        assert summary.loc[f, "paper_ade"] == PAPER_SYNTHETIC[f]["ade"]
+        assert summary.loc[f, "paper_truth_ade"] == PAPER_SYNTHETIC[f]["truth_ade"]
     # each row's metrics are those of the trial it names
     data, results = synthetic_trial(2, seed=7, n_particles=300)
     row = raw[(raw.trial == 2) & (raw["filter"] == "ekf")].iloc[0]
-    assert row.ade == pytest.approx(safenav.metrics.ade(results["ekf"].states[:, :2], data.states[:, :2]))
+    assert row.truth_ade == pytest.approx(safenav.metrics.ade(results["ekf"].states[:, :2], data.states[:, :2]))
 
 
 def test_run_synthetic_is_reproducible_and_independent_of_trial_count():
@@ -96,7 +96,7 @@ def test_run_synthetic_is_reproducible_and_independent_of_trial_count():
 def test_synthetic_command_prints_the_table_and_writes_files(tmp_path, capsys):
     assert cli.main(["synthetic", "--trials", "3", "--particles", "200", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
-    assert "paper_ade" in out and "ekf" in out and "pf" in out
+    assert "paper_truth_ade" in out and "ekf" in out and "pf" in out
     for name in ("synthetic_trials.csv", "synthetic_trials_timings.csv", "synthetic_summary.csv",
                  "synthetic_trial.png", "synthetic_trial.svg", "manifest.json"):
         assert (tmp_path / name).stat().st_size > 0
@@ -128,5 +128,5 @@ def test_synthetic_trials_follow_the_one_seed_rule():
     np.testing.assert_array_equal(res["ekf"].states[0], x0)
     # the same trial inside a Monte Carlo run, whatever the chunking
     raw = run_synthetic(3, filters=("ekf",), seed=7, config=cfg)
-    assert raw.loc[raw.trial == 2, "ade"].item() == safenav.evaluate(res["ekf"].states[:, :2],
-                                                                     data.states[:, :2]).ade
+    assert raw.loc[raw.trial == 2, "truth_ade"].item() == safenav.evaluate(res["ekf"].states[:, :2],
+                                                                           data.states[:, :2]).ade

@@ -160,7 +160,7 @@ def test_noise_free_trials_arrive_inside_the_corridor(method, path):
     assert trial.success
     assert trial.metrics["max_deviation"] < ZONES.half_width
     assert np.linalg.norm(trial.estimate[-1, :2] - path[-1]) <= 1.0
-    assert trial.metrics["loc_ade"] < 1e-3
+    assert trial.metrics["truth_ade"] < 1e-3
     assert trial.replans == 0 and trial.dropouts < 0.1 * trial.steps
 
 
@@ -169,12 +169,13 @@ def test_trial_metrics_match_the_metric_functions(method):
     trial = build(BEND, method=method).run(seed=5)
     assert trial.success, trial.reason
     est, truth, m = trial.estimate[:, :2], trial.truth[:, :2], trial.metrics
-    assert m["ade"] == pytest.approx(metrics.distance_to_path(est, BEND).mean(), rel=1e-9)     # eq. 21 (our pairing)
-    assert m["fde"] == pytest.approx(np.linalg.norm(est[-1] - BEND[-1]), rel=1e-9)             # eq. 22
+    assert m["path_ade"] == pytest.approx(metrics.distance_to_path(est, BEND).mean(), rel=1e-9)  # eq. 21 (our pairing)
+    assert m["goal_fde"] == pytest.approx(np.linalg.norm(est[-1] - BEND[-1]), rel=1e-9)          # eq. 22
     assert m["path_error_percent"] == pytest.approx(metrics.path_length_error_percent(est, BEND), rel=1e-9)
     assert m["awrs"] == pytest.approx(metrics.awrs(est, BEND, ZONES), rel=1e-9)                # eq. 20
     assert m["awrs_true"] == pytest.approx(metrics.awrs(truth, BEND, ZONES), rel=1e-9)
-    assert m["loc_ade"] == pytest.approx(np.linalg.norm(est - truth, axis=1).mean(), rel=1e-9)
+    assert m["truth_ade"] == pytest.approx(np.linalg.norm(est - truth, axis=1).mean(), rel=1e-9)
+    assert m["truth_fde"] == pytest.approx(np.linalg.norm(est[-1] - truth[-1]), rel=1e-9)
     assert m["max_deviation"] == pytest.approx(metrics.distance_to_path(truth, BEND).max(), rel=1e-9)
     # Bookkeeping: one row per step, fixes where LanBLoc measured.
     n = trial.steps + 1
@@ -190,14 +191,14 @@ def test_same_seed_same_trial_and_run_many_equals_run():
     c = nav.run(seed=12)
     assert not np.array_equal(a.truth, c.truth)
     many = nav.run_many([11, 12])
-    assert many["ade"][0] == a.metrics["ade"] and many["ade"][1] == c.metrics["ade"]
+    assert many["path_ade"][0] == a.metrics["path_ade"] and many["path_ade"][1] == c.metrics["path_ade"]
     assert list(many["steps"]) == [a.steps, c.steps]
 
 
 def test_particle_filter_in_the_loop():
     trial = build(BEND, method="centroid", filter="pf", n_particles=300).run(seed=2)
     assert trial.success, trial.reason
-    assert trial.metrics["loc_ade"] < 0.2
+    assert trial.metrics["truth_ade"] < 0.2
 
 
 def test_dropouts_without_landmarks_predict_and_grow_the_covariance():
@@ -330,7 +331,7 @@ def test_sweep_is_identical_across_workers_and_chunks(small_sweep):
     nav = nv.make_navigator(sweep.scenario, paths["P3"], method="centroid")
     row = one[one.method == "centroid"].iloc[3]
     alone = nav.run(int(row["seed"]))
-    assert alone.metrics["ade"] == row["ade"] and alone.steps == row["steps"]
+    assert alone.metrics["path_ade"] == row["path_ade"] and alone.steps == row["steps"]
 
 
 def test_summary_is_computed_from_the_raw_table(small_sweep, tmp_path):
@@ -379,7 +380,7 @@ def test_demo_command_writes_tables_and_figures(tmp_path, capsys):
     table = pd.read_csv(tmp_path / "table_navigation_ekf_lanbloc.csv")
     chull_p2 = table[(table.Approach == "SafeNav-CHull") & (table.Path == "P2")].iloc[0]
     ok = raw[(raw.method == "chull") & (raw.path_type == "P2") & raw.success]
-    assert chull_p2["ADE"] == pytest.approx(ok.ade.mean())
+    assert chull_p2["ADE"] == pytest.approx(ok.path_ade.mean())
     assert chull_p2["paper ADE"] == 2.72
 
 
@@ -412,7 +413,7 @@ def test_camera_loop_source_runs_the_vision_pipeline_in_the_sweep(small_sweep):
     # One rendered frame every 40 steps: each gave a fix or a dropout.
     assert row["position_fixes"] + row["dropouts"] == row["steps"] // 40
     assert row["position_fixes"] > 0
-    assert row["loc_ade"] < 2.0
+    assert row["truth_ade"] < 2.0
 
 
 def _source_residual_stats(residuals, profile):

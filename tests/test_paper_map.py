@@ -112,3 +112,54 @@ def test_valid_citations_pass(good):
 ])
 def test_ambiguous_or_missing_citations_fail(bad):
     assert citation_errors(bad), bad
+
+
+# Files whose citations follow the convention without brackets too (issue 13 fixed them): SafeNav items
+# that the two versions number differently must name the version here as well.
+UNBRACKETED_CHECKED = ("README.md", "docs/*.md", "cpp/src/navigation.cpp", "cpp/src/placement_*.cpp",
+                       "cpp/bindings/navigation.cpp", "cpp/include/safenav/navigation.hpp",
+                       "python/safenav/navigation.py", "python/safenav/datasets.py", "python/safenav/cli.py",
+                       "python/safenav/planning.py", "python/safenav/runner.py", "python/safenav/placement/*.py",
+                       "python/safenav/experiments/*.py", "python/safenav/vision/*.py")
+# The old, ambiguous forms (docs/paper_map.md, appendix), each with the qualifiers that make it unambiguous.
+OLD_FORMS = {
+    "eqs. 20-23 without a version": re.compile(r"(?<!ext )(?<!SafeNav-ext )\beqs?\. 2[0-3]\b(?! \(extended)"),
+    "a §V-A subsection without a version":
+        re.compile(r"(?<!SafeNav-ext )(?<!SafeNav-conf )(?<!-ext §)(?:\bsection |\bSafeNav |§)V-A\b"),
+    "an algorithm line without a version": re.compile(r"\(lines? \d+(?:–\d+)?\)|Algorithm \d, lines? \d"),
+    "Algorithm 3 or 4 without a version":
+        re.compile(r"(?<!extended paper's )(?<!conference's )\bAlgorithms? (?:[0-9, and]+ )?[34]\b"
+                   r"(?! of the (?:extended|conference))"),
+}
+
+
+def old_citation_forms(text: str) -> list[str]:
+    """The old unbracketed forms in ``text`` (whitespace, line breaks included, read as one space)."""
+    flat = re.sub(r"\s+", " ", text)
+    return [f"{what}: …{flat[max(m.start() - 40, 0):m.end() + 20]}…"
+            for what, rx in OLD_FORMS.items() for m in rx.finditer(flat)]
+
+
+def test_fixed_files_have_no_old_unbracketed_citations():
+    paths = [p for g in UNBRACKETED_CHECKED for p in sorted(ROOT.glob(g)) if p.name != "paper_map.md"]
+    assert len(paths) >= 20, [str(p) for p in paths]
+    errors = [f"{p.relative_to(ROOT)}: {e}" for p in paths for e in old_citation_forms(p.read_text(encoding="utf-8"))]
+    assert not errors, "\n".join(errors)
+
+
+@pytest.mark.parametrize("old", [
+    "ADE (eq. 21)", "SafeNav eqs. 20-23", "(SafeNav V-A: clusters of ≥ 3)", "the world (section V-A)",
+    "kept (line 13)", "// Obstacles ahead (Algorithm 4, lines 7–9).", "Algorithm 4, line 8: whether",
+    "RAw-RRT* (Algorithm 3)", "Runs SafeNav trials (Algorithms 1, 2 and 4)", "# Algorithm 4\n(replanning)",
+])
+def test_old_unbracketed_forms_are_caught(old):
+    assert old_citation_forms(old), old
+
+
+@pytest.mark.parametrize("ok", [
+    "[SafeNav-ext eqs. 20–23]", "ext eq. 23", "eq. 21 (extended paper)", "SafeNav-ext §V-A3(i)",
+    "([SafeNav-ext Alg. 1 l. 17], conf l. 13)", "(line 17; conference 13)", "(Algorithm 4 of the extended paper)",
+    "Algorithm 3 of the conference version", "the extended paper's Algorithm 4", "SafeNav eqs. 15–19",
+])
+def test_qualified_forms_pass(ok):
+    assert old_citation_forms(ok) == [], ok

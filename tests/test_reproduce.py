@@ -65,8 +65,8 @@ def test_table1_has_the_papers_layout_and_is_the_mean_of_the_raw_table(run_all):
     for (src, filt), row in zip([(s, f) for s in ex.PAPER_SOURCES for f in ("ekf", "pf")], t1.itertuples()):
         g = raw[(raw["source"] == src) & (raw["filter"] == filt)]
         assert len(g) == TRIALS
-        assert row.ADE == pytest.approx(g["ade"].mean(), rel=1e-12)
-        assert row.FDE == pytest.approx(g["fde"].mean(), rel=1e-12)
+        assert row.ADE == pytest.approx(g["truth_ade"].mean(), rel=1e-12)
+        assert row.FDE == pytest.approx(g["truth_fde"].mean(), rel=1e-12)
         assert row.AWRS == pytest.approx(g["awrs"].mean(), rel=1e-12)
         assert getattr(row, "_10") == pytest.approx(g["ms_per_trial"].median(), rel=1e-12)
         assert getattr(row, "_6") == ex.PAPER_TABLE1[(src, filt)][0]
@@ -79,8 +79,8 @@ def test_table2_is_the_path_average_of_per_path_localization_errors(run_all):
     row = t2[(t2["Algorithm"] == "LanBLoc-BMM") & (t2["Filter"] == "PF")].iloc[0]
     ok = raw[(raw["source"] == "lanbloc") & (raw["filter"] == "pf") & raw["success"]]
     per_path = ok.groupby("path_type")
-    assert row["ADE"] == pytest.approx(per_path["loc_ade"].mean().mean(), rel=1e-12)
-    assert row["FDE"] == pytest.approx(per_path["loc_fde"].mean().mean(), rel=1e-12)
+    assert row["ADE"] == pytest.approx(per_path["truth_ade"].mean().mean(), rel=1e-12)
+    assert row["FDE"] == pytest.approx(per_path["truth_fde"].mean().mean(), rel=1e-12)
     assert row["AWRS"] == pytest.approx(per_path["awrs"].mean().mean(), rel=1e-12)
     assert row["paper ms"] == ex.PAPER_TABLE2[("lanbloc", "pf")][3]
 
@@ -95,7 +95,7 @@ def test_placed_landmarks_give_lanbloc_a_fix_at_almost_every_step(run_all):
     t = pd.read_csv(run_all / "real-imitated" / "table2_placed.csv")
     row = t[(t["Filter"] == "EKF") & t["Landmarks"].str.startswith("clusters + placed")].iloc[0]
     ok = placed[(placed["filter"] == "ekf") & placed["success"]]
-    assert row["ADE"] == pytest.approx(ok.groupby("path_type")["loc_ade"].mean().mean(), rel=1e-12)
+    assert row["ADE"] == pytest.approx(ok.groupby("path_type")["truth_ade"].mean().mean(), rel=1e-12)
     assert row["fix share"] == pytest.approx(share(placed[placed["filter"] == "ekf"]), rel=1e-12)
 
 
@@ -115,7 +115,7 @@ def test_tables3_and_4_are_recomputed_from_the_raw_table(run_all):
         assert r3["Average"] == pytest.approx(per_path.mean(), rel=1e-12)
         r4 = t4[(t4["Approach"] == label) & (t4["Path"] == "P2")].iloc[0]
         g = raw[(raw["method"] == method) & (raw["path_type"] == "P2")]
-        assert r4["ADE"] == pytest.approx(g[g["success"]]["ade"].mean(), rel=1e-12)
+        assert r4["ADE"] == pytest.approx(g[g["success"]]["path_ade"].mean(), rel=1e-12)
         assert r4["time ms"] == pytest.approx(g["time_ms"].median(), rel=1e-12)
         assert r4["paper ADE"] == ex.PAPER_NAVIGATION[method]["P2"][0]
 
@@ -127,7 +127,7 @@ def test_camera_variant_runs_the_vision_pipeline_on_the_same_trials(run_all):
     assert list(meas["seed"]) == list(cam["seed"])          # paired: the same trials
     assert (cam["position_fixes"] > 0).all()
     # the camera's fixes are not the measurement-level ones
-    assert not np.allclose(meas["loc_ade"].to_numpy(), cam["loc_ade"].to_numpy())
+    assert not np.allclose(meas["truth_ade"].to_numpy(), cam["truth_ade"].to_numpy())
 
 
 def test_report_embeds_every_figure_and_lists_claims_departures_params_versions(run_all):
@@ -166,8 +166,8 @@ def _nav_raw(means: dict, n: int, sd: float = 0.1, seed: int = 0) -> pd.DataFram
     return pd.DataFrame(rows)
 
 
-GOOD = {"chull": {"path_error_percent": {"P1": 5.0, "P2": 7.0, "P3": 6.0}, "ade": 2.0, "fde": 3.0, "awrs": 1.3},
-        "centroid": {"path_error_percent": {"P1": 4.0, "P2": 6.0, "P3": 5.0}, "ade": 1.0, "fde": 0.9, "awrs": 1.0}}
+GOOD = {"chull": {"path_error_percent": {"P1": 5.0, "P2": 7.0, "P3": 6.0}, "path_ade": 2.0, "goal_fde": 3.0, "awrs": 1.3},
+        "centroid": {"path_error_percent": {"P1": 4.0, "P2": 6.0, "P3": 5.0}, "path_ade": 1.0, "goal_fde": 0.9, "awrs": 1.0}}
 
 
 def _verdicts(claims):
@@ -187,7 +187,7 @@ def test_navigation_claims_are_judged_by_their_confidence_interval():
     assert [c.verdict for c in bad if c.interval is not None] == ["does not hold"] * 4
     assert [c.holds for c in bad if c.interval is not None] == [False] * 4
     # 3 % lower with noisy trials: the interval spans the 5 % threshold
-    close = {m: {**v, "ade": a} for (m, v), a in zip(GOOD.items(), (1.03, 1.0))}
+    close = {m: {**v, "path_ade": a} for (m, v), a in zip(GOOD.items(), (1.03, 1.0))}
     c = [c for c in ex.navigation_claims(_nav_raw(close, 40, sd=0.3)) if "ADE is 1.67" in c.text][0]
     assert c.verdict == "undecided" and c.holds is None and c.interval[0] < 1.05 < c.interval[1]
     # below MIN_TRIALS nothing is judged, whatever the numbers
@@ -197,8 +197,8 @@ def test_navigation_claims_are_judged_by_their_confidence_interval():
     raw = _nav_raw(GOOD, 40)
     ok = raw[raw["success"]]
     ratio = [c for c in good if "ADE is 1.67" in c.text][0]
-    expect = (ok[ok.method == "chull"].groupby("path_type")["ade"].mean().mean()
-              / ok[ok.method == "centroid"].groupby("path_type")["ade"].mean().mean())
+    expect = (ok[ok.method == "chull"].groupby("path_type")["path_ade"].mean().mean()
+              / ok[ok.method == "centroid"].groupby("path_type")["path_ade"].mean().mean())
     assert f"ours: {expect:.2f}× lower" in ratio.evidence
     # deterministic: the same table gives the same intervals
     assert [c.interval for c in ex.navigation_claims(raw)] == [c.interval for c in good]
@@ -208,7 +208,7 @@ def _loc_raw(means: dict, n: int = 40, sd: float = 0.005) -> pd.DataFrame:
     """A Table I raw table: means[(source, filter)] = (ADE, FDE, AWRS, ms per trial)."""
     rng = np.random.default_rng(1)
     return pd.DataFrame([{"source": s, "filter": f, "trial": t,
-                          **{k: v + sd * rng.standard_normal() for k, v in zip(("ade", "fde", "awrs"), m)},
+                          **{k: v + sd * rng.standard_normal() for k, v in zip(("truth_ade", "truth_fde", "awrs"), m)},
                           "ms_per_trial": m[3]}
                          for (s, f), m in means.items() for t in range(n)])
 
@@ -216,7 +216,7 @@ def _loc_raw(means: dict, n: int = 40, sd: float = 0.005) -> pd.DataFrame:
 def test_localization_claims_are_judged_by_their_confidence_interval():
     means = {("deeploc-gps", "ekf"): (0.5, 0.5, 0.3, 1.0), ("deeploc-gps", "pf"): (0.9, 0.9, 0.9, 50.0),
              ("lanbloc", "ekf"): (0.4, 0.6, 0.2, 0.9), ("lanbloc", "pf"): (0.8, 0.8, 0.8, 40.0)}
-    cols = ("ade", "fde", "awrs", "ms_per_trial")
+    cols = ("truth_ade", "truth_fde", "awrs", "ms_per_trial")
     claims = {c.text: c for c in ex.localization_claims(_loc_raw(means), "Table I", paper=ex.PAPER_TABLE1,
                                                                  columns=cols)}
     assert claims["Table I: LanBLoc-BMM(EKF) has the lowest ADE of all rows"].verdict == "holds"
@@ -267,7 +267,7 @@ def test_runs_are_bit_for_bit_reproducible_locally_and_on_dask(tmp_path):
         assert written[1] == written[2] == written["dask"]
     # different seeds give different numbers (the comparison above can fail)
     other = ex.synthetic_experiment(4, sources=("lanbloc",), seed=6, n_particles=100).raw
-    assert not np.array_equal(other["ade"].to_numpy(), syn[1][syn[1]["source"] == "lanbloc"]["ade"].to_numpy())
+    assert not np.array_equal(other["truth_ade"].to_numpy(), syn[1][syn[1]["source"] == "lanbloc"]["truth_ade"].to_numpy())
 
 
 def test_a_subset_of_path_types_runs_the_same_trials_as_a_full_run():

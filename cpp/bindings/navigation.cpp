@@ -10,13 +10,13 @@ namespace {
 
 py::dict metrics_dict(const TrialMetrics& m) {
   py::dict d;
-  d["ade"] = m.ade;
-  d["fde"] = m.fde;
+  d["path_ade"] = m.path_ade;
+  d["goal_fde"] = m.goal_fde;
   d["path_error_percent"] = m.path_error_percent;
   d["awrs"] = m.awrs;
   d["awrs_true"] = m.awrs_true;
-  d["loc_ade"] = m.loc_ade;
-  d["loc_fde"] = m.loc_fde;
+  d["truth_ade"] = m.truth_ade;
+  d["truth_fde"] = m.truth_fde;
   d["max_deviation"] = m.max_deviation;
   return d;
 }
@@ -103,7 +103,9 @@ void pybind_navigation(py::module_& m) {
       .def_readonly("position_std", &TrialResult::position_std)
       .def_readonly("followed_path", &TrialResult::followed_path);
 
-  py::class_<Navigator>(m, "Navigator", "Runs SafeNav trials (Algorithms 1, 2 and 4) on one problem.")
+  py::class_<Navigator>(m, "Navigator",
+                        "Runs SafeNav trials (SafeNav Algorithms 1 and 2; the extended paper's Algorithm 4) on one "
+                        "problem.")
       .def(py::init<NavigationProblem, NavigationSettings, SensorSettings>(), py::arg("problem"),
            py::arg("settings"), py::arg("sensors"))
       .def_property_readonly("problem", &Navigator::problem)
@@ -145,8 +147,8 @@ void pybind_navigation(py::module_& m) {
             const auto n = static_cast<py::ssize_t>(rs.size());
             py::array_t<int> outcome(n), steps(n), replans(n), fixes(n), dropouts(n), rejected(n), cdef(n), ccor(n),
                 cback(n);
-            py::array_t<double> ade(n), fde(n), perr(n), awrs(n), awrs_true(n), loc_ade(n), loc_fde(n), maxdev(n),
-                wall(n);
+            py::array_t<double> path_ade(n), goal_fde(n), perr(n), awrs(n), awrs_true(n), truth_ade(n), truth_fde(n),
+                maxdev(n), wall(n);
             for (py::ssize_t i = 0; i < n; ++i) {
               const TrialResult& r = rs[static_cast<std::size_t>(i)];
               outcome.mutable_at(i) = static_cast<int>(r.outcome);
@@ -158,13 +160,13 @@ void pybind_navigation(py::module_& m) {
               cdef.mutable_at(i) = r.chull_default;
               ccor.mutable_at(i) = r.chull_corrective;
               cback.mutable_at(i) = r.chull_step_back;
-              ade.mutable_at(i) = r.metrics.ade;
-              fde.mutable_at(i) = r.metrics.fde;
+              path_ade.mutable_at(i) = r.metrics.path_ade;
+              goal_fde.mutable_at(i) = r.metrics.goal_fde;
               perr.mutable_at(i) = r.metrics.path_error_percent;
               awrs.mutable_at(i) = r.metrics.awrs;
               awrs_true.mutable_at(i) = r.metrics.awrs_true;
-              loc_ade.mutable_at(i) = r.metrics.loc_ade;
-              loc_fde.mutable_at(i) = r.metrics.loc_fde;
+              truth_ade.mutable_at(i) = r.metrics.truth_ade;
+              truth_fde.mutable_at(i) = r.metrics.truth_fde;
               maxdev.mutable_at(i) = r.metrics.max_deviation;
               wall.mutable_at(i) = r.wall_time;
             }
@@ -181,13 +183,13 @@ void pybind_navigation(py::module_& m) {
             d["chull_default"] = cdef;
             d["chull_corrective"] = ccor;
             d["chull_step_back"] = cback;
-            d["ade"] = ade;
-            d["fde"] = fde;
+            d["path_ade"] = path_ade;
+            d["goal_fde"] = goal_fde;
             d["path_error_percent"] = perr;
             d["awrs"] = awrs;
             d["awrs_true"] = awrs_true;
-            d["loc_ade"] = loc_ade;
-            d["loc_fde"] = loc_fde;
+            d["truth_ade"] = truth_ade;
+            d["truth_fde"] = truth_fde;
             d["max_deviation"] = maxdev;
             d["time_s"] = wall;
             return d;
@@ -196,9 +198,12 @@ void pybind_navigation(py::module_& m) {
           "Trials for each seed (measurement-level source), metrics only, as a dict of arrays.  Releases the GIL.");
 
   m.def("centroid_control", &centroid_control, py::arg("segments"), py::arg("estimate"), py::arg("cruise_speed"));
-  py::enum_<ChullAction>(m, "ChullAction", "What Algorithm 1 did with the default command.")
-      .value("KEEP", ChullAction::Keep, "the default command's prediction lies in hull k or k+1: kept (line 13)")
-      .value("CORRECTIVE", ChullAction::Corrective, "a corrective control back to the path (line 17)")
+  py::enum_<ChullAction>(m, "ChullAction", "What SafeNav Algorithm 1 (SafeNav-CHull) did with the default command.")
+      .value("KEEP", ChullAction::Keep,
+             "the default command's prediction lies in hull k or k+1: kept (extended paper's line 13; conference "
+             "line 10)")
+      .value("CORRECTIVE", ChullAction::Corrective,
+             "a corrective control back to the path (extended paper's line 17; conference line 13)")
       .value("STEP_BACK", ChullAction::StepBack, "outside hulls k-1, k and k+1: step back toward the path");
   py::class_<ChullDecision>(m, "ChullDecision")
       .def_readonly("control", &ChullDecision::control)

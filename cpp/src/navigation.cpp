@@ -1,5 +1,6 @@
-// SafeNav navigation: Algorithms 1 (CHull), 2 (Centroid) and 4 (the safe path
-// navigation loop with RAw-RRT* replanning).  See safenav/navigation.hpp.
+// SafeNav navigation: [SafeNav Algs. 1–2] (CHull, Centroid) and [SafeNav-ext Alg. 4]
+// (= [SafeNav-conf Alg. 3]), the safe path navigation loop with RAw-RRT*
+// replanning.  See safenav/navigation.hpp.
 #include "safenav/navigation.hpp"
 
 #include <algorithm>
@@ -179,7 +180,7 @@ void NavigationSettings::validate() const {
 }
 
 // ---------------------------------------------------------------------------
-// Algorithms 1 and 2
+// [SafeNav Algs. 1–2]
 
 Control centroid_control(const PathSegments& segments, const State& estimate, double cruise_speed) {
   check_finite_state(estimate, "estimate");
@@ -225,13 +226,13 @@ ChullDecision chull_control(const PathSegments& segments, const Bmm& bmm, const 
   }
   Control u(cruise_speed, heading_to(estimate, aim));
   State pred = bmm.predict(estimate, u);
-  if (segments.in_current_or_next(k, pred.head<2>())) {  // line 13
+  if (segments.in_current_or_next(k, pred.head<2>())) {  // [SafeNav-ext Alg. 1 l. 13] (conf l. 10)
     d.control = u;
     d.action = ChullAction::Keep;
     d.predicted = pred.head<2>();
     return d;
   }
-  // Corrective control (line 17): back toward the path, 1 m ahead of the foot.
+  // Corrective control ([SafeNav-ext Alg. 1 l. 17], conf l. 13): back toward the path, 1 m ahead of the foot.
   u = Control(cruise_speed, heading_to(estimate, corridor.point_at(proj.arc_length + 1.0)));
   d.control = u;
   d.action = ChullAction::Corrective;
@@ -286,7 +287,7 @@ struct Navigator::Impl {
     max_steps = settings.max_steps > 0 ? settings.max_steps : static_cast<int>(automatic);
   }
 
-  /// Algorithm 4, line 8: whether the way ahead of a vehicle at p (arc length
+  /// [SafeNav-ext Alg. 4 l. 8] (= conf Alg. 3 l. 6): whether the way ahead of a vehicle at p (arc length
   /// s on the path) hits an obstacle — the chord from p to the path
   /// (look-ahead point) and the path up to sensing_range of arc beyond s.
   bool blocked_ahead(const Corridor& c, const Eigen::Vector2d& p, double s) const {
@@ -487,7 +488,7 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
   std::string reason = "no arrival within " + std::to_string(N) + " steps";
   int step = 0;
   while (step < N) {
-    // 1–2. Obstacles ahead (Algorithm 4, lines 7–9).
+    // 1–2. Obstacles ahead [SafeNav-ext Alg. 4 ll. 7–9].
     if (st.replan && step % st.obstacle_check_every == 0) {
       const double s = active.corridor().project(xe.head<2>()).arc_length;
       if (im.blocked_ahead(active.corridor(), xe.head<2>(), s)) {
@@ -595,17 +596,17 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
     res.position_std.conservativeResize(rows);
     res.followed_path = active.corridor().path();
   }
-  // Metrics (eqs. 20–23) against the safe path.
+  // Metrics [SafeNav-ext eqs. 20–23] against the safe path (and the truth).
   Points2 est(rows, 2);
   for (Eigen::Index i = 0; i < rows; ++i) est.row(i) = est_points[static_cast<std::size_t>(i)].transpose();
   TrialMetrics& m = res.metrics;
-  m.ade = safe.distance(est).mean();
-  m.fde = (est.bottomRows<1>().transpose() - destination).norm();
+  m.path_ade = safe.distance(est).mean();
+  m.goal_fde = (est.bottomRows<1>().transpose() - destination).norm();
   m.path_error_percent = std::abs(est_length - safe.length()) / safe.length() * 100.0;
   m.awrs = wrs_est / double(rows);
   m.awrs_true = wrs_true / double(rows);
-  m.loc_ade = loc_sum / double(rows);
-  m.loc_fde = (xe.head<2>() - truth.head<2>()).norm();
+  m.truth_ade = loc_sum / double(rows);
+  m.truth_fde = (xe.head<2>() - truth.head<2>()).norm();
   m.max_deviation = max_dev;
   res.wall_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return res;

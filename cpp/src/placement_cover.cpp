@@ -1,6 +1,6 @@
-// Landmark placement, the cover (the landmark placement paper, section II):
-// the greedy k-interval cover of one edge (Algorithm 1, optimal per edge by
-// Proposition 1), the union over the route's edges, non-coincidence of
+// Landmark placement, the cover [Placement §II]: the greedy k-interval cover
+// of one edge [Placement Alg. 1] (optimal per edge by [Placement Prop. 1]),
+// the union over the route's edges, non-coincidence of
 // bearings, and the corners.
 #include <algorithm>
 #include <cmath>

@@ -1,6 +1,6 @@
-// Landmark placement, the geometry (the landmark placement paper, section II):
-// input checks, the candidates near a route, edge frames, Lemma 1, Lemma 2
-// and Corollary 1, the turns at the route's vertices, and the tables the ILP
+// Landmark placement, the geometry [Placement §II]: input checks, the
+// candidates near a route, edge frames, [Placement Lemma 1], [Placement
+// Lemma 2] and [Placement Cor. 1], the turns at the route's vertices, and the tables the ILP
 // is built from.  Candidates are found per edge through a uniform bucket grid,
 // so a route costs O(edges · candidates near an edge), not O(edges · all
 // candidates).
@@ -41,9 +41,9 @@ struct Fov {
     const double x = local.x(), y = local.y(), ay = std::abs(y);
     if (ay > ymax || x < -R || x > length + R) return false;  // Lemma 1, condition 1 (and |x| bounds)
     const double h = std::sqrt(std::max(R2 - y * y, 0.0));
-    const double a = std::max(x - h, 0.0);                                       // eq. (1)/(3)
-    const double b = circular ? std::min(x + h, length)                          // eq. (4), typo fixed
-                              : std::min(x - ay * cot_half, length);             // eq. (2)
+    const double a = std::max(x - h, 0.0);                                       // [Placement eq. 1]/[Placement eq. 3]
+    const double b = circular ? std::min(x + h, length)                          // [Placement eq. 4], typo fixed
+                              : std::min(x - ay * cot_half, length);             // [Placement eq. 2]
     if (b < a - kEps) return false;  // empty by more than the rounding slack (α = 180°: cot(α/2) ≈ 6e-17)
     *out = {a, std::max(a, b)};
     return true;

@@ -12,7 +12,8 @@ One set of rules for every command:
   ``manifest.json`` (``safenav verify FOLDER`` checks one);
 * table numbers are the conference version's (I synthetic, II real-imitated,
   III % path-length error, IV ADE/FDE/AWRS/time); the extended version
-  numbers them one higher.
+  numbers them one higher.  Figure numbers are the extended version's
+  (``docs/paper_map.md``).
 """
 
 from __future__ import annotations
@@ -92,7 +93,7 @@ def _synthetic(args) -> int:
         raw = synthetic_experiment(args.trials, filters=args.filters, seed=args.seed, n_particles=args.particles,
                                    progress=True).raw
         table = summarize_synthetic(raw)
-        print(f"Synthetic data set (SafeNav V-A), LanBLoc-BMM, {args.trials} trials, seed {args.seed}; "
+        print(f"Synthetic data set (SafeNav-ext §V-A3(i)), LanBLoc-BMM, {args.trials} trials, seed {args.seed}; "
               f"time = median per trial; paper = SafeNav Table I ({TABLE_NUMBERING.format(ext='II')})")
         print(table.to_string(index=False, float_format=lambda v: f"{v:.4g}"))
         if args.out:
@@ -152,10 +153,11 @@ def _navigation(args, *, demo: bool) -> int:
             pe = percent_error_table(part)
             nt = navigation_table(part)
             fmt = lambda v: f"{v:.3g}"  # noqa: E731
-            print(f"\n% path-length error (eq. 23), {label}; paper = SafeNav Table III "
+            print(f"\n% path-length error (SafeNav-ext eq. 23), {label}; paper = SafeNav Table III "
                   f"({TABLE_NUMBERING.format(ext='IV')})")
             print(pe.to_string(index=False, float_format=fmt))
-            print(f"\nADE / FDE [m], AWRS, median time per trial, {label}; paper = SafeNav Table IV "
+            print(f"\nADE (estimate to the safe path) / FDE (final estimate to the destination) [m], AWRS, "
+                  f"median time per trial, {label}; paper = SafeNav Table IV "
                   f"({TABLE_NUMBERING.format(ext='V')})")
             print(nt.to_string(index=False, float_format=fmt))
             tag = f"{filt}_{source}"
@@ -300,7 +302,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(func=_plan)
 
     s = sub.add_parser("synthetic", parents=[common],
-                       help="filter the synthetic data set (SafeNav V-A, the paper's Table I) with EKF and PF")
+                       help="filter the synthetic data set (SafeNav-ext §V-A3(i); SafeNav-conf Table I = ext "
+                            "Table II) with EKF and PF")
     s.add_argument("--trials", type=_at_least(1), default=100, help="Monte Carlo trials (default 100)")
     s.add_argument("--filters", nargs="+", default=["ekf", "pf"], choices=["ekf", "pf", "eif"])
     s.add_argument("--particles", type=_at_least(1), default=1000, help="PF particles (default 1000)")
@@ -312,7 +315,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="reproduce the SafeNav paper's tables and figures, with a report.html",
                        description="Experiments: all, field (Fig. 1), synthetic (Table I, Fig. 3), real-imitated "
                                    "(Table II), navigation (Tables III-IV, Figs. 4-5); the paper's names "
-                                   "table1..table4, fig1, fig3, fig4, fig5 work too (conference numbering).")
+                                   "table1..table4, fig1, fig3, fig4, fig5 work too (tables: conference "
+                                   "numbering; figures: extended numbering).")
     s.add_argument("names", nargs="+", metavar="NAME", help="experiment name(s), or 'all'")
     s.add_argument("--trials", type=_at_least(1), default=1000,
                    help="Monte Carlo trials per cell (default 1000, as the paper)")

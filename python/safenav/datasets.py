@@ -1,4 +1,4 @@
-"""The synthetic trajectory data set of SafeNav section V-A(3)(i).
+"""The synthetic trajectory data set of [SafeNav-ext §V-A3(i)] (= [SafeNav-conf §V-A.2(i)]).
 
 The paper drives the trajectory with
 
@@ -125,7 +125,7 @@ def command_profile(cfg: SyntheticConfig) -> tuple[np.ndarray, np.ndarray, np.nd
 
 
 def synthetic_trajectory(config: SyntheticConfig | None = None, seed: int = 0) -> SyntheticTrajectory:
-    """Generate one seeded synthetic trial (SafeNav section V-A(3)(i))."""
+    """Generate one seeded synthetic trial ([SafeNav-ext §V-A3(i)])."""
     cfg = config or SyntheticConfig()
     seed = as_seed("seed", seed)
     t, speed, heading = command_profile(cfg)

@@ -11,15 +11,17 @@ view, plus IMU speed and heading) and updates the EKF or PF.  A trial ends at
 the destination or with an explicit outcome: ``collision``,
 ``left_corridor``, ``step_limit``, ``lost_localization`` or ``no_path``.
 
-Metrics (SafeNav eqs. 20-23) compare the *estimated* trajectory with the safe
+Metrics [SafeNav-ext eqs. 20–23] compare the *estimated* trajectory with the safe
 path it was told to follow, the paper's "ground truth trajectory".  That path
-has no time stamps, so eq. 21's point-wise pairing Ŷ(t)-Y(t) is undefined;
-we pair each estimate with its nearest point of the safe path (ADE = mean
-cross-track distance; our reading).  Pairing by equal arc-length fractions
-was tried and rejected: a 1 % longer trajectory then shows a metre of "error"
-mid-way that is only a phase shift.  FDE is the distance of the final
-estimate to the destination, % error the path-length error (eq. 23).  ``loc_ade``/``loc_fde`` compare
-the estimate with the true vehicle instead (localization error).
+has no time stamps, so ext eq. 21's point-wise pairing Ŷ(t)-Y(t) is undefined;
+we pair each estimate with its nearest point of the safe path (``path_ade`` =
+mean cross-track distance; our reading).  Pairing by equal arc-length
+fractions was tried and rejected: a 1 % longer trajectory then shows a metre
+of "error" mid-way that is only a phase shift.  ``goal_fde`` is the distance
+of the final estimate to the destination, % error the path-length error
+(ext eq. 23).  ``truth_ade``/``truth_fde`` compare the estimate with the true
+vehicle instead (localization error).  Each name says what it compares
+against; :func:`safenav.metrics.ade` takes its reference as an argument.
 
 Example::
 
@@ -29,7 +31,7 @@ Example::
     safe = navigation.plan_safe_path(sc, "P1")
     nav = navigation.make_navigator(sc, safe.path, method="centroid", filter="ekf")
     trial = nav.run(seed=1)
-    trial.outcome_name, trial.metrics["ade"], trial.estimate[:5]
+    trial.outcome_name, trial.metrics["path_ade"], trial.estimate[:5]
 """
 
 from __future__ import annotations
@@ -87,7 +89,7 @@ def _choice(kind: str, value: str, table: dict):
 
 
 def plan_safe_path(scenario, path_type: str, *, seed: int | None = None, iterations: int | None = None):
-    """Plan the safe path of a path type with RAw-RRT* (Algorithm 3): from the
+    """Plan the safe path of a path type with RAw-RRT* [SafeNav-ext Alg. 3]: from the
     start cluster's centroid to the destination's, around the obstacles (kept
     ``navigation.clearance`` away), with the ground-truth polyline through the
     clusters as the central path of the risk term.  Returns the

@@ -1,4 +1,4 @@
-"""RAw-RRT*: risk-aware RRT* of SafeNav (eqs. 15–19, Algorithm 3), on OMPL.
+"""RAw-RRT*: risk-aware RRT* [SafeNav eqs. 15–19, SafeNav-ext Alg. 3], on OMPL.
 
 The cost of a path is ``C_total = alpha * C_length + beta * C_risk`` (eqs. 16,
 19).  ``C_length`` is the path length (eq. 15); ``C_risk`` is the weighted
@@ -90,7 +90,7 @@ def plan(problem: PlanningProblem, settings: PlannerSettings | None = None, **kw
 
 def replan(problem: PlanningProblem, position, lookahead: float | None = None, goal=None,
            settings: PlannerSettings | None = None, **kwargs) -> PlanResult:
-    """Replan for SafeNav Algorithm 4 (line 9): from ``position`` to the point
+    """Replan for [SafeNav-ext Alg. 4 l. 9] (= [SafeNav-conf Alg. 3 l. 7]): from ``position`` to the point
     ``lookahead`` metres ahead on the central path (slid forward past any
     obstacle), or to an explicit ``goal``."""
     s = _settings(settings, kwargs)

@@ -54,7 +54,8 @@ SEED_RULE = ("trial i of stream p: SeedSequence([seed, p]).generate_state(N)[i],
              "scenario (0 for the synthetic data set); random source k inside a trial: derive_seed(trial seed, k)")
 
 #: Per-trial metric columns averaged by :func:`summarize`.
-METRICS = ("ade", "fde", "path_error_percent", "awrs", "awrs_true", "loc_ade", "loc_fde", "max_deviation")
+METRICS = ("path_ade", "goal_fde", "path_error_percent", "awrs", "awrs_true", "truth_ade", "truth_fde",
+           "max_deviation")
 
 
 @dataclass(frozen=True)

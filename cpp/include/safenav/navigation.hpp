@@ -67,7 +67,7 @@ struct SensorSettings {
   Landmarks landmarks;                 ///< K×2 landmark positions (map)
   double max_range = 30.0;             ///< landmark detection range [m]
   double field_of_view = 85.0 * kPi / 180.0;  ///< full horizontal FOV [rad], centred on the heading; ≥ 2π = all round
-  int min_landmarks = 3;               ///< trilateration needs ≥ 3 (SafeNav V-A: clusters of ≥ 3)
+  int min_landmarks = 3;               ///< trilateration needs ≥ 3 ([SafeNav-ext §V-A3(ii)]: clusters of ≥ 3)
   int position_every = 1;              ///< a fix every n steps
   bool imu = true;                     ///< IMU speed and heading every step
   double imu_speed_std = 0.05;         ///< [m/s]
@@ -96,7 +96,7 @@ struct NavigationSettings {
   SegmentOptions segments;         ///< segments, hulls and sub-segment centroids (Algorithms 1–2)
   double lookahead = 5.0;          ///< Algorithm 1's corrective control aims this far ahead on the path [m]
   double step_back_speed = 0.5;    ///< Algorithm 1's step back: speed toward the path [m/s]
-  // Obstacles ahead (Algorithm 4, lines 7–9).
+  // Obstacles ahead [SafeNav-ext Alg. 4 ll. 7–9] (= [SafeNav-conf Alg. 3 ll. 5–7]).
   bool replan = true;
   double sensing_range = 10.0;     ///< obstacles within this arc length ahead on the path are detected [m]
   int obstacle_check_every = 5;    ///< steps between obstacle checks
@@ -119,17 +119,18 @@ struct NavigationSettings {
   void validate() const;
 };
 
-/// Per-trial metrics.  ADE/FDE/% error/AWRS follow [SafeNav-ext eqs. 20–23] with
-/// the safe path as ground truth (see Navigator::run); loc_* compare the
-/// estimate with the true vehicle.
+/// Per-trial metrics [SafeNav-ext eqs. 20–23], each named by what it compares
+/// against (as evo's results name their reference): `path_*` and `goal_*` take
+/// the safe path as ground truth (see Navigator::run), `truth_*` the true
+/// vehicle.
 struct TrialMetrics {
-  double ade = 0.0;             ///< eq. 21: mean distance of the estimate to the safe path (our reading, see navigation.py)
-  double fde = 0.0;             ///< eq. 22: final estimate vs the destination
-  double path_error_percent = 0.0;  ///< eq. 23: |L_est − L_path| / L_path · 100
-  double awrs = 0.0;            ///< eq. 20: mean WRS of the estimated trajectory (eq. 18, about the safe path)
+  double path_ade = 0.0;        ///< ext eq. 21: mean distance of the estimate to the safe path (our reading)
+  double goal_fde = 0.0;        ///< ext eq. 22: final estimate vs the destination
+  double path_error_percent = 0.0;  ///< ext eq. 23: |L_est − L_path| / L_path · 100
+  double awrs = 0.0;            ///< ext eq. 20: mean WRS of the estimated trajectory (eq. 18, about the safe path)
   double awrs_true = 0.0;       ///< mean WRS of the true trajectory
-  double loc_ade = 0.0;         ///< mean ‖estimate − truth‖
-  double loc_fde = 0.0;         ///< final ‖estimate − truth‖
+  double truth_ade = 0.0;       ///< mean ‖estimate − truth‖
+  double truth_fde = 0.0;       ///< final ‖estimate − truth‖
   double max_deviation = 0.0;   ///< largest deviation of the true vehicle from the safe path [m]
 };
 
@@ -194,8 +195,9 @@ Control centroid_control(const PathSegments& segments, const State& estimate, do
 
 /// What [SafeNav Alg. 1] did with the default command.
 enum class ChullAction {
-  Keep,        ///< the default command's prediction lies in hull k or k+1: kept (line 13)
-  Corrective,  ///< a corrective control back to the path (line 17)
+  /// the default command's prediction lies in hull k or k+1: kept ([SafeNav-ext Alg. 1 l. 13], conf l. 10)
+  Keep,
+  Corrective,  ///< a corrective control back to the path ([SafeNav-ext Alg. 1 l. 17], conf l. 13)
   StepBack,    ///< the estimate is outside hulls k−1, k and k+1: step back
 };
 

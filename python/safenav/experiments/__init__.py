@@ -2,7 +2,9 @@
 with a self-contained report (``safenav experiment NAME|all``).
 
 Experiments (table numbers of the conference version; the extended version
-numbers them one higher):
+numbers them one higher.  Figure numbers are the extended version's: SafeNav-conf
+has no field or WRS figure, and its Figs. 2–3 are Figs. 4–5 here;
+``docs/paper_map.md``):
 
 ``field``          Fig. 1: the field, landmark clusters, obstacles, hazards and
                    the safe paths with their buffers.

@@ -34,7 +34,7 @@ def plot_synthetic_trial(data, estimates: dict, path: str | Path, *, title: str 
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.legend(loc="best", fontsize=8)
-    ax.set_title(title or "Synthetic trajectory (SafeNav V-A), LanBLoc-BMM")
+    ax.set_title(title or "Synthetic trajectory (SafeNav-ext V-A3(i)), LanBLoc-BMM")
     ax_err.set_xlabel("t [s]")
     ax_err.set_ylabel("position error [cm]")
     ax_err.set_yscale("log")
@@ -86,7 +86,7 @@ def _save(fig, path, dpi=120) -> Path:
 
 
 def plot_field(scenario, safe_paths: dict, path: str | Path, *, title: str | None = None) -> Path:
-    """SafeNav Fig. 1: the field with its landmark clusters (numbered at their
+    """[SafeNav-ext Fig. 1]: the field with its landmark clusters (numbered at their
     centroids), obstacles, hazards and, per path type, the safe path with its
     buffer (the risk-zone corridor).  ``safe_paths`` maps a path type name to
     its (M, 2) safe path.  Writes a PNG and an SVG; returns the PNG path."""
@@ -131,7 +131,7 @@ def plot_field(scenario, safe_paths: dict, path: str | Path, *, title: str | Non
 
 def plot_wrs_comparison(wrs_mean: dict, t, path: str | Path, *, labels: dict | None = None,
                         title: str | None = None) -> Path:
-    """SafeNav Fig. 3: weighted risk score (eq. 18) over time, the mean over
+    """[SafeNav-ext Fig. 3]: weighted risk score [SafeNav eq. 18] over time, the mean over
     the trials.  Top row: (a) every method with the EKF, (b) with the PF.
     Bottom row: per method, EKF against PF.  ``wrs_mean`` maps (source,
     filter) to a per-step mean WRS array; ``t`` is the time of each step."""
@@ -172,7 +172,7 @@ def plot_wrs_comparison(wrs_mean: dict, t, path: str | Path, *, labels: dict | N
 
 def plot_navigation(scenario, trials: dict, path: str | Path, *, title: str | None = None,
                     show_hulls: bool = True) -> Path:
-    """Figs. 4-5 of SafeNav: per path type, the field (obstacles, hazards),
+    """[SafeNav-ext Figs. 4–5] (= [SafeNav-conf Figs. 2–3]): per path type, the field (obstacles, hazards),
     the safe-path corridor with its risk zones, the segment hulls (CHull) or
     sub-segment centroids (Centroid), and the true and estimated trajectories.
 
@@ -215,7 +215,7 @@ def plot_navigation(scenario, trials: dict, path: str | Path, *, title: str | No
         ax.set_ylim(lo[1], hi[1])
         ax.set_aspect("equal")
         m = trial.metrics
-        ax.set_title(f"{name}: {trial.outcome_name}, ADE {m['ade']:.2f} m, FDE {m['fde']:.2f} m", fontsize=10)
+        ax.set_title(f"{name}: {trial.outcome_name}, ADE {m['path_ade']:.2f} m, FDE {m['goal_fde']:.2f} m", fontsize=10)
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
     axes[0][0].legend(loc="best", fontsize=7)
@@ -226,7 +226,7 @@ def plot_navigation(scenario, trials: dict, path: str | Path, *, title: str | No
 
 
 def navigation_figures(scenario, safe: dict, sweep, folder: Path) -> list:
-    """Figs. 4 (CHull) and 5 (Centroid): trial 0 of each path type, recorded,
+    """[SafeNav-ext Figs. 4–5] (CHull, Centroid): trial 0 of each path type, recorded,
     with the sweep's first filter and source (the measurement-level LanBLoc
     stands in for the camera loop)."""
     figs = []

@@ -3,7 +3,8 @@ print ours beside them.
 
 Table numbers follow the *conference* version throughout (I synthetic, II
 real-imitated, III % path-length error, IV ADE/FDE/AWRS/time); the extended
-version numbers them one higher."""
+version numbers them one higher, e.g. [SafeNav-conf Table I] = [SafeNav-ext
+Table II]."""
 
 from __future__ import annotations
 
@@ -14,8 +15,9 @@ import pandas as pd
 #: (keys of :data:`safenav.navigation.SOURCES`).
 PAPER_SOURCES = ("deeploc-gps", "deeploc-ekf-gps", "sensor-fusion", "lanbloc")
 
-#: The paper's Table I (synthetic trajectories): (source, filter) ->
-#: ADE, FDE [m], AWRS, time per trial [ms].
+#: [SafeNav-conf Table I] (= [SafeNav-ext Table II]), synthetic trajectories:
+#: (source, filter) -> ADE, FDE [m] against the true trajectory, AWRS, time per
+#: trial [ms].
 PAPER_TABLE1 = {
     ("deeploc-gps", "ekf"): (0.6069, 0.5495, 0.3926, 5.02), ("deeploc-gps", "pf"): (1.1335, 1.7614, 2.1414, 9815.0),
     ("deeploc-ekf-gps", "ekf"): (0.5621, 0.4818, 0.3590, 4.57),
@@ -23,8 +25,9 @@ PAPER_TABLE1 = {
     ("sensor-fusion", "ekf"): (1.3546, 0.5714, 0.3513, 4.90), ("sensor-fusion", "pf"): (1.9155, 3.1229, 2.9387, 10103.0),
     ("lanbloc", "ekf"): (0.4972, 0.4675, 0.3492, 3.98), ("lanbloc", "pf"): (0.9471, 0.8177, 1.2612, 9551.0),
 }
-#: The paper's Table II (real-imitated trajectories, the mean over P1-P3):
-#: (source, filter) -> ADE, FDE [m], AWRS, time per trial [ms].
+#: [SafeNav-conf Table II] (= [SafeNav-ext Table III]), real-imitated
+#: trajectories, the mean over P1-P3: (source, filter) -> ADE, FDE [m] against
+#: the true vehicle, AWRS, time per trial [ms].
 PAPER_TABLE2 = {
     ("deeploc-gps", "ekf"): (0.3041, 0.3103, 0.2009, 20.58), ("deeploc-gps", "pf"): (1.6928, 2.8891, 4.3586, 192621.0),
     ("deeploc-ekf-gps", "ekf"): (0.2869, 0.2969, 0.1906, 18.94),
@@ -33,17 +36,17 @@ PAPER_TABLE2 = {
     ("lanbloc", "ekf"): (0.2393, 0.3095, 0.1528, 14.94), ("lanbloc", "pf"): (1.5162, 1.4024, 3.1623, 185502.0),
 }
 #: The LanBLoc-BMM rows of Table I by filter (kept for the filter benchmark).
-PAPER_SYNTHETIC = {f: dict(zip(("ade", "fde", "awrs", "ms_per_trial"), PAPER_TABLE1[("lanbloc", f)]))
+PAPER_SYNTHETIC = {f: dict(zip(("truth_ade", "truth_fde", "awrs", "ms_per_trial"), PAPER_TABLE1[("lanbloc", f)]))
                    for f in ("ekf", "pf")}
 
-#: The paper's Table III (% path-length error per path type; Table IV of the
-#: extended version).
+#: [SafeNav-conf Table III] (= [SafeNav-ext Table IV]): % path-length error per
+#: path type.
 PAPER_PERCENT_ERROR = {
     "chull": {"P1": 5.755, "P2": 7.42, "P3": 6.35, "Average": 6.51},
     "centroid": {"P1": 5.32, "P2": 5.60, "P3": 5.47, "Average": 5.46},
 }
-#: The paper's Table IV (Table V of the extended version): ADE, FDE [m], AWRS
-#: and time per trial [ms].
+#: [SafeNav-conf Table IV] (= [SafeNav-ext Table V]): ADE (to the safe path),
+#: FDE (to the destination) [m], AWRS and time per trial [ms].
 PAPER_NAVIGATION = {
     "chull": {"P1": (2.73, 3.16, 1.31, 14.93), "P2": (2.72, 3.08, 1.11, 14.84), "P3": (3.46, 3.57, 1.71, 15.98),
               "Average": (2.97, 3.27, 1.38, 15.25)},
@@ -66,10 +69,11 @@ def source_label(source: str) -> str:
 
 
 def localization_table(summary: pd.DataFrame, paper: dict) -> pd.DataFrame:
-    """Table I/II layout: one row per (algorithm, filter) in the paper's order,
-    ADE, FDE, AWRS and the median time per trial, with the paper's numbers
-    beside.  ``summary`` has columns source, filter, ade, fde, awrs and
-    ms_per_trial (one row per source and filter)."""
+    """[SafeNav-conf Tables I–II] layout (= [SafeNav-ext Tables II–III]): one row
+    per (algorithm, filter) in the paper's order, ADE and FDE against the true
+    trajectory, AWRS and the median time per trial, with the paper's numbers
+    beside. ``summary`` has columns source, filter, truth_ade, truth_fde, awrs
+    and ms_per_trial (one row per source and filter)."""
     order = {s: i for i, s in enumerate((*PAPER_SOURCES, "lanbloc-camera"))}
     s = summary.assign(_o=summary["source"].map(lambda v: order.get(v, len(order))),
                        _f=summary["filter"].map({"ekf": 0, "pf": 1})).sort_values(["_o", "_f"], kind="stable")
@@ -77,7 +81,7 @@ def localization_table(summary: pd.DataFrame, paper: dict) -> pd.DataFrame:
     for _, r in s.iterrows():
         p = paper.get((r["source"], r["filter"]), (np.nan,) * 4)
         row = {"Algorithm": source_label(r["source"]), "Filter": r["filter"].upper(),
-               "ADE": r["ade"], "FDE": r["fde"], "AWRS": r["awrs"], "time ms": r["ms_per_trial"],
+               "ADE": r["truth_ade"], "FDE": r["truth_fde"], "AWRS": r["awrs"], "time ms": r["ms_per_trial"],
                "paper ADE": p[0], "paper FDE": p[1], "paper AWRS": p[2], "paper ms": p[3]}
         if "success_rate" in r:
             row["arrived"] = r["success_rate"]   # metrics are over the arrived trials
@@ -86,7 +90,8 @@ def localization_table(summary: pd.DataFrame, paper: dict) -> pd.DataFrame:
 
 
 def _with_average(summary: pd.DataFrame) -> pd.DataFrame:
-    cols = ["ade", "fde", "awrs", "path_error_percent", "time_ms", "time_per_step_us", "success_rate", "steps"]
+    cols = ["path_ade", "goal_fde", "awrs", "path_error_percent", "time_ms", "time_per_step_us", "success_rate",
+            "steps"]
     avg = summary.groupby("method", sort=False)[cols].mean().reset_index()
     avg["path_type"] = "Average"
     return pd.concat([summary[["method", "path_type", *cols]], avg[["method", "path_type", *cols]]],
@@ -94,10 +99,11 @@ def _with_average(summary: pd.DataFrame) -> pd.DataFrame:
 
 
 def percent_error_table(summary: pd.DataFrame) -> pd.DataFrame:
-    """Table III layout (the extended version's IV) of the % path-length error (eq. 23): one row per
-    method, one column per path type plus the average; the paper's value beside
-    each of ours (``paper P1`` …).  ``summary`` is :func:`safenav.runner.summarize`
-    output for one filter and source."""
+    """[SafeNav-conf Table III] layout (= [SafeNav-ext Table IV]) of the %
+    path-length error [SafeNav-ext eq. 23]: one row per method, one column per
+    path type plus the average; the paper's value beside each of ours (``paper
+    P1`` …). ``summary`` is :func:`safenav.runner.summarize` output for one
+    filter and source."""
     s = _with_average(summary)
     rows = []
     for method, g in s.groupby("method", sort=False):
@@ -110,16 +116,18 @@ def percent_error_table(summary: pd.DataFrame) -> pd.DataFrame:
 
 
 def navigation_table(summary: pd.DataFrame) -> pd.DataFrame:
-    """Table IV layout (the extended version's V): per method and path type (plus the average), ADE,
-    FDE, AWRS and the median time per trial, with the paper's numbers beside,
-    then our success rate, steps and time per step."""
+    """[SafeNav-conf Table IV] layout (= [SafeNav-ext Table V]): per method and
+    path type (plus the average), ADE (mean distance of the estimate to the
+    safe path), FDE (final estimate to the destination), AWRS and the median
+    time per trial, with the paper's numbers beside, then our success rate,
+    steps and time per step."""
     s = _with_average(summary)
     rows = []
     for _, r in s.iterrows():
         paper = PAPER_NAVIGATION.get(r["method"], {}).get(r["path_type"], (np.nan,) * 4)
         rows.append({
             "Approach": METHOD_LABELS.get(r["method"], r["method"]), "Path": r["path_type"],
-            "ADE": r["ade"], "FDE": r["fde"], "AWRS": r["awrs"], "time ms": r["time_ms"],
+            "ADE": r["path_ade"], "FDE": r["goal_fde"], "AWRS": r["awrs"], "time ms": r["time_ms"],
             "paper ADE": paper[0], "paper FDE": paper[1], "paper AWRS": paper[2], "paper ms": paper[3],
             "success": r["success_rate"], "steps": r["steps"], "µs/step": r["time_per_step_us"],
         })

@@ -66,11 +66,14 @@ DEPARTURES = (
     "LanBLoc at the measurement level uses the paper's own RMSE (0.0142 m X, 0.039 m Y) as white noise, with fixes "
     "only while at least the scenario's minimum number of landmarks is in range and in view. The camera-loop "
     "variant replaces it with the real vision pipeline on rendered images.",
-    "ADE of the navigation tables is the mean cross-track distance of the estimate to the safe path (eq. 21 pairs "
-    "points by time, but the safe path has no time stamps); FDE is the final estimate's distance to the destination.",
+    "ADE of the navigation tables (path_ade) is the mean cross-track distance of the estimate to the safe path "
+    "(SafeNav-ext eq. 21 pairs points by time, but the safe path has no time stamps); FDE (goal_fde) is the final "
+    "estimate's distance to the destination. Tables I and II's ADE and FDE are against the true trajectory "
+    "(truth_ade, truth_fde).",
     "WRS follows eq. 18 as written: inside zone j, WRS = d·(d / w_j), which falls at zone borders.",
-    "Algorithm 1 line 10's 'or next_hull is not None' is read as 'inside the current or the next hull'; outside both "
-    "adjacent hulls the vehicle steps back. Algorithm 2 steers to the nearest sub-segment centroid ahead.",
+    "Line 10 of SafeNav-conf's Algorithm 1 (line 13 of SafeNav-ext's), 'or next_hull is not None', is read as "
+    "'inside the current or the next hull'; outside both adjacent hulls the vehicle steps back. Algorithm 2 steers "
+    "to the nearest sub-segment centroid ahead.",
     "The heading command is atan2(Δy, Δx) minus the heading, wrapped (the paper prints arctan(Δx/Δy)).",
     "The real-imitated world is generated from the scenario's seed to the paper's description (200×200 m, 25 "
     "obstacles, 25 hazards, landmark clusters); it is not the paper's world, which was not published.",

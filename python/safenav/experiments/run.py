@@ -119,12 +119,12 @@ def _path_average(summary: pd.DataFrame) -> pd.DataFrame:
     (the paper's Table II averages over P1-P3); time = mean of the medians.
 
     Table II compares *localization* methods, so its ADE and FDE are those of
-    the estimate against the true vehicle (``loc_ade``, ``loc_fde``); AWRS is
-    the estimate's risk about the safe path, as everywhere."""
-    cols = {"loc_ade": "mean", "loc_fde": "mean", "awrs": "mean", "path_error_percent": "mean", "time_ms": "mean",
+    the estimate against the true vehicle (``truth_ade``, ``truth_fde``); AWRS
+    is the estimate's risk about the safe path, as everywhere."""
+    cols = {"truth_ade": "mean", "truth_fde": "mean", "awrs": "mean", "path_error_percent": "mean", "time_ms": "mean",
             "time_per_step_us": "mean", "success_rate": "mean", "trials": "sum"}
     g = summary.groupby(["source", "filter"], sort=False).agg(cols).reset_index()
-    return g.rename(columns={"time_ms": "ms_per_trial", "loc_ade": "ade", "loc_fde": "fde"})
+    return g.rename(columns={"time_ms": "ms_per_trial"})
 
 
 def _outcomes(raw: pd.DataFrame) -> str:
@@ -183,14 +183,15 @@ def run_synthetic(opts: ExperimentOptions, cache: dict) -> ExperimentResult:
     summary = summarize_synthetic(raw)
     table = localization_table(summary, PAPER_TABLE1)
     _write_summary(res, folder, "table1", f"Table I: synthetic trajectories, {opts.trials} trials "
-                   f"({cfg.n_steps} steps of {cfg.dt} s; PF {opts.particles} particles); time = median per trial",
+                   f"({cfg.n_steps} steps of {cfg.dt} s; PF {opts.particles} particles); ADE / FDE against the true "
+                   "trajectory; time = median per trial",
                    table)
     labels = {s: source_label(s) for s in PAPER_SOURCES}
     t = (np.arange(cfg.n_steps + 1)) * cfg.dt
     res.figures.append(plot_wrs_comparison(out.wrs_mean, t, folder / "fig3_wrs.png", labels=labels,
                                            title=f"Fig. 3: mean WRS per step over {opts.trials} synthetic trials"))
     res.claims += localization_claims(raw, "Table I", paper=PAPER_TABLE1,
-                                       columns=("ade", "fde", "awrs", "ms_per_trial"))
+                                       columns=("truth_ade", "truth_fde", "awrs", "ms_per_trial"))
     res.notes.append("The synthetic trajectory is the paper's a(t), θ(t) profile driving the noisy BMM; its "
                      "length (N = 200 steps), initial speed and IMU noise are ours (the paper does not give them). "
                      "AWRS is measured against the true trajectory as the central path.")
@@ -210,9 +211,10 @@ def run_real_imitated(opts: ExperimentOptions, cache: dict) -> ExperimentResult:
     table = localization_table(_path_average(summary), PAPER_TABLE2)
     _write_summary(res, folder, "table2", f"Table II: real-imitated world, mean over {', '.join(opts.path_types)}, "
                    f"{opts.trials} trials per path type (SafeNav-Centroid along the safe path; PF "
-                   f"{opts.particles} particles); time = mean over path types of the median per trial", table)
+                   f"{opts.particles} particles); ADE / FDE against the true vehicle; time = mean over path types "
+                   "of the median per trial", table)
     res.claims += localization_claims(raw, "Table II", paper=PAPER_TABLE2,
-                                       columns=("loc_ade", "loc_fde", "awrs", "time_ms"))
+                                       columns=("truth_ade", "truth_fde", "awrs", "time_ms"))
     res.notes.append("The paper does not say which controller drove its Table II trials; we follow each safe path "
                      "with SafeNav-Centroid (Algorithm 2), the same path and seeds for every source and filter. "
                      "ADE and FDE here are localization errors: the estimate against the true vehicle at each step "
@@ -300,13 +302,13 @@ def _placed_variant(opts, safe, folder, res, cache, raw):
     for _, r in summary.iterrows():
         rows.append({"Landmarks": "scenario clusters" if r["source"] == "lanbloc" else "clusters + placed (k = "
                      f"{opts.scenario.detection.min_landmarks}, ILP)", "Filter": r["filter"].upper(),
-                     "ADE": r["ade"], "FDE": r["fde"], "AWRS": r["awrs"], "time ms": r["ms_per_trial"],
+                     "ADE": r["truth_ade"], "FDE": r["truth_fde"], "AWRS": r["awrs"], "time ms": r["ms_per_trial"],
                      "fix share": share[(r["source"], r["filter"])], "arrived": r["success_rate"]})
     n_added = len(scenario.world.landmarks) - len(opts.scenario.world.landmarks)
     cam = next(iter(placed.values())).camera
     _write_summary(res, folder, "table2_placed", "Beyond the paper: LanBLoc-BMM with landmarks placed along the "
                    f"safe paths ({n_added} added to the scenario's {len(opts.scenario.world.landmarks)}), same "
-                   "trials as Table II", pd.DataFrame(rows))
+                   "trials as Table II; ADE / FDE against the true vehicle", pd.DataFrame(rows))
     res.notes.append(f"Placed landmarks: {n_added} in all, "
                      + ", ".join(f"{k} {len(p.landmarks)}" for k, p in placed.items())
                      + f" (ILP per path, {t_place:.1f} s); every point of each safe path has at least "
@@ -337,8 +339,8 @@ def _camera_variant(opts, safe, folder, res, cache, *, methods, filters, key, la
         for k in ("method", "filter"):
             if k in row:
                 row[k] = METHOD_LABELS.get(row[k], row[k].upper() if k == "filter" else row[k])
-        for col, name in (("ade", "ADE"), ("fde", "FDE"), ("awrs", "AWRS"), ("path_error_percent", "% err"),
-                          ("loc_ade", "loc ADE"), ("success_rate", "success")):
+        for col, name in (("path_ade", "path ADE"), ("goal_fde", "goal FDE"), ("awrs", "AWRS"),
+                          ("path_error_percent", "% err"), ("truth_ade", "truth ADE"), ("success_rate", "success")):
             row[f"{name} meas."] = m[col]
             row[f"{name} camera"] = c[col]
         row["camera ms/trial"] = c["time_ms"]
@@ -349,7 +351,9 @@ def _camera_variant(opts, safe, folder, res, cache, *, methods, filters, key, la
              f"same {n} trials per cell")
     _write_summary(res, folder, "camera_loop", title, table)
     res.notes.append(f"Camera loop ({label}): {len(cam)} trials, {cam['time_ms'].median() / 1e3:.1f} s median per "
-                     "trial. 'loc ADE' is the error of the estimate against the true vehicle; the camera loop's "
+                     "trial. 'path ADE' is the estimate's mean distance to the safe path, 'goal FDE' its final "
+                     "distance to the destination, 'truth ADE' its mean error against the true vehicle; the camera "
+                     "loop's "
                      "fixes come from 640×480 rendered stereo pairs (docs/lanbloc.md).")
 
 
@@ -365,16 +369,17 @@ def run_navigation(opts: ExperimentOptions, cache: dict) -> ExperimentResult:
     res.files += write_table(summary, folder / "summary", parquet=False)
     pe = percent_error_table(summary)
     nt = navigation_table(summary)
-    _write_summary(res, folder, "table3", f"Table III: % path-length error (eq. 23), LanBLoc-BMM(EKF), "
+    _write_summary(res, folder, "table3", f"Table III: % path-length error (SafeNav-ext eq. 23), LanBLoc-BMM(EKF), "
                    f"{opts.trials} trials per path type", pe)
-    _write_summary(res, folder, "table4", f"Table IV: ADE / FDE [m], AWRS and median time per trial, "
+    _write_summary(res, folder, "table4", "Table IV: ADE (estimate to the safe path) / FDE (final estimate to "
+                   "the destination) [m], AWRS and median time per trial, "
                    f"LanBLoc-BMM(EKF), {opts.trials} trials per path type", nt)
     with console.task("Figs. 4-5 (trial 0 of each path type, recorded)", enabled=opts.progress):
         res.figures += navigation_figures(opts.scenario, safe, sweep, folder)
     res.claims += navigation_claims(raw)
-    res.notes.append("ADE is the mean distance of the estimate to the safe path (cross-track; our reading of eq. 21, "
-                     "whose point-wise pairing is undefined for an untimed path), FDE the final estimate's distance to "
-                     "the destination. " + _outcomes(raw))
+    res.notes.append("ADE (path_ade) is the mean distance of the estimate to the safe path (cross-track; our reading "
+                     "of SafeNav-ext eq. 21, whose point-wise pairing is undefined for an untimed path), FDE "
+                     "(goal_fde) the final estimate's distance to the destination. " + _outcomes(raw))
     if opts.camera_trials:
         _camera_variant(opts, safe, folder, res, cache, methods=("chull", "centroid"), filters=("ekf",),
                         key=["method"], label="Table IV")

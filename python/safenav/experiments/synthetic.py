@@ -1,5 +1,5 @@
-"""The SafeNav paper's synthetic data set experiment (Table I of the
-conference version, Table II of the extended one): every position source ×
+"""The SafeNav paper's synthetic data set experiment, [SafeNav-conf Table I]
+(= [SafeNav-ext Table II]): every position source ×
 EKF/PF on synthetic trajectories, run by :func:`safenav.runner.run_trials`
 under its seed rule (stream 0; in a trial, sub-seed 0 draws the data, 1
 the prior, 2 the filter)."""
@@ -78,6 +78,13 @@ class _SyntheticCell:
     zones: RiskZones
 
 
+def _truth_named(metrics: dict) -> dict:
+    """:meth:`TrajectoryMetrics.as_dict` with ADE and FDE named by their
+    reference, the true trajectory (``truth_ade``, ``truth_fde``), as in the
+    navigation tables."""
+    return {(f"truth_{k}" if k in ("ade", "fde") else k): v for k, v in metrics.items()}
+
+
 def _synthetic_trials(c: _SyntheticCell, seeds, start: int):
     """Rows of the raw table for trials [start, start + len(seeds)), and the
     per-step WRS of each trial per filter."""
@@ -90,9 +97,10 @@ def _synthetic_trials(c: _SyntheticCell, seeds, start: int):
             m = evaluate(est, data.states[:, :2], zones=c.zones)
             w = wrs(est, data.states[:, :2], c.zones)
             wrs_trials.setdefault(name, []).append(w)
-            rows.append({"source": c.source, "trial": start + k, "filter": name, **m.as_dict(), "steps": n_steps,
-                         "ms_per_trial": times[name] * 1e3, "us_per_step": times[name] * 1e6 / n_steps,
-                         "n_gaps": res.n_gaps, "n_resampled": res.n_resampled})
+            rows.append({"source": c.source, "trial": start + k, "filter": name, **_truth_named(m.as_dict()),
+                         "steps": n_steps, "ms_per_trial": times[name] * 1e3,
+                         "us_per_step": times[name] * 1e6 / n_steps, "n_gaps": res.n_gaps,
+                         "n_resampled": res.n_resampled})
     return rows, wrs_trials
 
 
@@ -111,7 +119,7 @@ def synthetic_experiment(trials: int = 100, *, sources=("lanbloc",), filters=("e
                          zones: RiskZones | None = None, workers: int | None = 1, scheduler=None,
                          chunk: int = 25, progress: bool = False) -> SyntheticResult:
     """Monte Carlo over ``trials`` synthetic trajectories per position source
-    (the paper's Table I grid: sources × filters).
+    ([SafeNav-conf Table I]'s grid: sources × filters).
 
     Trial i has the same truth, commands and white noise for every source
     (common random numbers); the sources differ in their error profile.  The
@@ -150,13 +158,14 @@ def run_synthetic(trials: int = 100, *, filters=("ekf", "pf"), seed: int = 0, n_
 
 
 def summarize_synthetic(raw: pd.DataFrame) -> pd.DataFrame:
-    """Mean per (source, filter), with the paper's Table I numbers beside ours."""
+    """Mean per (source, filter), with [SafeNav-conf Table I]'s numbers beside ours."""
     if raw.empty:
         raise ValueError("summarize_synthetic: the raw table has no rows")
     agg = raw.groupby(["source", "filter"], sort=False).agg(
-        trials=("trial", "count"), ade=("ade", "mean"), fde=("fde", "mean"), awrs=("awrs", "mean"),
+        trials=("trial", "count"), truth_ade=("truth_ade", "mean"), truth_fde=("truth_fde", "mean"),
+        awrs=("awrs", "mean"),
         path_err_pct=("path_length_error_percent", "mean"), ms_per_trial=("ms_per_trial", "median"),
         us_per_step=("us_per_step", "median")).reset_index()
-    for i, col in enumerate(("ade", "fde", "awrs", "ms_per_trial")):
+    for i, col in enumerate(("truth_ade", "truth_fde", "awrs", "ms_per_trial")):
         agg[f"paper_{col}"] = [PAPER_TABLE1.get((s, f), (np.nan,) * 4)[i] for s, f in zip(agg["source"], agg["filter"])]
     return agg

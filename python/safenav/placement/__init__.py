@@ -7,11 +7,15 @@ so that every point of the route sees at least ``k`` (the paper: 2), no
 landmark is within ``p`` of the route and no two chosen landmarks lie on one
 bearing from the camera.
 
-* :func:`place_along_route` — the paper's algorithm (section II): per edge
-  the rigid transform to ``(0,0) → (d,0)``, Lemma 2's visibility interval
-  ``[t_s, t_d]`` of every candidate (Corollary 1 for a circular field of
-  view, typo fixed), the greedy k-interval cover (Algorithm 1, optimal per
-  edge by Proposition 1), then the union over edges.  Options: ``corners``
+Numbers in this package are the placement paper's (tag ``Placement`` in
+``docs/paper_map.md``); its Algorithm 1 is not SafeNav's.
+
+* :func:`place_along_route` — the paper's algorithm [Placement §II]: per edge
+  the rigid transform to ``(0,0) → (d,0)``, the visibility interval
+  ``[t_s, t_d]`` of every candidate [Placement Lemma 2] ([Placement Cor. 1]
+  for a circular field of view, typo fixed), the greedy k-interval cover
+  [Placement Alg. 1] (optimal per edge by [Placement Prop. 1]), then the
+  union over edges.  Options: ``corners``
   (cover the in-place turn at every vertex, the paper's future work),
   ``reuse`` (an edge counts landmarks placed for earlier edges).
 * :func:`place_optimal` — the global optimum over the whole route: an integer
@@ -22,18 +26,18 @@ bearing from the camera.
   from the first to the last target, 2-opt + Or-opt; see :func:`plan_tour`).
 * :func:`place_along_path` — the same for a SafeNav safe path (a polyline,
   e.g. :meth:`safenav.World.path_polyline` or a planner's path).
-* :func:`simulate` — the paper's section III: a ground robot at 0.2 m/s with
+* :func:`simulate` — [Placement §III-A]: a ground robot at 0.2 m/s with
   a heading controller, bearings to the landmarks in view, and the extended
   information filter (:class:`safenav.InformationFilter`).
-* :func:`table_one` — the paper's Table I on fresh random instances.
+* :func:`table_one` — [Placement Table I] on fresh random instances.
 
 The heavy lifting is in the C++ core (``safenav._core``: ``place_landmarks``,
 ``edge_visibility``, ``alignments``, ``check_coverage``).
 
 The package: :mod:`~safenav.placement.algorithm` (camera, greedy, ILP,
 coverage check), :mod:`~safenav.placement.tour` (the route through the
-targets), :mod:`~safenav.placement.study` (Table I and the section III
-simulation), :mod:`~safenav.placement.plots` (figures) and
+targets), :mod:`~safenav.placement.study` ([Placement Table I] and the
+[Placement §III-A] simulation), :mod:`~safenav.placement.plots` (figures) and
 :mod:`~safenav.placement.cli` (``safenav place``).
 """
 

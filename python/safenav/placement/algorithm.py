@@ -1,5 +1,5 @@
-"""The placement algorithms of the landmark placement paper (section II):
-the greedy per-edge cover (Algorithm 1), the global integer program, the
+"""The placement algorithms of the landmark placement paper [Placement §II]:
+the greedy per-edge cover [Placement Alg. 1], the global integer program, the
 exact coverage check, and placement through targets or along a SafeNav path.
 See :mod:`safenav.placement` for the overview."""
 
@@ -16,7 +16,7 @@ from ..validation import as_array, as_positive_int
 from ..motion import wrap_angle
 from .tour import plan_tour, tour_length
 
-#: Table I setup: a 4 × 8 area, candidates on a 0.5 grid.
+#: [Placement Table I] setup ([Placement §III-A]): a 4 × 8 area, candidates on a 0.5 grid.
 PAPER_AREA = (4.0, 8.0)
 PAPER_SPACING = 0.5
 
@@ -34,8 +34,8 @@ class CameraParams:
 
     ``range`` is the paper's R [m], ``angle_deg`` its viewing angle α [deg]
     (full angle, in (0°, 180°]), ``clearance`` its p [m] (landmarks must be
-    farther than p from the route), ``fov`` ``"sector"`` (Lemma 2) or
-    ``"circular"`` (Corollary 1).  Defaults are the paper's section III.
+    farther than p from the route), ``fov`` ``"sector"`` ([Placement Lemma 2]) or
+    ``"circular"`` ([Placement Cor. 1]).  Defaults are [Placement §III-A]'s.
     """
 
     range: float = 2.0
@@ -225,12 +225,12 @@ def _describe_uncovered(route, uncovered, k) -> str:
 def place_along_route(route, candidates, camera: CameraParams | dict | None = None, *, k: int = 2,
                       corners: bool = False, reuse: bool = False, distinct_bearings: bool = True,
                       allow_uncovered: bool = False) -> PlacementResult:
-    """The paper's placement on a given route (section II): per edge the
-    greedy k-interval cover (Algorithm 1, generalised to k ≥ 1), then the
-    union over the edges (section II-B).
+    """The paper's placement on a given route [Placement §II]: per edge the
+    greedy k-interval cover [Placement Alg. 1] (generalised to k ≥ 1), then
+    the union over the edges [Placement §II-B].
 
     ``distinct_bearings=False`` runs Algorithm 1 verbatim.  With the default
-    ``True`` (condition (2) of the LPP, non-coincidence): of the candidates
+    ``True`` ([Placement LPP cond. 2], non-coincidence): of the candidates
     on an edge's own line, which all share one bearing, only the one reaching
     farthest is offered; and wherever the exact count of an edge's picks
     falls below k (two picks aligned at a point), the candidate with a fresh
@@ -300,9 +300,9 @@ def place_optimal(route, candidates, camera: CameraParams | dict | None = None, 
     """The fewest landmarks for the whole route at once: an integer program
     solved with ``scipy.optimize.milp`` (HiGHS).
 
-    Variables: ``x_ℓ ∈ {0, 1}`` per candidate with a non-empty Lemma 2
-    interval on some edge (or turn); minimise ``Σ x_ℓ``.  One row per point of
-    each edge where coverage can change — every interval endpoint, every
+    Variables: ``x_ℓ ∈ {0, 1}`` per candidate with a non-empty
+    [Placement Lemma 2] interval on some edge (or turn); minimise ``Σ x_ℓ``.
+    One row per point of each edge where coverage can change — every interval endpoint, every
     alignment point of two candidates, and the midpoint of every gap between
     consecutive such points — requires ``≥ k`` distinct bearings in view.
     Coverage is constant between those points, so the program is exact (the

@@ -1,6 +1,7 @@
 """Figures of the landmark placement paper (matplotlib, Agg): the route with
-its landmarks (Figs. 6–7), the EIF errors with ±3σ (Figs. 8–9), the corner
-coverage demonstration and Table I's counts."""
+its landmarks [Placement Figs. 6–7], the EIF errors with ±3σ [Placement
+Figs. 8–9], the corner coverage demonstration and [Placement Table I]'s
+counts."""
 
 from __future__ import annotations
 
@@ -100,7 +101,7 @@ def plot_corner_gap(demo: dict, path) -> Path:
 
 
 def paper_figures(folder="docs/figures", *, seed: int = 0) -> dict:
-    """Regenerate the figures of docs/placement.md: the paper's Figs. 6–9
+    """Regenerate the figures of docs/placement.md: [Placement Figs. 6–9]
     (6 and 7 targets: route, landmarks, true and EIF paths; X/Y/heading errors
     with ±3σ), the corner-coverage demonstration, and Table I's counts.
     Returns the numbers quoted in the docs."""

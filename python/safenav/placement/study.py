@@ -1,5 +1,5 @@
-"""The landmark placement paper's evaluation: Table I on fresh random
-instances and the section III simulation (a ground robot with bearings to
+"""The landmark placement paper's evaluation: [Placement Table I] on fresh
+random instances and the [Placement §III-A] simulation (a ground robot with bearings to
 the placed landmarks and the extended information filter)."""
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from .algorithm import (PAPER_AREA, PAPER_SPACING, CameraParams, camera_params, 
                         place_along_route, place_optimal)
 from .tour import plan_tour, tour_length
 
-#: The paper's Table I: (targets, landmarks) for its nine random instances.
+#: [Placement Table I]: (targets, landmarks) for its nine random instances.
 PAPER_TABLE_ONE = ((5, 21), (5, 22), (5, 12), (6, 24), (6, 22), (7, 20), (7, 31), (7, 21), (7, 12))
 
 
@@ -28,14 +28,14 @@ def random_instance(n_targets: int, rng: np.random.Generator, area=PAPER_AREA) -
 
 def table_one(seed: int = 0, *, camera: CameraParams | None = None, k: int = 2, margin: float | None = None,
               optimal: bool = True, time_limit: float = 120.0, sizes: Sequence[int] | None = None):
-    """The paper's Table I on fresh random instances.
+    """[Placement Table I] on fresh random instances.
 
     Nine instances with 5, 5, 5, 6, 6, 7, 7, 7, 7 targets uniform in 4 × 8,
     candidates on a 0.5 grid over the area widened by ``margin`` (default R:
     the paper does not say how far its grid reached, and inside the area
     alone many instances cannot be covered near the edge ends), field of view
     50°, R = 2 m, p = 0.05 m, the route an open tour from the first to the
-    last target.  Columns: ``greedy_paper`` (Algorithm 1 verbatim, union over
+    last target.  Columns: ``greedy_paper`` ([Placement Alg. 1] verbatim, union over
     edges), ``greedy`` (plus non-coincidence), ``greedy_reuse``,
     ``greedy_corners``, ``optimal`` and ``optimal_corners`` (ILP) and the
     paper's count.  The instances are random, so compare distributions, not
@@ -71,7 +71,7 @@ def table_one(seed: int = 0, *, camera: CameraParams | None = None, k: int = 2, 
 
 
 # ---------------------------------------------------------------------------
-# Simulation (section III): ground robot, bearings, extended information filter
+# Simulation [Placement §III-A]: ground robot, bearings, extended information filter
 # ---------------------------------------------------------------------------
 
 @dataclass
@@ -112,7 +112,7 @@ class SimulationResult:
 def simulate(route, landmarks, camera: CameraParams | dict | None = None, *, speed: float = 0.2, dt: float = 0.1,
              bearing_std: float = 0.01, heading_gain: float = 2.0, seed: int = 0,
              prior_std=(0.05, 0.05, 0.01, 0.03), max_steps: int = 200_000) -> SimulationResult:
-    """Section III: a ground robot drives the route at ``speed`` (0.2 m/s) with
+    """[Placement §III-A]: a ground robot drives the route at ``speed`` (0.2 m/s) with
     a heading controller and an extended information filter estimates its
     position and heading from bearings to the landmarks in view.
 

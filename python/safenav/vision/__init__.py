@@ -1,4 +1,4 @@
-"""LanBLoc's vision front end (SafeNav paper, section IV-A): from a stereo
+"""LanBLoc's vision front end [SafeNav §IV-A]: from a stereo
 pair to a position fix.
 
 * :mod:`~safenav.vision.stereo` — stereo calibration, rectification and SGBM

@@ -1,4 +1,4 @@
-"""Landmark recognition for LanBLoc (SafeNav section IV-A).
+"""Landmark recognition for LanBLoc [SafeNav §IV-A].
 
 The paper recognises landmarks with a YOLOv11s model trained on
 MSTLandmarkv1 (34 classes); the recognised landmark's box then selects the

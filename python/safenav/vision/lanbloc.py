@@ -1,4 +1,4 @@
-"""The LanBLoc pipeline: stereo pair → landmarks → ranges → position (SafeNav section IV-A).
+"""The LanBLoc pipeline: stereo pair → landmarks → ranges → position [SafeNav §IV-A].
 
 LanBLoc recognises landmarks in the left image, measures the distance to each
 by stereo matching, and trilaterates with the recognised landmarks as anchors

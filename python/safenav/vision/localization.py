@@ -1,4 +1,4 @@
-"""LanBLoc position fixes from landmark anchors (SafeNav paper, section IV-A).
+"""LanBLoc position fixes from landmark anchors [SafeNav-ext §IV-A].
 
 LanBLoc "utilizes the recognized landmarks as anchor nodes for trilateration
 ... with further position optimization".  The paper gives no algorithm; ours

@@ -65,7 +65,7 @@ def _pos(name, v, *, allow_zero=False):
 class StereoRig:
     """An ideal rectified stereo rig on the vehicle.
 
-    The defaults scale the scenario camera (SafeNav V-A2: 2560×1440 px,
+    The defaults scale the scenario camera ([SafeNav-ext §V-A2]: 2560×1440 px,
     f = 1400 px, i.e. an 85° horizontal field of view, baseline 0.3 m) to
     640×480 px: f = 350 px.
     """

@@ -1,4 +1,4 @@
-"""Stereo ranging for LanBLoc (SafeNav paper, section IV-A).
+"""Stereo ranging for LanBLoc [SafeNav §IV-A].
 
 LanBLoc measures the distance from the vehicle to each recognised landmark
 with stereo matching, then trilaterates (:mod:`safenav.vision.localization`).  This
