@@ -10,7 +10,7 @@ using PtsRef = const Eigen::Ref<const Points2>&;
 
 void pybind_corridor(py::module_& m) {
   const RiskZones d;
-  def_params<RiskZones>(py::class_<RiskZones>(m, "RiskZones", "Safe-buffer risk zones of SafeNav section V-A(iii), eq. 18."))
+  def_params<RiskZones>(py::class_<RiskZones>(m, "RiskZones", "Safe-buffer risk zones of SafeNav-ext section V-A3(iii), eq. 18."))
       .def(py::init([](double half_width, std::vector<double> weights) {
              RiskZones z{half_width, std::move(weights)};
              z.validate();

@@ -1,6 +1,7 @@
-// safenav/corridor — safe-path corridor (SafeNav section V-A(iii)): risk
-// zones, deviation (eq. 17), WRS (eq. 18), AWRS (eq. 20); and the segments,
-// hulls and centroids of Algorithms 1 and 2.  CGAL does the convex hulls
+// safenav/corridor — safe-path corridor [SafeNav-ext §V-A3(iii)]
+// (= [SafeNav-conf §V-A.2(iii)]): risk zones, deviation [SafeNav eq. 17], WRS
+// [SafeNav eq. 18], AWRS [SafeNav-ext eq. 20]; and the segments, hulls and
+// centroids of [SafeNav Algs. 1–2].  CGAL does the convex hulls
 // (convex_hull_2), orientation and point location (bounded_side_2).
 #include "safenav/corridor.hpp"
 

@@ -1,8 +1,9 @@
-// Private: what the three parts of landmark placement share (the public API
-// is safenav/placement.hpp):
-//   placement_geometry.cpp  checks, the candidate grid, Lemmas 1–2, Corollary 1,
-//                           edge frames, turns, and the tables for the ILP;
-//   placement_cover.cpp     the greedy k-interval cover (Algorithm 1), the
+// Private: what the three parts of landmark placement [Placement §II] share
+// (the public API is safenav/placement.hpp):
+//   placement_geometry.cpp  checks, the candidate grid, [Placement Lemma 1,
+//                           Lemma 2, Cor. 1], edge frames, turns, and the
+//                           tables for the ILP;
+//   placement_cover.cpp     the greedy k-interval cover [Placement Alg. 1], the
 //                           union over edges, non-coincidence and corners;
 //   placement_check.cpp     the exact coverage check.
 #pragma once

@@ -1,4 +1,4 @@
-// RAw-RRT* on OMPL (SafeNav eqs. 15–19, Algorithm 3).  See planning.hpp.
+// RAw-RRT* on OMPL [SafeNav eqs. 15–19, SafeNav-ext Alg. 3].  See planning.hpp.
 //
 // Determinism: OMPL 1.5's global RNG::setSeed() only works before the first
 // RNG of the process exists, so it cannot give every call the same stream.
@@ -485,7 +485,7 @@ PlanResult replan(const PlanningProblem& problem, const Vec2& position, double l
   const double total = path.length();
   double s = path.arc_length(position) + lookahead;
   Vec2 goal = path.point_at(s);
-  // Slide the goal past whatever blocks it (Algorithm 4: a point ahead on the safe path).
+  // Slide the goal past whatever blocks it ([SafeNav-ext Alg. 4]: a point ahead on the safe path).
   while (!point_is_free(problem.map, goal) && s < total) {
     s += settings.resolution;
     goal = path.point_at(s);

@@ -1,4 +1,4 @@
-// The map and its collision checker (SafeNav section V-A(3)(ii)).  See world.hpp.
+// The map and its collision checker [SafeNav-ext §V-A3(ii)] (= [SafeNav-conf §V-A.2(ii)]).  See world.hpp.
 #include "safenav/world.hpp"
 
 #include <algorithm>

@@ -1,4 +1,7 @@
-"""Seeded generator for SafeNav's real-imitated world (section V-A(3)(ii), Fig. 1).
+"""Seeded generator for SafeNav's real-imitated world [SafeNav-ext §V-A3(ii), Fig. 1].
+
+[SafeNav-ext §V-A3(ii)] is [SafeNav-conf §V-A.2(ii)]; the conference has no
+figure of the field (its Fig. 1 is the framework).
 
 The paper maps real landmarks into a 200×200 grid, adds 25 obstacles and 25
 hazards at random, keeps landmark clusters with at least three landmarks within

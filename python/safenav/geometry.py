@@ -1,10 +1,14 @@
-"""Safe-path corridor geometry (SafeNav section V-A(iii), Algorithms 1 and 2).
+"""Safe-path corridor geometry ([SafeNav-ext §V-A3(iii)], [SafeNav Algs. 1–2]).
+
+Citations follow docs/paper_map.md; [SafeNav-ext §V-A3(iii)] is
+[SafeNav-conf §V-A.2(iii)].
 
 * :class:`Corridor` — the *safe buffer*: a corridor of half-width ``W = d_max``
   around the central polyline, cut into ``n`` equal-width zones per side with
   weights ``w_j`` (2, 4, 6, 8).  Deviation ``d`` is the distance to the nearest
-  point of the central path (eq. 17); WRS is eq. 18 and AWRS eq. 20, both
-  evaluated by the same C++ function as :func:`safenav.metrics.wrs`.
+  point of the central path (eq. 17); WRS is eq. 18 and AWRS
+  [SafeNav-ext eq. 20], both evaluated by the same C++ function as
+  :func:`safenav.metrics.wrs`.
   Arc length ``s`` runs from 0 at the first vertex to ``L`` at the last.
 * :class:`PathSegments` — the path cut into segments for SafeNav-CHull
   (Algorithm 1: convex hull of each segment, point-in-hull test against the
@@ -65,12 +69,12 @@ def convex_hull(points) -> np.ndarray:
 def points_in_polygon(points, polygon) -> np.ndarray:
     """Boolean mask: each point inside or on the boundary of the simple ``polygon``.
 
-    The PointInHull test of Algorithm 1 (line 13), by CGAL's ``bounded_side_2``."""
+    The PointInHull test of [SafeNav-ext Alg. 1 l. 13] (= conf l. 10), by CGAL's ``bounded_side_2``."""
     return _core.points_in_polygon(_pts("points", points), _pts("polygon", polygon))
 
 
 class Corridor:
-    """The safe buffer of SafeNav section V-A(iii) around a central polyline.
+    """The safe buffer of [SafeNav-ext §V-A3(iii)] around a central polyline.
 
     Parameters
     ----------
@@ -164,7 +168,7 @@ class Corridor:
         return self._c.wrs(_pts("points", points))
 
     def awrs(self, points) -> float:
-        """Average weighted risk score over a trajectory (eq. 20)."""
+        """Average weighted risk score over a trajectory [SafeNav-ext eq. 20]."""
         return self._c.awrs(_pts("points", points))
 
     def points_at(self, s) -> np.ndarray:
@@ -234,18 +238,19 @@ class PathSegments:
         return self._s.hull_input(self._k(k))
 
     def hull(self, k: int) -> np.ndarray:
-        """Convex hull of segment ``k`` (Algorithm 1, line 8), counter-clockwise."""
+        """Convex hull of segment ``k`` [SafeNav-ext Alg. 1 l. 8] (= conf l. 5), counter-clockwise."""
         return np.array(self._s.hull(self._k(k)))
 
     def hulls(self) -> list[np.ndarray]:
         return [self.hull(k) for k in range(len(self))]
 
     def hull_contains(self, k: int, points) -> np.ndarray:
-        """PointInHull (Algorithm 1, line 13) for many points: inside or on hull ``k``."""
+        """PointInHull [SafeNav-ext Alg. 1 l. 13] (= conf l. 10) for many points: inside or on hull ``k``."""
         return self._s.hull_contains(self._k(k), _pts("points", points))
 
     def in_current_or_next(self, k: int, point) -> bool:
-        """Algorithm 1, line 13: the point is inside hull ``k`` or hull ``k+1`` (when it exists)."""
+        """[SafeNav-ext Alg. 1 l. 13] (= conf l. 10): the point is inside hull ``k`` or hull ``k+1``
+        (when it exists)."""
         return self._s.in_current_or_next(self._k(k), _pt("point", point))
 
     def segments_containing(self, point) -> list[int]:
@@ -258,7 +263,7 @@ class PathSegments:
 
     @property
     def centroids(self) -> np.ndarray:
-        """All sub-segment centroids (Algorithm 2, line 5), ``K·m`` rows, row = k·m + j."""
+        """All sub-segment centroids [SafeNav-ext Alg. 2 l. 5] (= conf l. 2), ``K·m`` rows, row = k·m + j."""
         return np.array(self._s.centroids)
 
     @property

@@ -1,9 +1,9 @@
-"""Trajectory metrics of SafeNav section V-B and filter consistency statistics.
+"""Trajectory metrics of [SafeNav §V-B] and filter consistency statistics.
 
-* ADE (eq. 21) — mean point-wise distance; trajectories must have equal length.
-* FDE (eq. 22) — distance between final points; lengths may differ.
-* Percent path-length error (eq. 23) — lengths may differ.
-* WRS (eq. 18) and AWRS (eq. 20) — risk of deviating from a central path.
+* ADE [SafeNav-ext eq. 21] — mean point-wise distance; trajectories must have equal length.
+* FDE [SafeNav-ext eq. 22] — distance between final points; lengths may differ.
+* Percent path-length error [SafeNav-ext eq. 23] — lengths may differ.
+* WRS [SafeNav eq. 18] and AWRS [SafeNav-ext eq. 20] — risk of deviating from a central path.
   The buffer of half-width ``d_max`` is cut into equal zones per side with
   weights ``w_j`` (2, 4, 6, 8); in zone j, ``WRS = d·(d/w_j)``; at or beyond
   ``d_max``, ``WRS = d_max·(d_max/w_max)``.  This is the formula as the paper
@@ -36,12 +36,12 @@ def _pts(name, p):
 
 
 def ade(estimate, truth) -> float:
-    """Average displacement error (eq. 21)."""
+    """Average displacement error (ext eq. 21)."""
     return _core.ade(_pts("estimate", estimate), _pts("truth", truth))
 
 
 def fde(estimate, truth) -> float:
-    """Final displacement error (eq. 22)."""
+    """Final displacement error (ext eq. 22)."""
     return _core.fde(_pts("estimate", estimate), _pts("truth", truth))
 
 
@@ -50,7 +50,7 @@ def path_length(path) -> float:
 
 
 def path_length_error_percent(estimate, truth) -> float:
-    """|L_est − L_true| / L_true × 100 (eq. 23)."""
+    """|L_est − L_true| / L_true × 100 (ext eq. 23)."""
     return _core.path_length_error_percent(_pts("estimate", estimate), _pts("truth", truth))
 
 
@@ -71,7 +71,7 @@ def wrs_of_deviation(deviation, zones: RiskZones | None = None) -> np.ndarray:
 
 
 def awrs(points, path, zones: RiskZones | None = None) -> float:
-    """Average weighted risk score (eq. 20)."""
+    """Average weighted risk score (ext eq. 20)."""
     return _core.awrs(_pts("points", points), _pts("path", path), zones or RiskZones())
 
 
@@ -128,7 +128,7 @@ def evaluate(estimate, truth, path=None, zones: RiskZones | None = None) -> Traj
     """ADE, FDE, AWRS and % path-length error of ``estimate`` against ``truth``.
 
     AWRS is measured against ``path`` (the central safe path), by default the
-    ground-truth trajectory, as in SafeNav section V-A(iii)."""
+    ground-truth trajectory, as in [SafeNav-ext §V-A3(iii)] (= [SafeNav-conf §V-A.2(iii)])."""
     est, tru = _pts("estimate", estimate), _pts("truth", truth)
     central = tru if path is None else _pts("path", path)
     return TrajectoryMetrics(ade=ade(est, tru), fde=fde(est, tru), awrs=awrs(est, central, zones),

@@ -13,7 +13,7 @@ but ``world`` and ``path_types`` is optional and defaults to the values below)::
     trials = 0
     planner = 0
 
-    [camera]                   # the stereo pair (SafeNav V-A2: 2560x1440, B = 10-40 cm)
+    [camera]                   # the stereo pair ([SafeNav-ext §V-A2]: 2560x1440, B = 10-40 cm)
     focal_length_px = 1400.0
     baseline_m = 0.3
     image_width_px = 2560
@@ -162,7 +162,7 @@ class _Params:
 
 @dataclass(frozen=True)
 class CameraParams(_Params):
-    """The stereo camera (SafeNav V-A2: 2560×1440 px, baseline 10–40 cm; f and FoV are ours)."""
+    """The stereo camera ([SafeNav-ext §V-A2]: 2560×1440 px, baseline 10–40 cm; f and FoV are ours)."""
 
     focal_length_px: float = 1400.0   #: f [px]
     baseline_m: float = 0.3           #: B [m]
@@ -264,7 +264,7 @@ BufferParams.WEIGHT = BufferParams.LISTS["weights"][0]   #: each entry of ``weig
 _NAV = _core.NavigationSettings
 NavigationParams = _core_section(
     "NavigationParams",
-    """SafeNav navigation (Algorithms 1, 2 and 4).  The paper gives none of these
+    """SafeNav navigation [SafeNav Algs. 1–2, SafeNav-ext Alg. 4].  The paper gives none of these
     numbers; ours are declared with the core's settings (``NavigationSettings``,
     ``PlanningMap.clearance``, ``PlannerSettings.max_iterations``).
 

@@ -1,4 +1,7 @@
-"""The battlefield world of SafeNav (section V-A(3)(ii), Fig. 1).
+"""The battlefield world of SafeNav [SafeNav-ext §V-A3(ii), Fig. 1].
+
+[SafeNav-ext §V-A3(ii)] is [SafeNav-conf §V-A.2(ii)]; the conference has no
+figure of the field (its Fig. 1 is the framework).
 
 A rectangular :class:`Field` holding
 

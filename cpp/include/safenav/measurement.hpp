@@ -132,7 +132,7 @@ class RandomSourceOf final : public RandomSource {
 };
 
 /// The error model of a position source at the measurement level: LanBLoc
-/// with the paper's RMSE (SafeNav section III), or an emulated baseline
+/// with the paper's RMSE ([SafeNav §IV-A]), or an emulated baseline
 /// (DeepLoc-GPS, DeepLoc-EKF-GPS, Sensor Fusion: error profiles we chose,
 /// DESIGN.md decision 8).  A trial draws a bias b ~ N(0, bias_std² I) once
 /// (Trial); then each fix
@@ -148,7 +148,7 @@ struct PositionNoise {
 
   std::string name = "lanbloc";
   std::string label = "LanBLoc";        ///< for tables
-  Eigen::Vector2d std{0.0142, 0.039};   ///< σ of w in X and Y [m]; LanBLoc's RMSE (SafeNav section III)
+  Eigen::Vector2d std{0.0142, 0.039};   ///< σ of w in X and Y [m]; LanBLoc's RMSE [SafeNav §IV-A]
   double bias_std = 0.0;                ///< σ of the per-trial bias [m]
   double bias_walk_std = 0.0;           ///< σ of the bias's random walk per fix [m]
   double outlier_probability = 0.0;     ///< in [0, 1]

@@ -25,14 +25,14 @@ double overflow_scale(double max_abs);
 /// Mean of finite values without overflow in the sum (values near 1.8e308).
 double finite_mean(const Eigen::Ref<const Eigen::VectorXd>& values);
 
-/// ADE = (1/N) Σ ‖Ŷ_t − Y_t‖ (eq. 21).  Both trajectories must have the same
+/// ADE = (1/N) Σ ‖Ŷ_t − Y_t‖ [SafeNav-ext eq. 21].  Both trajectories must have the same
 /// number of points (the definition pairs them by time).
 double ade(const Eigen::Ref<const Points2>& estimate, const Eigen::Ref<const Points2>& truth);
-/// FDE = ‖Ŷ_tf − Y_tf‖ (eq. 22).  Lengths may differ: only final points are used.
+/// FDE = ‖Ŷ_tf − Y_tf‖ [SafeNav-ext eq. 22].  Lengths may differ: only final points are used.
 double fde(const Eigen::Ref<const Points2>& estimate, const Eigen::Ref<const Points2>& truth);
 /// Polyline length Σ ‖p_{i+1} − p_i‖.
 double path_length(const Eigen::Ref<const Points2>& path);
-/// |L_est − L_true| / L_true × 100 (eq. 23).  Lengths may differ.
+/// |L_est − L_true| / L_true × 100 [SafeNav-ext eq. 23].  Lengths may differ.
 double path_length_error_percent(const Eigen::Ref<const Points2>& estimate,
                                  const Eigen::Ref<const Points2>& truth);
 

@@ -1,6 +1,7 @@
-// safenav/world.hpp — the map of SafeNav's battlefield (section V-A(3)(ii),
-// Fig. 1): a rectangular field with circle and polygon obstacles, which the
-// vehicle may not enter, and hazard zones, which it may cross at a risk; and
+// safenav/world.hpp — the map of SafeNav's battlefield [SafeNav-ext §V-A3(ii),
+// Fig. 1] (= [SafeNav-conf §V-A.2(ii)], which has no such figure): a
+// rectangular field with circle and polygon obstacles, which the vehicle may
+// not enter, and hazard zones, which it may cross at a risk; and
 // the collision checker that the planner (RAw-RRT*), the navigation loop and
 // Python's safenav.world.World all ask.
 //
@@ -39,7 +40,7 @@ struct HazardZone {
 /// The field, its obstacles and its hazards: what a state validity checker needs.
 struct PlanningMap {
   Eigen::Vector2d lower = Eigen::Vector2d(0.0, 0.0);      ///< field's lower-left corner [m]
-  Eigen::Vector2d upper = Eigen::Vector2d(200.0, 200.0);  ///< field's upper-right corner [m] (SafeNav V-A)
+  Eigen::Vector2d upper = Eigen::Vector2d(200.0, 200.0);  ///< field's upper-right corner [m] ([SafeNav-ext §V-A3(ii)])
   std::vector<CircleObstacle> circles;
   std::vector<Points2> polygons;  ///< simple polygons, ≥ 3 vertices each, open (first ≠ last) or closed
   double clearance = 0.0;         ///< keep this far from every obstacle [m] (vehicle radius)
