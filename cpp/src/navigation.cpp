@@ -13,6 +13,7 @@
 #include <utility>
 
 #include "rng.hpp"
+#include "errors.hpp"
 
 namespace safenav {
 
@@ -20,7 +21,7 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-[[noreturn]] void bad(const std::string& what) { throw std::invalid_argument(what); }
+using detail::bad;
 
 std::string num(double v) {
   std::ostringstream os;

@@ -36,6 +36,7 @@
 #include "safenav/corridor.hpp"
 #include "safenav/params.hpp"
 #include "safenav/rng.hpp"
+#include "errors.hpp"
 
 namespace safenav {
 namespace {
@@ -44,13 +45,8 @@ namespace ob = ompl::base;
 namespace og = ompl::geometric;
 using Vec2 = Eigen::Vector2d;
 
-[[noreturn]] void bad(const std::string& what) { throw std::invalid_argument(what); }
-
-std::string fmt(const Vec2& p) {
-  std::ostringstream s;
-  s << "(" << p.x() << ", " << p.y() << ")";
-  return s.str();
-}
+using detail::bad;
+using detail::fmt;
 
 // The central path of the risk term: a Corridor (deviation, eq. 17; WRS,
 // eq. 18), or, when the path has a single distinct point, that point.

@@ -8,19 +8,15 @@
 #include <string>
 
 #include "cgal_util.hpp"
+#include "errors.hpp"
 
 namespace safenav {
 namespace {
 
 using Vec2 = Eigen::Vector2d;
 
-[[noreturn]] void bad(const std::string& what) { throw std::invalid_argument(what); }
-
-std::string fmt(const Vec2& p) {
-  std::ostringstream s;
-  s << "(" << p.x() << ", " << p.y() << ")";
-  return s.str();
-}
+using detail::bad;
+using detail::fmt;
 
 // Polygon with a repeated closing vertex removed.
 Points2 open_polygon(const Points2& poly) {
