@@ -199,13 +199,11 @@ bool Placement::covered() const {
 
 Placement place_landmarks(const Points2& route, const Points2& candidates, const Camera& camera,
                           const PlacementOptions& opt) {
-  camera.validate();
-  check_route(route);
-  check_candidates(candidates);
+  const CandidateSet set(route, candidates, camera);
   check_k(opt.k);
   const int k = opt.k;
-  const Grid grid(candidates, 0.5 * camera.range);
-  const std::vector<char> close = within(route, candidates, grid, camera.clearance);
+  const Grid& grid = set.grid;
+  const std::vector<char>& close = set.close;
   Placement out;
   for (Eigen::Index i = 0; i < candidates.rows(); ++i)
     if (close[i]) out.too_close.push_back(static_cast<int>(i));

@@ -107,6 +107,19 @@ void check_k(int k) {
     fail("k = " + std::to_string(k) + " must be in [1, " + std::to_string(kMaxLandmarksInView) + "]");
 }
 
+namespace {
+const Points2& checked(const Points2& route, const Points2& candidates, const Camera& camera) {
+  camera.validate();
+  check_route(route);
+  check_candidates(candidates);
+  return candidates;
+}
+}  // namespace
+
+CandidateSet::CandidateSet(const Points2& route, const Points2& candidates, const Camera& camera)
+    : grid(checked(route, candidates, camera), 0.5 * camera.range),
+      close(within(route, candidates, grid, camera.clearance)) {}
+
 std::vector<char> within(const Points2& route, const Points2& pts, const Grid& grid, double p) {
   std::vector<char> close(pts.rows(), 0);
   for (Eigen::Index e = 0; e + 1 < route.rows(); ++e) {
@@ -254,11 +267,9 @@ VisibilityTable to_table(const std::vector<int>& e, const std::vector<Seen>& s) 
 }  // namespace
 
 VisibilityTable edge_visibility(const Points2& route, const Points2& candidates, const Camera& camera) {
-  camera.validate();
-  check_route(route);
-  check_candidates(candidates);
-  const Grid grid(candidates, 0.5 * camera.range);
-  const std::vector<char> close = within(route, candidates, grid, camera.clearance);
+  const CandidateSet set(route, candidates, camera);
+  const Grid& grid = set.grid;
+  const std::vector<char>& close = set.close;
   std::vector<int> edge;
   std::vector<Seen> rows;
   for (Eigen::Index e = 0; e + 1 < route.rows(); ++e)
@@ -270,11 +281,10 @@ VisibilityTable edge_visibility(const Points2& route, const Points2& candidates,
 }
 
 VisibilityTable corner_visibility(const Points2& route, const Points2& candidates, const Camera& camera) {
-  camera.validate();
+  const CandidateSet set(route, candidates, camera);
+  const Grid& grid = set.grid;
+  const std::vector<char>& close = set.close;
   const Eigen::VectorXd turns = turn_angles(route);
-  check_candidates(candidates);
-  const Grid grid(candidates, 0.5 * camera.range);
-  const std::vector<char> close = within(route, candidates, grid, camera.clearance);
   std::vector<int> vert;
   std::vector<Seen> rows;
   for (Eigen::Index v = 1; v + 1 < route.rows(); ++v) {
@@ -290,11 +300,9 @@ VisibilityTable corner_visibility(const Points2& route, const Points2& candidate
 }
 
 AlignmentTable alignments(const Points2& route, const Points2& candidates, const Camera& camera) {
-  camera.validate();
-  check_route(route);
-  check_candidates(candidates);
-  const Grid grid(candidates, 0.5 * camera.range);
-  const std::vector<char> close = within(route, candidates, grid, camera.clearance);
+  const CandidateSet set(route, candidates, camera);
+  const Grid& grid = set.grid;
+  const std::vector<char>& close = set.close;
   std::vector<int> e_, f_, s_;
   std::vector<double> t_;
   for (Eigen::Index e = 0; e + 1 < route.rows(); ++e) {

@@ -91,6 +91,16 @@ class Grid {
 /// Candidates within `p` of the route (distance ≤ p).
 std::vector<char> within(const Points2& route, const Points2& pts, const Grid& grid, double p);
 
+/// The candidates of one query: checked with the camera and the route (in
+/// that order: camera, route, candidates), bucketed for range searches, and
+/// those within the camera's clearance p of the route marked (they may not
+/// hold a landmark).
+struct CandidateSet {
+  CandidateSet(const Points2& route, const Points2& candidates, const Camera& camera);
+  Grid grid;
+  std::vector<char> close;
+};
+
 /// A candidate's Lemma 2 interval on one edge with its position in the edge frame.
 struct Seen {
   int idx;

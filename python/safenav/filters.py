@@ -9,7 +9,7 @@
   BMM (eqs. 6–9), weights kept as log-weights, systematic resampling when
   ESS < threshold·N, weighted mean (circular for θ) and covariance.
 * :class:`InformationFilter` — the extended information filter of the
-  landmark placement paper (section III), with any measurement model.
+  landmark placement paper [Placement §III-A], with any measurement model.
 
 Per-step calls (``predict``/``update``) are for embedding; for whole
 trajectories use :func:`filter_trajectory`, one C++ call that releases the GIL.
