@@ -140,3 +140,16 @@ def test_the_safe_path_planner_gets_every_scenario_setting(monkeypatch):
     st = seen["s"]
     assert (st.corridor_bias, st.max_iterations, st.alpha, st.beta, st.seed, st.smooth) == (0.3, 99, 2.0, 0.5, 7, True)
     assert seen["p"].map.clearance == 1.5 and seen["p"].zones.half_width == s.buffer.half_width
+
+
+def test_every_struct_validates_its_declared_ranges():
+    with pytest.raises(ValueError, match=r"RiskZones.half_width = 2000: must be in \(0, 1000\] m"):
+        _core.RiskZones(half_width=2000.0)
+    with pytest.raises(ValueError, match=r"clearance = 200: must be in \[0, 100\] m"):
+        _core.PlanningMap(clearance=200.0)
+    with pytest.raises(ValueError, match=r"max_iterations = 2000000: must be an integer in \[1, 1000000\]"):
+        _core.PlannerSettings(max_iterations=2_000_000)
+    s = _core.SensorSettings()
+    s.min_landmarks = 0
+    with pytest.raises(ValueError, match=r"sensors.min_landmarks = 0: must be an integer in \[1, 1000\]"):
+        s.validate()

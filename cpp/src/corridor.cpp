@@ -4,6 +4,7 @@
 // centroids of [SafeNav Algs. 1–2].  CGAL does the convex hulls
 // (convex_hull_2), orientation and point location (bounded_side_2).
 #include "safenav/corridor.hpp"
+#include "safenav/params.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -63,6 +64,7 @@ void RiskZones::validate() const {
        << " gives WRS = d_max^2/w beyond 1.8e308";
     throw std::invalid_argument(os.str());
   }
+  param_set<RiskZones>().check(*this, "RiskZones.");
 }
 
 Eigen::VectorXd distance_to_path(const Eigen::Ref<const Points2>& points, const Eigen::Ref<const Points2>& path) {

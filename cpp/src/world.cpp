@@ -1,5 +1,6 @@
 // The map and its collision checker [SafeNav-ext §V-A3(ii)] (= [SafeNav-conf §V-A.2(ii)]).  See world.hpp.
 #include "safenav/world.hpp"
+#include "safenav/params.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -157,6 +158,7 @@ void PlanningMap::validate() const {
     else check_polygon(h.polygon, name);
     if (!(h.risk > 0.0 && h.risk <= 1.0)) bad(name + " risk must be in (0, 1], got " + std::to_string(h.risk));
   }
+  param_set<PlanningMap>().check(*this);
 }
 
 bool PlanningMap::in_field(const Vec2& p) const {
