@@ -11,13 +11,8 @@ from pathlib import Path
 import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "python" / "safenav"
-#: scenario.py and generate.py import world.py's private helpers (validation,
-#: geometry kernels): other parts of issue 13 move those out of world.py.
-PENDING: set[str] = set()
-
-
 def _modules():
-    return sorted(p for p in PACKAGE.rglob("*.py") if str(p.relative_to(PACKAGE)) not in PENDING)
+    return sorted(PACKAGE.rglob("*.py"))
 
 
 def _private(name: str) -> bool:

@@ -78,7 +78,6 @@ Every field's range and every list's size limit are in docs/scenario.md.
 from __future__ import annotations
 
 import json
-import math
 import os
 import re
 import stat

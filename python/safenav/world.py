@@ -35,7 +35,6 @@ from typing import Iterable, Sequence, Union
 import numpy as np
 
 from . import _core
-from . import validation
 from .validation import (FIELD_SIZE, MAX_COORDINATE, MAX_HAZARDS, MAX_LANDMARKS, MAX_OBSTACLES,  # noqa: F401
                          MAX_PATH_CLUSTERS, MAX_RADIUS, MAX_VERTICES, ScenarioError, at, cut, fail, integer, items,
                          real, table, text, vector)
