@@ -6,7 +6,7 @@ using namespace safenav;
 namespace {
 template <class F>
 void common_filter_api(py::class_<F>& c) {
-  c.def("predict", &F::predict, py::arg("u"), "Predict one step with the BMM.")
+  c.def("predict", py::overload_cast<const Control&>(&F::predict), py::arg("u"), "Predict one step with the BMM.")
       .def("update", &F::update, py::arg("model"), py::arg("z"), "Update with one measurement.");
 }
 }  // namespace

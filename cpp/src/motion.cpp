@@ -85,6 +85,22 @@ Bmm::Bmm(const BmmParams& params) : params_(params) { params_.validate(); }
 
 State Bmm::predict(const State& x, const Control& u) const { return linearize(x, u, nullptr, nullptr); }
 
+Bmm Bmm::with_step(double dt) const {
+  if (!(std::isfinite(dt) && dt > 0.0)) {
+    std::ostringstream os;
+    os << "step dt = " << dt << " s: must be finite and > 0";
+    throw std::invalid_argument(os.str());
+  }
+  if (is_nominal_step(dt)) return *this;
+  BmmParams p = params_;
+  const double s = std::sqrt(dt / p.dt);
+  p.speed_noise *= s;
+  p.heading_noise *= s;
+  p.position_noise *= s;
+  p.dt = dt;
+  return Bmm(p, Unchecked{});
+}
+
 State Bmm::transition(const State& x, const Control& u, const Eigen::Vector4d& eps) const {
   check_finite_state(x, "state");
   check_control(u);

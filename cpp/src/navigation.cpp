@@ -37,68 +37,10 @@ void require_finite_nonneg(double v, const char* name) {
   if (!std::isfinite(v) || v < 0.0) bad(std::string(name) + " = " + num(v) + ": must be finite and >= 0");
 }
 
-double heading_to(const State& x, const Eigen::Vector2d& target) {
-  const Eigen::Vector2d d = target - x.head<2>();
-  if (d.squaredNorm() < 1e-18) return 0.0;
-  return wrap_angle(std::atan2(d.y(), d.x()) - x[kTheta]);
-}
-
-double position_std(const StateCov& P) {
-  // √ of the largest eigenvalue of the 2×2 position block.
-  const double a = P(0, 0), b = P(0, 1), c = P(1, 1);
-  const double m = 0.5 * (a + c), r = std::sqrt(0.25 * (a - c) * (a - c) + b * b);
-  return std::sqrt(std::max(0.0, m + r));
-}
-
-/// The filter in the loop: an EKF or a particle filter behind one interface.
-class LoopFilter {
- public:
-  LoopFilter(const BmmParams& bmm, const FilterOptions& o, const State& x0, const StateCov& P0, std::uint64_t seed) {
-    if (o.type == FilterType::Ekf) {
-      ekf_.emplace(bmm, x0, P0);
-      if (o.gate_probability > 0.0) ekf_->set_gate(o.gate_probability);
-    } else if (o.type == FilterType::ParticleFilter) {
-      pf_.emplace(bmm, x0, P0, o.n_particles, seed, o.resample_threshold);
-    } else {
-      bad("settings.filter.type = InformationFilter: navigation supports the EKF and the particle filter");
-    }
-  }
-  void predict(const Control& u) {
-    if (ekf_) ekf_->predict(u);
-    else pf_->predict(u);
-  }
-  UpdateResult update(const MeasurementModel& m, const Eigen::Ref<const Eigen::VectorXd>& z) {
-    return ekf_ ? ekf_->update(m, z) : pf_->update(m, z);
-  }
-  void estimate(State& x, StateCov& P) const {
-    if (ekf_) {
-      x = ekf_->x();
-      P = ekf_->P();
-    } else {
-      x = pf_->mean();
-      P = pf_->covariance(x);
-    }
-  }
-
- private:
-  std::optional<Ekf> ekf_;
-  std::optional<ParticleFilter> pf_;
-};
-
-/// The path being followed (the safe path, or it with detours spliced in).
-struct ActivePath {
-  std::shared_ptr<const PathSegments> segments;
-  const Corridor& corridor() const { return segments->corridor(); }
-};
-
 }  // namespace
 
 // ---------------------------------------------------------------------------
 // names and validation
-
-std::string to_string(NavigationMethod method) {
-  return method == NavigationMethod::CHull ? "chull" : "centroid";
-}
 
 std::string to_string(TrialOutcome outcome) {
   switch (outcome) {
@@ -145,219 +87,42 @@ int SensorSettings::landmarks_in_view(const State& x) const {
   return n;
 }
 
-void NavigationProblem::validate() const {
-  check_points(path, "problem.path", 2);
-  zones.validate();
-  map.validate();
-  bmm.validate();
-}
-
-void NavigationSettings::validate() const {
-  require_finite_positive(cruise_speed, "settings.cruise_speed");
-  require_finite_positive(arrival_radius, "settings.arrival_radius");
-  if (max_steps < 0 || max_steps > kMaxSteps)
-    bad("settings.max_steps = " + std::to_string(max_steps) + ": must be in [0, " + std::to_string(kMaxSteps) +
-        "] (0 = automatic)");
-  segments.validate();
-  require_finite_positive(lookahead, "settings.lookahead");
-  require_finite_positive(step_back_speed, "settings.step_back_speed");
-  require_finite_positive(sensing_range, "settings.sensing_range");
-  if (obstacle_check_every < 1)
-    bad("settings.obstacle_check_every = " + std::to_string(obstacle_check_every) + ": must be >= 1");
-  require_finite_positive(replan_lookahead, "settings.replan_lookahead");
-  if (max_replans < 0) bad("settings.max_replans = " + std::to_string(max_replans) + ": must be >= 0");
-  planner.validate();
-  require_finite_nonneg(corridor_margin, "settings.corridor_margin");
-  require_finite_positive(lost_position_std, "settings.lost_position_std");
-  if (filter.type == FilterType::ParticleFilter && filter.n_particles < 1)
-    bad("settings.filter.n_particles = " + std::to_string(filter.n_particles) + ": must be >= 1");
-  if (!(filter.resample_threshold >= 0.0 && filter.resample_threshold <= 1.0))
-    bad("settings.filter.resample_threshold = " + num(filter.resample_threshold) + ": must be in [0, 1]");
-  if (!(filter.gate_probability >= 0.0 && filter.gate_probability < 1.0))
-    bad("settings.filter.gate_probability = " + num(filter.gate_probability) + ": must be in [0, 1)");
-  if (filter.type == FilterType::InformationFilter)
-    bad("settings.filter.type = InformationFilter: navigation supports the EKF and the particle filter");
-  param_set<NavigationSettings>().check(*this, "settings.");
-}
-
-// ---------------------------------------------------------------------------
-// [SafeNav Algs. 1–2]
-
-Control centroid_control(const PathSegments& segments, const State& estimate, double cruise_speed) {
-  check_finite_state(estimate, "estimate");
-  require_finite_positive(cruise_speed, "cruise_speed");
-  const Eigen::Vector2d p = estimate.head<2>();
-  const CentroidTarget t = segments.nearest_centroid_ahead(p);
-  const Eigen::Vector2d target = t.ahead ? t.point : Eigen::Vector2d(segments.corridor().path().bottomRows<1>().transpose());
-  return Control(cruise_speed, heading_to(estimate, target));
-}
-
-ChullDecision chull_control(const PathSegments& segments, const Bmm& bmm, const State& estimate, double cruise_speed,
-                            double lookahead, double step_back_speed, const ObstacleChecker* obstacles) {
-  check_finite_state(estimate, "estimate");
-  require_finite_positive(cruise_speed, "cruise_speed");
-  require_finite_positive(lookahead, "lookahead");
-  require_finite_positive(step_back_speed, "step_back_speed");
-  const Corridor& corridor = segments.corridor();
-  const Eigen::Vector2d p = estimate.head<2>();
-  const PathProjection proj = corridor.project(p);
-  ChullDecision d;
-  d.segment = segments.segment_at(proj.arc_length);
-  const int k = d.segment;
-  // Outside every adjacent hull (k−1, k, k+1): step back toward the path.
-  const bool inside_adjacent = segments.in_current_or_next(k, p) || (k > 0 && segments.hull_contains(k - 1, p));
-  if (!inside_adjacent) {
-    const Eigen::Vector2d foot = (proj.foot - p).squaredNorm() > 1e-18
-                                     ? proj.foot
-                                     : Eigen::Vector2d(proj.foot + corridor.tangent_at(proj.arc_length));
-    d.control = Control(step_back_speed, heading_to(estimate, foot));
-    d.action = ChullAction::StepBack;
-    d.predicted = bmm.predict(estimate, d.control).head<2>();
-    return d;
-  }
-  // Default command: toward the look-ahead point on the safe path; the look-
-  // ahead shrinks (halving, down to 1/8) while the chord to it hits an obstacle.
-  double la = lookahead;
-  Eigen::Vector2d aim = corridor.point_at(proj.arc_length + la);
-  if (obstacles) {
-    while (la > lookahead / 8.0 && !obstacles->segment_free(p, aim)) {
-      la *= 0.5;
-      aim = corridor.point_at(proj.arc_length + la);
-    }
-  }
-  Control u(cruise_speed, heading_to(estimate, aim));
-  State pred = bmm.predict(estimate, u);
-  if (segments.in_current_or_next(k, pred.head<2>())) {  // [SafeNav-ext Alg. 1 l. 13] (conf l. 10)
-    d.control = u;
-    d.action = ChullAction::Keep;
-    d.predicted = pred.head<2>();
-    return d;
-  }
-  // Corrective control ([SafeNav-ext Alg. 1 l. 17], conf l. 13): back toward the path, 1 m ahead of the foot.
-  u = Control(cruise_speed, heading_to(estimate, corridor.point_at(proj.arc_length + 1.0)));
-  d.control = u;
-  d.action = ChullAction::Corrective;
-  d.predicted = bmm.predict(estimate, u).head<2>();
-  return d;
-}
-
 // ---------------------------------------------------------------------------
 // Navigator
 
 struct Navigator::Impl {
-  NavigationProblem problem;
-  NavigationSettings settings;
+  Guidance guidance;             // the prototype: each trial runs guidance.fresh(seed)
   SensorSettings sensors;
-  std::shared_ptr<const PathSegments> segments;  // of the safe path
-  ObstacleChecker obstacles;                     // the true obstacles with the planning clearance
-  ObstacleChecker collisions;                    // the true obstacles, no clearance
-  MeasurementModel position_model;
-  MeasurementModel imu_model;
-  Bmm bmm;
+  ObstacleChecker collisions;    // the true obstacles, no clearance
+  Eigen::Matrix2d imu_R;
   int max_steps = 0;
 
+  static LocalizerSettings loop_filter(const NavigationSettings& s) {
+    LocalizerSettings ls;
+    ls.filter = s.filter;  // the loop's gate is the settings' (0 = off, the paper's loop)
+    return ls;
+  }
   static PlanningMap no_clearance(PlanningMap m) {
     m.clearance = 0.0;
     return m;
   }
 
   Impl(NavigationProblem p, NavigationSettings s, SensorSettings se)
-      : problem(std::move(p)),
-        settings(std::move(s)),
-        sensors(std::move(se)),
-        obstacles((problem.validate(), problem.map)),
-        collisions(no_clearance(problem.map)),
-        position_model(MeasurementModel::position(Eigen::Matrix2d::Identity())),
-        imu_model(MeasurementModel::speed_heading(Eigen::Matrix2d::Identity())),
-        bmm(problem.bmm) {
-    settings.validate();
-    sensors.validate();
-    segments = std::make_shared<const PathSegments>(Corridor(problem.path, problem.zones), settings.segments);
-    position_model = MeasurementModel::position(sensors.position.reported_cov());
-    Eigen::Matrix2d Ri = Eigen::Vector2d(sensors.imu_speed_std * sensors.imu_speed_std,
-                                         sensors.imu_heading_std * sensors.imu_heading_std).asDiagonal();
-    imu_model = MeasurementModel::speed_heading(Ri);
-    const double L = segments->corridor().length();
-    const double automatic =
-        std::ceil(3.0 * L / (settings.cruise_speed * problem.bmm.dt * problem.bmm.terrain_factor())) + 200.0;
-    if (settings.max_steps == 0 && !(automatic <= NavigationSettings::kMaxSteps))
+      : guidance(p, s, loop_filter(s)),
+        sensors((se.validate(), std::move(se))),
+        collisions(no_clearance(p.map)) {
+    imu_R = Eigen::Vector2d(sensors.imu_speed_std * sensors.imu_speed_std,
+                            sensors.imu_heading_std * sensors.imu_heading_std).asDiagonal();
+    const NavigationSettings& st = guidance.settings();
+    const BmmParams& bmm = guidance.problem().bmm;
+    const double L = guidance.safe_path().corridor().length();
+    const double automatic = std::ceil(3.0 * L / (st.cruise_speed * bmm.dt * bmm.terrain_factor())) + 200.0;
+    if (st.max_steps == 0 && !(automatic <= NavigationSettings::kMaxSteps))
       bad("automatic max_steps = 3·L/(cruise_speed·dt·terrain factor) + 200 = " + num(automatic) + " exceeds " +
           std::to_string(NavigationSettings::kMaxSteps) + " (path length L = " + num(L) + " m, cruise_speed = " +
-          num(settings.cruise_speed) + " m/s, dt = " + num(problem.bmm.dt) + " s, terrain factor = " +
-          num(problem.bmm.terrain_factor()) + "): raise the speed or dt, or set settings.max_steps");
-    max_steps = settings.max_steps > 0 ? settings.max_steps : static_cast<int>(automatic);
-  }
-
-  /// [SafeNav-ext Alg. 4 l. 8] (= conf Alg. 3 l. 6): whether the way ahead of a vehicle at p (arc length
-  /// s on the path) hits an obstacle — the chord from p to the path
-  /// (look-ahead point) and the path up to sensing_range of arc beyond s.
-  bool blocked_ahead(const Corridor& c, const Eigen::Vector2d& p, double s) const {
-    const double s1 = std::min(c.length(), s + settings.sensing_range);
-    Eigen::Vector2d a = p;
-    const Eigen::VectorXd& vs = c.vertex_arc_lengths();
-    Eigen::Index i = 0;
-    while (i < vs.size() && vs[i] <= s) ++i;
-    for (; i < vs.size() && vs[i] < s1; ++i) {
-      const Eigen::Vector2d b = c.path().row(i).transpose();
-      if (!collisions.segment_free(a, b)) return true;
-      a = b;
-    }
-    return !collisions.segment_free(a, c.point_at(s1));
-  }
-
-  /// Splice a RAw-RRT* detour from p into the active path.  Returns the new
-  /// segments, or null when no path was found.
-  std::shared_ptr<const PathSegments> detour(const ActivePath& active, const Eigen::Vector2d& p,
-                                             std::uint64_t seed, std::string* why) const {
-    // Plan locally: in a window around the vehicle and the rejoin point (the
-    // whole field when the window would not fit), keeping the planning
-    // clearance where the vehicle's own position allows it.
-    const Corridor& ac = active.corridor();
-    const double s_here = ac.project(p).arc_length;
-    const Eigen::Vector2d rejoin = ac.point_at(s_here + settings.replan_lookahead);
-    const double margin = settings.replan_lookahead;
-    PlanningProblem pp;
-    pp.map = problem.map;
-    pp.map.lower = pp.map.lower.cwiseMax(p.cwiseMin(rejoin) - Eigen::Vector2d::Constant(margin));
-    pp.map.upper = pp.map.upper.cwiseMin(p.cwiseMax(rejoin) + Eigen::Vector2d::Constant(margin));
-    pp.central_path = ac.path();
-    pp.zones = problem.zones;
-    while (pp.map.clearance > 0.05 && !ObstacleChecker(pp.map).point_free(p)) pp.map.clearance *= 0.5;
-    if (!ObstacleChecker(pp.map).point_free(p)) pp.map.clearance = 0.0;
-    PlannerSettings ps = settings.planner;
-    ps.seed = seed;
-    PlanResult r;
-    try {
-      // The goal slides along the path past blocked points, possibly out of the window.
-      r = replan(pp, p, settings.replan_lookahead, ps);
-    } catch (const std::invalid_argument&) {
-      r = PlanResult{};
-    }
-    if (!r.success) {
-      pp.map.lower = problem.map.lower;
-      pp.map.upper = problem.map.upper;
-      try {
-        r = replan(pp, p, settings.replan_lookahead, ps);
-      } catch (const std::invalid_argument& e) {  // e.g. the estimate lies inside an obstacle
-        *why = e.what();
-        return nullptr;
-      }
-    }
-    if (!r.success || r.path.rows() < 2) {
-      *why = "RAw-RRT* found no path (" + to_string(r.status) + ", " + std::to_string(r.iterations) + " iterations)";
-      return nullptr;
-    }
-    const Corridor& c = active.corridor();
-    const Eigen::Vector2d goal = r.path.bottomRows<1>().transpose();
-    const double s_goal = c.project(goal).arc_length;
-    const Eigen::VectorXd& vs = c.vertex_arc_lengths();
-    std::vector<Eigen::Vector2d> pts;
-    for (Eigen::Index i = 0; i < r.path.rows(); ++i) pts.emplace_back(r.path.row(i).transpose());
-    for (Eigen::Index i = 0; i < vs.size(); ++i)
-      if (vs[i] > s_goal + 1e-9) pts.emplace_back(c.path().row(i).transpose());
-    Points2 np(static_cast<Eigen::Index>(pts.size()), 2);
-    for (std::size_t i = 0; i < pts.size(); ++i) np.row(static_cast<Eigen::Index>(i)) = pts[i].transpose();
-    return std::make_shared<const PathSegments>(Corridor(np, problem.zones), settings.segments);
+          num(st.cruise_speed) + " m/s, dt = " + num(bmm.dt) + " s, terrain factor = " +
+          num(bmm.terrain_factor()) + "): raise the speed or dt, or set settings.max_steps");
+    max_steps = st.max_steps > 0 ? st.max_steps : static_cast<int>(automatic);
   }
 };
 
@@ -367,14 +132,14 @@ Navigator::~Navigator() = default;
 Navigator::Navigator(Navigator&&) noexcept = default;
 Navigator& Navigator::operator=(Navigator&&) noexcept = default;
 
-const NavigationProblem& Navigator::problem() const { return impl_->problem; }
-const NavigationSettings& Navigator::settings() const { return impl_->settings; }
+const NavigationProblem& Navigator::problem() const { return impl_->guidance.problem(); }
+const NavigationSettings& Navigator::settings() const { return impl_->guidance.settings(); }
 const SensorSettings& Navigator::sensors() const { return impl_->sensors; }
-const PathSegments& Navigator::segments() const { return *impl_->segments; }
+const PathSegments& Navigator::segments() const { return impl_->guidance.safe_path(); }
 int Navigator::max_steps() const { return impl_->max_steps; }
 
 TrialResult Navigator::run(std::uint64_t seed, const PositionCallback& position) const {
-  return run_trial(seed, position, impl_->settings.record);
+  return run_trial(seed, position, impl_->guidance.settings().record);
 }
 
 std::vector<TrialResult> Navigator::run_many(const std::vector<std::uint64_t>& seeds) const {
@@ -387,16 +152,16 @@ std::vector<TrialResult> Navigator::run_many(const std::vector<std::uint64_t>& s
 TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& position_cb, bool rec) const {
   const auto t0 = std::chrono::steady_clock::now();
   const Impl& im = *impl_;
-  const NavigationSettings& st = im.settings;
   const SensorSettings& se = im.sensors;
-  const BmmParams& bp = im.problem.bmm;
-  const Bmm& bmm = im.bmm;
+  const BmmParams& bp = im.guidance.problem().bmm;
+  const NavigationSettings& st = im.guidance.settings();
+  const Bmm bmm(bp);
   detail::Rng motion_rng(derive_seed(seed, 0));
   detail::Rng sensor_rng(derive_seed(seed, 1));
 
-  ActivePath active{im.segments};
-  const Corridor& safe = im.segments->corridor();
-  const Eigen::Vector2d destination = safe.path().bottomRows<1>().transpose();
+  // The vehicle's guidance: the same object a vehicle program ticks (guidance.hpp).
+  Guidance guidance = im.guidance.fresh(seed);
+  const Corridor& safe = guidance.safe_path().corridor();
 
   // True start: first path vertex, at rest, heading along the first edge.
   State truth;
@@ -409,6 +174,7 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
   const PositionNoise& src = se.position;
   RandomSourceOf<detail::Rng> sensor_draws(sensor_rng);
   PositionNoise::Trial source_noise(src, sensor_draws);
+  const Eigen::Matrix2d source_R = src.reported_cov();
   auto fix = [&](const State& x, int step, Eigen::Vector2d& z, Eigen::Matrix2d& R) -> bool {
     if (position_cb) {
       if (!position_cb(x, step, z, R)) return false;
@@ -418,14 +184,14 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
     }
     if (src.needs_landmarks && se.landmarks_in_view(x) < se.min_landmarks) return false;
     if (!source_noise.sample(x.head<2>(), sensor_draws, z)) return false;
-    R = src.reported_cov();
+    R = source_R;
     return true;
   };
 
-  // Initial estimate: a LanBLoc fix (if one is available) and the IMU.
-  State x0 = truth;
-  StateCov P0 = StateCov::Zero();
+  // Initial estimate (the localizer's prior): a LanBLoc fix, if one is available, and the IMU.
   {
+    State x0 = truth;
+    StateCov P0 = StateCov::Zero();
     Eigen::Vector2d z;
     Eigen::Matrix2d R;
     if (fix(truth, 0, z, R)) {
@@ -441,8 +207,9 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
     x0[kTheta] = wrap_angle(truth[kTheta] + se.imu_heading_std * sensor_rng.normal());
     P0(2, 2) = se.imu_speed_std * se.imu_speed_std;
     P0(3, 3) = se.imu_heading_std * se.imu_heading_std;
+    guidance.localizer().initialize(0.0, x0, P0);
   }
-  LoopFilter filter(bp, st.filter, x0, P0, derive_seed(seed, 2));
+  const Localizer& loc = guidance.localizer();
 
   TrialResult res;
   const int N = im.max_steps;
@@ -455,17 +222,17 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
     res.position_std.resize(N + 1);
   }
   // Metrics accumulate on the fly, so they need no recording.
-  Eigen::Vector2d prev_est = x0.head<2>();
+  Eigen::Vector2d prev_est = loc.x().head<2>();
   double est_length = 0.0, loc_sum = 0.0, wrs_est = 0.0, wrs_true = 0.0, max_dev = 0.0;
   std::vector<Eigen::Vector2d> est_points;
   est_points.reserve(static_cast<std::size_t>(N) + 1);
 
-  State xe = x0;
-  StateCov Pe = P0;
+  const RiskZones& zones = guidance.problem().zones;
   auto record = [&](int row, const Eigen::Vector2d& pred, const Eigen::Vector2d* meas) {
+    const State& xe = loc.x();
     const double dev = safe.project(truth.head<2>()).distance;
     max_dev = std::max(max_dev, dev);
-    wrs_true += wrs(dev, im.problem.zones);
+    wrs_true += wrs(dev, zones);
     wrs_est += safe.wrs(Eigen::Vector2d(xe.head<2>()));
     loc_sum += (xe.head<2>() - truth.head<2>()).norm();
     if (row > 0) est_length += (xe.head<2>() - prev_est).norm();
@@ -477,11 +244,11 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
     res.predicted.row(row) = pred.transpose();
     if (meas) res.measured.row(row) = meas->transpose();
     else res.measured.row(row).setConstant(kNaN);
-    res.position_std[row] = position_std(Pe);
+    res.position_std[row] = loc.position_std();
   };
   {
-    Eigen::Vector2d z0 = x0.head<2>();
-    record(0, x0.head<2>(), &z0);
+    const Eigen::Vector2d z0 = loc.x().head<2>();
+    record(0, z0, &z0);
   }
 
   const Eigen::Vector4d sigma(bp.position_noise, bp.position_noise, bp.speed_noise, bp.heading_noise);
@@ -489,61 +256,40 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
   std::string reason = "no arrival within " + std::to_string(N) + " steps";
   int step = 0;
   while (step < N) {
-    // 1–2. Obstacles ahead [SafeNav-ext Alg. 4 ll. 7–9].
-    if (st.replan && step % st.obstacle_check_every == 0) {
-      const double s = active.corridor().project(xe.head<2>()).arc_length;
-      if (im.blocked_ahead(active.corridor(), xe.head<2>(), s)) {
-        if (res.replans >= st.max_replans) {
-          outcome = TrialOutcome::NoPath;
-          reason = "path blocked after " + std::to_string(res.replans) + " replans (max_replans)";
-          break;
-        }
-        std::string why;
-        auto next = im.detour(active, xe.head<2>(), derive_seed(seed, 16 + res.replans), &why);
-        ++res.replans;
-        if (!next) {
-          outcome = TrialOutcome::NoPath;
-          reason = "path blocked at s = " + num(s) + " m and no detour: " + why;
-          break;
-        }
-        active.segments = std::move(next);
-      }
+    // 1–2. The vehicle asks guidance for its control: obstacles ahead and
+    // detours [SafeNav-ext Alg. 4 ll. 7–9], then CHull or Centroid.
+    const double t = step * bp.dt;
+    const Command cmd = guidance.command(t);
+    if (cmd.status == GuidanceStatus::NoPath) {
+      outcome = TrialOutcome::NoPath;
+      reason = guidance.detail();
+      break;
     }
-    // 1. Control from the estimate.
-    Control u;
-    Eigen::Vector2d pred;
-    if (st.method == NavigationMethod::Centroid) {
-      u = centroid_control(*active.segments, xe, st.cruise_speed);
-      pred = bmm.predict(xe, u).head<2>();
-    } else {
-      const ChullDecision d = chull_control(*active.segments, bmm, xe, st.cruise_speed, st.lookahead,
-                                            st.step_back_speed, &im.obstacles);
-      u = d.control;
-      pred = d.predicted;
-      switch (d.action) {
+    if (st.method == NavigationMethod::CHull) {
+      switch (cmd.action) {
         case ChullAction::Keep: ++res.chull_default; break;
         case ChullAction::Corrective: ++res.chull_corrective; break;
         case ChullAction::StepBack: ++res.chull_step_back; break;
       }
     }
+    const Control& u = cmd.control;
     ++step;
+    const double t1 = step * bp.dt;
     if (rec) res.controls.row(step - 1) = u.transpose();
     // 3. Move the true vehicle.
     const Eigen::Vector2d before = truth.head<2>();
     Eigen::Vector4d eps;
     for (int i = 0; i < 4; ++i) eps[i] = sigma[i] * motion_rng.normal();
     truth = bmm.transition(truth, u, eps);
-    // 4. Measure and update.
-    filter.predict(u);
+    // 4. The vehicle's inputs: its commanded motion, a LanBLoc fix, the IMU.
+    guidance.motion(t1, u);
     Eigen::Vector2d z;
     Eigen::Matrix2d R;
     bool have_fix = false;
     if (step % se.position_every == 0) {
       have_fix = fix(truth, step, z, R);
       if (have_fix) {
-        const UpdateResult ur = position_cb ? filter.update(MeasurementModel::position(R), z)
-                                            : filter.update(im.position_model, z);
-        if (ur.accepted) ++res.position_fixes;
+        if (guidance.fix(t1, z, R).applied()) ++res.position_fixes;
         else ++res.rejected;
       } else {
         ++res.dropouts;
@@ -552,31 +298,31 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
     if (se.imu) {
       const Eigen::Vector2d zi(std::max(0.0, truth[kV] + se.imu_speed_std * sensor_rng.normal()),
                                wrap_angle(truth[kTheta] + se.imu_heading_std * sensor_rng.normal()));
-      if (!filter.update(im.imu_model, zi).accepted) ++res.rejected;
+      if (!guidance.speed_heading(t1, zi, im.imu_R).applied()) ++res.rejected;
     }
-    filter.estimate(xe, Pe);
     // 5. Record.
-    record(step, pred, have_fix ? &z : nullptr);
-    // Ends.
+    record(step, cmd.predicted, have_fix ? &z : nullptr);
+    // Ends: the truth's (collision, corridor), then guidance's (lost, arrived).
     if (!im.collisions.segment_free(before, truth.head<2>())) {
       outcome = TrialOutcome::Collision;
       reason = "collision at (" + num(truth[kX]) + ", " + num(truth[kY]) + ") at step " + std::to_string(step);
       break;
     }
-    const double dev = active.corridor().project(truth.head<2>()).distance;
-    if (dev > im.problem.zones.half_width + st.corridor_margin) {
+    const double dev = guidance.path().corridor().project(truth.head<2>()).distance;
+    if (dev > zones.half_width + st.corridor_margin) {
       outcome = TrialOutcome::LeftCorridor;
       reason = "left the corridor at step " + std::to_string(step) + ": deviation " + num(dev) + " m > " +
-               num(im.problem.zones.half_width + st.corridor_margin) + " m";
+               num(zones.half_width + st.corridor_margin) + " m";
       break;
     }
-    const double pstd = position_std(Pe);
-    if (!(pstd <= st.lost_position_std)) {
+    const GuidanceStatus gs = guidance.status();
+    if (gs == GuidanceStatus::LostLocalization) {
       outcome = TrialOutcome::LostLocalization;
-      reason = "position std " + num(pstd) + " m > " + num(st.lost_position_std) + " m at step " + std::to_string(step);
+      reason = "position std " + num(loc.position_std()) + " m > " + num(st.lost_position_std) + " m at step " +
+               std::to_string(step);
       break;
     }
-    if ((xe.head<2>() - destination).norm() <= st.arrival_radius) {
+    if (gs == GuidanceStatus::Arrived) {
       outcome = TrialOutcome::Arrived;
       reason = "arrived in " + std::to_string(step) + " steps";
       break;
@@ -587,6 +333,7 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
   res.success = outcome == TrialOutcome::Arrived;
   res.reason = reason;
   res.steps = step;
+  res.replans = guidance.replans();
   const Eigen::Index rows = step + 1;
   if (rec) {
     res.truth.conservativeResize(rows, 4);
@@ -595,9 +342,10 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
     res.measured.conservativeResize(rows, 2);
     res.controls.conservativeResize(step, 2);
     res.position_std.conservativeResize(rows);
-    res.followed_path = active.corridor().path();
+    res.followed_path = guidance.path().corridor().path();
   }
   // Metrics [SafeNav-ext eqs. 20–23] against the safe path (and the truth).
+  const Eigen::Vector2d destination = safe.path().bottomRows<1>().transpose();
   Points2 est(rows, 2);
   for (Eigen::Index i = 0; i < rows; ++i) est.row(i) = est_points[static_cast<std::size_t>(i)].transpose();
   TrialMetrics& m = res.metrics;
@@ -607,7 +355,7 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
   m.awrs = wrs_est / double(rows);
   m.awrs_true = wrs_true / double(rows);
   m.truth_ade = loc_sum / double(rows);
-  m.truth_fde = (xe.head<2>() - truth.head<2>()).norm();
+  m.truth_fde = (loc.x().head<2>() - truth.head<2>()).norm();
   m.max_deviation = max_dev;
   res.wall_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return res;

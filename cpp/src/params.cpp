@@ -8,6 +8,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "safenav/localizer.hpp"
 #include "safenav/navigation.hpp"
 
 namespace safenav {
@@ -251,7 +252,21 @@ const ParamSet<SensorSettings>& param_set<SensorSettings>() {
   return s;
 }
 
+template <>
+const ParamSet<LocalizerSettings>& param_set<LocalizerSettings>() {
+  using L = LocalizerSettings;
+  static const ParamSet<L> s =
+      Declare<L>{}
+          .real("gate_probability", SN_REF(L, filter.gate_probability), "", closed(0, 0.999999), "chi-square gate of each update (0 = off)")
+          .real("init_window", SN_REF(L, init_window), "s", above(0, 1e4), "ranges this close in time are trilaterated together to start from the data")
+          .real("init_baseline", SN_REF(L, init_baseline), "m", above(0, 1e4), "motion before the heading is taken from two positions")
+          .real("init_speed_std", SN_REF(L, init_speed_std), "m/s", above(0, 100), "sigma of the initial speed when starting from the data")
+          .set;
+  return s;
+}
+
 template class ParamSet<BmmParams>;
+template class ParamSet<LocalizerSettings>;
 template class ParamSet<SensorSettings>;
 template class ParamSet<RiskZones>;
 template class ParamSet<PlannerSettings>;

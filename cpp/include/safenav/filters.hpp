@@ -49,14 +49,30 @@ class Ekf {
   double gate() const { return gate_probability_; }
 
   void predict(const Control& u);
+  /// Eq. 11 over a step of dt seconds (timestamped inputs): the BMM of
+  /// Bmm::with_step(dt).  predict(u, model().params().dt) equals predict(u).
+  void predict(const Control& u, double dt);
   UpdateResult update(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z);
+  /// A position fix z with its own covariance R (eqs. 12–14 with H = [I₂ 0]).
+  UpdateResult update_position(const Eigen::Vector2d& z, const Eigen::Matrix2d& R);
+  /// Eqs. 12–14 from a linearisation made by the caller (one landmark
+  /// observation, say): residual y = z ⊖ h(x̂) with angles wrapped, H = ∂h/∂x
+  /// at x̂ and the noise R, for m = 1 or 2 rows.  `kind` names the
+  /// measurement in errors.  Gated like update(); no allocation.
+  UpdateResult update_linearized(const Eigen::Matrix<double, 1, 1>& y, const Eigen::Matrix<double, 1, 4>& H,
+                                 const Eigen::Matrix<double, 1, 1>& R, MeasurementKind kind);
+  UpdateResult update_linearized(const Eigen::Vector2d& y, const Eigen::Matrix<double, 2, 4>& H,
+                                 const Eigen::Matrix2d& R, MeasurementKind kind);
 
  private:
-  UpdateResult update_position(const Eigen::Ref<const Eigen::VectorXd>& z, const Eigen::Matrix2d& R);
+  void predict_with(const Bmm& bmm, const Control& u);
   /// x̂, P ← x, P unless an entry overflowed (then throws, naming the step and keeping the old state).
   void commit(const State& x, const StateCov& P, const char* step);
   template <int M>
   UpdateResult update_fixed(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z);
+  template <int M>
+  UpdateResult apply(const Eigen::Matrix<double, M, 1>& y, const Eigen::Matrix<double, M, 4>& H,
+                     const Eigen::Matrix<double, M, M>& R, MeasurementKind kind);
   bool gate_rejects(double nis, int dim);
 
   Bmm bmm_;
@@ -83,6 +99,13 @@ class ParticleFilter {
   int size() const;
   /// Propagate every particle through the noisy BMM [SafeNav eqs. 6–9].
   void predict(const Control& u);
+  /// The same over a step of dt seconds (Bmm::with_step).
+  void predict(const Control& u, double dt);
+  /// NIS gate, as Ekf::set_gate: an update whose NIS (of the weighted-mean
+  /// prediction) exceeds the chi-square quantile leaves the weights as they
+  /// were and returns accepted = false.  0 (default) disables it.
+  void set_gate(double probability);
+  double gate() const;
   /// Multiply weights by the measurement likelihood (in log space); resample
   /// (systematic) when ESS < resample_threshold·N.  Returns the NIS of the
   /// weighted-mean prediction (for diagnostics); resample_count() counts the

@@ -48,6 +48,17 @@ class Bmm {
   explicit Bmm(const BmmParams& params = BmmParams());
   const BmmParams& params() const { return params_; }
 
+  /// The same model over a step of `dt` seconds instead of params().dt (the
+  /// nominal step), for timestamped inputs: Δt becomes dt in eqs. 3, 4, 7 and
+  /// 9, and the process-noise variances, which are per nominal step, scale
+  /// by dt / params().dt (each σ by its square root: noise accumulates as a
+  /// random walk).  A dt within 1e-6 relative of the nominal step (timestamp
+  /// rounding) returns the model unchanged.  Throws unless dt is finite and
+  /// > 0.  No allocation.
+  Bmm with_step(double dt) const;
+  /// Whether `dt` counts as the nominal step (|dt − Δt| ≤ 1e-6·Δt).
+  bool is_nominal_step(double dt) const { return std::abs(dt - params_.dt) <= 1e-6 * params_.dt; }
+
   /// Eq. 3: speed update with acceleration/deceleration limits and [0, v_max].
   double next_speed(double v, double desired) const {
     const auto& p = params_;
@@ -87,6 +98,8 @@ class Bmm {
       std::uint64_t seed) const;
 
  private:
+  struct Unchecked {};
+  Bmm(const BmmParams& params, Unchecked) : params_(params) {}
   BmmParams params_;
 };
 

@@ -30,6 +30,7 @@
 
 #include "safenav/corridor.hpp"
 #include "safenav/filters.hpp"
+#include "safenav/guidance.hpp"
 #include "safenav/measurement.hpp"
 #include "safenav/metrics.hpp"
 #include "safenav/motion.hpp"
@@ -39,11 +40,6 @@
 
 namespace safenav {
 
-enum class NavigationMethod {
-  CHull,     ///< SafeNav-CHull, Algorithm 1
-  Centroid,  ///< SafeNav-Centroid, Algorithm 2
-};
-std::string to_string(NavigationMethod method);
 
 /// How a trial ended.
 enum class TrialOutcome {
@@ -77,47 +73,7 @@ struct SensorSettings {
   int landmarks_in_view(const State& x) const;
 };
 
-/// The navigation problem: the safe path to follow and the true world.
-struct NavigationProblem {
-  Points2 path;           ///< the safe path, start first, ≥ 2 distinct vertices
-  RiskZones zones;        ///< the safe buffer (half-width and zone weights, eq. 18)
-  PlanningMap map;        ///< the true field and obstacles (collision checks, detection, replanning)
-  BmmParams bmm;          ///< true vehicle and filter model
-  void validate() const;
-};
 
-struct NavigationSettings {
-  NavigationMethod method = NavigationMethod::Centroid;
-  double cruise_speed = 2.0;       ///< desired speed [m/s]
-  double arrival_radius = 1.0;     ///< arrived when the estimate is this close to the destination [m]
-  int max_steps = 0;               ///< 0 = 3·L/(cruise_speed·Δt) + 200; at most kMaxSteps either way
-  /// The largest step budget, given or derived: 1e7 steps at Δt = 0.05 s is 139 h.
-  static constexpr int kMaxSteps = 10'000'000;
-  SegmentOptions segments;         ///< segments, hulls and sub-segment centroids (Algorithms 1–2)
-  double lookahead = 5.0;          ///< Algorithm 1's corrective control aims this far ahead on the path [m]
-  double step_back_speed = 0.5;    ///< Algorithm 1's step back: speed toward the path [m/s]
-  // Obstacles ahead [SafeNav-ext Alg. 4 ll. 7–9] (= [SafeNav-conf Alg. 3 ll. 5–7]).
-  bool replan = true;
-  double sensing_range = 10.0;     ///< obstacles within this arc length ahead on the path are detected [m]
-  int obstacle_check_every = 5;    ///< steps between obstacle checks
-  double replan_lookahead = 20.0;  ///< the detour rejoins the path this far ahead (slid past the obstacle) [m]
-  int max_replans = 10;
-  /// RAw-RRT* settings for detours (seed derived per trial and replan):
-  /// 3000 iterations, half the samples inside the corridor, smoothed.
-  PlannerSettings planner = [] {
-    PlannerSettings p;
-    p.max_iterations = 3000;
-    p.corridor_bias = 0.5;
-    p.smooth = true;
-    return p;
-  }();
-  // Failure thresholds.
-  double corridor_margin = 0.0;    ///< left the corridor: deviation > half_width + margin
-  double lost_position_std = 10.0; ///< lost localization: √λ_max(P_xy) above this [m]
-  FilterOptions filter;            ///< EKF or PF (seed ignored: derived from the trial seed)
-  bool record = true;              ///< keep the trajectories in the result
-  void validate() const;
-};
 
 /// Per-trial metrics [SafeNav-ext eqs. 20–23], each named by what it compares
 /// against (as evo's results name their reference): `path_*` and `goal_*` take
@@ -188,38 +144,5 @@ class Navigator {
   std::unique_ptr<Impl> impl_;
 };
 
-/// [SafeNav Alg. 2]'s control: steer toward the nearest sub-segment centroid ahead
-/// of the estimate (the destination when none is ahead) at cruise speed.
-/// Δθ = atan2(Δy, Δx) − θ̂, wrapped (DESIGN.md: the paper's arctan(Δx/Δy)).
-Control centroid_control(const PathSegments& segments, const State& estimate, double cruise_speed);
-
-/// What [SafeNav Alg. 1] did with the default command.
-enum class ChullAction {
-  /// the default command's prediction lies in hull k or k+1: kept ([SafeNav-ext Alg. 1 l. 13], conf l. 10)
-  Keep,
-  Corrective,  ///< a corrective control back to the path ([SafeNav-ext Alg. 1 l. 17], conf l. 13)
-  StepBack,    ///< the estimate is outside hulls k−1, k and k+1: step back
-};
-
-/// [SafeNav Alg. 1]'s decision.
-struct ChullDecision {
-  Control control{0, 0};
-  int segment = 0;     ///< current segment k
-  ChullAction action = ChullAction::Keep;
-  Eigen::Vector2d predicted{0, 0};  ///< BMM prediction with the chosen control
-};
-/// [SafeNav Alg. 1] (SafeNav-CHull), our reading of it (DESIGN.md, decision 4):
-///  * the estimate is outside hulls k−1, k and k+1 → step back: head for the
-///    nearest path point at step_back_speed;
-///  * otherwise the default command heads for the look-ahead point
-///    `lookahead` metres ahead on the path (shortened, by halving, while the
-///    chord to it crosses an obstacle of `obstacles`, when given); it is kept
-///    if the BMM-predicted position lies in hull k or hull k+1
-///    ([SafeNav-ext Alg. 1 l. 13] = [SafeNav-conf Alg. 1 l. 10]);
-///  * else a corrective control heads back to the path, 1 m ahead of the
-///    nearest path point ([SafeNav-ext Alg. 1 l. 17] = [SafeNav-conf Alg. 1 l. 13]).
-ChullDecision chull_control(const PathSegments& segments, const Bmm& bmm, const State& estimate,
-                            double cruise_speed, double lookahead, double step_back_speed,
-                            const ObstacleChecker* obstacles = nullptr);
 
 }  // namespace safenav

@@ -80,7 +80,8 @@ class ParamSet {
 };
 
 /// The parameter set of settings struct T (specialised in params.cpp for
-/// BmmParams, RiskZones, PlannerSettings and NavigationSettings).
+/// BmmParams, RiskZones, PlannerSettings, PlanningMap, NavigationSettings,
+/// SensorSettings and LocalizerSettings).
 template <class T>
 const ParamSet<T>& param_set();
 

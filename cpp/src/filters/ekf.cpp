@@ -18,6 +18,17 @@ void check_gate(double p) {
     throw std::invalid_argument(os.str());
   }
 }
+/// A 2×2 noise covariance: finite, symmetric, positive definite (no allocation).
+void check_cov2(const Eigen::Matrix2d& R, const char* what) {
+  const bool ok = R.allFinite() && std::abs(R(0, 1) - R(1, 0)) <= 1e-9 * (std::abs(R(0, 1)) + std::abs(R(1, 0)) + 1e-300) &&
+                  R(0, 0) > 0.0 && R(0, 0) * R(1, 1) - R(0, 1) * R(1, 0) > 0.0;
+  if (!ok) {
+    std::ostringstream os;
+    os << what << " R = [[" << R(0, 0) << ", " << R(0, 1) << "], [" << R(1, 0) << ", " << R(1, 1)
+       << "]]: must be finite, symmetric and positive definite";
+    throw std::invalid_argument(os.str());
+  }
+}
 }  // namespace
 
 Ekf::Ekf(const BmmParams& params, const State& x0, const StateCov& P0) : bmm_(params) {
@@ -48,11 +59,18 @@ bool Ekf::gate_rejects(double nis, int dim) {
   return nis > t;
 }
 
-void Ekf::predict(const Control& u) {
+void Ekf::predict(const Control& u) { predict_with(bmm_, u); }
+
+void Ekf::predict(const Control& u, double dt) {
+  if (bmm_.is_nominal_step(dt)) predict_with(bmm_, u);
+  else predict_with(bmm_.with_step(dt), u);
+}
+
+void Ekf::predict_with(const Bmm& bmm, const Control& u) {
   // Eq. 11: x̂ = f(x̂, u); P = F P Fᵀ + G Σ_ε Gᵀ.
   Eigen::Matrix4d F, G;
-  const State x1 = bmm_.linearize(x_, u, &F, &G);
-  const Eigen::Vector4d sigma2 = bmm_.noise_cov().diagonal();
+  const State x1 = bmm.linearize(x_, u, &F, &G);
+  const Eigen::Vector4d sigma2 = bmm.noise_cov().diagonal();
   Eigen::Matrix4d P1 = F * P_ * F.transpose() + G * sigma2.asDiagonal() * G.transpose();
   P1 = 0.5 * (P1 + P1.transpose());
   commit(x1, P1, "EKF predict");
@@ -81,17 +99,25 @@ UpdateResult Ekf::update_fixed(const MeasurementModel& model, const Eigen::Ref<c
   model.predict(x_, zhat, H);
   model.residual(z, zhat, y);  // eq. 12, angle-aware
   const MatMM R = model.noise().cov();
+  return apply<M>(y, H, R, model.kind());
+}
+
+template <int M>
+UpdateResult Ekf::apply(const Eigen::Matrix<double, M, 1>& y, const Eigen::Matrix<double, M, 4>& H,
+                        const Eigen::Matrix<double, M, M>& R, MeasurementKind kind) {
+  using MatMM = Eigen::Matrix<double, M, M>;
+  const int m = static_cast<int>(y.size());
   const Eigen::Matrix<double, 4, M> PHt = P_ * H.transpose();
   const MatMM S = H * PHt + R;  // eq. 12
   const Eigen::LLT<MatMM> llt(S);
   if (llt.info() != Eigen::Success) {
-    throw std::runtime_error(std::string("EKF ") + to_string(model.kind()) +
+    throw std::runtime_error(std::string("EKF ") + to_string(kind) +
                              " update: innovation covariance S is not positive definite");
   }
   UpdateResult res;
   res.dim = m;
   res.nis = y.dot(llt.solve(y));
-  check_nis(res.nis, "EKF", model.kind());
+  check_nis(res.nis, "EKF", kind);
   if (gate_rejects(res.nis, m)) {
     res.accepted = false;
     return res;
@@ -105,7 +131,30 @@ UpdateResult Ekf::update_fixed(const MeasurementModel& model, const Eigen::Ref<c
   return res;
 }
 
-UpdateResult Ekf::update_position(const Eigen::Ref<const Eigen::VectorXd>& z, const Eigen::Matrix2d& R) {
+UpdateResult Ekf::update_linearized(const Eigen::Matrix<double, 1, 1>& y, const Eigen::Matrix<double, 1, 4>& H,
+                                    const Eigen::Matrix<double, 1, 1>& R, MeasurementKind kind) {
+  if (!(y.allFinite() && H.allFinite() && R(0, 0) > 0.0 && std::isfinite(R(0, 0))))
+    throw std::invalid_argument(std::string("EKF ") + to_string(kind) +
+                                " update: residual, Jacobian and variance must be finite, variance > 0");
+  return apply<1>(y, H, R, kind);
+}
+
+UpdateResult Ekf::update_linearized(const Eigen::Vector2d& y, const Eigen::Matrix<double, 2, 4>& H,
+                                    const Eigen::Matrix2d& R, MeasurementKind kind) {
+  if (!(y.allFinite() && H.allFinite()))
+    throw std::invalid_argument(std::string("EKF ") + to_string(kind) +
+                                " update: residual and Jacobian must be finite");
+  check_cov2(R, to_string(kind));
+  return apply<2>(y, H, R, kind);
+}
+
+UpdateResult Ekf::update_position(const Eigen::Vector2d& z, const Eigen::Matrix2d& R) {
+  if (!z.allFinite()) {
+    std::ostringstream os;
+    os << "EKF position update: z = (" << z[0] << ", " << z[1] << ") is not finite";
+    throw std::invalid_argument(os.str());
+  }
+  check_cov2(R, "position");
   // Eqs. 12–14 with H = [I₂ 0] written out: P Hᵀ = P[:, :2], H P Hᵀ = P[:2, :2].
   // Same arithmetic as update_fixed<2>, without the products by zeros.
   const Eigen::Vector2d y(z[0] - x_[kX], z[1] - x_[kY]);

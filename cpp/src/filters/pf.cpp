@@ -63,6 +63,8 @@ struct ParticleFilter::Impl {
   Columns W;                  // log-weights and normalised weights
   double ess = 0.0;           // 1/Σw², kept with w
   int n_resampled = 0;
+  double gate_probability = 0.0;     // NIS gate (0 = off)
+  std::vector<double> gate_thresholds;  // chi-square quantile per measurement dimension
   // scratch
   Columns noise;              // ε_x, ε_y, ε_v, ε_θ of every particle
   std::vector<int> start;     // resampling: the particle of each pointer
@@ -259,6 +261,32 @@ void ParticleFilter::predict(const Control& u) {
   }
 }
 
+void ParticleFilter::predict(const Control& u, double dt) {
+  auto& I = *impl_;
+  if (I.bmm.is_nominal_step(dt)) return predict(u);
+  const Bmm nominal = I.bmm;
+  I.bmm = nominal.with_step(dt);
+  try {
+    predict(u);
+  } catch (...) {
+    I.bmm = nominal;
+    throw;
+  }
+  I.bmm = nominal;
+}
+
+void ParticleFilter::set_gate(double probability) {
+  if (!(std::isfinite(probability) && probability >= 0.0 && probability < 1.0)) {
+    std::ostringstream os;
+    os << "gate probability = " << probability << " must be in [0, 1) (0 disables the gate)";
+    throw std::invalid_argument(os.str());
+  }
+  impl_->gate_probability = probability;
+  impl_->gate_thresholds.clear();
+}
+
+double ParticleFilter::gate() const { return impl_->gate_probability; }
+
 UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z) {
   model.check(z);
   auto& I = *impl_;
@@ -300,6 +328,16 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
     // log-likelihood −½ yᵀR⁻¹y = −½‖L⁻¹y‖², added to the log-weights.
     model.noise().whiten(I.Y);
     Eigen::Map<Eigen::ArrayXd>(I.logw(), N) -= 0.5 * I.Y.colwise().squaredNorm().transpose().array();
+  }
+  if (I.gate_probability > 0.0 && std::isfinite(res.nis)) {
+    if (static_cast<int>(I.gate_thresholds.size()) <= m) I.gate_thresholds.resize(m + 1, -1.0);
+    double& t = I.gate_thresholds[m];
+    if (t < 0.0) t = chi2_quantile(I.gate_probability, m);
+    if (res.nis > t) {  // rejected: the weights stay as they were
+      Eigen::Map<Eigen::ArrayXd>(I.logw(), N) = prior_logw;
+      res.accepted = false;
+      return res;
+    }
   }
   const double mx = Eigen::Map<const Eigen::ArrayXd>(I.logw(), N).maxCoeff();  // exact in any order
   if (!std::isfinite(mx) || !std::isfinite(res.nis)) {  // keep the prior weights, then say why

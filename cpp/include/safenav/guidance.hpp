@@ -1,0 +1,218 @@
+// safenav/guidance.hpp — SafeNav as an online object that a vehicle's own
+// loop ticks: SafeNav-CHull [SafeNav Alg. 1] or SafeNav-Centroid [SafeNav
+// Alg. 2] along a safe path, with the obstacle check and RAw-RRT* detours of
+// the safe path navigation loop [SafeNav-ext Alg. 4] (= [SafeNav-conf Alg. 3]),
+// on the estimate of an online Localizer (LanBLoc-BMM, safenav/localizer.hpp).
+//
+// The vehicle feeds the localizer its timestamped inputs (motion input,
+// landmark observations, position fixes, IMU) through localizer() or the
+// forwarding calls here, and asks command(t) for the control of its next
+// step.  The answer carries the control (desired speed, heading change), the
+// status and what happened: a detour planned and spliced into the path, no
+// path, lost localization, arrival.  The simulator (Navigator, navigation.hpp)
+// drives this same object with a simulated vehicle and sensors: there is one
+// navigation loop.
+//
+// Built once: the path's corridor, segment hulls and centroids, the obstacle
+// checker and the localizer.  A command allocates nothing unless it plans a
+// detour.  Only Eigen and std types appear here.
+#pragma once
+
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "safenav/corridor.hpp"
+#include "safenav/filters.hpp"
+#include "safenav/localizer.hpp"
+#include "safenav/motion.hpp"
+#include "safenav/planning.hpp"
+#include "safenav/world.hpp"
+
+namespace safenav {
+
+enum class NavigationMethod {
+  CHull,     ///< SafeNav-CHull, Algorithm 1
+  Centroid,  ///< SafeNav-Centroid, Algorithm 2
+};
+std::string to_string(NavigationMethod method);
+
+
+/// The navigation problem: the safe path to follow and the world it runs in
+/// (the vehicle's map: obstacles for the detours; the simulator's truth).
+struct NavigationProblem {
+  Points2 path;           ///< the safe path, start first, ≥ 2 distinct vertices
+  RiskZones zones;        ///< the safe buffer (half-width and zone weights, eq. 18)
+  PlanningMap map;        ///< the true field and obstacles (collision checks, detection, replanning)
+  BmmParams bmm;          ///< true vehicle and filter model
+  void validate() const;
+};
+
+
+struct NavigationSettings {
+  NavigationMethod method = NavigationMethod::Centroid;
+  double cruise_speed = 2.0;       ///< desired speed [m/s]
+  double arrival_radius = 1.0;     ///< arrived when the estimate is this close to the destination [m]
+  int max_steps = 0;               ///< 0 = 3·L/(cruise_speed·Δt) + 200; at most kMaxSteps either way
+  /// The largest step budget, given or derived: 1e7 steps at Δt = 0.05 s is 139 h.
+  static constexpr int kMaxSteps = 10'000'000;
+  SegmentOptions segments;         ///< segments, hulls and sub-segment centroids (Algorithms 1–2)
+  double lookahead = 5.0;          ///< Algorithm 1's corrective control aims this far ahead on the path [m]
+  double step_back_speed = 0.5;    ///< Algorithm 1's step back: speed toward the path [m/s]
+  // Obstacles ahead [SafeNav-ext Alg. 4 ll. 7–9] (= [SafeNav-conf Alg. 3 ll. 5–7]).
+  bool replan = true;
+  double sensing_range = 10.0;     ///< obstacles within this arc length ahead on the path are detected [m]
+  int obstacle_check_every = 5;    ///< steps between obstacle checks
+  double replan_lookahead = 20.0;  ///< the detour rejoins the path this far ahead (slid past the obstacle) [m]
+  int max_replans = 10;
+  /// RAw-RRT* settings for detours (seed derived per trial and replan):
+  /// 3000 iterations, half the samples inside the corridor, smoothed.
+  PlannerSettings planner = [] {
+    PlannerSettings p;
+    p.max_iterations = 3000;
+    p.corridor_bias = 0.5;
+    p.smooth = true;
+    return p;
+  }();
+  // Failure thresholds.
+  double corridor_margin = 0.0;    ///< left the corridor: deviation > half_width + margin
+  double lost_position_std = 10.0; ///< lost localization: √λ_max(P_xy) above this [m]
+  FilterOptions filter;            ///< EKF or PF (seed ignored: derived from the trial seed)
+  bool record = true;              ///< keep the trajectories in the result
+  void validate() const;
+};
+
+
+/// [SafeNav Alg. 2]'s control: steer toward the nearest sub-segment centroid ahead
+/// of the estimate (the destination when none is ahead) at cruise speed.
+/// Δθ = atan2(Δy, Δx) − θ̂, wrapped (DESIGN.md: the paper's arctan(Δx/Δy)).
+Control centroid_control(const PathSegments& segments, const State& estimate, double cruise_speed);
+
+/// What [SafeNav Alg. 1] did with the default command.
+enum class ChullAction {
+  /// the default command's prediction lies in hull k or k+1: kept ([SafeNav-ext Alg. 1 l. 13], conf l. 10)
+  Keep,
+  Corrective,  ///< a corrective control back to the path ([SafeNav-ext Alg. 1 l. 17], conf l. 13)
+  StepBack,    ///< the estimate is outside hulls k−1, k and k+1: step back
+};
+
+/// [SafeNav Alg. 1]'s decision.
+struct ChullDecision {
+  Control control{0, 0};
+  int segment = 0;     ///< current segment k
+  ChullAction action = ChullAction::Keep;
+  Eigen::Vector2d predicted{0, 0};  ///< BMM prediction with the chosen control
+};
+/// [SafeNav Alg. 1] (SafeNav-CHull), our reading of it (DESIGN.md, decision 4):
+///  * the estimate is outside hulls k−1, k and k+1 → step back: head for the
+///    nearest path point at step_back_speed;
+///  * otherwise the default command heads for the look-ahead point
+///    `lookahead` metres ahead on the path (shortened, by halving, while the
+///    chord to it crosses an obstacle of `obstacles`, when given); it is kept
+///    if the BMM-predicted position lies in hull k or hull k+1
+///    ([SafeNav-ext Alg. 1 l. 13] = [SafeNav-conf Alg. 1 l. 10]);
+///  * else a corrective control heads back to the path, 1 m ahead of the
+///    nearest path point ([SafeNav-ext Alg. 1 l. 17] = [SafeNav-conf Alg. 1 l. 13]).
+ChullDecision chull_control(const PathSegments& segments, const Bmm& bmm, const State& estimate,
+                            double cruise_speed, double lookahead, double step_back_speed,
+                            const ObstacleChecker* obstacles = nullptr);
+
+/// What guidance is doing.
+enum class GuidanceStatus {
+  Initializing,      ///< the localizer has no estimate yet (control = 0)
+  Guiding,           ///< following the path
+  Arrived,           ///< the estimate is within arrival_radius of the destination (control = 0)
+  NoPath,            ///< the way ahead is blocked and no detour was found (control = 0)
+  LostLocalization,  ///< the position σ exceeds lost_position_std (control = 0)
+};
+std::string to_string(GuidanceStatus status);
+
+/// Events of one command request (bit flags).
+enum GuidanceEvent : unsigned {
+  kDetourPlanned = 1u << 0,     ///< RAw-RRT* planned a detour round an obstacle ahead
+  kPathSpliced = 1u << 1,       ///< the detour was spliced into the path being followed
+  kNoPath = 1u << 2,            ///< the way ahead is blocked and no detour was found
+  kLostLocalization = 1u << 3,  ///< the position σ exceeds lost_position_std
+  kArrived = 1u << 4,           ///< at the destination
+};
+
+/// The answer to a command request.
+struct Command {
+  Control control{0.0, 0.0};  ///< (desired speed [m/s], heading change [rad]) for the next step
+  GuidanceStatus status = GuidanceStatus::Initializing;
+  unsigned events = 0;        ///< GuidanceEvent flags of this request
+  int segment = 0;            ///< current segment k of the path followed
+  double position_std = std::numeric_limits<double>::quiet_NaN();  ///< √λ_max(P_xy) [m]
+  ChullAction action = ChullAction::Keep;  ///< what SafeNav-CHull did (CHull only)
+  Eigen::Vector2d predicted = Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());  ///< BMM prediction of the estimate under `control`
+};
+
+/// SafeNav guidance for one vehicle.  Not thread-safe.
+class Guidance {
+ public:
+  /// `problem.path` is the safe path (its first vertex need not be the
+  /// vehicle's position); `localizer` sets the filter (its bmm is replaced by
+  /// problem.bmm); `landmarks`/`ids` are the landmark map for observations.
+  /// `seed` fixes the particle filter (derive_seed(seed, 2)) and the detours
+  /// (derive_seed(seed, 16 + n) for the n-th).
+  Guidance(NavigationProblem problem, NavigationSettings settings, LocalizerSettings localizer = LocalizerSettings(),
+           Landmarks landmarks = Landmarks(), std::vector<int> ids = {}, std::uint64_t seed = 0);
+  /// Plans the safe path first: RAw-RRT* [SafeNav eq. 19] from planning.start
+  /// to planning.goal with `planner` (throws std::runtime_error naming the
+  /// planner's status when it finds none).  problem.path is ignored.
+  static Guidance planned(const PlanningProblem& planning, const PlannerSettings& planner, NavigationProblem problem,
+                          NavigationSettings settings, LocalizerSettings localizer = LocalizerSettings(),
+                          Landmarks landmarks = Landmarks(), std::vector<int> ids = {}, std::uint64_t seed = 0);
+  /// Another run on the same problem, settings and maps (sharing the path's
+  /// segments and obstacle maps, which are built once): a fresh localizer
+  /// (not initialized) and the safe path, with `seed`.  The simulator makes
+  /// one per trial.
+  Guidance fresh(std::uint64_t seed) const;
+  ~Guidance();
+  Guidance(Guidance&&) noexcept;
+  Guidance& operator=(Guidance&&) noexcept;
+
+  Localizer& localizer();
+  const Localizer& localizer() const;
+  // The localizer's inputs (see safenav/localizer.hpp).
+  InputResult motion(double t, const Control& u) { return localizer().motion(t, u); }
+  InputResult odometry(double t, double distance, double heading_change) {
+    return localizer().odometry(t, distance, heading_change);
+  }
+  InputResult observe(double t, const LandmarkObservation& obs) { return localizer().observe(t, obs); }
+  InputResult fix(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R) { return localizer().fix(t, z, R); }
+  InputResult speed_heading(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R) {
+    return localizer().speed_heading(t, z, R);
+  }
+
+  /// The control for the next step from the latest estimate.  In order:
+  /// lost localization and arrival end guidance (control 0); every
+  /// obstacle_check_every-th request checks the way ahead for obstacles
+  /// ([SafeNav-ext Alg. 4 ll. 7–9]) and splices a RAw-RRT* detour into the
+  /// path when it is blocked; then CHull or Centroid chooses the control.
+  /// `t` is the vehicle's time (the estimate is the localizer's latest).
+  Command command(double t);
+  /// The status from the latest estimate, without planning or a control.
+  GuidanceStatus status() const;
+
+  const NavigationProblem& problem() const;
+  const NavigationSettings& settings() const;
+  /// The safe path's segments, and those of the path now followed (detours spliced in).
+  const PathSegments& safe_path() const;
+  const PathSegments& path() const;
+  int replans() const;
+  int commands() const;
+  /// Why the last NoPath, LostLocalization or Arrived happened.
+  const std::string& detail() const;
+
+ private:
+  struct Impl;
+  explicit Guidance(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace safenav

@@ -1,0 +1,463 @@
+// The online Localizer: LanBLoc-BMM ticked with timestamped inputs
+// (safenav/localizer.hpp).
+#include "safenav/localizer.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <optional>
+#include <sstream>
+#include <stdexcept>
+#include <unordered_map>
+#include <utility>
+
+#include "errors.hpp"
+#include "safenav/localization.hpp"
+#include "safenav/params.hpp"
+
+namespace safenav {
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+/// Timestamps this close are the same instant [s].
+constexpr double kSameTime = 1e-9;
+
+using detail::bad;
+
+std::string num(double v) {
+  std::ostringstream os;
+  os.precision(12);
+  os << v;
+  return os.str();
+}
+
+void check_time(double t, const char* what) {
+  if (!std::isfinite(t)) bad(std::string(what) + ": time t = " + num(t) + " is not finite");
+}
+
+/// A range kept for initialization from data.
+struct BufferedRange {
+  double t;
+  int row;  // landmark row
+  double range, std;
+};
+
+/// A position known before the heading (trilateration or a fix), with the
+/// motion-integrated pose at that time.
+struct Anchor {
+  double t;
+  Eigen::Vector2d p;
+  Eigen::Matrix2d cov;
+  Eigen::Vector3d odo;  // (x, y, θ) of the motion integral in its own frame
+};
+
+}  // namespace
+
+const char* to_string(InputStatus status) {
+  switch (status) {
+    case InputStatus::Applied: return "applied";
+    case InputStatus::Rejected: return "rejected";
+    case InputStatus::Late: return "late";
+    case InputStatus::Buffered: return "buffered";
+    case InputStatus::Ignored: return "ignored";
+  }
+  return "unknown";
+}
+
+double position_std(const StateCov& P) {
+  // √ of the largest eigenvalue of the 2×2 position block.
+  const double a = P(0, 0), b = P(0, 1), c = P(1, 1);
+  const double m = 0.5 * (a + c), r = std::sqrt(0.25 * (a - c) * (a - c) + b * b);
+  return std::sqrt(std::max(0.0, m + r));
+}
+
+void LocalizerSettings::validate() const {
+  bmm.validate();
+  if (filter.type == FilterType::InformationFilter)
+    bad("localizer.filter.type = InformationFilter: the localizer runs the EKF or the particle filter");
+  if (filter.type == FilterType::ParticleFilter && filter.n_particles < 1)
+    bad("localizer.filter.n_particles = " + std::to_string(filter.n_particles) + ": must be >= 1");
+  if (!(filter.resample_threshold >= 0.0 && filter.resample_threshold <= 1.0))
+    bad("localizer.filter.resample_threshold = " + num(filter.resample_threshold) + ": must be in [0, 1]");
+  if (!(filter.gate_probability >= 0.0 && filter.gate_probability < 1.0))
+    bad("localizer.filter.gate_probability = " + num(filter.gate_probability) + ": must be in [0, 1) (0 = off)");
+  param_set<LocalizerSettings>().check(*this, "localizer.");
+}
+
+struct Localizer::Impl {
+  LocalizerSettings settings;
+  Landmarks landmarks;
+  std::vector<int> ids;
+  std::unordered_map<int, int> row_of;
+  Bmm bmm;
+  std::optional<Ekf> ekf;
+  std::optional<ParticleFilter> pf;
+  // Particle-filter models reused while their covariance stays the same.
+  std::optional<MeasurementModel> pf_fix, pf_imu;
+  Eigen::Matrix2d pf_fix_R, pf_imu_R;
+
+  double t_f = kNaN;       // filter time
+  double t_motion = kNaN;  // time of the last motion input
+  double rate_speed = kNaN, rate_turn = 0.0;  // last motion input: speed, heading change per second
+  // Distance and heading change that measurements' predictions (at the last
+  // rates) already added since the last motion input: the next one applies
+  // only what its own Δd, Δθ still owe ("catch-up").
+  double owed_distance = 0.0, owed_heading = 0.0;
+  LocalizerCounts counts;
+  mutable State x_cache = State::Constant(kNaN);  // NaN until initialized
+  mutable StateCov P_cache = StateCov::Constant(kNaN);
+  mutable bool dirty = true;
+
+  // Initialization from data.
+  std::vector<BufferedRange> ranges;  // recent ranges (bounded)
+  std::optional<Anchor> anchor;
+  Eigen::Vector3d odo = Eigen::Vector3d::Zero();  // motion integral (x, y, θ) in its own frame
+  double imu_heading = kNaN, imu_heading_var = kNaN, imu_speed = kNaN, t_imu = kNaN;
+
+  Impl(LocalizerSettings s, Landmarks lm, std::vector<int> id)
+      : settings(std::move(s)), landmarks(std::move(lm)), ids(std::move(id)), bmm((settings.validate(), settings.bmm)) {
+    if (!landmarks.allFinite()) bad("localizer landmarks: every landmark position must be finite");
+    if (ids.empty()) {
+      ids.resize(static_cast<std::size_t>(landmarks.rows()));
+      for (std::size_t i = 0; i < ids.size(); ++i) ids[i] = static_cast<int>(i);
+    }
+    if (static_cast<Eigen::Index>(ids.size()) != landmarks.rows())
+      bad("localizer ids: " + std::to_string(ids.size()) + " ids for " + std::to_string(landmarks.rows()) +
+          " landmarks");
+    for (std::size_t i = 0; i < ids.size(); ++i)
+      if (!row_of.emplace(ids[i], static_cast<int>(i)).second)
+        bad("localizer ids: landmark id " + std::to_string(ids[i]) + " appears twice");
+    ranges.reserve(64);
+  }
+
+  bool initialized() const { return ekf.has_value() || pf.has_value(); }
+
+  void start(double t, const State& x0, const StateCov& P0) {
+    const FilterOptions& o = settings.filter;
+    ekf.reset();
+    pf.reset();
+    if (o.type == FilterType::Ekf) {
+      ekf.emplace(settings.bmm, x0, P0);
+      if (o.gate_probability > 0.0) ekf->set_gate(o.gate_probability);
+    } else {
+      pf.emplace(settings.bmm, x0, P0, o.n_particles, o.seed, o.resample_threshold);
+      if (o.gate_probability > 0.0) pf->set_gate(o.gate_probability);
+    }
+    t_f = t;
+    if (!(t_motion <= t)) t_motion = t;
+    // Until the first input the estimate is the prior itself (not, say, the particles' sample mean).
+    x_cache = ekf ? ekf->x() : x0;
+    x_cache[kTheta] = wrap_angle(x_cache[kTheta]);
+    P_cache = ekf ? ekf->P() : P0;
+    dirty = false;
+    ranges.clear();
+    anchor.reset();
+  }
+
+  void refresh() const {
+    if (!dirty) return;
+    if (ekf) {
+      x_cache = ekf->x();
+      P_cache = ekf->P();
+    } else if (pf) {
+      x_cache = pf->mean();
+      P_cache = pf->covariance(x_cache);
+    }
+    dirty = false;
+  }
+
+  void predict(const Control& u, double dt) {
+    if (ekf) ekf->predict(u, dt);
+    else pf->predict(u, dt);
+    dirty = true;
+  }
+
+  /// Bring the filter to time t for a measurement; false when t is late.
+  bool advance(double t) {
+    if (t < t_f - kSameTime) return false;
+    if (t > t_f + kSameTime) {
+      const double dt = t - t_f;
+      refresh();
+      const Control u = std::isfinite(rate_speed) ? Control(rate_speed, rate_turn * dt) : Control(x_cache[kV], 0.0);
+      predict(u, dt);
+      owed_distance += u[0] * dt;
+      owed_heading += u[1];
+      t_f = t;
+    }
+    return true;
+  }
+
+  InputResult counted(const UpdateResult& r) {
+    dirty = true;
+    InputResult out;
+    out.nis = r.nis;
+    out.dim = r.dim;
+    out.status = r.accepted ? InputStatus::Applied : InputStatus::Rejected;
+    ++(r.accepted ? counts.applied : counts.rejected);
+    return out;
+  }
+
+  InputResult status(InputStatus s) {
+    if (s == InputStatus::Late) ++counts.late;
+    if (s == InputStatus::Buffered) ++counts.buffered;
+    InputResult out;
+    out.status = s;
+    return out;
+  }
+
+  // -- initialization from data ---------------------------------------------
+
+  /// A position known at time t (before initialization): start at once when
+  /// a heading is known, else anchor it and wait for init_baseline of motion.
+  void position_known(double t, const Eigen::Vector2d& p, const Eigen::Matrix2d& cov) {
+    const double speed = std::isfinite(imu_speed) ? imu_speed : (std::isfinite(rate_speed) ? rate_speed : 0.0);
+    const double v_var = settings.init_speed_std * settings.init_speed_std;
+    if (std::isfinite(imu_heading) && std::abs(t - t_imu) <= settings.init_window) {
+      StateCov P0 = StateCov::Zero();
+      P0.topLeftCorner<2, 2>() = cov;
+      P0(2, 2) = v_var;
+      P0(3, 3) = imu_heading_var;
+      start(t, State(p.x(), p.y(), std::max(0.0, speed), imu_heading), P0);
+      return;
+    }
+    if (!anchor) {
+      anchor = Anchor{t, p, cov, odo};
+      return;
+    }
+    const Eigen::Vector2d dodo = odo.head<2>() - anchor->odo.head<2>();
+    const Eigen::Vector2d dp = p - anchor->p;
+    const double moved = dodo.norm();
+    if (moved < settings.init_baseline) return;
+    const double pos_var = 0.5 * (cov.trace() + anchor->cov.trace());
+    // The two positions must agree with the motion between them, else start over from this one.
+    if (std::abs(dp.norm() - moved) > 3.0 * std::sqrt(2.0 * pos_var) + 0.2 * moved) {
+      anchor = Anchor{t, p, cov, odo};
+      return;
+    }
+    // Rotation from the motion integral's frame to the world: φ = ∠Δp − ∠Δodo.
+    const double phi = std::atan2(dp.y(), dp.x()) - std::atan2(dodo.y(), dodo.x());
+    StateCov P0 = StateCov::Zero();
+    P0.topLeftCorner<2, 2>() = cov;
+    P0(2, 2) = v_var;
+    P0(3, 3) = std::min(2.0 * pos_var / (moved * moved), kPi * kPi);
+    start(t, State(p.x(), p.y(), std::max(0.0, speed), wrap_angle(phi + odo[2])), P0);
+  }
+
+  /// Trilaterate the latest range of each landmark seen within init_window of t.
+  void try_trilaterate(double t) {
+    const double t0 = t - settings.init_window;
+    ranges.erase(std::remove_if(ranges.begin(), ranges.end(), [&](const BufferedRange& r) { return r.t < t0; }),
+                 ranges.end());
+    std::vector<const BufferedRange*> latest;
+    for (auto it = ranges.rbegin(); it != ranges.rend(); ++it)
+      if (std::none_of(latest.begin(), latest.end(), [&](const BufferedRange* b) { return b->row == it->row; }))
+        latest.push_back(&*it);
+    if (latest.size() < 3) return;
+    const auto n = static_cast<Eigen::Index>(latest.size());
+    Points2 anchors(n, 2);
+    Eigen::VectorXd r(n), s(n);
+    for (Eigen::Index i = 0; i < n; ++i) {
+      anchors.row(i) = landmarks.row(latest[static_cast<std::size_t>(i)]->row);
+      r[i] = latest[static_cast<std::size_t>(i)]->range;
+      s[i] = latest[static_cast<std::size_t>(i)]->std;
+    }
+    const LocalizationResult fix = trilaterate(anchors, r, s);
+    if (!fix.ok()) return;
+    ranges.clear();  // the next position uses new ranges
+    position_known(t, fix.position, fix.covariance);
+  }
+};
+
+Localizer::Localizer(LocalizerSettings settings, Landmarks landmarks, std::vector<int> ids)
+    : impl_(std::make_unique<Impl>(std::move(settings), std::move(landmarks), std::move(ids))) {}
+Localizer::~Localizer() = default;
+Localizer::Localizer(Localizer&&) noexcept = default;
+Localizer& Localizer::operator=(Localizer&&) noexcept = default;
+
+void Localizer::initialize(double t, const State& x0, const StateCov& P0) {
+  check_time(t, "initialize");
+  impl_->start(t, x0, P0);
+}
+
+bool Localizer::initialized() const { return impl_->initialized(); }
+double Localizer::time() const { return impl_->t_f; }
+
+InputResult Localizer::motion(double t, const Control& u) {
+  check_time(t, "motion");
+  if (!u.allFinite())
+    bad("motion at t = " + num(t) + ": (speed, heading change) = (" + num(u[0]) + ", " + num(u[1]) +
+        ") is not finite");
+  Impl& I = *impl_;
+  if (std::isfinite(I.t_motion) && t < I.t_motion - kSameTime) return I.status(InputStatus::Late);
+  const double interval = std::isfinite(I.t_motion) ? t - I.t_motion : 0.0;
+  if (!I.initialized()) {
+    if (interval > kSameTime) {  // the motion integral for the heading (BMM step without noise)
+      I.odo[2] = wrap_angle(I.odo[2] + u[1]);
+      I.odo[0] += u[0] * interval * std::cos(I.odo[2]);
+      I.odo[1] += u[0] * interval * std::sin(I.odo[2]);
+      I.rate_speed = u[0];
+      I.rate_turn = u[1] / interval;
+    }
+    I.t_motion = t;
+    return I.status(InputStatus::Buffered);
+  }
+  if (interval <= kSameTime) return I.status(InputStatus::Late);  // no interval to move over
+  const double dt = t - I.t_f;
+  const double owed_d = I.owed_distance, owed_h = I.owed_heading;
+  I.rate_speed = u[0];
+  I.rate_turn = u[1] / interval;
+  I.t_motion = t;
+  I.owed_distance = I.owed_heading = 0.0;
+  if (dt <= kSameTime) return InputResult{};  // a measurement at t already took the filter there
+  if (owed_d == 0.0 && owed_h == 0.0) {
+    I.predict(u, dt);  // the whole interval (dt = interval)
+  } else {
+    // Catch-up: a measurement inside the interval was predicted to at the last
+    // rates; apply what this input's distance and heading change still owe.
+    I.predict(Control((u[0] * interval - owed_d) / dt, u[1] - owed_h), dt);
+  }
+  I.t_f = t;
+  ++I.counts.motion;
+  return InputResult{};
+}
+
+InputResult Localizer::odometry(double t, double distance, double heading_change) {
+  check_time(t, "odometry");
+  if (!std::isfinite(distance) || !std::isfinite(heading_change))
+    bad("odometry at t = " + num(t) + ": (distance, heading change) = (" + num(distance) + ", " +
+        num(heading_change) + ") is not finite");
+  Impl& I = *impl_;
+  if (!std::isfinite(I.t_motion)) {  // the first odometry row only starts the clock
+    I.t_motion = t;
+    return I.status(I.initialized() ? InputStatus::Ignored : InputStatus::Buffered);
+  }
+  const double interval = t - I.t_motion;
+  if (interval <= kSameTime) return I.status(InputStatus::Late);
+  return motion(t, Control(distance / interval, heading_change));
+}
+
+InputResult Localizer::observe(double t, const LandmarkObservation& o) {
+  check_time(t, "observation");
+  Impl& I = *impl_;
+  const auto it = I.row_of.find(o.id);
+  if (it == I.row_of.end()) bad("observation at t = " + num(t) + ": unknown landmark id " + std::to_string(o.id));
+  const bool has_r = !std::isnan(o.range), has_b = !std::isnan(o.bearing);
+  if (!has_r && !has_b) bad("observation of landmark " + std::to_string(o.id) + " at t = " + num(t) +
+                            ": neither a range nor a bearing");
+  if (has_r && !(std::isfinite(o.range) && o.range >= 0.0))
+    bad("observation of landmark " + std::to_string(o.id) + ": range = " + num(o.range) + " must be finite and >= 0");
+  if (has_b && !std::isfinite(o.bearing))
+    bad("observation of landmark " + std::to_string(o.id) + ": bearing = " + num(o.bearing) + " is not finite");
+  if (has_r && !(std::isfinite(o.range_std) && o.range_std > 0.0))
+    bad("observation of landmark " + std::to_string(o.id) + ": range_std = " + num(o.range_std) + " must be > 0");
+  if (has_b && !(std::isfinite(o.bearing_std) && o.bearing_std > 0.0))
+    bad("observation of landmark " + std::to_string(o.id) + ": bearing_std = " + num(o.bearing_std) + " must be > 0");
+  const int row = it->second;
+  if (!I.initialized()) {
+    if (!has_r) return I.status(InputStatus::Ignored);
+    if (I.ranges.size() >= 256) I.ranges.erase(I.ranges.begin());
+    I.ranges.push_back(BufferedRange{t, row, o.range, o.range_std});
+    I.try_trilaterate(t);
+    return I.status(InputStatus::Buffered);
+  }
+  if (!I.advance(t)) return I.status(InputStatus::Late);
+  I.refresh();
+  const State& x = I.x_cache;
+  const double dx = I.landmarks(row, 0) - x[kX], dy = I.landmarks(row, 1) - x[kY];
+  const double r2 = dx * dx + dy * dy, r = std::sqrt(r2);
+  if (!(r > 1e-9)) return I.status(InputStatus::Ignored);  // at the landmark: h is undefined
+  if (I.ekf) {
+    if (has_r && has_b) {
+      const Eigen::Vector2d y(o.range - r, wrap_angle(o.bearing - (std::atan2(dy, dx) - x[kTheta])));
+      Eigen::Matrix<double, 2, 4> H;
+      H << -dx / r, -dy / r, 0.0, 0.0, dy / r2, -dx / r2, 0.0, -1.0;
+      const Eigen::Matrix2d R = Eigen::Vector2d(o.range_std * o.range_std, o.bearing_std * o.bearing_std).asDiagonal();
+      return I.counted(I.ekf->update_linearized(y, H, R, MeasurementKind::RangeBearing));
+    }
+    Eigen::Matrix<double, 1, 1> y, R;
+    Eigen::Matrix<double, 1, 4> H;
+    if (has_r) {
+      y(0) = o.range - r;
+      H << -dx / r, -dy / r, 0.0, 0.0;
+      R(0) = o.range_std * o.range_std;
+    } else {
+      y(0) = wrap_angle(o.bearing - (std::atan2(dy, dx) - x[kTheta]));
+      H << dy / r2, -dx / r2, 0.0, -1.0;
+      R(0) = o.bearing_std * o.bearing_std;
+    }
+    return I.counted(I.ekf->update_linearized(y, H, R, has_r ? MeasurementKind::Range : MeasurementKind::Bearing));
+  }
+  const Landmarks lm = I.landmarks.row(row);
+  if (has_r && has_b)
+    return I.counted(I.pf->update(MeasurementModel::range_bearing(lm, o.range_std, o.bearing_std),
+                                  Eigen::Vector2d(o.range, o.bearing)));
+  if (has_r)
+    return I.counted(I.pf->update(MeasurementModel::range(lm, o.range_std), Eigen::Matrix<double, 1, 1>(o.range)));
+  return I.counted(I.pf->update(MeasurementModel::bearing(lm, o.bearing_std), Eigen::Matrix<double, 1, 1>(o.bearing)));
+}
+
+InputResult Localizer::fix(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R) {
+  check_time(t, "fix");
+  Impl& I = *impl_;
+  if (!z.allFinite()) bad("fix at t = " + num(t) + ": z = (" + num(z[0]) + ", " + num(z[1]) + ") is not finite");
+  if (!I.initialized()) {
+    check_covariance(R, "fix R");
+    I.position_known(t, z, R);
+    return I.status(InputStatus::Buffered);
+  }
+  if (!I.advance(t)) return I.status(InputStatus::Late);
+  if (I.ekf) return I.counted(I.ekf->update_position(z, R));
+  if (!I.pf_fix || I.pf_fix_R != R) {
+    I.pf_fix.emplace(MeasurementModel::position(R));
+    I.pf_fix_R = R;
+  }
+  return I.counted(I.pf->update(*I.pf_fix, z));
+}
+
+InputResult Localizer::speed_heading(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R) {
+  check_time(t, "speed_heading");
+  Impl& I = *impl_;
+  if (!z.allFinite()) bad("speed_heading at t = " + num(t) + ": z = (" + num(z[0]) + ", " + num(z[1]) + ") is not finite");
+  if (!I.initialized()) {
+    check_covariance(R, "speed_heading R");
+    I.imu_speed = z[0];
+    I.imu_heading = wrap_angle(z[1]);
+    I.imu_heading_var = R(1, 1);
+    I.t_imu = t;
+    return I.status(InputStatus::Buffered);
+  }
+  if (!I.advance(t)) return I.status(InputStatus::Late);
+  if (I.ekf) {
+    // h(x) = (v, θ), H = [0 0 1 0; 0 0 0 1]: the arithmetic of update(MeasurementModel::speed_heading(R), z).
+    const State& x = I.ekf->x();
+    const Eigen::Vector2d y(z[0] - x[kV], wrap_angle(z[1] - x[kTheta]));
+    Eigen::Matrix<double, 2, 4> H;
+    H << 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0;
+    return I.counted(I.ekf->update_linearized(y, H, R, MeasurementKind::SpeedHeading));
+  }
+  if (!I.pf_imu || I.pf_imu_R != R) {
+    I.pf_imu.emplace(MeasurementModel::speed_heading(R));
+    I.pf_imu_R = R;
+  }
+  return I.counted(I.pf->update(*I.pf_imu, z));
+}
+
+const State& Localizer::x() const {
+  impl_->refresh();
+  return impl_->x_cache;
+}
+const StateCov& Localizer::P() const {
+  impl_->refresh();
+  return impl_->P_cache;
+}
+double Localizer::position_std() const { return safenav::position_std(P()); }
+const LocalizerCounts& Localizer::counts() const { return impl_->counts; }
+const LocalizerSettings& Localizer::settings() const { return impl_->settings; }
+const Bmm& Localizer::model() const { return impl_->bmm; }
+int Localizer::landmark_index(int id) const {
+  const auto it = impl_->row_of.find(id);
+  return it == impl_->row_of.end() ? -1 : it->second;
+}
+const Landmarks& Localizer::landmarks() const { return impl_->landmarks; }
+
+}  // namespace safenav
