@@ -19,4 +19,5 @@ PYBIND11_MODULE(_core, m) {
   pybind_stereo(m);
   pybind_placement(m);
   pybind_navigation(m);
+  pybind_guidance(m);
 }
