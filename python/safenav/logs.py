@@ -31,7 +31,7 @@ from .results import atomic_write
 from .validation import INT32_MAX, MAX_LANDMARKS, ScenarioError, as_array, cut, fail, real
 
 __all__ = ["Log", "read_log", "write_log", "load_plaza", "plaza1_path", "COLUMNS", "KINDS", "EVENT_KINDS",
-           "OBSERVATION_KINDS", "EVENT_COLUMNS", "TRUTH_COLUMNS"]
+           "OBSERVATION_KINDS", "EVENT_COLUMNS", "TRUTH_COLUMNS", "PLAZA_ARRAYS"]
 
 #: The columns of a log file, in this order.
 COLUMNS = ("t", "kind", "landmark", "x", "y", "heading", "speed", "distance", "heading_change", "range",
