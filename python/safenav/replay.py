@@ -34,7 +34,7 @@ TRAJECTORY_COLUMNS = ("t", "x", "y", "speed", "heading", "var_x", "var_y", "cov_
 class ReplayResult:
     """The estimated trajectory and, with ground truth, its scores."""
 
-    trajectory: pd.DataFrame        #: one row per motion input after the start: TRAJECTORY_COLUMNS
+    trajectory: pd.DataFrame        #: the start, then one row per motion input: TRAJECTORY_COLUMNS
     counts: dict                    #: the localizer's input counts (applied, rejected, late, buffered, motion)
     t_start: float                  #: time of the localizer's start (prior or from the data)
     started_from: str               #: "data" or "prior"
@@ -69,7 +69,15 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None) -
     cols = {c: ev[c].to_numpy(float) for c in ("x", "y", "speed", "distance", "heading_change", "range", "bearing",
                                                 "range_std", "bearing_std", "std_x", "std_y")}
     rows = []
+
+    def record():
+        x, P = loc.x, loc.P
+        rows.append((loc.time, x[0], x[1], x[2], x[3], P[0, 0], P[1, 1], P[0, 1], P[2, 2], P[3, 3]))
+
     t_start = math.nan
+    if loc.initialized:
+        t_start = loc.time
+        record()
     for i in range(len(ev)):
         k = kinds[i]
         if k == "odometry" or k == "motion":
@@ -77,9 +85,8 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None) -
                 loc.odometry(t[i], cols["distance"][i], cols["heading_change"][i])
             else:
                 loc.motion(t[i], cols["speed"][i], cols["heading_change"][i])
-            if loc.initialized:
-                x, P = loc.x, loc.P
-                rows.append((loc.time, x[0], x[1], x[2], x[3], P[0, 0], P[1, 1], P[0, 1], P[2, 2], P[3, 3]))
+            if loc.initialized and not math.isnan(t_start):
+                record()
         elif k == "fix":
             R = np.diag([cols["std_x"][i] ** 2, cols["std_y"][i] ** 2])
             loc.fix(t[i], cols["x"][i], cols["y"][i], R)
@@ -87,8 +94,9 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None) -
             loc.observe(t[i], int(lm[i]), cols["range"][i], cols["bearing"][i],
                         cols["range_std"][i] if not np.isnan(cols["range_std"][i]) else 1.0,
                         cols["bearing_std"][i] if not np.isnan(cols["bearing_std"][i]) else 0.05)
-        if math.isnan(t_start) and loc.initialized:
+        if math.isnan(t_start) and loc.initialized:  # started from the data: its first estimate
             t_start = loc.time
+            record()
     traj = pd.DataFrame(rows, columns=list(TRAJECTORY_COLUMNS))
     c = loc.counts
     result = ReplayResult(trajectory=traj, t_start=t_start, started_from="prior" if prior is not None else "data",
