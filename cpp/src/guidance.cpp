@@ -97,13 +97,21 @@ void NavigationSettings::validate() const {
 // ---------------------------------------------------------------------------
 // [SafeNav Algs. 1–2]
 
-Control centroid_control(const PathSegments& segments, const State& estimate, double cruise_speed) {
+namespace {
+/// [SafeNav Alg. 2]'s control, with the centroid it steers toward.
+Control centroid_toward(const PathSegments& segments, const State& estimate, double cruise_speed, CentroidTarget& t) {
   check_finite_state(estimate, "estimate");
   require_finite_positive(cruise_speed, "cruise_speed");
   const Eigen::Vector2d p = estimate.head<2>();
-  const CentroidTarget t = segments.nearest_centroid_ahead(p);
+  t = segments.nearest_centroid_ahead(p);
   const Eigen::Vector2d target = t.ahead ? t.point : Eigen::Vector2d(segments.corridor().path().bottomRows<1>().transpose());
   return Control(cruise_speed, heading_to(estimate, target));
+}
+}  // namespace
+
+Control centroid_control(const PathSegments& segments, const State& estimate, double cruise_speed) {
+  CentroidTarget t;
+  return centroid_toward(segments, estimate, cruise_speed, t);
 }
 
 ChullDecision chull_control(const PathSegments& segments, const Bmm& bmm, const State& estimate, double cruise_speed,
@@ -383,9 +391,10 @@ Command Guidance::command(double t) {
   ++im.commands;
   // The control from the estimate [SafeNav Algs. 1–2].
   if (st.method == NavigationMethod::Centroid) {
-    c.control = centroid_control(*im.active, xe, st.cruise_speed);
+    CentroidTarget target;
+    c.control = centroid_toward(*im.active, xe, st.cruise_speed, target);
     c.predicted = im.shared->bmm.predict(xe, c.control).head<2>();
-    c.segment = im.active->segment_at(im.active->corridor().project(xe.head<2>()).arc_length);
+    c.segment = target.segment;  // the segment of the centroid steered toward
   } else {
     const ChullDecision d = chull_control(*im.active, im.shared->bmm, xe, st.cruise_speed, st.lookahead, st.step_back_speed,
                                           &im.shared->obstacles);

@@ -145,7 +145,7 @@ struct Command {
   Control control{0.0, 0.0};  ///< (desired speed [m/s], heading change [rad]) for the next step
   GuidanceStatus status = GuidanceStatus::Initializing;
   unsigned events = 0;        ///< GuidanceEvent flags of this request
-  int segment = 0;            ///< current segment k of the path followed
+  int segment = 0;            ///< segment k of the path followed: CHull's current one, Centroid's target's
   double position_std = std::numeric_limits<double>::quiet_NaN();  ///< √λ_max(P_xy) [m]
   ChullAction action = ChullAction::Keep;  ///< what SafeNav-CHull did (CHull only)
   Eigen::Vector2d predicted = Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());  ///< BMM prediction of the estimate under `control`
