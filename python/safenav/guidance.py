@@ -39,7 +39,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _core
-from .validation import as_array, as_seed
+from .validation import as_array, as_seed, choice, integer
 
 Localizer = _core.Localizer
 LocalizerSettings = _core.LocalizerSettings
@@ -71,11 +71,10 @@ def localizer_settings(*, filter: str = "ekf", bmm=None, gate: float | None = No
                        seed: int = 0) -> LocalizerSettings:
     """:class:`LocalizerSettings` for ``filter`` ("ekf" or "pf"); ``gate`` is the
     χ² gate probability of every update (default 0.99; 0 = off)."""
-    from .navigation import FILTERS, _choice
-    from .validation import integer
+    from .navigation import FILTERS
 
     s = LocalizerSettings()
-    s.filter.type = _choice("filter", filter, FILTERS)
+    s.filter.type = choice("filter", filter, FILTERS)
     s.filter.n_particles = integer("n_particles", n_particles)
     s.filter.seed = as_seed("seed", seed)
     if gate is not None:

@@ -41,7 +41,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import _core
-from .validation import as_array, integer, as_seed
+from .validation import as_array, as_seed, choice, integer
 from .geometry import PathSegments
 from .measurement import PositionNoise
 from .planning import PlanningProblem, PlannerSettings, map_from_world, plan
@@ -83,13 +83,6 @@ def position_source(name: str) -> PositionNoise:
     return PositionNoise.named(name)
 
 
-def _choice(kind: str, value: str, table: dict):
-    try:
-        return table[value]
-    except (KeyError, TypeError):
-        raise ValueError(f"{kind} = {value!r}: must be one of {sorted(table)}") from None
-
-
 def plan_safe_path(scenario, path_type: str, *, seed: int | None = None, iterations: int | None = None):
     """Plan the safe path of a path type with RAw-RRT* [SafeNav-ext Alg. 3]: from the
     start cluster's centroid to the destination's, around the obstacles (kept
@@ -125,7 +118,7 @@ def navigation_setup(scenario, safe_path, *, method: str = "centroid", world_map
     problem.bmm = scenario.bmm_params()
 
     s = nav.apply(NavigationSettings())
-    s.method = _choice("method", method, METHODS)
+    s.method = choice("method", method, METHODS)
     if max_steps is not None:
         s.max_steps = integer("max_steps", max_steps, 0)  # 0: from the path
     s.replan = bool(replan)
@@ -147,7 +140,7 @@ def make_navigator(scenario, safe_path, *, method: str = "centroid", filter: str
     problem, s = navigation_setup(scenario, safe_path, method=method, world_map=world_map, max_steps=max_steps,
                                   replan=replan, planner_seed=planner_seed)
     fo = _core.FilterOptions()
-    fo.type = _choice("filter", filter, FILTERS)
+    fo.type = choice("filter", filter, FILTERS)
     fo.n_particles = integer("n_particles", n_particles)
     s.filter = fo
     s.record = bool(record)

@@ -123,6 +123,14 @@ def as_positive_int(name: str, value) -> int:
     return integer(name, value, 1, None)
 
 
+def choice(name: str, value, table: dict):
+    """``table[value]``, or a ValueError naming ``name``, the value and the choices."""
+    try:
+        return table[value]
+    except (KeyError, TypeError):
+        raise ValueError(f"{name} = {value!r}: must be one of {sorted(table)}") from None
+
+
 def as_seed(name: str, value) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0 or value >= 2**64:
         raise ValueError(f"{name} must be an integer in [0, 2**64), got {cut(value)}")
