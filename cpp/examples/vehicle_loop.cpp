@@ -18,15 +18,18 @@
 //     stop on Arrived (or NoPath / LostLocalization)
 //
 // Guidance never sees the truth: it steers by the localizer's estimate.  The
-// program checks the true path against the obstacle with ObstacleChecker.
+// program checks the true path against the obstacle with ObstacleChecker (the obstacle itself;
+// guidance plans with the map's clearance, 0.5 m here).
 //
 //   vehicle_loop [max_steps] [seed]   prints the steps, events and final error;
 //                                     exits 0 when the vehicle arrived with no
 //                                     collision after planning a detour
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
 #include <random>
 #include <string>
 #include <vector>
@@ -80,7 +83,10 @@ int main(int argc, char** argv) {
   safenav::Guidance guidance(problem, settings, safenav::LocalizerSettings(), landmarks, {}, seed);
   const safenav::BmmParams& bp = guidance.problem().bmm;
   const safenav::Bmm vehicle(bp);
-  const safenav::ObstacleChecker obstacles(problem.map);
+  // The collision check: the true obstacle itself (no clearance), as the simulator's.
+  safenav::PlanningMap true_map = problem.map;
+  true_map.clearance = 0.0;
+  const safenav::ObstacleChecker obstacles(true_map);
 
   // The true vehicle starts at rest at the path's start, heading east; the
   // localizer starts from a prior 0.5 m and a few degrees off.
@@ -96,15 +102,16 @@ int main(int argc, char** argv) {
   const Eigen::Vector4d sigma(bp.position_noise, bp.position_noise, bp.speed_noise, bp.heading_noise);
   bool detour = false, collided = false, arrived = false;
   int step = 0, observations = 0, rejected = 0;
+  double min_gap = std::numeric_limits<double>::infinity();  // closest approach to the boulder's edge [m]
   safenav::GuidanceStatus last = safenav::GuidanceStatus::Initializing;
   while (step < max_steps) {
     // 1. Ask guidance for the control of the next step.
     const double t = step * bp.dt;
     const safenav::Command cmd = guidance.command(t);
     last = cmd.status;
-    if (cmd.events) {
-      std::printf("step %d t=%.2f s: events=%s segment=%d sigma=%.3f m estimate=(%.2f, %.2f)\n", step, t,
-                  event_names(cmd.events).c_str(), cmd.segment, cmd.position_std, guidance.localizer().x()[0],
+    if (cmd.events || step % 200 == 0) {
+      std::printf("step %d t=%.2f s: %s events=%s segment=%d sigma=%.3f m estimate=(%.2f, %.2f)\n", step, t,
+                  safenav::to_string(cmd.status).c_str(), event_names(cmd.events).c_str(), cmd.segment, cmd.position_std, guidance.localizer().x()[0],
                   guidance.localizer().x()[1]);
     }
     if (cmd.events & safenav::kDetourPlanned) detour = true;
@@ -124,6 +131,7 @@ int main(int argc, char** argv) {
     for (int i = 0; i < 4; ++i) eps[i] = sigma[i] * n01(gen);
     truth = vehicle.transition(truth, cmd.control, eps);
     if (!obstacles.segment_free(before, truth.head<2>())) collided = true;
+    min_gap = std::min(min_gap, (truth.head<2>() - boulder.center).norm() - boulder.radius);
     // 3. Its inputs: the commanded motion, then each landmark within range.
     guidance.motion(t1, cmd.control);
     for (Eigen::Index k = 0; k < landmarks.rows(); ++k) {
@@ -145,10 +153,10 @@ int main(int argc, char** argv) {
   const double err = (loc.x().head<2>() - truth.head<2>()).norm();
   const Eigen::Vector2d goal = problem.path.bottomRows<1>().transpose();
   std::printf(
-      "steps=%d status=%s replans=%d detour=%s collision=%s observations=%d rejected=%d truth=(%.3f, %.3f) "
+      "steps=%d status=%s replans=%d detour=%s collision=%s min_gap=%.3fm observations=%d rejected=%d truth=(%.3f, %.3f) "
       "estimate=(%.3f, %.3f) error=%.4f m sigma=%.4f m goal_distance=%.3f m\n",
       step, safenav::to_string(last).c_str(), guidance.replans(), detour ? "yes" : "no", collided ? "yes" : "no",
-      observations, rejected, truth.x(), truth.y(), loc.x().x(), loc.x().y(), err, loc.position_std(),
+      min_gap, observations, rejected, truth.x(), truth.y(), loc.x().x(), loc.x().y(), err, loc.position_std(),
       (truth.head<2>() - goal).norm());
   return arrived && detour && !collided ? 0 : 1;
 }
