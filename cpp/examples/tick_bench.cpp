@@ -9,7 +9,10 @@
 //
 //   tick_bench [ticks] [repeats]   prints one JSON object:
 //     localizer_ns_per_tick, guidance_ns_per_tick, command_ns_per_tick (medians
-//     over repeats), localizer_allocs_per_tick, guidance_allocs_per_tick, ...
+//     over repeats), localizer_allocs_per_tick, guidance_allocs_per_tick,
+//     command_checked_* (command() with the obstacle check on, no obstacle
+//     ahead), guidance_construction_allocs (proof that the counter sees the
+//     library's allocations), events (OR of all command events; 0 expected)
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -144,21 +147,29 @@ int main(int argc, char** argv) {
     loc_ns.push_back(std::chrono::duration<double, std::nano>(t1 - t0).count() / static_cast<double>(ticks));
   }
 
-  // 2. Guidance: command + motion + observe (Centroid along a long straight
-  // path, no obstacles, no replanning), and command() alone.
+  // 2. Guidance: command + motion + observe (SafeNav-Centroid along a 170 m
+  // path round the landmark field, 10 m segments, no replanning), and
+  // command() alone.
   safenav::NavigationProblem problem;
-  problem.path.resize(2, 2);
-  problem.path << 0.0, 10.0, 1.0e6, 10.0;  // never arrives within the run
-  problem.map.lower = Eigen::Vector2d(-100.0, -100.0);
-  problem.map.upper = Eigen::Vector2d(1.1e6, 100.0);
+  problem.path.resize(5, 2);
+  problem.path << 30, 10, 80, 10, 80, 50, 30, 50, 30, 20;
+  problem.map.lower = Eigen::Vector2d(-200.0, -200.0);
+  problem.map.upper = Eigen::Vector2d(300.0, 300.0);
   safenav::NavigationSettings settings;
   settings.method = safenav::NavigationMethod::Centroid;
   settings.replan = false;
-  settings.segments.length = 100.0;  // 10^4 segments over 10^6 m
-  settings.lost_position_std = 1e9;
+  long long a_build = g_allocs.load();
   const safenav::Guidance proto(problem, settings, safenav::LocalizerSettings(), w.landmarks, {}, 1);
-  std::vector<double> gui_ns, cmd_ns;
-  long long gui_allocs = 0, cmd_allocs = 0;
+  a_build = g_allocs.load() - a_build;  // shows that the counter sees the library's allocations
+  // The same with the obstacle check on (every 5th command; an obstacle off the path, so no detour).
+  safenav::NavigationProblem checked = problem;
+  checked.map.circles.push_back({Eigen::Vector2d(150.0, 150.0), 2.0});
+  safenav::NavigationSettings check_settings = settings;
+  check_settings.replan = true;
+  safenav::Guidance g3(checked, check_settings, safenav::LocalizerSettings(), w.landmarks, {}, 1);
+  g3.localizer().initialize(0.0, x0, P0);
+  std::vector<double> gui_ns, cmd_ns, chk_ns;
+  long long gui_allocs = 0, cmd_allocs = 0, chk_allocs = 0;
   unsigned events = 0;
   int guiding = 0;
   for (int r = 0; r < repeats; ++r) {
@@ -194,6 +205,14 @@ int main(int argc, char** argv) {
     t1 = Clock::now();
     cmd_allocs += g_allocs.load() - a0;
     cmd_ns.push_back(std::chrono::duration<double, std::nano>(t1 - t0).count() / static_cast<double>(ticks));
+    // command() with the obstacle check on.
+    for (long j = 0; j < warm; ++j) g3.command(j * w.dt());
+    a0 = g_allocs.load();
+    t0 = Clock::now();
+    for (long j = 0; j < ticks; ++j) events |= g3.command(j * w.dt()).events;
+    t1 = Clock::now();
+    chk_allocs += g_allocs.load() - a0;
+    chk_ns.push_back(std::chrono::duration<double, std::nano>(t1 - t0).count() / static_cast<double>(ticks));
   }
 
   const double n = static_cast<double>(ticks) * repeats;
@@ -202,10 +221,12 @@ int main(int argc, char** argv) {
       "\"localizer_ns_max\": %.1f, \"localizer_allocs_per_tick\": %.6g, \"localizer_applied_fraction\": %.4f, "
       "\"guidance_ns_per_tick\": %.1f, \"guidance_ns_min\": %.1f, \"guidance_ns_max\": %.1f, "
       "\"guidance_allocs_per_tick\": %.6g, \"guidance_guiding_fraction\": %.4f, \"command_ns\": %.1f, "
-      "\"command_allocs_per_call\": %.6g, \"events\": %u}\n",
+      "\"command_allocs_per_call\": %.6g, \"command_checked_ns\": %.1f, \"command_checked_allocs_per_call\": %.6g, "
+      "\"guidance_construction_allocs\": %lld, \"events\": %u}\n",
       ticks, repeats, median(loc_ns), *std::min_element(loc_ns.begin(), loc_ns.end()),
       *std::max_element(loc_ns.begin(), loc_ns.end()), static_cast<double>(loc_allocs) / n, applied / n,
       median(gui_ns), *std::min_element(gui_ns.begin(), gui_ns.end()), *std::max_element(gui_ns.begin(), gui_ns.end()),
-      static_cast<double>(gui_allocs) / n, guiding / n, median(cmd_ns), static_cast<double>(cmd_allocs) / n, events);
+      static_cast<double>(gui_allocs) / n, guiding / n, median(cmd_ns), static_cast<double>(cmd_allocs) / n, median(chk_ns),
+      static_cast<double>(chk_allocs) / n, a_build, events);
   return 0;
 }
