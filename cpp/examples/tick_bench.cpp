@@ -61,6 +61,7 @@ void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::f
 namespace {
 
 using Clock = std::chrono::steady_clock;
+constexpr double kPi = 3.14159265358979323846;
 
 // A vehicle circling a landmark field: (speed, heading change) and the
 // range-bearing observation of landmark (k mod 4) from the true pose.
@@ -92,7 +93,7 @@ Script make_script(const World& w, const safenav::State& x0, long n) {
     safenav::LandmarkObservation o;
     o.id = id;
     o.range = d.norm();
-    o.bearing = std::remainder(std::atan2(d.y(), d.x()) - x[3], 2 * M_PI);
+    o.bearing = std::remainder(std::atan2(d.y(), d.x()) - x[3], 2.0 * kPi);
     o.range_std = 0.3;
     o.bearing_std = 0.02;
     s.u[static_cast<std::size_t>(k)] = u;

@@ -52,7 +52,8 @@ std::string event_names(unsigned events) {
   return out;
 }
 
-double wrap(double a) { return std::remainder(a, 2.0 * M_PI); }
+constexpr double kPi = 3.14159265358979323846;
+double wrap(double a) { return std::remainder(a, 2.0 * kPi); }
 
 }  // namespace
 
