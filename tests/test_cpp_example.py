@@ -2,7 +2,10 @@
 
 Installs the shared ``safenav::core`` to a temporary prefix, then configures
 ``cpp/examples`` as its own CMake project with ``find_package(safenav)``,
-builds ``vehicle_loop`` and runs it.  The consumer must link ``safenav::core``
+builds the examples and runs them: ``vehicle_loop`` (a vehicle that
+``Guidance`` steers round an obstacle on its path) and ``log_replay`` (a
+``docs/replay.md`` log through the ``Localizer``, checked against
+``safenav.replay.replay`` on the same log).  The consumer must link ``safenav::core``
 alone: the exported link interface names imported targets (Eigen's), not the
 absolute paths of OMPL, ODE, GMP, MPFR or OpenCV, and the consumer configures
 with CGAL, OMPL, OpenCV and Boost hidden from CMake.
@@ -14,11 +17,15 @@ else from a standalone build under ``build/`` that reruns incrementally.
 
 from __future__ import annotations
 
+import io
+import math
 import re
 import shutil
 import subprocess
 from pathlib import Path
 
+import numpy as np
+import pandas as pd
 import pytest
 
 from safenav import _core
@@ -70,10 +77,10 @@ def example_build(installed_prefix, tmp_path_factory):
     return build
 
 
-def _link_command(build: Path) -> str:
+def _link_command(build: Path, target: str = "vehicle_loop") -> str:
     if GEN:
-        return _run("ninja", "-C", str(build), "-t", "commands", "vehicle_loop").strip().splitlines()[-1]
-    return (build / "CMakeFiles" / "vehicle_loop.dir" / "link.txt").read_text()
+        return _run("ninja", "-C", str(build), "-t", "commands", target).strip().splitlines()[-1]
+    return (build / "CMakeFiles" / f"{target}.dir" / "link.txt").read_text()
 
 
 def test_installed_package_layout(installed_prefix):
@@ -108,19 +115,145 @@ def test_exported_link_interface_names_targets_not_paths(installed_prefix):
     assert not PRIVATE_LIBS.search(config), config
 
 
-def test_consumer_links_only_safenav_core(example_build):
-    link = _link_command(example_build).split()
+@pytest.mark.parametrize("target", ["vehicle_loop", "log_replay", "tick_bench"])
+def test_consumer_links_only_safenav_core(example_build, target):
+    link = _link_command(example_build, target).split()
     assert any("libsafenav_core.so" in tok for tok in link), link
     assert not [tok for tok in link if PRIVATE_LIBS.search(Path(tok).name)], link
 
 
 def test_example_builds_against_installed_package_and_runs(example_build):
     exe = example_build / "vehicle_loop"
-    out = _run(str(exe), "400")
+    out = _run(str(exe), "2000")
     fields = dict(kv.split("=", 1) for kv in out.split() if "=" in kv)
-    assert int(fields["steps"]) == 400
-    assert int(fields["fixes"]) >= 70          # 80 fixes offered; the 99.9% gate rejects few
-    assert float(fields["error"].rstrip("m")) < 0.2
+    # Guidance saw the obstacle on the path, planned a detour and arrived without touching it.
+    assert "events=detour_planned,path_spliced" in out
+    assert fields["status"] == "arrived" and fields["detour"] == "yes" and fields["collision"] == "no"
+    assert int(fields["replans"]) >= 1
+    assert 0 < int(fields["steps"]) < 2000
+    assert float(fields["goal_distance"].rstrip("m")) < 2.0
+    assert int(fields["observations"]) > 1000
+    assert int(fields["rejected"]) < 0.05 * int(fields["observations"])   # the 99% gate rejects few
+    assert float(fields["error"].rstrip("m")) < 0.3
+    # Too few steps to arrive: reported as a failure, not a crash.
+    short = subprocess.run([str(exe), "100"], capture_output=True, text=True)
+    assert short.returncode == 1 and "status=guiding" in short.stdout
     # A bad argument is reported, not a crash.
     bad = subprocess.run([str(exe), "0"], capture_output=True, text=True)
     assert bad.returncode == 2 and "steps must be > 0" in bad.stderr
+
+
+# --------------------------------------------------------------------------- log_replay
+
+def _synthetic_log(seed: int = 3):
+    """A vehicle driving past 4 landmarks at 2 m/s for 30 s: motion rows every
+    0.1 s, range-bearing sightings of each landmark within 30 m every 0.3 s
+    (between two motion rows), truth every 0.1 s."""
+    from safenav.logs import Log
+
+    rng = np.random.default_rng(seed)
+    landmarks = {3: (10.0, 6.0), 7: (25.0, -16.0), 11: (40.0, 9.0), 12: (55.0, -12.0)}
+    dt, v = 0.1, 2.0
+    x, y, th = 0.0, -3.0, 0.0
+    events, truth = [], [dict(t=0.0, x=x, y=y, heading=th)]
+    for k in range(1, 301):
+        t = round(k * dt, 10)
+        dth = 0.02 * math.sin(0.05 * k)
+        th += dth
+        x += v * dt * math.cos(th)
+        y += v * dt * math.sin(th)
+        events.append(dict(t=t, kind="motion", speed=v + 0.05 * rng.standard_normal(), heading_change=dth))
+        truth.append(dict(t=t, x=x, y=y, heading=th))
+        if k % 3 == 0:
+            ts = t + 0.05
+            xs, ys = x + v * 0.05 * math.cos(th), y + v * 0.05 * math.sin(th)
+            for i, (lx, ly) in landmarks.items():
+                r = math.hypot(lx - xs, ly - ys)
+                if r < 30.0:
+                    b = (math.atan2(ly - ys, lx - xs) - th + math.pi) % (2 * math.pi) - math.pi
+                    events.append(dict(t=ts, kind="range_bearing", landmark=i, range=r + 0.1 * rng.standard_normal(),
+                                       bearing=b + 0.01 * rng.standard_normal(), range_std=0.1, bearing_std=0.01))
+    return Log(landmarks, pd.DataFrame(events), pd.DataFrame(truth))
+
+
+@pytest.fixture(scope="module")
+def synthetic_log_path(tmp_path_factory):
+    from safenav.logs import write_log
+
+    return write_log(_synthetic_log(), tmp_path_factory.mktemp("log") / "drive.csv")
+
+
+def _fields(text: str) -> dict:
+    return dict(kv.split("=", 1) for kv in text.split() if "=" in kv)
+
+
+@pytest.mark.parametrize("prior", [False, True], ids=["from-data", "prior-from-truth"])
+def test_log_replay_matches_python_replay(example_build, synthetic_log_path, tmp_path, prior):
+    from safenav import replay as rp
+    from safenav.logs import read_log
+
+    exe = example_build / "log_replay"
+    args = [str(exe), str(synthetic_log_path), "-o", str(tmp_path / "traj.csv")] + (["--prior-from-truth"] * prior)
+    info = _fields(_run(*args))
+    ours = pd.read_csv(tmp_path / "traj.csv")
+
+    log = read_log(synthetic_log_path)
+    start = None
+    if prior:
+        t0, x, y, h = log.truth.iloc[0][["t", "x", "y", "heading"]]
+        start = (t0, np.array([x, y, 0.0, h]), np.diag([0.1, 0.1, 0.5, 0.02]) ** 2)   # as `safenav replay`
+    ref = rp.replay(log, prior=start)
+
+    # (a) the C++ replay localizes well against the truth.
+    assert info["started_from"] == ref.started_from
+    assert float(info["rmse"]) < 0.2
+    assert int(info["n_scored"]) == ref.metrics["n_scored"] and int(info["n_before_start"]) == ref.metrics[
+        "n_before_start"]
+    # (b) same Localizer, same inputs in the same order: the same numbers.
+    assert list(ours.columns) == list(rp.TRAJECTORY_COLUMNS)
+    assert ours.shape == ref.trajectory.shape and len(ours) > 100
+    np.testing.assert_allclose(ours.to_numpy(), ref.trajectory.to_numpy(), rtol=1e-9, atol=1e-12)
+    for key in ("rmse", "ade", "fde"):
+        assert float(info[key]) == pytest.approx(ref.metrics[key], rel=1e-9)
+    for key in ("motion", "applied", "rejected", "late", "buffered"):
+        assert int(info[key]) == ref.counts[key]
+    assert float(info["t_start"]) == pytest.approx(ref.t_start, rel=1e-12)
+
+
+def test_log_replay_to_stdout_and_errors(example_build, synthetic_log_path, tmp_path):
+    exe = str(example_build / "log_replay")
+    proc = subprocess.run([exe, str(synthetic_log_path)], capture_output=True, text=True)
+    assert proc.returncode == 0
+    traj = pd.read_csv(io.StringIO(proc.stdout))      # the trajectory on stdout, the summary on stderr
+    assert len(traj) > 100 and "rmse=" in proc.stderr
+    # A log with no truth rows: a trajectory and no scores.
+    no_truth = tmp_path / "no_truth.csv"
+    table = pd.read_csv(synthetic_log_path)
+    table[table["kind"] != "truth"].to_csv(no_truth, index=False)
+    proc = subprocess.run([exe, str(no_truth), "-o", str(tmp_path / "t.csv")], capture_output=True, text=True)
+    assert proc.returncode == 0 and "rmse=" not in proc.stdout and "rows=" in proc.stdout
+    proc = subprocess.run([exe, str(no_truth), "--prior-from-truth"], capture_output=True, text=True)
+    assert proc.returncode == 2 and "no truth rows" in proc.stderr
+    # Bad files are one-line errors naming the line, not crashes.
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t,kind,landmark,x,y\n,landmark,0,1.0,2.0\n0.5,odom,,,\n")
+    proc = subprocess.run([exe, str(bad)], capture_output=True, text=True)
+    assert proc.returncode == 2 and "line 3" in proc.stderr and "unknown kind 'odom'" in proc.stderr
+    bad.write_text("t,kind,landmark,x,y,range,range_std\n,landmark,0,1.0,2.0,,\n0.5,range,0,,,noon,1\n")
+    proc = subprocess.run([exe, str(bad)], capture_output=True, text=True)
+    assert proc.returncode == 2 and "'range' = 'noon'" in proc.stderr
+    proc = subprocess.run([exe, str(tmp_path / "missing.csv")], capture_output=True, text=True)
+    assert proc.returncode == 2 and "cannot open" in proc.stderr
+    proc = subprocess.run([exe], capture_output=True, text=True)
+    assert proc.returncode == 2 and "usage" in proc.stderr
+
+
+def test_tick_bench_localizer_tick_allocates_nothing(example_build):
+    import json
+
+    res = json.loads(_run(str(example_build / "tick_bench"), "2000", "1"))
+    assert res["guidance_construction_allocs"] > 0          # the counter sees the library's allocations
+    assert res["localizer_allocs_per_tick"] == 0             # EKF motion + observe after construction
+    assert res["localizer_applied_fraction"] == 1.0
+    assert res["command_allocs_per_call"] == 0 and res["guidance_allocs_per_tick"] == 0
+    assert res["events"] == 0 and res["guidance_guiding_fraction"] == 1.0
