@@ -184,20 +184,25 @@ int main(int argc, char** argv) {
     loc.initialize(r.v[T], safenav::State(r.v[X], r.v[Y], 0.0, r.v[HEADING]), P0);
   }
 
-  // Feed the inputs in time order; record the estimate after each motion input.
+  // Feed the inputs in time order; record the start, then the estimate after each motion input.
   std::vector<Estimate> traj;
-  traj.reserve(log.events.size());
+  traj.reserve(log.events.size() + 1);
+  auto record = [&] {
+    const safenav::State& x = loc.x();
+    const safenav::StateCov& P = loc.P();
+    traj.push_back({loc.time(), x[0], x[1], x[2], x[3], P(0, 0), P(1, 1), P(0, 1), P(2, 2), P(3, 3)});
+  };
   double t_start = kNaN;
+  if (loc.initialized()) {
+    t_start = loc.time();
+    record();
+  }
   for (const Row& r : log.events) {
     const double t = r.v[T];
     if (r.kind == "odometry" || r.kind == "motion") {
       if (r.kind == "odometry") loc.odometry(t, r.v[DISTANCE], r.v[HEADING_CHANGE]);
       else loc.motion(t, safenav::Control(r.v[SPEED], r.v[HEADING_CHANGE]));
-      if (loc.initialized()) {
-        const safenav::State& x = loc.x();
-        const safenav::StateCov& P = loc.P();
-        traj.push_back({loc.time(), x[0], x[1], x[2], x[3], P(0, 0), P(1, 1), P(0, 1), P(2, 2), P(3, 3)});
-      }
+      if (loc.initialized() && !std::isnan(t_start)) record();
     } else if (r.kind == "fix") {
       Eigen::Matrix2d R = Eigen::Matrix2d::Zero();
       R.diagonal() << r.v[STD_X] * r.v[STD_X], r.v[STD_Y] * r.v[STD_Y];
@@ -211,7 +216,10 @@ int main(int argc, char** argv) {
       obs.bearing_std = std::isnan(r.v[BEARING_STD]) ? 0.05 : r.v[BEARING_STD];
       loc.observe(t, obs);
     }
-    if (std::isnan(t_start) && loc.initialized()) t_start = loc.time();
+    if (std::isnan(t_start) && loc.initialized()) {  // started from the data: its first estimate
+      t_start = loc.time();
+      record();
+    }
   }
 
   FILE* out = stdout;

@@ -31,7 +31,9 @@ Example::
     g.localizer.initialize(0.0, np.r_[safe[0], 0.0, 0.0], np.diag([0.1, 0.1, 0.1, 0.1]) ** 2)
     cmd = g.command(0.0)            # cmd.speed, cmd.heading_change, cmd.status, cmd.events
     g.motion(0.05, cmd.speed, cmd.heading_change)
-    g.observe(0.05, 3, range=12.0, range_std=0.1)
+    # each tick: the vehicle's own measurements, e.g. a range of landmark 3
+    # (a gross one is rejected by its gate: the result's status says so)
+    r = g.observe(0.05, 3, range=measured_range, range_std=0.1)
 """
 
 from __future__ import annotations

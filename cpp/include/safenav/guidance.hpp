@@ -205,6 +205,7 @@ class Guidance {
   const PathSegments& safe_path() const;
   const PathSegments& path() const;
   int replans() const;
+  /// Command requests that reached the control step (guiding).
   int commands() const;
   /// Why the last NoPath, LostLocalization or Arrived happened.
   const std::string& detail() const;
