@@ -112,6 +112,7 @@ struct Localizer::Impl {
   // rates) already added since the last motion input: the next one applies
   // only what its own Δd, Δθ still owe ("catch-up").
   double owed_distance = 0.0, owed_heading = 0.0;
+  bool from_odometry = false;  // the motion input being applied is wheel odometry
   LocalizerCounts counts;
   mutable State x_cache = State::Constant(kNaN);  // NaN until initialized
   mutable StateCov P_cache = StateCov::Constant(kNaN);
@@ -440,12 +441,21 @@ InputResult Localizer::motion(double t, const Control& u) {
   I.t_motion = t;
   I.owed_distance = I.owed_heading = 0.0;
   if (dt <= kSameTime) return InputResult{};  // a measurement at t already took the filter there
-  if (owed_d == 0.0 && owed_h == 0.0) {
-    I.predict(u, dt);  // the whole interval (dt = interval)
-  } else {
-    // Catch-up: a measurement inside the interval was predicted to at the last
-    // rates; apply what this input's distance and heading change still owe.
-    I.predict(Control((u[0] * interval - owed_d) / dt, u[1] - owed_h), dt);
+  const Control step = (owed_d == 0.0 && owed_h == 0.0)
+                           ? u  // the whole interval (dt = interval)
+                           // Catch-up: a measurement inside the interval was predicted to at the last
+                           // rates; apply what this input's distance and heading change still owe.
+                           : Control((u[0] * interval - owed_d) / dt, u[1] - owed_h);
+  I.predict(step, dt);
+  if (I.from_odometry && I.aekf) {
+    // Odometry measured its distance and heading change: what the BMM's limits
+    // (eq. 3's speed in [0, v_max] and a·Δt, eq. 4's clip) kept this step from
+    // applying is owed by the next one.  A catch-up step that follows a
+    // measurement just before the input can ask for any speed, even a
+    // negative one.  (Augmented path only: the plain EKF stays as it was.)
+    const Bmm b = I.bmm.is_nominal_step(dt) ? I.bmm : I.bmm.with_step(dt);
+    I.owed_distance = I.aekf->x()[kV] * dt - step[0] * dt;
+    I.owed_heading = b.clipped_heading_change(step[1]) - step[1];
   }
   I.t_f = t;
   ++I.counts.motion;
@@ -465,6 +475,11 @@ InputResult Localizer::odometry(double t, double distance, double heading_change
   }
   const double interval = t - I.t_motion;
   if (interval <= kSameTime) return I.status(InputStatus::Late);
+  struct Flag {
+    bool& f;
+    explicit Flag(bool& b) : f(b) { f = true; }
+    ~Flag() { f = false; }
+  } flag(I.from_odometry);
   return motion(t, Control(distance / interval, heading_change));
 }
 
