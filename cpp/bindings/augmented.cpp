@@ -1,6 +1,8 @@
 // Bindings of safenav/augmented.hpp: AugmentedStates and AugmentedEkf, and
 // replay_localizer, a batch run of the Localizer with augmented states over
-// a time-ordered event table (for checks against reference runs).
+// a time-ordered event table (for checks against reference runs).  Registered
+// after bindings/guidance.cpp: it adds LocalizerSettings.augment and
+// Localizer.augmented to the classes registered there.
 #include <map>
 #include <string>
 
@@ -122,6 +124,22 @@ void pybind_augmented(py::module_& m) {
            py::arg("z"), py::arg("R"))
       .def("update_position", &AugmentedEkf::update_position, py::arg("z"), py::arg("R"))
       .def("update_speed_heading", &AugmentedEkf::update_speed_heading, py::arg("z"), py::arg("R"));
+
+  // The Localizer's augmented parts, on the classes that bindings/guidance.cpp registers.
+  if (py::hasattr(m, "LocalizerSettings") && py::hasattr(m, "Localizer")) {
+    auto settings = m.attr("LocalizerSettings").cast<py::class_<LocalizerSettings>>();
+    settings.def_readwrite("augment", &LocalizerSettings::augment,
+                           "AugmentedStates: with any on (and the EKF) the localizer runs the AugmentedEkf.");
+    auto loc = m.attr("Localizer").cast<py::class_<Localizer>>();
+    loc.def_property_readonly(
+        "augmented",
+        [](const Localizer& l) -> py::object {
+          const AugmentedEkf* f = l.augmented_filter();
+          if (!f) return py::none();
+          return py::cast(Eigen::VectorXd(f->augmented()));
+        },
+        "The full augmented state (x, y, v, theta, [k], [beta], [b_j]), or None without augmented states.");
+  }
 
   m.def(
       "replay_localizer",

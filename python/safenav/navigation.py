@@ -2,9 +2,11 @@
 (Algorithm 2) and the safe path navigation loop with RAw-RRT* replanning
 (Algorithm 4 of the extended paper; Algorithm 3 of the conference version).
 
-The trial loop runs in the C++ core (:class:`Navigator`): each step it
-chooses a control from the filter's estimate, checks the path ahead for
-obstacles and replans a detour when it is blocked, moves the true vehicle
+The trial loop runs in the C++ core (:class:`Navigator`), which drives the
+online :class:`~safenav.guidance.Guidance` that a vehicle program would tick:
+each step guidance chooses a control from the filter's estimate, checks the
+path ahead for obstacles and replans a detour when it is blocked; the
+simulator moves the true vehicle
 (BMM with process noise and terrain), measures (LanBLoc position fix when at
 least ``min_landmarks`` landmarks are within range and the camera's field of
 view, plus IMU speed and heading) and updates the EKF or PF.  A trial ends at
@@ -56,7 +58,7 @@ TrialResult = _core.TrialResult
 __all__ = [
     "Navigator", "NavigationMethod", "NavigationProblem", "NavigationSettings", "SensorSettings",
     "PositionNoise", "TrialOutcome", "ChullAction", "TrialResult", "SOURCES", "METHODS", "FILTERS",
-    "OUTCOMES", "position_source", "plan_safe_path", "make_navigator", "chull_control", "centroid_control",
+    "OUTCOMES", "position_source", "plan_safe_path", "navigation_setup", "make_navigator", "chull_control", "centroid_control",
 ]
 
 METHODS = {"chull": NavigationMethod.CHULL, "centroid": NavigationMethod.CENTROID}
@@ -109,16 +111,11 @@ def plan_safe_path(scenario, path_type: str, *, seed: int | None = None, iterati
     return result
 
 
-def make_navigator(scenario, safe_path, *, method: str = "centroid", filter: str = "ekf",
-                   source: str = "lanbloc", n_particles: int = 500, position_every: int = 1,
-                   replan: bool = True, record: bool = True, world_map=None, max_steps: int | None = None,
-                   planner_seed: int | None = None) -> Navigator:
-    """A :class:`Navigator` for ``safe_path`` in ``scenario``'s world.
-
-    ``method``: ``"chull"`` (Algorithm 1) or ``"centroid"`` (Algorithm 2);
-    ``filter``: ``"ekf"`` or ``"pf"``; ``source``: a :data:`SOURCES` name.
-    ``world_map`` overrides the true obstacles (a ``PlanningMap``), e.g. to
-    add obstacles the safe path was not planned around."""
+def navigation_setup(scenario, safe_path, *, method: str = "centroid", world_map=None, max_steps: int | None = None,
+                     replan: bool = True, planner_seed: int | None = None):
+    """The ``NavigationProblem`` and ``NavigationSettings`` of ``safe_path`` in
+    ``scenario``'s world (shared by :func:`make_navigator` and
+    :func:`safenav.guidance.make_guidance`)."""
     path = as_array("safe_path", safe_path, (None, 2))
     nav = scenario.navigation
     problem = NavigationProblem()
@@ -134,6 +131,21 @@ def make_navigator(scenario, safe_path, *, method: str = "centroid", filter: str
     s.replan = bool(replan)
     scenario.planner.apply(s.planner)
     s.planner.seed = as_seed("planner_seed", planner_seed or 0)
+    return problem, s
+
+
+def make_navigator(scenario, safe_path, *, method: str = "centroid", filter: str = "ekf",
+                   source: str = "lanbloc", n_particles: int = 500, position_every: int = 1,
+                   replan: bool = True, record: bool = True, world_map=None, max_steps: int | None = None,
+                   planner_seed: int | None = None) -> Navigator:
+    """A :class:`Navigator` for ``safe_path`` in ``scenario``'s world.
+
+    ``method``: ``"chull"`` (Algorithm 1) or ``"centroid"`` (Algorithm 2);
+    ``filter``: ``"ekf"`` or ``"pf"``; ``source``: a :data:`SOURCES` name.
+    ``world_map`` overrides the true obstacles (a ``PlanningMap``), e.g. to
+    add obstacles the safe path was not planned around."""
+    problem, s = navigation_setup(scenario, safe_path, method=method, world_map=world_map, max_steps=max_steps,
+                                  replan=replan, planner_seed=planner_seed)
     fo = _core.FilterOptions()
     fo.type = _choice("filter", filter, FILTERS)
     fo.n_particles = integer("n_particles", n_particles)

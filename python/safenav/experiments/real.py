@@ -8,8 +8,9 @@
 * :func:`load_plaza1` — the Plaza1 range-only robot data set shipped in the
   gtsam wheel (``gtsam/Data/Plaza1_.mat``: ground truth ``GT`` at 5 Hz,
   odometry ``DR`` = (t, Δdistance, Δheading), ranges ``TD`` = (t, robot,
-  beacon, range) and beacon positions ``TL``).  The range rows are sorted by
-  time (two are out of order in the file).
+  beacon, range) and beacon positions ``TL``), parsed and checked by
+  :func:`safenav.logs.load_plaza`.  The range rows are sorted by time (two
+  are out of order in the file).
 * :func:`plaza1_ekf` — localisation from odometry and the real ranges with an
   EKF whose state is augmented by the range *scale* bias: the ranges read
   long by about 7 % of the distance (2.6–2.9 m on average here), so the
@@ -24,9 +25,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
+
+from ..logs import load_plaza, plaza1_path
 
 __all__ = ["middlebury_motorcycle", "motorcycle_evaluation", "Plaza1", "load_plaza1", "plaza1_ekf",
            "plaza1_core_filter", "Plaza1Result"]
@@ -104,29 +106,22 @@ class Plaza1:
     beacons: dict         #: beacon id → (x, y)
 
 
-def _plaza_path(name: str) -> Path:
-    try:
-        import gtsam
-    except ImportError as exc:  # optional test dependency
-        raise FileNotFoundError("Plaza1 ships in the gtsam wheel; pip install gtsam") from exc
-    path = Path(gtsam.__file__).parent / "Data" / name
-    if not path.is_file():
-        raise FileNotFoundError(f"{path} is missing from the gtsam wheel")
-    return path
-
-
 def load_plaza1(path=None) -> Plaza1:
-    """Load Plaza1 from ``Plaza1_.mat`` (default: the copy in the gtsam wheel)."""
-    from scipy.io import loadmat
+    """Load Plaza1 from ``Plaza1_.mat`` (default: the copy in the gtsam wheel,
+    :func:`~safenav.logs.plaza1_path`), parsed and checked by
+    :func:`~safenav.logs.load_plaza`."""
+    log = load_plaza(path or plaza1_path())
+    if log.truth is None:
+        raise ValueError(f"{path}: GT has no rows")
+    ev = log.events
 
-    m = loadmat(str(path or _plaza_path("Plaza1_.mat")))
-    for key in ("GT", "DR", "TD", "TL"):
-        if key not in m:
-            raise ValueError(f"{path} has no {key} array")
-    td = np.asarray(m["TD"], dtype=np.float64)
-    td = td[np.argsort(td[:, 0], kind="stable")]
-    return Plaza1(gt=np.asarray(m["GT"], dtype=np.float64), odometry=np.asarray(m["DR"], dtype=np.float64),
-                  ranges=td[:, [0, 2, 3]].copy(), beacons={int(r[0]): (float(r[1]), float(r[2])) for r in m["TL"]})
+    def columns(rows, names):
+        return np.ascontiguousarray(rows[list(names)].to_numpy(np.float64))
+
+    return Plaza1(gt=columns(log.truth, ("t", "x", "y", "heading")),
+                  odometry=columns(ev[ev["kind"] == "odometry"], ("t", "distance", "heading_change")),
+                  ranges=columns(ev[ev["kind"] == "range"], ("t", "landmark", "range")),
+                  beacons=dict(log.landmarks))
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,170 @@
+// Bindings of the online API: Localizer (safenav/localizer.hpp) and Guidance
+// (safenav/guidance.hpp).  Per-tick calls take scalars, so that a Python loop
+// pays for one call, not for numpy conversions.
+#include <cmath>
+#include <limits>
+
+#include "common.hpp"
+#include "params.hpp"
+#include "safenav/guidance.hpp"
+#include "safenav/localizer.hpp"
+
+using namespace safenav;
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+LandmarkObservation observation(int id, double range, double bearing, double range_std, double bearing_std) {
+  LandmarkObservation o;
+  o.id = id;
+  o.range = range;
+  o.bearing = bearing;
+  o.range_std = range_std;
+  o.bearing_std = bearing_std;
+  return o;
+}
+
+Eigen::Matrix2d diag2(double a, double b) { return Eigen::Vector2d(a * a, b * b).asDiagonal(); }
+
+/// The input calls shared by Localizer and Guidance (T forwards them).
+template <class T, class Class>
+void def_inputs(Class& c) {
+  c.def(
+       "motion", [](T& s, double t, double speed, double heading_change) {
+         return s.motion(t, Control(speed, heading_change));
+       },
+       py::arg("t"), py::arg("speed"), py::arg("heading_change"),
+       "Motion input over (t_prev, t]: desired speed [m/s] and heading change [rad] (a BMM step of t - t_prev).")
+      .def("odometry", &T::odometry, py::arg("t"), py::arg("distance"), py::arg("heading_change"),
+           "Wheel odometry over (t_prev, t]: distance [m] and heading change [rad].")
+      .def(
+          "observe",
+          [](T& s, double t, int id, double range, double bearing, double range_std, double bearing_std) {
+            return s.observe(t, observation(id, range, bearing, range_std, bearing_std));
+          },
+          py::arg("t"), py::arg("id"), py::arg("range") = kNaN, py::arg("bearing") = kNaN, py::arg("range_std") = 1.0,
+          py::arg("bearing_std") = 0.05,
+          "A landmark observation: range [m] and/or bearing [rad, relative to the heading] (NaN = not measured), "
+          "gated on its own.")
+      .def(
+          "fix",
+          [](T& s, double t, double x, double y, const Eigen::Matrix2d& R) {
+            return s.fix(t, Eigen::Vector2d(x, y), R);
+          },
+          py::arg("t"), py::arg("x"), py::arg("y"), py::arg("R"), "A LanBLoc position fix with its covariance R (2x2).")
+      .def(
+          "speed_heading",
+          [](T& s, double t, double speed, double heading, double speed_std, double heading_std) {
+            return s.speed_heading(t, Eigen::Vector2d(speed, heading), diag2(speed_std, heading_std));
+          },
+          py::arg("t"), py::arg("speed"), py::arg("heading"), py::arg("speed_std"), py::arg("heading_std"),
+          "An IMU measurement of speed [m/s] and heading [rad] with their sigmas.");
+}
+
+}  // namespace
+
+void pybind_guidance(py::module_& m) {
+  py::enum_<InputStatus>(m, "InputStatus", "What became of one input to the online localizer.")
+      .value("APPLIED", InputStatus::Applied)
+      .value("REJECTED", InputStatus::Rejected)
+      .value("LATE", InputStatus::Late)
+      .value("BUFFERED", InputStatus::Buffered)
+      .value("IGNORED", InputStatus::Ignored);
+
+  py::class_<InputResult>(m, "InputResult")
+      .def_readonly("status", &InputResult::status)
+      .def_readonly("nis", &InputResult::nis)
+      .def_readonly("dim", &InputResult::dim)
+      .def_property_readonly("applied", &InputResult::applied)
+      .def("__repr__", [](const InputResult& r) {
+        return std::string("InputResult(") + to_string(r.status) + ", nis=" + std::to_string(r.nis) +
+               ", dim=" + std::to_string(r.dim) + ")";
+      });
+
+  def_params<LocalizerSettings>(py::class_<LocalizerSettings>(m, "LocalizerSettings"))
+      .def(py::init<>())
+      .def_readwrite("bmm", &LocalizerSettings::bmm)
+      .def_readwrite("filter", &LocalizerSettings::filter)
+      .def_readwrite("init_window", &LocalizerSettings::init_window)
+      .def_readwrite("init_baseline", &LocalizerSettings::init_baseline)
+      .def_readwrite("init_speed_std", &LocalizerSettings::init_speed_std)
+      .def("validate", &LocalizerSettings::validate);
+
+  py::class_<LocalizerCounts>(m, "LocalizerCounts")
+      .def_readonly("motion", &LocalizerCounts::motion)
+      .def_readonly("applied", &LocalizerCounts::applied)
+      .def_readonly("rejected", &LocalizerCounts::rejected)
+      .def_readonly("late", &LocalizerCounts::late)
+      .def_readonly("buffered", &LocalizerCounts::buffered);
+
+  py::class_<Localizer> loc(m, "Localizer",
+                            "LanBLoc-BMM online (SafeNav eqs. 10-14 over the BMM of eqs. 3-9), ticked with "
+                            "timestamped inputs.");
+  loc.def(py::init<LocalizerSettings, Landmarks, std::vector<int>>(), py::arg("settings"),
+          py::arg("landmarks") = Landmarks(), py::arg("ids") = std::vector<int>())
+      .def("initialize", &Localizer::initialize, py::arg("t"), py::arg("x0"), py::arg("P0"))
+      .def_property_readonly("initialized", &Localizer::initialized)
+      .def_property_readonly("time", &Localizer::time)
+      .def_property_readonly("x", &Localizer::x)
+      .def_property_readonly("P", &Localizer::P)
+      .def_property_readonly("position_std", &Localizer::position_std)
+      .def_property_readonly("counts", &Localizer::counts)
+      .def_property_readonly("settings", &Localizer::settings)
+      .def_property_readonly("landmarks", &Localizer::landmarks)
+      .def("landmark_index", &Localizer::landmark_index, py::arg("id"));
+  def_inputs<Localizer>(loc);
+
+  py::enum_<GuidanceStatus>(m, "GuidanceStatus")
+      .value("INITIALIZING", GuidanceStatus::Initializing)
+      .value("GUIDING", GuidanceStatus::Guiding)
+      .value("ARRIVED", GuidanceStatus::Arrived)
+      .value("NO_PATH", GuidanceStatus::NoPath)
+      .value("LOST_LOCALIZATION", GuidanceStatus::LostLocalization);
+  m.attr("EVENT_DETOUR_PLANNED") = static_cast<unsigned>(kDetourPlanned);
+  m.attr("EVENT_PATH_SPLICED") = static_cast<unsigned>(kPathSpliced);
+  m.attr("EVENT_NO_PATH") = static_cast<unsigned>(kNoPath);
+  m.attr("EVENT_LOST_LOCALIZATION") = static_cast<unsigned>(kLostLocalization);
+  m.attr("EVENT_ARRIVED") = static_cast<unsigned>(kArrived);
+
+  py::class_<Command>(m, "Command")
+      .def_property_readonly("speed", [](const Command& c) { return c.control[0]; })
+      .def_property_readonly("heading_change", [](const Command& c) { return c.control[1]; })
+      .def_readonly("control", &Command::control)
+      .def_readonly("status", &Command::status)
+      .def_readonly("events", &Command::events)
+      .def_readonly("segment", &Command::segment)
+      .def_readonly("position_std", &Command::position_std)
+      .def_readonly("action", &Command::action)
+      .def_readonly("predicted", &Command::predicted)
+      .def("__repr__", [](const Command& c) {
+        return "Command(speed=" + std::to_string(c.control[0]) + ", heading_change=" + std::to_string(c.control[1]) +
+               ", status=" + to_string(c.status) + ", events=" + std::to_string(c.events) +
+               ", segment=" + std::to_string(c.segment) + ")";
+      });
+
+  py::class_<Guidance> g(m, "Guidance",
+                         "SafeNav guidance ticked by a vehicle's loop: SafeNav-CHull or -Centroid (SafeNav Algorithms "
+                         "1-2) with obstacle checks and RAw-RRT* detours (extended paper's Algorithm 4).");
+  g.def(py::init<NavigationProblem, NavigationSettings, LocalizerSettings, Landmarks, std::vector<int>, std::uint64_t>(),
+        py::arg("problem"), py::arg("settings"), py::arg("localizer") = LocalizerSettings(),
+        py::arg("landmarks") = Landmarks(), py::arg("ids") = std::vector<int>(), py::arg("seed") = 0)
+      .def_static("planned", &Guidance::planned, py::arg("planning"), py::arg("planner"), py::arg("problem"),
+                  py::arg("settings"), py::arg("localizer") = LocalizerSettings(), py::arg("landmarks") = Landmarks(),
+                  py::arg("ids") = std::vector<int>(), py::arg("seed") = 0)
+      .def("fresh", &Guidance::fresh, py::arg("seed"))
+      .def_property_readonly("localizer", py::overload_cast<>(&Guidance::localizer),
+                             py::return_value_policy::reference_internal)
+      .def("command", &Guidance::command, py::arg("t"))
+      .def_property_readonly("status", &Guidance::status)
+      .def_property_readonly("safe_path", &Guidance::safe_path, py::return_value_policy::reference_internal)
+      .def_property_readonly(
+          "path", [](const Guidance& g) { return Points2(g.path().corridor().path()); },
+          "The path now followed, with detours spliced in (a copy).")
+      .def_property_readonly("replans", &Guidance::replans)
+      .def_property_readonly("commands", &Guidance::commands)
+      .def_property_readonly("detail", &Guidance::detail)
+      .def_property_readonly("problem", &Guidance::problem)
+      .def_property_readonly("settings", &Guidance::settings);
+  def_inputs<Guidance>(g);
+}

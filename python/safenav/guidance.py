@@ -1,0 +1,100 @@
+"""The online API: a vehicle's own loop ticks :class:`Localizer` (LanBLoc-BMM,
+[SafeNav eqs. 10–14] over the BMM of eqs. 3–9) and :class:`Guidance`
+(SafeNav-CHull [SafeNav Alg. 1] or SafeNav-Centroid [SafeNav Alg. 2] with the
+obstacle check and RAw-RRT* detours of [SafeNav-ext Alg. 4]) with timestamped
+inputs, and asks for its control.  Both live in the C++ core; the simulator
+(:class:`~safenav.navigation.Navigator`) drives the same :class:`Guidance`,
+so there is one navigation loop.
+
+Inputs (each returns an :class:`InputResult` with ``status`` — applied,
+rejected by its χ² gate, late, buffered before initialization — and the NIS):
+
+* ``motion(t, speed, heading_change)`` or ``odometry(t, distance, heading_change)``
+  over the interval since the previous motion input (the step length comes
+  from the timestamps);
+* ``observe(t, id, range=…, bearing=…, range_std=…, bearing_std=…)`` — one
+  landmark, gated on its own (on by default: ``LocalizerSettings().filter.gate_probability`` = 0.99);
+* ``fix(t, x, y, R)`` — a LanBLoc position fix; ``speed_heading(t, v, θ, σ_v, σ_θ)`` — the IMU.
+
+A measurement older than the filter's time is *late* and is not applied;
+one ahead of it is applied after predicting to its time with the last motion
+input.  Without :meth:`Localizer.initialize` the localizer starts from the
+data (ranges to ≥ 3 landmarks and the motion of the first metres).
+
+Example::
+
+    import numpy as np, safenav
+    from safenav import guidance, navigation
+    sc = safenav.default_scenario()
+    safe = navigation.plan_safe_path(sc, "P1").path
+    g = guidance.make_guidance(sc, safe, method="centroid")
+    g.localizer.initialize(0.0, np.r_[safe[0], 0.0, 0.0], np.diag([0.1, 0.1, 0.1, 0.1]) ** 2)
+    cmd = g.command(0.0)            # cmd.speed, cmd.heading_change, cmd.status, cmd.events
+    g.motion(0.05, cmd.speed, cmd.heading_change)
+    g.observe(0.05, 3, range=12.0, range_std=0.1)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import _core
+from .validation import as_array, as_seed
+
+Localizer = _core.Localizer
+LocalizerSettings = _core.LocalizerSettings
+Guidance = _core.Guidance
+Command = _core.Command
+InputResult = _core.InputResult
+InputStatus = _core.InputStatus
+GuidanceStatus = _core.GuidanceStatus
+
+#: Event flags of :attr:`Command.events`, by name.
+EVENTS = {
+    "detour_planned": _core.EVENT_DETOUR_PLANNED,
+    "path_spliced": _core.EVENT_PATH_SPLICED,
+    "no_path": _core.EVENT_NO_PATH,
+    "lost_localization": _core.EVENT_LOST_LOCALIZATION,
+    "arrived": _core.EVENT_ARRIVED,
+}
+
+__all__ = ["Localizer", "LocalizerSettings", "Guidance", "Command", "InputResult", "InputStatus", "GuidanceStatus",
+           "EVENTS", "event_names", "localizer_settings", "make_guidance"]
+
+
+def event_names(events: int) -> list[str]:
+    """The names of the flags set in ``events`` (a :attr:`Command.events`)."""
+    return [name for name, bit in EVENTS.items() if int(events) & bit]
+
+
+def localizer_settings(*, filter: str = "ekf", bmm=None, gate: float | None = None, n_particles: int = 1000,
+                       seed: int = 0) -> LocalizerSettings:
+    """:class:`LocalizerSettings` for ``filter`` ("ekf" or "pf"); ``gate`` is the
+    χ² gate probability of every update (default 0.99; 0 = off)."""
+    from .navigation import FILTERS, _choice
+    from .validation import integer
+
+    s = LocalizerSettings()
+    s.filter.type = _choice("filter", filter, FILTERS)
+    s.filter.n_particles = integer("n_particles", n_particles)
+    s.filter.seed = as_seed("seed", seed)
+    if gate is not None:
+        s.set_param("gate_probability", float(gate))
+    if bmm is not None:
+        s.bmm = bmm
+    return s
+
+
+def make_guidance(scenario, safe_path, *, method: str = "centroid", filter: str = "ekf", n_particles: int = 500,
+                  gate: float | None = None, seed: int = 0, world_map=None) -> Guidance:
+    """A :class:`Guidance` along ``safe_path`` in ``scenario``'s world: its
+    obstacles (detours), its landmarks (observations, ids = their rows) and the
+    scenario's BMM and navigation settings (those of
+    :func:`~safenav.navigation.make_navigator`)."""
+    from .navigation import navigation_setup
+
+    problem, settings = navigation_setup(scenario, as_array("safe_path", safe_path, (None, 2)), method=method,
+                                         world_map=world_map)
+    ls = localizer_settings(filter=filter, bmm=problem.bmm, gate=gate, n_particles=n_particles)
+    landmarks = np.ascontiguousarray(scenario.world.landmark_array()[:, :2], dtype=float)
+    return Guidance(problem, settings, ls, landmarks, list(range(len(landmarks))), as_seed("seed", seed))
