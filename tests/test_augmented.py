@@ -419,8 +419,44 @@ def test_plain_localizer_has_no_augmented_state():
     assert loc.augmented is None
 
 
-def test_particle_filter_with_augmented_states_is_refused():
-    s = gd.localizer_settings(filter="pf")
+# --------------------------------------------------------------------------- the particle-filter counterpart
+
+def test_particle_filter_estimates_the_range_scale():
+    a = augment(scale=True, gyro=False, scale_prior=0.0, scale_std=0.05)
+    x0 = np.array([10.0, 0.0, 1.0, math.pi / 2])
+    f = _core.AugmentedParticleFilter(bmm(speed_noise=0.02, heading_noise=0.005, position_noise=0.02), a, 4, x0,
+                                      np.diag([0.2, 0.2, 0.1, 0.02]) ** 2, n_particles=2000, seed=3)
+    assert (f.size, f.state_size, f.scale_index, f.heading_rate_bias_index) == (2000, 5, 4, -1)
+    f.gate = 0.999
+    p = circle_run(f, seconds=120.0, scale=1.07)
+    assert abs(f.augmented[4] - 0.07) < 0.01, f.augmented[4]
+    assert np.hypot(*(f.x[:2] - p)) < 0.5
+    assert f.weights.sum() == pytest.approx(1.0) and f.particles.shape == (5, 2000)
+    r = f.update_range(0, LANDMARKS[0], 1.07 * math.hypot(*(p - LANDMARKS[0])) + 50.0, 0.09)
+    assert not r.accepted
+
+
+@pytest.mark.parametrize("call, match", [
+    (lambda f: f.update_range(0, LANDMARKS[0], 10.0, -1.0), "variance = -1"),
+    (lambda f: f.update_range(9, LANDMARKS[0], 10.0, 1.0), "landmark row 9"),
+    (lambda f: f.update_range(0, LANDMARKS[0], float("nan"), 1.0), "r = nan"),
+    (lambda f: f.predict(np.array([1.0, 0.0]), -0.1), "dt = -0.1"),
+    (lambda f: f.predict(np.array([np.inf, 0.0]), 0.1), "not finite"),
+])
+def test_particle_filter_bad_input_names_the_value(call, match):
+    f = _core.AugmentedParticleFilter(bmm(), augment(bias=True), 4, np.zeros(4), np.eye(4), n_particles=10)
+    with pytest.raises(ValueError, match=match):
+        call(f)
+    with pytest.raises(ValueError, match="n_particles = 0"):
+        _core.AugmentedParticleFilter(bmm(), augment(), 4, np.zeros(4), np.eye(4), n_particles=0)
+
+
+def test_localizer_with_the_particle_filter_runs_the_augmented_counterpart():
+    s = gd.localizer_settings(filter="pf", bmm=bmm(), gate=0.999, n_particles=200, seed=5)
     s.augment = augment()
-    with pytest.raises(ValueError, match="augment.*need filter.type = EKF"):
-        gd.Localizer(s, LANDMARKS, [10, 11, 12, 13])
+    loc = gd.Localizer(s, LANDMARKS, [10, 11, 12, 13])
+    loc.initialize(0.0, np.array([1.0, 2.0, 1.0, 0.3]), np.diag([0.3, 0.3, 0.2, 0.05]) ** 2)
+    loc.motion(0.2, 1.0, 0.05)
+    assert loc.observe(0.2, 12, range=1.07 * np.hypot(*(LANDMARKS[2] - loc.x[:2])), range_std=0.5).applied
+    aug = loc.augmented
+    assert aug.shape == (6,) and abs(aug[4] - 0.07) < 0.02

@@ -69,7 +69,8 @@ ReplayResult replay(const BmmParams& bmm, const AugmentedStates& augment, double
     if (loc.initialized()) {
       if (std::isnan(out.t_init)) out.t_init = t;
       out.states.row(i) = loc.x().transpose();
-      if (const AugmentedEkf* f = loc.augmented_filter()) out.augmented.row(i) = f->augmented().tail(na).transpose();
+      const Eigen::VectorXd a = loc.augmented_state();
+      if (a.size() > 0) out.augmented.row(i) = a.tail(na).transpose();
     }
   }
   out.applied = loc.counts().applied;
@@ -134,12 +135,41 @@ void pybind_augmented(py::module_& m) {
     loc.def_property_readonly(
         "augmented",
         [](const Localizer& l) -> py::object {
-          const AugmentedEkf* f = l.augmented_filter();
-          if (!f) return py::none();
-          return py::cast(Eigen::VectorXd(f->augmented()));
+          Eigen::VectorXd a = l.augmented_state();
+          if (a.size() == 0) return py::none();
+          return py::cast(a);
         },
         "The full augmented state (x, y, v, theta, [k], [beta], [b_j]), or None without augmented states.");
   }
+
+  py::class_<AugmentedParticleFilter>(
+      m, "AugmentedParticleFilter",
+      "Particle filter on the BMM over (x, y, v, theta, [k], [beta], [b_j]): the PF counterpart of AugmentedEkf.")
+      .def(py::init<const BmmParams&, const AugmentedStates&, int, const State&, const StateCov&, int, std::uint64_t,
+                    double>(),
+           py::arg("params"), py::arg("augment"), py::arg("n_landmarks"), py::arg("x0"), py::arg("P0"),
+           py::arg("n_particles") = 1000, py::arg("seed") = 0, py::arg("resample_threshold") = 0.5)
+      .def_property_readonly("size", &AugmentedParticleFilter::size)
+      .def_property_readonly("state_size", &AugmentedParticleFilter::state_size)
+      .def_property_readonly("scale_index", &AugmentedParticleFilter::scale_index)
+      .def_property_readonly("heading_rate_bias_index", &AugmentedParticleFilter::heading_rate_bias_index)
+      .def_property("gate", &AugmentedParticleFilter::gate, &AugmentedParticleFilter::set_gate)
+      .def_property_readonly("x", &AugmentedParticleFilter::mean)
+      .def_property_readonly("P", &AugmentedParticleFilter::covariance)
+      .def_property_readonly("augmented", &AugmentedParticleFilter::augmented)
+      .def_property_readonly("particles", &AugmentedParticleFilter::particles)
+      .def_property_readonly("weights", &AugmentedParticleFilter::weights)
+      .def_property_readonly("ess", &AugmentedParticleFilter::ess)
+      .def_property_readonly("resample_count", &AugmentedParticleFilter::resample_count)
+      .def("predict", &AugmentedParticleFilter::predict, py::arg("u"), py::arg("dt"))
+      .def("update_range", &AugmentedParticleFilter::update_range, py::arg("landmark_row"), py::arg("landmark"),
+           py::arg("r"), py::arg("variance"))
+      .def("update_bearing", &AugmentedParticleFilter::update_bearing, py::arg("landmark_row"), py::arg("landmark"),
+           py::arg("bearing"), py::arg("variance"))
+      .def("update_range_bearing", &AugmentedParticleFilter::update_range_bearing, py::arg("landmark_row"),
+           py::arg("landmark"), py::arg("z"), py::arg("R"))
+      .def("update_position", &AugmentedParticleFilter::update_position, py::arg("z"), py::arg("R"))
+      .def("update_speed_heading", &AugmentedParticleFilter::update_speed_heading, py::arg("z"), py::arg("R"));
 
   m.def(
       "replay_localizer",

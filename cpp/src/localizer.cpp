@@ -87,9 +87,6 @@ void LocalizerSettings::validate() const {
     bad("localizer.filter.gate_probability = " + num(filter.gate_probability) + ": must be in [0, 1) (0 = off)");
   param_set<LocalizerSettings>().check(*this, "localizer.");
   augment.validate();
-  if (augment.any() && filter.type != FilterType::Ekf)
-    bad("localizer.augment: augmented states (range_scale, heading_rate_bias, range_bias) need filter.type = EKF; "
-        "the particle filter has no augmented counterpart yet");
 }
 
 struct Localizer::Impl {
@@ -100,6 +97,7 @@ struct Localizer::Impl {
   Bmm bmm;
   std::optional<Ekf> ekf;
   std::optional<AugmentedEkf> aekf;  // instead of ekf when settings.augment is on
+  std::optional<AugmentedParticleFilter> apf;  // instead of pf when settings.augment is on
   std::optional<ParticleFilter> pf;
   // Particle-filter models reused while their covariance stays the same.
   std::optional<MeasurementModel> pf_fix, pf_imu;
@@ -142,19 +140,24 @@ struct Localizer::Impl {
     track.reserve(256);
   }
 
-  bool initialized() const { return ekf.has_value() || aekf.has_value() || pf.has_value(); }
+  bool initialized() const { return ekf.has_value() || aekf.has_value() || pf.has_value() || apf.has_value(); }
 
   void start(double t, const State& x0, const StateCov& P0) {
     const FilterOptions& o = settings.filter;
     ekf.reset();
     aekf.reset();
     pf.reset();
+    apf.reset();
     if (o.type == FilterType::Ekf && settings.augment.any()) {
       aekf.emplace(settings.bmm, settings.augment, static_cast<int>(landmarks.rows()), x0, P0);
       if (o.gate_probability > 0.0) aekf->set_gate(o.gate_probability);
     } else if (o.type == FilterType::Ekf) {
       ekf.emplace(settings.bmm, x0, P0);
       if (o.gate_probability > 0.0) ekf->set_gate(o.gate_probability);
+    } else if (settings.augment.any()) {
+      apf.emplace(settings.bmm, settings.augment, static_cast<int>(landmarks.rows()), x0, P0, o.n_particles, o.seed,
+                  o.resample_threshold);
+      if (o.gate_probability > 0.0) apf->set_gate(o.gate_probability);
     } else {
       pf.emplace(settings.bmm, x0, P0, o.n_particles, o.seed, o.resample_threshold);
       if (o.gate_probability > 0.0) pf->set_gate(o.gate_probability);
@@ -183,6 +186,9 @@ struct Localizer::Impl {
     } else if (pf) {
       x_cache = pf->mean();
       P_cache = pf->covariance(x_cache);
+    } else if (apf) {
+      x_cache = apf->mean();
+      P_cache = apf->covariance();
     }
     dirty = false;
   }
@@ -190,6 +196,7 @@ struct Localizer::Impl {
   void predict(const Control& u, double dt) {
     if (ekf) ekf->predict(u, dt);
     else if (aekf) aekf->predict(u, dt);
+    else if (apf) apf->predict(u, dt);
     else pf->predict(u, dt);
     dirty = true;
   }
@@ -521,6 +528,15 @@ InputResult Localizer::observe(double t, const LandmarkObservation& o) {
     if (has_r) return I.counted(I.aekf->update_range(row, a, o.range, o.range_std * o.range_std));
     return I.counted(I.aekf->update_bearing(row, a, o.bearing, o.bearing_std * o.bearing_std));
   }
+  if (I.apf) {
+    const Eigen::Vector2d a = I.landmarks.row(row).transpose();
+    if (has_r && has_b) {
+      const Eigen::Matrix2d R = Eigen::Vector2d(o.range_std * o.range_std, o.bearing_std * o.bearing_std).asDiagonal();
+      return I.counted(I.apf->update_range_bearing(row, a, Eigen::Vector2d(o.range, o.bearing), R));
+    }
+    if (has_r) return I.counted(I.apf->update_range(row, a, o.range, o.range_std * o.range_std));
+    return I.counted(I.apf->update_bearing(row, a, o.bearing, o.bearing_std * o.bearing_std));
+  }
   if (I.ekf) {
     if (has_r && has_b) {
       const Eigen::Vector2d y(o.range - r, wrap_angle(o.bearing - (std::atan2(dy, dx) - x[kTheta])));
@@ -563,6 +579,7 @@ InputResult Localizer::fix(double t, const Eigen::Vector2d& z, const Eigen::Matr
   if (!I.advance(t)) return I.status(InputStatus::Late);
   if (I.ekf) return I.counted(I.ekf->update_position(z, R));
   if (I.aekf) return I.counted(I.aekf->update_position(z, R));
+  if (I.apf) return I.counted(I.apf->update_position(z, R));
   if (!I.pf_fix || I.pf_fix_R != R) {
     I.pf_fix.emplace(MeasurementModel::position(R));
     I.pf_fix_R = R;
@@ -592,6 +609,7 @@ InputResult Localizer::speed_heading(double t, const Eigen::Vector2d& z, const E
     return I.counted(I.ekf->update_linearized(y, H, R, MeasurementKind::SpeedHeading));
   }
   if (I.aekf) return I.counted(I.aekf->update_speed_heading(z, R));
+  if (I.apf) return I.counted(I.apf->update_speed_heading(z, R));
   if (!I.pf_imu || I.pf_imu_R != R) {
     I.pf_imu.emplace(MeasurementModel::speed_heading(R));
     I.pf_imu_R = R;
@@ -617,5 +635,10 @@ int Localizer::landmark_index(int id) const {
 }
 const Landmarks& Localizer::landmarks() const { return impl_->landmarks; }
 const AugmentedEkf* Localizer::augmented_filter() const { return impl_->aekf ? &*impl_->aekf : nullptr; }
+Eigen::VectorXd Localizer::augmented_state() const {
+  if (impl_->aekf) return impl_->aekf->augmented();
+  if (impl_->apf) return impl_->apf->augmented();
+  return Eigen::VectorXd();
+}
 
 }  // namespace safenav

@@ -18,6 +18,9 @@
 // Only Eigen and std types appear here.
 #pragma once
 
+#include <cstdint>
+#include <memory>
+
 #include <Eigen/Core>
 
 #include "safenav/filters.hpp"
@@ -124,6 +127,55 @@ class AugmentedEkf {
   Eigen::Matrix<double, Eigen::Dynamic, 2> PHt_, K_, AHt_, KR_;
   Eigen::MatrixXd A_;
   Eigen::VectorXd x1_;
+};
+
+/// Particle filter over the same augmented state (the PF counterpart of
+/// AugmentedEkf; the paper prints no PF equations): each particle moves by
+/// the noisy BMM (Bmm::transition over dt, at θ − β·dt) and each augmented
+/// state by its random walk; weights multiply by the Gaussian likelihood of
+/// r = (1+k)·ρ + b_j etc. (log space), systematic resampling when
+/// ESS < resample_threshold·N.  Gate as ParticleFilter::set_gate: the NIS of
+/// the weighted-mean prediction (S = weighted covariance of the particles'
+/// residuals + R).  A plain scalar loop; predict and the updates allocate
+/// nothing after construction.
+class AugmentedParticleFilter {
+ public:
+  AugmentedParticleFilter(const BmmParams& params, const AugmentedStates& augment, int n_landmarks,
+                          const State& x0, const StateCov& P0, int n_particles, std::uint64_t seed,
+                          double resample_threshold = 0.5);
+  ~AugmentedParticleFilter();
+  AugmentedParticleFilter(AugmentedParticleFilter&&) noexcept;
+  AugmentedParticleFilter& operator=(AugmentedParticleFilter&&) noexcept;
+
+  int size() const;        ///< particles
+  int state_size() const;  ///< entries of the augmented state
+  int scale_index() const;
+  int heading_rate_bias_index() const;
+  void set_gate(double probability);
+  double gate() const;
+
+  void predict(const Control& u, double dt);
+  UpdateResult update_range(int landmark_row, const Eigen::Vector2d& landmark, double r, double variance);
+  UpdateResult update_bearing(int landmark_row, const Eigen::Vector2d& landmark, double bearing, double variance);
+  UpdateResult update_range_bearing(int landmark_row, const Eigen::Vector2d& landmark, const Eigen::Vector2d& z,
+                                    const Eigen::Matrix2d& R);
+  UpdateResult update_position(const Eigen::Vector2d& z, const Eigen::Matrix2d& R);
+  UpdateResult update_speed_heading(const Eigen::Vector2d& z, const Eigen::Matrix2d& R);
+
+  /// Weighted mean (circular for θ) and covariance of (x, y, v, θ).
+  State mean() const;
+  StateCov covariance() const;
+  /// Weighted mean of the full augmented state (θ circular).
+  Eigen::VectorXd augmented() const;
+  /// Particles (state_size() × N, one per column) and normalised weights.
+  const Eigen::MatrixXd& particles() const;
+  Eigen::VectorXd weights() const;
+  double ess() const;
+  int resample_count() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
 };
 
 }  // namespace safenav

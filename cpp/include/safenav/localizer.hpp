@@ -34,10 +34,13 @@
 // (the heading from two fixes and the motion between them).  Until then
 // inputs return Buffered.  It never needs a true pose.
 //
-// Augmented states.  With settings.augment on (any of k, β, b_j) and the EKF,
-// the filter is the AugmentedEkf (safenav/augmented.hpp): ranges through its
-// update_range, motion through its β-corrected predict.  With augment off the
-// plain Ekf runs exactly as before.
+// Augmented states.  With settings.augment on (any of k, β, b_j) the filter
+// is the AugmentedEkf, or with the particle filter the
+// AugmentedParticleFilter (safenav/augmented.hpp): ranges through its
+// update_range, motion through its β-corrected predict; odometry then also
+// owes the next step what the BMM's limits kept a catch-up step from
+// applying.  With augment off the plain Ekf / ParticleFilter run exactly as
+// before.
 //
 // After construction a tick allocates nothing with the EKF (the particle
 // filter's update allocates its scratch); initialization from data does.
@@ -98,7 +101,7 @@ struct LocalizerSettings {
     return f;
   }();
   /// Augmented states (range scale, heading-rate bias, range biases); off by
-  /// default.  Any on needs filter.type = EKF.
+  /// default.
   AugmentedStates augment;
   double init_window = 30.0;       ///< [s] odometry and ranges this recent are fitted together to start from the data
   double init_min_path = 3.0;      ///< [m] odometry path within the window before a fit is tried
@@ -159,6 +162,9 @@ class Localizer {
   /// The augmented filter when settings.augment is on and initialized, else null
   /// (its augmented() has k, β, b_j).
   const AugmentedEkf* augmented_filter() const;
+  /// The full augmented state (x, y, v, θ, [k], [β], [b_j]) — the EKF's mean
+  /// or the particles' weighted mean — or empty without augmented states.
+  Eigen::VectorXd augmented_state() const;
 
  private:
   struct Impl;
