@@ -19,6 +19,7 @@ void pybind_localization(py::module_& m);
 void pybind_stereo(py::module_& m);
 void pybind_placement(py::module_& m);
 void pybind_navigation(py::module_& m);
+void pybind_augmented(py::module_& m);
 void pybind_guidance(py::module_& m);
 
 /// Release the GIL for a batch call (inputs are already converted).

@@ -20,4 +20,5 @@ PYBIND11_MODULE(_core, m) {
   pybind_placement(m);
   pybind_navigation(m);
   pybind_guidance(m);
+  pybind_augmented(m);  // after guidance: adds LocalizerSettings.augment and Localizer.augmented
 }

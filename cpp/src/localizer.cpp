@@ -2,6 +2,7 @@
 // (safenav/localizer.hpp).
 #include "safenav/localizer.hpp"
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <optional>
@@ -11,7 +12,6 @@
 #include <utility>
 
 #include "errors.hpp"
-#include "safenav/localization.hpp"
 #include "safenav/params.hpp"
 
 namespace safenav {
@@ -21,6 +21,10 @@ namespace {
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 /// Timestamps this close are the same instant [s].
 constexpr double kSameTime = 1e-9;
+/// Starting from ranges: σ added to the fit's position [m] and heading [rad]
+/// (the fit's own covariance ignores the odometry's drift within the window).
+constexpr std::size_t kMaxBufferedRanges = 100000;
+constexpr double kInitPositionFloor = 0.05, kInitHeadingFloor = 0.01;
 
 using detail::bad;
 
@@ -82,6 +86,7 @@ void LocalizerSettings::validate() const {
   if (!(filter.gate_probability >= 0.0 && filter.gate_probability < 1.0))
     bad("localizer.filter.gate_probability = " + num(filter.gate_probability) + ": must be in [0, 1) (0 = off)");
   param_set<LocalizerSettings>().check(*this, "localizer.");
+  augment.validate();
 }
 
 struct Localizer::Impl {
@@ -91,6 +96,8 @@ struct Localizer::Impl {
   std::unordered_map<int, int> row_of;
   Bmm bmm;
   std::optional<Ekf> ekf;
+  std::optional<AugmentedEkf> aekf;  // instead of ekf when settings.augment is on
+  std::optional<AugmentedParticleFilter> apf;  // instead of pf when settings.augment is on
   std::optional<ParticleFilter> pf;
   // Particle-filter models reused while their covariance stays the same.
   std::optional<MeasurementModel> pf_fix, pf_imu;
@@ -103,13 +110,15 @@ struct Localizer::Impl {
   // rates) already added since the last motion input: the next one applies
   // only what its own Δd, Δθ still owe ("catch-up").
   double owed_distance = 0.0, owed_heading = 0.0;
+  bool from_odometry = false;  // the motion input being applied is wheel odometry
   LocalizerCounts counts;
   mutable State x_cache = State::Constant(kNaN);  // NaN until initialized
   mutable StateCov P_cache = StateCov::Constant(kNaN);
   mutable bool dirty = true;
 
   // Initialization from data.
-  std::vector<BufferedRange> ranges;  // recent ranges (bounded)
+  std::vector<BufferedRange> ranges;  // ranges within init_window of the newest motion input
+  std::vector<Eigen::Vector4d> track;  // (t, x, y, θ): the motion integral at each motion input
   std::optional<Anchor> anchor;
   Eigen::Vector3d odo = Eigen::Vector3d::Zero();  // motion integral (x, y, θ) in its own frame
   double imu_heading = kNaN, imu_heading_var = kNaN, imu_speed = kNaN, t_imu = kNaN;
@@ -127,18 +136,28 @@ struct Localizer::Impl {
     for (std::size_t i = 0; i < ids.size(); ++i)
       if (!row_of.emplace(ids[i], static_cast<int>(i)).second)
         bad("localizer ids: landmark id " + std::to_string(ids[i]) + " appears twice");
-    ranges.reserve(64);
+    ranges.reserve(256);
+    track.reserve(256);
   }
 
-  bool initialized() const { return ekf.has_value() || pf.has_value(); }
+  bool initialized() const { return ekf.has_value() || aekf.has_value() || pf.has_value() || apf.has_value(); }
 
   void start(double t, const State& x0, const StateCov& P0) {
     const FilterOptions& o = settings.filter;
     ekf.reset();
+    aekf.reset();
     pf.reset();
-    if (o.type == FilterType::Ekf) {
+    apf.reset();
+    if (o.type == FilterType::Ekf && settings.augment.any()) {
+      aekf.emplace(settings.bmm, settings.augment, static_cast<int>(landmarks.rows()), x0, P0);
+      if (o.gate_probability > 0.0) aekf->set_gate(o.gate_probability);
+    } else if (o.type == FilterType::Ekf) {
       ekf.emplace(settings.bmm, x0, P0);
       if (o.gate_probability > 0.0) ekf->set_gate(o.gate_probability);
+    } else if (settings.augment.any()) {
+      apf.emplace(settings.bmm, settings.augment, static_cast<int>(landmarks.rows()), x0, P0, o.n_particles, o.seed,
+                  o.resample_threshold);
+      if (o.gate_probability > 0.0) apf->set_gate(o.gate_probability);
     } else {
       pf.emplace(settings.bmm, x0, P0, o.n_particles, o.seed, o.resample_threshold);
       if (o.gate_probability > 0.0) pf->set_gate(o.gate_probability);
@@ -146,11 +165,13 @@ struct Localizer::Impl {
     t_f = t;
     if (!(t_motion <= t)) t_motion = t;
     // Until the first input the estimate is the prior itself (not, say, the particles' sample mean).
-    x_cache = ekf ? ekf->x() : x0;
+    x_cache = ekf ? ekf->x() : aekf ? aekf->x() : x0;
     x_cache[kTheta] = wrap_angle(x_cache[kTheta]);
-    P_cache = ekf ? ekf->P() : P0;
+    P_cache = ekf ? ekf->P() : aekf ? aekf->P() : P0;
     dirty = false;
+    owed_distance = owed_heading = 0.0;
     ranges.clear();
+    track.clear();
     anchor.reset();
   }
 
@@ -159,15 +180,23 @@ struct Localizer::Impl {
     if (ekf) {
       x_cache = ekf->x();
       P_cache = ekf->P();
+    } else if (aekf) {
+      x_cache = aekf->x();
+      P_cache = aekf->P();
     } else if (pf) {
       x_cache = pf->mean();
       P_cache = pf->covariance(x_cache);
+    } else if (apf) {
+      x_cache = apf->mean();
+      P_cache = apf->covariance();
     }
     dirty = false;
   }
 
   void predict(const Control& u, double dt) {
     if (ekf) ekf->predict(u, dt);
+    else if (aekf) aekf->predict(u, dt);
+    else if (apf) apf->predict(u, dt);
     else pf->predict(u, dt);
     dirty = true;
   }
@@ -243,28 +272,132 @@ struct Localizer::Impl {
     start(t, State(p.x(), p.y(), std::max(0.0, speed), wrap_angle(phi + odo[2])), P0);
   }
 
-  /// Trilaterate the latest range of each landmark seen within init_window of t.
-  void try_trilaterate(double t) {
-    const double t0 = t - settings.init_window;
-    ranges.erase(std::remove_if(ranges.begin(), ranges.end(), [&](const BufferedRange& r) { return r.t < t0; }),
+  /// The motion integral's pose at a motion input at time t (the first one starts it at 0).
+  void push_pose(double t) {
+    track.push_back(Eigen::Vector4d(t, odo[0], odo[1], odo[2]));
+  }
+
+  /// Starting from ranges: fit the rigid transform (X, Y, φ) from the motion
+  /// integral's frame to the world to the ranges of the last init_window
+  /// seconds (ours, after ref.py's _init_from_data): minimise
+  /// Σ (r − (1+k₀)‖T(q(t_r)) − a‖)²/σ_r², q(t_r) the motion integral's
+  /// position interpolated to the range's time; Gauss–Newton from 16 headings
+  /// × 5 positions, residuals > 3σ dropped, refitted.  Starts the filter at
+  /// the newest motion input when the fit is good enough.
+  void try_fit(double t_now) {
+    const double t0 = t_now - settings.init_window;
+    track.erase(track.begin(), std::find_if(track.begin(), track.end(), [&](const Eigen::Vector4d& q) { return q[0] >= t0; }));
+    if (track.size() < 2) return;
+    const double t_first = track.front()[0];
+    ranges.erase(std::remove_if(ranges.begin(), ranges.end(), [&](const BufferedRange& r) { return r.t < t_first; }),
                  ranges.end());
-    std::vector<const BufferedRange*> latest;
-    for (auto it = ranges.rbegin(); it != ranges.rend(); ++it)
-      if (std::none_of(latest.begin(), latest.end(), [&](const BufferedRange* b) { return b->row == it->row; }))
-        latest.push_back(&*it);
-    if (latest.size() < 3) return;
-    const auto n = static_cast<Eigen::Index>(latest.size());
-    Points2 anchors(n, 2);
-    Eigen::VectorXd r(n), s(n);
-    for (Eigen::Index i = 0; i < n; ++i) {
-      anchors.row(i) = landmarks.row(latest[static_cast<std::size_t>(i)]->row);
-      r[i] = latest[static_cast<std::size_t>(i)]->range;
-      s[i] = latest[static_cast<std::size_t>(i)]->std;
+    double path = 0.0;
+    for (std::size_t i = 1; i < track.size(); ++i)
+      path += std::hypot(track[i][1] - track[i - 1][1], track[i][2] - track[i - 1][2]);
+    if (path < settings.init_min_path) return;
+    struct Obs {
+      double qx, qy, ax, ay, z, s;
+    };
+    std::vector<Obs> obs;
+    std::vector<int> rows;
+    for (const BufferedRange& r : ranges) {
+      if (r.t > t_now) continue;  // not interpolable yet
+      auto hi = std::lower_bound(track.begin(), track.end(), r.t, [](const Eigen::Vector4d& q, double t) { return q[0] < t; });
+      Eigen::Vector2d q;
+      if (hi == track.end()) q = track.back().segment<2>(1);
+      else if (hi == track.begin() || (*hi)[0] == r.t) q = hi->segment<2>(1);
+      else {
+        const Eigen::Vector4d& lo = *(hi - 1);
+        const double w = (r.t - lo[0]) / ((*hi)[0] - lo[0]);
+        q = lo.segment<2>(1) + w * (hi->segment<2>(1) - lo.segment<2>(1));
+      }
+      obs.push_back(Obs{q.x(), q.y(), landmarks(r.row, 0), landmarks(r.row, 1), r.range, r.std});
+      if (std::find(rows.begin(), rows.end(), r.row) == rows.end()) rows.push_back(r.row);
     }
-    const LocalizationResult fix = trilaterate(anchors, r, s);
-    if (!fix.ok()) return;
-    ranges.clear();  // the next position uses new ranges
-    position_known(t, fix.position, fix.covariance);
+    if (static_cast<int>(rows.size()) < settings.init_min_beacons) return;
+    const double k0 = settings.augment.range_scale ? settings.augment.scale_prior : 0.0;
+    const auto n = static_cast<Eigen::Index>(obs.size());
+    Eigen::VectorXd e(n);
+    Eigen::MatrixXd J(n, 3);
+    std::vector<char> mask(obs.size(), 1);
+    // Normalised residuals e = (z − h)/σ and J = ∂e/∂(X, Y, φ) over the masked rows.
+    auto residuals = [&](const Eigen::Vector3d& th) {
+      const double c = std::cos(th[2]), s = std::sin(th[2]);
+      Eigen::Index m = 0;
+      for (std::size_t i = 0; i < obs.size(); ++i) {
+        if (!mask[i]) continue;
+        const Obs& o = obs[i];
+        const double dx = th[0] + c * o.qx - s * o.qy - o.ax, dy = th[1] + s * o.qx + c * o.qy - o.ay;
+        const double rho = std::max(std::hypot(dx, dy), 1e-6), ux = dx / rho, uy = dy / rho;
+        e[m] = (o.z - (1.0 + k0) * rho) / o.s;
+        J(m, 0) = -(1.0 + k0) * ux / o.s;
+        J(m, 1) = -(1.0 + k0) * uy / o.s;
+        J(m, 2) = -(1.0 + k0) * (ux * (-s * o.qx - c * o.qy) + uy * (c * o.qx - s * o.qy)) / o.s;
+        ++m;
+      }
+      return m;
+    };
+    auto gauss_newton = [&](Eigen::Vector3d th, int iters) {
+      for (int it = 0; it < iters; ++it) {
+        const Eigen::Index m = residuals(th);
+        const Eigen::Vector3d step = J.topRows(m).completeOrthogonalDecomposition().solve(-e.head(m));
+        th += step;
+        if (step.cwiseAbs().maxCoeff() < 1e-6) break;
+      }
+      return th;
+    };
+    double ax = 0.0, ay = 0.0;
+    for (const Obs& o : obs) ax += o.ax, ay += o.ay;
+    ax /= static_cast<double>(n);
+    ay /= static_cast<double>(n);
+    const double seeds[5][2] = {{ax, ay}, {ax + 30, ay}, {ax - 30, ay}, {ax, ay + 30}, {ax, ay - 30}};
+    double best_cost = std::numeric_limits<double>::infinity();
+    Eigen::Vector3d best = Eigen::Vector3d::Zero();
+    for (int h = 0; h < 16; ++h) {
+      const double phi0 = -kPi + 2.0 * kPi * h / 16.0;
+      for (const auto& sd : seeds) {
+        const Eigen::Vector3d th = gauss_newton(Eigen::Vector3d(sd[0], sd[1], phi0), 15);
+        const Eigen::Index m = residuals(th);
+        const double cost = e.head(m).squaredNorm();
+        if (cost < best_cost) best_cost = cost, best = th;
+      }
+    }
+    if (!std::isfinite(best_cost)) return;
+    // Drop residuals over 3σ and refit once.
+    residuals(best);
+    int inliers = 0;
+    for (Eigen::Index i = 0; i < n; ++i) inliers += (mask[i] = std::abs(e[i]) < 3.0);
+    if (inliers < 3) return;
+    const Eigen::Vector3d th = gauss_newton(best, 20);
+    const Eigen::Index m = residuals(th);
+    double ss = 0.0;
+    for (Eigen::Index i = 0, r = 0; i < n; ++i)
+      if (mask[i]) ss += (e[r] * obs[i].s) * (e[r] * obs[i].s), ++r;
+    const double rms = std::sqrt(ss / static_cast<double>(m));
+    const Eigen::Matrix3d JtJ = J.topRows(m).transpose() * J.topRows(m);
+    const Eigen::FullPivLU<Eigen::Matrix3d> lu(JtJ);
+    if (!lu.isInvertible()) return;
+    const Eigen::Matrix3d C = lu.inverse();
+    // The pose at t_now and the covariance of (x, y, θ) through the transform.
+    const double c = std::cos(th[2]), s = std::sin(th[2]);
+    const Eigen::Vector4d& q = track.back();
+    const double px = th[0] + c * q[1] - s * q[2], py = th[1] + s * q[1] + c * q[2];
+    Eigen::Matrix3d Jt = Eigen::Matrix3d::Identity();
+    Jt(0, 2) = -s * q[1] - c * q[2];
+    Jt(1, 2) = c * q[1] - s * q[2];
+    const Eigen::Matrix3d Cp = Jt * C * Jt.transpose();
+    const double pos_std = std::sqrt(std::max(Cp(0, 0), Cp(1, 1)));
+    if (!(rms <= settings.init_max_rms && pos_std <= settings.init_max_pos_std)) return;
+    StateCov P0 = StateCov::Zero();
+    const int map[3] = {kX, kY, kTheta};
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) P0(map[i], map[j]) = settings.init_cov_inflation * Cp(i, j);
+    P0(kX, kX) += kInitPositionFloor * kInitPositionFloor;
+    P0(kY, kY) += kInitPositionFloor * kInitPositionFloor;
+    P0(kTheta, kTheta) += kInitHeadingFloor * kInitHeadingFloor;
+    P0(kV, kV) = settings.init_speed_std * settings.init_speed_std;
+    const double speed = std::isfinite(rate_speed) ? std::max(0.0, rate_speed) : 0.0;
+    start(t_now, State(px, py, speed, wrap_angle(th[2] + q[3])), 0.5 * (P0 + P0.transpose()));
   }
 };
 
@@ -291,6 +424,7 @@ InputResult Localizer::motion(double t, const Control& u) {
   if (std::isfinite(I.t_motion) && t < I.t_motion - kSameTime) return I.status(InputStatus::Late);
   const double interval = std::isfinite(I.t_motion) ? t - I.t_motion : 0.0;
   if (!I.initialized()) {
+    const bool first = !std::isfinite(I.t_motion);
     if (interval > kSameTime) {  // the motion integral for the heading (BMM step without noise)
       I.odo[2] = wrap_angle(I.odo[2] + u[1]);
       I.odo[0] += u[0] * interval * std::cos(I.odo[2]);
@@ -299,6 +433,11 @@ InputResult Localizer::motion(double t, const Control& u) {
       I.rate_turn = u[1] / interval;
     }
     I.t_motion = t;
+    if (first || interval > kSameTime) {
+      I.push_pose(t);
+      if (!first) I.try_fit(t);
+    }
+    if (I.initialized()) return InputResult{};  // the fit started the filter at this input
     return I.status(InputStatus::Buffered);
   }
   if (interval <= kSameTime) return I.status(InputStatus::Late);  // no interval to move over
@@ -309,12 +448,21 @@ InputResult Localizer::motion(double t, const Control& u) {
   I.t_motion = t;
   I.owed_distance = I.owed_heading = 0.0;
   if (dt <= kSameTime) return InputResult{};  // a measurement at t already took the filter there
-  if (owed_d == 0.0 && owed_h == 0.0) {
-    I.predict(u, dt);  // the whole interval (dt = interval)
-  } else {
-    // Catch-up: a measurement inside the interval was predicted to at the last
-    // rates; apply what this input's distance and heading change still owe.
-    I.predict(Control((u[0] * interval - owed_d) / dt, u[1] - owed_h), dt);
+  const Control step = (owed_d == 0.0 && owed_h == 0.0)
+                           ? u  // the whole interval (dt = interval)
+                           // Catch-up: a measurement inside the interval was predicted to at the last
+                           // rates; apply what this input's distance and heading change still owe.
+                           : Control((u[0] * interval - owed_d) / dt, u[1] - owed_h);
+  I.predict(step, dt);
+  if (I.from_odometry && I.aekf) {
+    // Odometry measured its distance and heading change: what the BMM's limits
+    // (eq. 3's speed in [0, v_max] and a·Δt, eq. 4's clip) kept this step from
+    // applying is owed by the next one.  A catch-up step that follows a
+    // measurement just before the input can ask for any speed, even a
+    // negative one.  (Augmented path only: the plain EKF stays as it was.)
+    const Bmm b = I.bmm.is_nominal_step(dt) ? I.bmm : I.bmm.with_step(dt);
+    I.owed_distance = I.aekf->x()[kV] * dt - step[0] * dt;
+    I.owed_heading = b.clipped_heading_change(step[1]) - step[1];
   }
   I.t_f = t;
   ++I.counts.motion;
@@ -329,10 +477,16 @@ InputResult Localizer::odometry(double t, double distance, double heading_change
   Impl& I = *impl_;
   if (!std::isfinite(I.t_motion)) {  // the first odometry row only starts the clock
     I.t_motion = t;
+    if (!I.initialized()) I.push_pose(t);
     return I.status(I.initialized() ? InputStatus::Ignored : InputStatus::Buffered);
   }
   const double interval = t - I.t_motion;
   if (interval <= kSameTime) return I.status(InputStatus::Late);
+  struct Flag {
+    bool& f;
+    explicit Flag(bool& b) : f(b) { f = true; }
+    ~Flag() { f = false; }
+  } flag(I.from_odometry);
   return motion(t, Control(distance / interval, heading_change));
 }
 
@@ -355,9 +509,8 @@ InputResult Localizer::observe(double t, const LandmarkObservation& o) {
   const int row = it->second;
   if (!I.initialized()) {
     if (!has_r) return I.status(InputStatus::Ignored);
-    if (I.ranges.size() >= 256) I.ranges.erase(I.ranges.begin());
-    I.ranges.push_back(BufferedRange{t, row, o.range, o.range_std});
-    I.try_trilaterate(t);
+    if (I.ranges.size() >= kMaxBufferedRanges) I.ranges.erase(I.ranges.begin());
+    I.ranges.push_back(BufferedRange{t, row, o.range, o.range_std});  // fitted after the next motion input
     return I.status(InputStatus::Buffered);
   }
   if (!I.advance(t)) return I.status(InputStatus::Late);
@@ -366,6 +519,24 @@ InputResult Localizer::observe(double t, const LandmarkObservation& o) {
   const double dx = I.landmarks(row, 0) - x[kX], dy = I.landmarks(row, 1) - x[kY];
   const double r2 = dx * dx + dy * dy, r = std::sqrt(r2);
   if (!(r > 1e-9)) return I.status(InputStatus::Ignored);  // at the landmark: h is undefined
+  if (I.aekf) {
+    const Eigen::Vector2d a = I.landmarks.row(row).transpose();
+    if (has_r && has_b) {
+      const Eigen::Matrix2d R = Eigen::Vector2d(o.range_std * o.range_std, o.bearing_std * o.bearing_std).asDiagonal();
+      return I.counted(I.aekf->update_range_bearing(row, a, Eigen::Vector2d(o.range, o.bearing), R));
+    }
+    if (has_r) return I.counted(I.aekf->update_range(row, a, o.range, o.range_std * o.range_std));
+    return I.counted(I.aekf->update_bearing(row, a, o.bearing, o.bearing_std * o.bearing_std));
+  }
+  if (I.apf) {
+    const Eigen::Vector2d a = I.landmarks.row(row).transpose();
+    if (has_r && has_b) {
+      const Eigen::Matrix2d R = Eigen::Vector2d(o.range_std * o.range_std, o.bearing_std * o.bearing_std).asDiagonal();
+      return I.counted(I.apf->update_range_bearing(row, a, Eigen::Vector2d(o.range, o.bearing), R));
+    }
+    if (has_r) return I.counted(I.apf->update_range(row, a, o.range, o.range_std * o.range_std));
+    return I.counted(I.apf->update_bearing(row, a, o.bearing, o.bearing_std * o.bearing_std));
+  }
   if (I.ekf) {
     if (has_r && has_b) {
       const Eigen::Vector2d y(o.range - r, wrap_angle(o.bearing - (std::atan2(dy, dx) - x[kTheta])));
@@ -407,6 +578,8 @@ InputResult Localizer::fix(double t, const Eigen::Vector2d& z, const Eigen::Matr
   }
   if (!I.advance(t)) return I.status(InputStatus::Late);
   if (I.ekf) return I.counted(I.ekf->update_position(z, R));
+  if (I.aekf) return I.counted(I.aekf->update_position(z, R));
+  if (I.apf) return I.counted(I.apf->update_position(z, R));
   if (!I.pf_fix || I.pf_fix_R != R) {
     I.pf_fix.emplace(MeasurementModel::position(R));
     I.pf_fix_R = R;
@@ -435,6 +608,8 @@ InputResult Localizer::speed_heading(double t, const Eigen::Vector2d& z, const E
     H << 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0;
     return I.counted(I.ekf->update_linearized(y, H, R, MeasurementKind::SpeedHeading));
   }
+  if (I.aekf) return I.counted(I.aekf->update_speed_heading(z, R));
+  if (I.apf) return I.counted(I.apf->update_speed_heading(z, R));
   if (!I.pf_imu || I.pf_imu_R != R) {
     I.pf_imu.emplace(MeasurementModel::speed_heading(R));
     I.pf_imu_R = R;
@@ -459,5 +634,11 @@ int Localizer::landmark_index(int id) const {
   return it == impl_->row_of.end() ? -1 : it->second;
 }
 const Landmarks& Localizer::landmarks() const { return impl_->landmarks; }
+const AugmentedEkf* Localizer::augmented_filter() const { return impl_->aekf ? &*impl_->aekf : nullptr; }
+Eigen::VectorXd Localizer::augmented_state() const {
+  if (impl_->aekf) return impl_->aekf->augmented();
+  if (impl_->apf) return impl_->apf->augmented();
+  return Eigen::VectorXd();
+}
 
 }  // namespace safenav

@@ -8,6 +8,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "safenav/augmented.hpp"
 #include "safenav/localizer.hpp"
 #include "safenav/navigation.hpp"
 
@@ -253,13 +254,36 @@ const ParamSet<SensorSettings>& param_set<SensorSettings>() {
 }
 
 template <>
+const ParamSet<AugmentedStates>& param_set<AugmentedStates>() {
+  using A = AugmentedStates;
+  // The on/off switches (range_scale, heading_rate_bias, range_bias) are bools, set directly.
+  static const ParamSet<A> s =
+      Declare<A>{}
+          .real("scale_prior", SN_REF(A, scale_prior), "", closed(-0.5, 0.5), "k0, prior mean of the range scale k: r = (1+k)|p - a| + b (ours; Plaza reads ~7 % long)")
+          .real("scale_std", SN_REF(A, scale_std), "", above(0, 1), "sigma of k0")
+          .real("scale_walk", SN_REF(A, scale_walk), "1/sqrt(s)", closed(0, 1), "random walk of k per sqrt(second)")
+          .real("heading_rate_bias_prior", SN_REF(A, heading_rate_bias_prior), "rad/s", closed(-1, 1), "beta0, prior mean of the heading-rate (gyro) bias: theta' = theta + clip(dtheta) - beta*dt (ours)")
+          .real("heading_rate_bias_std", SN_REF(A, heading_rate_bias_std), "rad/s", above(0, 1), "sigma of beta0")
+          .real("heading_rate_bias_walk", SN_REF(A, heading_rate_bias_walk), "rad/s/sqrt(s)", closed(0, 1), "random walk of beta per sqrt(second)")
+          .real("range_bias_std", SN_REF(A, range_bias_std), "m", above(0, 100), "sigma of each landmark's range bias b_j (prior mean 0; ours)")
+          .real("range_bias_walk", SN_REF(A, range_bias_walk), "m/sqrt(s)", closed(0, 10), "random walk of each b_j per sqrt(second)")
+          .set;
+  return s;
+}
+
+template <>
 const ParamSet<LocalizerSettings>& param_set<LocalizerSettings>() {
   using L = LocalizerSettings;
   static const ParamSet<L> s =
       Declare<L>{}
           .real("gate_probability", SN_REF(L, filter.gate_probability), "", closed(0, 0.999999), "chi-square gate of each update (0 = off)")
-          .real("init_window", SN_REF(L, init_window), "s", above(0, 1e4), "ranges this close in time are trilaterated together to start from the data")
-          .real("init_baseline", SN_REF(L, init_baseline), "m", above(0, 1e4), "motion before the heading is taken from two positions")
+          .real("init_window", SN_REF(L, init_window), "s", above(0, 1e4), "starting from the data: the odometry track and ranges of the last init_window seconds are fitted together")
+          .real("init_min_path", SN_REF(L, init_min_path), "m", closed(0, 1e4), "starting from the data: odometry path within the window before a fit is tried (heading is unobservable at rest)")
+          .integer("init_min_beacons", SN_REF(L, init_min_beacons), closed(2, 1000), "starting from the data: distinct landmarks ranged within the window before a fit is tried")
+          .real("init_max_rms", SN_REF(L, init_max_rms), "m", above(0, 1e4), "starting from the data: accept the fit only if its inlier range residual RMS is below this")
+          .real("init_max_pos_std", SN_REF(L, init_max_pos_std), "m", above(0, 1e4), "starting from the data: accept the fit only if its position sigma is below this")
+          .real("init_cov_inflation", SN_REF(L, init_cov_inflation), "", closed(1, 1e4), "starting from the data: the fit's pose covariance is multiplied by this")
+          .real("init_baseline", SN_REF(L, init_baseline), "m", above(0, 1e4), "starting from position fixes: motion before the heading is taken from two positions")
           .real("init_speed_std", SN_REF(L, init_speed_std), "m/s", above(0, 100), "sigma of the initial speed when starting from the data")
           .set;
   return s;
@@ -267,6 +291,7 @@ const ParamSet<LocalizerSettings>& param_set<LocalizerSettings>() {
 
 template class ParamSet<BmmParams>;
 template class ParamSet<LocalizerSettings>;
+template class ParamSet<AugmentedStates>;
 template class ParamSet<SensorSettings>;
 template class ParamSet<RiskZones>;
 template class ParamSet<PlannerSettings>;

@@ -22,12 +22,25 @@
 // Equal times are applied in call order.
 //
 // Initialization.  initialize() takes a prior.  Without one the localizer
-// starts from the data: it trilaterates the latest ranges of ≥ 3 landmarks
-// seen within init_window seconds (or takes a position fix), and once the
-// vehicle has moved init_baseline metres by its motion inputs it compares the
-// two positions with the motion-integrated displacement to get the heading
-// (an IMU heading, when given, is used at once).  Until then inputs return
-// Buffered.  It never needs a true pose.
+// starts from the data.  From ranges: it dead-reckons the motion inputs in
+// their own frame and buffers them with the ranges; after each motion input,
+// once ranges of ≥ init_min_beacons landmarks lie within the last init_window
+// seconds and the motion path there is ≥ init_min_path, it fits the rigid
+// transform (X, Y, φ) from that frame to the world to the ranges (Gauss–Newton
+// from 16 headings × 5 positions, residuals > 3σ dropped, refitted; k fixed at
+// augment.scale_prior when the scale state is on) and starts when the fit's
+// inlier RMS and position σ are small enough.  From position fixes: with an
+// IMU heading at once, else once the vehicle has moved init_baseline metres
+// (the heading from two fixes and the motion between them).  Until then
+// inputs return Buffered.  It never needs a true pose.
+//
+// Augmented states.  With settings.augment on (any of k, β, b_j) the filter
+// is the AugmentedEkf, or with the particle filter the
+// AugmentedParticleFilter (safenav/augmented.hpp): ranges through its
+// update_range, motion through its β-corrected predict; odometry then also
+// owes the next step what the BMM's limits kept a catch-up step from
+// applying.  With augment off the plain Ekf / ParticleFilter run exactly as
+// before.
 //
 // After construction a tick allocates nothing with the EKF (the particle
 // filter's update allocates its scratch); initialization from data does.
@@ -42,6 +55,7 @@
 
 #include <Eigen/Core>
 
+#include "safenav/augmented.hpp"
 #include "safenav/filters.hpp"
 #include "safenav/measurement.hpp"
 #include "safenav/motion.hpp"
@@ -86,9 +100,17 @@ struct LocalizerSettings {
     f.gate_probability = 0.99;
     return f;
   }();
-  double init_window = 1.0;    ///< [s] ranges this close in time are trilaterated together
-  double init_baseline = 5.0;  ///< [m] motion before the heading is taken from two positions
-  double init_speed_std = 1.0; ///< [m/s] σ of the initial speed (from the motion inputs)
+  /// Augmented states (range scale, heading-rate bias, range biases); off by
+  /// default.
+  AugmentedStates augment;
+  double init_window = 30.0;       ///< [s] odometry and ranges this recent are fitted together to start from the data
+  double init_min_path = 3.0;      ///< [m] odometry path within the window before a fit is tried
+  int init_min_beacons = 3;        ///< distinct landmarks ranged within the window before a fit is tried
+  double init_max_rms = 1.2;       ///< [m] accept the fit only if its inlier range residual RMS is below this
+  double init_max_pos_std = 0.5;   ///< [m] … and its position σ below this
+  double init_cov_inflation = 4.0; ///< the fit's pose covariance is multiplied by this
+  double init_baseline = 5.0;      ///< [m] motion before the heading is taken from two position fixes
+  double init_speed_std = 1.0;     ///< [m/s] σ of the initial speed (from the motion inputs)
   void validate() const;
 };
 
@@ -137,6 +159,12 @@ class Localizer {
   /// Row of landmark `id` in the map, or −1.
   int landmark_index(int id) const;
   const Landmarks& landmarks() const;
+  /// The augmented filter when settings.augment is on and initialized, else null
+  /// (its augmented() has k, β, b_j).
+  const AugmentedEkf* augmented_filter() const;
+  /// The full augmented state (x, y, v, θ, [k], [β], [b_j]) — the EKF's mean
+  /// or the particles' weighted mean — or empty without augmented states.
+  Eigen::VectorXd augmented_state() const;
 
  private:
   struct Impl;

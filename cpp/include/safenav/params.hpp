@@ -81,7 +81,7 @@ class ParamSet {
 
 /// The parameter set of settings struct T (specialised in params.cpp for
 /// BmmParams, RiskZones, PlannerSettings, PlanningMap, NavigationSettings,
-/// SensorSettings and LocalizerSettings).
+/// SensorSettings, LocalizerSettings and AugmentedStates).
 template <class T>
 const ParamSet<T>& param_set();
 

@@ -1,0 +1,200 @@
+// Bindings of safenav/augmented.hpp: AugmentedStates and AugmentedEkf, and
+// replay_localizer, a batch run of the Localizer with augmented states over
+// a time-ordered event table (for checks against reference runs).  Registered
+// after bindings/guidance.cpp: it adds LocalizerSettings.augment and
+// Localizer.augmented to the classes registered there.
+#include <map>
+#include <string>
+
+#include "common.hpp"
+#include "params.hpp"
+#include "safenav/augmented.hpp"
+#include "safenav/localizer.hpp"
+
+using namespace safenav;
+
+namespace {
+
+/// Event kinds of replay_localizer's table.
+enum ReplayEvent : int { kOdometry = 0, kRange = 1, kMotion = 2 };
+
+struct ReplayResult {
+  RowMatrixX4 states;             // after each event (NaN before initialization)
+  Eigen::VectorXi status;         // InputStatus per event
+  Eigen::MatrixXd augmented;      // augmented part after each event (NaN before initialization)
+  double t_init = std::numeric_limits<double>::quiet_NaN();
+  int applied = 0, rejected = 0;
+};
+
+ReplayResult replay(const BmmParams& bmm, const AugmentedStates& augment, double gate_probability,
+                    const std::map<std::string, double>& settings, const Landmarks& landmarks,
+                    const std::vector<int>& ids, const Eigen::Ref<const RowMatrixXd>& events) {
+  if (events.cols() != 5)
+    throw std::invalid_argument("replay_localizer: events must be N x 5 (kind, t, a, b, c), got " +
+                                std::to_string(events.cols()) + " columns");
+  LocalizerSettings ls;
+  ls.bmm = bmm;
+  ls.augment = augment;
+  ls.filter.gate_probability = gate_probability;
+  for (const auto& [name, value] : settings) param_set<LocalizerSettings>().set(ls, name, {value});
+  Localizer loc(ls, landmarks, ids);
+  ReplayResult out;
+  const Eigen::Index n = events.rows();
+  const int na = [&] {
+    int k = (augment.range_scale ? 1 : 0) + (augment.heading_rate_bias ? 1 : 0);
+    return k + (augment.range_bias ? static_cast<int>(landmarks.rows()) : 0);
+  }();
+  out.states = RowMatrixX4::Constant(n, 4, std::numeric_limits<double>::quiet_NaN());
+  out.augmented = Eigen::MatrixXd::Constant(n, na, std::numeric_limits<double>::quiet_NaN());
+  out.status.resize(n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double t = events(i, 1);
+    InputResult r;
+    switch (static_cast<int>(events(i, 0))) {
+      case kOdometry: r = loc.odometry(t, events(i, 2), events(i, 3)); break;
+      case kMotion: r = loc.motion(t, Control(events(i, 2), events(i, 3))); break;
+      case kRange: {
+        LandmarkObservation o;
+        o.id = static_cast<int>(events(i, 2));
+        o.range = events(i, 3);
+        o.range_std = events(i, 4);
+        r = loc.observe(t, o);
+        break;
+      }
+      default:
+        throw std::invalid_argument("replay_localizer: event " + std::to_string(i) + " has kind " +
+                                    std::to_string(events(i, 0)) + " (0 odometry, 1 range, 2 motion)");
+    }
+    out.status[i] = static_cast<int>(r.status);
+    if (loc.initialized()) {
+      if (std::isnan(out.t_init)) out.t_init = t;
+      out.states.row(i) = loc.x().transpose();
+      const Eigen::VectorXd a = loc.augmented_state();
+      if (a.size() > 0) out.augmented.row(i) = a.tail(na).transpose();
+    }
+  }
+  out.applied = loc.counts().applied;
+  out.rejected = loc.counts().rejected;
+  return out;
+}
+
+}  // namespace
+
+void pybind_augmented(py::module_& m) {
+  def_params<AugmentedStates>(py::class_<AugmentedStates>(
+      m, "AugmentedStates",
+      "Optional augmented states of the EKF (ours, not the paper's): range scale k (r = (1+k)|p-a| + b_j),\n"
+      "heading-rate (gyro) bias beta (theta' = theta + clip(dtheta) - beta*dt) and per-landmark range biases\n"
+      "b_j; each a random walk with sigma per sqrt(s).  All off by default; values tuned on Plaza1."))
+      .def(py::init<>())
+      .def_readwrite("range_scale", &AugmentedStates::range_scale)
+      .def_readwrite("scale_prior", &AugmentedStates::scale_prior)
+      .def_readwrite("scale_std", &AugmentedStates::scale_std)
+      .def_readwrite("scale_walk", &AugmentedStates::scale_walk)
+      .def_readwrite("heading_rate_bias", &AugmentedStates::heading_rate_bias)
+      .def_readwrite("heading_rate_bias_prior", &AugmentedStates::heading_rate_bias_prior)
+      .def_readwrite("heading_rate_bias_std", &AugmentedStates::heading_rate_bias_std)
+      .def_readwrite("heading_rate_bias_walk", &AugmentedStates::heading_rate_bias_walk)
+      .def_readwrite("range_bias", &AugmentedStates::range_bias)
+      .def_readwrite("range_bias_std", &AugmentedStates::range_bias_std)
+      .def_readwrite("range_bias_walk", &AugmentedStates::range_bias_walk)
+      .def("any", &AugmentedStates::any)
+      .def("validate", &AugmentedStates::validate);
+
+  py::class_<AugmentedEkf>(m, "AugmentedEkf",
+                           "EKF on the BMM (SafeNav eqs. 10-14, Joseph form) over (x, y, v, theta, [k], [beta], [b_j]).")
+      .def(py::init<const BmmParams&, const AugmentedStates&, int, const State&, const StateCov&>(), py::arg("params"),
+           py::arg("augment"), py::arg("n_landmarks"), py::arg("x0"), py::arg("P0"))
+      .def_property_readonly("x", &AugmentedEkf::x, "(x, y, v, theta)")
+      .def_property_readonly("P", &AugmentedEkf::P, "4x4 covariance of x")
+      .def_property_readonly("augmented", &AugmentedEkf::augmented, "The full state (size entries).")
+      .def_property_readonly("augmented_cov", &AugmentedEkf::augmented_cov, "The full covariance.")
+      .def_property_readonly("size", &AugmentedEkf::size)
+      .def_property_readonly("scale_index", &AugmentedEkf::scale_index, "Index of k, or -1.")
+      .def_property_readonly("heading_rate_bias_index", &AugmentedEkf::heading_rate_bias_index, "Index of beta, or -1.")
+      .def("range_bias_index", &AugmentedEkf::range_bias_index, py::arg("landmark_row"), "Index of b_row, or -1.")
+      .def("set_state", &AugmentedEkf::set_state, py::arg("x"), py::arg("P"))
+      .def_property("gate", &AugmentedEkf::gate, &AugmentedEkf::set_gate, "chi-square gate probability (0 = off)")
+      .def("predict", &AugmentedEkf::predict, py::arg("u"), py::arg("dt"),
+           "BMM step of dt seconds with theta' = theta + clip(dtheta) - beta*dt (eq. 11).")
+      .def("update_range", &AugmentedEkf::update_range, py::arg("landmark_row"), py::arg("landmark"), py::arg("r"),
+           py::arg("variance"), "r = (1+k)|p - a| + b_row (eqs. 12-14).")
+      .def("update_bearing", &AugmentedEkf::update_bearing, py::arg("landmark_row"), py::arg("landmark"),
+           py::arg("bearing"), py::arg("variance"))
+      .def("update_range_bearing", &AugmentedEkf::update_range_bearing, py::arg("landmark_row"), py::arg("landmark"),
+           py::arg("z"), py::arg("R"))
+      .def("update_position", &AugmentedEkf::update_position, py::arg("z"), py::arg("R"))
+      .def("update_speed_heading", &AugmentedEkf::update_speed_heading, py::arg("z"), py::arg("R"));
+
+  // The Localizer's augmented parts, on the classes that bindings/guidance.cpp registers.
+  if (py::hasattr(m, "LocalizerSettings") && py::hasattr(m, "Localizer")) {
+    auto settings = m.attr("LocalizerSettings").cast<py::class_<LocalizerSettings>>();
+    settings.def_readwrite("augment", &LocalizerSettings::augment,
+                           "AugmentedStates: with any on (and the EKF) the localizer runs the AugmentedEkf.");
+    auto loc = m.attr("Localizer").cast<py::class_<Localizer>>();
+    loc.def_property_readonly(
+        "augmented",
+        [](const Localizer& l) -> py::object {
+          Eigen::VectorXd a = l.augmented_state();
+          if (a.size() == 0) return py::none();
+          return py::cast(a);
+        },
+        "The full augmented state (x, y, v, theta, [k], [beta], [b_j]), or None without augmented states.");
+  }
+
+  py::class_<AugmentedParticleFilter>(
+      m, "AugmentedParticleFilter",
+      "Particle filter on the BMM over (x, y, v, theta, [k], [beta], [b_j]): the PF counterpart of AugmentedEkf.")
+      .def(py::init<const BmmParams&, const AugmentedStates&, int, const State&, const StateCov&, int, std::uint64_t,
+                    double>(),
+           py::arg("params"), py::arg("augment"), py::arg("n_landmarks"), py::arg("x0"), py::arg("P0"),
+           py::arg("n_particles") = 1000, py::arg("seed") = 0, py::arg("resample_threshold") = 0.5)
+      .def_property_readonly("size", &AugmentedParticleFilter::size)
+      .def_property_readonly("state_size", &AugmentedParticleFilter::state_size)
+      .def_property_readonly("scale_index", &AugmentedParticleFilter::scale_index)
+      .def_property_readonly("heading_rate_bias_index", &AugmentedParticleFilter::heading_rate_bias_index)
+      .def_property("gate", &AugmentedParticleFilter::gate, &AugmentedParticleFilter::set_gate)
+      .def_property_readonly("x", &AugmentedParticleFilter::mean)
+      .def_property_readonly("P", &AugmentedParticleFilter::covariance)
+      .def_property_readonly("augmented", &AugmentedParticleFilter::augmented)
+      .def_property_readonly("particles", &AugmentedParticleFilter::particles)
+      .def_property_readonly("weights", &AugmentedParticleFilter::weights)
+      .def_property_readonly("ess", &AugmentedParticleFilter::ess)
+      .def_property_readonly("resample_count", &AugmentedParticleFilter::resample_count)
+      .def("predict", &AugmentedParticleFilter::predict, py::arg("u"), py::arg("dt"))
+      .def("update_range", &AugmentedParticleFilter::update_range, py::arg("landmark_row"), py::arg("landmark"),
+           py::arg("r"), py::arg("variance"))
+      .def("update_bearing", &AugmentedParticleFilter::update_bearing, py::arg("landmark_row"), py::arg("landmark"),
+           py::arg("bearing"), py::arg("variance"))
+      .def("update_range_bearing", &AugmentedParticleFilter::update_range_bearing, py::arg("landmark_row"),
+           py::arg("landmark"), py::arg("z"), py::arg("R"))
+      .def("update_position", &AugmentedParticleFilter::update_position, py::arg("z"), py::arg("R"))
+      .def("update_speed_heading", &AugmentedParticleFilter::update_speed_heading, py::arg("z"), py::arg("R"));
+
+  m.def(
+      "replay_localizer",
+      [](const BmmParams& bmm, const AugmentedStates& augment, double gate_probability,
+         const std::map<std::string, double>& settings, const Landmarks& landmarks, const std::vector<int>& ids,
+         const Eigen::Ref<const RowMatrixXd>& events) {
+        ReplayResult r;
+        {
+          py::gil_scoped_release release;
+          r = replay(bmm, augment, gate_probability, settings, landmarks, ids, events);
+        }
+        py::dict d;
+        d["states"] = r.states;
+        d["augmented"] = r.augmented;
+        d["status"] = r.status;
+        d["t_init"] = r.t_init;
+        d["applied"] = r.applied;
+        d["rejected"] = r.rejected;
+        return d;
+      },
+      py::arg("bmm"), py::arg("augment"), py::arg("gate_probability"), py::arg("settings"), py::arg("landmarks"),
+      py::arg("ids"), py::arg("events"),
+      "Run the Localizer (EKF) over a time-ordered event table, N x 5 rows (kind, t, a, b, c):\n"
+      "kind 0 odometry (a = distance, b = heading change), 1 range (a = landmark id, b = range, c = sigma),\n"
+      "2 motion (a = speed, b = heading change).  `settings` sets LocalizerSettings parameters by name.\n"
+      "Returns a dict: states (N x 4 after each event, NaN before initialization), augmented (k, beta, b_j),\n"
+      "status (InputStatus codes), t_init, applied, rejected.");
+}
