@@ -1,11 +1,7 @@
-// Bindings of safenav/augmented.hpp: AugmentedStates and AugmentedEkf, and
-// replay_localizer, a batch run of the Localizer with augmented states over
-// a time-ordered event table (for checks against reference runs).  Registered
+// Bindings of safenav/augmented.hpp: AugmentedStates, AugmentedEkf and
+// AugmentedParticleFilter.  Registered
 // after bindings/guidance.cpp: it adds LocalizerSettings.augment and
 // Localizer.augmented to the classes registered there.
-#include <map>
-#include <string>
-
 #include "common.hpp"
 #include "params.hpp"
 #include "safenav/augmented.hpp"
@@ -13,72 +9,6 @@
 
 using namespace safenav;
 
-namespace {
-
-/// Event kinds of replay_localizer's table.
-enum ReplayEvent : int { kOdometry = 0, kRange = 1, kMotion = 2 };
-
-struct ReplayResult {
-  RowMatrixX4 states;             // after each event (NaN before initialization)
-  Eigen::VectorXi status;         // InputStatus per event
-  Eigen::MatrixXd augmented;      // augmented part after each event (NaN before initialization)
-  double t_init = std::numeric_limits<double>::quiet_NaN();
-  int applied = 0, rejected = 0;
-};
-
-ReplayResult replay(const BmmParams& bmm, const AugmentedStates& augment, double gate_probability,
-                    const std::map<std::string, double>& settings, const Landmarks& landmarks,
-                    const std::vector<int>& ids, const Eigen::Ref<const RowMatrixXd>& events) {
-  if (events.cols() != 5)
-    throw std::invalid_argument("replay_localizer: events must be N x 5 (kind, t, a, b, c), got " +
-                                std::to_string(events.cols()) + " columns");
-  LocalizerSettings ls;
-  ls.bmm = bmm;
-  ls.augment = augment;
-  ls.filter.gate_probability = gate_probability;
-  for (const auto& [name, value] : settings) param_set<LocalizerSettings>().set(ls, name, {value});
-  Localizer loc(ls, landmarks, ids);
-  ReplayResult out;
-  const Eigen::Index n = events.rows();
-  const int na = [&] {
-    int k = (augment.range_scale ? 1 : 0) + (augment.heading_rate_bias ? 1 : 0);
-    return k + (augment.range_bias ? static_cast<int>(landmarks.rows()) : 0);
-  }();
-  out.states = RowMatrixX4::Constant(n, 4, std::numeric_limits<double>::quiet_NaN());
-  out.augmented = Eigen::MatrixXd::Constant(n, na, std::numeric_limits<double>::quiet_NaN());
-  out.status.resize(n);
-  for (Eigen::Index i = 0; i < n; ++i) {
-    const double t = events(i, 1);
-    InputResult r;
-    switch (static_cast<int>(events(i, 0))) {
-      case kOdometry: r = loc.odometry(t, events(i, 2), events(i, 3)); break;
-      case kMotion: r = loc.motion(t, Control(events(i, 2), events(i, 3))); break;
-      case kRange: {
-        LandmarkObservation o;
-        o.id = static_cast<int>(events(i, 2));
-        o.range = events(i, 3);
-        o.range_std = events(i, 4);
-        r = loc.observe(t, o);
-        break;
-      }
-      default:
-        throw std::invalid_argument("replay_localizer: event " + std::to_string(i) + " has kind " +
-                                    std::to_string(events(i, 0)) + " (0 odometry, 1 range, 2 motion)");
-    }
-    out.status[i] = static_cast<int>(r.status);
-    if (loc.initialized()) {
-      if (std::isnan(out.t_init)) out.t_init = t;
-      out.states.row(i) = loc.x().transpose();
-      const Eigen::VectorXd a = loc.augmented_state();
-      if (a.size() > 0) out.augmented.row(i) = a.tail(na).transpose();
-    }
-  }
-  out.applied = loc.counts().applied;
-  out.rejected = loc.counts().rejected;
-  return out;
-}
-
-}  // namespace
 
 void pybind_augmented(py::module_& m) {
   def_params<AugmentedStates>(py::class_<AugmentedStates>(
@@ -170,31 +100,4 @@ void pybind_augmented(py::module_& m) {
            py::arg("landmark"), py::arg("z"), py::arg("R"))
       .def("update_position", &AugmentedParticleFilter::update_position, py::arg("z"), py::arg("R"))
       .def("update_speed_heading", &AugmentedParticleFilter::update_speed_heading, py::arg("z"), py::arg("R"));
-
-  m.def(
-      "replay_localizer",
-      [](const BmmParams& bmm, const AugmentedStates& augment, double gate_probability,
-         const std::map<std::string, double>& settings, const Landmarks& landmarks, const std::vector<int>& ids,
-         const Eigen::Ref<const RowMatrixXd>& events) {
-        ReplayResult r;
-        {
-          py::gil_scoped_release release;
-          r = replay(bmm, augment, gate_probability, settings, landmarks, ids, events);
-        }
-        py::dict d;
-        d["states"] = r.states;
-        d["augmented"] = r.augmented;
-        d["status"] = r.status;
-        d["t_init"] = r.t_init;
-        d["applied"] = r.applied;
-        d["rejected"] = r.rejected;
-        return d;
-      },
-      py::arg("bmm"), py::arg("augment"), py::arg("gate_probability"), py::arg("settings"), py::arg("landmarks"),
-      py::arg("ids"), py::arg("events"),
-      "Run the Localizer (EKF) over a time-ordered event table, N x 5 rows (kind, t, a, b, c):\n"
-      "kind 0 odometry (a = distance, b = heading change), 1 range (a = landmark id, b = range, c = sigma),\n"
-      "2 motion (a = speed, b = heading change).  `settings` sets LocalizerSettings parameters by name.\n"
-      "Returns a dict: states (N x 4 after each event, NaN before initialization), augmented (k, beta, b_j),\n"
-      "status (InputStatus codes), t_init, applied, rejected.");
 }

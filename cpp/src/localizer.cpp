@@ -140,6 +140,13 @@ struct Localizer::Impl {
     track.reserve(256);
   }
 
+  /// The first motion input ever covers one nominal step before its time.
+  void start_clock(double t) {
+    if (std::isfinite(t_motion)) return;
+    t_motion = t - bmm.params().dt;
+    if (!initialized()) push_pose(t_motion);
+  }
+
   bool initialized() const { return ekf.has_value() || aekf.has_value() || pf.has_value() || apf.has_value(); }
 
   void start(double t, const State& x0, const StateCov& P0) {
@@ -421,10 +428,10 @@ InputResult Localizer::motion(double t, const Control& u) {
     bad("motion at t = " + num(t) + ": (speed, heading change) = (" + num(u[0]) + ", " + num(u[1]) +
         ") is not finite");
   Impl& I = *impl_;
-  if (std::isfinite(I.t_motion) && t < I.t_motion - kSameTime) return I.status(InputStatus::Late);
-  const double interval = std::isfinite(I.t_motion) ? t - I.t_motion : 0.0;
+  I.start_clock(t);
+  if (t < I.t_motion - kSameTime) return I.status(InputStatus::Late);
+  const double interval = t - I.t_motion;
   if (!I.initialized()) {
-    const bool first = !std::isfinite(I.t_motion);
     if (interval > kSameTime) {  // the motion integral for the heading (BMM step without noise)
       I.odo[2] = wrap_angle(I.odo[2] + u[1]);
       I.odo[0] += u[0] * interval * std::cos(I.odo[2]);
@@ -433,9 +440,9 @@ InputResult Localizer::motion(double t, const Control& u) {
       I.rate_turn = u[1] / interval;
     }
     I.t_motion = t;
-    if (first || interval > kSameTime) {
+    if (interval > kSameTime) {
       I.push_pose(t);
-      if (!first) I.try_fit(t);
+      I.try_fit(t);
     }
     if (I.initialized()) return InputResult{};  // the fit started the filter at this input
     return I.status(InputStatus::Buffered);
@@ -475,11 +482,7 @@ InputResult Localizer::odometry(double t, double distance, double heading_change
     bad("odometry at t = " + num(t) + ": (distance, heading change) = (" + num(distance) + ", " +
         num(heading_change) + ") is not finite");
   Impl& I = *impl_;
-  if (!std::isfinite(I.t_motion)) {  // the first odometry row only starts the clock
-    I.t_motion = t;
-    if (!I.initialized()) I.push_pose(t);
-    return I.status(I.initialized() ? InputStatus::Ignored : InputStatus::Buffered);
-  }
+  I.start_clock(t);
   const double interval = t - I.t_motion;
   if (interval <= kSameTime) return I.status(InputStatus::Late);
   struct Flag {

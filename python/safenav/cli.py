@@ -209,11 +209,15 @@ def _plan(args) -> int:
 
 def _replay(args) -> int:
     from . import replay as rp
-    from .guidance import localizer_settings
     from .results import write_table
 
-    log = rp.load(args.log, range_std=args.range_std)
-    settings = localizer_settings(filter=args.filter, gate=args.gate, n_particles=args.particles, seed=args.seed)
+    mat = Path(args.log).suffix.lower() == ".mat"
+    preset = args.preset or ("plaza" if mat else "default")
+    range_std = args.range_std if args.range_std is not None else (
+        rp.PLAZA_RANGE_STD if preset == "plaza" else 1.0)
+    log = rp.load(args.log, range_std=range_std)
+    settings = rp.preset_settings(preset, filter=args.filter, gate=args.gate, n_particles=args.particles,
+                                  seed=args.seed, augment=args.augment or ())
     prior = None
     if args.prior_from_truth:
         if log.truth is None:
@@ -226,11 +230,15 @@ def _replay(args) -> int:
     out = Path(args.out)
     with _run_folder(args, out, seed=args.seed) as run:
         write_table(result.trajectory, out / "trajectory.csv", parquet=False)
-        summary = {"log": str(args.log), "filter": args.filter, "started_from": result.started_from,
+        summary = {"log": str(args.log), "preset": preset, "filter": args.filter,
+                   "augmented": [n for n in ("range_scale", "heading_rate_bias", "range_bias")
+                                 if getattr(settings.augment, n)],
+                   "started_from": result.started_from,
                    "t_start": result.t_start, "counts": result.counts, "metrics": result.metrics}
         write_json(out / "replay.json", summary)
         c = result.counts
-        print(f"{args.log}: {len(log.events)} inputs; started from the {result.started_from} at t = "
+        print(f"{args.log}: {len(log.events)} inputs, preset {preset}, {args.filter}, augmented states "
+              f"{summary['augmented'] or 'none'}; started from the {result.started_from} at t = "
               f"{result.t_start:.2f} s; updates applied {c['applied']}, rejected {c['rejected']}, late {c['late']}, "
               f"before the start {c['buffered']}")
         if result.metrics:
@@ -377,7 +385,12 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--particles", type=_at_least(1), default=1000, help="PF particles (default 1000)")
     s.add_argument("--gate", type=float, default=None,
                    help="chi-square gate probability of every update (default 0.99; 0 = off)")
-    s.add_argument("--range-std", type=float, default=1.0, help="range sigma for a .mat file's ranges (default 1 m)")
+    s.add_argument("--preset", choices=["default", "plaza"], default=None,
+                   help="localizer set-up (safenav.replay.PRESETS; default: plaza for a .mat file, else default)")
+    s.add_argument("--augment", nargs="+", choices=["range_scale", "heading_rate_bias", "range_bias"],
+                   help="augmented states to add (the plaza preset has range_scale and heading_rate_bias)")
+    s.add_argument("--range-std", type=float, default=None,
+                   help="range sigma for a .mat file's ranges (default: 0.55 m with the plaza preset, else 1 m)")
     s.add_argument("--prior-from-truth", action="store_true",
                    help="start from the first truth pose instead of from the data (for comparison only)")
     s.add_argument("--seed", type=_at_least(0), default=0, help="particle filter seed")

@@ -61,7 +61,7 @@ EVENTS = {
 }
 
 __all__ = ["Localizer", "LocalizerSettings", "Guidance", "Command", "InputResult", "InputStatus", "GuidanceStatus",
-           "EVENTS", "event_names", "localizer_settings", "make_guidance"]
+           "EVENTS", "AUGMENTED", "event_names", "localizer_settings", "make_guidance"]
 
 
 def event_names(events: int) -> list[str]:
@@ -69,10 +69,16 @@ def event_names(events: int) -> list[str]:
     return [name for name, bit in EVENTS.items() if int(events) & bit]
 
 
+#: The optional augmented states, by name (``AugmentedStates`` flags; ours, for real ranges).
+AUGMENTED = ("range_scale", "heading_rate_bias", "range_bias")
+
+
 def localizer_settings(*, filter: str = "ekf", bmm=None, gate: float | None = None, n_particles: int = 1000,
-                       seed: int = 0) -> LocalizerSettings:
+                       seed: int = 0, augment=()) -> LocalizerSettings:
     """:class:`LocalizerSettings` for ``filter`` ("ekf" or "pf"); ``gate`` is the
-    χ² gate probability of every update (default 0.99; 0 = off)."""
+    χ² gate probability of every update (default 0.99; 0 = off); ``augment``
+    names augmented states to switch on (:data:`AUGMENTED`: a range scale k,
+    a heading-rate bias β, per-landmark range biases b_j; safenav/augmented.hpp)."""
     from .navigation import FILTERS
 
     s = LocalizerSettings()
@@ -83,6 +89,9 @@ def localizer_settings(*, filter: str = "ekf", bmm=None, gate: float | None = No
         s.set_param("gate_probability", float(gate))
     if bmm is not None:
         s.bmm = bmm
+    for name in augment:
+        choice("augment", name, dict.fromkeys(AUGMENTED))
+        setattr(s.augment, name, True)
     return s
 
 

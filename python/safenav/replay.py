@@ -24,7 +24,33 @@ from . import _core
 from .guidance import Localizer, LocalizerSettings, localizer_settings
 from .logs import Log, load_plaza, read_log
 
-__all__ = ["ReplayResult", "replay", "load"]
+__all__ = ["ReplayResult", "replay", "load", "score", "PRESETS", "preset_settings"]
+
+#: Named localizer set-ups for replay.  ``default``: the online defaults
+#: (:func:`~safenav.guidance.localizer_settings`).  ``plaza``: the Plaza
+#: range-only robot — odometry at 5 Hz (BMM Δt = 0.2 s with limits that do not
+#: bind odometry; process noise 0.02 m, 0.05 m/s, 0.0007 rad per step), ranges
+#: with σ 0.55 m that read ~7 % long (range-scale state k, prior 0.07) and a
+#: heading-rate bias β, gate 0.999.  Tuned on Plaza1 (in-sample); Plaza2 was
+#: held out.
+PRESETS = ("default", "plaza")
+#: σ of a Plaza file's ranges in the ``plaza`` preset [m]: their residual against the truth after the scale.
+PLAZA_RANGE_STD = 0.55
+
+
+def preset_settings(name: str, *, filter: str = "ekf", n_particles: int = 1000, seed: int = 0,
+                    gate: float | None = None, augment=()) -> LocalizerSettings:
+    """The :data:`PRESETS` set-up ``name``; ``augment`` adds augmented states."""
+    from .validation import choice
+
+    choice("preset", name, dict.fromkeys(PRESETS))
+    if name == "default":
+        return localizer_settings(filter=filter, n_particles=n_particles, seed=seed, gate=gate, augment=augment)
+    bmm = _core.BmmParams(acceleration=100.0, deceleration=100.0, max_speed=100.0, max_heading_rate=100.0, dt=0.2,
+                          terrain_effect=0.0, speed_noise=0.05, heading_noise=0.0007, position_noise=0.02)
+    return localizer_settings(filter=filter, n_particles=n_particles, seed=seed, bmm=bmm,
+                              gate=0.999 if gate is None else gate,
+                              augment=("range_scale", "heading_rate_bias", *augment))
 
 #: Columns of :attr:`ReplayResult.trajectory`.
 TRAJECTORY_COLUMNS = ("t", "x", "y", "speed", "heading", "var_x", "var_y", "cov_xy", "var_speed", "var_heading")

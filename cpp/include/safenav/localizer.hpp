@@ -140,7 +140,8 @@ class Localizer {
   double time() const;
 
   /// Motion input over (t_prev, t]: desired speed [m/s] and heading change
-  /// [rad] — the BMM's control (eqs. 3–9) over a step of t − t_prev.
+  /// [rad] — the BMM's control (eqs. 3–9) over a step of t − t_prev.  The
+  /// first motion input ever (no prior) covers one nominal step, bmm.dt.
   InputResult motion(double t, const Control& u);
   /// Wheel odometry over (t_prev, t]: the motion input (Δd / (t − t_prev), Δθ).
   InputResult odometry(double t, double distance, double heading_change);
