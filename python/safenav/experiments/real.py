@@ -18,7 +18,9 @@
   online (state ``(x, y, θ, k)``).  :func:`plaza1_core_filter` runs the same
   data through the core BMM EKF or particle filter (``filter_trajectory``) with
   the ranges divided by ``1 + k̂`` from the augmented EKF (bias modelled, not
-  estimated, in that pass).
+  estimated, in that pass).  That k̂ is the augmented EKF's value at the *end*
+  of the run, so these figures are look-ahead, not online.  The online,
+  causal path is ``safenav replay`` (:mod:`safenav.replay`).
 """
 
 from __future__ import annotations
