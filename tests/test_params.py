@@ -14,7 +14,7 @@ from safenav.scenario import (_SECTIONS, BmmConfig, BufferParams, DetectionParam
                               PlannerParams, default_scenario)
 
 CORE_TYPES = (_core.BmmParams, _core.RiskZones, _core.PlannerSettings, _core.PlanningMap,
-              _core.NavigationSettings, _core.SensorSettings)
+              _core.NavigationSettings, _core.SensorSettings, _core.LocalizerSettings, _core.AugmentedStates)
 
 
 @pytest.mark.parametrize("core_type", CORE_TYPES, ids=lambda t: t.__name__)
