@@ -18,20 +18,9 @@ namespace safenav {
 namespace {
 
 using detail::bad;
-
-std::string num(double v) {
-  std::ostringstream os;
-  os << v;
-  return os.str();
-}
-
-void require_finite_positive(double v, const char* name) {
-  if (!std::isfinite(v) || v <= 0.0) bad(std::string(name) + " = " + num(v) + ": must be finite and > 0");
-}
-
-void require_finite_nonneg(double v, const char* name) {
-  if (!std::isfinite(v) || v < 0.0) bad(std::string(name) + " = " + num(v) + ": must be finite and >= 0");
-}
+using detail::num;
+using detail::require_finite_nonneg;
+using detail::require_finite_positive;
 
 double heading_to(const State& x, const Eigen::Vector2d& target) {
   const Eigen::Vector2d d = target - x.head<2>();

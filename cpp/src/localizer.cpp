@@ -28,12 +28,7 @@ constexpr double kInitPositionFloor = 0.05, kInitHeadingFloor = 0.01;
 
 using detail::bad;
 
-std::string num(double v) {
-  std::ostringstream os;
-  os.precision(12);
-  os << v;
-  return os.str();
-}
+std::string num(double v) { return detail::num(v, 12); }
 
 void check_time(double t, const char* what) {
   if (!std::isfinite(t)) bad(std::string(what) + ": time t = " + num(t) + " is not finite");

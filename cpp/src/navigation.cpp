@@ -22,20 +22,9 @@ namespace {
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 using detail::bad;
-
-std::string num(double v) {
-  std::ostringstream os;
-  os << v;
-  return os.str();
-}
-
-void require_finite_positive(double v, const char* name) {
-  if (!std::isfinite(v) || v <= 0.0) bad(std::string(name) + " = " + num(v) + ": must be finite and > 0");
-}
-
-void require_finite_nonneg(double v, const char* name) {
-  if (!std::isfinite(v) || v < 0.0) bad(std::string(name) + " = " + num(v) + ": must be finite and >= 0");
-}
+using detail::num;
+using detail::require_finite_nonneg;
+using detail::require_finite_positive;
 
 }  // namespace
 

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "checks.hpp"
+#include "../errors.hpp"
 #include "../rng.hpp"
 #include "safenav/params.hpp"
 
@@ -17,28 +18,12 @@ namespace safenav {
 
 namespace {
 
-std::string num(double v) {
-  std::ostringstream os;
-  os.precision(12);
-  os << v;
-  return os.str();
-}
+std::string num(double v) { return detail::num(v, 12); }
 
 void check_variance(double variance, const char* what) {
   if (!(std::isfinite(variance) && variance > 0.0))
     throw std::invalid_argument(std::string("AugmentedEkf ") + what + " update: variance = " + num(variance) +
                                 " must be finite and > 0");
-}
-
-void check_cov2(const Eigen::Matrix2d& R, const char* what) {
-  const bool ok = R.allFinite() && std::abs(R(0, 1) - R(1, 0)) <= 1e-9 * (std::abs(R(0, 1)) + std::abs(R(1, 0)) + 1e-300) &&
-                  R(0, 0) > 0.0 && R(0, 0) * R(1, 1) - R(0, 1) * R(1, 0) > 0.0;
-  if (!ok) {
-    std::ostringstream os;
-    os << "AugmentedEkf " << what << " update: R = [[" << R(0, 0) << ", " << R(0, 1) << "], [" << R(1, 0) << ", "
-       << R(1, 1) << "]] must be finite, symmetric and positive definite";
-    throw std::invalid_argument(os.str());
-  }
 }
 
 void check_finite2(const Eigen::Vector2d& z, const char* what) {
@@ -274,7 +259,7 @@ UpdateResult AugmentedEkf::update_range_bearing(int landmark_row, const Eigen::V
   check_row(landmark_row, "range-bearing update");
   if (!landmark.allFinite()) throw std::invalid_argument("AugmentedEkf range-bearing update: the landmark position is not finite");
   check_finite2(z, "range-bearing");
-  check_cov2(R, "range-bearing");
+  check_cov2(R, "AugmentedEkf range-bearing update:");
   const double hr = range_row(landmark_row, landmark, 0);
   const double hb = bearing_row(landmark, 1);
   return apply<2>(Eigen::Vector2d(z[0] - hr, wrap_angle(z[1] - hb)), R, MeasurementKind::RangeBearing);
@@ -282,7 +267,7 @@ UpdateResult AugmentedEkf::update_range_bearing(int landmark_row, const Eigen::V
 
 UpdateResult AugmentedEkf::update_position(const Eigen::Vector2d& z, const Eigen::Matrix2d& R) {
   check_finite2(z, "position");
-  check_cov2(R, "position");
+  check_cov2(R, "AugmentedEkf position update:");
   H_.setZero();
   H_(0, kX) = 1.0;
   H_(1, kY) = 1.0;
@@ -291,7 +276,7 @@ UpdateResult AugmentedEkf::update_position(const Eigen::Vector2d& z, const Eigen
 
 UpdateResult AugmentedEkf::update_speed_heading(const Eigen::Vector2d& z, const Eigen::Matrix2d& R) {
   check_finite2(z, "speed-heading");
-  check_cov2(R, "speed-heading");
+  check_cov2(R, "AugmentedEkf speed-heading update:");
   H_.setZero();
   H_(0, kV) = 1.0;
   H_(1, kTheta) = 1.0;
@@ -509,7 +494,7 @@ UpdateResult AugmentedParticleFilter::update_range_bearing(int row, const Eigen:
   I.check_row(row, "range-bearing update");
   if (!a.allFinite()) throw std::invalid_argument("AugmentedParticleFilter range-bearing update: the landmark position is not finite");
   check_finite2(z, "range-bearing");
-  check_cov2(R, "range-bearing");
+  check_cov2(R, "AugmentedParticleFilter range-bearing update:");
   for (int i = 0; i < I.N; ++i) {
     I.Y(0, i) = z[0] - I.range_h(i, row, a);
     I.Y(1, i) = wrap_angle(z[1] - I.bearing_h(i, a));
@@ -520,7 +505,7 @@ UpdateResult AugmentedParticleFilter::update_range_bearing(int row, const Eigen:
 UpdateResult AugmentedParticleFilter::update_position(const Eigen::Vector2d& z, const Eigen::Matrix2d& R) {
   Impl& I = *impl_;
   check_finite2(z, "position");
-  check_cov2(R, "position");
+  check_cov2(R, "AugmentedParticleFilter position update:");
   for (int i = 0; i < I.N; ++i) I.Y.col(i) = z - I.X.col(i).head<2>();
   return I.weigh<2>(R, MeasurementKind::Position);
 }
@@ -528,7 +513,7 @@ UpdateResult AugmentedParticleFilter::update_position(const Eigen::Vector2d& z, 
 UpdateResult AugmentedParticleFilter::update_speed_heading(const Eigen::Vector2d& z, const Eigen::Matrix2d& R) {
   Impl& I = *impl_;
   check_finite2(z, "speed-heading");
-  check_cov2(R, "speed-heading");
+  check_cov2(R, "AugmentedParticleFilter speed-heading update:");
   for (int i = 0; i < I.N; ++i) {
     I.Y(0, i) = z[0] - I.X(kV, i);
     I.Y(1, i) = wrap_angle(z[1] - I.X(kTheta, i));

@@ -54,4 +54,14 @@ void check_prior(const State& x0, const StateCov& P0, const char* xname, const c
   check_covariance(P0, pname);
 }
 
+void check_cov2(const Eigen::Matrix2d& R, const char* what) {
+  const bool symmetric = std::abs(R(0, 1) - R(1, 0)) <= 1e-9 * (std::abs(R(0, 1)) + std::abs(R(1, 0)) + 1e-300);
+  if (!(R.allFinite() && symmetric && R(0, 0) > 0.0 && R(0, 0) * R(1, 1) - R(0, 1) * R(1, 0) > 0.0)) {
+    std::ostringstream os;
+    os << what << " R = [[" << R(0, 0) << ", " << R(0, 1) << "], [" << R(1, 0) << ", " << R(1, 1)
+       << "]]: must be finite, symmetric and positive definite";
+    throw std::invalid_argument(os.str());
+  }
+}
+
 }  // namespace safenav

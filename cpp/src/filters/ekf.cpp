@@ -18,17 +18,6 @@ void check_gate(double p) {
     throw std::invalid_argument(os.str());
   }
 }
-/// A 2×2 noise covariance: finite, symmetric, positive definite (no allocation).
-void check_cov2(const Eigen::Matrix2d& R, const char* what) {
-  const bool ok = R.allFinite() && std::abs(R(0, 1) - R(1, 0)) <= 1e-9 * (std::abs(R(0, 1)) + std::abs(R(1, 0)) + 1e-300) &&
-                  R(0, 0) > 0.0 && R(0, 0) * R(1, 1) - R(0, 1) * R(1, 0) > 0.0;
-  if (!ok) {
-    std::ostringstream os;
-    os << what << " R = [[" << R(0, 0) << ", " << R(0, 1) << "], [" << R(1, 0) << ", " << R(1, 1)
-       << "]]: must be finite, symmetric and positive definite";
-    throw std::invalid_argument(os.str());
-  }
-}
 }  // namespace
 
 Ekf::Ekf(const BmmParams& params, const State& x0, const StateCov& P0) : bmm_(params) {
