@@ -323,3 +323,23 @@ def test_fresh_runs_are_independent_and_repeatable():
     a = [c.heading_change for c in _fly(g.fresh(5), 50)]
     b = [c.heading_change for c in _fly(g.fresh(5), 50)]
     assert a == b
+
+
+def test_guidance_can_plan_its_safe_path_first():
+    """Guidance.planned: RAw-RRT* [SafeNav eq. 19] from start to goal round an obstacle, then guidance on it."""
+    box = [(40.0, -3.0), (46.0, -3.0), (46.0, 3.0), (40.0, 3.0)]
+    problem = _problem([(0.0, 0.0), (90.0, 0.0)], obstacles=[box])
+    planning = P.PlanningProblem(map=problem.map, start=np.array([0.0, 0.0]), goal=np.array([90.0, 0.0]),
+                                 central_path=np.array([(0.0, 0.0), (90.0, 0.0)]), zones=problem.zones)
+    s = _core.NavigationSettings()
+    g = gd.Guidance.planned(planning, P.PlannerSettings(max_iterations=2000, seed=1, smooth=True), problem, s,
+                            gd.localizer_settings(), LANDMARKS, IDS, 0)
+    path = g.problem.path
+    assert np.array_equal(path[0], [0.0, 0.0]) and np.array_equal(path[-1], [90.0, 0.0]) and len(path) > 2
+    checker = _core.ObstacleChecker(problem.map)
+    assert all(checker.segment_free(a, b) for a, b in zip(path[:-1], path[1:]))
+    assert _fly(g, 4000)[-1].status == gd.GuidanceStatus.ARRIVED
+    blocked = P.PlanningProblem(map=problem.map, start=np.array([0.0, 0.0]), goal=np.array([43.0, 0.0]),
+                                zones=problem.zones)
+    with pytest.raises(ValueError):
+        gd.Guidance.planned(blocked, P.PlannerSettings(max_iterations=100, seed=1), problem, s)
