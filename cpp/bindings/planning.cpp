@@ -25,10 +25,10 @@ void pybind_planning(py::module_& m) {
   def_params<PlannerSettings>(py::class_<PlannerSettings>(m, "PlannerSettings", "RAw-RRT* settings (alpha, beta of SafeNav eq. 16)."))
       .def(py::init([](double alpha, double beta, double range, double goal_bias, std::int64_t max_iterations,
                        double max_time, std::uint64_t seed, double resolution, double goal_tolerance, bool smooth,
-                       bool stay_in_corridor, bool allow_approximate, double corridor_bias) {
+                       bool stay_in_corridor, bool allow_approximate, double corridor_bias, double hazard_weight) {
              PlannerSettings s{alpha,         beta,   range,           goal_bias,         max_iterations,
                                max_time,      seed,   resolution,      goal_tolerance,    smooth,
-                               stay_in_corridor, allow_approximate, corridor_bias};
+                               stay_in_corridor, allow_approximate, corridor_bias, hazard_weight};
              s.validate();
              return s;
            }),
@@ -37,7 +37,7 @@ void pybind_planning(py::module_& m) {
            py::arg("max_time") = ds.max_time, py::arg("seed") = ds.seed, py::arg("resolution") = ds.resolution,
            py::arg("goal_tolerance") = ds.goal_tolerance, py::arg("smooth") = ds.smooth,
            py::arg("stay_in_corridor") = ds.stay_in_corridor, py::arg("allow_approximate") = ds.allow_approximate,
-           py::arg("corridor_bias") = ds.corridor_bias)
+           py::arg("corridor_bias") = ds.corridor_bias, py::arg("hazard_weight") = ds.hazard_weight)
       .def_readwrite("alpha", &PlannerSettings::alpha)
       .def_readwrite("beta", &PlannerSettings::beta)
       .def_readwrite("range", &PlannerSettings::range)
@@ -51,6 +51,7 @@ void pybind_planning(py::module_& m) {
       .def_readwrite("stay_in_corridor", &PlannerSettings::stay_in_corridor)
       .def_readwrite("allow_approximate", &PlannerSettings::allow_approximate)
       .def_readwrite("corridor_bias", &PlannerSettings::corridor_bias)
+      .def_readwrite("hazard_weight", &PlannerSettings::hazard_weight)
       .def("validate", &PlannerSettings::validate);
 
   py::enum_<PlanStatus>(m, "PlanStatus")
@@ -61,6 +62,7 @@ void pybind_planning(py::module_& m) {
   py::class_<PathCost>(m, "PathCost", "Length, risk (integral of WRS) and alpha*length + beta*risk (eq. 19).")
       .def_readonly("length", &PathCost::length)
       .def_readonly("risk", &PathCost::risk)
+      .def_readonly("hazard", &PathCost::hazard)
       .def_readonly("total", &PathCost::total);
 
   py::class_<PlanResult>(m, "PlanResult")
@@ -68,6 +70,7 @@ void pybind_planning(py::module_& m) {
       .def_readonly("success", &PlanResult::success)
       .def_readonly("path", &PlanResult::path)
       .def_readonly("cost", &PlanResult::cost)
+      .def_readonly("safety", &PlanResult::safety)
       .def_readonly("iterations", &PlanResult::iterations)
       .def_readonly("planning_time", &PlanResult::planning_time)
       .def_readonly("first_solution_iteration", &PlanResult::first_solution_iteration)

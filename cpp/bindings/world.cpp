@@ -33,20 +33,24 @@ void pybind_world(py::module_& m) {
   const PlanningMap dm;
   def_params<PlanningMap>(py::class_<PlanningMap>(m, "PlanningMap", "The field (rectangle), its circle and polygon obstacles and its hazards."))
       .def(py::init([](const Eigen::Vector2d& lower, const Eigen::Vector2d& upper, std::vector<CircleObstacle> circles,
-                       std::vector<Points2> polygons, double clearance, std::vector<HazardZone> hazards) {
-             PlanningMap map{lower, upper, std::move(circles), std::move(polygons), clearance, std::move(hazards)};
+                       std::vector<Points2> polygons, double clearance, std::vector<HazardZone> hazards,
+                       double forbidden_risk) {
+             PlanningMap map{lower, upper, std::move(circles), std::move(polygons), clearance, std::move(hazards),
+                             forbidden_risk};
              map.validate();
              return map;
            }),
            py::kw_only(), py::arg("lower") = dm.lower, py::arg("upper") = dm.upper,
            py::arg("circles") = std::vector<CircleObstacle>{}, py::arg("polygons") = std::vector<Points2>{},
-           py::arg("clearance") = dm.clearance, py::arg("hazards") = std::vector<HazardZone>{})
+           py::arg("clearance") = dm.clearance, py::arg("hazards") = std::vector<HazardZone>{},
+           py::arg("forbidden_risk") = dm.forbidden_risk)
       .def_readwrite("lower", &PlanningMap::lower)
       .def_readwrite("upper", &PlanningMap::upper)
       .def_readwrite("circles", &PlanningMap::circles)
       .def_readwrite("polygons", &PlanningMap::polygons)
       .def_readwrite("clearance", &PlanningMap::clearance)
       .def_readwrite("hazards", &PlanningMap::hazards)
+      .def_readwrite("forbidden_risk", &PlanningMap::forbidden_risk)
       .def("validate", &PlanningMap::validate);
 
   py::class_<ObstacleChecker>(m, "ObstacleChecker", "Repeated collision queries against one PlanningMap.")
@@ -59,7 +63,26 @@ void pybind_world(py::module_& m) {
       .def("obstacles_hit", &ObstacleChecker::obstacles_hit, py::arg("a"), py::arg("b"), py::arg("margin") = 0.0,
            release_gil(), "(N, M) bool: segment a[i]-b[i] touches obstacle j grown by clearance + margin.")
       .def("hazard_risk", &ObstacleChecker::hazard_risk, py::arg("points"), release_gil(),
-           "(N,): the highest risk of the hazards containing each point, 0 outside every hazard.");
+           "(N,): the highest risk of the hazards containing each point, 0 outside every hazard.")
+      .def_property_readonly("hazard_count", &ObstacleChecker::hazard_count)
+      .def("hazard_lengths", &ObstacleChecker::hazard_lengths, py::arg("a"), py::arg("b"),
+           "(H,): exact length [m] of segment a-b inside each hazard (boundary included).")
+      .def("hazard_integral", &ObstacleChecker::hazard_integral, py::arg("a"), py::arg("b"),
+           "Integral of risk along a-b: sum over hazards of risk * length inside (overlaps add).")
+      .def("obstacle_distance", &ObstacleChecker::obstacle_distance, py::arg("a"), py::arg("b"),
+           "Distance [m] from segment a-b to the nearest obstacle, not grown by the clearance (0 on contact, inf with none).");
+
+  py::class_<PathSafety>(m, "PathSafety", "What a path meets: minimum clearance to obstacles, length inside each hazard, "
+                                          "risk-weighted exposure sum(risk * length).")
+      .def_readonly("length", &PathSafety::length)
+      .def_readonly("min_clearance", &PathSafety::min_clearance)
+      .def_readonly("hazard_length", &PathSafety::hazard_length)
+      .def_readonly("exposure", &PathSafety::exposure)
+      .def("__repr__", [](const PathSafety& s) {
+        return "PathSafety(length=" + std::to_string(s.length) + ", min_clearance=" + std::to_string(s.min_clearance) +
+               ", exposure=" + std::to_string(s.exposure) + ")";
+      });
+  m.def("path_safety", &path_safety, py::arg("path"), py::arg("map"), release_gil());
 
   m.def("point_is_free", &point_is_free, py::arg("map"), py::arg("point"));
   m.def("segment_is_free", &segment_is_free, py::arg("map"), py::arg("a"), py::arg("b"));

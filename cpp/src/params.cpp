@@ -201,6 +201,7 @@ const ParamSet<PlannerSettings>& param_set<PlannerSettings>() {
           .real("resolution", SN_REF(PlannerSettings, resolution), "m", above(0, 1e3), "cost-integration and corridor-check step along a motion")
           .real("goal_tolerance", SN_REF(PlannerSettings, goal_tolerance), "m", closed(0, 1e3), "a tree node this close to the goal reaches it")
           .real("corridor_bias", SN_REF(PlannerSettings, corridor_bias), "", closed(0, 1), "share of samples drawn inside the corridor (0 = uniform, as the paper)")
+          .real("hazard_weight", SN_REF(PlannerSettings, hazard_weight), "1/m", closed(0, 1e6), "beta_h, weight of the hazard term beta_h * integral of risk ds; 0 = the paper's cost")
           .set;
   return s;
 }
@@ -210,6 +211,7 @@ const ParamSet<PlanningMap>& param_set<PlanningMap>() {
   static const ParamSet<PlanningMap> s =
       Declare<PlanningMap>{}
           .real("clearance", SN_REF(PlanningMap, clearance), "m", closed(0, 100), "planned paths keep this far from every obstacle")
+          .real("forbidden_risk", SN_REF(PlanningMap, forbidden_risk), "", above(0, 1e6), "hazards with risk >= this are obstacles; above 1 = none (the paper)")
           .set;
   return s;
 }

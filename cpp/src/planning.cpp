@@ -173,6 +173,23 @@ class WrsObjective : public ob::StateCostIntegralObjective {
   const CentralPath& risk_;
 };
 
+// β_h-term (issue 15): ∫ risk ds over the hazards, exact per motion.
+class HazardObjective : public ob::OptimizationObjective {
+ public:
+  HazardObjective(const ob::SpaceInformationPtr& si, const ObstacleChecker& map)
+      : ob::OptimizationObjective(si), map_(map) {
+    description_ = "hazard risk integrated along the path (exact)";
+  }
+  ob::Cost stateCost(const ob::State*) const override { return identityCost(); }
+  ob::Cost motionCost(const ob::State* s1, const ob::State* s2) const override {
+    const double *a = xy(s1), *b = xy(s2);
+    return ob::Cost(map_.hazard_integral(Vec2(a[0], a[1]), Vec2(b[0], b[1])));
+  }
+
+ private:
+  const ObstacleChecker& map_;
+};
+
 class SeededSampler : public ob::RealVectorStateSampler {
  public:
   /// Uniform over the field, or — with probability `corridor_bias` — uniform
@@ -248,8 +265,8 @@ void check_point(const PlanningProblem& problem, const PlannerSettings& settings
 }
 
 // path_cost() with the central path already built.
-PathCost cost_of(const Eigen::Ref<const Points2>& path, const CentralPath& risk, const PlanningProblem& problem,
-                 const PlannerSettings& settings) {
+PathCost cost_of(const Eigen::Ref<const Points2>& path, const CentralPath& risk, const ObstacleChecker& hazards,
+                 const PlanningProblem& problem, const PlannerSettings& settings) {
   // The same step as OMPL's longest valid segment (extent · fraction).
   const double extent = (problem.map.upper - problem.map.lower).norm();
   const double step = extent * (settings.resolution / extent);
@@ -258,6 +275,7 @@ PathCost cost_of(const Eigen::Ref<const Points2>& path, const CentralPath& risk,
     const Vec2 a(path(i, 0), path(i, 1)), b(path(i + 1, 0), path(i + 1, 1));
     const double len = (b - a).norm();
     c.length += len;
+    c.hazard += hazards.hazard_integral(a, b);
     if (risk.empty()) continue;
     const unsigned int n = std::max(1u, segment_count(len, step));
     Vec2 prev = a;
@@ -271,6 +289,7 @@ PathCost cost_of(const Eigen::Ref<const Points2>& path, const CentralPath& risk,
     }
   }
   c.total = settings.alpha * c.length + settings.beta * c.risk;
+  if (settings.hazard_weight > 0.0) c.total += settings.hazard_weight * c.hazard;
   return c;
 }
 
@@ -300,6 +319,7 @@ void PlannerSettings::validate() const {
   finite_nonneg(goal_tolerance, "goal_tolerance");
   if (!(corridor_bias >= 0.0 && corridor_bias <= 1.0))
     bad("corridor_bias must be in [0, 1], got " + std::to_string(corridor_bias));
+  finite_nonneg(hazard_weight, "hazard_weight");
   param_set<PlannerSettings>().check(*this);
 }
 
@@ -326,7 +346,8 @@ PathCost path_cost(const Eigen::Ref<const Points2>& path, const PlanningProblem&
                    const PlannerSettings& settings) {
   settings.validate();
   if (!path.allFinite()) bad("path has a non-finite point");
-  return cost_of(path, CentralPath(problem.central_path, problem.zones), problem, settings);
+  return cost_of(path, CentralPath(problem.central_path, problem.zones), ObstacleChecker(problem.map), problem,
+                 settings);
 }
 
 // ---------------------------------------------------------------- planning
@@ -374,6 +395,12 @@ PlanResult plan(const PlanningProblem& problem, const PlannerSettings& settings)
   } else {
     ob::OptimizationObjectivePtr wrs_term = std::make_shared<WrsObjective>(si, risk);
     objective = settings.alpha == 0.0 ? settings.beta * wrs_term : settings.alpha * length + settings.beta * wrs_term;
+  }
+  // β_h·∫ risk ds (issue 15); with β_h = 0 the objective above is the paper's, unchanged.
+  if (settings.hazard_weight > 0.0 && !map.hazards.empty())
+  {
+    ob::OptimizationObjectivePtr hazard_term = std::make_shared<HazardObjective>(si, obstacles);
+    objective = objective + settings.hazard_weight * hazard_term;
   }
   // Never "good enough": optimise until the budget is spent.
   objective->setCostThreshold(ob::Cost(-std::numeric_limits<double>::infinity()));
@@ -452,13 +479,15 @@ PlanResult plan(const PlanningProblem& problem, const PlannerSettings& settings)
         }
       }
     }
-    if (ok && cost_of(candidate, risk, problem, settings).total <= cost_of(points, risk, problem, settings).total)
+    if (ok && cost_of(candidate, risk, obstacles, problem, settings).total <=
+                  cost_of(points, risk, obstacles, problem, settings).total)
       points = candidate;
   }
   result.status = exact ? PlanStatus::Exact : PlanStatus::Approximate;
   result.success = exact;
   result.path = points;
-  result.cost = cost_of(points, risk, problem, settings);
+  result.cost = cost_of(points, risk, obstacles, problem, settings);
+  result.safety = path_safety(points, map);
   return result;
 }
 

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -84,6 +85,67 @@ class Shape {
     return false;
   }
 
+  // Length of the segment a–b inside the shape (boundary included): cut at
+  // every boundary crossing, classify each piece at its midpoint.
+  double length_inside(const Vec2& a, const Vec2& b) const {
+    const Vec2 d = b - a;
+    const double L = d.norm();
+    if (L == 0.0) return 0.0;
+    if (disc_) {
+      // |a + t·d − c|² = r²: t = (−B ± √disc) / A, clipped to [0, 1].
+      const Vec2 f = a - center_;
+      const double A = d.squaredNorm(), B = f.dot(d), C = f.squaredNorm() - radius_ * radius_;
+      const double disc = B * B - A * C;
+      if (disc <= 0.0) return 0.0;  // misses, or tangent (one point: no length)
+      const double s = std::sqrt(disc);
+      const double t0 = std::max(0.0, (-B - s) / A), t1 = std::min(1.0, (-B + s) / A);
+      return t1 > t0 ? (t1 - t0) * L : 0.0;
+    }
+    if (segment_point_distance2(a, b, center_) > cull2(0.0)) return 0.0;
+    auto cross = [](const Vec2& u, const Vec2& v) { return u.x() * v.y() - u.y() * v.x(); };
+    // Extra cut points only split a piece in two; a missed one would
+    // misclassify a piece, so the tolerances err on the side of cutting.
+    const double tol = 1e-9;
+    std::vector<double> cuts{0.0, 1.0};
+    auto cut = [&cuts](double t) {
+      if (t > 0.0 && t < 1.0) cuts.push_back(t);
+    };
+    const std::size_t n = polygon_.size();
+    for (std::size_t i = 0; i < n; ++i) {
+      const Vec2 p(polygon_[i].x(), polygon_[i].y());
+      const Vec2 q(polygon_[(i + 1) % n].x(), polygon_[(i + 1) % n].y());
+      const Vec2 e = q - p, w = p - a;
+      const double den = cross(d, e);
+      const double scale = L * std::max(e.norm(), 1e-300);
+      if (std::abs(den) > tol * scale) {
+        const double u = cross(w, d) / den;  // along the edge
+        if (u >= -tol && u <= 1.0 + tol) cut(cross(w, e) / den);
+      }
+      // A vertex on (or next to) the segment's line: collinear edges, vertex hits.
+      if (std::abs(cross(w, d)) <= tol * L * std::max({1.0, w.norm()})) cut(w.dot(d) / (L * L));
+    }
+    std::sort(cuts.begin(), cuts.end());
+    double inside = 0.0;
+    for (std::size_t i = 0; i + 1 < cuts.size(); ++i) {
+      const double t0 = cuts[i], t1 = cuts[i + 1];
+      if (t1 <= t0) continue;
+      if (cgal::inside_or_on(polygon_, cgal::point(a + (0.5 * (t0 + t1)) * d))) inside += (t1 - t0) * L;
+    }
+    return inside;
+  }
+
+  // Distance from the segment a–b to the shape (0 when it touches it).
+  double distance(const cgal::Segment& ab) const {
+    if (disc_) return std::max(0.0, std::sqrt(CGAL::squared_distance(cgal::point(center_), ab)) - radius_);
+    if (cgal::inside_or_on(polygon_, ab.source())) return 0.0;
+    double d2 = std::numeric_limits<double>::infinity();
+    for (const auto& e : edges_) {
+      if (CGAL::do_intersect(ab, e)) return 0.0;
+      d2 = std::min(d2, CGAL::to_double(CGAL::squared_distance(ab, e)));
+    }
+    return std::sqrt(d2);
+  }
+
  private:
   // Squared radius beyond which nothing touches the polygon grown by `grow`.
   // The slack keeps the farthest vertex itself inside: radius_ = √d², and
@@ -109,12 +171,15 @@ class Obstacles {
     for (const auto& h : map.hazards) {
       if (h.polygon.rows() == 0) hazards.emplace_back(h.disc);
       else hazards.emplace_back(h.polygon);
+      if (h.risk >= map.forbidden_risk) forbidden.push_back(hazards.back());
     }
   }
 
   bool point_free(const Vec2& p) const {
     if (!map.in_field(p)) return false;
     for (const auto& s : obstacles)
+      if (s.contains(p, map.clearance)) return false;
+    for (const auto& s : forbidden)
       if (s.contains(p, map.clearance)) return false;
     return true;
   }
@@ -125,12 +190,15 @@ class Obstacles {
     const cgal::Segment ab(cgal::point(a), cgal::point(b));
     for (const auto& s : obstacles)
       if (s.touches(ab, a, b, map.clearance)) return false;
+    for (const auto& s : forbidden)
+      if (s.touches(ab, a, b, map.clearance)) return false;
     return true;
   }
 
   PlanningMap map;
   std::vector<Shape> obstacles;  // circles, then polygons
   std::vector<Shape> hazards;    // in map.hazards' order
+  std::vector<Shape> forbidden;  // the hazards with risk >= map.forbidden_risk
 };
 
 }  // namespace
@@ -158,6 +226,8 @@ void PlanningMap::validate() const {
     else check_polygon(h.polygon, name);
     if (!(h.risk > 0.0 && h.risk <= 1.0)) bad(name + " risk must be in (0, 1], got " + std::to_string(h.risk));
   }
+  if (!(forbidden_risk > 0.0) || std::isnan(forbidden_risk))
+    bad("forbidden_risk must be > 0, got " + std::to_string(forbidden_risk));
   param_set<PlanningMap>().check(*this);
 }
 
@@ -225,6 +295,49 @@ Eigen::VectorXd ObstacleChecker::hazard_risk(const Eigen::Ref<const Points2>& po
   for (Eigen::Index i = 0; i < points.rows(); ++i)
     for (std::size_t k = 0; k < hazards.size(); ++k)
       if (hazards[k].risk > out[i] && impl_->hazards[k].contains(row(points, i), 0.0)) out[i] = hazards[k].risk;
+  return out;
+}
+
+std::size_t ObstacleChecker::hazard_count() const { return impl_->hazards.size(); }
+
+Eigen::VectorXd ObstacleChecker::hazard_lengths(const Vec2& a, const Vec2& b) const {
+  if (!a.allFinite() || !b.allFinite()) bad("segment " + fmt(a) + "–" + fmt(b) + " is not finite");
+  const auto& hz = impl_->hazards;
+  Eigen::VectorXd out(static_cast<Eigen::Index>(hz.size()));
+  for (std::size_t k = 0; k < hz.size(); ++k) out[static_cast<Eigen::Index>(k)] = hz[k].length_inside(a, b);
+  return out;
+}
+
+double ObstacleChecker::hazard_integral(const Vec2& a, const Vec2& b) const {
+  const auto& hz = impl_->hazards;
+  double sum = 0.0;
+  for (std::size_t k = 0; k < hz.size(); ++k) sum += impl_->map.hazards[k].risk * hz[k].length_inside(a, b);
+  return sum;
+}
+
+double ObstacleChecker::obstacle_distance(const Vec2& a, const Vec2& b) const {
+  if (!a.allFinite() || !b.allFinite()) bad("segment " + fmt(a) + "–" + fmt(b) + " is not finite");
+  const cgal::Segment ab(cgal::point(a), cgal::point(b));
+  double d = std::numeric_limits<double>::infinity();
+  for (const auto& s : impl_->obstacles) d = std::min(d, s.distance(ab));
+  return d;
+}
+
+PathSafety path_safety(const Eigen::Ref<const Points2>& path, const PlanningMap& map) {
+  check_finite(path, "path point");
+  const ObstacleChecker checker(map);
+  PathSafety out;
+  out.hazard_length = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(map.hazards.size()));
+  out.min_clearance = std::numeric_limits<double>::infinity();
+  if (path.rows() == 1) out.min_clearance = checker.obstacle_distance(row(path, 0), row(path, 0));
+  for (Eigen::Index i = 0; i + 1 < path.rows(); ++i) {
+    const Vec2 a = row(path, i), b = row(path, i + 1);
+    out.length += (b - a).norm();
+    out.min_clearance = std::min(out.min_clearance, checker.obstacle_distance(a, b));
+    out.hazard_length += checker.hazard_lengths(a, b);
+  }
+  for (std::size_t k = 0; k < map.hazards.size(); ++k)
+    out.exposure += map.hazards[k].risk * out.hazard_length[static_cast<Eigen::Index>(k)];
   return out;
 }
 

@@ -12,6 +12,13 @@
 // motion-cost interpolation integrates a state cost, and path_cost()
 // reports exactly that number.  β = 0 is plain RRT* (the baseline).
 //
+// Hazard term (ours, issue 15): with hazard_weight β_h > 0 the cost gains
+//   β_h·C_hazard,  C_hazard = ∫ risk(p) ds = Σ_k risk_k · (length inside hazard k),
+// exact per motion (ObstacleChecker::hazard_integral: boundary crossings in
+// closed form, no sampling).  Overlapping hazards add (see world.hpp), so
+// C_hazard equals PathSafety::exposure.  β_h = 0 (the default) is the paper's
+// cost, and the planner then builds exactly the paper's objective.
+//
 // The map and its collision checker are world.hpp's.  Built on OMPL's
 // RRTstar; OMPL stays inside cpp/src/planning.cpp: this header exposes only
 // Eigen and std types.
@@ -59,6 +66,8 @@ struct PlannerSettings {
   /// With β > 0 the optimum hugs the central path, and biased samples find it
   /// far sooner (an extension of ours).
   double corridor_bias = 0.0;
+  /// β_h, weight of the hazard term β_h·∫ risk ds [1/m · cost], ≥ 0; 0 = the paper's cost.
+  double hazard_weight = 0.0;
   void validate() const;
 };
 
@@ -73,7 +82,8 @@ std::string to_string(PlanStatus status);
 struct PathCost {
   double length = 0.0;  ///< C_length [m]
   double risk = 0.0;    ///< C_risk = ∫ WRS ds
-  double total = 0.0;   ///< α·length + β·risk
+  double hazard = 0.0;  ///< C_hazard = ∫ risk(p) ds over the hazards [m] (= PathSafety::exposure)
+  double total = 0.0;   ///< α·length + β·risk (+ β_h·hazard when β_h > 0)
 };
 
 struct PlanResult {
@@ -81,6 +91,7 @@ struct PlanResult {
   bool success = false;  ///< status == Exact
   Points2 path;          ///< N×2 waypoints, start first (0 rows when NoPath)
   PathCost cost;         ///< of `path` (after smoothing, if any)
+  PathSafety safety;     ///< clearance and hazard exposure of `path` (world.hpp's path_safety)
   std::int64_t iterations = 0;            ///< RRT* iterations run
   double planning_time = 0.0;             ///< wall-clock time in OMPL's solve [s]
   std::int64_t first_solution_iteration = -1;  ///< iteration of the first exact solution (−1: none)
@@ -109,7 +120,7 @@ PlanResult replan_to(const PlanningProblem& problem, const Eigen::Vector2d& posi
 /// `position` on `path` (clamped to the path's end).
 Eigen::Vector2d point_ahead(const Eigen::Ref<const Points2>& path, const Eigen::Vector2d& position, double distance);
 
-/// Cost of a path under eq. 19 with the settings' α, β and resolution.
+/// Cost of a path under eq. 19 with the settings' α, β, β_h and resolution.
 PathCost path_cost(const Eigen::Ref<const Points2>& path, const PlanningProblem& problem,
                    const PlannerSettings& settings = {});
 

@@ -10,6 +10,14 @@
 // with a disc); segment tests are exact (CGAL's exact predicates for polygon
 // containment and edge crossings), so a segment that grazes a corner is caught.
 //
+// Hazards: a hazard is passable at its risk, unless its risk reaches the
+// map's `forbidden_risk`; then it is an obstacle too (grown by the clearance
+// like every obstacle).  The length of a segment inside a hazard is exact:
+// the segment is cut at every crossing with the hazard's boundary (closed-form
+// line/edge and line/circle intersections) and each piece is classified by
+// CGAL's exact point-in-polygon predicate at its midpoint; no sampling.  A
+// piece along a polygon's edge is inside (the boundary belongs to the hazard).
+//
 // CGAL stays inside cpp/src/world.cpp: this header exposes only Eigen and std types.
 #pragma once
 
@@ -44,7 +52,11 @@ struct PlanningMap {
   std::vector<CircleObstacle> circles;
   std::vector<Points2> polygons;  ///< simple polygons, ≥ 3 vertices each, open (first ≠ last) or closed
   double clearance = 0.0;         ///< keep this far from every obstacle [m] (vehicle radius)
-  std::vector<HazardZone> hazards;  ///< passable; only hazard_risk() reads them
+  std::vector<HazardZone> hazards;  ///< passable at their risk, unless forbidden
+  /// Hazards with risk >= this are obstacles for point_free/segment_free (the
+  /// planner's validity checker and motion validator).  Default 2 (above 1):
+  /// none is forbidden, as in the paper.  > 0.
+  double forbidden_risk = 2.0;
   void validate() const;          ///< throws std::invalid_argument naming the bad value
   bool in_field(const Eigen::Vector2d& p) const;  ///< within [lower, upper] (boundary included)
 };
@@ -77,10 +89,36 @@ class ObstacleChecker {
   /// included), 0 outside every hazard.
   Eigen::VectorXd hazard_risk(const Eigen::Ref<const Points2>& points) const;
 
+  /// Number of hazards (the map's, in order).
+  std::size_t hazard_count() const;
+  /// Length [m] of the segment a–b inside each hazard (exact, see the header
+  /// comment; boundary included; a zero-length segment gives 0).
+  Eigen::VectorXd hazard_lengths(const Eigen::Vector2d& a, const Eigen::Vector2d& b) const;
+  /// ∫ risk ds along a–b = Σ_k risk_k · length inside hazard k [m].
+  /// Overlapping hazards add: each is its own threat, met independently, and
+  /// the sum makes the planner's hazard cost equal to PathSafety::exposure,
+  /// hazard by hazard (the max of hazard_risk() would hide a second threat).
+  double hazard_integral(const Eigen::Vector2d& a, const Eigen::Vector2d& b) const;
+  /// Distance [m] from the segment a–b to the nearest obstacle, not grown by
+  /// the clearance (0 when it touches one; +inf with no obstacles).  Forbidden
+  /// hazards are not obstacles here.
+  double obstacle_distance(const Eigen::Vector2d& a, const Eigen::Vector2d& b) const;
+
  private:
   struct Impl;
   std::shared_ptr<const Impl> impl_;
 };
+
+/// What a path meets: its clearance to obstacles and its hazard exposure.
+struct PathSafety {
+  double length = 0.0;            ///< path length [m]
+  double min_clearance = 0.0;     ///< distance to the nearest obstacle (not grown) [m]; +inf with no obstacles
+  Eigen::VectorXd hazard_length;  ///< length inside each hazard (map order) [m]
+  double exposure = 0.0;          ///< risk-weighted exposure Σ_k risk_k · hazard_length_k [m]
+};
+
+/// The safety report of a polyline path on a map (exact geometry, see ObstacleChecker).
+PathSafety path_safety(const Eigen::Ref<const Points2>& path, const PlanningMap& map);
 
 /// Whether p is inside the field and at least `clearance` away from every obstacle.
 bool point_is_free(const PlanningMap& map, const Eigen::Vector2d& p);
