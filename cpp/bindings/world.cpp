@@ -53,6 +53,19 @@ void pybind_world(py::module_& m) {
       .def_readwrite("forbidden_risk", &PlanningMap::forbidden_risk)
       .def("validate", &PlanningMap::validate);
 
+  const Inflation di;
+  def_params<Inflation>(py::class_<Inflation>(m, "Inflation", "Obstacle inflation: clearance = vehicle_radius + margin [m]."))
+      .def(py::init([](double vehicle_radius, double margin) {
+             Inflation f{vehicle_radius, margin};
+             f.validate();
+             return f;
+           }),
+           py::kw_only(), py::arg("vehicle_radius") = di.vehicle_radius, py::arg("margin") = di.margin)
+      .def_readwrite("vehicle_radius", &Inflation::vehicle_radius)
+      .def_readwrite("margin", &Inflation::margin)
+      .def_property_readonly("clearance", &Inflation::clearance)
+      .def("validate", &Inflation::validate);
+
   py::class_<ObstacleChecker>(m, "ObstacleChecker", "Repeated collision queries against one PlanningMap.")
       .def(py::init<const PlanningMap&>(), py::arg("map"))
       .def("point_free", &ObstacleChecker::point_free, py::arg("point"))

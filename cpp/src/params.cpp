@@ -217,6 +217,16 @@ const ParamSet<PlanningMap>& param_set<PlanningMap>() {
 }
 
 template <>
+const ParamSet<Inflation>& param_set<Inflation>() {
+  static const ParamSet<Inflation> s =
+      Declare<Inflation>{}
+          .real("vehicle_radius", SN_REF(Inflation, vehicle_radius), "m", closed(0, 50), "the vehicle's radius; clearance = vehicle_radius + margin")
+          .real("margin", SN_REF(Inflation, margin), "m", closed(0, 50), "distance kept beyond the vehicle's body; clearance = vehicle_radius + margin")
+          .set;
+  return s;
+}
+
+template <>
 const ParamSet<NavigationSettings>& param_set<NavigationSettings>() {
   using N = NavigationSettings;
   static const ParamSet<N> s =
@@ -298,6 +308,7 @@ template class ParamSet<SensorSettings>;
 template class ParamSet<RiskZones>;
 template class ParamSet<PlannerSettings>;
 template class ParamSet<PlanningMap>;
+template class ParamSet<Inflation>;
 template class ParamSet<NavigationSettings>;
 
 }  // namespace safenav

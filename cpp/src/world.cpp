@@ -231,6 +231,8 @@ void PlanningMap::validate() const {
   param_set<PlanningMap>().check(*this);
 }
 
+void Inflation::validate() const { param_set<Inflation>().check(*this); }
+
 bool PlanningMap::in_field(const Vec2& p) const {
   return p.x() >= lower.x() && p.x() <= upper.x() && p.y() >= lower.y() && p.y() <= upper.y();
 }

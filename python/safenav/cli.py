@@ -194,10 +194,18 @@ def _plan(args) -> int:
             for name in names:
                 r = nv.plan_safe_path(scenario, name, iterations=args.iterations)
                 path = np.asarray(r.path)
+                sf = r.safety
+                hz = np.asarray(sf.hazard_length)
+                inside = {str(k): round(float(hz[k]), 6) for k in np.flatnonzero(hz > 0)}
                 result[name] = {"path": path.round(4).tolist(), "length_m": path_length(path), "risk": r.cost.risk,
-                                "cost": r.cost.total, "iterations": int(r.iterations)}
+                                "cost": r.cost.total, "iterations": int(r.iterations),
+                                "safety": {"min_clearance_m": float(sf.min_clearance),
+                                           "hazard_length_m": inside, "exposure_m": float(sf.exposure)}}
                 print(f"{name}: {len(path)} waypoints, length {path_length(path):.1f} m, risk {r.cost.risk:.2f}, "
                       f"cost {r.cost.total:.1f} ({r.iterations} iterations)")
+                where = ", ".join(f"#{k} {v:.1f} m" for k, v in inside.items()) or "none"
+                print(f"  safety: min clearance {sf.min_clearance:.2f} m, exposure {sf.exposure:.2f} m "
+                      f"(sum of risk x length); inside hazards: {where}")
                 navigator = nv.make_navigator(scenario, path, method="chull")
                 trials[name] = (navigator, navigator.run(0))
                 bar.update()

@@ -86,13 +86,15 @@ def position_source(name: str) -> PositionNoise:
 def plan_safe_path(scenario, path_type: str, *, seed: int | None = None, iterations: int | None = None):
     """Plan the safe path of a path type with RAw-RRT* [SafeNav-ext Alg. 3]: from the
     start cluster's centroid to the destination's, around the obstacles (kept
-    ``navigation.clearance`` away), with the ground-truth polyline through the
+    ``navigation.planning_clearance`` away; hazards of risk >= ``planner.forbidden_risk``
+    are obstacles too), with the ground-truth polyline through the
     clusters as the central path of the risk term.  Returns the
     :class:`~safenav.planning.PlanResult`; raises ``RuntimeError`` when no path
     is found within the budget."""
     nav = scenario.navigation
     gt = scenario.path_polyline(path_type)
-    world_map = map_from_world(scenario.world, clearance=nav.clearance)
+    world_map = map_from_world(scenario.world, clearance=nav.planning_clearance,
+                               forbidden_risk=scenario.planner.forbidden_risk)
     problem = PlanningProblem(map=world_map, start=gt[0], goal=gt[-1], central_path=gt, zones=scenario.risk_zones())
     settings = scenario.planner.apply(PlannerSettings(
         max_iterations=int(iterations or nav.plan_iterations), corridor_bias=nav.corridor_bias, smooth=True,
@@ -114,7 +116,8 @@ def navigation_setup(scenario, safe_path, *, method: str = "centroid", world_map
     problem = NavigationProblem()
     problem.path = path
     problem.zones = scenario.risk_zones()
-    problem.map = world_map if world_map is not None else map_from_world(scenario.world, clearance=nav.clearance)
+    problem.map = world_map if world_map is not None else map_from_world(
+        scenario.world, clearance=nav.planning_clearance, forbidden_risk=scenario.planner.forbidden_risk)
     problem.bmm = scenario.bmm_params()
 
     s = nav.apply(NavigationSettings())

@@ -7,6 +7,15 @@ integrated along the path (trapezoid rule on sub-steps of at most
 ``resolution`` metres), the way OMPL's ``StateCostIntegralObjective``
 integrates a state cost along each motion.  ``beta = 0`` is plain RRT*.
 
+Hazards (issue 15, ours): ``hazard_weight`` (beta_h) adds
+``beta_h * integral of risk ds`` over the map's hazards, computed exactly per
+motion (the segment is cut at the hazard boundaries; overlapping hazards add,
+so the term equals the reported exposure).  The map's ``forbidden_risk`` makes
+hazards of at least that risk obstacles.  Defaults (``hazard_weight = 0``,
+``forbidden_risk = 2``) are the paper's planner, bit for bit.  Every
+``PlanResult`` carries ``safety`` (:class:`PathSafety`): minimum clearance to
+obstacles, length inside each hazard, exposure ``sum(risk * length)``.
+
 Same ``seed`` and ``max_iterations`` give the same path (the budget counts
 iterations, not seconds).
 
@@ -38,9 +47,15 @@ PlannerSettings = _core.PlannerSettings
 PlanStatus = _core.PlanStatus
 PlanResult = _core.PlanResult
 PathCost = _core.PathCost
+HazardZone = _core.HazardZone
+#: Minimum clearance, length inside each hazard and exposure of a path (:func:`path_safety`).
+PathSafety = _core.PathSafety
+#: Obstacle inflation: ``Inflation(vehicle_radius=1, margin=1).clearance == 2``.
+Inflation = _core.Inflation
 
 __all__ = [
     "CircleObstacle", "ObstacleChecker", "PlanningMap", "PlanningProblem", "PlannerSettings", "PlanStatus", "PlanResult", "PathCost",
+    "HazardZone", "PathSafety", "Inflation", "path_safety",
     "make_map", "plan", "replan", "point_ahead", "point_is_free", "segment_is_free", "path_is_free", "path_cost",
 ]
 
@@ -56,9 +71,11 @@ def _settings(settings: PlannerSettings | None, kwargs: dict) -> PlannerSettings
 
 
 def make_map(lower=(0.0, 0.0), upper=(200.0, 200.0), circles: Iterable = (), polygons: Iterable = (),
-             clearance: float = 0.0) -> PlanningMap:
+             clearance: float = 0.0, hazards: Iterable = (), forbidden_risk: float | None = None) -> PlanningMap:
     """A field with obstacles.  ``circles``: ``CircleObstacle`` or ``(cx, cy, r)``;
-    ``polygons``: ``(N, 2)`` vertex arrays (simple polygons, N >= 3)."""
+    ``polygons``: ``(N, 2)`` vertex arrays (simple polygons, N >= 3);
+    ``hazards``: ``HazardZone``; ``forbidden_risk``: hazards of at least this
+    risk are obstacles (default: the core's, above 1 = none)."""
     cs = []
     for i, c in enumerate(circles):
         if isinstance(c, CircleObstacle):
@@ -67,16 +84,23 @@ def make_map(lower=(0.0, 0.0), upper=(200.0, 200.0), circles: Iterable = (), pol
         a = as_array(f"circles[{i}]", c, (3,))
         cs.append(CircleObstacle(a[:2], float(a[2])))
     ps = [as_array(f"polygons[{i}]", p, (None, 2)) for i, p in enumerate(polygons)]
+    hz = list(hazards)
+    for i, h in enumerate(hz):
+        if not isinstance(h, HazardZone):
+            raise ValueError(f"hazards[{i}] = {h!r}: must be a HazardZone")
+    kw = {} if forbidden_risk is None else {"forbidden_risk": float(forbidden_risk)}
     return PlanningMap(lower=_pt("lower", lower), upper=_pt("upper", upper), circles=cs, polygons=ps,
-                       clearance=float(clearance))
+                       clearance=float(clearance), hazards=hz, **kw)
 
 
-def map_from_world(world, clearance: float = 0.0) -> PlanningMap:
-    """The planning map of a :class:`safenav.World`: its field and obstacles
-    (hazards carry risk, not collision, and are not obstacles)."""
-    lower, upper = world.field.bounds
-    return make_map(lower, upper, circles=world.circle_array(), polygons=world.polygon_arrays(),
-                    clearance=clearance)
+def map_from_world(world, clearance: float = 0.0, forbidden_risk: float | None = None) -> PlanningMap:
+    """The planning map of a :class:`safenav.World`: its field, obstacles and
+    hazards (passable at their risk, unless their risk reaches ``forbidden_risk``)."""
+    m = world.core_map(clearance=float(clearance))
+    if forbidden_risk is not None:
+        m.forbidden_risk = float(forbidden_risk)
+        m.validate()
+    return m
 
 
 def plan(problem: PlanningProblem, settings: PlannerSettings | None = None, **kwargs) -> PlanResult:
@@ -84,7 +108,7 @@ def plan(problem: PlanningProblem, settings: PlannerSettings | None = None, **kw
     ``PlannerSettings`` or as keywords (``alpha``, ``beta``, ``range``,
     ``goal_bias``, ``max_iterations``, ``max_time``, ``seed``, ``resolution``,
     ``smooth``, ``stay_in_corridor``, ``allow_approximate``, ``goal_tolerance``,
-    ``corridor_bias``)."""
+    ``corridor_bias``, ``hazard_weight``)."""
     return _core.plan(problem, _settings(settings, kwargs))
 
 
@@ -123,3 +147,9 @@ def path_is_free(map: PlanningMap, path) -> bool:
 def path_cost(path, problem: PlanningProblem, settings: PlannerSettings | None = None, **kwargs) -> PathCost:
     """Length, risk and ``alpha * length + beta * risk`` of ``path`` (eq. 19)."""
     return _core.path_cost(as_array("path", path, (None, 2)), problem, _settings(settings, kwargs))
+
+
+def path_safety(path, map: PlanningMap) -> PathSafety:
+    """Minimum clearance to obstacles (not grown by the clearance), exact length
+    inside each hazard and exposure ``sum(risk * length)`` of a polyline."""
+    return _core.path_safety(as_array("path", path, (None, 2)), map)

@@ -237,8 +237,11 @@ NoiseParams = _core_section(
     extra={"LANBLOC_STD": Range(1e-6, 100), "__post_init__": _check_lanbloc_std})
 
 PlannerParams = _core_section(
-    "PlannerParams", "RAw-RRT* weights: cost = alpha*length + beta*sum(WRS) (eqs. 16, 19); beta = 0 is plain RRT*.",
-    [(_core.PlannerSettings, "alpha"), (_core.PlannerSettings, "beta")])
+    "PlannerParams", "RAw-RRT* weights: cost = alpha*length + beta*sum(WRS) (eqs. 16, 19); beta = 0 is plain RRT*.\n\n"
+    "Hazards (ours): ``hazard_weight`` (beta_h) adds beta_h * integral of risk ds over the hazards (0 = the paper); "
+    "hazards with risk >= ``forbidden_risk`` are obstacles (above 1 = none, the paper).",
+    [(_core.PlannerSettings, "alpha"), (_core.PlannerSettings, "beta"), (_core.PlannerSettings, "hazard_weight"),
+     (_core.PlanningMap, "forbidden_risk")])
 
 
 def _check_weights(self):
@@ -261,22 +264,55 @@ BufferParams = _core_section(
 BufferParams.WEIGHT = BufferParams.LISTS["weights"][0]   #: each entry of ``weights``
 
 _NAV = _core.NavigationSettings
+
+
+def _check_navigation(self):
+    _Params.__post_init__(self)
+    if self.clearance is not None:
+        object.__setattr__(self, "clearance", self.CLEARANCE.check("clearance", self.clearance))
+
+
+def _planning_clearance(self) -> float:
+    """The planning clearance [m]: ``clearance`` if set (old scenario files), else
+    ``vehicle_radius + clearance_margin`` (:class:`safenav.Inflation`)."""
+    if self.clearance is not None:
+        return self.clearance
+    return _core.Inflation(vehicle_radius=self.vehicle_radius, margin=self.clearance_margin).clearance
+
+
+def _navigation_to_dict(self) -> dict:
+    out = _Params.to_dict(self)
+    if out["clearance"] is None:
+        del out["clearance"]
+    return out
+
+
+_CLEARANCE_SPEC = next(sp for sp in _core.PlanningMap.params() if sp.name == "clearance")
 NavigationParams = _core_section(
     "NavigationParams",
     """SafeNav navigation [SafeNav Algs. 1–2, SafeNav-ext Alg. 4].  The paper gives none of these
     numbers; ours are declared with the core's settings (``NavigationSettings``,
-    ``PlanningMap.clearance``, ``PlannerSettings.max_iterations``).
+    ``Inflation``, ``PlanningMap.clearance``, ``PlannerSettings.max_iterations``).
 
-    ``clearance`` keeps planned paths (the safe path and detours) that far from
-    obstacles; ``plan_iterations`` is the RAw-RRT* budget of the safe path,
+    Planned paths (the safe path and detours) keep ``planning_clearance`` from
+    obstacles: ``vehicle_radius + clearance_margin`` (1 + 1 = 2 m by default).
+    Precedence: ``clearance``, when a scenario sets it (files written before
+    the two fields existed), is the planning clearance and the other two are
+    ignored; unset (``None``, the default) it follows from them.
+    ``plan_iterations`` is the RAw-RRT* budget of the safe path,
     ``replan_iterations`` that of a detour; ``corridor_bias`` their share of
     samples drawn inside the corridor (0 = uniform, as in the paper).""",
     [(_NAV, "cruise_speed"), (_NAV, "arrival_radius"), (_NAV, "segment_length"), (_NAV, "sub_segments"),
      (_NAV, "lookahead"), (_NAV, "step_back_speed"), (_NAV, "sensing_range"), (_NAV, "replan_lookahead"),
-     ("clearance", _core.PlanningMap, "clearance"), ("plan_iterations", _core.PlannerSettings, "max_iterations"),
+     ("vehicle_radius", _core.Inflation, "vehicle_radius"), ("clearance_margin", _core.Inflation, "margin"),
+     ("plan_iterations", _core.PlannerSettings, "max_iterations"),
      (_NAV, "replan_iterations"), (_NAV, "corridor_bias"), (_NAV, "lost_position_std"), (_NAV, "max_steps")],
-    # The core map's own default is no clearance; a scenario's vehicle keeps 2 m.
-    defaults={"clearance": 2.0})
+    own=[("clearance", object, field(default=None, metadata={
+        "doc": "planning clearance; overrides vehicle_radius + clearance_margin when set (old scenario files)",
+        "unit": "m"}))],
+    extra={"__post_init__": _check_navigation, "planning_clearance": property(_planning_clearance),
+           "to_dict": _navigation_to_dict,
+           "CLEARANCE": Range(_CLEARANCE_SPEC.lo, _CLEARANCE_SPEC.hi, _CLEARANCE_SPEC.lo_open)})
 
 @dataclass(frozen=True)
 class Seeds(_Params):
@@ -303,7 +339,7 @@ class Scenario:
     Cross-checks on construction, so that a bad combination of fields is
     refused before planning starts: path type names are unique; every cluster a path names exists; a
     path's start and destination (cluster centroids) lie farther than
-    ``navigation.clearance`` from every obstacle (else the planner cannot
+    ``navigation.planning_clearance`` from every obstacle (else the planner cannot
     start or end) and farther apart than ``navigation.arrival_radius`` (else
     every trial "arrives" before it moves); the cruise and step-back speeds do
     not exceed ``bmm.max_speed``; with ``navigation.max_steps = 0`` the
@@ -360,14 +396,14 @@ class Scenario:
                 if c not in groups:
                     validation.fail(f"{where}.clusters[{k}]", c, f"unknown cluster (clusters with landmarks: {validation.cut(sorted(groups))})")
         ends = np.array([cents[c] for pt in paths for c in (pt.start, pt.destination)])
-        hits = w.first_obstacle_at(ends, nav.clearance).reshape(-1, 2)
+        hits = w.first_obstacle_at(ends, nav.planning_clearance).reshape(-1, 2)
         for i, pt in enumerate(paths):
             where = f"path_types[{i}]"
             for j, (k, role) in enumerate(((0, "start"), (len(pt.clusters) - 1, "destination"))):
                 if hits[i, j] >= 0:
                     c, p = pt.clusters[k], ends[2 * i + j]
                     validation.fail(f"{where}.clusters[{k}]", c, f"the path's {role}, the centroid ({p[0]:.6g}, {p[1]:.6g}) of "
-                          f"cluster {c}, lies within navigation.clearance = {nav.clearance:g} m of "
+                          f"cluster {c}, lies within navigation.clearance = {nav.planning_clearance:g} m of "
                           f"world.obstacles[{hits[i, j]}]")
             gap = float(np.hypot(*(ends[2 * i + 1] - ends[2 * i])))
             if nav.arrival_radius >= gap:

@@ -45,6 +45,17 @@ struct HazardZone {
   double risk = 1.0;                ///< in (0, 1], 1 = most dangerous
 };
 
+/// Obstacle inflation (the model is Nav2's costmap inflation layer): a planned
+/// path keeps clearance() = vehicle_radius + margin from every obstacle; that
+/// is the PlanningMap's `clearance`.  Defaults 1 + 1 = 2 m, the clearance every
+/// scenario used before these fields existed.
+struct Inflation {
+  double vehicle_radius = 1.0;  ///< the vehicle's radius [m], ≥ 0
+  double margin = 1.0;          ///< extra distance kept beyond the vehicle's body [m], ≥ 0
+  double clearance() const { return vehicle_radius + margin; }
+  void validate() const;  ///< throws std::invalid_argument naming the bad value
+};
+
 /// The field, its obstacles and its hazards: what a state validity checker needs.
 struct PlanningMap {
   Eigen::Vector2d lower = Eigen::Vector2d(0.0, 0.0);      ///< field's lower-left corner [m]

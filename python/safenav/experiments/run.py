@@ -266,7 +266,7 @@ def placed_scenario(scenario: Scenario, safe: dict, *, k: int | None = None, met
     k = k or scenario.detection.min_landmarks
     cam = P.CameraParams(range=0.9 * scenario.detection.max_range_m,
                          angle_deg=max(10.0, scenario.camera.field_of_view_deg - 25.0),
-                         clearance=scenario.navigation.clearance)
+                         clearance=scenario.navigation.planning_clearance)
     placed, added = {}, []
     next_id = max((lm.id for lm in scenario.world.landmarks), default=-1) + 1
     cluster = max(scenario.world.cluster_ids, default=-1) + 1
