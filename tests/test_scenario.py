@@ -12,8 +12,8 @@ import tomli_w
 
 import safenav
 from safenav.generate import DEFAULT_SEED, GeneratorConfig, generate_scenario
-from safenav.scenario import (_SECTIONS, MAX_DEPTH, MAX_FILE_BYTES, BmmConfig, BufferParams, NoiseParams, PlannerParams,
-                              Scenario, ScenarioError, default_scenario, dumps_scenario, load_scenario, save_scenario)
+from safenav.scenario import (_SECTIONS, MAX_DEPTH, MAX_FILE_BYTES, BmmConfig, BufferParams, NavigationParams,
+                              NoiseParams, PlannerParams, Scenario, ScenarioError, default_scenario, dumps_scenario, load_scenario, save_scenario)
 from safenav.world import Circle
 
 
@@ -97,7 +97,8 @@ def test_docs_state_every_range():
         for name, rng in cls.RANGES.items():
             assert f"| {rng} |" in rows[f"`{key}.{name}`"], (key, name, str(rng))
             n += 1
-    assert n == 38
+    assert n == 41
+    assert f"| {NavigationParams.CLEARANCE} |" in rows["`navigation.clearance`"]
     assert f"each {NoiseParams.LANBLOC_STD} |" in rows["`noise.lanbloc_std`"]
     assert f"each {BufferParams.WEIGHT}, not decreasing |" in rows["`buffer.weights`"]
     assert f"at most {MAX_FILE_BYTES // 2**20} MiB" in doc and f"at most {MAX_DEPTH} levels" in doc
