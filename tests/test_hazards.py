@@ -128,6 +128,7 @@ def test_path_safety_report():
     np.testing.assert_allclose(s.hazard_length, [6.0, 10.0], atol=1e-12)
     assert s.exposure == pytest.approx(0.9 * 6 + 0.5 * 10)
     assert planning.path_safety([(30, 20), (30, 40)], m).min_clearance == 0.0   # through the obstacle
+    assert planning.path_safety([(14, 10)], m).min_clearance == pytest.approx(math.hypot(16, 18) - 4)  # one point
     empty = planning.make_map(upper=(10, 10))
     assert math.isinf(planning.path_safety([(1, 1), (2, 2)], empty).min_clearance)
 

@@ -393,6 +393,10 @@ def test_run_and_plan_commands_on_a_scenario_file(tmp_path, capsys):
     assert main(["plan", "--scenario", str(f), "--path-types", "P3", "--iterations", "800",
                  "--out", str(tmp_path / "plan")]) == 0
     assert (tmp_path / "plan" / "safe_paths.json").exists() and (tmp_path / "plan" / "safe_paths.png").exists()
+    import json
+    safety = json.loads((tmp_path / "plan" / "safe_paths.json").read_text())["P3"]["safety"]
+    assert safety["min_clearance_m"] >= sc.navigation.planning_clearance and safety["exposure_m"] >= 0
+    assert "safety: min clearance" in capsys.readouterr().out
     assert main(["run", "--scenario", str(f), "--trials", "2", "--methods", "centroid", "--filters", "pf", "--particles", "100",
                  "--path-types", "P3", "--out", str(tmp_path / "run"), "--quiet"]) == 0
     raw = pd.read_csv(tmp_path / "run" / "trials.csv")

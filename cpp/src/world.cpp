@@ -121,8 +121,13 @@ class Shape {
         const double u = cross(w, d) / den;  // along the edge
         if (u >= -tol && u <= 1.0 + tol) cut(cross(w, e) / den);
       }
-      // A vertex on (or next to) the segment's line: collinear edges, vertex hits.
-      if (std::abs(cross(w, d)) <= tol * L * std::max({1.0, w.norm()})) cut(w.dot(d) / (L * L));
+      // An end of the edge on (or next to) the segment's line: collinear and
+      // nearly parallel edges (skipped above), vertex hits.  An edge that
+      // crosses the line at an angle below tol has both ends within tol·|e|.
+      const double near = tol * (1.0 + w.norm() + e.norm());
+      if (std::abs(cross(w, d)) <= near * L) cut(w.dot(d) / (L * L));
+      const Vec2 wq = q - a;
+      if (std::abs(cross(wq, d)) <= near * L) cut(wq.dot(d) / (L * L));
     }
     std::sort(cuts.begin(), cuts.end());
     double inside = 0.0;
