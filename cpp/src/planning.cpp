@@ -255,7 +255,15 @@ void check_point(const PlanningProblem& problem, const PlannerSettings& settings
   if (!p.allFinite()) bad(name + " " + fmt(p) + " is not finite");
   if (!problem.map.in_field(p))
     bad(name + " " + fmt(p) + " is outside the field " + fmt(problem.map.lower) + "–" + fmt(problem.map.upper));
-  if (!obstacles.point_free(p)) bad(name + " " + fmt(p) + " is inside an obstacle (or within its clearance)");
+  if (!obstacles.point_free(p)) {
+    const auto& hz = problem.map.hazards;
+    const bool forbidden = std::any_of(hz.begin(), hz.end(),
+                                       [&](const HazardZone& h) { return h.risk >= problem.map.forbidden_risk; });
+    bad(name + " " + fmt(p) + " is inside an obstacle" +
+        (forbidden ? " or a forbidden hazard (risk >= forbidden_risk = " + std::to_string(problem.map.forbidden_risk) + ")"
+                   : std::string()) +
+        " (or within its clearance)");
+  }
   if (settings.stay_in_corridor) {
     const double d = central.deviation(p);
     if (d > problem.zones.half_width)
