@@ -4,7 +4,6 @@ PathSafety report; the defaults leave the paper's planner bit for bit unchanged.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
@@ -233,25 +232,6 @@ def test_scenario_clearance_from_radius_and_margin():
     assert "clearance" not in nav.to_dict()
     p = default_scenario().planner
     assert (p.hazard_weight, p.forbidden_risk) == (0.0, 2.0)
-
-
-def test_scenario_map_carries_hazards_and_forbidden_risk(monkeypatch):
-    from safenav import navigation
-
-    seen = {}
-
-    def fake_plan(problem, settings):
-        seen["s"], seen["p"] = settings, problem
-        raise StopIteration
-
-    monkeypatch.setattr(navigation, "plan", fake_plan)
-    s = default_scenario()
-    s = dataclasses.replace(s, planner=dataclasses.replace(s.planner, hazard_weight=2.0, forbidden_risk=0.7))
-    with pytest.raises(StopIteration):
-        navigation.plan_safe_path(s, "P1", seed=7)
-    assert seen["s"].hazard_weight == 2.0
-    assert seen["p"].map.forbidden_risk == 0.7 and len(seen["p"].map.hazards) == len(s.world.hazards)
-    assert seen["p"].map.clearance == 2.0
 
 
 # ---------------------------------------------------------------- defaults unchanged

@@ -135,12 +135,15 @@ def test_the_safe_path_planner_gets_every_scenario_setting(monkeypatch):
     s = default_scenario()
     s = dataclasses.replace(s, navigation=dataclasses.replace(s.navigation, corridor_bias=0.3, plan_iterations=99,
                                                               clearance=1.5),
-                            planner=PlannerParams(alpha=2.0, beta=0.5))
+                            planner=PlannerParams(alpha=2.0, beta=0.5, hazard_weight=2.0, forbidden_risk=0.7))
     with pytest.raises(StopIteration):
         navigation.plan_safe_path(s, "P1", seed=7)
     st = seen["s"]
     assert (st.corridor_bias, st.max_iterations, st.alpha, st.beta, st.seed, st.smooth) == (0.3, 99, 2.0, 0.5, 7, True)
     assert seen["p"].map.clearance == 1.5 and seen["p"].zones.half_width == s.buffer.half_width
+    # the hazards reach the planner's map, with the scenario's weight and forbidden level
+    assert st.hazard_weight == 2.0
+    assert seen["p"].map.forbidden_risk == 0.7 and len(seen["p"].map.hazards) == len(s.world.hazards)
 
 
 def test_every_struct_validates_its_declared_ranges():

@@ -173,7 +173,7 @@ class WrsObjective : public ob::StateCostIntegralObjective {
   const CentralPath& risk_;
 };
 
-// β_h-term (issue 15): ∫ risk ds over the hazards, exact per motion.
+// β_h-term (ours): ∫ risk ds over the hazards, exact per motion.
 class HazardObjective : public ob::OptimizationObjective {
  public:
   HazardObjective(const ob::SpaceInformationPtr& si, const ObstacleChecker& map)
@@ -404,7 +404,7 @@ PlanResult plan(const PlanningProblem& problem, const PlannerSettings& settings)
     ob::OptimizationObjectivePtr wrs_term = std::make_shared<WrsObjective>(si, risk);
     objective = settings.alpha == 0.0 ? settings.beta * wrs_term : settings.alpha * length + settings.beta * wrs_term;
   }
-  // β_h·∫ risk ds (issue 15); with β_h = 0 the objective above is the paper's, unchanged.
+  // β_h·∫ risk ds (ours); with β_h = 0 the objective above is the paper's, unchanged.
   if (settings.hazard_weight > 0.0 && !map.hazards.empty())
   {
     ob::OptimizationObjectivePtr hazard_term = std::make_shared<HazardObjective>(si, obstacles);

@@ -7,7 +7,7 @@ integrated along the path (trapezoid rule on sub-steps of at most
 ``resolution`` metres), the way OMPL's ``StateCostIntegralObjective``
 integrates a state cost along each motion.  ``beta = 0`` is plain RRT*.
 
-Hazards (issue 15, ours): ``hazard_weight`` (beta_h) adds
+Hazards (ours): ``hazard_weight`` (beta_h) adds
 ``beta_h * integral of risk ds`` over the map's hazards, computed exactly per
 motion (the segment is cut at the hazard boundaries; overlapping hazards add,
 so the term equals the reported exposure).  The map's ``forbidden_risk`` makes

@@ -117,9 +117,9 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None) -
             R = np.diag([cols["std_x"][i] ** 2, cols["std_y"][i] ** 2])
             loc.fix(t[i], cols["x"][i], cols["y"][i], R)
         else:  # range, bearing, range_bearing
-            loc.observe(t[i], int(lm[i]), cols["range"][i], cols["bearing"][i],
-                        cols["range_std"][i] if not np.isnan(cols["range_std"][i]) else 1.0,
-                        cols["bearing_std"][i] if not np.isnan(cols["bearing_std"][i]) else 0.05)
+            # read_log requires the σ of whatever a row measures; the other one is NaN and unused
+            loc.observe(t[i], int(lm[i]), cols["range"][i], cols["bearing"][i], cols["range_std"][i],
+                        cols["bearing_std"][i])
         if math.isnan(t_start) and loc.initialized:  # started from the data: its first estimate
             t_start = loc.time
             record()

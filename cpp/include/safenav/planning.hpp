@@ -12,7 +12,7 @@
 // motion-cost interpolation integrates a state cost, and path_cost()
 // reports exactly that number.  β = 0 is plain RRT* (the baseline).
 //
-// Hazard term (ours, issue 15): with hazard_weight β_h > 0 the cost gains
+// Hazard term (ours): with hazard_weight β_h > 0 the cost gains
 //   β_h·C_hazard,  C_hazard = ∫ risk(p) ds = Σ_k risk_k · (length inside hazard k),
 // exact per motion (ObstacleChecker::hazard_integral: boundary crossings in
 // closed form, no sampling).  Overlapping hazards add (see world.hpp), so
