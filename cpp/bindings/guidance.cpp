@@ -70,7 +70,8 @@ void pybind_guidance(py::module_& m) {
       .value("REJECTED", InputStatus::Rejected)
       .value("LATE", InputStatus::Late)
       .value("BUFFERED", InputStatus::Buffered)
-      .value("IGNORED", InputStatus::Ignored);
+      .value("IGNORED", InputStatus::Ignored)
+      .value("RESET", InputStatus::Reset);
 
   py::class_<InputResult>(m, "InputResult")
       .def_readonly("status", &InputResult::status)
@@ -89,12 +90,14 @@ void pybind_guidance(py::module_& m) {
       .def_readwrite("init_window", &LocalizerSettings::init_window)
       .def_readwrite("init_baseline", &LocalizerSettings::init_baseline)
       .def_readwrite("init_speed_std", &LocalizerSettings::init_speed_std)
+      .def_readwrite("reset_after_rejections", &LocalizerSettings::reset_after_rejections)
       .def("validate", &LocalizerSettings::validate);
 
   py::class_<LocalizerCounts>(m, "LocalizerCounts")
       .def_readonly("motion", &LocalizerCounts::motion)
       .def_readonly("applied", &LocalizerCounts::applied)
       .def_readonly("rejected", &LocalizerCounts::rejected)
+      .def_readonly("resets", &LocalizerCounts::resets)
       .def_readonly("late", &LocalizerCounts::late)
       .def_readonly("buffered", &LocalizerCounts::buffered);
 
@@ -126,6 +129,9 @@ void pybind_guidance(py::module_& m) {
   m.attr("EVENT_NO_PATH") = static_cast<unsigned>(kNoPath);
   m.attr("EVENT_LOST_LOCALIZATION") = static_cast<unsigned>(kLostLocalization);
   m.attr("EVENT_ARRIVED") = static_cast<unsigned>(kArrived);
+  m.attr("EVENT_GUARD_SLOW") = static_cast<unsigned>(kGuardSlow);
+  m.attr("EVENT_GUARD_STEER") = static_cast<unsigned>(kGuardSteer);
+  m.attr("EVENT_GUARD_HOLD") = static_cast<unsigned>(kGuardHold);
 
   py::class_<Command>(m, "Command")
       .def_property_readonly("speed", [](const Command& c) { return c.control[0]; })
@@ -137,6 +143,8 @@ void pybind_guidance(py::module_& m) {
       .def_readonly("position_std", &Command::position_std)
       .def_readonly("action", &Command::action)
       .def_readonly("predicted", &Command::predicted)
+      .def_readonly("clearance", &Command::clearance)
+      .def_readonly("guard_margin", &Command::guard_margin)
       .def("__repr__", [](const Command& c) {
         return "Command(speed=" + std::to_string(c.control[0]) + ", heading_change=" + std::to_string(c.control[1]) +
                ", status=" + to_string(c.status) + ", events=" + std::to_string(c.events) +

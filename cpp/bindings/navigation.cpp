@@ -3,21 +3,55 @@
 #include "common.hpp"
 #include "params.hpp"
 #include "safenav/navigation.hpp"
+#include "../src/rng.hpp"
 
 using namespace safenav;
 
 namespace {
 
+// The per-trial numbers, named once: metrics (TrialMetrics) and counts (TrialResult).
+struct MetricField {
+  const char* name;
+  double TrialMetrics::*member;
+};
+constexpr MetricField kMetrics[] = {
+    {"path_ade", &TrialMetrics::path_ade},         {"goal_fde", &TrialMetrics::goal_fde},
+    {"path_error_percent", &TrialMetrics::path_error_percent},
+    {"awrs", &TrialMetrics::awrs},                 {"awrs_true", &TrialMetrics::awrs_true},
+    {"truth_ade", &TrialMetrics::truth_ade},       {"truth_fde", &TrialMetrics::truth_fde},
+    {"max_deviation", &TrialMetrics::max_deviation}, {"min_clearance", &TrialMetrics::min_clearance},
+    {"hazard_time", &TrialMetrics::hazard_time},   {"hazard_length", &TrialMetrics::hazard_length},
+    {"exposure", &TrialMetrics::exposure},         {"nees", &TrialMetrics::nees},
+    {"outside_3sigma", &TrialMetrics::outside_3sigma},
+};
+struct CountField {
+  const char* name;
+  int TrialResult::*member;
+};
+constexpr CountField kCounts[] = {
+    {"steps", &TrialResult::steps},
+    {"replans", &TrialResult::replans},
+    {"position_fixes", &TrialResult::position_fixes},
+    {"dropouts", &TrialResult::dropouts},
+    {"rejected", &TrialResult::rejected},
+    {"resets", &TrialResult::resets},
+    {"chull_default", &TrialResult::chull_default},
+    {"chull_corrective", &TrialResult::chull_corrective},
+    {"chull_step_back", &TrialResult::chull_step_back},
+    {"observations", &TrialResult::observations},
+    {"dropped", &TrialResult::dropped},
+    {"outliers", &TrialResult::outliers},
+    {"misassociated", &TrialResult::misassociated},
+    {"ranges_rejected", &TrialResult::ranges_rejected},
+    {"faults_through", &TrialResult::faults_through},
+    {"guard_slow", &TrialResult::guard_slow},
+    {"guard_steer", &TrialResult::guard_steer},
+    {"guard_hold", &TrialResult::guard_hold},
+};
+
 py::dict metrics_dict(const TrialMetrics& m) {
   py::dict d;
-  d["path_ade"] = m.path_ade;
-  d["goal_fde"] = m.goal_fde;
-  d["path_error_percent"] = m.path_error_percent;
-  d["awrs"] = m.awrs;
-  d["awrs_true"] = m.awrs_true;
-  d["truth_ade"] = m.truth_ade;
-  d["truth_fde"] = m.truth_fde;
-  d["max_deviation"] = m.max_deviation;
+  for (const auto& f : kMetrics) d[f.name] = m.*f.member;
   return d;
 }
 
@@ -37,9 +71,60 @@ void pybind_navigation(py::module_& m) {
       .value("NO_PATH", TrialOutcome::NoPath);
   m.def("outcome_name", [](TrialOutcome o) { return to_string(o); });
 
+  py::enum_<FixModel>(m, "FixModel", "Where the simulator's position fixes come from.")
+      .value("PROFILE", FixModel::Profile, "the measurement-level error profile (the paper's)")
+      .value("RANGES", FixModel::Ranges, "single landmark ranges, landmark faults, LanBLoc trilateration");
+
+  py::class_<LandmarkFaults>(m, "LandmarkFaults",
+                             "Landmark-level faults (ours): dropout, misassociation, outliers, in that order.")
+      .def(py::init([](double dropout, double outlier, double magnitude, double misassociation) {
+             LandmarkFaults f{dropout, outlier, magnitude, misassociation};
+             f.validate();
+             return f;
+           }),
+           py::arg("dropout_probability") = 0.0, py::arg("outlier_probability") = 0.0,
+           py::arg("outlier_magnitude") = 5.0, py::arg("misassociation_probability") = 0.0)
+      .def_readwrite("dropout_probability", &LandmarkFaults::dropout_probability)
+      .def_readwrite("outlier_probability", &LandmarkFaults::outlier_probability)
+      .def_readwrite("outlier_magnitude", &LandmarkFaults::outlier_magnitude)
+      .def_readwrite("misassociation_probability", &LandmarkFaults::misassociation_probability)
+      .def("any", &LandmarkFaults::any)
+      .def("validate", &LandmarkFaults::validate)
+      .def(
+          "apply",
+          [](const LandmarkFaults& f, const std::vector<int>& rows, const std::vector<double>& ranges,
+             const Landmarks& landmarks, const Eigen::Vector2d& position, double confusion_range, std::uint64_t seed) {
+            if (rows.size() != ranges.size())
+              throw py::value_error("rows and ranges differ in length: " + std::to_string(rows.size()) + " and " +
+                                    std::to_string(ranges.size()));
+            f.validate();
+            std::vector<LandmarkFaults::Observation> obs;
+            for (std::size_t i = 0; i < rows.size(); ++i) obs.push_back({rows[i], ranges[i], 0u});
+            detail::Rng rng(seed);
+            RandomSourceOf<detail::Rng> draws(rng);
+            int dropped = 0;
+            f.apply(obs, landmarks, position, confusion_range, draws, &dropped);
+            std::vector<int> out_rows, out_faults;
+            std::vector<double> out_ranges;
+            for (const auto& o : obs) {
+              out_rows.push_back(o.row);
+              out_ranges.push_back(o.range);
+              out_faults.push_back(static_cast<int>(o.faults));
+            }
+            return py::make_tuple(out_rows, out_ranges, out_faults, dropped);
+          },
+          py::arg("rows"), py::arg("ranges"), py::arg("landmarks"), py::arg("position"), py::arg("confusion_range"),
+          py::arg("seed"),
+          "Apply the faults to observations (landmark rows, ranges) of a vehicle at `position`, drawing from the "
+          "core's generator seeded with `seed`.  Returns (rows, ranges, fault flags, number dropped); flags: "
+          "1 dropped (never returned), 2 misassociated, 4 outlier.");
+
   def_params<SensorSettings>(py::class_<SensorSettings>(m, "SensorSettings"))
       .def(py::init<>())
       .def_readwrite("position", &SensorSettings::position)
+      .def_readwrite("fix_model", &SensorSettings::fix_model)
+      .def_readwrite("range_std", &SensorSettings::range_std)
+      .def_readwrite("faults", &SensorSettings::faults)
       .def_readwrite("landmarks", &SensorSettings::landmarks)
       .def_readwrite("max_range", &SensorSettings::max_range)
       .def_readwrite("field_of_view", &SensorSettings::field_of_view)
@@ -59,6 +144,18 @@ void pybind_navigation(py::module_& m) {
       .def_readwrite("bmm", &NavigationProblem::bmm)
       .def("validate", &NavigationProblem::validate);
 
+  py::class_<GuardSettings>(m, "GuardSettings",
+                            "The uncertainty-aware guard (ours): keeps k sigma of position clear of obstacles and "
+                            "forbidden hazards by slowing, steering or holding for a fix.")
+      .def(py::init<>())
+      .def_readwrite("enabled", &GuardSettings::enabled)
+      .def_readwrite("k_sigma", &GuardSettings::k_sigma)
+      .def_readwrite("slow_distance", &GuardSettings::slow_distance)
+      .def_readwrite("min_speed_fraction", &GuardSettings::min_speed_fraction)
+      .def_readwrite("look_range", &GuardSettings::look_range)
+      .def_readwrite("field_of_view", &GuardSettings::field_of_view)
+      .def("validate", &GuardSettings::validate);
+
   def_params<NavigationSettings>(py::class_<NavigationSettings>(m, "NavigationSettings"))
       .def(py::init<>())
       .def_readwrite("method", &NavigationSettings::method)
@@ -77,6 +174,7 @@ void pybind_navigation(py::module_& m) {
       .def_readwrite("corridor_margin", &NavigationSettings::corridor_margin)
       .def_readwrite("lost_position_std", &NavigationSettings::lost_position_std)
       .def_readwrite("filter", &NavigationSettings::filter)
+      .def_readwrite("guard", &NavigationSettings::guard)
       .def_readwrite("record", &NavigationSettings::record)
       .def("validate", &NavigationSettings::validate);
 
@@ -93,6 +191,16 @@ void pybind_navigation(py::module_& m) {
       .def_readonly("chull_default", &TrialResult::chull_default)
       .def_readonly("chull_corrective", &TrialResult::chull_corrective)
       .def_readonly("chull_step_back", &TrialResult::chull_step_back)
+      .def_readonly("resets", &TrialResult::resets)
+      .def_readonly("observations", &TrialResult::observations)
+      .def_readonly("dropped", &TrialResult::dropped)
+      .def_readonly("outliers", &TrialResult::outliers)
+      .def_readonly("misassociated", &TrialResult::misassociated)
+      .def_readonly("ranges_rejected", &TrialResult::ranges_rejected)
+      .def_readonly("faults_through", &TrialResult::faults_through)
+      .def_readonly("guard_slow", &TrialResult::guard_slow)
+      .def_readonly("guard_steer", &TrialResult::guard_steer)
+      .def_readonly("guard_hold", &TrialResult::guard_hold)
       .def_readonly("wall_time", &TrialResult::wall_time)
       .def_property_readonly("metrics", [](const TrialResult& r) { return metrics_dict(r.metrics); })
       .def_readonly("truth", &TrialResult::truth)
@@ -145,52 +253,28 @@ void pybind_navigation(py::module_& m) {
               rs = nav.run_many(seeds);
             }
             const auto n = static_cast<py::ssize_t>(rs.size());
-            py::array_t<int> outcome(n), steps(n), replans(n), fixes(n), dropouts(n), rejected(n), cdef(n), ccor(n),
-                cback(n);
-            py::array_t<double> path_ade(n), goal_fde(n), perr(n), awrs(n), awrs_true(n), truth_ade(n), truth_fde(n),
-                maxdev(n), wall(n);
+            py::array_t<int> outcome(n);
+            py::array_t<double> wall(n);
+            py::list reasons;
             for (py::ssize_t i = 0; i < n; ++i) {
               const TrialResult& r = rs[static_cast<std::size_t>(i)];
               outcome.mutable_at(i) = static_cast<int>(r.outcome);
-              steps.mutable_at(i) = r.steps;
-              replans.mutable_at(i) = r.replans;
-              fixes.mutable_at(i) = r.position_fixes;
-              dropouts.mutable_at(i) = r.dropouts;
-              rejected.mutable_at(i) = r.rejected;
-              cdef.mutable_at(i) = r.chull_default;
-              ccor.mutable_at(i) = r.chull_corrective;
-              cback.mutable_at(i) = r.chull_step_back;
-              path_ade.mutable_at(i) = r.metrics.path_ade;
-              goal_fde.mutable_at(i) = r.metrics.goal_fde;
-              perr.mutable_at(i) = r.metrics.path_error_percent;
-              awrs.mutable_at(i) = r.metrics.awrs;
-              awrs_true.mutable_at(i) = r.metrics.awrs_true;
-              truth_ade.mutable_at(i) = r.metrics.truth_ade;
-              truth_fde.mutable_at(i) = r.metrics.truth_fde;
-              maxdev.mutable_at(i) = r.metrics.max_deviation;
               wall.mutable_at(i) = r.wall_time;
+              reasons.append(r.reason);
             }
-            py::list reasons;
-            for (const auto& r : rs) reasons.append(r.reason);
             py::dict d;
             d["outcome"] = outcome;
             d["reason"] = reasons;
-            d["steps"] = steps;
-            d["replans"] = replans;
-            d["position_fixes"] = fixes;
-            d["dropouts"] = dropouts;
-            d["rejected"] = rejected;
-            d["chull_default"] = cdef;
-            d["chull_corrective"] = ccor;
-            d["chull_step_back"] = cback;
-            d["path_ade"] = path_ade;
-            d["goal_fde"] = goal_fde;
-            d["path_error_percent"] = perr;
-            d["awrs"] = awrs;
-            d["awrs_true"] = awrs_true;
-            d["truth_ade"] = truth_ade;
-            d["truth_fde"] = truth_fde;
-            d["max_deviation"] = maxdev;
+            for (const auto& f : kCounts) {
+              py::array_t<int> a(n);
+              for (py::ssize_t i = 0; i < n; ++i) a.mutable_at(i) = rs[static_cast<std::size_t>(i)].*f.member;
+              d[f.name] = a;
+            }
+            for (const auto& f : kMetrics) {
+              py::array_t<double> a(n);
+              for (py::ssize_t i = 0; i < n; ++i) a.mutable_at(i) = rs[static_cast<std::size_t>(i)].metrics.*f.member;
+              d[f.name] = a;
+            }
             d["time_s"] = wall;
             return d;
           },

@@ -80,7 +80,17 @@ void NavigationSettings::validate() const {
     bad("settings.filter.gate_probability = " + num(filter.gate_probability) + ": must be in [0, 1)");
   if (filter.type == FilterType::InformationFilter)
     bad("settings.filter.type = InformationFilter: navigation supports the EKF and the particle filter");
+  guard.validate();
   param_set<NavigationSettings>().check(*this, "settings.");
+}
+
+void GuardSettings::validate() const {
+  require_finite_positive(k_sigma, "settings.guard.k_sigma");
+  require_finite_nonneg(slow_distance, "settings.guard.slow_distance");
+  if (!(min_speed_fraction > 0.0 && min_speed_fraction <= 1.0))
+    bad("settings.guard.min_speed_fraction = " + num(min_speed_fraction) + ": must be in (0, 1]");
+  require_finite_nonneg(look_range, "settings.guard.look_range");
+  require_finite_positive(field_of_view, "settings.guard.field_of_view");
 }
 
 // ---------------------------------------------------------------------------
@@ -270,6 +280,138 @@ struct Guidance::Impl {
   int replans = 0;
   int commands = 0;
   std::string detail;
+  // The guard's cached clearance: keep-out distance guard_d from guard_p
+  // (−inf: none yet).  A segment within r of guard_p is at least guard_d − r
+  // away, so the exact query runs only near obstacles.
+  Eigen::Vector2d guard_p = Eigen::Vector2d::Zero();
+  double guard_d = -std::numeric_limits<double>::infinity();
+
+  /// Clearance of the segment a–b (a = the estimate) to obstacles and
+  /// forbidden hazards: exact when it could matter (bound − ρ < slow_distance),
+  /// else the lower bound.
+  double clearance(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double rho) {
+    const double slow = settings.guard.slow_distance;
+    auto bound = [&] { return guard_d - std::max((a - guard_p).norm(), (b - guard_p).norm()); };
+    if (bound() - rho >= slow) return bound();
+    if ((a - guard_p).norm() > 0.0 || !std::isfinite(guard_d)) {
+      guard_p = a;
+      guard_d = shared->collisions.keep_out_distance(a, a);
+      if (bound() - rho >= slow) return bound();
+    }
+    return shared->collisions.keep_out_distance(a, b);
+  }
+
+  /// Where the vehicle would stop if it braked after the step under u.
+  Eigen::Vector2d stop_point(const State& x, const Control& u) const {
+    const State x1 = shared->bmm.predict(x, u);
+    const double v = x1[kV];
+    const double d = v * v / (2.0 * problem.bmm.deceleration);
+    return x1.head<2>() + d * Eigen::Vector2d(std::cos(x1[kTheta]), std::sin(x1[kTheta]));
+  }
+
+  /// The heading change toward the bearing that puts the most landmarks
+  /// within look_range inside the field of view (0 when none is in range).
+  double look_turn(const State& x) const {
+    const GuardSettings& g = settings.guard;
+    const Landmarks& L = shared->landmarks;
+    const Eigen::Vector2d p = x.head<2>();
+    int best = 0;
+    double best_turn = 0.0;
+    for (Eigen::Index i = 0; i < L.rows(); ++i) {
+      const Eigen::Vector2d di = L.row(i).transpose() - p;
+      if (di.norm() > g.look_range || di.squaredNorm() < 1e-18) continue;
+      const double bi = std::atan2(di.y(), di.x());
+      int n = 0;
+      for (Eigen::Index j = 0; j < L.rows(); ++j) {
+        const Eigen::Vector2d dj = L.row(j).transpose() - p;
+        if (dj.norm() > g.look_range || dj.squaredNorm() < 1e-18) continue;
+        n += std::abs(wrap_angle(std::atan2(dj.y(), dj.x()) - bi)) <= 0.5 * g.field_of_view;
+      }
+      const double turn = wrap_angle(bi - x[kTheta]);
+      if (n > best || (n == best && std::abs(turn) < std::abs(best_turn))) {
+        best = n;
+        best_turn = turn;
+      }
+    }
+    return best_turn;
+  }
+
+  /// The guard (GuardSettings): keeps the k-σ radius off obstacles and
+  /// forbidden hazards by slowing, steering or holding.
+  void guard(const State& x, Command& c) {
+    const GuardSettings& g = settings.guard;
+    const double rho = g.k_sigma * c.position_std;
+    const Eigen::Vector2d p = x.head<2>();
+    const Control u0 = c.control;
+    double d = clearance(p, stop_point(x, u0), rho);
+    c.clearance = d;
+    c.guard_margin = d - rho;
+    if (c.guard_margin >= g.slow_distance) return;
+    if (c.guard_margin >= 0.0) {
+      const double f = std::max(g.min_speed_fraction, g.slow_distance > 0 ? c.guard_margin / g.slow_distance : 1.0);
+      if (f < 1.0) {
+        c.control[0] = f * u0[0];
+        c.events |= kGuardSlow;
+        d = clearance(p, stop_point(x, c.control), rho);
+        c.clearance = d;
+        c.guard_margin = d - rho;
+      }
+      return;
+    }
+    // Steer: a fan of heading changes within the turn limit, at a few speeds.
+    const double lim = problem.bmm.max_heading_rate * problem.bmm.dt;
+    const double want = shared->bmm.clipped_heading_change(u0[1]);
+    constexpr int kHeadings = 9;
+    const double speeds[3] = {u0[0], 0.5 * u0[0], g.min_speed_fraction * u0[0]};
+    bool found = false;
+    Control best = u0;
+    double best_cost = std::numeric_limits<double>::infinity(), best_d = 0.0;
+    for (double v : speeds) {
+      for (int j = 0; j <= kHeadings; ++j) {
+        const double dth = j == kHeadings ? want : -lim + 2.0 * lim * j / (kHeadings - 1);
+        const Control u(v, dth);
+        const double dj = clearance(p, stop_point(x, u), rho);
+        if (dj - rho < 0.0) continue;
+        const double cost = std::abs(dth - want) - 1e-3 * v;  // closest to the method's heading, then fastest
+        if (cost < best_cost) {
+          best_cost = cost;
+          best = u;
+          best_d = dj;
+          found = true;
+        }
+      }
+      if (found) break;  // the fastest speed that has a safe heading
+    }
+    if (!found) {
+      // Escape: at the slowest speed, the heading whose stop point gains the most clearance.
+      const double here = shared->collisions.keep_out_distance(p, p);
+      double gain = 1e-3;
+      for (int j = 0; j < kHeadings; ++j) {
+        const Control u(speeds[2], -lim + 2.0 * lim * j / (kHeadings - 1));
+        const Eigen::Vector2d e = stop_point(x, u);
+        if (shared->collisions.keep_out_distance(p, e) <= 0.0) continue;
+        const double g_j = shared->collisions.keep_out_distance(e, e) - here;
+        if (g_j > gain) {
+          gain = g_j;
+          best = u;
+          best_d = clearance(p, e, rho);
+          found = true;
+        }
+      }
+    }
+    if (found) {
+      c.control = best;
+      c.events |= kGuardSteer;
+      c.clearance = best_d;
+      c.guard_margin = best_d - rho;
+      return;
+    }
+    // Hold for a fix: stop, turning toward where landmarks can be seen.
+    c.control = Control(0.0, look_turn(x));
+    c.events |= kGuardHold;
+    c.clearance = shared->collisions.keep_out_distance(p, p);
+    c.guard_margin = c.clearance - rho;
+  }
 
   static LocalizerSettings seeded(LocalizerSettings s, std::uint64_t seed) {
     s.filter.seed = derive_seed(seed, 2);
@@ -391,6 +533,10 @@ Command Guidance::command(double t) {
     c.predicted = d.predicted;
     c.segment = d.segment;
     c.action = d.action;
+  }
+  if (st.guard.enabled) {
+    im.guard(xe, c);
+    if (c.events & (kGuardSlow | kGuardSteer | kGuardHold)) c.predicted = im.shared->bmm.predict(xe, c.control).head<2>();
   }
   return c;
 }

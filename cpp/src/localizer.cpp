@@ -59,6 +59,7 @@ const char* to_string(InputStatus status) {
     case InputStatus::Late: return "late";
     case InputStatus::Buffered: return "buffered";
     case InputStatus::Ignored: return "ignored";
+    case InputStatus::Reset: return "reset";
   }
   return "unknown";
 }
@@ -107,6 +108,7 @@ struct Localizer::Impl {
   double owed_distance = 0.0, owed_heading = 0.0;
   bool from_odometry = false;  // the motion input being applied is wheel odometry
   LocalizerCounts counts;
+  int fix_rejections = 0;  // consecutive position fixes rejected by the gate
   mutable State x_cache = State::Constant(kNaN);  // NaN until initialized
   mutable StateCov P_cache = StateCov::Constant(kNaN);
   mutable bool dirty = true;
@@ -575,14 +577,37 @@ InputResult Localizer::fix(double t, const Eigen::Vector2d& z, const Eigen::Matr
     return I.status(InputStatus::Buffered);
   }
   if (!I.advance(t)) return I.status(InputStatus::Late);
-  if (I.ekf) return I.counted(I.ekf->update_position(z, R));
-  if (I.aekf) return I.counted(I.aekf->update_position(z, R));
-  if (I.apf) return I.counted(I.apf->update_position(z, R));
-  if (!I.pf_fix || I.pf_fix_R != R) {
-    I.pf_fix.emplace(MeasurementModel::position(R));
-    I.pf_fix_R = R;
+  InputResult r;
+  if (I.ekf) r = I.counted(I.ekf->update_position(z, R));
+  else if (I.aekf) r = I.counted(I.aekf->update_position(z, R));
+  else if (I.apf) r = I.counted(I.apf->update_position(z, R));
+  else {
+    if (!I.pf_fix || I.pf_fix_R != R) {
+      I.pf_fix.emplace(MeasurementModel::position(R));
+      I.pf_fix_R = R;
+    }
+    r = I.counted(I.pf->update(*I.pf_fix, z));
   }
-  return I.counted(I.pf->update(*I.pf_fix, z));
+  if (r.status != InputStatus::Rejected) {
+    I.fix_rejections = 0;
+    return r;
+  }
+  const int n = I.settings.reset_after_rejections;
+  if (n > 0 && ++I.fix_rejections > n) {
+    check_covariance(R, "fix R");
+    I.refresh();
+    State x = I.x_cache;
+    x.head<2>() = z;
+    StateCov P = I.P_cache;
+    P.topRows<2>().setZero();
+    P.leftCols<2>().setZero();
+    P.topLeftCorner<2, 2>() = R;
+    I.start(I.t_f, x, P);
+    I.fix_rejections = 0;
+    ++I.counts.resets;
+    r.status = InputStatus::Reset;
+  }
+  return r;
 }
 
 InputResult Localizer::speed_heading(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R) {

@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
 #include <cmath>
 #include <limits>
 #include <optional>
@@ -14,6 +16,7 @@
 
 #include "rng.hpp"
 #include "errors.hpp"
+#include "safenav/localization.hpp"
 
 namespace safenav {
 
@@ -43,8 +46,15 @@ std::string to_string(TrialOutcome outcome) {
   return "unknown";
 }
 
+std::string to_string(FixModel model) { return model == FixModel::Profile ? "profile" : "ranges"; }
+
 void SensorSettings::validate() const {
   position.validate();
+  require_finite_positive(range_std, "sensors.range_std");
+  faults.validate();
+  if (faults.any() && fix_model != FixModel::Ranges)
+    bad("sensors.faults: landmark faults need sensors.fix_model = ranges (fixes from single landmark ranges); "
+        "the profile model has no landmark observations to corrupt");
   if (!landmarks.allFinite()) bad("sensors.landmarks: every landmark position must be finite");
   require_finite_positive(max_range, "sensors.max_range");
   require_finite_positive(field_of_view, "sensors.field_of_view");
@@ -56,12 +66,18 @@ void SensorSettings::validate() const {
 }
 
 int SensorSettings::landmarks_in_view(const State& x) const {
+  int n = 0;
+  for_each_in_view(x, [&](Eigen::Index, double) { ++n; });
+  return n;
+}
+
+template <class F>
+void SensorSettings::for_each_in_view(const State& x, F&& f) const {
   const double r2 = max_range * max_range;
   const bool all_round = field_of_view >= 2.0 * kPi;
   const double half = 0.5 * field_of_view;
   const double c = std::cos(x[kTheta]), s = std::sin(x[kTheta]);
   const double cos_half = std::cos(half);
-  int n = 0;
   for (Eigen::Index i = 0; i < landmarks.rows(); ++i) {
     const double dx = landmarks(i, 0) - x[kX], dy = landmarks(i, 1) - x[kY];
     const double d2 = dx * dx + dy * dy;
@@ -71,9 +87,8 @@ int SensorSettings::landmarks_in_view(const State& x) const {
       const double along = c * dx + s * dy;
       if (d2 > 0.0 && along < cos_half * std::sqrt(d2)) continue;
     }
-    ++n;
+    f(i, std::sqrt(d2));
   }
-  return n;
 }
 
 // ---------------------------------------------------------------------------
@@ -96,8 +111,15 @@ struct Navigator::Impl {
     return m;
   }
 
+  // The guard looks with the simulated camera.
+  static NavigationSettings with_camera(NavigationSettings s, const SensorSettings& se) {
+    s.guard.field_of_view = std::min(se.field_of_view, 2.0 * kPi);
+    s.guard.look_range = se.max_range;
+    return s;
+  }
+
   Impl(NavigationProblem p, NavigationSettings s, SensorSettings se)
-      : guidance(p, s, loop_filter(s)),
+      : guidance(p, with_camera(s, se), loop_filter(s), se.landmarks),
         sensors((se.validate(), std::move(se))),
         collisions(no_clearance(p.map)) {
     imu_R = Eigen::Vector2d(sensors.imu_speed_std * sensors.imu_speed_std,
@@ -164,13 +186,52 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
   RandomSourceOf<detail::Rng> sensor_draws(sensor_rng);
   PositionNoise::Trial source_noise(src, sensor_draws);
   const Eigen::Matrix2d source_R = src.reported_cov();
+  TrialResult res;
+  // FixModel::Ranges: landmark ranges, faults, LanBLoc trilateration.
+  std::vector<LandmarkFaults::Observation> obs;
+  obs.reserve(static_cast<std::size_t>(se.landmarks.rows()));
+  LocalizationOptions trilateration;
+  trilateration.seed = derive_seed(seed, 3);
+  int fix_faults = 0;  // faulty ranges inside the last fix
+  auto range_fix = [&](const State& x, Eigen::Vector2d& z, Eigen::Matrix2d& R) -> bool {
+    obs.clear();
+    se.for_each_in_view(x, [&](Eigen::Index i, double d) {
+      obs.push_back({static_cast<int>(i), std::max(0.0, d + se.range_std * sensor_rng.normal()), 0u});
+    });
+    res.observations += static_cast<int>(obs.size());
+    se.faults.apply(obs, se.landmarks, x.head<2>(), se.max_range, sensor_draws, &res.dropped);
+    for (const auto& o : obs) {
+      res.outliers += (o.faults & LandmarkFaults::kOutlier) != 0;
+      res.misassociated += (o.faults & LandmarkFaults::kMisassociated) != 0;
+    }
+    if (static_cast<int>(obs.size()) < std::max(3, se.min_landmarks)) return false;
+    const Eigen::Index n = static_cast<Eigen::Index>(obs.size());
+    Anchors anchors(n, 2);
+    Eigen::VectorXd ranges(n);
+    for (Eigen::Index i = 0; i < n; ++i) {
+      anchors.row(i) = se.landmarks.row(obs[static_cast<std::size_t>(i)].row);
+      ranges[i] = obs[static_cast<std::size_t>(i)].range;
+    }
+    const LocalizationResult lr = trilaterate(anchors, ranges, Eigen::VectorXd::Constant(n, se.range_std), trilateration);
+    if (!lr.ok()) return false;
+    fix_faults = 0;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      if (!lr.inliers[i]) ++res.ranges_rejected;
+      else if (obs[static_cast<std::size_t>(i)].faults) ++fix_faults;
+    }
+    z = lr.position;
+    R = lr.covariance;
+    return true;
+  };
   auto fix = [&](const State& x, int step, Eigen::Vector2d& z, Eigen::Matrix2d& R) -> bool {
+    fix_faults = 0;
     if (position_cb) {
       if (!position_cb(x, step, z, R)) return false;
       if (!z.allFinite() || !R.allFinite())
         throw std::runtime_error("position callback returned a non-finite fix at step " + std::to_string(step));
       return true;
     }
+    if (se.fix_model == FixModel::Ranges) return range_fix(x, z, R);
     if (src.needs_landmarks && se.landmarks_in_view(x) < se.min_landmarks) return false;
     if (!source_noise.sample(x.head<2>(), sensor_draws, z)) return false;
     R = source_R;
@@ -200,7 +261,6 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
   }
   const Localizer& loc = guidance.localizer();
 
-  TrialResult res;
   const int N = im.max_steps;
   if (rec) {
     res.truth.resize(N + 1, 4);
@@ -216,9 +276,41 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
   std::vector<Eigen::Vector2d> est_points;
   est_points.reserve(static_cast<std::size_t>(N) + 1);
 
+  // Safety along the true track: clearance (cached lower bound, as the guard's), hazards, consistency.
+  double min_clear = std::numeric_limits<double>::infinity(), nees_sum = 0.0;
+  int outside = 0;
+  Eigen::Vector2d clear_p = truth.head<2>();
+  double clear_d = im.collisions.keep_out_distance(clear_p, clear_p);
+  min_clear = clear_d;
+  auto track_safety = [&](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+    if (clear_d - std::max((a - clear_p).norm(), (b - clear_p).norm()) < min_clear) {
+      min_clear = std::min(min_clear, im.collisions.keep_out_distance(a, b));
+      clear_p = b;
+      clear_d = im.collisions.keep_out_distance(b, b);
+    }
+    const ObstacleChecker::HazardStep h = im.collisions.hazard_step(a, b);
+    res.metrics.hazard_length += h.length;
+    res.metrics.exposure += h.exposure;
+    if (h.inside) res.metrics.hazard_time += bp.dt;
+  };
+  auto consistency = [&] {
+    State e = truth - loc.x();
+    e[kTheta] = wrap_angle(e[kTheta]);
+    const Eigen::LDLT<Eigen::Matrix4d> ldlt(loc.P());
+    const double n4 = e.dot(ldlt.solve(e));
+    if (std::isfinite(n4)) nees_sum += n4;
+    const Eigen::Vector2d ep = e.head<2>();
+    const Eigen::Matrix2d Pxy = loc.P().topLeftCorner<2, 2>();
+    const double det = Pxy.determinant();
+    const double d2 = det > 0.0 ? (Pxy(1, 1) * ep.x() * ep.x() - 2.0 * Pxy(0, 1) * ep.x() * ep.y() + Pxy(0, 0) * ep.y() * ep.y()) / det
+                                : std::numeric_limits<double>::infinity();
+    if (!(d2 <= 9.0)) ++outside;
+  };
+
   const RiskZones& zones = guidance.problem().zones;
   auto record = [&](int row, const Eigen::Vector2d& pred, const Eigen::Vector2d* meas) {
     const State& xe = loc.x();
+    consistency();
     const double dev = safe.project(truth.head<2>()).distance;
     max_dev = std::max(max_dev, dev);
     wrs_true += wrs(dev, zones);
@@ -249,6 +341,9 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
     // detours [SafeNav-ext Alg. 4 ll. 7–9], then CHull or Centroid.
     const double t = step * bp.dt;
     const Command cmd = guidance.command(t);
+    res.guard_slow += (cmd.events & kGuardSlow) != 0;
+    res.guard_steer += (cmd.events & kGuardSteer) != 0;
+    res.guard_hold += (cmd.events & kGuardHold) != 0;
     if (cmd.status == GuidanceStatus::NoPath) {
       outcome = TrialOutcome::NoPath;
       reason = guidance.detail();
@@ -278,8 +373,12 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
     if (step % se.position_every == 0) {
       have_fix = fix(truth, step, z, R);
       if (have_fix) {
-        if (guidance.fix(t1, z, R).applied()) ++res.position_fixes;
-        else ++res.rejected;
+        if (guidance.fix(t1, z, R).applied()) {
+          ++res.position_fixes;
+          res.faults_through += fix_faults;
+        } else {
+          ++res.rejected;
+        }
       } else {
         ++res.dropouts;
       }
@@ -291,6 +390,7 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
     }
     // 5. Record.
     record(step, cmd.predicted, have_fix ? &z : nullptr);
+    track_safety(before, truth.head<2>());
     // Ends: the truth's (collision, corridor), then guidance's (lost, arrived).
     if (!im.collisions.segment_free(before, truth.head<2>())) {
       outcome = TrialOutcome::Collision;
@@ -323,6 +423,7 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
   res.reason = reason;
   res.steps = step;
   res.replans = guidance.replans();
+  res.resets = loc.counts().resets;
   const Eigen::Index rows = step + 1;
   if (rec) {
     res.truth.conservativeResize(rows, 4);
@@ -346,6 +447,9 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
   m.truth_ade = loc_sum / double(rows);
   m.truth_fde = (loc.x().head<2>() - truth.head<2>()).norm();
   m.max_deviation = max_dev;
+  m.min_clearance = min_clear;
+  m.nees = nees_sum / double(rows);
+  m.outside_3sigma = double(outside) / double(rows);
   res.wall_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return res;
 }

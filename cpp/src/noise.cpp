@@ -1,9 +1,12 @@
 // Position noise: the error model of a position source, its named profiles
 // and its sampler.  See safenav/measurement.hpp.
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
+#include <string>
+#include <vector>
 
 #include "rng.hpp"
 #include "safenav/measurement.hpp"
@@ -137,6 +140,61 @@ PositionNoise::Fixes PositionNoise::sample(const Eigen::Ref<const Fixes>& truth,
     else z.row(i).setConstant(std::numeric_limits<double>::quiet_NaN());
   }
   return z;
+}
+
+// ---------------------------------------------------------------------------
+// Landmark-level faults
+
+void LandmarkFaults::validate() const {
+  auto prob = [](double v, const char* name) {
+    if (!(v >= 0.0 && v <= 1.0))
+      throw std::invalid_argument(std::string("faults.") + name + " = " + std::to_string(v) + ": must be in [0, 1]");
+  };
+  prob(dropout_probability, "dropout_probability");
+  prob(outlier_probability, "outlier_probability");
+  prob(misassociation_probability, "misassociation_probability");
+  if (!(std::isfinite(outlier_magnitude) && outlier_magnitude > 0.0))
+    throw std::invalid_argument("faults.outlier_magnitude = " + std::to_string(outlier_magnitude) +
+                                ": must be finite and > 0");
+}
+
+void LandmarkFaults::apply(std::vector<Observation>& obs, const Landmarks& landmarks, const Eigen::Vector2d& p,
+                           double confusion_range, RandomSource& rng, int* dropped) const {
+  const Eigen::Index K = landmarks.rows();
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < obs.size(); ++i) {
+    Observation o = obs[i];
+    if (o.row < 0 || o.row >= K)
+      throw std::invalid_argument("faults: observation " + std::to_string(i) + " has landmark row " +
+                                  std::to_string(o.row) + ", the map has " + std::to_string(K));
+    if (dropout_probability > 0.0 && rng.uniform() < dropout_probability) {
+      if (dropped) ++*dropped;
+      continue;
+    }
+    if (misassociation_probability > 0.0 && K > 1 && rng.uniform() < misassociation_probability) {
+      // Another landmark near the vehicle (a plausible wrong match), else any other.
+      int near = 0;
+      for (Eigen::Index k = 0; k < K; ++k)
+        near += k != o.row && (landmarks.row(k).transpose() - p).norm() <= confusion_range;
+      const bool any_near = near > 0;
+      const int n = any_near ? near : static_cast<int>(K) - 1;
+      int pick = std::min(n - 1, static_cast<int>(rng.uniform() * n));
+      for (Eigen::Index k = 0; k < K; ++k) {
+        if (k == o.row || (any_near && (landmarks.row(k).transpose() - p).norm() > confusion_range)) continue;
+        if (pick-- == 0) {
+          o.row = static_cast<int>(k);
+          break;
+        }
+      }
+      o.faults |= kMisassociated;
+    }
+    if (outlier_probability > 0.0 && rng.uniform() < outlier_probability) {
+      o.range = std::max(0.0, o.range + (rng.uniform() < 0.5 ? -outlier_magnitude : outlier_magnitude));
+      o.faults |= kOutlier;
+    }
+    obs[kept++] = o;
+  }
+  obs.resize(kept);
 }
 
 }  // namespace safenav

@@ -246,6 +246,10 @@ const ParamSet<NavigationSettings>& param_set<NavigationSettings>() {
           .real("corridor_margin", SN_REF(N, corridor_margin), "m", closed(0, 1e5), "left the corridor: deviation beyond half_width + this")
           .real("lost_position_std", SN_REF(N, lost_position_std), "m", above(0, 1e4), "lost localization above this position sigma")
           .integer("max_steps", SN_REF(N, max_steps), closed(0, N::kMaxSteps), "step budget; 0 = 3 x path length / (speed x dt) + 200")
+          .real("gate_probability", SN_REF(N, filter.gate_probability), "", closed(0, 0.999999), "chi-square gate of each update (ours); 0 = off, the paper's loop")
+          .real("guard_k", SN_REF(N, guard.k_sigma), "", above(0, 100), "the guard keeps k x position sigma clear of obstacles and forbidden hazards (ours)")
+          .real("guard_slow_distance", SN_REF(N, guard.slow_distance), "m", closed(0, 1e4), "the guard slows down when its margin falls below this")
+          .real("guard_min_speed_fraction", SN_REF(N, guard.min_speed_fraction), "", above(0, 1), "slowest fraction of the commanded speed while the guard slows")
           .set;
   return s;
 }
@@ -261,6 +265,11 @@ const ParamSet<SensorSettings>& param_set<SensorSettings>() {
           .integer("position_every", SN_REF(S, position_every), closed(1, 1e6), "a position fix every n steps")
           .real("imu_speed_std", SN_REF(S, imu_speed_std), "m/s", closed(1e-6, 10), "sigma of the IMU's speed")
           .real("imu_heading_std", SN_REF(S, imu_heading_std), "rad", closed(1e-6, kPi), "sigma of the IMU's heading")
+          .real("range_std", SN_REF(S, range_std), "m", closed(1e-6, 100), "sigma of one landmark range (fixes from ranges)")
+          .real("dropout_probability", SN_REF(S, faults.dropout_probability), "", closed(0, 1), "a landmark observation is missed with this probability (ours)")
+          .real("outlier_probability", SN_REF(S, faults.outlier_probability), "", closed(0, 1), "a landmark range is an outlier with this probability (ours)")
+          .real("outlier_magnitude", SN_REF(S, faults.outlier_magnitude), "m", above(0, 1e4), "an outlier range is off by this much, either sign")
+          .real("misassociation_probability", SN_REF(S, faults.misassociation_probability), "", closed(0, 1), "a landmark observation carries another landmark's id with this probability (ours)")
           .set;
   return s;
 }
@@ -297,6 +306,7 @@ const ParamSet<LocalizerSettings>& param_set<LocalizerSettings>() {
           .real("init_cov_inflation", SN_REF(L, init_cov_inflation), "", closed(1, 1e4), "starting from the data: the fit's pose covariance is multiplied by this")
           .real("init_baseline", SN_REF(L, init_baseline), "m", above(0, 1e4), "starting from position fixes: motion before the heading is taken from two positions")
           .real("init_speed_std", SN_REF(L, init_speed_std), "m/s", above(0, 100), "sigma of the initial speed when starting from the data")
+          .integer("reset_after_rejections", SN_REF(L, reset_after_rejections), closed(0, 1e6), "consecutive fixes rejected by the gate before the next resets the position; 0 = never")
           .set;
   return s;
 }

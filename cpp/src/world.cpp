@@ -330,6 +330,26 @@ double ObstacleChecker::obstacle_distance(const Vec2& a, const Vec2& b) const {
   return d;
 }
 
+ObstacleChecker::HazardStep ObstacleChecker::hazard_step(const Vec2& a, const Vec2& b) const {
+  if (!a.allFinite() || !b.allFinite()) bad("segment " + fmt(a) + "–" + fmt(b) + " is not finite");
+  const auto& hz = impl_->hazards;
+  HazardStep out;
+  for (std::size_t k = 0; k < hz.size(); ++k) {
+    const double len = hz[k].length_inside(a, b);
+    out.length += len;
+    out.exposure += impl_->map.hazards[k].risk * len;
+    out.inside = out.inside || hz[k].contains(b, 0.0);
+  }
+  return out;
+}
+
+double ObstacleChecker::keep_out_distance(const Vec2& a, const Vec2& b) const {
+  double d = obstacle_distance(a, b);
+  const cgal::Segment ab(cgal::point(a), cgal::point(b));
+  for (const auto& s : impl_->forbidden) d = std::min(d, s.distance(ab));
+  return d;
+}
+
 PathSafety path_safety(const Eigen::Ref<const Points2>& path, const PlanningMap& map) {
   check_finite(path, "path point");
   const ObstacleChecker checker(map);

@@ -107,10 +107,11 @@ def plan_safe_path(scenario, path_type: str, *, seed: int | None = None, iterati
 
 
 def navigation_setup(scenario, safe_path, *, method: str = "centroid", world_map=None, max_steps: int | None = None,
-                     replan: bool = True, planner_seed: int | None = None):
+                     replan: bool = True, planner_seed: int | None = None, paper: bool = False):
     """The ``NavigationProblem`` and ``NavigationSettings`` of ``safe_path`` in
     ``scenario``'s world (shared by :func:`make_navigator` and
-    :func:`safenav.guidance.make_guidance`)."""
+    :func:`safenav.guidance.make_guidance`).  The guard and the gate follow
+    ``scenario.navigation`` (on by default); ``paper=True`` turns both off."""
     path = as_array("safe_path", safe_path, (None, 2))
     nav = scenario.navigation
     problem = NavigationProblem()
@@ -121,6 +122,9 @@ def navigation_setup(scenario, safe_path, *, method: str = "centroid", world_map
     problem.bmm = scenario.bmm_params()
 
     s = nav.apply(NavigationSettings())
+    s.guard.enabled = nav.guard == "on" and not paper
+    if paper:
+        s.filter.gate_probability = 0.0
     s.method = choice("method", method, METHODS)
     if max_steps is not None:
         s.max_steps = integer("max_steps", max_steps, 0)  # 0: from the path
@@ -133,19 +137,18 @@ def navigation_setup(scenario, safe_path, *, method: str = "centroid", world_map
 def make_navigator(scenario, safe_path, *, method: str = "centroid", filter: str = "ekf",
                    source: str = "lanbloc", n_particles: int = 500, position_every: int = 1,
                    replan: bool = True, record: bool = True, world_map=None, max_steps: int | None = None,
-                   planner_seed: int | None = None) -> Navigator:
+                   planner_seed: int | None = None, paper: bool = False) -> Navigator:
     """A :class:`Navigator` for ``safe_path`` in ``scenario``'s world.
 
     ``method``: ``"chull"`` (Algorithm 1) or ``"centroid"`` (Algorithm 2);
     ``filter``: ``"ekf"`` or ``"pf"``; ``source``: a :data:`SOURCES` name.
     ``world_map`` overrides the true obstacles (a ``PlanningMap``), e.g. to
-    add obstacles the safe path was not planned around."""
+    add obstacles the safe path was not planned around.  ``paper``: the
+    papers' loop whatever the scenario says — no guard, no gate."""
     problem, s = navigation_setup(scenario, safe_path, method=method, world_map=world_map, max_steps=max_steps,
-                                  replan=replan, planner_seed=planner_seed)
-    fo = _core.FilterOptions()
-    fo.type = choice("filter", filter, FILTERS)
-    fo.n_particles = integer("n_particles", n_particles)
-    s.filter = fo
+                                  replan=replan, planner_seed=planner_seed, paper=paper)
+    s.filter.type = choice("filter", filter, FILTERS)
+    s.filter.n_particles = integer("n_particles", n_particles)
     s.record = bool(record)
 
     se = SensorSettings()
@@ -157,6 +160,9 @@ def make_navigator(scenario, safe_path, *, method: str = "centroid", filter: str
     scenario.noise.apply(se)
     if source == "lanbloc":
         se.position.std = np.asarray(scenario.noise.lanbloc_std, dtype=float)
+    else:  # an emulated baseline is its error profile: no landmark ranges to corrupt
+        se.fix_model = _core.FixModel.PROFILE
+        se.faults = _core.LandmarkFaults()
     return Navigator(problem, s, se)
 
 

@@ -220,21 +220,54 @@ DetectionParams = _core_section(
     "``min_landmarks`` within it of its centroid.",
     [("max_range_m", _core.SensorSettings, "max_range"), (_core.SensorSettings, "min_landmarks")])
 
-def _check_lanbloc_std(self):
+FIX_MODELS = {"profile": "profile", "ranges": "ranges"}
+GUARD_MODES = {"on": "on", "off": "off"}
+
+
+def _check_noise(self):
     _Params.__post_init__(self)
     v = validation.vector("lanbloc_std", self.lanbloc_std, (2,))
     object.__setattr__(self, "lanbloc_std", tuple(self.LANBLOC_STD.check(f"lanbloc_std[{i}]", s)
                                                   for i, s in enumerate(v)))
+    object.__setattr__(self, "fix_model", validation.choice("fix_model", self.fix_model, FIX_MODELS))
+    if self.fix_model != "ranges" and self.faults().any():
+        validation.fail("fix_model", self.fix_model, "landmark faults (dropout_probability, outlier_probability, "
+                        "misassociation_probability) need fix_model = 'ranges'")
+
+
+def _faults(self):
+    """The landmark faults as the core's :class:`safenav.LandmarkFaults`."""
+    return _core.LandmarkFaults(self.dropout_probability, self.outlier_probability, self.outlier_magnitude,
+                                self.misassociation_probability)
+
+
+def _apply_noise(self, core):
+    _Params.apply(self, core)
+    if isinstance(core, _core.SensorSettings):
+        core.fix_model = _core.FixModel.RANGES if self.fix_model == "ranges" else _core.FixModel.PROFILE
+    return core
 
 
 NoiseParams = _core_section(
     "NoiseParams", "Measurement noise: the LanBLoc position sigma (the core's ``PositionNoise.named('lanbloc')``: "
-    "the paper's RMSE) and the IMU's sigma (``SensorSettings``).",
-    [(_core.SensorSettings, "imu_speed_std"), (_core.SensorSettings, "imu_heading_std")],
+    "the paper's RMSE) and the IMU's sigma (``SensorSettings``).\n\n"
+    "Landmark level (ours): ``fix_model = 'ranges'`` builds each fix from single landmark ranges "
+    "(sigma ``range_std``) by LanBLoc's trilateration with its outlier rejection; only then can the "
+    "landmark faults act: a missed detection (``dropout_probability``), another landmark's id "
+    "(``misassociation_probability``), a range off by +-``outlier_magnitude`` (``outlier_probability``). "
+    "``'profile'`` (default) is the paper's measurement-level error model.",
+    [(_core.SensorSettings, "imu_speed_std"), (_core.SensorSettings, "imu_heading_std"),
+     (_core.SensorSettings, "range_std"), (_core.SensorSettings, "dropout_probability"),
+     (_core.SensorSettings, "outlier_probability"), (_core.SensorSettings, "outlier_magnitude"),
+     (_core.SensorSettings, "misassociation_probability")],
     own=[("lanbloc_std", tuple, field(default=tuple(float(v) for v in _core.PositionNoise.named("lanbloc").std),
-                                      metadata={"doc": "LanBLoc's position sigma in X and Y", "unit": "m"}))],
+                                      metadata={"doc": "LanBLoc's position sigma in X and Y", "unit": "m"})),
+         ("fix_model", str, field(default="profile", metadata={
+             "doc": "where fixes come from: 'profile' (the paper's error model) or 'ranges' (landmark ranges, "
+                    "trilateration; needed by the landmark faults)"}))],
     #: each entry of ``lanbloc_std``; a sigma of 0 would make the filters' covariances singular
-    extra={"LANBLOC_STD": Range(1e-6, 100), "__post_init__": _check_lanbloc_std})
+    extra={"LANBLOC_STD": Range(1e-6, 100), "__post_init__": _check_noise, "faults": _faults,
+           "apply": _apply_noise})
 
 PlannerParams = _core_section(
     "PlannerParams", "RAw-RRT* weights: cost = alpha*length + beta*sum(WRS) (eqs. 16, 19); beta = 0 is plain RRT*.\n\n"
@@ -268,6 +301,7 @@ _NAV = _core.NavigationSettings
 
 def _check_navigation(self):
     _Params.__post_init__(self)
+    object.__setattr__(self, "guard", validation.choice("guard", self.guard, GUARD_MODES))
     if self.clearance is not None:
         object.__setattr__(self, "clearance", self.CLEARANCE.check("clearance", self.clearance))
 
@@ -301,13 +335,22 @@ NavigationParams = _core_section(
     ignored; unset (``None``, the default) it follows from them.
     ``plan_iterations`` is the RAw-RRT* budget of the safe path,
     ``replan_iterations`` that of a detour; ``corridor_bias`` their share of
-    samples drawn inside the corridor (0 = uniform, as in the paper).""",
+    samples drawn inside the corridor (0 = uniform, as in the paper).
+
+    Safety (ours, on by default): each update passes a chi-square gate at
+    ``gate_probability``, and the guard (``guard``, ``guard_k``, ...; see
+    :class:`safenav.GuardSettings`) keeps ``guard_k`` position sigmas clear of
+    obstacles and forbidden hazards.  The papers' loop: ``guard = 'off'`` and
+    ``gate_probability = 0``.""",
     [(_NAV, "cruise_speed"), (_NAV, "arrival_radius"), (_NAV, "segment_length"), (_NAV, "sub_segments"),
      (_NAV, "lookahead"), (_NAV, "step_back_speed"), (_NAV, "sensing_range"), (_NAV, "replan_lookahead"),
      ("vehicle_radius", _core.Inflation, "vehicle_radius"), ("clearance_margin", _core.Inflation, "margin"),
      ("plan_iterations", _core.PlannerSettings, "max_iterations"),
-     (_NAV, "replan_iterations"), (_NAV, "corridor_bias"), (_NAV, "lost_position_std"), (_NAV, "max_steps")],
-    own=[("clearance", object, field(default=None, metadata={
+     (_NAV, "replan_iterations"), (_NAV, "corridor_bias"), (_NAV, "lost_position_std"), (_NAV, "max_steps"),
+     (_NAV, "gate_probability"), (_NAV, "guard_k"), (_NAV, "guard_slow_distance"),
+     (_NAV, "guard_min_speed_fraction")],
+    own=[("guard", str, field(default="on", metadata={
+        "doc": "the uncertainty-aware guard: 'on', or 'off' (the papers' loop; with gate_probability = 0)"})),("clearance", object, field(default=None, metadata={
         "doc": "planning clearance; overrides vehicle_radius + clearance_margin when set (old scenario files)",
         "unit": "m"}))],
     extra={"__post_init__": _check_navigation, "planning_clearance": property(_planning_clearance),

@@ -53,6 +53,31 @@ struct NavigationProblem {
 };
 
 
+/// The uncertainty-aware guard (ours; the papers have none).  Each command
+/// it compares the estimate's k-σ position radius ρ = k·√λ_max(P_xy) with the
+/// clearance d of the way ahead — the segment from the estimate through the
+/// commanded step to where the vehicle would stop if it braked after it —
+/// to the nearest obstacle or forbidden hazard (not grown: the true
+/// vehicle's collision test).  With margin m = d − ρ:
+///   * m ≥ slow_distance: the method's control is kept;
+///   * 0 ≤ m < slow_distance: it slows down, to a speed fraction m/slow_distance
+///     (at least min_speed_fraction);
+///   * m < 0: it steers — the heading change and speed (a fan within the BMM's
+///     turn limit) whose way ahead keeps m ≥ 0 and lies closest to the
+///     method's heading; if none does, one that gains clearance;
+///   * otherwise it stops and holds for a fix, turning toward the bearing that
+///     puts the most mapped landmarks within look_range inside field_of_view.
+/// Off, the loop is the papers'.
+struct GuardSettings {
+  bool enabled = true;
+  double k_sigma = 3.0;              ///< k of the k-σ radius
+  double slow_distance = 1.0;        ///< margin below which it slows down [m]
+  double min_speed_fraction = 0.25;  ///< slowest fraction of the commanded speed while slowing
+  double look_range = 30.0;          ///< landmarks within this can be looked at while holding [m]
+  double field_of_view = 85.0 * kPi / 180.0;  ///< the camera's full horizontal FOV [rad]
+  void validate() const;
+};
+
 struct NavigationSettings {
   NavigationMethod method = NavigationMethod::Centroid;
   double cruise_speed = 2.0;       ///< desired speed [m/s]
@@ -81,7 +106,14 @@ struct NavigationSettings {
   // Failure thresholds.
   double corridor_margin = 0.0;    ///< left the corridor: deviation > half_width + margin
   double lost_position_std = 10.0; ///< lost localization: √λ_max(P_xy) above this [m]
-  FilterOptions filter;            ///< EKF or PF (seed ignored: derived from the trial seed)
+  /// EKF or PF (seed ignored: derived from the trial seed).  The χ² gate is
+  /// on (0.99): the papers' loop has none (gate_probability = 0).
+  FilterOptions filter = [] {
+    FilterOptions f;
+    f.gate_probability = 0.99;
+    return f;
+  }();
+  GuardSettings guard;             ///< the uncertainty-aware guard (on; enabled = false: the papers' loop)
   bool record = true;              ///< keep the trajectories in the result
   void validate() const;
 };
@@ -138,6 +170,9 @@ enum GuidanceEvent : unsigned {
   kNoPath = 1u << 2,            ///< the way ahead is blocked and no detour was found
   kLostLocalization = 1u << 3,  ///< the position σ exceeds lost_position_std
   kArrived = 1u << 4,           ///< at the destination
+  kGuardSlow = 1u << 5,         ///< the guard slowed down: the k-σ radius nears the clearance ahead
+  kGuardSteer = 1u << 6,        ///< the guard steered away from the method's heading to keep clearance
+  kGuardHold = 1u << 7,         ///< the guard stopped to hold for a fix, turning toward landmarks
 };
 
 /// The answer to a command request.
@@ -148,6 +183,8 @@ struct Command {
   int segment = 0;            ///< segment k of the path followed: CHull's current one, Centroid's target's
   double position_std = std::numeric_limits<double>::quiet_NaN();  ///< √λ_max(P_xy) [m]
   ChullAction action = ChullAction::Keep;  ///< what SafeNav-CHull did (CHull only)
+  double clearance = std::numeric_limits<double>::infinity();  ///< the guard's clearance d of the way ahead [m] (+inf: not computed or nothing near)
+  double guard_margin = std::numeric_limits<double>::infinity();  ///< d − k·σ of the control sent [m]
   Eigen::Vector2d predicted = Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());  ///< BMM prediction of the estimate under `control`
 };
 

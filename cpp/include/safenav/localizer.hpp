@@ -69,6 +69,10 @@ enum class InputStatus {
   Late,      ///< older than the filter's time: not applied
   Buffered,  ///< kept for initialization from data (not initialized yet)
   Ignored,   ///< not initialized, and of no use to initialization
+  /// A position fix that failed its gate after reset_after_rejections
+  /// consecutive rejected fixes: the filter restarts its position from it
+  /// (the estimate had lost the track; without this a gate locks it out).
+  Reset,
 };
 const char* to_string(InputStatus status);
 
@@ -77,7 +81,7 @@ struct InputResult {
   InputStatus status = InputStatus::Applied;
   double nis = std::numeric_limits<double>::quiet_NaN();  ///< normalised innovation squared (updates)
   int dim = 0;                                            ///< its degrees of freedom
-  bool applied() const { return status == InputStatus::Applied; }
+  bool applied() const { return status == InputStatus::Applied || status == InputStatus::Reset; }
 };
 
 /// One landmark observation.  A NaN range or bearing means "not measured";
@@ -111,6 +115,10 @@ struct LocalizerSettings {
   double init_cov_inflation = 4.0; ///< the fit's pose covariance is multiplied by this
   double init_baseline = 5.0;      ///< [m] motion before the heading is taken from two position fixes
   double init_speed_std = 1.0;     ///< [m/s] σ of the initial speed (from the motion inputs)
+  /// After this many consecutive position fixes fail the gate, the next one
+  /// resets the position (InputStatus::Reset): x_y ← z, P_xy ← R, the
+  /// position's cross-covariances 0; augmented states restart from 0.  0 = never.
+  int reset_after_rejections = 10;
   void validate() const;
 };
 
@@ -121,6 +129,7 @@ struct LocalizerCounts {
   int rejected = 0;  ///< failed the gate
   int late = 0;      ///< older than the filter's time
   int buffered = 0;  ///< before initialization
+  int resets = 0;    ///< position resets after consecutive rejected fixes
 };
 
 /// The online filter.  Not thread-safe; one per vehicle.

@@ -191,4 +191,43 @@ struct PositionNoise {
   Fixes sample(const Eigen::Ref<const Fixes>& truth, std::uint64_t seed) const;
 };
 
+/// Landmark-level faults (ours; the papers model none): what goes wrong with
+/// single landmark observations before LanBLoc's trilateration sees them.
+/// Each observation of a landmark in view, independently and in this order:
+///   1. is missed (a failed detection) with probability dropout_probability;
+///   2. carries another landmark's id with probability misassociation_probability
+///      (a wrong match): the range is still to the true landmark, and the id
+///      is drawn uniformly among the other landmarks within `confusion_range`
+///      of the vehicle (or among all others when none is);
+///   3. is an outlier with probability outlier_probability: its range is off
+///      by ±outlier_magnitude (sign drawn uniformly).
+/// A probability of 0 draws nothing, so a fault-free model draws no numbers.
+struct LandmarkFaults {
+  double dropout_probability = 0.0;        ///< in [0, 1]
+  double outlier_probability = 0.0;        ///< in [0, 1]
+  double outlier_magnitude = 5.0;          ///< |range error| of an outlier [m], > 0
+  double misassociation_probability = 0.0; ///< in [0, 1]
+
+  /// Throws std::invalid_argument naming the first bad field.
+  void validate() const;
+  /// Whether any fault can happen.
+  bool any() const { return dropout_probability > 0 || outlier_probability > 0 || misassociation_probability > 0; }
+
+  /// What happened to one observation (bit flags).
+  enum Fault : unsigned { kDropped = 1u, kMisassociated = 2u, kOutlier = 4u };
+  /// One landmark observation: the landmark's row in the map (the id it
+  /// carries, after faults), its range, and the faults applied.
+  struct Observation {
+    int row = 0;
+    double range = 0.0;
+    unsigned faults = 0;
+  };
+  /// Applies the faults to `obs` (true rows and ranges of the landmarks seen
+  /// by a vehicle at p) in place: dropped observations are removed (counted
+  /// in `dropped` when given), others get their flags.  `landmarks` is the
+  /// map (rows = ids).  Draws from rng in observation order.
+  void apply(std::vector<Observation>& obs, const Landmarks& landmarks, const Eigen::Vector2d& p,
+             double confusion_range, RandomSource& rng, int* dropped = nullptr) const;
+};
+
 }  // namespace safenav

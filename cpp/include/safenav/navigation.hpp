@@ -57,9 +57,25 @@ std::string to_string(TrialOutcome outcome);
 /// and return true, or return false when localization failed (a dropout).
 using PositionCallback = std::function<bool(const State& truth, int step, Eigen::Vector2d& z, Eigen::Matrix2d& R)>;
 
+/// Where the simulator's position fixes come from.
+enum class FixModel {
+  /// The measurement-level error profile `position` (the paper's): a fix is
+  /// the true position plus PositionNoise when >= min_landmarks are in view.
+  Profile,
+  /// LanBLoc from single landmark ranges (ours): each landmark in view gives
+  /// a range with σ = range_std, landmark faults apply, and LanBLoc's
+  /// trilateration (with its outlier rejection, localization.hpp) turns them
+  /// into a fix with its own covariance.
+  Ranges,
+};
+std::string to_string(FixModel model);
+
 /// What the vehicle senses.
 struct SensorSettings {
   PositionNoise position;              ///< the measurement-level source (LanBLoc by default)
+  FixModel fix_model = FixModel::Profile;  ///< where fixes come from (Ranges: required by landmark faults)
+  double range_std = 0.05;             ///< σ of one landmark range in FixModel::Ranges [m]
+  LandmarkFaults faults;               ///< landmark-level faults (FixModel::Ranges, or a camera-loop callback)
   Landmarks landmarks;                 ///< K×2 landmark positions (map)
   double max_range = 30.0;             ///< landmark detection range [m]
   double field_of_view = 85.0 * kPi / 180.0;  ///< full horizontal FOV [rad], centred on the heading; ≥ 2π = all round
@@ -71,6 +87,9 @@ struct SensorSettings {
   void validate() const;
   /// Landmarks within range and inside the field of view of a vehicle at (x, y, θ).
   int landmarks_in_view(const State& x) const;
+  /// f(row, distance) for each landmark in view of a vehicle at x, in map order.
+  template <class F>
+  void for_each_in_view(const State& x, F&& f) const;
 };
 
 
@@ -88,6 +107,13 @@ struct TrialMetrics {
   double truth_ade = 0.0;       ///< mean ‖estimate − truth‖
   double truth_fde = 0.0;       ///< final ‖estimate − truth‖
   double max_deviation = 0.0;   ///< largest deviation of the true vehicle from the safe path [m]
+  // Safety (ours): what the true vehicle met, and whether the filter knew its error.
+  double min_clearance = 0.0;   ///< least distance of the true track to an obstacle or forbidden hazard [m] (+inf: none)
+  double hazard_time = 0.0;     ///< time with the true vehicle inside a hazard [s]
+  double hazard_length = 0.0;   ///< Σ_k length of the true track inside hazard k [m]
+  double exposure = 0.0;        ///< Σ_k risk_k · length inside hazard k [m] (PathSafety::exposure of the track)
+  double nees = 0.0;            ///< mean NEES eᵀP⁻¹e of the 4-state estimate (4 when consistent)
+  double outside_3sigma = 0.0;  ///< fraction of steps with the truth outside the estimate's 3σ position ellipse
 };
 
 struct TrialResult {
@@ -99,6 +125,18 @@ struct TrialResult {
   int position_fixes = 0;        ///< accepted position updates
   int dropouts = 0;              ///< fix steps without a fix (no landmarks in view, failed callback, random loss)
   int rejected = 0;              ///< updates rejected by the NIS gate
+  int resets = 0;                ///< position resets after consecutive rejected fixes (Localizer, InputStatus::Reset)
+  // Landmark observations (FixModel::Ranges): counts over the trial.
+  int observations = 0;          ///< landmark observations made (landmarks in view, before faults)
+  int dropped = 0;               ///< missed by a dropout fault
+  int outliers = 0;              ///< outlier faults injected
+  int misassociated = 0;         ///< misassociation faults injected
+  int ranges_rejected = 0;       ///< ranges rejected by the trilateration's outlier test
+  int faults_through = 0;        ///< faulty ranges inside a fix that the filter accepted
+  // Guard (guidance.hpp): steps on which it acted.
+  int guard_slow = 0;            ///< slowed down
+  int guard_steer = 0;           ///< steered away from the way the method chose
+  int guard_hold = 0;            ///< stopped and held for a fix (turning toward landmarks)
   int chull_default = 0;         ///< Algorithm 1: steps that kept the default command
   int chull_corrective = 0;      ///< Algorithm 1: corrective controls
   int chull_step_back = 0;       ///< Algorithm 1: step-back controls

@@ -110,10 +110,23 @@ class ObstacleChecker {
   /// the sum makes the planner's hazard cost equal to PathSafety::exposure,
   /// hazard by hazard (the max of hazard_risk() would hide a second threat).
   double hazard_integral(const Eigen::Vector2d& a, const Eigen::Vector2d& b) const;
+  /// One step a–b through the hazards: Σ_k length inside hazard k [m], the
+  /// exposure Σ_k risk_k · length_k [m], and whether b lies in a hazard
+  /// (boundary included).  No allocation.
+  struct HazardStep {
+    double length = 0.0;
+    double exposure = 0.0;
+    bool inside = false;
+  };
+  HazardStep hazard_step(const Eigen::Vector2d& a, const Eigen::Vector2d& b) const;
   /// Distance [m] from the segment a–b to the nearest obstacle, not grown by
   /// the clearance (0 when it touches one; +inf with no obstacles).  Forbidden
   /// hazards are not obstacles here.
   double obstacle_distance(const Eigen::Vector2d& a, const Eigen::Vector2d& b) const;
+  /// Distance [m] from the segment a–b to the nearest obstacle or forbidden
+  /// hazard (risk >= forbidden_risk), not grown by the clearance: what the
+  /// vehicle must keep out of (0 when it touches one; +inf with none).
+  double keep_out_distance(const Eigen::Vector2d& a, const Eigen::Vector2d& b) const;
 
  private:
   struct Impl;
