@@ -309,6 +309,12 @@ struct Guidance::Impl {
     return x1.head<2>() + d * Eigen::Vector2d(std::cos(x1[kTheta]), std::sin(x1[kTheta]));
   }
 
+  /// Whether the k-σ disc about p stays inside the safe buffer of the path
+  /// followed (the guard never steers the vehicle out of its corridor).
+  bool inside_corridor(const Eigen::Vector2d& p, double rho) const {
+    return active->corridor().project(p).distance + rho <= problem.zones.half_width + settings.corridor_margin;
+  }
+
   /// The heading change toward the bearing that puts the most landmarks
   /// within look_range inside the field of view (0 when none is in range).
   double look_turn(const State& x) const {
@@ -370,7 +376,9 @@ struct Guidance::Impl {
       for (int j = 0; j <= kHeadings; ++j) {
         const double dth = j == kHeadings ? want : -lim + 2.0 * lim * j / (kHeadings - 1);
         const Control u(v, dth);
-        const double dj = clearance(p, stop_point(x, u), rho);
+        const Eigen::Vector2d e = stop_point(x, u);
+        if (!inside_corridor(e, rho)) continue;
+        const double dj = clearance(p, e, rho);
         if (dj - rho < 0.0) continue;
         const double cost = std::abs(dth - want) - 1e-3 * v;  // closest to the method's heading, then fastest
         if (cost < best_cost) {
@@ -389,7 +397,7 @@ struct Guidance::Impl {
       for (int j = 0; j < kHeadings; ++j) {
         const Control u(speeds[2], -lim + 2.0 * lim * j / (kHeadings - 1));
         const Eigen::Vector2d e = stop_point(x, u);
-        if (shared->collisions.keep_out_distance(p, e) <= 0.0) continue;
+        if (!inside_corridor(e, rho) || shared->collisions.keep_out_distance(p, e) <= 0.0) continue;
         const double g_j = shared->collisions.keep_out_distance(e, e) - here;
         if (g_j > gain) {
           gain = g_j;

@@ -63,8 +63,9 @@ struct NavigationProblem {
 ///   * 0 ≤ m < slow_distance: it slows down, to a speed fraction m/slow_distance
 ///     (at least min_speed_fraction);
 ///   * m < 0: it steers — the heading change and speed (a fan within the BMM's
-///     turn limit) whose way ahead keeps m ≥ 0 and lies closest to the
-///     method's heading; if none does, one that gains clearance;
+///     turn limit) whose way ahead keeps m ≥ 0, and whose k-σ disc stays in
+///     the corridor, closest to the method's heading; if none does, one that
+///     gains clearance;
 ///   * otherwise it stops and holds for a fix, turning toward the bearing that
 ///     puts the most mapped landmarks within look_range inside field_of_view.
 /// Off, the loop is the papers'.
