@@ -192,6 +192,13 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
   obs.reserve(static_cast<std::size_t>(se.landmarks.rows()));
   LocalizationOptions trilateration;
   trilateration.seed = derive_seed(seed, 3);
+  const double gate = st.filter.gate_probability;
+  std::vector<double> fit_thresholds;
+  auto fit_threshold = [&](int dof) {
+    while (static_cast<int>(fit_thresholds.size()) < dof)
+      fit_thresholds.push_back(chi2_quantile(gate, static_cast<int>(fit_thresholds.size()) + 1));
+    return fit_thresholds[static_cast<std::size_t>(dof - 1)];
+  };
   int fix_faults = 0;  // faulty ranges inside the last fix
   auto range_fix = [&](const State& x, Eigen::Vector2d& z, Eigen::Matrix2d& R) -> bool {
     obs.clear();
@@ -214,6 +221,14 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
     }
     const LocalizationResult lr = trilaterate(anchors, ranges, Eigen::VectorXd::Constant(n, se.range_std), trilateration);
     if (!lr.ok()) return false;
+    // The fix's own χ² test at the gate's probability (ours): with one range
+    // more than the two unknowns the fit's residual reveals a bad range even
+    // where the outlier test (>= 4 ranges) cannot name it.
+    const int used = static_cast<int>(lr.inliers.count());
+    if (gate > 0.0 && used > 2 && lr.chi2 > fit_threshold(used - 2)) {
+      res.ranges_rejected += used;
+      return false;
+    }
     fix_faults = 0;
     for (Eigen::Index i = 0; i < n; ++i) {
       if (!lr.inliers[i]) ++res.ranges_rejected;

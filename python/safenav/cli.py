@@ -43,6 +43,17 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"safenav: error: {message}\n")
 
 
+def _probability(text: str) -> float:
+    """An argparse type: a probability in [0, 1]."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not 0.0 <= v <= 1.0:
+        raise argparse.ArgumentTypeError(f"must be a probability in [0, 1], got {text}")
+    return v
+
+
 def _at_least(lo: int):
     """An argparse type: an integer >= ``lo`` (the range checked by :func:`safenav.validation.integer`,
     the message in argparse's words)."""
@@ -106,6 +117,25 @@ def _synthetic(args) -> int:
     return 0
 
 
+def _safety_line(raw, loop: str) -> str:
+    """One paragraph: collisions, clearance, exposure, consistency and the guard, for the whole sweep."""
+    from .runner import safety_summary
+
+    s = safety_summary(raw)
+    n_coll = int((raw["outcome"] == "collision").sum())
+    where = ", ".join(f"{m} {p}: {len(g)}" for (m, p), g in raw[raw["outcome"] == "collision"]
+                      .groupby(["method", "path_type"], sort=False))
+    name = "ours (guard and gate on)" if loop == "ours" else "the papers' loop (no guard, no gate)"
+    return (f"Safety, {name}: {n_coll} of {len(raw)} trials collided" + (f" ({where})" if where else "")
+            + f"; true-track clearance min {s['min_clearance_min']:.2f} m, 5th percentile "
+              f"{s['min_clearance_p5']:.2f} m; hazard time {s['hazard_time']:.1f} s and exposure "
+              f"{s['exposure']:.1f} m per trial; mean NEES {s['nees']:.2f} (4 if consistent), "
+              f"{s['outside_3sigma']:.1%} of steps outside 3σ; guard events {s['guard_events']:.0f} per trial "
+              f"({s['guard_share']:.1%} of steps); updates rejected {s['rejected']:.0f}, position resets "
+              f"{s['resets']:.2f} per trial; landmark faults injected {s['faults_injected']}, through "
+              f"{s['faults_through']}.")
+
+
 def _synthetic_figure(args, path: Path) -> Path:
     """Figure of trial 0 (same seeds as the Monte Carlo's first trial)."""
     from .experiments import synthetic_trial
@@ -128,6 +158,8 @@ def _navigation(args, *, demo: bool) -> int:
 
     t0 = time.perf_counter()
     scenario = _load(args)
+    if args.faults is not None:
+        scenario = nv.with_faults(scenario, *args.faults)
     sweep = runner.Sweep(scenario, path_types=tuple(args.path_types or ()), methods=tuple(args.methods),
                          filters=tuple(args.filters), sources=tuple(args.sources), trials=args.trials,
                          seed=args.seed if args.seed is not None else scenario.seeds.trials,
@@ -141,7 +173,8 @@ def _navigation(args, *, demo: bool) -> int:
         t_plan = time.perf_counter() - t0
         for name, path in safe.items():
             console.detail(f"  safe path {name}: RAw-RRT*, {len(path)} waypoints, {path_length(path):.1f} m")
-        raw = runner.run_sweep(sweep, workers=args.workers, scheduler=client, safe_paths=safe, progress=True)
+        raw = runner.run_sweep(sweep, workers=args.workers, scheduler=client, safe_paths=safe, progress=True,
+                               paper=args.loop == "paper")
         t_run = time.perf_counter() - t0 - t_plan
         summary = runner.summarize(raw)
         write_table(raw, out / "trials")
@@ -163,6 +196,7 @@ def _navigation(args, *, demo: bool) -> int:
             tag = f"{filt}_{source}"
             for name, df in ((f"table_percent_error_{tag}", pe), (f"table_navigation_{tag}", nt)):
                 write_table(df, out / name, parquet=False, markdown="")
+        print("\n" + _safety_line(raw, args.loop))
         failures = raw[~raw["success"]]
         if len(failures):
             print(f"\n{len(failures)} of {len(raw)} trials did not arrive: "
@@ -329,6 +363,14 @@ def build_parser() -> argparse.ArgumentParser:
                        help="a position fix every n steps (default 1; 10 for lanbloc-camera)")
         s.add_argument("--path-types", nargs="+", default=None, help="default: all of the scenario's")
         s.add_argument("--particles", type=_at_least(1), default=500, help="PF particles (default 500)")
+        s.add_argument("--loop", choices=["ours", "paper"], default="ours",
+                       help="ours (default): the uncertainty-aware guard and the chi-square gate on; paper: the "
+                            "papers' loop, neither (docs/safety.md)")
+        s.add_argument("--faults", nargs=3, type=_probability, default=None,
+                       metavar=("DROPOUT", "OUTLIER", "MISASSOCIATION"),
+                       help="landmark faults: probabilities of a missed detection, an outlier range "
+                            "(noise.outlier_magnitude, 5 m) and a wrong landmark id; fixes then come from "
+                            "single landmark ranges (noise.fix_model = 'ranges')")
         _dask_options(s)
         s.add_argument("--seed", type=_at_least(0), default=None,
                        help="trial seed (default: the scenario's seeds.trials)")

@@ -54,11 +54,14 @@ SensorSettings = _core.SensorSettings
 TrialOutcome = _core.TrialOutcome
 ChullAction = _core.ChullAction
 TrialResult = _core.TrialResult
+GuardSettings = _core.GuardSettings
+LandmarkFaults = _core.LandmarkFaults
+FixModel = _core.FixModel
 
 __all__ = [
     "Navigator", "NavigationMethod", "NavigationProblem", "NavigationSettings", "SensorSettings",
-    "PositionNoise", "TrialOutcome", "ChullAction", "TrialResult", "SOURCES", "METHODS", "FILTERS",
-    "OUTCOMES", "position_source", "plan_safe_path", "navigation_setup", "make_navigator", "chull_control", "centroid_control",
+    "PositionNoise", "TrialOutcome", "ChullAction", "TrialResult", "GuardSettings", "LandmarkFaults", "FixModel", "SOURCES", "METHODS", "FILTERS",
+    "OUTCOMES", "position_source", "with_faults", "plan_safe_path", "navigation_setup", "make_navigator", "chull_control", "centroid_control",
 ]
 
 METHODS = {"chull": NavigationMethod.CHULL, "centroid": NavigationMethod.CENTROID}
@@ -81,6 +84,19 @@ def position_source(name: str) -> PositionNoise:
         raise ValueError(f"source = {name!r}: unknown position source (have: {sorted(SOURCES)}; "
                          f"the camera loop is passed as a callback to Navigator.run)")
     return PositionNoise.named(name)
+
+
+def with_faults(scenario, dropout: float = 0.0, outlier: float = 0.0, misassociation: float = 0.0):
+    """``scenario`` with landmark-level faults (ours): each landmark observation
+    is missed, an outlier (±``noise.outlier_magnitude``) or another landmark's id
+    with these probabilities.  Fixes then come from single landmark ranges
+    through LanBLoc's trilateration (``noise.fix_model = 'ranges'``), the only
+    model with observations to corrupt.  See :class:`safenav.LandmarkFaults`."""
+    from dataclasses import replace
+
+    return replace(scenario, noise=replace(scenario.noise, fix_model="ranges", dropout_probability=float(dropout),
+                                           outlier_probability=float(outlier),
+                                           misassociation_probability=float(misassociation)))
 
 
 def plan_safe_path(scenario, path_type: str, *, seed: int | None = None, iterations: int | None = None):

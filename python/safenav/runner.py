@@ -47,15 +47,22 @@ from . import navigation as nav
 from .scenario import Scenario
 
 __all__ = ["Sweep", "trial_seeds", "sub_seed", "SEED_RULE", "plan_safe_paths", "run_sweep", "run_trials",
-           "map_ordered", "summarize", "METRICS"]
+           "map_ordered", "summarize", "safety_summary", "METRICS", "SAFETY", "COUNTS"]
 
 #: The seed rule in one line (for ``parameters.json`` and the report).
 SEED_RULE = ("trial i of stream p: SeedSequence([seed, p]).generate_state(N)[i], p the path type's index in the "
              "scenario (0 for the synthetic data set); random source k inside a trial: derive_seed(trial seed, k)")
 
-#: Per-trial metric columns averaged by :func:`summarize`.
+#: Per-trial metric columns averaged by :func:`summarize` over the trials that arrived.
 METRICS = ("path_ade", "goal_fde", "path_error_percent", "awrs", "awrs_true", "truth_ade", "truth_fde",
            "max_deviation")
+#: Per-trial safety columns (ours): what the true vehicle met and whether the
+#: filter knew its error; :func:`summarize` averages them over *all* trials.
+SAFETY = ("min_clearance", "hazard_time", "hazard_length", "exposure", "nees", "outside_3sigma")
+#: Per-trial counts: steps, updates, landmark observations and faults, guard events.
+COUNTS = ("steps", "replans", "position_fixes", "dropouts", "rejected", "resets", "observations", "dropped",
+          "outliers", "misassociated", "ranges_rejected", "faults_through", "guard_slow", "guard_steer",
+          "guard_hold")
 
 
 @dataclass(frozen=True)
@@ -149,24 +156,22 @@ CAMERA_SOURCES = ("lanbloc-camera",)
 
 def _camera_trials(navigator, c: _Cell, seeds) -> dict:
     """Trials with LanBLoc through the camera loop (render, detect, SGBM,
-    trilaterate) as the position callback: Python per fix, so slower."""
+    trilaterate) as the position callback: Python per fix, so slower.  The
+    scenario's landmark faults act on the camera's observations too."""
     from .vision import CameraLoopSource
 
-    keys = ("outcome", "steps", "replans", "position_fixes", "dropouts", "rejected", "chull_default",
-            "chull_corrective", "chull_step_back", "time_s", "reason", *METRICS)
-    d = {k: [] for k in keys}
+    d = {k: [] for k in ("outcome", "reason", "time_s", *COUNTS, *METRICS, *SAFETY)}
+    faults = c.scenario.noise.faults()
     for s in seeds:
-        source = CameraLoopSource(c.scenario.world, seed=int(s) % 2**32)
+        source = CameraLoopSource(c.scenario.world, seed=int(s) % 2**32, faults=faults if faults.any() else None)
         r = navigator.run(int(s), position=source)
-        for k in keys:
-            if k in METRICS:
-                d[k].append(r.metrics[k])
-            elif k == "outcome":
-                d[k].append(int(r.outcome))
-            elif k == "time_s":
-                d[k].append(r.wall_time)
-            else:
-                d[k].append(getattr(r, k))
+        d["outcome"].append(int(r.outcome))
+        d["reason"].append(r.reason)
+        d["time_s"].append(r.wall_time)
+        for k in COUNTS:
+            d[k].append(getattr(r, k))
+        for k in (*METRICS, *SAFETY):
+            d[k].append(r.metrics[k])
     return d
 
 
@@ -185,9 +190,7 @@ def _run_chunk(c: _Cell, seeds: np.ndarray, start: int) -> pd.DataFrame:
     df["outcome"] = [nav.OUTCOMES[o] for o in d["outcome"]]
     df["success"] = np.asarray(d["outcome"]) == 0
     df["reason"] = d["reason"]
-    for k in ("steps", "replans", "position_fixes", "dropouts", "rejected"):
-        df[k] = np.asarray(d[k])
-    for k in METRICS:
+    for k in (*COUNTS, *METRICS, *SAFETY):
         df[k] = np.asarray(d[k])
     df["time_ms"] = np.asarray(d["time_s"]) * 1e3
     df["time_per_step_us"] = df["time_ms"] * 1e3 / np.maximum(df["steps"], 1)
@@ -320,10 +323,41 @@ def _run_dask(fn, items, scheduler, bar):
         return out
 
 
+def safety_summary(g: pd.DataFrame) -> dict:
+    """The safety numbers of a group of trials (all of them, failures
+    included): collision rate, the distribution of minimum clearance, hazard
+    time, length and exposure, mean NEES, the share of steps outside 3σ,
+    guard events per trial and their share of steps, gate rejections,
+    position resets, and the landmark faults injected and let through."""
+    clear = g["min_clearance"].to_numpy(float)
+    steps = np.maximum(g["steps"].to_numpy(float), 1)
+    guard = (g["guard_slow"] + g["guard_steer"] + g["guard_hold"]).to_numpy(float)
+    return {
+        "collision_rate": float((g["outcome"] == "collision").mean()),
+        "min_clearance_min": float(clear.min()),
+        "min_clearance_p5": float(np.percentile(clear, 5)),
+        "min_clearance_median": float(np.median(clear)),
+        "hazard_time": float(g["hazard_time"].mean()),
+        "hazard_length": float(g["hazard_length"].mean()),
+        "exposure": float(g["exposure"].mean()),
+        "nees": float(g["nees"].mean()),
+        "outside_3sigma": float(g["outside_3sigma"].mean()),
+        "guard_events": float(guard.mean()),
+        "guard_share": float((guard / steps).mean()),
+        "guard_hold": float(g["guard_hold"].mean()),
+        "rejected": float(g["rejected"].mean()),
+        "resets": float(g["resets"].mean()),
+        "dropped": float(g["dropped"].mean()),
+        "faults_injected": int((g["outliers"] + g["misassociated"]).sum()),
+        "faults_through": int(g["faults_through"].sum()),
+    }
+
+
 def summarize(raw: pd.DataFrame) -> pd.DataFrame:
     """Per cell (path type, method, filter, source): trial count, success rate,
-    the metrics' means over the *arrived* trials, and the median time per
-    trial [ms] and per step [µs] over all trials."""
+    the metrics' means over the *arrived* trials, the median time per
+    trial [ms] and per step [µs] over all trials, and the safety numbers of
+    :func:`safety_summary` over all trials."""
     if raw.empty:
         raise ValueError("summarize: the raw table has no rows")
     keys = ["path_type", "method", "filter", "source"]
@@ -342,5 +376,6 @@ def summarize(raw: pd.DataFrame) -> pd.DataFrame:
         row["time_per_step_us"] = float(g["time_per_step_us"].median())
         for o in nav.OUTCOMES[1:]:
             row[f"n_{o}"] = int((g["outcome"] == o).sum())
+        row.update(safety_summary(g))
         rows.append(row)
     return pd.DataFrame(rows)

@@ -68,6 +68,20 @@ def source_label(source: str) -> str:
     return SOURCES[source].label if source in SOURCES else source
 
 
+#: Safety columns (ours) that every navigation table carries after the paper's:
+#: summary column -> table label (see :func:`safenav.runner.safety_summary`).
+SAFETY_COLUMNS = {"collision_rate": "collisions", "min_clearance_p5": "clearance p5 m", "exposure": "exposure m",
+                  "nees": "NEES", "outside_3sigma": "out 3σ", "guard_share": "guard"}
+
+
+def _safety(row: dict, r) -> dict:
+    """``row`` with the safety columns of summary row ``r`` (those it has)."""
+    for k, label in SAFETY_COLUMNS.items():
+        if k in r:
+            row[label] = r[k]
+    return row
+
+
 def localization_table(summary: pd.DataFrame, paper: dict) -> pd.DataFrame:
     """[SafeNav-conf Tables I–II] layout (= [SafeNav-ext Tables II–III]): one row
     per (algorithm, filter) in the paper's order, ADE and FDE against the true
@@ -85,13 +99,13 @@ def localization_table(summary: pd.DataFrame, paper: dict) -> pd.DataFrame:
                "paper ADE": p[0], "paper FDE": p[1], "paper AWRS": p[2], "paper ms": p[3]}
         if "success_rate" in r:
             row["arrived"] = r["success_rate"]   # metrics are over the arrived trials
-        rows.append(row)
+        rows.append(_safety(row, r))
     return pd.DataFrame(rows)
 
 
 def _with_average(summary: pd.DataFrame) -> pd.DataFrame:
     cols = ["path_ade", "goal_fde", "awrs", "path_error_percent", "time_ms", "time_per_step_us", "success_rate",
-            "steps"]
+            "steps", *(k for k in SAFETY_COLUMNS if k in summary)]
     avg = summary.groupby("method", sort=False)[cols].mean().reset_index()
     avg["path_type"] = "Average"
     return pd.concat([summary[["method", "path_type", *cols]], avg[["method", "path_type", *cols]]],
@@ -131,4 +145,5 @@ def navigation_table(summary: pd.DataFrame) -> pd.DataFrame:
             "paper ADE": paper[0], "paper FDE": paper[1], "paper AWRS": paper[2], "paper ms": paper[3],
             "success": r["success_rate"], "steps": r["steps"], "µs/step": r["time_per_step_us"],
         })
+        _safety(rows[-1], r)
     return pd.DataFrame(rows)

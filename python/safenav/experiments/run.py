@@ -16,7 +16,7 @@ from ..results import write_json, write_table
 from ..scenario import Scenario, default_scenario
 from .claims import localization_claims, navigation_claims
 from .figures import navigation_figures, plot_field, plot_wrs_comparison
-from .paper import (METHOD_LABELS, PAPER_SOURCES, PAPER_TABLE1, PAPER_TABLE2, localization_table,
+from .paper import (METHOD_LABELS, PAPER_SOURCES, SAFETY_COLUMNS, PAPER_TABLE1, PAPER_TABLE2, localization_table,
                     navigation_table, percent_error_table, source_label)
 from .report import parameters
 from .synthetic import SyntheticConfig, summarize_synthetic, synthetic_experiment
@@ -102,9 +102,42 @@ def _write_summary(res: ExperimentResult, folder: Path, name: str, title: str, d
     res.files += write_table(df, folder / name, parquet=False, markdown=title)
 
 
-def _run(opts: ExperimentOptions, sweep: runner.Sweep, safe: dict) -> pd.DataFrame:
+def _run(opts: ExperimentOptions, sweep: runner.Sweep, safe: dict, **navigator_options) -> pd.DataFrame:
     return runner.run_sweep(sweep, workers=opts.workers, scheduler=opts.scheduler, safe_paths=safe,
-                            progress=opts.progress)
+                            progress=opts.progress, **navigator_options)
+
+
+def safety_table(ours: pd.DataFrame, paper: pd.DataFrame) -> pd.DataFrame:
+    """Per method and path type, the papers' loop (no guard, no gate) beside
+    ours on the same trials: collisions, arrival, the least and 5th-percentile
+    clearance of the true track, hazard time and exposure, mean NEES (4 if
+    consistent), the share of steps outside 3σ, guard events per trial and
+    the guard's mission-time cost (mean steps, ours / paper − 1)."""
+    rows = []
+    for loop, raw in (("paper", paper), ("ours", ours)):
+        for (method, path), g in raw.groupby(["method", "path_type"], sort=False):
+            s = runner.safety_summary(g)
+            rows.append({"Approach": METHOD_LABELS.get(method, method), "Path": path, "loop": loop,
+                         "trials": len(g), "collisions": int((g["outcome"] == "collision").sum()),
+                         "arrived": float(g["success"].mean()), "clearance min m": s["min_clearance_min"],
+                         "clearance p5 m": s["min_clearance_p5"], "hazard s": s["hazard_time"],
+                         "exposure m": s["exposure"], "NEES": s["nees"], "out 3σ": s["outside_3sigma"],
+                         "guard events": s["guard_events"], "mean steps": float(g["steps"].mean())})
+    t = pd.DataFrame(rows)
+    base = t[t["loop"] == "paper"].set_index(["Approach", "Path"])["mean steps"]
+    t["time cost"] = [r["mean steps"] / base[(r["Approach"], r["Path"])] - 1.0 for _, r in t.iterrows()]
+    return t
+
+
+def _collision_note(table: pd.DataFrame) -> str:
+    """Says plainly where each loop collided."""
+    out = []
+    for loop in ("paper", "ours"):
+        hit = table[(table["loop"] == loop) & (table["collisions"] > 0)]
+        where = ", ".join(f"{r['Approach']} on {r['Path']}: {r['collisions']} of {r['trials']}" for _, r in hit.iterrows())
+        name = "The papers' loop (no guard, no gate)" if loop == "paper" else "Ours (guard and gate on)"
+        out.append(f"{name} collided {'in ' + where if where else 'in no trial'}.")
+    return " ".join(out)
 
 
 def _safe_paths(opts: ExperimentOptions, cache: dict) -> dict:
@@ -122,7 +155,8 @@ def _path_average(summary: pd.DataFrame) -> pd.DataFrame:
     the estimate against the true vehicle (``truth_ade``, ``truth_fde``); AWRS
     is the estimate's risk about the safe path, as everywhere."""
     cols = {"truth_ade": "mean", "truth_fde": "mean", "awrs": "mean", "path_error_percent": "mean", "time_ms": "mean",
-            "time_per_step_us": "mean", "success_rate": "mean", "trials": "sum"}
+            "time_per_step_us": "mean", "success_rate": "mean", "trials": "sum",
+            **{k: "mean" for k in SAFETY_COLUMNS if k in summary}}
     g = summary.groupby(["source", "filter"], sort=False).agg(cols).reset_index()
     return g.rename(columns={"time_ms": "ms_per_trial"})
 
@@ -377,6 +411,14 @@ def run_navigation(opts: ExperimentOptions, cache: dict) -> ExperimentResult:
     with console.task("Figs. 4-5 (trial 0 of each path type, recorded)", enabled=opts.progress):
         res.figures += navigation_figures(opts.scenario, safe, sweep, folder)
     res.claims += navigation_claims(raw)
+    # The same trials in the papers' loop, for the safety table.
+    paper_raw = _run(opts, sweep, safe, paper=True)
+    res.files += write_table(paper_raw, folder / "trials_paper_loop")
+    st = safety_table(raw, paper_raw)
+    _write_summary(res, folder, "safety", f"Safety (ours): the papers' loop and ours on the same {opts.trials} "
+                   "trials per path type (LanBLoc-BMM(EKF)); clearance and hazards of the true track", st)
+    res.notes.append(_collision_note(st) + " Tables III and IV are from our loop (the guard and the χ² gate "
+                     "on); the papers' loop is `paper=True` (docs/safety.md).")
     res.notes.append("ADE (path_ade) is the mean distance of the estimate to the safe path (cross-track; our reading "
                      "of SafeNav-ext eq. 21, whose point-wise pairing is undefined for an untimed path), FDE "
                      "(goal_fde) the final estimate's distance to the destination. " + _outcomes(raw))

@@ -43,6 +43,16 @@ experiments: it renders the pair at the true vehicle pose
 (:class:`~safenav.vision.render.StereoRenderer`), runs the pipeline and returns the
 fix and its covariance, or ``None`` (a dropout) when localization fails.
 
+Landmark-level faults (ours; :class:`safenav.navigation.LandmarkFaults`: dropout,
+misassociation, outliers) act on the per-landmark ranges after stereo ranging
+and before trilateration (``LanBLoc.localize(..., faults=...)``,
+``CameraLoopSource(..., faults=...)``), through the core's
+:meth:`~safenav.navigation.LandmarkFaults.apply`, the model of the simulator's
+``FixModel.RANGES``: a dropped range is gone, a misassociated one keeps its
+range but carries another landmark's id and so that landmark's map position,
+an outlier's range is off by ``±outlier_magnitude``.  The trilateration's
+outlier test then sees them as it would in the simulator.
+
 Bad input raises ``ValueError`` naming the value: images of different sizes
 or not matching the calibration, empty images, a NaN calibration or camera
 height, a detected landmark id that the landmark table does not know.
@@ -58,6 +68,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from .. import _core
 from ..motion import wrap_angle
 from ..world import Landmark, World
 from .detect import Detection, Detector, FiducialDetector, check_image
@@ -65,10 +76,19 @@ from .localization import LocalizationResult, horizontal_range, trilaterate
 from .render import StereoRenderer, StereoRig, camera_rotation
 from .stereo import RectifiedCamera, StereoCalibration, StereoMatcher
 
-__all__ = ["LandmarkObservation", "LanBLocResult", "LanBLoc", "CameraLoopSource", "STATUSES"]
+__all__ = ["LandmarkObservation", "LanBLocResult", "LanBLoc", "CameraLoopSource", "STATUSES", "MISASSOCIATED",
+           "OUTLIER"]
 
 #: Result statuses, in the order the pipeline can stop.
 STATUSES = ("ok", "no_landmarks", "too_few_ranges", "degenerate", "did_not_converge")
+
+#: Landmark fault flags of :attr:`LandmarkObservation.faults` (the core's ``LandmarkFaults`` flags).
+MISASSOCIATED = 2
+OUTLIER = 4
+
+#: The random stream of the landmark faults under :class:`CameraLoopSource`'s seed
+#: (``derive_seed(derive_seed(seed, FAULT_STREAM), step)`` per frame).
+FAULT_STREAM = 1
 
 #: Default SGBM settings for the pipeline: 3-way SGBM with 64 disparities
 #: (ranges down to f·B/64, i.e. 1.6 m for the default rig), uniqueness 10.
@@ -95,6 +115,8 @@ class LandmarkObservation:
     bearing: float            #: bearing of the box centre relative to the heading, CCW [rad]
     bearing_sigma: float      #: σ of the bearing [rad]
     reason: str = ""          #: why there is no range ("" when ok)
+    faults: int = 0           #: landmark faults applied: :data:`MISASSOCIATED` | :data:`OUTLIER` bits
+    true_landmark_id: int | None = None   #: the recognised landmark when misassociated (``landmark_id`` is wrong)
 
 
 @dataclass(frozen=True)
@@ -110,6 +132,7 @@ class LanBLocResult:
     detections: tuple[Detection, ...]
     localization: LocalizationResult | None = None
     timings: dict = field(default_factory=dict, compare=False)   #: seconds per stage
+    dropped: int = 0                          #: ranges removed by landmark faults (not in ``observations``)
 
     @property
     def ok(self) -> bool:
@@ -118,6 +141,22 @@ class LanBLocResult:
     @property
     def n_ranges(self) -> int:
         return sum(o.ok for o in self.observations)
+
+    @property
+    def rejected(self) -> tuple[LandmarkObservation, ...]:
+        """The ranges that the trilateration's outlier test rejected (empty unless ok)."""
+        if not self.ok:
+            return ()
+        ranged = [o for o in self.observations if o.ok]
+        return tuple(o for o, inlier in zip(ranged, self.localization.inliers) if not inlier)
+
+    @property
+    def faults_in_fix(self) -> tuple[LandmarkObservation, ...]:
+        """The faulty ranges (``faults != 0``) that the fix used as inliers (empty unless ok)."""
+        if not self.ok:
+            return ()
+        ranged = [o for o in self.observations if o.ok]
+        return tuple(o for o, inlier in zip(ranged, self.localization.inliers) if inlier and o.faults)
 
     def range_measurements(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(landmark ids (n,), anchors (n, 2), horizontal ranges (n,), σ (n,))`` of the usable ranges."""
@@ -182,6 +221,16 @@ def _finite(name, v, *, positive=False, nonneg=False):
     if (positive and not v > 0) or (nonneg and v < 0):
         raise ValueError(f"{name} = {v!r}: must be {'> 0' if positive else '>= 0'}")
     return float(v)
+
+
+def _check_faults(faults):
+    """``faults`` as given (a validated :class:`safenav.navigation.LandmarkFaults`) or ``None``."""
+    if faults is None:
+        return None
+    if not isinstance(faults, _core.LandmarkFaults):
+        raise ValueError(f"faults = {faults!r}: must be a safenav.navigation.LandmarkFaults or None")
+    faults.validate()   # ValueError naming the bad field (faults.dropout_probability = ...)
+    return faults
 
 
 class LanBLoc:
@@ -289,6 +338,10 @@ class LanBLoc:
         if unknown:
             raise ValueError(f"trilateration: unknown option {unknown[0]!r} (known: {', '.join(known)})")
         self._R0t = camera_rotation(0.0, self.pitch_rad).T   # camera → world directions at heading 0
+        # the landmark faults' map: row k is landmark self._ids[k]
+        self._ids = sorted(self.landmarks)
+        self._rows = {i: k for k, i in enumerate(self._ids)}
+        self._map_xy = np.array([self.landmarks[i][0][:2] for i in self._ids], dtype=float).reshape(-1, 2)
         self._band_matchers: dict[tuple[int, int], StereoMatcher] = {}
 
     # ---------------------------------------------------------------- stages
@@ -355,6 +408,48 @@ class LanBLoc:
         return LandmarkObservation(ok=True, range=float(rho), sigma=float(sigma_rho), slant_range=s,
                                    depth=float(br.range), **common)
 
+    def apply_faults(self, observations: Sequence[LandmarkObservation], faults, position, seed: int
+                     ) -> tuple[tuple[LandmarkObservation, ...], int]:
+        """The observations after the landmark faults, and how many ranges were dropped.
+
+        Each ranged observation goes through the core's
+        :meth:`safenav.navigation.LandmarkFaults.apply` (the simulator's model) with the
+        vehicle at ``position`` (the truth: a misassociation picks another
+        landmark within ``max_range_m`` of it, else any other) and its own draw
+        stream ``derive_seed(seed, landmark id)``.  A dropped range is removed;
+        a misassociated one carries the wrong landmark's id, class and map
+        position (its range and bearing stay those of the landmark seen;
+        ``true_landmark_id`` says which); an outlier's range is off by
+        ``±outlier_magnitude``.  Observations without a range pass unchanged.
+        """
+        faults = _check_faults(faults)
+        if faults is None:
+            return tuple(observations), 0
+        p = np.asarray(position, dtype=float).ravel() if position is not None else np.zeros(0)
+        if p.shape != (2,) or not np.isfinite(p).all():
+            raise ValueError(f"position = {position!r}: must be the vehicle's finite (x, y) when faults are given")
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2 ** 64:
+            raise ValueError(f"seed = {seed!r}: must be an integer in [0, 2**64)")
+        out, dropped = [], 0
+        for o in observations:
+            if not o.ok:
+                out.append(o)
+                continue
+            # one observation per call: its own draws, so that the result maps back to the detection
+            rows, ranges, flags, n_dropped = faults.apply(
+                [self._rows[o.landmark_id]], [o.range], self._map_xy, p, self.max_range_m,
+                _core.derive_seed(int(seed), o.landmark_id))
+            if n_dropped:
+                dropped += 1
+                continue
+            lm = self._ids[rows[0]]
+            changes = dict(range=float(ranges[0]), faults=int(flags[0]))
+            if lm != o.landmark_id:
+                anchor, class_name = self.landmarks[lm]
+                changes.update(landmark_id=lm, class_name=class_name, anchor=anchor, true_landmark_id=o.landmark_id)
+            out.append(dataclasses.replace(o, **changes))
+        return tuple(out), dropped
+
     def _bearings_agree(self, loc: LocalizationResult, obs: Sequence[LandmarkObservation]) -> bool:
         """Whether the bearings fit the fix ``loc`` with one common heading (χ² test, 99.9 %).
 
@@ -382,8 +477,14 @@ class LanBLoc:
         return chi2 <= _chi2_999(len(obs) - 1)
 
     # ---------------------------------------------------------------- the whole frame
-    def localize(self, left, right) -> LanBLocResult:
-        """Run the pipeline on one stereo pair (raw if the camera needs rectification)."""
+    def localize(self, left, right, *, faults=None, position=None, seed: int = 0) -> LanBLocResult:
+        """Run the pipeline on one stereo pair (raw if the camera needs rectification).
+
+        ``faults``: landmark-level faults (a :class:`safenav.navigation.LandmarkFaults`) on
+        the ranges before trilateration, with the vehicle's true ``position``
+        and the frame's ``seed`` (see :meth:`apply_faults`); ``None``: none.
+        """
+        faults = _check_faults(faults)
         t = {}
         t0 = time.perf_counter()
         left, right = self.check_pair(left, right)
@@ -414,14 +515,17 @@ class LanBLoc:
         t3 = time.perf_counter()
         t["disparity"] = t3 - t2
         obs = tuple(self.observe(d, disp) for d in dets)
+        obs, dropped = self.apply_faults(obs, faults, position, seed)
         t4 = time.perf_counter()
         t["range"] = t4 - t3
         ok = [o for o in obs if o.ok]
         if len(ok) < self.min_landmarks:
             t["localize"] = 0.0
-            why = "; ".join(f"landmark {o.landmark_id}: {o.reason}" for o in obs if not o.ok)
+            why = [f"landmark {o.landmark_id}: {o.reason}" for o in obs if not o.ok]
+            why += [f"{dropped} dropped by landmark faults"] if dropped else []
             return LanBLocResult("too_few_ranges", f"{len(ok)} usable range(s), {self.min_landmarks} needed"
-                                 + (f" ({why})" if why else ""), nan2, nan22, math.nan, obs, tuple(dets), None, t)
+                                 + (f" ({'; '.join(why)})" if why else ""), nan2, nan22, math.nan, obs,
+                                 tuple(dets), None, t, dropped)
         anchors = np.array([o.anchor[:2] for o in ok])
         rng, sig = [o.range for o in ok], [o.sigma for o in ok]
         loc = trilaterate(anchors, rng, sig, **self.trilateration)
@@ -435,9 +539,10 @@ class LanBLoc:
         if not loc.ok:
             status = {"too_few": "too_few_ranges"}.get(loc.status, loc.status)
             status = status if status in STATUSES else "degenerate"
-            return LanBLocResult(status, loc.reason, nan2, nan22, float(loc.gdop), obs, tuple(dets), loc, t)
+            return LanBLocResult(status, loc.reason, nan2, nan22, float(loc.gdop), obs, tuple(dets), loc, t,
+                                 dropped)
         return LanBLocResult("ok", loc.reason, np.array(loc.position), np.array(loc.covariance), float(loc.gdop),
-                             obs, tuple(dets), loc, t)
+                             obs, tuple(dets), loc, t, dropped)
 
     __call__ = localize
 
@@ -458,6 +563,16 @@ class CameraLoopSource:
     per-landmark ranges and bearings, status and reason, stage timings);
     :attr:`last_images` holds the pair when ``keep_images`` is set;
     :attr:`stats` counts calls, fixes and failure statuses.
+
+    ``faults`` (a :class:`safenav.navigation.LandmarkFaults`, default none) corrupts the
+    per-landmark ranges before trilateration, as the simulator's
+    ``FixModel.RANGES`` does (:meth:`LanBLoc.apply_faults`), with the vehicle's
+    true position and the frame seed ``derive_seed(derive_seed(seed,
+    FAULT_STREAM), step)``.  :attr:`fault_stats` counts, over all frames, the
+    ranged ``observations`` (before faults), the ``dropped``, ``outliers`` and
+    ``misassociated`` ones, the ``ranges_rejected`` by the trilateration's
+    outlier test in the fixes, and the faulty ranges that fixes used
+    (``faults_in_fix``); the last fix's are ``last.faults_in_fix``.
     """
 
     name = "lanbloc-camera"
@@ -467,9 +582,15 @@ class CameraLoopSource:
                  marker_size_m: float = 1.5, dictionary: str = "DICT_4X4_100", noise_std: float = 1.0,
                  sigma_d: float = 0.2,
                  seed: int = 0, texture_seed: int = 0, covariance_floor_m: float = 0.0, keep_images: bool = False,
-                 **pipeline):
+                 faults=None, **pipeline):
         if not isinstance(world, World):
             raise ValueError(f"world = {world!r}: must be a safenav World")
+        self.faults = _check_faults(faults)
+        self.seed = seed
+        if self.faults is not None:
+            if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2 ** 64:
+                raise ValueError(f"seed = {seed!r}: must be an integer in [0, 2**64) with faults")
+            self._fault_seed = int(_core.derive_seed(int(seed), FAULT_STREAM))
         self.world = world
         self.rig = StereoRig() if rig is None else rig
         self.renderer = StereoRenderer(world, self.rig, marker_size_m=marker_size_m, dictionary=dictionary,
@@ -483,6 +604,8 @@ class CameraLoopSource:
         self.last_step: int | None = None
         self.last_images: tuple[np.ndarray, np.ndarray] | None = None
         self.stats: dict[str, int] = {"calls": 0, **{s: 0 for s in STATUSES}}
+        self.fault_stats: dict[str, int] = dict.fromkeys(
+            ("observations", "dropped", "outliers", "misassociated", "ranges_rejected", "faults_in_fix"), 0)
 
     @classmethod
     def from_scenario(cls, scenario, width: int = 640, height: int | None = 480, *,
@@ -502,12 +625,25 @@ class CameraLoopSource:
         t0 = time.perf_counter()
         left, right = self.renderer.render(pose)
         t_render = time.perf_counter() - t0
-        res = self.pipeline.localize(left, right)
+        if self.faults is None:
+            res = self.pipeline.localize(left, right)
+        else:
+            if isinstance(step, bool) or not isinstance(step, (int, np.integer)) or step < 0:
+                raise ValueError(f"step = {step!r}: must be an integer >= 0")
+            res = self.pipeline.localize(left, right, faults=self.faults, position=s[:2],
+                                         seed=int(_core.derive_seed(self._fault_seed, int(step))))
         res.timings["render"] = t_render
         self.last, self.last_step = res, int(step)
         self.last_images = (left, right) if self.keep_images else None
         self.stats["calls"] += 1
         self.stats[res.status] = self.stats.get(res.status, 0) + 1
+        fs = self.fault_stats
+        fs["observations"] += res.n_ranges + res.dropped
+        fs["dropped"] += res.dropped
+        fs["outliers"] += sum(bool(o.faults & OUTLIER) for o in res.observations)
+        fs["misassociated"] += sum(bool(o.faults & MISASSOCIATED) for o in res.observations)
+        fs["ranges_rejected"] += len(res.rejected)
+        fs["faults_in_fix"] += len(res.faults_in_fix)
         if not res.ok:
             return None
         R = res.covariance + self.covariance_floor_m ** 2 * np.eye(2)
