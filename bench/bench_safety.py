@@ -221,7 +221,20 @@ def main() -> None:
                     for loop in LOOPS:
                         cells.append(Cell(w, measured[m], name, stream, base["path"], method, loop, m, trials))
     t = time.perf_counter()
-    out = runner.map_ordered(run_cell, cells, workers=args.workers)
+    finished = []
+
+    def run_and_report(c: Cell) -> dict:
+        """run_cell, with a line as each cell finishes, so that a long run shows its progress."""
+        o = run_cell(c)
+        r = o["row"]
+        finished.append(c)
+        print(f"   [{len(finished):3d}/{len(cells)}] {c.world:12} {c.path_type:4} {c.method:9} {c.loop:5} "
+              f"{c.measurement:6} collisions {r['collisions']:4d} arrival {r['arrival']:.3f} "
+              f"mean steps {r['mean_steps']:6.0f} wall {r['time_ms'] / 1e3:6.1f} s", flush=True)
+        return o
+
+    print(f"\nrunning {len(cells)} cells x {trials} trials", flush=True)
+    out = runner.map_ordered(run_and_report, cells, workers=args.workers)
     grid_wall = time.perf_counter() - t
     df = pd.DataFrame([o["row"] for o in out])
     key = ["world", "path_type", "method", "measurement"]

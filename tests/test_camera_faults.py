@@ -18,9 +18,9 @@ from safenav.world import Landmark, World
 
 POSE = (40.0, 60.0, 0.5)
 STATE = np.array([POSE[0], POSE[1], 1.5, POSE[2]])
-# (depth, lateral to the right, height) from the vehicle; id 40 is 150 m behind, beyond the confusion range
+# (depth, lateral to the right, height) from the vehicle; id 40 is 35 m behind, beyond the confusion range
 PLACEMENTS = {1: (7.0, -3.0, 2.5), 2: (10.0, 2.0, 1.8), 3: (13.0, -0.5, 4.0), 4: (16.0, 6.0, 3.0),
-              5: (11.0, -8.5, 1.2), 40: (-150.0, 0.0, 2.0)}
+              5: (11.0, -8.5, 1.2), 40: (-35.0, 0.0, 2.0)}
 IN_VIEW = {1, 2, 3, 4, 5}
 
 
@@ -45,21 +45,26 @@ def _frames(source, n, start=0):
     return out
 
 
-def test_faults_off_is_bit_identical_and_the_faults_are_reproducible():
-    plain = _frames(CameraLoopSource(WORLD, seed=7), 4)
-    zero = _frames(CameraLoopSource(WORLD, seed=7, faults=LandmarkFaults()), 4)
-    assert all(r.ok for r in plain)
-    for a, b in zip(plain, zero):
+@pytest.fixture(scope="module")
+def clean():
+    """Three fault-free frames with seed 7."""
+    return _frames(CameraLoopSource(WORLD, seed=7), 3)
+
+
+def test_faults_off_is_bit_identical_and_the_faults_are_reproducible(clean):
+    zero = _frames(CameraLoopSource(WORLD, seed=7, faults=LandmarkFaults()), 3)
+    assert all(r.ok for r in clean)
+    for a, b in zip(clean, zero):
         assert a.status == b.status and b.dropped == 0
         assert np.array_equal(a.position, b.position) and np.array_equal(a.covariance, b.covariance)
         assert [(o.landmark_id, o.range, o.sigma, o.bearing) for o in a.observations] == \
                [(o.landmark_id, o.range, o.sigma, o.bearing) for o in b.observations]
         assert all(o.faults == 0 and o.true_landmark_id is None for o in b.observations)
-    # the same seed draws the same faults; the draws depend on the seed and the step
+    # the same seed draws the same faults
     f = LandmarkFaults(dropout_probability=0.3, outlier_probability=0.3, misassociation_probability=0.3)
     runs = [[(r.status, [(o.landmark_id, o.faults, o.range) for o in r.observations])
-             for r in _frames(CameraLoopSource(WORLD, seed=s, faults=f), 3)] for s in (7, 7, 8)]
-    assert runs[0] == runs[1] and runs[0] != runs[2]
+             for r in _frames(CameraLoopSource(WORLD, seed=7, faults=f), 2)] for _ in range(2)]
+    assert runs[0] == runs[1] and any(o[1] for _, obs in runs[0] for o in obs)
 
 
 def test_dropout_one_leaves_no_fix_and_counts_every_range_as_dropped():
@@ -81,7 +86,7 @@ def test_every_fault_reaches_the_camera_loop_at_its_rate():
     src = CameraLoopSource(WORLD, seed=11, faults=LandmarkFaults(
         dropout_probability=p_drop, outlier_probability=p_out, outlier_magnitude=5.0,
         misassociation_probability=p_mis))
-    n_frames = 40
+    n_frames = 30
     results = _frames(src, n_frames)
     fs = src.fault_stats
     assert fs["observations"] == 5 * n_frames
@@ -100,24 +105,20 @@ def test_every_fault_reaches_the_camera_loop_at_its_rate():
     assert sum(len(r.faults_in_fix) for r in results) == fs["faults_in_fix"]
 
 
-def test_a_misassociation_uses_the_wrong_landmarks_position_and_an_outlier_moves_the_range():
-    clean = _frames(CameraLoopSource(WORLD, seed=5), 3)
-    mis = _frames(CameraLoopSource(WORLD, seed=5, faults=LandmarkFaults(misassociation_probability=1.0)), 3)
-    out = _frames(CameraLoopSource(WORLD, seed=5, faults=LandmarkFaults(outlier_probability=1.0,
-                                                                        outlier_magnitude=2.5)), 3)
-    for c, m, o in zip(clean, mis, out):
+def test_a_misassociation_uses_the_wrong_landmarks_position_and_an_outlier_moves_the_range(clean):
+    both = _frames(CameraLoopSource(WORLD, seed=7, faults=LandmarkFaults(
+        misassociation_probability=1.0, outlier_probability=1.0, outlier_magnitude=2.5)), 3)
+    for c, m in zip(clean, both):
         ranges = {ob.landmark_id: ob.range for ob in c.observations}
-        assert len(m.observations) == len(o.observations) == 5
+        assert len(m.observations) == 5
         for ob in m.observations:
-            assert ob.faults == MISASSOCIATED and ob.true_landmark_id in IN_VIEW
+            assert ob.faults == MISASSOCIATED | OUTLIER and ob.true_landmark_id in IN_VIEW
             # another landmark near the vehicle (never the far one): its id, class and map position
             assert ob.landmark_id in IN_VIEW - {ob.true_landmark_id}
             assert ob.class_name == f"class{ob.landmark_id}"
             np.testing.assert_array_equal(ob.anchor[:2], MAP[ob.landmark_id])
-            assert ob.range == ranges[ob.true_landmark_id]          # the range is still to the landmark seen
-        for ob in o.observations:
-            assert ob.faults == OUTLIER and ob.true_landmark_id is None
-            assert abs(ob.range - ranges[ob.landmark_id]) == pytest.approx(2.5, abs=1e-12)
+            # the range is still to the landmark seen, off by the outlier magnitude
+            assert abs(ob.range - ranges[ob.true_landmark_id]) == pytest.approx(2.5, abs=1e-12)
         # the filter-facing measurements carry the corrupted observations
         ids, anchors, _, _ = m.range_measurements()
         np.testing.assert_array_equal(anchors, [MAP[i] for i in ids])
@@ -132,6 +133,8 @@ def test_a_single_faulty_range_among_five_is_rejected_by_the_outlier_test(faults
     src = CameraLoopSource(WORLD, seed=3, faults=faults)
     seen = 0
     for k in range(12):
+        if seen == 2:
+            break
         z = src(STATE, k)
         res = src.last
         bad = [o for o in res.observations if o.faults]
@@ -169,3 +172,6 @@ def test_bad_faults_are_named():
     b = lb.localize(left, right, faults=LandmarkFaults(dropout_probability=0.5), position=POSE[:2], seed=4)
     assert a.dropped == b.dropped and [o.landmark_id for o in a.observations] == \
            [o.landmark_id for o in b.observations]
+    seeds = {tuple(o.landmark_id for o in lb.localize(left, right, faults=LandmarkFaults(dropout_probability=0.5),
+                                                     position=POSE[:2], seed=s).observations) for s in range(6)}
+    assert len(seeds) > 1   # the draws depend on the seed

@@ -152,6 +152,7 @@ void pybind_navigation(py::module_& m) {
       .def_readwrite("k_sigma", &GuardSettings::k_sigma)
       .def_readwrite("slow_distance", &GuardSettings::slow_distance)
       .def_readwrite("min_speed_fraction", &GuardSettings::min_speed_fraction)
+      .def_readwrite("horizon", &GuardSettings::horizon)
       .def_readwrite("look_range", &GuardSettings::look_range)
       .def_readwrite("field_of_view", &GuardSettings::field_of_view)
       .def("validate", &GuardSettings::validate);

@@ -89,6 +89,7 @@ void GuardSettings::validate() const {
   require_finite_nonneg(slow_distance, "settings.guard.slow_distance");
   if (!(min_speed_fraction > 0.0 && min_speed_fraction <= 1.0))
     bad("settings.guard.min_speed_fraction = " + num(min_speed_fraction) + ": must be in (0, 1]");
+  require_finite_positive(horizon, "settings.guard.horizon");
   require_finite_nonneg(look_range, "settings.guard.look_range");
   require_finite_positive(field_of_view, "settings.guard.field_of_view");
 }
@@ -301,12 +302,34 @@ struct Guidance::Impl {
     return shared->collisions.keep_out_distance(a, b);
   }
 
-  /// Where the vehicle would stop if it braked after the step under u.
-  Eigen::Vector2d stop_point(const State& x, const Control& u) const {
-    const State x1 = shared->bmm.predict(x, u);
-    const double v = x1[kV];
-    const double d = v * v / (2.0 * problem.bmm.deceleration);
-    return x1.head<2>() + d * Eigen::Vector2d(std::cos(x1[kTheta]), std::sin(x1[kTheta]));
+  /// The guard's look at the way ahead under u: u held for guard.horizon
+  /// seconds (a constant-turn arc of the BMM, as in the dynamic window
+  /// approach), then braking to a stop.  Returns the least clearance of the
+  /// arc to obstacles and forbidden hazards; `deviation` gets the largest
+  /// distance of the arc from the path followed.
+  double way_ahead(const State& x, const Control& u, double rho, double* deviation = nullptr) {
+    const GuardSettings& g = settings.guard;
+    const Bmm& bmm = shared->bmm;
+    const int steps = std::max(1, static_cast<int>(std::ceil(g.horizon / problem.bmm.dt)));
+    constexpr int kEvery = 4;  // clearance checked over chords of this many steps
+    State xi = x;
+    Eigen::Vector2d a = x.head<2>();
+    double d = std::numeric_limits<double>::infinity(), dev = 0.0;
+    for (int i = 1; i <= steps; ++i) {
+      xi = bmm.predict(xi, u);
+      if (i % kEvery == 0 || i == steps) {
+        const Eigen::Vector2d b = xi.head<2>();
+        d = std::min(d, clearance(a, b, rho));
+        if (deviation) dev = std::max(dev, active->corridor().project(b).distance);
+        a = b;
+      }
+    }
+    const double v = xi[kV];
+    const Eigen::Vector2d stop =
+        xi.head<2>() + v * v / (2.0 * problem.bmm.deceleration) * Eigen::Vector2d(std::cos(xi[kTheta]), std::sin(xi[kTheta]));
+    d = std::min(d, clearance(a, stop, rho));
+    if (deviation) *deviation = std::max(dev, active->corridor().project(stop).distance);
+    return d;
   }
 
   /// Whether the k-σ disc about p stays inside the safe buffer of the path
@@ -347,9 +370,8 @@ struct Guidance::Impl {
   void guard(const State& x, Command& c) {
     const GuardSettings& g = settings.guard;
     const double rho = g.k_sigma * c.position_std;
-    const Eigen::Vector2d p = x.head<2>();
     const Control u0 = c.control;
-    double d = clearance(p, stop_point(x, u0), rho);
+    double d = way_ahead(x, u0, rho);
     c.clearance = d;
     c.guard_margin = d - rho;
     if (c.guard_margin >= g.slow_distance) return;
@@ -358,54 +380,57 @@ struct Guidance::Impl {
       if (f < 1.0) {
         c.control[0] = f * u0[0];
         c.events |= kGuardSlow;
-        d = clearance(p, stop_point(x, c.control), rho);
+        d = way_ahead(x, c.control, rho);
         c.clearance = d;
         c.guard_margin = d - rho;
       }
       return;
     }
-    // Steer: a fan of heading changes within the turn limit, at a few speeds.
+    // Steer: arcs of a fan of turn rates within the BMM's limit, at a few
+    // speeds; the fastest speed with a clear arc, then the turn closest to
+    // the method's.  An arc may not take the k-σ disc out of the corridor
+    // (or, when it already is, any farther out).
     const double lim = problem.bmm.max_heading_rate * problem.bmm.dt;
     const double want = shared->bmm.clipped_heading_change(u0[1]);
-    constexpr int kHeadings = 9;
+    const double out_now = active->corridor().project(x.head<2>()).distance;
+    const double dev_limit = std::max(problem.zones.half_width + settings.corridor_margin - rho, out_now);
+    constexpr int kTurns = 9;
     const double speeds[3] = {u0[0], 0.5 * u0[0], g.min_speed_fraction * u0[0]};
     bool found = false;
     Control best = u0;
     double best_cost = std::numeric_limits<double>::infinity(), best_d = 0.0;
+    // Escape when no arc is clear: the slowest arc that gains the most margin over holding.
+    const double hold_d = way_ahead(x, Control(0.0, 0.0), rho);
+    Control escape = u0;
+    double escape_d = hold_d + 1e-3;
+    bool can_escape = false;
     for (double v : speeds) {
-      for (int j = 0; j <= kHeadings; ++j) {
-        const double dth = j == kHeadings ? want : -lim + 2.0 * lim * j / (kHeadings - 1);
+      for (int j = 0; j <= kTurns; ++j) {
+        const double dth = j == kTurns ? want : -lim + 2.0 * lim * j / (kTurns - 1);
         const Control u(v, dth);
-        const Eigen::Vector2d e = stop_point(x, u);
-        if (!inside_corridor(e, rho)) continue;
-        const double dj = clearance(p, e, rho);
-        if (dj - rho < 0.0) continue;
-        const double cost = std::abs(dth - want) - 1e-3 * v;  // closest to the method's heading, then fastest
-        if (cost < best_cost) {
-          best_cost = cost;
-          best = u;
-          best_d = dj;
-          found = true;
+        double dev = 0.0;
+        const double dj = way_ahead(x, u, rho, &dev);
+        if (dev > dev_limit) continue;
+        if (dj - rho >= 0.0) {
+          const double cost = std::abs(dth - want);
+          if (cost < best_cost) {
+            best_cost = cost;
+            best = u;
+            best_d = dj;
+            found = true;
+          }
+        } else if (v == speeds[2] && dj > escape_d) {
+          escape = u;
+          escape_d = dj;
+          can_escape = true;
         }
       }
-      if (found) break;  // the fastest speed that has a safe heading
+      if (found) break;
     }
-    if (!found) {
-      // Escape: at the slowest speed, the heading whose stop point gains the most clearance.
-      const double here = shared->collisions.keep_out_distance(p, p);
-      double gain = 1e-3;
-      for (int j = 0; j < kHeadings; ++j) {
-        const Control u(speeds[2], -lim + 2.0 * lim * j / (kHeadings - 1));
-        const Eigen::Vector2d e = stop_point(x, u);
-        if (!inside_corridor(e, rho) || shared->collisions.keep_out_distance(p, e) <= 0.0) continue;
-        const double g_j = shared->collisions.keep_out_distance(e, e) - here;
-        if (g_j > gain) {
-          gain = g_j;
-          best = u;
-          best_d = clearance(p, e, rho);
-          found = true;
-        }
-      }
+    if (!found && can_escape) {
+      best = escape;
+      best_d = escape_d;
+      found = true;
     }
     if (found) {
       c.control = best;
@@ -417,8 +442,8 @@ struct Guidance::Impl {
     // Hold for a fix: stop, turning toward where landmarks can be seen.
     c.control = Control(0.0, look_turn(x));
     c.events |= kGuardHold;
-    c.clearance = shared->collisions.keep_out_distance(p, p);
-    c.guard_margin = c.clearance - rho;
+    c.clearance = hold_d;
+    c.guard_margin = hold_d - rho;
   }
 
   static LocalizerSettings seeded(LocalizerSettings s, std::uint64_t seed) {

@@ -58,6 +58,9 @@ EVENTS = {
     "no_path": _core.EVENT_NO_PATH,
     "lost_localization": _core.EVENT_LOST_LOCALIZATION,
     "arrived": _core.EVENT_ARRIVED,
+    "guard_slow": _core.EVENT_GUARD_SLOW,
+    "guard_steer": _core.EVENT_GUARD_STEER,
+    "guard_hold": _core.EVENT_GUARD_HOLD,
 }
 
 __all__ = ["Localizer", "LocalizerSettings", "Guidance", "Command", "InputResult", "InputStatus", "GuidanceStatus",

@@ -150,6 +150,9 @@ class _Cell:
     extra: dict = field(default_factory=dict)
 
 
+#: Counts that a camera-loop source keeps itself (its ``fault_stats``).
+_CAMERA_COUNTS = ("observations", "dropped", "outliers", "misassociated", "ranges_rejected", "faults_through")
+
 #: Position sources that run the vision pipeline instead of a noise profile.
 CAMERA_SOURCES = ("lanbloc-camera",)
 
@@ -168,8 +171,11 @@ def _camera_trials(navigator, c: _Cell, seeds) -> dict:
         d["outcome"].append(int(r.outcome))
         d["reason"].append(r.reason)
         d["time_s"].append(r.wall_time)
+        # The camera's landmark observations and faults are counted by the source,
+        # not the loop; "through" is what its trilateration kept (before the gate).
+        fs = dict(source.fault_stats, faults_through=source.fault_stats["faults_in_fix"])
         for k in COUNTS:
-            d[k].append(getattr(r, k))
+            d[k].append(fs[k] if k in _CAMERA_COUNTS else getattr(r, k))
         for k in (*METRICS, *SAFETY):
             d[k].append(r.metrics[k])
     return d

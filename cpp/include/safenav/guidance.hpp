@@ -55,17 +55,19 @@ struct NavigationProblem {
 
 /// The uncertainty-aware guard (ours; the papers have none).  Each command
 /// it compares the estimate's k-σ position radius ρ = k·√λ_max(P_xy) with the
-/// clearance d of the way ahead — the segment from the estimate through the
-/// commanded step to where the vehicle would stop if it braked after it —
-/// to the nearest obstacle or forbidden hazard (not grown: the true
-/// vehicle's collision test).  With margin m = d − ρ:
+/// clearance d of the way ahead to the nearest obstacle or forbidden hazard
+/// (not grown: the true vehicle's collision test).  The way ahead of a
+/// control is the BMM arc of that control held for `horizon` seconds, then
+/// braking to a stop (a dynamic-window rollout).  With margin m = d − ρ for
+/// the method's control:
 ///   * m ≥ slow_distance: the method's control is kept;
 ///   * 0 ≤ m < slow_distance: it slows down, to a speed fraction m/slow_distance
 ///     (at least min_speed_fraction);
-///   * m < 0: it steers — the heading change and speed (a fan within the BMM's
-///     turn limit) whose way ahead keeps m ≥ 0, and whose k-σ disc stays in
-///     the corridor, closest to the method's heading; if none does, one that
-///     gains clearance;
+///   * m < 0: it steers — among arcs of a fan of turn rates within the BMM's
+///     limit at the commanded, half and slowest speeds, the fastest speed with
+///     a clear arc (m ≥ 0) that keeps the k-σ disc in the corridor, with the
+///     turn closest to the method's; if none is clear, the slowest arc that
+///     gains the most clearance over stopping;
 ///   * otherwise it stops and holds for a fix, turning toward the bearing that
 ///     puts the most mapped landmarks within look_range inside field_of_view.
 /// Off, the loop is the papers'.
@@ -74,6 +76,7 @@ struct GuardSettings {
   double k_sigma = 3.0;              ///< k of the k-σ radius
   double slow_distance = 1.0;        ///< margin below which it slows down [m]
   double min_speed_fraction = 0.25;  ///< slowest fraction of the commanded speed while slowing
+  double horizon = 1.0;              ///< the way ahead: a control held this long, then braking [s]
   double look_range = 30.0;          ///< landmarks within this can be looked at while holding [m]
   double field_of_view = 85.0 * kPi / 180.0;  ///< the camera's full horizontal FOV [rad]
   void validate() const;
