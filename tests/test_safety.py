@@ -1,0 +1,286 @@
+"""Safety in the loop (ours): the uncertainty-aware guard, landmark-level
+faults, the χ² gate and its reset, and the safety metrics of every trial.
+
+The references are exact where one exists (the fault model's counts are
+binomial; a consistent filter's mean NEES is χ²-distributed; a collision is
+the true track touching an obstacle), and each test also runs the papers'
+loop to show that the check can fail."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.stats import chi2
+
+import safenav
+from safenav import _core, runner
+from safenav import guidance as gd
+from safenav import navigation as nv
+from safenav import planning as P
+from safenav.motion import BmmParams
+
+
+# --------------------------------------------------------------------------- a landmark gap beside an obstacle
+
+GAP_LANDMARKS = np.array([(75.0, 8.0), (75.0, -8.0), (90.0, 6.0), (90.0, -6.0), (100.0, 0.0)])
+
+
+def _gap_navigator(*, guard: bool, record: bool = False, obstacle=(30.0, 2.0, 0.8)):
+    """An 80 m straight path whose first 45 m see no landmark (the vehicle
+    starts with σ = 1 m and dead-reckons), with a boulder 1.2 m beside it."""
+    p = _core.NavigationProblem()
+    p.path = np.array([(0.0, 0.0), (80.0, 0.0)])
+    p.zones = _core.RiskZones()
+    p.map = P.make_map(lower=(-20, -40), upper=(120, 40), circles=[obstacle], clearance=0.5)
+    p.bmm = BmmParams()
+    s = _core.NavigationSettings()
+    s.guard.enabled = guard
+    if not guard:
+        s.filter.gate_probability = 0.0   # the papers' loop
+    s.record = record
+    se = _core.SensorSettings()
+    se.landmarks = GAP_LANDMARKS
+    return _core.Navigator(p, s, se)
+
+
+def test_a_landmark_gap_beside_an_obstacle_collides_without_the_guard_and_not_with_it():
+    seeds = list(range(60))
+    off = _gap_navigator(guard=False).run_many(seeds)
+    on = _gap_navigator(guard=True).run_many(seeds)
+    collided = np.asarray(off["outcome"]) == int(_core.TrialOutcome.COLLISION)
+    assert collided.sum() >= 3                       # the papers' loop meets the boulder
+    assert (np.asarray(on["outcome"]) == int(_core.TrialOutcome.ARRIVED)).all()
+    assert (np.asarray(on["min_clearance"]) > 0).all() and (np.asarray(off["min_clearance"])[collided] == 0).all()
+    # The guard acted (it steered round), and only near the boulder: the mission takes longer, not much.
+    assert (np.asarray(on["guard_steer"]) > 0).all()
+    assert np.mean(on["steps"]) < 1.5 * np.mean(np.asarray(off["steps"])[~collided])
+    # One fixed seed, recorded: off collides at the boulder, on arrives and never touches it.
+    seed = int(np.flatnonzero(collided)[0])
+    r_off = _gap_navigator(guard=False, record=True).run(seed)
+    r_on = _gap_navigator(guard=True, record=True).run(seed)
+    assert r_off.outcome_name == "collision" and r_on.outcome_name == "arrived"
+    d = np.linalg.norm(np.asarray(r_on.truth)[:, :2] - (30.0, 2.0), axis=1) - 0.8
+    assert d.min() > 0 and math.isclose(d.min(), r_on.metrics["min_clearance"], rel_tol=0.05, abs_tol=0.02)
+
+
+def test_the_guard_is_off_in_the_papers_loop_and_changes_nothing_there():
+    sc = safenav.default_scenario()
+    safe = nv.plan_safe_path(sc, "P2").path
+    a = nv.make_navigator(sc, safe, paper=True, record=False)
+    assert not a.settings.guard.enabled and a.settings.filter.gate_probability == 0.0
+    from dataclasses import replace
+    b = nv.make_navigator(replace(sc, navigation=replace(sc.navigation, guard="off", gate_probability=0.0)), safe,
+                          record=False)
+    seeds = [1, 2, 3]
+    da, db = a.run_many(seeds), b.run_many(seeds)
+    for k in ("steps", "truth_ade", "nees", "min_clearance"):
+        np.testing.assert_array_equal(da[k], db[k])
+    assert sum(da["guard_slow"]) + sum(da["guard_steer"]) + sum(da["guard_hold"]) == 0
+
+
+def _guidance(obstacle, *, sigma):
+    p = _core.NavigationProblem()
+    p.path = np.array([(0.0, 0.0), (60.0, 0.0)])
+    p.zones = _core.RiskZones()
+    p.map = P.make_map(lower=(-20, -40), upper=(120, 40), circles=[obstacle])
+    p.bmm = BmmParams()
+    s = _core.NavigationSettings()
+    s.replan = False
+    g = gd.Guidance(p, s, gd.localizer_settings(), GAP_LANDMARKS, list(range(len(GAP_LANDMARKS))), 0)
+    g.localizer.initialize(0.0, np.array([20.0, 0.0, 2.0, 0.0]), np.diag([sigma ** 2, sigma ** 2, 0.01, 0.001]))
+    return g
+
+
+def test_the_guard_acts_only_when_its_k_sigma_radius_reaches_the_clearance():
+    obstacle = (24.0, 2.0, 0.5)                     # 1.5 m beside the path, 4 m ahead
+    sure = _guidance(obstacle, sigma=0.05).command(0.0)
+    assert gd.event_names(sure.events) == [] and sure.speed == 2.0
+    assert 1.0 < sure.clearance < 2.0 and sure.guard_margin == pytest.approx(sure.clearance - 3 * sure.position_std)
+    unsure = _guidance(obstacle, sigma=1.0).command(0.0)
+    assert "guard_steer" in gd.event_names(unsure.events)
+    assert unsure.heading_change < 0                # away from the boulder on the left
+    assert unsure.guard_margin >= 0
+
+
+def test_the_guard_holds_and_looks_at_landmarks_when_no_way_is_clear():
+    # A wall across the corridor 3 m ahead: nothing is clear for a 3σ radius of 3 m.
+    p = _core.NavigationProblem()
+    p.path = np.array([(0.0, 0.0), (60.0, 0.0)])
+    p.zones = _core.RiskZones()
+    p.map = P.make_map(lower=(-20, -40), upper=(120, 40), polygons=[np.array([(23, -9), (24, -9), (24, 9), (23, 9)],
+                                                                              float)])
+    p.bmm = BmmParams()
+    s = _core.NavigationSettings()
+    s.replan = False
+    marks = np.array([(20.0, 25.0), (22.0, 26.0), (18.0, 27.0)])   # to the left, in look range
+    g = gd.Guidance(p, s, gd.localizer_settings(), marks, [0, 1, 2], 0)
+    g.localizer.initialize(0.0, np.array([20.0, 0.0, 0.0, 0.0]), np.diag([1.0, 1.0, 0.01, 0.001]))
+    c = g.command(0.0)
+    assert gd.event_names(c.events) == ["guard_hold"]
+    assert c.speed == 0.0 and c.heading_change > 0    # turning left, toward the landmarks
+
+
+def test_bad_guard_settings_name_the_value():
+    s = _core.NavigationSettings()
+    s.guard.k_sigma = -1.0
+    with pytest.raises(ValueError, match="guard.k_sigma"):
+        s.validate()
+    s = _core.NavigationSettings()
+    s.guard.min_speed_fraction = 0.0
+    with pytest.raises(ValueError, match="min_speed_fraction"):
+        s.validate()
+    with pytest.raises(ValueError, match="guard_horizon"):
+        _core.NavigationSettings().set_param("guard_horizon", float("nan"))
+    sc = safenav.default_scenario()
+    from dataclasses import replace
+    with pytest.raises(ValueError, match="guard"):
+        replace(sc.navigation, guard="sometimes")
+
+
+# --------------------------------------------------------------------------- the fault model
+
+def test_the_fault_model_draws_each_fault_at_its_probability():
+    rng = np.random.default_rng(5)
+    marks = rng.uniform(0, 40, (12, 2))
+    f = _core.LandmarkFaults(dropout_probability=0.2, outlier_probability=0.1, outlier_magnitude=3.0,
+                             misassociation_probability=0.15)
+    n, kept, out, mis = 0, 0, 0, 0
+    for k in range(400):
+        rows = list(range(12))
+        ranges = list(np.linalg.norm(marks - (20, 20), axis=1))
+        r2, rng2, flags, dropped = f.apply(rows, ranges, marks, np.array([20.0, 20.0]), 15.0, k)
+        n += 12
+        kept += len(r2)
+        assert dropped == 12 - len(r2)
+        for row, rr, fl in zip(r2, rng2, flags):
+            out += bool(fl & 4)
+            mis += bool(fl & 2)
+            if fl & 4:   # an outlier is off by exactly the magnitude, either sign
+                assert any(math.isclose(abs(rr - ranges[j]), 3.0, abs_tol=1e-9) for j in range(12))
+            if not fl:
+                assert rr == ranges[row]
+    def within(count, trials, p):
+        return abs(count - trials * p) <= 4 * math.sqrt(trials * p * (1 - p))
+    assert within(n - kept, n, 0.2) and within(out, kept, 0.1) and within(mis, kept, 0.15)
+
+
+def test_a_misassociation_carries_a_nearby_landmarks_id():
+    marks = np.array([(0.0, 0.0), (5.0, 0.0), (100.0, 100.0)])
+    f = _core.LandmarkFaults(misassociation_probability=1.0)
+    for seed in range(20):
+        rows, ranges, flags, _ = f.apply([0], [1.0], marks, np.array([1.0, 0.0]), 30.0, seed)
+        assert rows == [1] and flags == [2] and ranges == [1.0]   # the only other landmark in range
+    rows, _, _, _ = f.apply([2], [1.0], marks, np.array([100.0, 99.0]), 30.0, 0)
+    assert rows[0] in (0, 1)                                       # none near: any other
+
+
+@pytest.mark.parametrize("field", ["dropout_probability", "outlier_probability", "misassociation_probability"])
+def test_bad_fault_settings_name_the_value(field):
+    with pytest.raises(ValueError, match=field):
+        _core.LandmarkFaults(**{field: 1.5})
+    se = _core.SensorSettings()
+    setattr(se.faults, field, 0.1)
+    with pytest.raises(ValueError, match="fix_model"):   # faults need landmark ranges
+        se.validate()
+    from dataclasses import replace
+    sc = safenav.default_scenario()
+    with pytest.raises(ValueError, match="fix_model"):
+        replace(sc.noise, **{field: 0.1})
+    with pytest.raises(ValueError, match="outlier_magnitude"):
+        _core.LandmarkFaults(outlier_magnitude=0.0)
+
+
+# --------------------------------------------------------------------------- faults in the loop
+
+@pytest.fixture(scope="module")
+def p2():
+    sc = safenav.default_scenario()
+    return sc, nv.plan_safe_path(sc, "P2").path
+
+
+def test_every_fault_option_reaches_the_loop_at_its_probability(p2):
+    sc, safe = p2
+    faulty = nv.with_faults(sc, 0.2, 0.05, 0.01)
+    d = nv.make_navigator(faulty, safe, record=False).run_many(list(range(8)))
+    obs, dropped = int(np.sum(d["observations"])), int(np.sum(d["dropped"]))
+    seen = obs - dropped
+    def within(count, trials, p):
+        return abs(count - trials * p) <= 4 * math.sqrt(trials * p * (1 - p))
+    assert obs > 5000
+    assert within(dropped, obs, 0.2)
+    assert within(int(np.sum(d["outliers"])), seen, 0.05)
+    assert within(int(np.sum(d["misassociated"])), seen, 0.01)
+    # Each layer rejects: trilateration's outlier test and the fit's χ² test drop bad ranges, the gate bad fixes.
+    assert np.sum(d["ranges_rejected"]) > np.sum(d["outliers"])
+    assert np.sum(d["faults_through"]) < 0.02 * (np.sum(d["outliers"]) + np.sum(d["misassociated"]))
+
+
+def _nees_band(m: int) -> tuple[float, float]:
+    """The 95 % band of the mean over m runs of a consistent 4-state filter's
+    NEES (Bar-Shalom's average-NEES test, χ²_{4m}/m).  Each run's value is
+    itself a time average, whose spread is smaller than one χ²₄ draw's, so
+    the band is conservative for a consistent filter."""
+    return chi2.ppf(0.025, 4 * m) / m, chi2.ppf(0.975, 4 * m) / m
+
+
+def test_nees_under_faults_stays_in_its_band_with_the_gate_and_not_without(p2):
+    sc, safe = p2
+    faulty = nv.with_faults(sc, 0.2, 0.05, 0.01)
+    m = 16
+    seeds = list(range(100, 100 + m))
+    ours = nv.make_navigator(faulty, safe, record=False).run_many(seeds)
+    paper = nv.make_navigator(faulty, safe, record=False, paper=True).run_many(seeds)
+    lo, hi = _nees_band(m)
+    assert lo <= np.mean(ours["nees"]) <= hi
+    assert np.mean(paper["nees"]) > 10 * hi
+    assert np.mean(ours["outside_3sigma"]) < 0.03 < np.mean(paper["outside_3sigma"])
+
+
+def test_the_gate_rejects_an_injected_outlier_fix_and_a_run_of_them_resets_the_position():
+    s = gd.localizer_settings()
+    loc = gd.Localizer(s, np.zeros((0, 2)), [])
+    loc.initialize(0.0, np.array([0.0, 0.0, 0.0, 0.0]), np.diag([0.01, 0.01, 0.01, 0.01]))
+    R = np.eye(2) * 0.01
+    good = loc.fix(0.05, 0.05, -0.02, R)
+    assert good.status == gd.InputStatus.APPLIED and good.nis < chi2.ppf(0.99, 2)
+    n = s.reset_after_rejections
+    for k in range(n):
+        r = loc.fix(0.1 + 0.05 * k, 5.0, 0.0, R)        # 5 m off: an outlier
+        assert r.status == gd.InputStatus.REJECTED and r.nis > chi2.ppf(0.99, 2)
+        assert abs(loc.x[0]) < 0.5
+    r = loc.fix(0.1 + 0.05 * n, 5.0, 0.0, R)            # the estimate must have lost the track
+    assert r.status == gd.InputStatus.RESET
+    assert loc.x[0] == 5.0 and loc.counts.resets == 1
+    np.testing.assert_allclose(np.asarray(loc.P)[:2, :2], R)
+
+
+# --------------------------------------------------------------------------- metrics and tables
+
+def test_safety_metrics_match_the_recorded_track(p2):
+    """Exposure, hazard length and minimum clearance of a trial equal
+    path_safety of its recorded true track (exact geometry both ways)."""
+    sc, safe = p2
+    r = nv.make_navigator(sc, safe).run(3)
+    track = P.path_safety(np.asarray(r.truth)[:, :2], P.map_from_world(sc.world))
+    m = r.metrics
+    assert m["exposure"] > 0
+    assert m["exposure"] == pytest.approx(track.exposure, rel=1e-9)
+    assert m["hazard_length"] == pytest.approx(float(np.sum(track.hazard_length)), rel=1e-9)
+    assert m["min_clearance"] == pytest.approx(track.min_clearance, rel=1e-9)
+    assert 0 < m["hazard_time"] <= r.steps * sc.bmm.dt + 1e-9
+    assert 0 <= m["outside_3sigma"] <= 1 and m["nees"] > 0
+
+
+def test_summaries_carry_the_safety_columns():
+    sc = safenav.default_scenario()
+    sweep = runner.Sweep(sc, path_types=("P2",), methods=("centroid",), trials=4)
+    raw = runner.run_sweep(sweep, workers=1)
+    for k in (*runner.SAFETY, *runner.COUNTS):
+        assert k in raw
+    s = runner.summarize(raw)
+    for k in ("collision_rate", "min_clearance_min", "min_clearance_p5", "exposure", "nees", "outside_3sigma",
+              "guard_events", "faults_injected", "faults_through"):
+        assert k in s
+    assert s["collision_rate"].iloc[0] == 0.0
