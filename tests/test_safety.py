@@ -94,10 +94,16 @@ def _guidance(obstacle, *, sigma):
 
 
 def test_the_guard_acts_only_when_its_k_sigma_radius_reaches_the_clearance():
-    obstacle = (24.0, 2.0, 0.5)                     # 1.5 m beside the path, 4 m ahead
+    obstacle = (24.0, 3.2, 0.5)                     # 2.7 m beside the path, 4 m ahead
     sure = _guidance(obstacle, sigma=0.05).command(0.0)
     assert gd.event_names(sure.events) == [] and sure.speed == 2.0
-    assert 1.0 < sure.clearance < 2.0 and sure.guard_margin == pytest.approx(sure.clearance - 3 * sure.position_std)
+    # Far from everything the clearance is the cached lower bound, which suffices.
+    assert 1.0 + 3 * 0.05 + 0.25 <= sure.clearance <= 2.7 + 1e-9
+    assert sure.guard_margin == pytest.approx(sure.clearance - 3 * sure.position_std - 0.25)   # less the buffer
+    # σ = 0.6: ρ + buffer = 2.05 m, within the 1 m slowing band of the 2.7+ m clearance: slower, same heading.
+    closer = _guidance(obstacle, sigma=0.6).command(0.0)
+    assert gd.event_names(closer.events) == ["guard_slow"] and 0.5 <= closer.speed < 2.0
+    assert closer.heading_change == sure.heading_change
     unsure = _guidance(obstacle, sigma=1.0).command(0.0)
     assert "guard_steer" in gd.event_names(unsure.events)
     assert unsure.heading_change < 0                # away from the boulder on the left

@@ -150,10 +150,14 @@ void pybind_navigation(py::module_& m) {
       .def(py::init<>())
       .def_readwrite("enabled", &GuardSettings::enabled)
       .def_readwrite("k_sigma", &GuardSettings::k_sigma)
+      .def_readwrite("buffer", &GuardSettings::buffer)
+      .def_readwrite("look_first", &GuardSettings::look_first)
+      .def_readwrite("look_timeout", &GuardSettings::look_timeout)
       .def_readwrite("slow_distance", &GuardSettings::slow_distance)
       .def_readwrite("min_speed_fraction", &GuardSettings::min_speed_fraction)
       .def_readwrite("horizon", &GuardSettings::horizon)
       .def_readwrite("look_range", &GuardSettings::look_range)
+      .def_readwrite("look_min_landmarks", &GuardSettings::look_min_landmarks)
       .def_readwrite("field_of_view", &GuardSettings::field_of_view)
       .def("validate", &GuardSettings::validate);
 

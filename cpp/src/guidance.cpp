@@ -87,10 +87,14 @@ void NavigationSettings::validate() const {
 void GuardSettings::validate() const {
   require_finite_positive(k_sigma, "settings.guard.k_sigma");
   require_finite_nonneg(slow_distance, "settings.guard.slow_distance");
+  require_finite_nonneg(buffer, "settings.guard.buffer");
+  require_finite_nonneg(look_timeout, "settings.guard.look_timeout");
   if (!(min_speed_fraction > 0.0 && min_speed_fraction <= 1.0))
     bad("settings.guard.min_speed_fraction = " + num(min_speed_fraction) + ": must be in (0, 1]");
   require_finite_positive(horizon, "settings.guard.horizon");
   require_finite_nonneg(look_range, "settings.guard.look_range");
+  if (look_min_landmarks < 1)
+    bad("settings.guard.look_min_landmarks = " + std::to_string(look_min_landmarks) + ": must be >= 1");
   require_finite_positive(field_of_view, "settings.guard.field_of_view");
 }
 
@@ -286,6 +290,9 @@ struct Guidance::Impl {
   // away, so the exact query runs only near obstacles.
   Eigen::Vector2d guard_p = Eigen::Vector2d::Zero();
   double guard_d = -std::numeric_limits<double>::infinity();
+  // Look first: 0 idle, > 0 the steps spent looking, −1 looked (until the margin is met).
+  int looking = 0;
+  double look_sigma = 0.0;  // σ when the look began
 
   /// Clearance of the segment a–b (a = the estimate) to obstacles and
   /// forbidden hazards: exact when it could matter (bound − ρ < slow_distance),
@@ -304,32 +311,38 @@ struct Guidance::Impl {
 
   /// The guard's look at the way ahead under u: u held for guard.horizon
   /// seconds (a constant-turn arc of the BMM, as in the dynamic window
-  /// approach), then braking to a stop.  Returns the least clearance of the
-  /// arc to obstacles and forbidden hazards; `deviation` gets the largest
-  /// distance of the arc from the path followed.
-  double way_ahead(const State& x, const Control& u, double rho, double* deviation = nullptr) {
+  /// approach), then braking to a stop.
+  struct WayAhead {
+    double clearance = std::numeric_limits<double>::infinity();  ///< least, along the arc [m]
+    double end_clearance = std::numeric_limits<double>::infinity();  ///< at the stop point [m]
+    double deviation = 0.0;  ///< largest distance of the arc from the path followed [m]
+  };
+  WayAhead way_ahead(const State& x, const Control& u, double rho, bool ends = false) {
     const GuardSettings& g = settings.guard;
     const Bmm& bmm = shared->bmm;
     const int steps = std::max(1, static_cast<int>(std::ceil(g.horizon / problem.bmm.dt)));
     constexpr int kEvery = 4;  // clearance checked over chords of this many steps
     State xi = x;
     Eigen::Vector2d a = x.head<2>();
-    double d = std::numeric_limits<double>::infinity(), dev = 0.0;
+    WayAhead w;
     for (int i = 1; i <= steps; ++i) {
       xi = bmm.predict(xi, u);
       if (i % kEvery == 0 || i == steps) {
         const Eigen::Vector2d b = xi.head<2>();
-        d = std::min(d, clearance(a, b, rho));
-        if (deviation) dev = std::max(dev, active->corridor().project(b).distance);
+        w.clearance = std::min(w.clearance, clearance(a, b, rho));
+        if (ends) w.deviation = std::max(w.deviation, active->corridor().project(b).distance);
         a = b;
       }
     }
     const double v = xi[kV];
     const Eigen::Vector2d stop =
         xi.head<2>() + v * v / (2.0 * problem.bmm.deceleration) * Eigen::Vector2d(std::cos(xi[kTheta]), std::sin(xi[kTheta]));
-    d = std::min(d, clearance(a, stop, rho));
-    if (deviation) *deviation = std::max(dev, active->corridor().project(stop).distance);
-    return d;
+    w.clearance = std::min(w.clearance, clearance(a, stop, rho));
+    if (ends) {
+      w.deviation = std::max(w.deviation, active->corridor().project(stop).distance);
+      w.end_clearance = shared->collisions.keep_out_distance(stop, stop);
+    }
+    return w;
   }
 
   /// Whether the k-σ disc about p stays inside the safe buffer of the path
@@ -338,9 +351,24 @@ struct Guidance::Impl {
     return active->corridor().project(p).distance + rho <= problem.zones.half_width + settings.corridor_margin;
   }
 
-  /// The heading change toward the bearing that puts the most landmarks
-  /// within look_range inside the field of view (0 when none is in range).
-  double look_turn(const State& x) const {
+  /// Landmarks within look_range and inside the field of view centred on
+  /// `heading`, seen from p.
+  int landmarks_seen(const Eigen::Vector2d& p, double heading) const {
+    const GuardSettings& g = settings.guard;
+    const Landmarks& L = shared->landmarks;
+    int n = 0;
+    for (Eigen::Index j = 0; j < L.rows(); ++j) {
+      const Eigen::Vector2d dj = L.row(j).transpose() - p;
+      if (dj.norm() > g.look_range || dj.squaredNorm() < 1e-18) continue;
+      n += std::abs(wrap_angle(std::atan2(dj.y(), dj.x()) - heading)) <= 0.5 * g.field_of_view;
+    }
+    return n;
+  }
+
+  /// The heading change toward the landmark bearing that puts the most
+  /// landmarks within look_range inside the field of view (0 when none is
+  /// in range; ties: the smaller turn); `seen` gets that count.
+  double look_turn(const State& x, int* seen = nullptr) const {
     const GuardSettings& g = settings.guard;
     const Landmarks& L = shared->landmarks;
     const Eigen::Vector2d p = x.head<2>();
@@ -350,41 +378,62 @@ struct Guidance::Impl {
       const Eigen::Vector2d di = L.row(i).transpose() - p;
       if (di.norm() > g.look_range || di.squaredNorm() < 1e-18) continue;
       const double bi = std::atan2(di.y(), di.x());
-      int n = 0;
-      for (Eigen::Index j = 0; j < L.rows(); ++j) {
-        const Eigen::Vector2d dj = L.row(j).transpose() - p;
-        if (dj.norm() > g.look_range || dj.squaredNorm() < 1e-18) continue;
-        n += std::abs(wrap_angle(std::atan2(dj.y(), dj.x()) - bi)) <= 0.5 * g.field_of_view;
-      }
+      const int n = landmarks_seen(p, bi);
       const double turn = wrap_angle(bi - x[kTheta]);
       if (n > best || (n == best && std::abs(turn) < std::abs(best_turn))) {
         best = n;
         best_turn = turn;
       }
     }
+    if (seen) *seen = best;
     return best_turn;
   }
 
-  /// The guard (GuardSettings): keeps the k-σ radius off obstacles and
-  /// forbidden hazards by slowing, steering or holding.
+  /// The guard (GuardSettings): keeps the k-σ radius (plus a buffer) off
+  /// obstacles and forbidden hazards by slowing, looking, steering or holding.
   void guard(const State& x, Command& c) {
     const GuardSettings& g = settings.guard;
     const double rho = g.k_sigma * c.position_std;
+    const double keep = rho + g.buffer;  // the clearance the way ahead must keep
     const Control u0 = c.control;
-    double d = way_ahead(x, u0, rho);
-    c.clearance = d;
-    c.guard_margin = d - rho;
-    if (c.guard_margin >= g.slow_distance) return;
-    if (c.guard_margin >= 0.0) {
+    auto set = [&](const Control& u, unsigned event, double d) {
+      c.control = u;
+      c.events |= event;
+      c.clearance = d;
+      c.guard_margin = d - keep;
+    };
+    const double d0 = way_ahead(x, u0, rho).clearance;
+    set(u0, 0u, d0);
+    if (c.guard_margin >= 0.0 && looking < 0) looking = 0;  // clear again: a later conflict may look again
+    if (c.guard_margin >= g.slow_distance && looking == 0) return;
+    if (c.guard_margin >= 0.0 && looking == 0) {  // slow down
       const double f = std::max(g.min_speed_fraction, g.slow_distance > 0 ? c.guard_margin / g.slow_distance : 1.0);
       if (f < 1.0) {
-        c.control[0] = f * u0[0];
-        c.events |= kGuardSlow;
-        d = way_ahead(x, c.control, rho);
-        c.clearance = d;
-        c.guard_margin = d - rho;
+        const Control u(f * u0[0], u0[1]);
+        set(u, kGuardSlow, way_ahead(x, u, rho).clearance);
       }
       return;
+    }
+    int could_see = 0;
+    const double look = look_turn(x, &could_see);
+    // Look first: the way ahead is clear of the obstacles themselves (d0 > buffer), so the
+    // conflict is the uncertainty; landmarks that would give a fix are in range
+    // but out of view: stop and turn toward them, until they are in view and
+    // a fix has halved σ, or for at most look_timeout.
+    const bool in_view = landmarks_seen(x.head<2>(), x[kTheta]) >= g.look_min_landmarks;
+    if (g.look_first && looking == 0 && d0 > g.buffer && could_see >= g.look_min_landmarks && !in_view) {
+      looking = 1;
+      look_sigma = c.position_std;
+    }
+    if (looking > 0) {
+      const bool done = c.position_std <= 0.5 * look_sigma || looking * problem.bmm.dt > g.look_timeout;
+      if (!done) {
+        ++looking;
+        const Control u(0.0, in_view ? 0.0 : look);
+        set(u, kGuardHold, way_ahead(x, u, rho).clearance);
+        return;
+      }
+      looking = -1;  // looked: no second look until the margin is met again
     }
     // Steer: arcs of a fan of turn rates within the BMM's limit, at a few
     // speeds; the fastest speed with a clear arc, then the turn closest to
@@ -396,54 +445,41 @@ struct Guidance::Impl {
     const double dev_limit = std::max(problem.zones.half_width + settings.corridor_margin - rho, out_now);
     constexpr int kTurns = 9;
     const double speeds[3] = {u0[0], 0.5 * u0[0], g.min_speed_fraction * u0[0]};
-    bool found = false;
-    Control best = u0;
+    // Escape when no arc is clear: the slow arc that ends farthest from the
+    // obstacles, if it ends farther than the vehicle is now and touches nothing.
+    const double here = shared->collisions.keep_out_distance(x.head<2>(), x.head<2>());
+    Control best = u0, escape = u0;
     double best_cost = std::numeric_limits<double>::infinity(), best_d = 0.0;
-    // Escape when no arc is clear: the slowest arc that gains the most margin over holding.
-    const double hold_d = way_ahead(x, Control(0.0, 0.0), rho);
-    Control escape = u0;
-    double escape_d = hold_d + 1e-3;
-    bool can_escape = false;
+    double escape_end = here + 1e-3, escape_d = 0.0;
+    bool found = false, can_escape = false;
     for (double v : speeds) {
       for (int j = 0; j <= kTurns; ++j) {
         const double dth = j == kTurns ? want : -lim + 2.0 * lim * j / (kTurns - 1);
         const Control u(v, dth);
-        double dev = 0.0;
-        const double dj = way_ahead(x, u, rho, &dev);
-        if (dev > dev_limit) continue;
-        if (dj - rho >= 0.0) {
+        const WayAhead w = way_ahead(x, u, rho, true);
+        if (w.deviation > dev_limit) continue;
+        if (w.clearance - keep >= 0.0) {
           const double cost = std::abs(dth - want);
           if (cost < best_cost) {
             best_cost = cost;
             best = u;
-            best_d = dj;
+            best_d = w.clearance;
             found = true;
           }
-        } else if (v == speeds[2] && dj > escape_d) {
+        } else if (v == speeds[2] && w.clearance > 0.0 && w.end_clearance > escape_end) {
           escape = u;
-          escape_d = dj;
+          escape_end = w.end_clearance;
+          escape_d = w.clearance;
           can_escape = true;
         }
       }
       if (found) break;
     }
-    if (!found && can_escape) {
-      best = escape;
-      best_d = escape_d;
-      found = true;
-    }
-    if (found) {
-      c.control = best;
-      c.events |= kGuardSteer;
-      c.clearance = best_d;
-      c.guard_margin = best_d - rho;
-      return;
-    }
+    if (found) return set(best, kGuardSteer, best_d);
+    if (can_escape) return set(escape, kGuardSteer, escape_d);
     // Hold for a fix: stop, turning toward where landmarks can be seen.
-    c.control = Control(0.0, look_turn(x));
-    c.events |= kGuardHold;
-    c.clearance = hold_d;
-    c.guard_margin = hold_d - rho;
+    const Control u(0.0, look);
+    set(u, kGuardHold, way_ahead(x, u, rho).clearance);
   }
 
   static LocalizerSettings seeded(LocalizerSettings s, std::uint64_t seed) {

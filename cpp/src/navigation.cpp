@@ -115,6 +115,7 @@ struct Navigator::Impl {
   static NavigationSettings with_camera(NavigationSettings s, const SensorSettings& se) {
     s.guard.field_of_view = std::min(se.field_of_view, 2.0 * kPi);
     s.guard.look_range = se.max_range;
+    s.guard.look_min_landmarks = std::max(1, se.min_landmarks);
     return s;
   }
 

@@ -139,6 +139,11 @@ class Shape {
     return inside;
   }
 
+  // A lower bound on distance(): the bounding circle's (0 inside it).
+  double distance_bound(const Vec2& a, const Vec2& b) const {
+    return std::max(0.0, std::sqrt(segment_point_distance2(a, b, center_)) - radius_);
+  }
+
   // Distance from the segment a–b to the shape (0 when it touches it).
   double distance(const cgal::Segment& ab) const {
     if (disc_) return std::max(0.0, std::sqrt(CGAL::squared_distance(cgal::point(center_), ab)) - radius_);
@@ -326,7 +331,8 @@ double ObstacleChecker::obstacle_distance(const Vec2& a, const Vec2& b) const {
   if (!a.allFinite() || !b.allFinite()) bad("segment " + fmt(a) + "–" + fmt(b) + " is not finite");
   const cgal::Segment ab(cgal::point(a), cgal::point(b));
   double d = std::numeric_limits<double>::infinity();
-  for (const auto& s : impl_->obstacles) d = std::min(d, s.distance(ab));
+  for (const auto& s : impl_->obstacles)
+    if (s.distance_bound(a, b) < d) d = std::min(d, s.distance(ab));
   return d;
 }
 
@@ -346,7 +352,8 @@ ObstacleChecker::HazardStep ObstacleChecker::hazard_step(const Vec2& a, const Ve
 double ObstacleChecker::keep_out_distance(const Vec2& a, const Vec2& b) const {
   double d = obstacle_distance(a, b);
   const cgal::Segment ab(cgal::point(a), cgal::point(b));
-  for (const auto& s : impl_->forbidden) d = std::min(d, s.distance(ab));
+  for (const auto& s : impl_->forbidden)
+    if (s.distance_bound(a, b) < d) d = std::min(d, s.distance(ab));
   return d;
 }
 

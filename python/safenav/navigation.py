@@ -141,6 +141,7 @@ def navigation_setup(scenario, safe_path, *, method: str = "centroid", world_map
     s.guard.enabled = nav.guard == "on" and not paper
     s.guard.field_of_view = float(np.deg2rad(scenario.camera.field_of_view_deg))  # it looks with the camera
     s.guard.look_range = float(scenario.detection.max_range_m)
+    s.guard.look_min_landmarks = int(scenario.detection.min_landmarks)
     if paper:
         s.filter.gate_probability = 0.0
     s.method = choice("method", method, METHODS)

@@ -55,29 +55,39 @@ struct NavigationProblem {
 
 /// The uncertainty-aware guard (ours; the papers have none).  Each command
 /// it compares the estimate's k-σ position radius ρ = k·√λ_max(P_xy) with the
-/// clearance d of the way ahead to the nearest obstacle or forbidden hazard
+/// clearance d of the way ahead to the nearest obstacle or forbidden hazard,
+/// less a buffer,
 /// (not grown: the true vehicle's collision test).  The way ahead of a
 /// control is the BMM arc of that control held for `horizon` seconds, then
-/// braking to a stop (a dynamic-window rollout).  With margin m = d − ρ for
+/// braking to a stop (a dynamic-window rollout).  With margin m = d − ρ − buffer for
 /// the method's control:
 ///   * m ≥ slow_distance: the method's control is kept;
+
 ///   * 0 ≤ m < slow_distance: it slows down, to a speed fraction m/slow_distance
 ///     (at least min_speed_fraction);
-///   * m < 0: it steers — among arcs of a fan of turn rates within the BMM's
+///   * m < 0, the way ahead clear of the obstacles themselves (the conflict
+///     is the uncertainty), and look_min_landmarks mapped landmarks within
+///     look_range that could be brought into view but are not in it: it
+///     stops and turns toward them ("look first": a fix shrinks ρ);
+///   * m < 0 otherwise: it steers — among arcs of a fan of turn rates within the BMM's
 ///     limit at the commanded, half and slowest speeds, the fastest speed with
 ///     a clear arc (m ≥ 0) that keeps the k-σ disc in the corridor, with the
 ///     turn closest to the method's; if none is clear, the slowest arc that
-///     gains the most clearance over stopping;
+///     ends farthest from the obstacles (if farther than the vehicle is now);
 ///   * otherwise it stops and holds for a fix, turning toward the bearing that
 ///     puts the most mapped landmarks within look_range inside field_of_view.
 /// Off, the loop is the papers'.
 struct GuardSettings {
   bool enabled = true;
   double k_sigma = 3.0;              ///< k of the k-σ radius
+  double buffer = 0.25;              ///< kept beyond the k-σ radius (the vehicle's next step, the truth's process noise) [m]
+  bool look_first = true;            ///< before steering round an uncertain way ahead, turn to look at landmarks
+  double look_timeout = 6.0;         ///< the longest look [s]
   double slow_distance = 1.0;        ///< margin below which it slows down [m]
   double min_speed_fraction = 0.25;  ///< slowest fraction of the commanded speed while slowing
   double horizon = 1.0;              ///< the way ahead: a control held this long, then braking [s]
   double look_range = 30.0;          ///< landmarks within this can be looked at while holding [m]
+  int look_min_landmarks = 3;        ///< a fix needs this many landmarks in view
   double field_of_view = 85.0 * kPi / 180.0;  ///< the camera's full horizontal FOV [rad]
   void validate() const;
 };
@@ -187,8 +197,10 @@ struct Command {
   int segment = 0;            ///< segment k of the path followed: CHull's current one, Centroid's target's
   double position_std = std::numeric_limits<double>::quiet_NaN();  ///< √λ_max(P_xy) [m]
   ChullAction action = ChullAction::Keep;  ///< what SafeNav-CHull did (CHull only)
-  double clearance = std::numeric_limits<double>::infinity();  ///< the guard's clearance d of the way ahead [m] (+inf: not computed or nothing near)
-  double guard_margin = std::numeric_limits<double>::infinity();  ///< d − k·σ of the control sent [m]
+  /// The guard's clearance d of the way ahead [m]: exact where d < k·σ + buffer + slow_distance,
+  /// a lower bound beyond (enough to know the control is kept); +inf when not computed.
+  double clearance = std::numeric_limits<double>::infinity();
+  double guard_margin = std::numeric_limits<double>::infinity();  ///< d − k·σ − buffer of the control sent [m]
   Eigen::Vector2d predicted = Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());  ///< BMM prediction of the estimate under `control`
 };
 
