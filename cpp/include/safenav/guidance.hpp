@@ -246,7 +246,9 @@ class Guidance {
   /// lost localization and arrival end guidance (control 0); every
   /// obstacle_check_every-th request checks the way ahead for obstacles
   /// ([SafeNav-ext Alg. 4 ll. 7–9]) and splices a RAw-RRT* detour into the
-  /// path when it is blocked; then CHull or Centroid chooses the control.
+  /// path when it is blocked; then CHull or Centroid chooses the control;
+  /// then, when settings.guard.enabled, the guard may slow, steer or hold
+  /// (GuardSettings; its events say which).
   /// `t` is the vehicle's time (the estimate is the localizer's latest).
   Command command(double t);
   /// The status from the latest estimate, without planning or a control.

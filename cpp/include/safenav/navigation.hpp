@@ -6,15 +6,20 @@
 //
 // One trial: a true vehicle (the BMM with process noise and terrain) follows a
 // safe path from its first to its last vertex.  Each step the navigator
-//   1. chooses a control from the filter's estimate with the selected method;
+//   1. chooses a control from the filter's estimate with the selected method,
+//      which the uncertainty-aware guard may slow, steer or hold (ours,
+//      GuardSettings in guidance.hpp; off in the papers' loop);
 //   2. checks the path ahead for obstacles and replans with RAw-RRT* when it
 //      is blocked (the detour is spliced into the path it follows);
 //   3. moves the true vehicle;
 //   4. measures — a LanBLoc position fix when enough landmarks are in the
-//      camera's view (measurement-level noise profile, or a user callback
-//      such as the camera-in-the-loop pipeline), plus IMU speed and heading —
-//      and updates the filter;
-//   5. records the true, predicted, measured and estimated trajectories.
+//      camera's view (the measurement-level noise profile; or, ours, single
+//      landmark ranges with landmark faults through LanBLoc's trilateration,
+//      FixModel::Ranges; or a user callback such as the camera-in-the-loop
+//      pipeline), plus IMU speed and heading — and updates the filter, each
+//      update through its χ² gate (ours; off in the papers' loop);
+//   5. records the true, predicted, measured and estimated trajectories, and
+//      the safety of the true track (TrialMetrics).
 // It ends at the destination or with an explicit failure (TrialOutcome).
 //
 // Only Eigen and std types appear here.
