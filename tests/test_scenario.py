@@ -97,7 +97,7 @@ def test_docs_state_every_range():
         for name, rng in cls.RANGES.items():
             assert f"| {rng} |" in rows[f"`{key}.{name}`"], (key, name, str(rng))
             n += 1
-    assert n == 51
+    assert n == 52
     assert f"| {NavigationParams.CLEARANCE} |" in rows["`navigation.clearance`"]
     assert f"each {NoiseParams.LANBLOC_STD} |" in rows["`noise.lanbloc_std`"]
     assert f"each {BufferParams.WEIGHT}, not decreasing |" in rows["`buffer.weights`"]

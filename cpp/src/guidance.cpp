@@ -293,18 +293,21 @@ struct Guidance::Impl {
   // Look first: 0 idle, > 0 the steps spent looking, −1 looked (until the margin is met).
   int looking = 0;
   double look_sigma = 0.0;  // σ when the look began
+  double look_start = 0.0;  // and its time [s]
 
   /// Clearance of the segment a–b (a = the estimate) to obstacles and
-  /// forbidden hazards: exact when it could matter (bound − ρ < slow_distance),
-  /// else the lower bound.
-  double clearance(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double rho) {
+  /// forbidden hazards: exact when it could matter (bound − keep < slow_distance,
+  /// keep = k·σ + buffer), else the lower bound.
+  double clearance(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double keep) {
+    // The bound suffices when even it leaves the margin d − keep at slow_distance or more:
+    // the guard then keeps the control, as it would with the exact distance.
     const double slow = settings.guard.slow_distance;
     auto bound = [&] { return guard_d - std::max((a - guard_p).norm(), (b - guard_p).norm()); };
-    if (bound() - rho >= slow) return bound();
+    if (bound() - keep >= slow) return bound();
     if ((a - guard_p).norm() > 0.0 || !std::isfinite(guard_d)) {
       guard_p = a;
       guard_d = shared->collisions.keep_out_distance(a, a);
-      if (bound() - rho >= slow) return bound();
+      if (bound() - keep >= slow) return bound();
     }
     return shared->collisions.keep_out_distance(a, b);
   }
@@ -317,7 +320,7 @@ struct Guidance::Impl {
     double end_clearance = std::numeric_limits<double>::infinity();  ///< at the stop point [m]
     double deviation = 0.0;  ///< largest distance of the arc from the path followed [m]
   };
-  WayAhead way_ahead(const State& x, const Control& u, double rho, bool ends = false) {
+  WayAhead way_ahead(const State& x, const Control& u, double keep, bool ends = false) {
     const GuardSettings& g = settings.guard;
     const Bmm& bmm = shared->bmm;
     const int steps = std::max(1, static_cast<int>(std::ceil(g.horizon / problem.bmm.dt)));
@@ -329,7 +332,7 @@ struct Guidance::Impl {
       xi = bmm.predict(xi, u);
       if (i % kEvery == 0 || i == steps) {
         const Eigen::Vector2d b = xi.head<2>();
-        w.clearance = std::min(w.clearance, clearance(a, b, rho));
+        w.clearance = std::min(w.clearance, clearance(a, b, keep));
         if (ends) w.deviation = std::max(w.deviation, active->corridor().project(b).distance);
         a = b;
       }
@@ -337,18 +340,12 @@ struct Guidance::Impl {
     const double v = xi[kV];
     const Eigen::Vector2d stop =
         xi.head<2>() + v * v / (2.0 * problem.bmm.deceleration) * Eigen::Vector2d(std::cos(xi[kTheta]), std::sin(xi[kTheta]));
-    w.clearance = std::min(w.clearance, clearance(a, stop, rho));
+    w.clearance = std::min(w.clearance, clearance(a, stop, keep));
     if (ends) {
       w.deviation = std::max(w.deviation, active->corridor().project(stop).distance);
       w.end_clearance = shared->collisions.keep_out_distance(stop, stop);
     }
     return w;
-  }
-
-  /// Whether the k-σ disc about p stays inside the safe buffer of the path
-  /// followed (the guard never steers the vehicle out of its corridor).
-  bool inside_corridor(const Eigen::Vector2d& p, double rho) const {
-    return active->corridor().project(p).distance + rho <= problem.zones.half_width + settings.corridor_margin;
   }
 
   /// Landmarks within look_range and inside the field of view centred on
@@ -391,7 +388,7 @@ struct Guidance::Impl {
 
   /// The guard (GuardSettings): keeps the k-σ radius (plus a buffer) off
   /// obstacles and forbidden hazards by slowing, looking, steering or holding.
-  void guard(const State& x, Command& c) {
+  void guard(double t, const State& x, Command& c) {
     const GuardSettings& g = settings.guard;
     const double rho = g.k_sigma * c.position_std;
     const double keep = rho + g.buffer;  // the clearance the way ahead must keep
@@ -402,7 +399,7 @@ struct Guidance::Impl {
       c.clearance = d;
       c.guard_margin = d - keep;
     };
-    const double d0 = way_ahead(x, u0, rho).clearance;
+    const double d0 = way_ahead(x, u0, keep).clearance;
     set(u0, 0u, d0);
     if (c.guard_margin >= 0.0 && looking < 0) looking = 0;  // clear again: a later conflict may look again
     if (c.guard_margin >= g.slow_distance && looking == 0) return;
@@ -410,7 +407,7 @@ struct Guidance::Impl {
       const double f = std::max(g.min_speed_fraction, g.slow_distance > 0 ? c.guard_margin / g.slow_distance : 1.0);
       if (f < 1.0) {
         const Control u(f * u0[0], u0[1]);
-        set(u, kGuardSlow, way_ahead(x, u, rho).clearance);
+        set(u, kGuardSlow, way_ahead(x, u, keep).clearance);
       }
       return;
     }
@@ -424,13 +421,16 @@ struct Guidance::Impl {
     if (g.look_first && looking == 0 && d0 > g.buffer && could_see >= g.look_min_landmarks && !in_view) {
       looking = 1;
       look_sigma = c.position_std;
+      look_start = t;
     }
     if (looking > 0) {
-      const bool done = c.position_std <= 0.5 * look_sigma || looking * problem.bmm.dt > g.look_timeout;
+      // A look runs to its end even if the margin clears meanwhile: stopped, the
+      // way ahead looks shorter, and ending there would start and stop the vehicle in turn.
+      const bool done = c.position_std <= 0.5 * look_sigma || t - look_start > g.look_timeout;
       if (!done) {
         ++looking;
         const Control u(0.0, in_view ? 0.0 : look);
-        set(u, kGuardHold, way_ahead(x, u, rho).clearance);
+        set(u, kGuardHold, way_ahead(x, u, keep).clearance);
         return;
       }
       looking = -1;  // looked: no second look until the margin is met again
@@ -456,7 +456,7 @@ struct Guidance::Impl {
       for (int j = 0; j <= kTurns; ++j) {
         const double dth = j == kTurns ? want : -lim + 2.0 * lim * j / (kTurns - 1);
         const Control u(v, dth);
-        const WayAhead w = way_ahead(x, u, rho, true);
+        const WayAhead w = way_ahead(x, u, keep, true);
         if (w.deviation > dev_limit) continue;
         if (w.clearance - keep >= 0.0) {
           const double cost = std::abs(dth - want);
@@ -479,7 +479,7 @@ struct Guidance::Impl {
     if (can_escape) return set(escape, kGuardSteer, escape_d);
     // Hold for a fix: stop, turning toward where landmarks can be seen.
     const Control u(0.0, look);
-    set(u, kGuardHold, way_ahead(x, u, rho).clearance);
+    set(u, kGuardHold, way_ahead(x, u, keep).clearance);
   }
 
   static LocalizerSettings seeded(LocalizerSettings s, std::uint64_t seed) {
@@ -604,7 +604,7 @@ Command Guidance::command(double t) {
     c.action = d.action;
   }
   if (st.guard.enabled) {
-    im.guard(xe, c);
+    im.guard(t, xe, c);
     if (c.events & (kGuardSlow | kGuardSteer | kGuardHold)) c.predicted = im.shared->bmm.predict(xe, c.control).head<2>();
   }
   return c;

@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "errors.hpp"
+#include "safenav/rng.hpp"
 #include "safenav/params.hpp"
 
 namespace safenav {
@@ -146,8 +147,12 @@ struct Localizer::Impl {
 
   bool initialized() const { return ekf.has_value() || aekf.has_value() || pf.has_value() || apf.has_value(); }
 
-  void start(double t, const State& x0, const StateCov& P0) {
+  void start(double t, const State& x0, const StateCov& P0) { start(t, x0, P0, settings.filter.seed); }
+
+  /// Starts the filter at (x0, P0); a particle filter draws with `seed`.
+  void start(double t, const State& x0, const StateCov& P0, std::uint64_t seed) {
     const FilterOptions& o = settings.filter;
+    fix_rejections = 0;
     ekf.reset();
     aekf.reset();
     pf.reset();
@@ -159,11 +164,11 @@ struct Localizer::Impl {
       ekf.emplace(settings.bmm, x0, P0);
       if (o.gate_probability > 0.0) ekf->set_gate(o.gate_probability);
     } else if (settings.augment.any()) {
-      apf.emplace(settings.bmm, settings.augment, static_cast<int>(landmarks.rows()), x0, P0, o.n_particles, o.seed,
+      apf.emplace(settings.bmm, settings.augment, static_cast<int>(landmarks.rows()), x0, P0, o.n_particles, seed,
                   o.resample_threshold);
       if (o.gate_probability > 0.0) apf->set_gate(o.gate_probability);
     } else {
-      pf.emplace(settings.bmm, x0, P0, o.n_particles, o.seed, o.resample_threshold);
+      pf.emplace(settings.bmm, x0, P0, o.n_particles, seed, o.resample_threshold);
       if (o.gate_probability > 0.0) pf->set_gate(o.gate_probability);
     }
     t_f = t;
@@ -602,9 +607,13 @@ InputResult Localizer::fix(double t, const Eigen::Vector2d& z, const Eigen::Matr
     P.topRows<2>().setZero();
     P.leftCols<2>().setZero();
     P.topLeftCorner<2, 2>() = R;
-    I.start(I.t_f, x, P);
-    I.fix_rejections = 0;
+    // The restart keeps what the motion input still owes (start() clears it)
+    // and gives a particle filter fresh draws.
+    const double owed_d = I.owed_distance, owed_h = I.owed_heading;
     ++I.counts.resets;
+    I.start(I.t_f, x, P, derive_seed(I.settings.filter.seed, static_cast<std::uint64_t>(I.counts.resets)));
+    I.owed_distance = owed_d;
+    I.owed_heading = owed_h;
     r.status = InputStatus::Reset;
   }
   return r;

@@ -113,6 +113,7 @@ struct Navigator::Impl {
 
   // The guard looks with the simulated camera.
   static NavigationSettings with_camera(NavigationSettings s, const SensorSettings& se) {
+    se.validate();  // first, so that a bad sensor is named as such
     s.guard.field_of_view = std::min(se.field_of_view, 2.0 * kPi);
     s.guard.look_range = se.max_range;
     s.guard.look_min_landmarks = std::max(1, se.min_landmarks);
@@ -227,7 +228,7 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
     // where the outlier test (>= 4 ranges) cannot name it.
     const int used = static_cast<int>(lr.inliers.count());
     if (gate > 0.0 && used > 2 && lr.chi2 > fit_threshold(used - 2)) {
-      res.ranges_rejected += used;
+      res.ranges_rejected += static_cast<int>(n);  // the whole fix: its inliers fail, the outliers were out already
       return false;
     }
     fix_faults = 0;
@@ -312,9 +313,10 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
   auto consistency = [&] {
     State e = truth - loc.x();
     e[kTheta] = wrap_angle(e[kTheta]);
-    const Eigen::LDLT<Eigen::Matrix4d> ldlt(loc.P());
-    const double n4 = e.dot(ldlt.solve(e));
-    if (std::isfinite(n4)) nees_sum += n4;
+    // A P that is not positive definite makes the NEES infinite: the filter claims certainty it lacks.
+    const Eigen::LLT<Eigen::Matrix4d> llt(loc.P());
+    const double n4 = llt.info() == Eigen::Success ? e.dot(llt.solve(e)) : std::numeric_limits<double>::infinity();
+    nees_sum += std::isfinite(n4) ? n4 : std::numeric_limits<double>::infinity();
     const Eigen::Vector2d ep = e.head<2>();
     const Eigen::Matrix2d Pxy = loc.P().topLeftCorner<2, 2>();
     const double det = Pxy.determinant();

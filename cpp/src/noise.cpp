@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "errors.hpp"
 #include "rng.hpp"
 #include "safenav/measurement.hpp"
 
@@ -147,20 +148,24 @@ PositionNoise::Fixes PositionNoise::sample(const Eigen::Ref<const Fixes>& truth,
 
 void LandmarkFaults::validate() const {
   auto prob = [](double v, const char* name) {
-    if (!(v >= 0.0 && v <= 1.0))
-      throw std::invalid_argument(std::string("faults.") + name + " = " + std::to_string(v) + ": must be in [0, 1]");
+    if (!(v >= 0.0 && v <= 1.0)) detail::bad(std::string("faults.") + name + " = " + detail::num(v) + ": must be in [0, 1]");
   };
   prob(dropout_probability, "dropout_probability");
   prob(outlier_probability, "outlier_probability");
   prob(misassociation_probability, "misassociation_probability");
-  if (!(std::isfinite(outlier_magnitude) && outlier_magnitude > 0.0))
-    throw std::invalid_argument("faults.outlier_magnitude = " + std::to_string(outlier_magnitude) +
-                                ": must be finite and > 0");
+  detail::require_finite_positive(outlier_magnitude, "faults.outlier_magnitude");
 }
 
 void LandmarkFaults::apply(std::vector<Observation>& obs, const Landmarks& landmarks, const Eigen::Vector2d& p,
                            double confusion_range, RandomSource& rng, int* dropped) const {
   const Eigen::Index K = landmarks.rows();
+  if (!p.allFinite()) detail::bad("faults: vehicle position (" + detail::num(p.x()) + ", " + detail::num(p.y()) + ") is not finite");
+  detail::require_finite_nonneg(confusion_range, "faults: confusion_range");
+  if (!landmarks.allFinite()) detail::bad("faults: every landmark position must be finite");
+  for (std::size_t i = 0; i < obs.size(); ++i)
+    if (!(std::isfinite(obs[i].range) && obs[i].range >= 0.0))
+      detail::bad("faults: observation " + std::to_string(i) + " has range " + detail::num(obs[i].range) +
+                  ": must be finite and >= 0");
   std::size_t kept = 0;
   for (std::size_t i = 0; i < obs.size(); ++i) {
     Observation o = obs[i];

@@ -172,7 +172,8 @@ def _camera_trials(navigator, c: _Cell, seeds) -> dict:
         d["reason"].append(r.reason)
         d["time_s"].append(r.wall_time)
         # The camera's landmark observations and faults are counted by the source,
-        # not the loop; "through" is what its trilateration kept (before the gate).
+        # not the loop; "through" is what its trilateration kept, before the filter's
+        # gate (the simulator counts after it), and the camera has no fit χ² test.
         fs = dict(source.fault_stats, faults_through=source.fault_stats["faults_in_fix"])
         for k in COUNTS:
             d[k].append(fs[k] if k in _CAMERA_COUNTS else getattr(r, k))

@@ -347,7 +347,7 @@ NavigationParams = _core_section(
      ("vehicle_radius", _core.Inflation, "vehicle_radius"), ("clearance_margin", _core.Inflation, "margin"),
      ("plan_iterations", _core.PlannerSettings, "max_iterations"),
      (_NAV, "replan_iterations"), (_NAV, "corridor_bias"), (_NAV, "lost_position_std"), (_NAV, "max_steps"),
-     (_NAV, "gate_probability"), (_NAV, "guard_k"), (_NAV, "guard_slow_distance"),
+     (_NAV, "gate_probability"), (_NAV, "guard_k"), (_NAV, "guard_buffer"), (_NAV, "guard_slow_distance"),
      (_NAV, "guard_min_speed_fraction"), (_NAV, "guard_horizon")],
     own=[("guard", str, field(default="on", metadata={
         "doc": "the uncertainty-aware guard: 'on', or 'off' (the papers' loop; with gate_probability = 0)"})),("clearance", object, field(default=None, metadata={

@@ -68,7 +68,9 @@ struct NavigationProblem {
 ///   * m < 0, the way ahead clear of the obstacles themselves (the conflict
 ///     is the uncertainty), and look_min_landmarks mapped landmarks within
 ///     look_range that could be brought into view but are not in it: it
-///     stops and turns toward them ("look first": a fix shrinks ρ);
+///     stops and turns toward them ("look first": a fix shrinks ρ); the look
+///     lasts until σ halves or look_timeout passes, and the next look waits
+///     until the margin has been met again;
 ///   * m < 0 otherwise: it steers — among arcs of a fan of turn rates within the BMM's
 ///     limit at the commanded, half and slowest speeds, the fastest speed with
 ///     a clear arc (m ≥ 0) that keeps the k-σ disc in the corridor, with the
@@ -86,6 +88,7 @@ struct GuardSettings {
   double slow_distance = 1.0;        ///< margin below which it slows down [m]
   double min_speed_fraction = 0.25;  ///< slowest fraction of the commanded speed while slowing
   double horizon = 1.0;              ///< the way ahead: a control held this long, then braking [s]
+  // What the guard looks with: the Navigator sets these three from its SensorSettings.
   double look_range = 30.0;          ///< landmarks within this can be looked at while holding [m]
   int look_min_landmarks = 3;        ///< a fix needs this many landmarks in view
   double field_of_view = 85.0 * kPi / 180.0;  ///< the camera's full horizontal FOV [rad]

@@ -115,9 +115,10 @@ struct LocalizerSettings {
   double init_cov_inflation = 4.0; ///< the fit's pose covariance is multiplied by this
   double init_baseline = 5.0;      ///< [m] motion before the heading is taken from two position fixes
   double init_speed_std = 1.0;     ///< [m/s] σ of the initial speed (from the motion inputs)
-  /// After this many consecutive position fixes fail the gate, the next one
-  /// resets the position (InputStatus::Reset): x_y ← z, P_xy ← R, the
-  /// position's cross-covariances 0; augmented states restart from 0.  0 = never.
+  /// After this many consecutive position fixes fail the gate, the next fix
+  /// that fails it too resets the position (InputStatus::Reset): x_y ← z,
+  /// P_xy ← R, the position's cross-covariances 0; augmented states restart
+  /// from 0, a particle filter redraws its particles.  0 = never.
   int reset_after_rejections = 10;
   void validate() const;
 };
@@ -126,7 +127,7 @@ struct LocalizerSettings {
 struct LocalizerCounts {
   int motion = 0;    ///< motion inputs predicted
   int applied = 0;   ///< measurement updates applied
-  int rejected = 0;  ///< failed the gate
+  int rejected = 0;  ///< failed the gate (resets included: their fix failed it too)
   int late = 0;      ///< older than the filter's time
   int buffered = 0;  ///< before initialization
   int resets = 0;    ///< position resets after consecutive rejected fixes

@@ -112,7 +112,7 @@ class ObstacleChecker {
   double hazard_integral(const Eigen::Vector2d& a, const Eigen::Vector2d& b) const;
   /// One step a–b through the hazards: Σ_k length inside hazard k [m], the
   /// exposure Σ_k risk_k · length_k [m], and whether b lies in a hazard
-  /// (boundary included).  No allocation.
+  /// (boundary included).
   struct HazardStep {
     double length = 0.0;
     double exposure = 0.0;
