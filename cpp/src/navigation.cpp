@@ -295,7 +295,7 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
 
   // Safety along the true track: clearance (cached lower bound, as the guard's), hazards, consistency.
   double min_clear = std::numeric_limits<double>::infinity(), nees_sum = 0.0;
-  int outside = 0;
+  int outside = 0, nees_n = 0;
   Eigen::Vector2d clear_p = truth.head<2>();
   double clear_d = im.collisions.keep_out_distance(clear_p, clear_p);
   min_clear = clear_d;
@@ -313,10 +313,14 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
   auto consistency = [&] {
     State e = truth - loc.x();
     e[kTheta] = wrap_angle(e[kTheta]);
-    // A P that is not positive definite makes the NEES infinite: the filter claims certainty it lacks.
+    // A P that is not positive definite (a particle cloud collapsed onto a few
+    // particles) has no NEES: left out of the mean, and counted outside 3σ below.
     const Eigen::LLT<Eigen::Matrix4d> llt(loc.P());
-    const double n4 = llt.info() == Eigen::Success ? e.dot(llt.solve(e)) : std::numeric_limits<double>::infinity();
-    nees_sum += std::isfinite(n4) ? n4 : std::numeric_limits<double>::infinity();
+    const double n4 = llt.info() == Eigen::Success ? e.dot(llt.solve(e)) : kNaN;
+    if (std::isfinite(n4)) {
+      nees_sum += n4;
+      ++nees_n;
+    }
     const Eigen::Vector2d ep = e.head<2>();
     const Eigen::Matrix2d Pxy = loc.P().topLeftCorner<2, 2>();
     const double det = Pxy.determinant();
@@ -466,7 +470,7 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
   m.truth_fde = (loc.x().head<2>() - truth.head<2>()).norm();
   m.max_deviation = max_dev;
   m.min_clearance = min_clear;
-  m.nees = nees_sum / double(rows);
+  m.nees = nees_n > 0 ? nees_sum / double(nees_n) : kNaN;
   m.outside_3sigma = double(outside) / double(rows);
   res.wall_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return res;

@@ -117,8 +117,8 @@ struct TrialMetrics {
   double hazard_time = 0.0;     ///< time with the true vehicle inside a hazard [s]
   double hazard_length = 0.0;   ///< Σ_k length of the true track inside hazard k [m]
   double exposure = 0.0;        ///< Σ_k risk_k · length inside hazard k [m] (PathSafety::exposure of the track)
-  double nees = 0.0;            ///< mean NEES eᵀP⁻¹e of the 4-state estimate (4 when consistent)
-  double outside_3sigma = 0.0;  ///< fraction of steps with the truth outside the estimate's 3σ position ellipse
+  double nees = 0.0;            ///< mean NEES eᵀP⁻¹e of the 4-state estimate (4 when consistent), over the steps whose P is positive definite
+  double outside_3sigma = 0.0;  ///< fraction of steps with the truth outside the estimate's 3σ position ellipse (or a singular P_xy)
 };
 
 struct TrialResult {
