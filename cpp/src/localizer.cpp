@@ -524,24 +524,18 @@ InputResult Localizer::observe(double t, const LandmarkObservation& o) {
   const double dx = I.landmarks(row, 0) - x[kX], dy = I.landmarks(row, 1) - x[kY];
   const double r2 = dx * dx + dy * dy, r = std::sqrt(r2);
   if (!(r > 1e-9)) return I.status(InputStatus::Ignored);  // at the landmark: h is undefined
-  if (I.aekf) {
+  // The augmented EKF and PF share their update interface.
+  auto augmented = [&](auto& f) {
     const Eigen::Vector2d a = I.landmarks.row(row).transpose();
     if (has_r && has_b) {
       const Eigen::Matrix2d R = Eigen::Vector2d(o.range_std * o.range_std, o.bearing_std * o.bearing_std).asDiagonal();
-      return I.counted(I.aekf->update_range_bearing(row, a, Eigen::Vector2d(o.range, o.bearing), R));
+      return I.counted(f.update_range_bearing(row, a, Eigen::Vector2d(o.range, o.bearing), R));
     }
-    if (has_r) return I.counted(I.aekf->update_range(row, a, o.range, o.range_std * o.range_std));
-    return I.counted(I.aekf->update_bearing(row, a, o.bearing, o.bearing_std * o.bearing_std));
-  }
-  if (I.apf) {
-    const Eigen::Vector2d a = I.landmarks.row(row).transpose();
-    if (has_r && has_b) {
-      const Eigen::Matrix2d R = Eigen::Vector2d(o.range_std * o.range_std, o.bearing_std * o.bearing_std).asDiagonal();
-      return I.counted(I.apf->update_range_bearing(row, a, Eigen::Vector2d(o.range, o.bearing), R));
-    }
-    if (has_r) return I.counted(I.apf->update_range(row, a, o.range, o.range_std * o.range_std));
-    return I.counted(I.apf->update_bearing(row, a, o.bearing, o.bearing_std * o.bearing_std));
-  }
+    if (has_r) return I.counted(f.update_range(row, a, o.range, o.range_std * o.range_std));
+    return I.counted(f.update_bearing(row, a, o.bearing, o.bearing_std * o.bearing_std));
+  };
+  if (I.aekf) return augmented(*I.aekf);
+  if (I.apf) return augmented(*I.apf);
   if (I.ekf) {
     if (has_r && has_b) {
       const Eigen::Vector2d y(o.range - r, wrap_angle(o.bearing - (std::atan2(dy, dx) - x[kTheta])));

@@ -327,13 +327,20 @@ double ObstacleChecker::hazard_integral(const Vec2& a, const Vec2& b) const {
   return sum;
 }
 
-double ObstacleChecker::obstacle_distance(const Vec2& a, const Vec2& b) const {
-  if (!a.allFinite() || !b.allFinite()) bad("segment " + fmt(a) + "–" + fmt(b) + " is not finite");
+namespace {
+// The least distance from the segment a–b to `shapes`, below `d`; shapes whose
+// bounding circle is no nearer than the best so far are skipped.
+double nearest(const std::vector<Shape>& shapes, const Vec2& a, const Vec2& b, double d) {
   const cgal::Segment ab(cgal::point(a), cgal::point(b));
-  double d = std::numeric_limits<double>::infinity();
-  for (const auto& s : impl_->obstacles)
+  for (const auto& s : shapes)
     if (s.distance_bound(a, b) < d) d = std::min(d, s.distance(ab));
   return d;
+}
+}  // namespace
+
+double ObstacleChecker::obstacle_distance(const Vec2& a, const Vec2& b) const {
+  if (!a.allFinite() || !b.allFinite()) bad("segment " + fmt(a) + "–" + fmt(b) + " is not finite");
+  return nearest(impl_->obstacles, a, b, std::numeric_limits<double>::infinity());
 }
 
 ObstacleChecker::HazardStep ObstacleChecker::hazard_step(const Vec2& a, const Vec2& b) const {
@@ -350,11 +357,7 @@ ObstacleChecker::HazardStep ObstacleChecker::hazard_step(const Vec2& a, const Ve
 }
 
 double ObstacleChecker::keep_out_distance(const Vec2& a, const Vec2& b) const {
-  double d = obstacle_distance(a, b);
-  const cgal::Segment ab(cgal::point(a), cgal::point(b));
-  for (const auto& s : impl_->forbidden)
-    if (s.distance_bound(a, b) < d) d = std::min(d, s.distance(ab));
-  return d;
+  return nearest(impl_->forbidden, a, b, obstacle_distance(a, b));
 }
 
 PathSafety path_safety(const Eigen::Ref<const Points2>& path, const PlanningMap& map) {
