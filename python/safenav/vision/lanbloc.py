@@ -66,6 +66,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Mapping, Sequence
 
+import cv2
 import numpy as np
 
 from .. import _core
@@ -73,7 +74,7 @@ from ..motion import wrap_angle
 from ..world import Landmark, World
 from .detect import Detection, Detector, FiducialDetector, check_image
 from .localization import LocalizationResult, horizontal_range, trilaterate
-from .render import StereoRenderer, StereoRig, camera_rotation
+from .render import StereoFrame, StereoRenderer, StereoRig, camera_rotation
 from .stereo import RectifiedCamera, StereoCalibration, StereoMatcher
 
 __all__ = ["LandmarkObservation", "LanBLocResult", "LanBLoc", "CameraLoopSource", "STATUSES", "MISASSOCIATED",
@@ -281,6 +282,21 @@ class LanBLoc:
         :data:`PIPELINE_SGBM`.
     trilateration:
         Keyword arguments for :func:`~safenav.vision.localization.trilaterate`.
+    ranging:
+        ``"sgbm"`` (the paper's dense stereo: the box median of SGBM
+        disparities, :meth:`observe`) or ``"corners"`` (ours, fiducials only:
+        the marker's refined corners found in both images, triangulated,
+        :meth:`observe_corners`).
+    corner_sigma_d:
+        σ [px] of the marker centre's disparity from the corners, for
+        ``σ_Z = Z²·σ/(f·B)`` (``"corners"``).
+    max_row_error_px:
+        Largest row difference between a corner in the left and the right
+        image (rectified: ideally 0) before the pair is rejected.
+    detect_side_px, region_margin_px:
+        On a :class:`~safenav.vision.render.StereoFrame`: the marker side
+        [px] at the pyramid level used for detection, and the margin around
+        the markers' footprints (:meth:`localize_frame`).
     """
 
     def __init__(self, landmarks, camera, detector: Detector | None = None, *,
@@ -288,7 +304,8 @@ class LanBLoc:
                  min_landmarks: int = 3, max_range_m: float = math.inf, box_shrink: float = 0.1,
                  row_band: bool = True, band_margin_px: int = 24, bearing_sigma_px: float = 1.0,
                  unknown_landmark: str = "error", resolve_ambiguity: bool = True, sgbm: Mapping | None = None,
-                 trilateration: Mapping | None = None):
+                 trilateration: Mapping | None = None, ranging: str = "sgbm", corner_sigma_d: float = 0.05,
+                 max_row_error_px: float = 1.0, detect_side_px: float = 48.0, region_margin_px: int = 8):
         self.landmarks = _landmark_table(landmarks)
         rig = camera if isinstance(camera, StereoRig) else None
         if rig is not None:
@@ -331,6 +348,21 @@ class LanBLoc:
             raise ValueError(f"unknown_landmark = {unknown_landmark!r}: must be 'error' or 'skip'")
         self.unknown_landmark = unknown_landmark
         self.resolve_ambiguity = bool(resolve_ambiguity)
+        if ranging not in ("sgbm", "corners"):
+            raise ValueError(f"ranging = {ranging!r}: must be 'sgbm' or 'corners'")
+        if ranging == "corners" and not hasattr(self.detector, "dictionary"):
+            raise ValueError(f"ranging = 'corners' needs a fiducial detector (marker corners), not "
+                             f"{type(self.detector).__name__}")
+        self.ranging = ranging
+        self.corner_sigma_d = _finite("corner_sigma_d", corner_sigma_d, positive=True)
+        self.max_row_error_px = _finite("max_row_error_px", max_row_error_px, positive=True)
+        self.detect_side_px = _finite("detect_side_px", detect_side_px, positive=True)
+        if self.detect_side_px < 16:
+            raise ValueError(f"detect_side_px = {detect_side_px!r}: must be >= 16 (ArUco needs ~4 px per cell)")
+        if isinstance(region_margin_px, bool) or not isinstance(region_margin_px, (int, np.integer)) \
+                or region_margin_px < 0:
+            raise ValueError(f"region_margin_px = {region_margin_px!r}: must be an integer >= 0")
+        self.region_margin_px = int(region_margin_px)
         self.trilateration = dict(trilateration or {})
         import inspect
         known = [n for n, p in inspect.signature(trilaterate).parameters.items() if p.kind == p.KEYWORD_ONLY]
@@ -381,32 +413,86 @@ class LanBLoc:
         return out
 
     def observe(self, det: Detection, disparity: np.ndarray) -> LandmarkObservation:
-        """Range and bearing of one detection (step 4 of the module docstring)."""
-        anchor, _ = self.landmarks[det.landmark_id]
+        """Range and bearing of one detection from the SGBM disparity (step 4 of the module docstring)."""
         x0, y0, x1, y1 = det.box
         sx, sy = self.box_shrink * (x1 - x0), self.box_shrink * (y1 - y0)
         box = (x0 + sx, y0 + sy, x1 - sx, y1 - sy)
         br = self.matcher.box_range(disparity, box, sigma_d=self.sigma_d, max_range=self.max_range_m)
+        return self._observation(det, det.center, br.ok, br.range, br.sigma, br.point, float(br.disparity),
+                                 int(br.n_valid), br.reason)
+
+    def observe_corners(self, det: Detection, right: Detection | None) -> LandmarkObservation:
+        """Range and bearing of a fiducial from its corners in both images (ours; issue 16).
+
+        The four refined corners ``(u_i, v_i)`` of the left image and ``u'_i``
+        of the right give disparities ``d_i = u_i − u'_i``; the marker is a
+        plane, so its disparity is affine in the left image's ``(u, v)``: the
+        least-squares plane ``d = a·u + b·v + c`` through the four is
+        evaluated at the marker's centre, the diagonals' intersection
+        ``(u_c, v_c)`` (the image of the centre under the homography).
+        ``Z = f·B/(d_c + doffs)`` with ``σ_Z = Z²·σ_c/(f·B)``, σ_c =
+        ``corner_sigma_d`` (measured: bench/bench_vision.py); the centre's
+        slant distance and horizontal range follow as for SGBM.  No range when
+        the marker is not found in the right image, when its corners are more
+        than ``max_row_error_px`` off their epipolar lines (rows), or when
+        ``d_c + doffs`` is below 1 px or the depth beyond ``max_range_m``.
+        """
+        cl = np.asarray(det.corners, dtype=float).reshape(4, 2)
         cam = self.camera
-        u, v = det.center
+        # the centre: intersection of the diagonals 0-2 and 1-3
+        p, r = cl[0], cl[2] - cl[0]
+        q, s_ = cl[1], cl[3] - cl[1]
+        den = r[0] * s_[1] - r[1] * s_[0]
+        centre = p + r * (((q - p)[0] * s_[1] - (q - p)[1] * s_[0]) / den) if abs(den) > 1e-12 else cl.mean(axis=0)
+        nan3 = np.full(3, np.nan)
+        if right is None or right.corners is None:
+            return self._observation(det, centre, False, math.nan, math.nan, nan3, math.nan, 0,
+                                     "not found in the right image")
+        cr = np.asarray(right.corners, dtype=float).reshape(4, 2)
+        dv = float(np.abs(cl[:, 1] - cr[:, 1]).max())
+        if dv > self.max_row_error_px:
+            return self._observation(det, centre, False, math.nan, math.nan, nan3, math.nan, 4,
+                                     f"corners {dv:.2f} px off their epipolar lines "
+                                     f"(max_row_error_px = {self.max_row_error_px:g})")
+        coef, *_ = np.linalg.lstsq(np.column_stack([cl, np.ones(4)]), cl[:, 0] - cr[:, 0], rcond=None)
+        d = float(coef[0] * centre[0] + coef[1] * centre[1] + coef[2])
+        w = d + cam.doffs
+        if not w >= 1.0:
+            return self._observation(det, centre, False, math.nan, math.nan, nan3, d, 4,
+                                     f"beyond resolvable range (disparity {w:.2f} px < 1 px)")
+        Z = cam.f * cam.baseline / w
+        if Z > self.max_range_m:
+            return self._observation(det, centre, False, math.nan, math.nan, nan3, d, 4,
+                                     f"beyond resolvable range ({Z:.1f} m > max_range_m = {self.max_range_m:g} m)")
+        point = np.array([(centre[0] - cam.cx) * Z / cam.f, (centre[1] - cam.cy) * Z / cam.f, Z])
+        sigma_z = Z * Z * self.corner_sigma_d / (cam.f * cam.baseline)
+        return self._observation(det, centre, True, Z, sigma_z, point, d, 4, "")
+
+    def _observation(self, det: Detection, centre, ok: bool, depth: float, sigma_z: float, point, disparity: float,
+                     n_valid: int, reason: str) -> LandmarkObservation:
+        """The observation of ``det`` from its image centre and, when ``ok``, its depth ``Z`` with σ_Z and
+        its 3D ``point`` in the rectified left camera frame: slant range, horizontal range and bearing."""
+        anchor, _ = self.landmarks[det.landmark_id]
+        cam = self.camera
+        u, v = centre
         ray = self._R0t @ np.array([(u - cam.cx) / cam.f, (v - cam.cy) / cam.f, 1.0])
         bearing = math.atan2(ray[1], ray[0])
         b_sigma = self.bearing_sigma_px / cam.f
         common = dict(landmark_id=det.landmark_id, class_name=det.class_name, box=det.box, score=det.score,
-                      anchor=anchor, bearing=bearing, bearing_sigma=b_sigma, disparity=float(br.disparity),
-                      n_valid=int(br.n_valid))
-        if not br.ok:
+                      anchor=anchor, bearing=bearing, bearing_sigma=b_sigma, disparity=float(disparity),
+                      n_valid=int(n_valid))
+        if not ok:
             return LandmarkObservation(ok=False, range=math.nan, sigma=math.nan, slant_range=math.nan,
-                                       depth=math.nan, reason=br.reason, **common)
-        s = br.distance
-        sigma_s = br.sigma * s / br.range
+                                       depth=math.nan, reason=reason, **common)
+        s = float(np.linalg.norm(point))
+        sigma_s = sigma_z * s / depth
         rho, sigma_rho = horizontal_range(s, anchor[2], self.camera_height_m, sigma=sigma_s)
         if not rho > 0:
-            return LandmarkObservation(ok=False, range=math.nan, sigma=math.nan, slant_range=s, depth=br.range,
+            return LandmarkObservation(ok=False, range=math.nan, sigma=math.nan, slant_range=s, depth=depth,
                                        reason=f"slant range {s:.3f} m is shorter than the height difference "
                                               f"{anchor[2] - self.camera_height_m:.3f} m", **common)
         return LandmarkObservation(ok=True, range=float(rho), sigma=float(sigma_rho), slant_range=s,
-                                   depth=float(br.range), **common)
+                                   depth=float(depth), **common)
 
     def apply_faults(self, observations: Sequence[LandmarkObservation], faults, position, seed: int
                      ) -> tuple[tuple[LandmarkObservation, ...], int]:
@@ -480,10 +566,17 @@ class LanBLoc:
     def localize(self, left, right, *, faults=None, position=None, seed: int = 0) -> LanBLocResult:
         """Run the pipeline on one stereo pair (raw if the camera needs rectification).
 
+        ``left`` may also be a :class:`~safenav.vision.render.StereoFrame` (with
+        ``right=None``): then :meth:`localize_frame` runs.
+
         ``faults``: landmark-level faults (a :class:`safenav.navigation.LandmarkFaults`) on
         the ranges before trilateration, with the vehicle's true ``position``
         and the frame's ``seed`` (see :meth:`apply_faults`); ``None``: none.
         """
+        if isinstance(left, StereoFrame):
+            if right is not None:
+                raise ValueError("right must be None when left is a StereoFrame")
+            return self.localize_frame(left, faults=faults, position=position, seed=seed)
         faults = _check_faults(faults)
         t = {}
         t0 = time.perf_counter()
@@ -492,11 +585,145 @@ class LanBLoc:
             left, right = self.matcher.rectify(left, right)
         t1 = time.perf_counter()
         t["rectify"] = t1 - t0
-        dets = []
-        seen = set()
-        for d in self.detector.detect(left):
+        dets = self._known(self.detector.detect(left))
+        t2 = time.perf_counter()
+        t["detect"] = t2 - t1
+        if not dets:
+            return self._no_landmarks(t)
+        if self.ranging == "corners":
+            right_dets = {d.landmark_id: d for d in self._known(self.detector.detect(right), unknown="skip")}
+            t3 = time.perf_counter()
+            t["disparity"] = t3 - t2
+            obs = tuple(self.observe_corners(d, right_dets.get(d.landmark_id)) for d in dets)
+        else:
+            disp = self.disparity(left, right, [d.box for d in dets])
+            t3 = time.perf_counter()
+            t["disparity"] = t3 - t2
+            obs = tuple(self.observe(d, disp) for d in dets)
+        return self._solve(dets, obs, t, t3, faults, position, seed)
+
+    def localize_frame(self, frame: StereoFrame, *, faults=None, position=None, seed: int = 0) -> LanBLocResult:
+        """The pipeline on a :class:`~safenav.vision.render.StereoFrame`, region by region (ours; issue 16).
+
+        Detection runs on each of the left image's :meth:`~StereoFrame.regions`
+        at the pyramid level where its smallest marker is about
+        ``detect_side_px`` pixels wide (grown by ``region_margin_px`` pixels
+        of that level), and a fiducial's corners found there are refined at
+        full resolution (``cv2.cornerSubPix`` in a window of
+        about 0.7 cell around each).  With ``ranging="corners"`` the same
+        is done in the right image and :meth:`observe_corners` triangulates
+        the corners of the markers found in both (matched by their decoded
+        id); with ``"sgbm"`` (natural landmarks, e.g. YOLO boxes) SGBM runs on
+        a strip around each box only (its rows and columns plus the disparity
+        range), and :meth:`observe` takes the box median as for a whole frame.
+        The frame's rig must be this pipeline's camera.
+        """
+        faults = _check_faults(faults)
+        if not isinstance(frame, StereoFrame):
+            raise ValueError(f"frame = {frame!r}: must be a safenav.vision.render.StereoFrame")
+        r = frame.rig
+        c = self.camera
+        if (r.width, r.height) != (c.width, c.height) or abs(r.focal_length_px - c.f) > 1e-9 * c.f:
+            raise ValueError(f"frame's rig ({r.width}x{r.height}, f = {r.focal_length_px:g} px) is not the "
+                             f"pipeline's camera ({c.width}x{c.height}, f = {c.f:g} px)")
+        t = {"rectify": 0.0}
+        t1 = time.perf_counter()
+        dets = self._known(self._detect_regions(frame, "left"))
+        t2 = time.perf_counter()
+        t["detect"] = t2 - t1
+        if not dets:
+            return self._no_landmarks(t)
+        if self.ranging == "corners":
+            right_dets = {d.landmark_id: d for d in self._known(self._detect_regions(frame, "right"), unknown="skip")}
+            t3 = time.perf_counter()
+            t["disparity"] = t3 - t2
+            obs = tuple(self.observe_corners(d, right_dets.get(d.landmark_id)) for d in dets)
+        else:
+            obs = tuple(self._observe_strip(frame, d) for d in dets)
+            t3 = time.perf_counter()
+            t["disparity"] = t3 - t2
+        return self._solve(dets, obs, t, t3, faults, position, seed)
+
+    def _detect_regions(self, frame: StereoFrame, camera: str) -> list[Detection]:
+        """Detections in ``camera``'s regions of ``frame``, in level-0 pixels, corners refined at level 0."""
+        out = []
+        for box, side in frame.regions(camera, self.region_margin_px):
+            level = 0
+            while level < 6 and side / (1 << (level + 1)) >= self.detect_side_px:
+                level += 1
+            k = 1 << level
+            # the margin counts at the detection level: ArUco needs background around the quiet zone
+            g = self.region_margin_px * (k - 1)
+            box = (max(box[0] - g, 0), max(box[1] - g, 0), min(box[2] + g, frame.rig.width),
+                   min(box[3] + g, frame.rig.height))
+            img = frame.patch(camera, box, level)
+            off = np.array([box[0] // k, box[1] // k], float)
+            for d in self.detector.detect(img):
+                if d.corners is None:   # a box detector: scale the box
+                    x0, y0, x1, y1 = d.box
+                    bb = tuple(float(v) for v in ((np.array([x0, y0, x1, y1]).reshape(2, 2) + off + 0.5) * k - 0.5)
+                               .ravel())
+                    out.append(dataclasses.replace(d, box=bb))
+                    continue
+                corners = self._refine_corners(frame, camera, (np.asarray(d.corners, float) + off + 0.5) * k - 0.5)
+                (x0, y0), (x1, y1) = corners.min(axis=0), corners.max(axis=0)
+                out.append(dataclasses.replace(d, box=(float(x0), float(y0), float(x1), float(y1)), corners=corners))
+        return out
+
+    def _refine_corners(self, frame: StereoFrame, camera: str, corners: np.ndarray) -> np.ndarray:
+        """``cv2.cornerSubPix`` of each corner in a level-0 window of about 0.7 marker cell."""
+        side = float(np.min(np.linalg.norm(corners - np.roll(corners, 1, axis=0), axis=1)))
+        cells = getattr(getattr(self.detector, "dictionary", None), "markerSize", 4) + 2
+        w = int(min(max(round(0.7 * side / cells), 2), 12))
+        W, H = frame.rig.width, frame.rig.height
+        out = corners.copy()
+        crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 30, 0.001)
+        for i, (u, v) in enumerate(corners):
+            x0, y0 = int(math.floor(u)) - w - 3, int(math.floor(v)) - w - 3
+            x1, y1 = x0 + 2 * w + 8, y0 + 2 * w + 8
+            if x0 < 0 or y0 < 0 or x1 > W or y1 > H:
+                continue   # at the image's edge: keep the pyramid's corner
+            img = frame.patch(camera, (x0, y0, x1, y1), 0)
+            p = np.array([[[u - x0, v - y0]]], np.float32)
+            cv2.cornerSubPix(img, p, (w, w), (-1, -1), crit)
+            out[i] = p[0, 0] + [x0, y0]
+        return out
+
+    def _observe_strip(self, frame: StereoFrame, det: Detection) -> LandmarkObservation:
+        """SGBM on the strip around ``det``'s box only (rows ± margin, columns from the box's left edge
+        minus the disparity range to its right edge), then the box median as :meth:`observe`."""
+        c = self.camera
+        p = self.matcher.sgbm_params
+        m = self.band_margin_px
+        x0, y0, x1, y1 = det.box
+        X0 = max(int(math.floor(x0)) - p["min_disparity"] - p["num_disparities"] - m, 0)
+        X1 = min(int(math.ceil(x1)) + 1 + m, c.width)
+        Y0 = max(int(math.floor(y0)) - m, 0)
+        Y1 = min(int(math.ceil(y1)) + 1 + m, c.height)
+        box = (X0, Y0, X1, Y1)
+        left, right = frame.patch("left", box), frame.patch("right", box)
+        key = (X0, Y0, X1 - X0, Y1 - Y0)
+        mt = self._band_matchers.get(key)
+        if mt is None:
+            strip = RectifiedCamera(c.f, c.cx - X0, c.cy - Y0, c.baseline, c.doffs, X1 - X0, Y1 - Y0)
+            mt = StereoMatcher(strip, **p)
+            if len(self._band_matchers) > 64:
+                self._band_matchers.clear()
+            self._band_matchers[key] = mt
+        disp = mt.disparity(left, right)
+        sx, sy = self.box_shrink * (x1 - x0), self.box_shrink * (y1 - y0)
+        br = mt.box_range(disp, (x0 + sx - X0, y0 + sy - Y0, x1 - sx - X0, y1 - sy - Y0), sigma_d=self.sigma_d,
+                          max_range=self.max_range_m)
+        return self._observation(det, det.center, br.ok, br.range, br.sigma, br.point, float(br.disparity),
+                                 int(br.n_valid), br.reason)
+
+    def _known(self, detections, unknown: str | None = None) -> list[Detection]:
+        """The detections of mapped landmarks, the best-scoring one per landmark."""
+        unknown = self.unknown_landmark if unknown is None else unknown
+        dets, seen = [], set()
+        for d in detections:
             if d.landmark_id not in self.landmarks:
-                if self.unknown_landmark == "error":
+                if unknown == "error":
                     raise ValueError(f"detected landmark id {d.landmark_id} ({d.class_name!r}) is not in the "
                                      f"landmark map (known ids: {sorted(self.landmarks)})")
                 continue
@@ -504,17 +731,18 @@ class LanBLoc:
                 continue
             seen.add(d.landmark_id)
             dets.append(d)
-        t2 = time.perf_counter()
-        t["detect"] = t2 - t1
+        return dets
+
+    @staticmethod
+    def _no_landmarks(t: dict) -> LanBLocResult:
+        t["disparity"] = t["range"] = t["localize"] = 0.0
         nan2, nan22 = np.full(2, np.nan), np.full((2, 2), np.nan)
-        if not dets:
-            t["disparity"] = t["range"] = t["localize"] = 0.0
-            return LanBLocResult("no_landmarks", "no landmark recognised in the left image", nan2, nan22, math.nan,
-                                 (), (), None, t)
-        disp = self.disparity(left, right, [d.box for d in dets])
-        t3 = time.perf_counter()
-        t["disparity"] = t3 - t2
-        obs = tuple(self.observe(d, disp) for d in dets)
+        return LanBLocResult("no_landmarks", "no landmark recognised in the left image", nan2, nan22, math.nan,
+                             (), (), None, t)
+
+    def _solve(self, dets, obs, t: dict, t3: float, faults, position, seed) -> LanBLocResult:
+        """Steps after ranging: landmark faults, trilateration, the mirror ambiguity, the result."""
+        nan2, nan22 = np.full(2, np.nan), np.full((2, 2), np.nan)
         obs, dropped = self.apply_faults(obs, faults, position, seed)
         t4 = time.perf_counter()
         t["range"] = t4 - t3
@@ -559,9 +787,24 @@ class CameraLoopSource:
     degenerate geometry).  ``R`` is the trilateration covariance plus
     ``covariance_floor_m² · I`` (default 0).
 
+    Two modes (issue 16):
+
+    * ``"regions"`` (default): the renderer's :class:`~safenav.vision.render.StereoFrame`,
+      drawn only where markers project, and :meth:`LanBLoc.localize_frame`:
+      detection in those regions and, for fiducials, ranging by triangulating
+      the markers' refined corners (:meth:`LanBLoc.observe_corners`).  The work
+      per frame grows with the markers in view, so the scenario camera's own
+      resolution (the default rig, 2560×1440) is affordable.
+    * ``"full"``: whole images rendered, detection on the whole left image and
+      SGBM (the paper's pipeline; the reference).
+
+    ``occlusion`` (default on): obstacles hide the landmarks behind them
+    (:meth:`~safenav.vision.render.StereoRenderer.hidden`).
+
     The last frame's :class:`LanBLocResult` is :attr:`last` (detections,
     per-landmark ranges and bearings, status and reason, stage timings);
-    :attr:`last_images` holds the pair when ``keep_images`` is set;
+    :attr:`last_images` holds the pair when ``keep_images`` is set (full mode),
+    :attr:`last_frame` the StereoFrame (regions mode);
     :attr:`stats` counts calls, fixes and failure statuses.
 
     ``faults`` (a :class:`safenav.navigation.LandmarkFaults`, default none) corrupts the
@@ -578,11 +821,19 @@ class CameraLoopSource:
     name = "lanbloc-camera"
     emulated = False
 
+    #: The default rig: the scenario camera at its own resolution ([SafeNav-ext §V-A2]: 2560×1440 px,
+    #: f = 1400 px, B = 0.3 m).
+    DEFAULT_RIG = StereoRig(2560, 1440, 1400.0, 0.3)
+
     def __init__(self, world: World, rig: StereoRig | None = None, detector: Detector | None = None, *,
                  marker_size_m: float = 1.5, dictionary: str = "DICT_4X4_100", noise_std: float = 1.0,
-                 sigma_d: float = 0.2,
+                 sigma_d: float = 0.2, mode: str = "regions", occlusion: bool = True,
                  seed: int = 0, texture_seed: int = 0, covariance_floor_m: float = 0.0, keep_images: bool = False,
                  faults=None, **pipeline):
+        if mode not in ("regions", "full"):
+            raise ValueError(f"mode = {mode!r}: must be 'regions' (render and detect the markers' regions, "
+                             f"triangulate corners) or 'full' (whole frames, SGBM; the reference)")
+        self.mode = mode
         if not isinstance(world, World):
             raise ValueError(f"world = {world!r}: must be a safenav World")
         self.faults = _check_faults(faults)
@@ -592,26 +843,31 @@ class CameraLoopSource:
                 raise ValueError(f"seed = {seed!r}: must be an integer in [0, 2**64) with faults")
             self._fault_seed = int(_core.derive_seed(int(seed), FAULT_STREAM))
         self.world = world
-        self.rig = StereoRig() if rig is None else rig
+        self.rig = self.DEFAULT_RIG if rig is None else rig
         self.renderer = StereoRenderer(world, self.rig, marker_size_m=marker_size_m, dictionary=dictionary,
-                                       noise_std=noise_std, seed=seed, texture_seed=texture_seed)
+                                       noise_std=noise_std, seed=seed, texture_seed=texture_seed,
+                                       occlusion=occlusion)
         if detector is None:
-            detector = FiducialDetector(world, dictionary=dictionary)
+            detector = FiducialDetector(world, dictionary=dictionary, aruco3=mode == "regions")
+        if mode == "regions" and isinstance(detector, FiducialDetector):
+            pipeline.setdefault("ranging", "corners")
         self.pipeline = LanBLoc(world, self.rig, detector, sigma_d=sigma_d, **pipeline)
         self.covariance_floor_m = _finite("covariance_floor_m", covariance_floor_m, nonneg=True)
         self.keep_images = bool(keep_images)
         self.last: LanBLocResult | None = None
         self.last_step: int | None = None
         self.last_images: tuple[np.ndarray, np.ndarray] | None = None
+        self.last_frame: StereoFrame | None = None
         self.stats: dict[str, int] = {"calls": 0, **{s: 0 for s in STATUSES}}
         self.fault_stats: dict[str, int] = dict.fromkeys(
             ("observations", "dropped", "outliers", "misassociated", "ranges_rejected", "faults_in_fix"), 0)
 
     @classmethod
-    def from_scenario(cls, scenario, width: int = 640, height: int | None = 480, *,
+    def from_scenario(cls, scenario, width: int | None = None, height: int | None = None, *,
                       camera_height_m: float = 1.5, **kwargs) -> "CameraLoopSource":
-        """From a :class:`~safenav.scenario.Scenario`: its world, its camera scaled to ``width`` px,
-        its detection range and minimum landmark count."""
+        """From a :class:`~safenav.scenario.Scenario`: its world, its camera (at its own resolution, or
+        scaled to ``width`` px), its detection range and minimum landmark count."""
+        width = scenario.camera.image_width_px if width is None else width
         rig = StereoRig.from_camera(scenario.camera, width, height, camera_height_m=camera_height_m,
                                     max_range_m=scenario.detection.max_range_m)
         kwargs.setdefault("min_landmarks", max(3, scenario.detection.min_landmarks))
@@ -623,7 +879,10 @@ class CameraLoopSource:
             raise ValueError(f"true_state = {true_state!r}: must be a finite (x, y, v, theta)")
         pose = (s[0], s[1], s[3])
         t0 = time.perf_counter()
-        left, right = self.renderer.render(pose)
+        if self.mode == "full":
+            left, right = self.renderer.render(pose)
+        else:
+            left, right = self.renderer.frame(pose), None
         t_render = time.perf_counter() - t0
         if self.faults is None:
             res = self.pipeline.localize(left, right)
@@ -634,7 +893,8 @@ class CameraLoopSource:
                                          seed=int(_core.derive_seed(self._fault_seed, int(step))))
         res.timings["render"] = t_render
         self.last, self.last_step = res, int(step)
-        self.last_images = (left, right) if self.keep_images else None
+        self.last_images = (left, right) if self.keep_images and self.mode == "full" else None
+        self.last_frame = left if self.mode == "regions" else None
         self.stats["calls"] += 1
         self.stats[res.status] = self.stats.get(res.status, 0) + 1
         fs = self.fault_stats

@@ -33,8 +33,31 @@ disparity ``u_L − u_R = f·B/Z`` (the pair is rectified by construction,
 rectification.
 
 Only landmarks inside the horizontal field of view and within
-``rig.max_range_m`` are drawn (vectorised culling).  Obstacles are not drawn
-and do not occlude landmarks.
+``rig.max_range_m`` are drawn (vectorised culling).  Obstacles are not drawn,
+but with ``occlusion=True`` (the default when the renderer is given a
+:class:`~safenav.world.World`) a landmark that an obstacle hides from a
+camera's centre is not drawn in that camera's image: the core's line-of-sight
+query (:meth:`safenav.world.World.visible_from`), the same one the
+measurement-level visibility test and landmark placement use.  Occlusion is
+per landmark (its marker's centre), not per pixel: a marker half behind a
+boulder is either drawn whole or not at all.
+
+**Rendering by region** (:meth:`StereoRenderer.frame`, ours; issue 16).  A
+frame of the scenario's camera (2560×1440) holds a few markers covering a
+small part of the image, so the camera loop renders only what it looks at.
+:class:`StereoFrame` is the pair at one pose, drawn on demand: its
+:meth:`~StereoFrame.regions` are the markers' footprints (the boards' pixel
+boxes, known from the geometry, grown by a margin and merged where they
+overlap), and :meth:`~StereoFrame.patch` draws any box of either image at any
+pyramid level ``L`` (``2^L`` pixels per side averaged, the level-``L`` pixel
+``i`` centred on level-0 ``(i + 0.5)·2^L − 0.5``), markers and poles in
+painter's order over a cheap background (the panorama tile indexed by pixel,
+which like a background at infinity has zero disparity), with pixel noise of
+σ/2^L.  Outside the footprints the image is background, which holds no
+marker: detecting in the regions finds what a detector would find in the
+whole image, except false detections in the ground texture, which the
+regions do not draw.  The cost of a frame grows with the markers in view, not
+with the pixel count.
 """
 
 from __future__ import annotations
@@ -49,7 +72,7 @@ import numpy as np
 from ..world import Landmark, World
 from .detect import aruco_dictionary, marker_image
 
-__all__ = ["StereoRig", "StereoRenderer", "camera_rotation", "periodic_noise"]
+__all__ = ["StereoRig", "StereoRenderer", "StereoFrame", "camera_rotation", "periodic_noise"]
 
 
 # --------------------------------------------------------------------------- the rig
@@ -214,6 +237,9 @@ class StereoRenderer:
         the two images), drawn from a generator seeded with ``seed``.
     texture_seed:
         Seed of the ground and background textures.
+    occlusion:
+        Obstacles hide the landmarks behind them (see the module docstring);
+        default: on when ``landmarks`` is a World.
     """
 
     GROUND_RES_M = 0.02      # ground texture: metres per texel
@@ -226,10 +252,17 @@ class StereoRenderer:
     def __init__(self, landmarks, rig: StereoRig | None = None, *, marker_size_m: float = 1.5,
                  dictionary: str = "DICT_4X4_100", marker_ids: Mapping[int, int] | None = None,
                  facing: str | float | Mapping[int, float] = "camera", color: bool = False,
-                 noise_std: float = 0.0, seed: int = 0, texture_seed: int = 0):
+                 noise_std: float = 0.0, seed: int = 0, texture_seed: int = 0, occlusion: bool | None = None):
         self.rig = StereoRig() if rig is None else rig
         if not isinstance(self.rig, StereoRig):
             raise ValueError(f"rig = {rig!r}: must be a StereoRig")
+        self.world = landmarks if isinstance(landmarks, World) else None
+        if occlusion is None:
+            occlusion = self.world is not None
+        if occlusion and self.world is None:
+            raise ValueError("occlusion = True needs the World (its obstacles), not a landmark list")
+        #: obstacles hide landmarks (per landmark, by the core's line-of-sight query)
+        self.occlusion = bool(occlusion) and bool(self.world.circles or self.world.polygons)
         lms = landmarks.landmarks if isinstance(landmarks, World) else tuple(landmarks)
         for i, lm in enumerate(lms):
             if not isinstance(lm, Landmark):
@@ -354,10 +387,12 @@ class StereoRenderer:
                 if (z > self.rig.near_m).all():
                     boxes[cam, lid] = (uv.min(axis=0), uv.max(axis=0), float(z.mean()))
         ids = []
+        hidden = self.hidden(pose)
         for lid, corners in self.marker_corners(pose).items():
             ok = self._faces(pose, lid)
             for cam in ("left", "right"):
-                if not ok:
+                if not ok or lid in hidden[cam]:
+                    ok = False
                     break
                 uv, z = self.project(pose, corners, cam)
                 if (z <= self.rig.near_m).any() or (uv < margin_px).any() \
@@ -386,15 +421,32 @@ class StereoRenderer:
         centers = self.rig.camera_centers(pose)
         idx = self.culled(pose)
         boards = [self._board(i, pose) for i in idx]
+        hidden = self.hidden(pose)
         out = []
-        for C in centers:
+        for cam, C in zip(("left", "right"), centers):
             img = self._background_and_ground(th, R, C)
-            self._draw_markers(img, R, C, boards)
+            self._draw_markers(img, R, C, [b for b in boards if b[0] not in hidden[cam]])
             if self.noise_std > 0:
                 noise = self._rng.standard_normal(img.shape, dtype=np.float32) * self.noise_std
                 img = np.clip(img + noise, 0, 255).astype(np.uint8)
             out.append(img if not self.color else cv2.cvtColor(img, cv2.COLOR_GRAY2BGR))
         return out[0], out[1]
+
+    def hidden(self, pose) -> dict[str, set[int]]:
+        """``{"left": ids, "right": ids}``: the culled landmarks that an obstacle hides from each
+        camera's centre (the core's line-of-sight query); empty sets without occlusion."""
+        out = {"left": set(), "right": set()}
+        idx = self.culled(pose)
+        if not self.occlusion or len(idx) == 0:
+            return out
+        for cam, C in zip(("left", "right"), self.rig.camera_centers(_pose(pose))):
+            seen = self.world.visible_from(C[:2], self._L[idx, :2])
+            out[cam] = {self.landmarks[i].id for i, v in zip(idx, seen) if not v}
+        return out
+
+    def frame(self, pose) -> "StereoFrame":
+        """The stereo pair at ``pose``, rendered region by region on demand (:class:`StereoFrame`)."""
+        return StereoFrame(self, pose)
 
     # ---- internals
     @property
@@ -481,29 +533,170 @@ class StereoRenderer:
                 continue
             items.append((float(pc[:, 2].mean()), lid, pc, pole))
         items.sort(key=lambda t: -t[0])   # far first
-        h, w = img.shape
         for _, lid, pc, pole in items:
             if pole is not None:
                 pp = (pole - C) @ R.T
                 if (pp[:, 2] > r.near_m).all():
                     uv = f * pp[:, :2] / pp[:, 2:3] + [cx, cy]
                     cv2.fillConvexPoly(img, np.round(uv * 16).astype(np.int32), 70, cv2.LINE_AA, 4)
-            uv = (f * pc[:, :2] / pc[:, 2:3] + [cx, cy]).astype(np.float64)
-            x0, y0 = np.floor(uv.min(axis=0)).astype(int) - 1
-            x1, y1 = np.ceil(uv.max(axis=0)).astype(int) + 2
-            x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, w), min(y1, h)
-            if x1 <= x0 or y1 <= y0:
+            self._warp_marker(img, lid, f * pc[:, :2] / pc[:, 2:3] + [cx, cy])
+
+    def _warp_marker(self, img: np.ndarray, lid: int, uv: np.ndarray) -> None:
+        """Blend landmark ``lid``'s board into ``img`` (uint8, in place) with its corners at pixels ``uv`` (4, 2)."""
+        h, w = img.shape
+        uv = np.asarray(uv, dtype=np.float64)
+        x0, y0 = np.floor(uv.min(axis=0)).astype(int) - 1
+        x1, y1 = np.ceil(uv.max(axis=0)).astype(int) + 2
+        x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, w), min(y1, h)
+        if x1 <= x0 or y1 <= y0:
+            return
+        side = float(np.max(np.linalg.norm(uv - np.roll(uv, 1, axis=0), axis=1)))
+        pyr = self._pyramid(lid)
+        # the largest level not bigger than on screen: magnified by 1-2x, bilinear keeps each
+        # step edge's ramp symmetric about the true edge (minifying would alias edges by ~0.1 px)
+        tex = next((p for p in reversed(pyr) if p.shape[0] <= side), pyr[0])
+        s = tex.shape[0]
+        src = np.array([[-0.5, -0.5], [s - 0.5, -0.5], [s - 0.5, s - 0.5], [-0.5, s - 0.5]], np.float32)
+        M = cv2.getPerspectiveTransform(src, (uv - [x0, y0]).astype(np.float32))
+        warped = cv2.warpPerspective(tex, M, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR,
+                                     borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        alpha = warped[:, :, 1].astype(np.float32) * (1.0 / 255.0)
+        roi = img[y0:y1, x0:x1]
+        roi[:] = (roi + (warped[:, :, 0].astype(np.float32) - roi) * alpha + 0.5).astype(np.uint8)
+
+    def _background_patch(self, level: int, X0: int, Y0: int, X1: int, Y1: int, shift: int) -> np.ndarray:
+        """Level-``level`` pixels [X0, X1) × [Y0, Y1) of the cheap background of :class:`StereoFrame`:
+        the panorama tile (at that pyramid level) indexed by pixel, shifted by ``shift`` columns."""
+        levels = self.__dict__.setdefault("_pano_levels", [self._pano])
+        while len(levels) <= level:
+            levels.append(cv2.resize(levels[-1], None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA))
+        tile = levels[level]
+        th, tw = tile.shape
+        rows = np.arange(Y0, Y1) % th
+        cols = (np.arange(X0, X1) + shift) % tw
+        return tile[rows[:, None], cols[None, :]]
+
+
+# --------------------------------------------------------------------------- rendering by region
+
+@dataclass(frozen=True)
+class _Drawn:
+    depth: float            # mean camera depth of the board's corners [m] (painter's order)
+    landmark_id: int
+    uv: np.ndarray          # (4, 2) board corners, level-0 pixels (TL, TR, BR, BL)
+    pole: np.ndarray | None  # (4, 2) pole quad, level-0 pixels
+    box: tuple[int, int, int, int]   # level-0 pixel box x0, y0, x1, y1 (ends exclusive), clipped to the image
+
+
+def _intersects(a, b) -> bool:
+    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
+
+
+class StereoFrame:
+    """The rectified stereo pair at one pose, drawn region by region on demand
+    (see "Rendering by region" in the module docstring).  Made by
+    :meth:`StereoRenderer.frame`; the markers' geometry is computed once, the
+    pixels only when :meth:`patch` asks for them."""
+
+    CAMERAS = ("left", "right")
+
+    def __init__(self, renderer: StereoRenderer, pose):
+        self.renderer = renderer
+        r = self.rig = renderer.rig
+        x, y, th = _pose(pose)
+        self.pose = (x, y, th)
+        R = camera_rotation(th, r.pitch_rad)
+        f, cx, cy = r.focal_length_px, r.cx, r.cy
+        hidden = renderer.hidden(self.pose)
+        boards = [renderer._board(i, self.pose) for i in renderer.culled(self.pose)]
+        #: the background's horizontal offset: it slides f px per radian of heading, like one at infinity
+        self._bg_shift = int(round(-th * f))
+        self._drawn: dict[str, list[_Drawn]] = {}
+        for cam, C in zip(self.CAMERAS, r.camera_centers(self.pose)):
+            items = []
+            for lid, corners, pole, facing in boards:
+                if not facing or lid in hidden[cam]:
+                    continue
+                pc = (corners - C) @ R.T
+                if (pc[:, 2] <= r.near_m).any():
+                    continue
+                uv = f * pc[:, :2] / pc[:, 2:3] + [cx, cy]
+                puv = None
+                if pole is not None:
+                    pp = (pole - C) @ R.T
+                    if (pp[:, 2] > r.near_m).all():
+                        puv = f * pp[:, :2] / pp[:, 2:3] + [cx, cy]
+                lo, hi = np.floor(uv.min(axis=0)) - 1, np.ceil(uv.max(axis=0)) + 2
+                box = (int(max(lo[0], 0)), int(max(lo[1], 0)), int(min(hi[0], r.width)), int(min(hi[1], r.height)))
+                if box[2] <= box[0] or box[3] <= box[1]:
+                    continue
+                items.append(_Drawn(float(pc[:, 2].mean()), lid, uv, puv, box))
+            items.sort(key=lambda t: -t.depth)   # far first
+            self._drawn[cam] = items
+
+    def _camera(self, camera: str) -> list[_Drawn]:
+        if camera not in self.CAMERAS:
+            raise ValueError(f"camera = {camera!r}: must be 'left' or 'right'")
+        return self._drawn[camera]
+
+    def footprints(self, camera: str = "left") -> dict[int, tuple[int, int, int, int]]:
+        """``landmark id → level-0 pixel box (x0, y0, x1, y1)`` of every marker board drawn in ``camera``."""
+        return {d.landmark_id: d.box for d in self._camera(camera)}
+
+    def regions(self, camera: str = "left", margin_px: int = 8) -> list[tuple[tuple[int, int, int, int], float]]:
+        """The image regions that hold markers: the footprints grown by ``margin_px`` (clipped to the
+        image) and merged where they overlap, each with the smallest board side in it [px]."""
+        if isinstance(margin_px, bool) or not isinstance(margin_px, (int, np.integer)) or margin_px < 0:
+            raise ValueError(f"margin_px = {margin_px!r}: must be an integer >= 0")
+        w, h = self.rig.width, self.rig.height
+        boxes = []
+        for d in self._camera(camera):
+            x0, y0, x1, y1 = d.box
+            side = float(np.min(np.linalg.norm(d.uv - np.roll(d.uv, 1, axis=0), axis=1)))
+            boxes.append([max(x0 - margin_px, 0), max(y0 - margin_px, 0), min(x1 + margin_px, w),
+                          min(y1 + margin_px, h), side])
+        merged = True
+        while merged:
+            merged = False
+            for i in range(len(boxes)):
+                for j in range(i + 1, len(boxes)):
+                    a, b = boxes[i], boxes[j]
+                    if _intersects(a, b):
+                        boxes[i] = [min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3]), min(a[4], b[4])]
+                        del boxes[j]
+                        merged = True
+                        break
+                if merged:
+                    break
+        return [((int(b[0]), int(b[1]), int(b[2]), int(b[3])), b[4]) for b in boxes]
+
+    def patch(self, camera: str, box, level: int = 0) -> np.ndarray:
+        """The (grey, uint8) pixels of ``camera``'s image in the level-0 box ``(x0, y0, x1, y1)``
+        (ends exclusive), at pyramid level ``level``: the level-``L`` pixels ``x0 // 2^L ..
+        ceil(x1 / 2^L) − 1`` (and rows likewise)."""
+        items = self._camera(camera)
+        if isinstance(level, bool) or not isinstance(level, (int, np.integer)) or not 0 <= level <= 8:
+            raise ValueError(f"level = {level!r}: must be an integer in [0, 8]")
+        try:
+            x0, y0, x1, y1 = (int(v) for v in box)
+        except (TypeError, ValueError):
+            raise ValueError(f"box = {box!r}: must be four integers (x0, y0, x1, y1)") from None
+        if not (0 <= x0 < x1 <= self.rig.width and 0 <= y0 < y1 <= self.rig.height):
+            raise ValueError(f"box = {tuple(box)}: must lie inside the {self.rig.width}x{self.rig.height} image "
+                             f"with x0 < x1, y0 < y1")
+        k = 1 << int(level)
+        X0, Y0, X1, Y1 = x0 // k, y0 // k, -(-x1 // k), -(-y1 // k)
+        img = self.renderer._background_patch(int(level), X0, Y0, X1, Y1, self._bg_shift // k)
+        off = np.array([X0, Y0], float)
+        lbox = (X0 * k, Y0 * k, X1 * k, Y1 * k)
+        for d in items:
+            if not _intersects(d.box, lbox):
                 continue
-            side = float(np.max(np.linalg.norm(uv - np.roll(uv, 1, axis=0), axis=1)))
-            pyr = self._pyramid(lid)
-            # the largest level not bigger than on screen: magnified by 1-2x, bilinear keeps each
-            # step edge's ramp symmetric about the true edge (minifying would alias edges by ~0.1 px)
-            tex = next((p for p in reversed(pyr) if p.shape[0] <= side), pyr[0])
-            s = tex.shape[0]
-            src = np.array([[-0.5, -0.5], [s - 0.5, -0.5], [s - 0.5, s - 0.5], [-0.5, s - 0.5]], np.float32)
-            M = cv2.getPerspectiveTransform(src, (uv - [x0, y0]).astype(np.float32))
-            warped = cv2.warpPerspective(tex, M, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR,
-                                         borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-            alpha = warped[:, :, 1].astype(np.float32) * (1.0 / 255.0)
-            roi = img[y0:y1, x0:x1]
-            roi[:] = (roi + (warped[:, :, 0].astype(np.float32) - roi) * alpha + 0.5).astype(np.uint8)
+            if d.pole is not None:
+                cv2.fillConvexPoly(img, np.round(((d.pole + 0.5) / k - 0.5 - off) * 16).astype(np.int32), 70,
+                                   cv2.LINE_AA, 4)
+            self.renderer._warp_marker(img, d.landmark_id, (d.uv + 0.5) / k - 0.5 - off)
+        if self.renderer.noise_std > 0:
+            noise = self.renderer._rng.standard_normal(img.shape, dtype=np.float32) * (self.renderer.noise_std / k)
+            img = np.clip(img + noise + 0.5, 0, 255).astype(np.uint8)
+        return img
