@@ -50,6 +50,61 @@ def test_motorcycle_sgbm_and_box_depths_against_ground_truth():
     assert 1.5 < np.min(z) and np.max(z) < 5.5
 
 
+def test_motorcycle_scores_both_ways():
+    """The same run counted two ways: unmatched ground-truth pixels as bad
+    (``bad2_all``) and over matched pixels only (``bad2``), tied by the
+    density: bad2_all = 1 − density·(1 − bad2)."""
+    from safenav.experiments.real import motorcycle_evaluation
+
+    ev = motorcycle_evaluation()
+    s = ev["scores"]
+    assert ev["bad2"] == s.bad(2.0, "matched") and ev["bad2_all"] == s.bad(2.0, "all")
+    assert ev["bad2_all"] == pytest.approx(1 - ev["density"] * (1 - ev["bad2"]))
+    assert ev["bad2_all"] > ev["bad2"]
+
+
+# ---------------------------------------------------------------------------
+# Middlebury Aloe (full size, from Debian's opencv-doc): fixed 64 against the
+# disparity search from geometry
+# ---------------------------------------------------------------------------
+
+ALOE = Path("/usr/share/doc/opencv-doc/examples/data/aloeGT.png")
+
+
+@pytest.mark.skipif(not ALOE.is_file(), reason="needs Debian's opencv-doc (apt-get install opencv-doc) for Aloe")
+def test_aloe_fixed_64_against_the_range_from_geometry():
+    """Measured (OpenCV 4.6, SGBM 3-way, block 3): the ground truth spans
+    disparities 43-211 px, so 64 cannot reach most of the scene.
+
+    ================  ====  ====  ========  ============  =======
+    search            min   num   bad-2 all bad-2 matched density
+    ================  ====  ====  ========  ============  =======
+    fixed 64          0     64    51.5 %    16.1 %        57.9 %
+    far = inf         0     224   29.9 %    2.8 %         72.1 %
+    far = gt          43    176   29.5 %    2.8 %         72.5 %
+    ================  ====  ====  ========  ============  =======
+
+    Bounds leave room for other OpenCV builds: the fitted search must cut
+    bad-2 over matched pixels below 5 % (from above 12 %) and bad-2 over all
+    ground-truth pixels by more than 15 points.  Most of what stays "bad" when
+    counting all pixels is unmatched: SGBM's left band (min + num columns,
+    17 % of the width at 224) and occlusions.
+    """
+    from safenav.experiments.real import middlebury_range_table
+
+    t = middlebury_range_table(("aloe",)).set_index("search")
+    assert (t["gt_disparity_min"].iloc[0], t["gt_disparity_max"].iloc[0]) == (43, 211)
+    fixed, inf, gt = t.loc["fixed 64"], t.loc["geometry, far = inf"], t.loc["geometry, far = gt"]
+    assert (inf["min_disparity"], inf["num_disparities"]) == (0, 224)      # 211 + 2 → 0..213 → 224
+    assert (gt["min_disparity"], gt["num_disparities"]) == (43, 176)       # 43..213 → 171 → 176
+    assert fixed["bad2_matched"] > 0.12
+    for row in (inf, gt):
+        assert row["bad2_matched"] < 0.05
+        assert row["bad2_all"] < fixed["bad2_all"] - 0.15
+        assert row["density"] > fixed["density"] + 0.1
+        assert row["bad2_all"] == pytest.approx(1 - row["density"] * (1 - row["bad2_matched"]))
+
+
 # ---------------------------------------------------------------------------
 # Plaza1
 # ---------------------------------------------------------------------------

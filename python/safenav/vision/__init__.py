@@ -18,10 +18,12 @@ from .detect import (Detection, Detector, FiducialDetector, YoloOnnxDetector, ar
 from .lanbloc import STATUSES, CameraLoopSource, LanBLoc, LanBLocResult, LandmarkObservation
 from .localization import LocalizationResult, LocalizationStatus, horizontal_range, triangulate_bearings, trilaterate
 from .render import StereoRenderer, StereoRig, camera_rotation, periodic_noise
-from .stereo import SGBM_DEFAULTS, BoxRange, RectifiedCamera, SgbmMode, StereoCalibration, StereoMatcher
+from .stereo import (SGBM_DEFAULTS, BoxRange, DisparityScores, RectifiedCamera, SgbmMode, StereoCalibration,
+                     StereoMatcher, disparity_range, disparity_scores)
 
 __all__ = [
     "StereoCalibration", "RectifiedCamera", "StereoMatcher", "BoxRange", "SgbmMode", "SGBM_DEFAULTS",
+    "disparity_range", "DisparityScores", "disparity_scores",
     "Detection", "Detector", "FiducialDetector", "YoloOnnxDetector", "aruco_dictionary", "marker_image",
     "letterbox", "decode_yolo", "as_gray", "check_image",
     "LocalizationResult", "LocalizationStatus", "trilaterate", "triangulate_bearings", "horizontal_range",

@@ -16,6 +16,10 @@ module is the ranging half, in C++ over OpenCV:
   and :meth:`StereoMatcher.box_range`: the median depth of the valid pixels in
   a detection box with ``σ_Z ≈ Z²·σ_d / (f·B)`` (first-order propagation of
   the disparity noise σ_d through ``Z = f·B/(d + doffs)``).
+  :meth:`StereoMatcher.for_depth_range` sizes SGBM's disparity search from
+  the depths of interest (:func:`disparity_range`);
+* :func:`disparity_scores` — Middlebury-style scores of a disparity map
+  against ground truth, counted two ways (:class:`DisparityScores`).
 
 Images are ``uint8`` arrays ``(H, W)`` or ``(H, W, 3)``; boxes are
 ``(x_min, y_min, x_max, y_max)`` pixels (xyxy), covering the pixel columns
@@ -35,7 +39,8 @@ from ..validation import as_array
 
 SgbmMode = _core.SgbmMode
 
-__all__ = ["StereoCalibration", "RectifiedCamera", "StereoMatcher", "BoxRange", "SgbmMode", "SGBM_DEFAULTS"]
+__all__ = ["StereoCalibration", "RectifiedCamera", "StereoMatcher", "BoxRange", "SgbmMode", "SGBM_DEFAULTS",
+           "disparity_range", "DISPARITY_MARGIN_PX", "DisparityScores", "disparity_scores", "MIDDLEBURY_THRESHOLDS"]
 
 #: SGBM parameters and their defaults (OpenCV's names, snake_case).  ``P1 = P2
 #: = 0`` selects OpenCV's recommended ``8·cn·block_size²`` and ``32·cn·block_size²``.
@@ -258,6 +263,114 @@ class RectifiedCamera:
 
 
 # ---------------------------------------------------------------------------
+# disparity search range from geometry
+# ---------------------------------------------------------------------------
+
+#: Default margin of :func:`disparity_range` at the near end [px]: one pixel
+#: so that the nearest depth's disparity is not the last one searched (SGBM
+#: fits its sub-pixel parabola only between two searched neighbours), one for
+#: calibration error.
+DISPARITY_MARGIN_PX = 2
+
+
+def _depth_arg(name: str, v) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+        raise ValueError(f"{name} = {v!r} must be a number (metres)")
+    return float(v)
+
+
+def _int_arg(name: str, v, lo: int) -> int:
+    if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
+        raise ValueError(f"{name} = {v!r} must be an integer >= {lo}")
+    return int(v)
+
+
+def _snap(x: float) -> float:
+    """``x`` snapped to the nearest integer when within float round-off of it,
+    so that a near depth on an exact disparity boundary (``f·B/Z − doffs =
+    48``) does not open one more disparity through ``48.000000000001``.  Used
+    for the near end only: the far end's floor errs wide without it."""
+    r = round(x)
+    return float(r) if abs(x - r) <= 1e-9 * max(1.0, abs(x)) else x
+
+
+def _rectified_camera(camera, alpha: float) -> "RectifiedCamera":
+    if isinstance(camera, RectifiedCamera):
+        return camera
+    if isinstance(camera, StereoMatcher):
+        return camera.camera
+    if isinstance(camera, StereoCalibration):
+        # the rectified rig (f, B, doffs) as stereoRectify makes it for this alpha
+        return StereoMatcher(camera, alpha=alpha).camera
+    raise ValueError(f"camera must be a RectifiedCamera, a StereoCalibration or a StereoMatcher, "
+                     f"got {type(camera).__name__}")
+
+
+def disparity_range(camera, near_m, far_m=math.inf, *, block_size: int = SGBM_DEFAULTS["block_size"],
+                    margin_px: int = DISPARITY_MARGIN_PX, alpha: float = 0.0) -> tuple[int, int]:
+    """SGBM's ``(min_disparity, num_disparities)`` for the depths ``[near_m, far_m]``.
+
+    A depth ``Z`` is seen at the disparity (the inverse of
+    ``Z = f·B / (d + doffs)``)::
+
+        d(Z) = f·B / Z − doffs                      (d(∞) = −doffs)
+
+    and SGBM searches the integer disparities ``min_disparity ≤ d <
+    min_disparity + num_disparities``.  So::
+
+        min_disparity   = ⌊d(far_m)⌋                (⌊−doffs⌋ for far_m = ∞)
+        d_max           = ⌈d(near_m)⌉ + margin_px
+        num_disparities = 16·⌈(d_max − min_disparity + 1) / 16⌉
+
+    rounded *up* to OpenCV's multiple of 16; every depth in ``[near_m,
+    far_m]`` then has its disparity inside the search.  A fixed 64 instead
+    caps the nearest depth at ``f·B / (63 + doffs)``: anything nearer is
+    mismatched or left invalid.  ``margin_px`` (default
+    :data:`DISPARITY_MARGIN_PX`) widens the near end only; depths beyond
+    ``far_m`` fall outside the search and come back invalid or at the far
+    bound.
+
+    The search has a cost besides time: SGBM leaves the first
+    ``min_disparity + num_disparities`` columns (and, for a negative
+    ``min_disparity``, the last ``−min_disparity``) without a disparity.  A
+    range that leaves fewer than ``block_size`` columns of the image raises
+    ``ValueError`` (raise ``near_m``).
+
+    ``camera`` is a :class:`RectifiedCamera`, a :class:`StereoMatcher` (its
+    ``camera``) or a :class:`StereoCalibration` (the rectified rig that
+    ``StereoMatcher(calibration, alpha=alpha)`` uses: ``doffs = 0`` there,
+    zero disparity at infinity).  Depths are in the baseline's unit (metres).
+
+    Raises ``ValueError`` naming the value when ``near_m`` is not finite and
+    > 0, ``far_m`` is NaN or not > ``near_m``, or ``margin_px``/``block_size``
+    are not integers ≥ 0 / odd ≥ 1.
+    """
+    near = _depth_arg("near_m", near_m)
+    far = _depth_arg("far_m", far_m)
+    if not (math.isfinite(near) and near > 0.0):
+        raise ValueError(f"near_m = {near_m!r} must be finite and > 0")
+    if math.isnan(far) or not far > near:
+        raise ValueError(f"far_m = {far_m!r} must be > near_m = {near_m!r} (math.inf for no far limit)")
+    margin = _int_arg("margin_px", margin_px, 0)
+    block = _int_arg("block_size", block_size, 1)
+    if block % 2 == 0:
+        raise ValueError(f"block_size = {block_size!r} must be odd")
+    cam = _rectified_camera(camera, alpha)
+    fb = cam.f * cam.baseline
+    d_far = -cam.doffs if math.isinf(far) else fb / far - cam.doffs
+    d_near = fb / near - cam.doffs
+    lo = math.floor(d_far)
+    hi = math.ceil(_snap(d_near)) + margin
+    num = -(-(hi - lo + 1) // 16) * 16
+    columns = cam.width + min(lo, 0) - max(lo + num, 0)
+    if columns < block:
+        raise ValueError(f"near_m = {near_m!r} needs disparities {lo}..{hi} px (num_disparities = {num}), which "
+                         f"leaves {max(columns, 0)} of the image's {cam.width} columns to match "
+                         f"(block_size = {block}); raise near_m (f·B = {fb:g})")
+    return int(lo), int(num)
+
+
+# ---------------------------------------------------------------------------
 # matching and ranging
 # ---------------------------------------------------------------------------
 
@@ -364,6 +477,23 @@ class StereoMatcher:
         self.calibration = calibration
         self.camera = RectifiedCamera._from_core(self._m.camera)
 
+    @classmethod
+    def for_depth_range(cls, calibration, near_m, far_m=math.inf, *, alpha: float = 0.0,
+                        margin_px: int = DISPARITY_MARGIN_PX, **sgbm_params) -> "StereoMatcher":
+        """A matcher whose disparity search covers the depths ``[near_m, far_m]``.
+
+        ``min_disparity`` and ``num_disparities`` come from
+        :func:`disparity_range` (``d = f·B/Z − doffs``; ``min_disparity =
+        ⌊d(far_m)⌋``, ``num_disparities`` = 16·⌈(⌈d(near_m)⌉ + margin_px −
+        min_disparity + 1)/16⌉); either one given in ``sgbm_params`` wins.
+        For the pipeline: ``near_m`` is the nearest depth a landmark is ranged
+        at, ``far_m`` the detection range (or ``math.inf``).  Other arguments
+        are :class:`StereoMatcher`'s.
+        """
+        block = sgbm_params.get("block_size", SGBM_DEFAULTS["block_size"])
+        lo, num = disparity_range(calibration, near_m, far_m, block_size=block, margin_px=margin_px, alpha=alpha)
+        return cls(calibration, alpha=alpha, **{"min_disparity": lo, "num_disparities": num, **sgbm_params})
+
     @property
     def sgbm_params(self) -> dict:
         p = self._m.params
@@ -446,3 +576,91 @@ class StereoMatcher:
         return BoxRange(ok=r.ok, range=r.range if r.ok else math.nan, sigma=r.sigma if r.ok else math.nan,
                         disparity=r.disparity, n_valid=r.n_valid, n_pixels=r.n_pixels,
                         point=np.array(r.point), reason=r.reason)
+
+
+# ---------------------------------------------------------------------------
+# scoring against ground truth
+# ---------------------------------------------------------------------------
+
+#: Middlebury 2014's error thresholds [px] (bad-0.5, bad-1, bad-2, bad-4).
+MIDDLEBURY_THRESHOLDS = (0.5, 1.0, 2.0, 4.0)
+
+
+@dataclass(frozen=True)
+class DisparityScores:
+    """Middlebury-style scores of a disparity map, counted two ways.
+
+    With ``G`` the pixels that have a ground truth, ``M ⊆ G`` those the
+    matcher gave a disparity and ``E_t ⊆ M`` those whose error
+    ``|d − d_gt|`` exceeds ``t`` pixels:
+
+    * ``bad_all[t]     = (|E_t| + |G − M|) / |G|`` — unmatched pixels count as
+      bad (Middlebury's convention for the ranking);
+    * ``bad_matched[t] = |E_t| / |M|`` — over matched pixels only, to be read
+      with ``density = |M| / |G|``.
+    """
+
+    thresholds: tuple[float, ...]  #: t [px]
+    bad_all: tuple[float, ...]     #: fraction of G that is unmatched or off by more than t
+    bad_matched: tuple[float, ...]  #: fraction of M off by more than t
+    density: float                 #: |M| / |G|
+    mae: float                     #: mean |d − d_gt| over M [px]
+    rmse: float                    #: RMS of d − d_gt over M [px]
+    n_ground_truth: int            #: |G|
+    n_matched: int                 #: |M|
+
+    def bad(self, threshold: float, counting: str = "all") -> float:
+        """The bad-``threshold`` fraction, ``counting`` = ``"all"`` or ``"matched"``."""
+        if threshold not in self.thresholds:
+            raise ValueError(f"threshold = {threshold!r} was not scored; scored: {self.thresholds}")
+        if counting not in ("all", "matched"):
+            raise ValueError(f"counting = {counting!r} must be 'all' or 'matched'")
+        i = self.thresholds.index(threshold)
+        return (self.bad_all if counting == "all" else self.bad_matched)[i]
+
+    def as_dict(self) -> dict:
+        """Flat columns: ``bad2_all``, ``bad2_matched``, … (``bad0.5_all`` for t = 0.5),
+        ``density``, ``mae``, ``rmse``, ``n_ground_truth``, ``n_matched``."""
+        out = {}
+        for t, a, m in zip(self.thresholds, self.bad_all, self.bad_matched):
+            out[f"bad{t:g}_all"] = a
+            out[f"bad{t:g}_matched"] = m
+        out.update(density=self.density, mae=self.mae, rmse=self.rmse, n_ground_truth=self.n_ground_truth,
+                   n_matched=self.n_matched)
+        return out
+
+
+def disparity_scores(disparity, ground_truth, thresholds=MIDDLEBURY_THRESHOLDS) -> DisparityScores:
+    """Score ``disparity`` (NaN where unmatched) against ``ground_truth``
+    (NaN or ±inf where unknown), both ``(H, W)`` pixels; see
+    :class:`DisparityScores`.  A ground truth with no known pixel raises
+    ``ValueError``; with no matched pixel the matched-only scores are NaN."""
+    d = np.asarray(disparity)
+    g = np.asarray(ground_truth)
+    for name, a in (("disparity", d), ("ground_truth", g)):
+        if a.ndim != 2 or not np.issubdtype(a.dtype, np.floating):
+            raise ValueError(f"{name} must be a 2-D float array, got shape {a.shape} dtype {a.dtype}")
+    if d.shape != g.shape:
+        raise ValueError(f"disparity and ground_truth differ in shape: {d.shape} vs {g.shape}")
+    ts = tuple(float(t) for t in thresholds)
+    if not ts or not all(math.isfinite(t) and t >= 0 for t in ts):
+        raise ValueError(f"thresholds = {thresholds!r} must be finite numbers >= 0")
+    if np.isinf(d).any():
+        raise ValueError("disparity has infinite values; mark unmatched pixels NaN")
+    known = np.isfinite(g)
+    n_g = int(known.sum())
+    if n_g == 0:
+        raise ValueError("ground_truth has no known pixel (all NaN/inf)")
+    matched = known & np.isfinite(d)
+    n_m = int(matched.sum())
+    err = np.abs(d[matched].astype(np.float64) - g[matched].astype(np.float64))
+    n_bad = [int((err > t).sum()) for t in ts]
+    nan = math.nan
+    return DisparityScores(
+        thresholds=ts,
+        bad_all=tuple((b + n_g - n_m) / n_g for b in n_bad),
+        bad_matched=tuple(b / n_m if n_m else nan for b in n_bad),
+        density=n_m / n_g,
+        mae=float(err.mean()) if n_m else nan,
+        rmse=float(np.sqrt(np.mean(err ** 2))) if n_m else nan,
+        n_ground_truth=n_g, n_matched=n_m)
