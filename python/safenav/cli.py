@@ -413,8 +413,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("names", nargs="+", metavar="NAME", help="experiment name(s), or 'all'")
     s.add_argument("--trials", type=_at_least(1), default=1000,
                    help="Monte Carlo trials per cell (default 1000, as the paper)")
-    s.add_argument("--camera-trials", type=_at_least(0), default=20,
-                   help="trials per cell of the camera-in-the-loop variants of Tables II and IV (default 20; 0 = skip)")
+    from .experiments.run import ExperimentOptions
+    s.add_argument("--camera-trials", type=_at_least(0), default=ExperimentOptions.camera_trials,
+                   help="trials per cell of the camera-in-the-loop variants of Tables II and IV "
+                        f"(default {ExperimentOptions.camera_trials}; 0 = skip)")
     s.add_argument("--position-every", type=_at_least(1), default=10,
                    help="camera loop: a fix every n steps (default 10)")
     s.add_argument("--particles", type=_at_least(1), default=1000, help="PF particles (default 1000)")

@@ -158,15 +158,19 @@ CAMERA_SOURCES = ("lanbloc-camera",)
 
 
 def _camera_trials(navigator, c: _Cell, seeds) -> dict:
-    """Trials with LanBLoc through the camera loop (render, detect, SGBM,
-    trilaterate) as the position callback: Python per fix, so slower.  The
-    scenario's landmark faults act on the camera's observations too."""
+    """Trials with LanBLoc through the camera loop as the position callback
+    (:class:`~safenav.vision.CameraLoopSource` from the scenario: its camera at
+    its own resolution, rendered and detected by region, fiducial corners
+    triangulated, trilaterated): Python per fix, so slower, and run in
+    processes.  The scenario's landmark faults act on the camera's
+    observations too."""
     from .vision import CameraLoopSource
 
     d = {k: [] for k in ("outcome", "reason", "time_s", *COUNTS, *METRICS, *SAFETY)}
     faults = c.scenario.noise.faults()
     for s in seeds:
-        source = CameraLoopSource(c.scenario.world, seed=int(s) % 2**32, faults=faults if faults.any() else None)
+        source = CameraLoopSource.from_scenario(c.scenario, seed=int(s) % 2**32,
+                                                faults=faults if faults.any() else None)
         r = navigator.run(int(s), position=source)
         d["outcome"].append(int(r.outcome))
         d["reason"].append(r.reason)
@@ -225,8 +229,9 @@ def run_sweep(sweep: Sweep, *, workers: int | None = None, scheduler=None, safe_
     missing = [p for p in sweep.path_types if p not in safe_paths]
     if missing:
         raise ValueError(f"safe_paths: no path for {missing}")
+    camera = any(source in CAMERA_SOURCES for source in sweep.sources)
     parts = run_trials(_run_chunk, _cells(sweep, safe_paths, navigator_options), seed=sweep.seed,
-                       trials=sweep.trials, chunk=sweep.chunk, workers=workers, scheduler=scheduler,
+                       trials=sweep.trials, chunk=sweep.chunk, workers=workers, scheduler=scheduler, processes=camera,
                        progress=progress)
     return pd.concat([df for _, df in parts], ignore_index=True)
 
@@ -248,7 +253,7 @@ def _run_trial_chunk(c: _TrialChunk):
 
 
 def run_trials(run, cells, *, seed: int, trials: int, chunk: int, workers: int | None = None, scheduler=None,
-               progress: bool = False, desc: str = "trials") -> list:
+               progress: bool = False, desc: str = "trials", processes: bool = False) -> list:
     """``run(cell, seeds, start)`` for trials [start, start + len(seeds)) of
     every cell, in chunks of ``chunk`` trials; ``cells`` is a list of
     ``(stream, cell)`` pairs, and the ``trials`` trials of a cell have the
@@ -260,19 +265,22 @@ def run_trials(run, cells, *, seed: int, trials: int, chunk: int, workers: int |
     for stream, cell in cells:
         seeds = trial_seeds(seed, stream, trials)
         chunks += [_TrialChunk(run, cell, seeds[a:a + chunk], a) for a in range(0, trials, chunk)]
-    out = map_ordered(_run_trial_chunk, chunks, workers=workers, scheduler=scheduler, progress=progress, desc=desc)
+    out = map_ordered(_run_trial_chunk, chunks, workers=workers, scheduler=scheduler, progress=progress, desc=desc,
+                      processes=processes)
     return [(c.cell, r) for c, r in zip(chunks, out)]
 
 
 def map_ordered(fn, items, *, workers: int | None = None, scheduler=None, progress: bool = False,
-                desc: str = "chunks") -> list:
+                desc: str = "chunks", processes: bool = False) -> list:
     """``[fn(item) for item in items]``, run on local threads or a Dask cluster,
     returned in the order of ``items`` whatever order the work finishes in.
 
     ``fn`` and the items must be picklable for Dask (module-level functions and
     dataclasses).  ``workers``: local threads (default: all cores); useful when
-    ``fn`` spends its time in C++ calls that release the GIL.  ``scheduler``: a
-    Dask scheduler address or a ``distributed.Client``."""
+    ``fn`` spends its time in C++ calls that release the GIL.  ``processes``:
+    local processes instead (``spawn``), for work that holds the GIL (the
+    camera loop's Python per frame); with one worker it runs in this process.
+    ``scheduler``: a Dask scheduler address or a ``distributed.Client``."""
     items = list(items)
     if scheduler is None:
         n = workers if workers is not None else (os.cpu_count() or 1)
@@ -282,7 +290,13 @@ def map_ordered(fn, items, *, workers: int | None = None, scheduler=None, progre
         if scheduler is not None:
             return _run_dask(fn, items, scheduler, bar)
         out = [None] * len(items)
-        pool = ThreadPoolExecutor(max_workers=int(n))
+        if processes and int(n) > 1:
+            import multiprocessing
+            from concurrent.futures import ProcessPoolExecutor
+            pool = ProcessPoolExecutor(max_workers=int(n), mp_context=multiprocessing.get_context("spawn"),
+                                       initializer=_quiet_worker)
+        else:
+            pool = ThreadPoolExecutor(max_workers=int(n))
         try:
             futures = {pool.submit(fn, c): i for i, c in enumerate(items)}
             for fut in as_completed(futures):
@@ -293,6 +307,15 @@ def map_ordered(fn, items, *, workers: int | None = None, scheduler=None, progre
             raise
         pool.shutdown()
         return out
+
+
+def _quiet_worker() -> None:
+    """A process worker: OpenCV on one thread (the pool's processes are the parallelism)."""
+    try:
+        import cv2
+        cv2.setNumThreads(1)
+    except ImportError:   # pragma: no cover - OpenCV is a dependency
+        pass
 
 
 @contextmanager

@@ -90,11 +90,14 @@ OUTLIER = 4
 #: The random stream of the landmark faults under :class:`CameraLoopSource`'s seed
 #: (``derive_seed(derive_seed(seed, FAULT_STREAM), step)`` per frame).
 FAULT_STREAM = 1
+#: The pixel-noise stream of :class:`CameraLoopSource`'s frames in region mode
+#: (``derive_seed(derive_seed(seed, NOISE_STREAM), step)`` per frame).
+NOISE_STREAM = 2
 
-#: Default SGBM settings for the pipeline: 3-way SGBM with 64 disparities
-#: (ranges down to f·B/64, i.e. 1.6 m for the default rig), uniqueness 10.
-PIPELINE_SGBM = dict(num_disparities=64, block_size=5, mode="sgbm_3way", uniqueness_ratio=10,
-                     speckle_window_size=100, speckle_range=2)
+#: Default SGBM settings for the pipeline: 3-way SGBM, uniqueness 10.  The disparity search is not
+#: fixed: it follows from the camera and the depth range of interest, [``min_range_m`` at the image's
+#: edge, ``max_range_m``] (:func:`safenav.vision.stereo.disparity_range`).
+PIPELINE_SGBM = dict(block_size=5, mode="sgbm_3way", uniqueness_ratio=10, speckle_window_size=100, speckle_range=2)
 
 
 @dataclass(frozen=True)
@@ -279,7 +282,13 @@ class LanBLoc:
         GDOP stay degenerate.
     sgbm:
         SGBM parameters (:data:`safenav.vision.stereo.SGBM_DEFAULTS` names), over
-        :data:`PIPELINE_SGBM`.
+        :data:`PIPELINE_SGBM`; the disparity search (``min_disparity``,
+        ``num_disparities``) defaults to the depth range [``min_range_m``,
+        ``max_range_m``] (:meth:`~safenav.vision.stereo.StereoMatcher.for_depth_range`;
+        with ``max_range_m`` infinite, down to disparity 0).
+    min_range_m:
+        The nearest landmark of interest [m] (at the image's edge, for a
+        rectified camera): the top of the disparity search.
     trilateration:
         Keyword arguments for :func:`~safenav.vision.localization.trilaterate`.
     ranging:
@@ -304,8 +313,9 @@ class LanBLoc:
                  min_landmarks: int = 3, max_range_m: float = math.inf, box_shrink: float = 0.1,
                  row_band: bool = True, band_margin_px: int = 24, bearing_sigma_px: float = 1.0,
                  unknown_landmark: str = "error", resolve_ambiguity: bool = True, sgbm: Mapping | None = None,
-                 trilateration: Mapping | None = None, ranging: str = "sgbm", corner_sigma_d: float = 0.05,
-                 max_row_error_px: float = 1.0, detect_side_px: float = 48.0, region_margin_px: int = 8):
+                 trilateration: Mapping | None = None, ranging: str = "sgbm", corner_sigma_d: float = 0.035,
+                 max_row_error_px: float = 1.0, detect_side_px: float = 48.0, region_margin_px: int = 8,
+                 min_range_m: float = 1.5, min_correlation: float = 0.8):
         self.landmarks = _landmark_table(landmarks)
         rig = camera if isinstance(camera, StereoRig) else None
         if rig is not None:
@@ -317,10 +327,19 @@ class LanBLoc:
             raise ValueError("camera_height_m is required unless camera is a StereoRig")
         self.camera_height_m = _finite("camera_height_m", camera_height_m, nonneg=True)
         self.pitch_rad = _finite("pitch_rad", 0.0 if pitch_rad is None else pitch_rad)
+        if not (isinstance(max_range_m, (int, float)) and max_range_m > 0):
+            raise ValueError(f"max_range_m = {max_range_m!r}: must be > 0")
+        self.min_range_m = _finite("min_range_m", min_range_m, positive=True)
+        if not self.min_range_m < max_range_m:
+            raise ValueError(f"min_range_m = {min_range_m!r}: must be < max_range_m = {max_range_m!r}")
         if isinstance(camera, StereoMatcher):
             self.matcher = camera
         elif isinstance(camera, (RectifiedCamera, StereoCalibration)):
-            self.matcher = StereoMatcher(camera, **{**PIPELINE_SGBM, **dict(sgbm or {})})
+            near = self.min_range_m
+            if isinstance(camera, RectifiedCamera):   # the depth of a landmark at min_range_m on the image's edge
+                near *= math.cos(math.atan2(max(camera.cx, camera.width - 1 - camera.cx), camera.f))
+            self.matcher = StereoMatcher.for_depth_range(camera, near, float(max_range_m),
+                                                         **{**PIPELINE_SGBM, **dict(sgbm or {})})
         else:
             raise ValueError(f"camera = {camera!r}: must be a StereoRig, RectifiedCamera, StereoCalibration "
                              f"or StereoMatcher")
@@ -333,8 +352,6 @@ class LanBLoc:
         if isinstance(min_landmarks, bool) or not isinstance(min_landmarks, (int, np.integer)) or min_landmarks < 3:
             raise ValueError(f"min_landmarks = {min_landmarks!r}: must be an integer >= 3 (2D trilateration)")
         self.min_landmarks = int(min_landmarks)
-        if not (isinstance(max_range_m, (int, float)) and max_range_m > 0):
-            raise ValueError(f"max_range_m = {max_range_m!r}: must be > 0")
         self.max_range_m = float(max_range_m)
         self.box_shrink = _finite("box_shrink", box_shrink, nonneg=True)
         if self.box_shrink >= 0.5:
@@ -363,6 +380,9 @@ class LanBLoc:
                 or region_margin_px < 0:
             raise ValueError(f"region_margin_px = {region_margin_px!r}: must be an integer >= 0")
         self.region_margin_px = int(region_margin_px)
+        self.min_correlation = _finite("min_correlation", min_correlation)
+        if not -1.0 <= self.min_correlation <= 1.0:
+            raise ValueError(f"min_correlation = {min_correlation!r}: must be in [-1, 1]")
         self.trilateration = dict(trilateration or {})
         import inspect
         known = [n for n, p in inspect.signature(trilaterate).parameters.items() if p.kind == p.KEYWORD_ONLY]
@@ -628,24 +648,27 @@ class LanBLoc:
                              f"pipeline's camera ({c.width}x{c.height}, f = {c.f:g} px)")
         t = {"rectify": 0.0}
         t1 = time.perf_counter()
-        dets = self._known(self._detect_regions(frame, "left"))
+        found = self._detect_regions(frame, "left")
+        level = {id(d): lv for d, lv in found}
+        dets = self._known([d for d, _ in found])
         t2 = time.perf_counter()
         t["detect"] = t2 - t1
         if not dets:
             return self._no_landmarks(t)
         if self.ranging == "corners":
-            right_dets = {d.landmark_id: d for d in self._known(self._detect_regions(frame, "right"), unknown="skip")}
+            right = [self._find_in_right(frame, d, level[id(d)]) for d in dets]
             t3 = time.perf_counter()
             t["disparity"] = t3 - t2
-            obs = tuple(self.observe_corners(d, right_dets.get(d.landmark_id)) for d in dets)
+            obs = tuple(self.observe_corners(d, r) for d, r in zip(dets, right))
         else:
             obs = tuple(self._observe_strip(frame, d) for d in dets)
             t3 = time.perf_counter()
             t["disparity"] = t3 - t2
         return self._solve(dets, obs, t, t3, faults, position, seed)
 
-    def _detect_regions(self, frame: StereoFrame, camera: str) -> list[Detection]:
-        """Detections in ``camera``'s regions of ``frame``, in level-0 pixels, corners refined at level 0."""
+    def _detect_regions(self, frame: StereoFrame, camera: str) -> list[tuple[Detection, int]]:
+        """Detections in ``camera``'s regions of ``frame``, in level-0 pixels, corners refined at level 0,
+        each with the pyramid level it was found at."""
         out = []
         for box, side in frame.regions(camera, self.region_margin_px):
             level = 0
@@ -663,31 +686,82 @@ class LanBLoc:
                     x0, y0, x1, y1 = d.box
                     bb = tuple(float(v) for v in ((np.array([x0, y0, x1, y1]).reshape(2, 2) + off + 0.5) * k - 0.5)
                                .ravel())
-                    out.append(dataclasses.replace(d, box=bb))
+                    out.append((dataclasses.replace(d, box=bb), level))
                     continue
                 corners = self._refine_corners(frame, camera, (np.asarray(d.corners, float) + off + 0.5) * k - 0.5)
                 (x0, y0), (x1, y1) = corners.min(axis=0), corners.max(axis=0)
-                out.append(dataclasses.replace(d, box=(float(x0), float(y0), float(x1), float(y1)), corners=corners))
+                out.append((dataclasses.replace(d, box=(float(x0), float(y0), float(x1), float(y1)),
+                                                corners=corners), level))
         return out
 
     def _refine_corners(self, frame: StereoFrame, camera: str, corners: np.ndarray) -> np.ndarray:
-        """``cv2.cornerSubPix`` of each corner in a level-0 window of about 0.7 marker cell."""
+        """``cv2.cornerSubPix`` of each corner at level 0, in a window of about 0.7 marker cell: one patch
+        around the whole marker when it is small, else one per corner.  A corner whose window leaves
+        the image keeps its position."""
         side = float(np.min(np.linalg.norm(corners - np.roll(corners, 1, axis=0), axis=1)))
         cells = getattr(getattr(self.detector, "dictionary", None), "markerSize", 4) + 2
         w = int(min(max(round(0.7 * side / cells), 2), 12))
         W, H = frame.rig.width, frame.rig.height
         out = corners.copy()
         crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 30, 0.001)
-        for i, (u, v) in enumerate(corners):
+        lo = np.floor(corners.min(axis=0)).astype(int) - w - 3
+        hi = np.floor(corners.max(axis=0)).astype(int) + w + 5
+        inside = (np.floor(corners) - w - 3 >= 0).all(axis=1) & (np.floor(corners[:, 0]) + w + 5 <= W) \
+            & (np.floor(corners[:, 1]) + w + 5 <= H)
+        if not inside.any():
+            return out
+        if (hi - lo).prod() <= 160 * 160:
+            x0, y0 = max(lo[0], 0), max(lo[1], 0)
+            img = frame.patch(camera, (x0, y0, min(hi[0], W), min(hi[1], H)), 0)
+            p = (corners[inside] - [x0, y0]).astype(np.float32).reshape(-1, 1, 2)
+            cv2.cornerSubPix(img, p, (w, w), (-1, -1), crit)
+            out[inside] = p.reshape(-1, 2) + [x0, y0]
+            return out
+        for i in np.flatnonzero(inside):
+            u, v = corners[i]
             x0, y0 = int(math.floor(u)) - w - 3, int(math.floor(v)) - w - 3
-            x1, y1 = x0 + 2 * w + 8, y0 + 2 * w + 8
-            if x0 < 0 or y0 < 0 or x1 > W or y1 > H:
-                continue   # at the image's edge: keep the pyramid's corner
-            img = frame.patch(camera, (x0, y0, x1, y1), 0)
+            img = frame.patch(camera, (x0, y0, x0 + 2 * w + 8, y0 + 2 * w + 8), 0)
             p = np.array([[[u - x0, v - y0]]], np.float32)
             cv2.cornerSubPix(img, p, (w, w), (-1, -1), crit)
             out[i] = p[0, 0] + [x0, y0]
         return out
+
+    def _find_in_right(self, frame: StereoFrame, det: Detection, level: int) -> Detection | None:
+        """The marker of the left detection ``det`` in the right image: its patch (pyramid level
+        ``level``) matched along its rows over the disparity search (normalised cross-correlation,
+        parabolic sub-pixel peak), then the corners refined at level 0.  ``None`` when the best
+        correlation is below ``min_correlation``."""
+        k = 1 << level
+        W, H = frame.rig.width, frame.rig.height
+        cl = np.asarray(det.corners, float)
+        g = 2 * k
+        tx0, ty0 = max(int(math.floor(cl[:, 0].min())) - g, 0), max(int(math.floor(cl[:, 1].min())) - g, 0)
+        tx1, ty1 = min(int(math.ceil(cl[:, 0].max())) + g, W), min(int(math.ceil(cl[:, 1].max())) + g, H)
+        p = self.matcher.sgbm_params
+        d_lo, d_hi = p["min_disparity"], p["min_disparity"] + p["num_disparities"]
+        sx0, sx1 = max(tx0 - d_hi - g, 0), min(tx1 - d_lo + g, W)
+        sy0, sy1 = max(ty0 - g, 0), min(ty1 + g, H)
+        if sx1 - sx0 < tx1 - tx0 or sy1 - sy0 < ty1 - ty0:
+            return None
+        tmpl = frame.patch("left", (tx0, ty0, tx1, ty1), level)
+        search = frame.patch("right", (sx0, sy0, sx1, sy1), level)
+        if search.shape[0] < tmpl.shape[0] or search.shape[1] < tmpl.shape[1]:
+            return None
+        res = cv2.matchTemplate(search, tmpl, cv2.TM_CCOEFF_NORMED)
+        _, score, _, (mx, my) = cv2.minMaxLoc(res)
+        if not score >= self.min_correlation:
+            return None
+        sub = 0.0
+        if 0 < mx < res.shape[1] - 1:
+            l_, c_, r_ = res[my, mx - 1], res[my, mx], res[my, mx + 1]
+            den = l_ - 2 * c_ + r_
+            sub = 0.5 * (l_ - r_) / den if den < 0 else 0.0
+        d = (tx0 // k - (sx0 // k + mx + sub)) * k
+        dy = (ty0 // k - (sy0 // k + my)) * k
+        cr = self._refine_corners(frame, "right", cl - [d, dy])
+        (x0, y0), (x1, y1) = cr.min(axis=0), cr.max(axis=0)
+        return dataclasses.replace(det, box=(float(x0), float(y0), float(x1), float(y1)), corners=cr,
+                                   score=float(score))
 
     def _observe_strip(self, frame: StereoFrame, det: Detection) -> LandmarkObservation:
         """SGBM on the strip around ``det``'s box only (rows ± margin, columns from the box's left edge
@@ -732,6 +806,15 @@ class LanBLoc:
             seen.add(d.landmark_id)
             dets.append(d)
         return dets
+
+    def _early_out(self, in_view: int) -> LanBLocResult:
+        """The result of a frame with fewer markers in view than a fix needs, not processed."""
+        nan2, nan22 = np.full(2, np.nan), np.full((2, 2), np.nan)
+        t = dict.fromkeys(("rectify", "detect", "disparity", "range", "localize"), 0.0)
+        if in_view == 0:
+            return LanBLocResult("no_landmarks", "no landmark in view", nan2, nan22, math.nan, (), (), None, t)
+        return LanBLocResult("too_few_ranges", f"{in_view} landmark(s) in view, {self.min_landmarks} needed "
+                             f"(frame not processed)", nan2, nan22, math.nan, (), (), None, t)
 
     @staticmethod
     def _no_landmarks(t: dict) -> LanBLocResult:
@@ -801,6 +884,14 @@ class CameraLoopSource:
     ``occlusion`` (default on): obstacles hide the landmarks behind them
     (:meth:`~safenav.vision.render.StereoRenderer.hidden`).
 
+    ``early_out`` (region mode, default on): a frame whose left image holds
+    fewer markers than ``min_landmarks`` cannot give a fix, so it is not
+    processed (status ``no_landmarks`` or ``too_few_ranges``, no
+    observations).  Each frame's pixel noise is its own stream
+    (``derive_seed(derive_seed(seed, NOISE_STREAM), step)``), so the fixes
+    are the same with and without it; only the per-landmark counts of the
+    skipped frames (``fault_stats``) are missing.
+
     The last frame's :class:`LanBLocResult` is :attr:`last` (detections,
     per-landmark ranges and bearings, status and reason, stage timings);
     :attr:`last_images` holds the pair when ``keep_images`` is set (full mode),
@@ -827,21 +918,23 @@ class CameraLoopSource:
 
     def __init__(self, world: World, rig: StereoRig | None = None, detector: Detector | None = None, *,
                  marker_size_m: float = 1.5, dictionary: str = "DICT_4X4_100", noise_std: float = 1.0,
-                 sigma_d: float = 0.2, mode: str = "regions", occlusion: bool = True,
+                 sigma_d: float = 0.2, mode: str = "regions", occlusion: bool = True, early_out: bool = True,
                  seed: int = 0, texture_seed: int = 0, covariance_floor_m: float = 0.0, keep_images: bool = False,
                  faults=None, **pipeline):
         if mode not in ("regions", "full"):
             raise ValueError(f"mode = {mode!r}: must be 'regions' (render and detect the markers' regions, "
                              f"triangulate corners) or 'full' (whole frames, SGBM; the reference)")
         self.mode = mode
+        self.early_out = bool(early_out)
         if not isinstance(world, World):
             raise ValueError(f"world = {world!r}: must be a safenav World")
         self.faults = _check_faults(faults)
         self.seed = seed
-        if self.faults is not None:
+        if self.faults is not None or mode == "regions":
             if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2 ** 64:
-                raise ValueError(f"seed = {seed!r}: must be an integer in [0, 2**64) with faults")
+                raise ValueError(f"seed = {seed!r}: must be an integer in [0, 2**64)")
             self._fault_seed = int(_core.derive_seed(int(seed), FAULT_STREAM))
+            self._noise_seed = int(_core.derive_seed(int(seed), NOISE_STREAM))
         self.world = world
         self.rig = self.DEFAULT_RIG if rig is None else rig
         self.renderer = StereoRenderer(world, self.rig, marker_size_m=marker_size_m, dictionary=dictionary,
@@ -878,17 +971,24 @@ class CameraLoopSource:
         if s.shape != (4,) or not np.isfinite(s).all():
             raise ValueError(f"true_state = {true_state!r}: must be a finite (x, y, v, theta)")
         pose = (s[0], s[1], s[3])
+        if (self.faults is not None or self.mode == "regions") and (
+                isinstance(step, bool) or not isinstance(step, (int, np.integer)) or step < 0):
+            raise ValueError(f"step = {step!r}: must be an integer >= 0")
         t0 = time.perf_counter()
         if self.mode == "full":
             left, right = self.renderer.render(pose)
         else:
-            left, right = self.renderer.frame(pose), None
+            left, right = self.renderer.frame(pose, int(_core.derive_seed(self._noise_seed, int(step)))), None
         t_render = time.perf_counter() - t0
-        if self.faults is None:
+        in_view = len(left.footprints("left")) if self.mode == "regions" else None
+        if self.early_out and in_view is not None and in_view < self.pipeline.min_landmarks:
+            # Fewer markers drawn in the left image than a fix needs: no detector can find more, so
+            # this frame gives no fix whatever the pipeline does (the frame's pixels are its own, so
+            # skipping it changes no other frame).
+            res = self.pipeline._early_out(in_view)
+        elif self.faults is None:
             res = self.pipeline.localize(left, right)
         else:
-            if isinstance(step, bool) or not isinstance(step, (int, np.integer)) or step < 0:
-                raise ValueError(f"step = {step!r}: must be an integer >= 0")
             res = self.pipeline.localize(left, right, faults=self.faults, position=s[:2],
                                          seed=int(_core.derive_seed(self._fault_seed, int(step))))
         res.timings["render"] = t_render

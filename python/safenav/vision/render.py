@@ -62,6 +62,7 @@ with the pixel count.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Mapping
@@ -207,6 +208,25 @@ def periodic_noise(shape: tuple[int, int], seed: int, beta: float = 1.6, lo: int
     return np.clip(lo + (hi - lo) * img, 0, 255).astype(np.uint8)
 
 
+@functools.lru_cache(maxsize=4)
+def _textures(texture_seed: int, ground_tile: int, pano_h: int, pano_w: int):
+    """The ground tile, the panorama and the panorama's pyramid levels (each tiled 2×2) for a seed."""
+    ground = periodic_noise((ground_tile, ground_tile), texture_seed, beta=1.4)
+    pano = periodic_noise((pano_h, pano_w), texture_seed + 1, beta=1.8, lo=90, hi=250)
+    return ground, pano, [np.tile(pano, (2, 2))]
+
+
+@functools.lru_cache(maxsize=4096)
+def _marker_pyramid(dictionary: str, marker_id: int) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """A marker board's mip pyramid, smallest first: (grey + alpha) levels and grey levels."""
+    base = marker_image(aruco_dictionary(dictionary), marker_id, cell_px=64, border_cells=1)
+    pyr = [base]
+    while pyr[-1].shape[0] > 8:
+        pyr.append(cv2.resize(pyr[-1], None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA))
+    pyr = pyr[::-1]
+    return [cv2.merge([m, np.full_like(m, 255)]) for m in pyr], pyr
+
+
 # --------------------------------------------------------------------------- the renderer
 
 class StereoRenderer:
@@ -248,6 +268,7 @@ class StereoRenderer:
     PANO_EL = (-0.35, 0.9)   # elevations covered by the panorama [rad]
     HAZE_M = 80.0            # ground contrast falls as exp(-Z / HAZE_M)
     POLE_WIDTH_M = 0.08
+    NOISE_TILE = 512         # side of the pixel-noise tile of StereoFrame patches
 
     def __init__(self, landmarks, rig: StereoRig | None = None, *, marker_size_m: float = 1.5,
                  dictionary: str = "DICT_4X4_100", marker_ids: Mapping[int, int] | None = None,
@@ -262,7 +283,7 @@ class StereoRenderer:
         if occlusion and self.world is None:
             raise ValueError("occlusion = True needs the World (its obstacles), not a landmark list")
         #: obstacles hide landmarks (per landmark, by the core's line-of-sight query)
-        self.occlusion = bool(occlusion) and bool(self.world.circles or self.world.polygons)
+        self.occlusion = bool(occlusion) and bool(self.world.obstacles)
         lms = landmarks.landmarks if isinstance(landmarks, World) else tuple(landmarks)
         for i, lm in enumerate(lms):
             if not isinstance(lm, Landmark):
@@ -298,13 +319,13 @@ class StereoRenderer:
         self.noise_std = _pos("noise_std", noise_std, allow_zero=True)
         self._rng = np.random.default_rng(seed)
         self._L = np.array([(*lm.position[:2], lm.height) for lm in self.landmarks], float).reshape(-1, 3)
-        # textures
-        self._ground = periodic_noise((self.GROUND_TILE, self.GROUND_TILE), texture_seed, beta=1.4)
-        pano = periodic_noise((self.PANO_H, self.PANO_W), texture_seed + 1, beta=1.8, lo=90, hi=250)
-        self._pano = pano
+        # textures (shared by every renderer with this texture seed)
+        self._ground, self._pano, self._pano_levels = _textures(int(texture_seed), self.GROUND_TILE, self.PANO_H,
+                                                                self.PANO_W)
         self._ground_mean = float(self._ground.mean())
-        self._pyramids: dict[int, list[np.ndarray]] = {}
-        self._prepare_rig()
+        self._seed = seed
+        self._noise_tile = None
+        self._rig_ready = False   # the whole-frame maps (_prepare_rig) are made on the first render()
 
     # ---- rig-dependent precomputation
     def _prepare_rig(self):
@@ -416,6 +437,9 @@ class StereoRenderer:
     def render(self, pose) -> tuple[np.ndarray, np.ndarray]:
         """The rectified ``(left, right)`` images at ``pose = (x, y, θ)`` (or a state (x, y, v, θ))."""
         x, y, th = _pose(pose)
+        if not self._rig_ready:
+            self._prepare_rig()
+            self._rig_ready = True
         pose = (x, y, th)
         R = camera_rotation(th, self.rig.pitch_rad)
         centers = self.rig.camera_centers(pose)
@@ -444,9 +468,11 @@ class StereoRenderer:
             out[cam] = {self.landmarks[i].id for i, v in zip(idx, seen) if not v}
         return out
 
-    def frame(self, pose) -> "StereoFrame":
-        """The stereo pair at ``pose``, rendered region by region on demand (:class:`StereoFrame`)."""
-        return StereoFrame(self, pose)
+    def frame(self, pose, noise_seed: int | None = None) -> "StereoFrame":
+        """The stereo pair at ``pose``, rendered region by region on demand (:class:`StereoFrame`).
+        ``noise_seed``: the frame's own pixel-noise stream (so a frame's pixels do not depend on which
+        frames were drawn before it); default: the renderer's running stream."""
+        return StereoFrame(self, pose, noise_seed)
 
     # ---- internals
     @property
@@ -490,16 +516,8 @@ class StereoRenderer:
                              c + a * pw - up * c[2], c - a * pw - up * c[2]])
         return self.landmarks[i].id, corners, pole, facing
 
-    def _pyramid(self, lid: int) -> list[np.ndarray]:
-        pyr = self._pyramids.get(lid)
-        if pyr is None:
-            base = marker_image(self.dictionary, self._marker_id[lid], cell_px=64, border_cells=1)
-            pyr = [base]
-            while pyr[-1].shape[0] > 8:
-                pyr.append(cv2.resize(pyr[-1], None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA))
-            pyr = [cv2.merge([m, np.full_like(m, 255)]) for m in pyr[::-1]]   # smallest first, + alpha
-            self._pyramids[lid] = pyr
-        return pyr
+    def _pyramid(self, lid: int, grey: bool = False) -> list[np.ndarray]:
+        return _marker_pyramid(self.dictionary_name, self._marker_id[lid])[1 if grey else 0]
 
     def _background_and_ground(self, th: float, R: np.ndarray, C: np.ndarray) -> np.ndarray:
         r = self.rig
@@ -541,16 +559,22 @@ class StereoRenderer:
                     cv2.fillConvexPoly(img, np.round(uv * 16).astype(np.int32), 70, cv2.LINE_AA, 4)
             self._warp_marker(img, lid, f * pc[:, :2] / pc[:, 2:3] + [cx, cy])
 
-    def _warp_marker(self, img: np.ndarray, lid: int, uv: np.ndarray) -> None:
-        """Blend landmark ``lid``'s board into ``img`` (uint8, in place) with its corners at pixels ``uv`` (4, 2)."""
+    def _warp_marker(self, img: np.ndarray, lid: int, uv: np.ndarray, side: float | None = None,
+                     transparent: bool = False) -> None:
+        """Blend landmark ``lid``'s board into ``img`` (uint8, in place) with its corners at pixels ``uv``
+        (4, 2); ``side``: its longest side [px] when known.  ``transparent``: warp straight into ``img``
+        (``BORDER_TRANSPARENT``: pixels that sample outside the board keep the background), which is
+        faster but leaves the board's outer edge (the quiet zone's, a cell away from the marker's
+        corners) unsmoothed."""
         h, w = img.shape
         uv = np.asarray(uv, dtype=np.float64)
-        x0, y0 = np.floor(uv.min(axis=0)).astype(int) - 1
-        x1, y1 = np.ceil(uv.max(axis=0)).astype(int) + 2
-        x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, w), min(y1, h)
+        lo, hi = uv.min(axis=0), uv.max(axis=0)
+        x0, y0 = max(math.floor(lo[0]) - 1, 0), max(math.floor(lo[1]) - 1, 0)
+        x1, y1 = min(math.ceil(hi[0]) + 2, w), min(math.ceil(hi[1]) + 2, h)
         if x1 <= x0 or y1 <= y0:
             return
-        side = float(np.max(np.linalg.norm(uv - np.roll(uv, 1, axis=0), axis=1)))
+        if side is None:
+            side = float(np.max(np.linalg.norm(uv - np.roll(uv, 1, axis=0), axis=1)))
         pyr = self._pyramid(lid)
         # the largest level not bigger than on screen: magnified by 1-2x, bilinear keeps each
         # step edge's ramp symmetric about the true edge (minifying would alias edges by ~0.1 px)
@@ -558,6 +582,12 @@ class StereoRenderer:
         s = tex.shape[0]
         src = np.array([[-0.5, -0.5], [s - 0.5, -0.5], [s - 0.5, s - 0.5], [-0.5, s - 0.5]], np.float32)
         M = cv2.getPerspectiveTransform(src, (uv - [x0, y0]).astype(np.float32))
+        if transparent:
+            grey = self._pyramid(lid, grey=True)
+            cv2.warpPerspective(grey[next((i for i in range(len(pyr) - 1, -1, -1) if pyr[i].shape[0] <= side), 0)],
+                                M, (x1 - x0, y1 - y0), dst=img[y0:y1, x0:x1], flags=cv2.INTER_LINEAR,
+                                borderMode=cv2.BORDER_TRANSPARENT)
+            return
         warped = cv2.warpPerspective(tex, M, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR,
                                      borderMode=cv2.BORDER_CONSTANT, borderValue=0)
         alpha = warped[:, :, 1].astype(np.float32) * (1.0 / 255.0)
@@ -567,14 +597,31 @@ class StereoRenderer:
     def _background_patch(self, level: int, X0: int, Y0: int, X1: int, Y1: int, shift: int) -> np.ndarray:
         """Level-``level`` pixels [X0, X1) × [Y0, Y1) of the cheap background of :class:`StereoFrame`:
         the panorama tile (at that pyramid level) indexed by pixel, shifted by ``shift`` columns."""
-        levels = self.__dict__.setdefault("_pano_levels", [self._pano])
+        levels = self._pano_levels
         while len(levels) <= level:
-            levels.append(cv2.resize(levels[-1], None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA))
+            half = cv2.resize(levels[-1][:self.PANO_H >> len(levels) - 1, :self.PANO_W >> len(levels) - 1], None,
+                              fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
+            levels.append(np.tile(half, (2, 2)))   # twice the period each way: any window up to one period is a slice
         tile = levels[level]
-        th, tw = tile.shape
+        th, tw = self.PANO_H >> level, self.PANO_W >> level
+        if Y1 - Y0 <= th and X1 - X0 <= tw:
+            r0, c0 = Y0 % th, (X0 + shift) % tw
+            return tile[r0:r0 + Y1 - Y0, c0:c0 + X1 - X0].copy()
         rows = np.arange(Y0, Y1) % th
         cols = (np.arange(X0, X1) + shift) % tw
         return tile[rows[:, None], cols[None, :]]
+
+    def _noise(self, shape: tuple[int, int], std: float, rng: np.random.Generator) -> np.ndarray:
+        """Pixel noise N(0, std²) of ``shape`` for a patch: a window of a fixed tile of Gaussian draws at a
+        random offset drawn from ``rng`` (fresh draws for a patch larger than the tile)."""
+        n = self.NOISE_TILE
+        if shape[0] > n or shape[1] > n:
+            return rng.standard_normal(shape, dtype=np.float32) * np.float32(std)
+        if self._noise_tile is None:
+            t = np.random.default_rng([self._seed, 7]).standard_normal((n, n), dtype=np.float32)
+            self._noise_tile = np.tile(t, (2, 2))
+        r0, c0 = rng.integers(0, n, 2)
+        return self._noise_tile[r0:r0 + shape[0], c0:c0 + shape[1]] * np.float32(std)
 
 
 # --------------------------------------------------------------------------- rendering by region
@@ -586,6 +633,8 @@ class _Drawn:
     uv: np.ndarray          # (4, 2) board corners, level-0 pixels (TL, TR, BR, BL)
     pole: np.ndarray | None  # (4, 2) pole quad, level-0 pixels
     box: tuple[int, int, int, int]   # level-0 pixel box x0, y0, x1, y1 (ends exclusive), clipped to the image
+    min_side: float         # shortest / longest board side, level-0 pixels
+    max_side: float
 
 
 def _intersects(a, b) -> bool:
@@ -600,37 +649,67 @@ class StereoFrame:
 
     CAMERAS = ("left", "right")
 
-    def __init__(self, renderer: StereoRenderer, pose):
+    def __init__(self, renderer: StereoRenderer, pose, noise_seed: int | None = None):
         self.renderer = renderer
+        self._rng = renderer._rng if noise_seed is None else np.random.default_rng(noise_seed)
         r = self.rig = renderer.rig
         x, y, th = _pose(pose)
         self.pose = (x, y, th)
+        #: the background's horizontal offset: it slides f px per radian of heading, like one at infinity
+        self._bg_shift = int(round(-th * r.focal_length_px))
+        self._drawn: dict[str, list[_Drawn]] = {cam: [] for cam in self.CAMERAS}
+        idx = renderer.culled(self.pose)
+        if len(idx) == 0:
+            return
+        # every culled board at once (as StereoRenderer._board): centre, in-plane right axis, corners
+        c = renderer._L[idx]
+        if renderer._yaw is None:
+            mid = np.array([x, y]) + 0.5 * r.baseline_m * np.array([math.sin(th), -math.cos(th)])
+            n = mid - c[:, :2]
+            nn = np.hypot(n[:, 0], n[:, 1])
+            far = nn > 1e-9
+            n[far] /= nn[far, None]
+            n[~far] = (-math.cos(th), -math.sin(th))
+        else:
+            yaw = renderer._yaw[idx]
+            n = np.column_stack([np.cos(yaw), np.sin(yaw)])
+        facing = (n * (np.array([x, y]) - c[:, :2])).sum(axis=1) > 0
+        a = np.column_stack([-n[:, 1], n[:, 0], np.zeros(len(idx))])
+        up = np.array([0.0, 0.0, 1.0])
+        hb = renderer._board_half_m
+        sa, su = np.array([-1.0, 1.0, 1.0, -1.0]), np.array([1.0, 1.0, -1.0, -1.0])
+        corners = c[:, None, :] + hb * (sa[None, :, None] * a[:, None, :] + su[None, :, None] * up)
+        pw = 0.5 * renderer.POLE_WIDTH_M
+        bottom = c[:, 2] - hb
+        pole = np.stack([c + (bottom - c[:, 2])[:, None] * up - pw * a, c + (bottom - c[:, 2])[:, None] * up + pw * a,
+                         c - c[:, 2:3] * up + pw * a, c - c[:, 2:3] * up - pw * a], axis=1)
         R = camera_rotation(th, r.pitch_rad)
         f, cx, cy = r.focal_length_px, r.cx, r.cy
         hidden = renderer.hidden(self.pose)
-        boards = [renderer._board(i, self.pose) for i in renderer.culled(self.pose)]
-        #: the background's horizontal offset: it slides f px per radian of heading, like one at infinity
-        self._bg_shift = int(round(-th * f))
-        self._drawn: dict[str, list[_Drawn]] = {}
+        ids = [renderer.landmarks[i].id for i in idx]
         for cam, C in zip(self.CAMERAS, r.camera_centers(self.pose)):
+            pc = (corners - C) @ R.T                       # (n, 4, 3)
+            pp = (pole - C) @ R.T
+            ok = facing & (pc[:, :, 2] > r.near_m).all(axis=1)
+            if not ok.any():
+                continue
+            uv = f * pc[:, :, :2] / np.where(ok[:, None, None], pc[:, :, 2:3], 1.0) + [cx, cy]
+            pole_ok = (bottom > 0) & (pp[:, :, 2] > r.near_m).all(axis=1)
+            puv = f * pp[:, :, :2] / np.where(pole_ok[:, None, None], pp[:, :, 2:3], 1.0) + [cx, cy]
+            lo = np.floor(uv.min(axis=1)) - 1
+            hi = np.ceil(uv.max(axis=1)) + 2
+            side = np.linalg.norm(uv - np.roll(uv, 1, axis=1), axis=2)
+            depth = pc[:, :, 2].mean(axis=1)
             items = []
-            for lid, corners, pole, facing in boards:
-                if not facing or lid in hidden[cam]:
+            for k in np.flatnonzero(ok):
+                if ids[k] in hidden[cam]:
                     continue
-                pc = (corners - C) @ R.T
-                if (pc[:, 2] <= r.near_m).any():
-                    continue
-                uv = f * pc[:, :2] / pc[:, 2:3] + [cx, cy]
-                puv = None
-                if pole is not None:
-                    pp = (pole - C) @ R.T
-                    if (pp[:, 2] > r.near_m).all():
-                        puv = f * pp[:, :2] / pp[:, 2:3] + [cx, cy]
-                lo, hi = np.floor(uv.min(axis=0)) - 1, np.ceil(uv.max(axis=0)) + 2
-                box = (int(max(lo[0], 0)), int(max(lo[1], 0)), int(min(hi[0], r.width)), int(min(hi[1], r.height)))
+                box = (int(max(lo[k, 0], 0)), int(max(lo[k, 1], 0)), int(min(hi[k, 0], r.width)),
+                       int(min(hi[k, 1], r.height)))
                 if box[2] <= box[0] or box[3] <= box[1]:
                     continue
-                items.append(_Drawn(float(pc[:, 2].mean()), lid, uv, puv, box))
+                items.append(_Drawn(float(depth[k]), ids[k], uv[k], puv[k] if pole_ok[k] else None, box,
+                                    float(side[k].min()), float(side[k].max())))
             items.sort(key=lambda t: -t.depth)   # far first
             self._drawn[cam] = items
 
@@ -652,9 +731,8 @@ class StereoFrame:
         boxes = []
         for d in self._camera(camera):
             x0, y0, x1, y1 = d.box
-            side = float(np.min(np.linalg.norm(d.uv - np.roll(d.uv, 1, axis=0), axis=1)))
             boxes.append([max(x0 - margin_px, 0), max(y0 - margin_px, 0), min(x1 + margin_px, w),
-                          min(y1 + margin_px, h), side])
+                          min(y1 + margin_px, h), d.min_side])
         merged = True
         while merged:
             merged = False
@@ -695,8 +773,9 @@ class StereoFrame:
             if d.pole is not None:
                 cv2.fillConvexPoly(img, np.round(((d.pole + 0.5) / k - 0.5 - off) * 16).astype(np.int32), 70,
                                    cv2.LINE_AA, 4)
-            self.renderer._warp_marker(img, d.landmark_id, (d.uv + 0.5) / k - 0.5 - off)
+            self.renderer._warp_marker(img, d.landmark_id, (d.uv + 0.5) / k - 0.5 - off, d.max_side / k,
+                                       transparent=True)
         if self.renderer.noise_std > 0:
-            noise = self.renderer._rng.standard_normal(img.shape, dtype=np.float32) * (self.renderer.noise_std / k)
+            noise = self.renderer._noise(img.shape, self.renderer.noise_std / k, self._rng)
             img = np.clip(img + noise + 0.5, 0, 255).astype(np.uint8)
         return img
