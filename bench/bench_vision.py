@@ -1,34 +1,33 @@
 #!/usr/bin/env python
-"""Vision benchmark: the camera loop at 640×480, stage by stage, beside plain OpenCV SGBM.
+"""Vision benchmark: the camera loop by region at the scenario camera's 2560×1440 beside today's
+whole-frame loop at 640×480, in one process.
 
 Run from the repository root::
 
-    python bench/bench_vision.py            # 5 repeats over the frame set
-    python bench/bench_vision.py --quick    # 2 repeats
-    python bench/bench_vision.py --paths-only --width 1280   # along-path statistics at 1280x720
+    python bench/bench_vision.py            # 3 repeats over the frame set
+    python bench/bench_vision.py --quick    # 1 repeat, fewer reference frames
     python bench/bench_vision.py --figure docs/figures/lanbloc_camera_loop.png
 
 Frames: poses every 4 m along the default scenario's three paths (P1-P3),
-heading along the path, kept where at least one marker is in view; the
-camera is the scenario's scaled to 640×480 (f = 350 px, B = 0.3 m), markers
-1.5 m, pixel noise σ = 1 grey level.
+heading along the path (as a vehicle's camera frames fall), markers 1.5 m,
+pixel noise σ = 1 grey level.  Loops, each :class:`safenav.vision.CameraLoopSource`
+per call (render + detect + range + trilaterate), interleaved frame by frame:
 
-Stages, each timed per frame (median over frames and repeats), in one process:
+* **today** — the whole-frame loop this issue started from: 640×480
+  (f = 350 px), whole images rendered, ArUco on the whole left image, SGBM
+  with 64 disparities on the rows of the boxes, box-median ranges, no
+  occlusion;
+* **regions** — the new default: 2560×1440 (f = 1400 px), only the markers'
+  regions rendered and searched (:class:`safenav.vision.render.StereoFrame`),
+  the markers' corners triangulated; with and without the early out (frames
+  with fewer than 3 markers in view are not processed; the fixes are the
+  same);
+* **full 2560** — the whole-frame reference at 2560×1440 (SGBM with the
+  disparity search from the depth range), on a subset of frames.
 
-* render — :class:`safenav.vision.render.StereoRenderer` (both images);
-* detect — :class:`safenav.vision.detect.FiducialDetector` on the left image;
-* disparity — the pipeline's SGBM (C++ core, OpenCV 4.6, on the band of rows
-  holding the boxes) and, as the peer, ``cv2.StereoSGBM`` of pip's OpenCV on
-  the whole pair with the same parameters (3-way, 64 disparities, block 5);
-* range — box-median ranges of all detections;
-* localize — trilateration;
-* pipeline — ``LanBLoc.localize`` (detect … localize) and camera loop —
-  render + pipeline, i.e. :class:`safenav.vision.lanbloc.CameraLoopSource` per call.
-
-Ratios are the peer SGBM's time over each stage's.  The script also reports
-what the camera loop measures along the three paths: how often a fix is made,
-its error and NEES, and the box-median disparity error on the markers (the
-basis of ``CameraLoopSource``'s σ_d = 0.2 px).
+Ratios are today's median time per frame over each loop's.  Then what each
+loop measures along the paths (every 1.5 m): fix rate, error (all fixes and
+fixes whose landmarks are all within 20 m), NEES, with and without occlusion.
 """
 
 from __future__ import annotations
@@ -42,7 +41,7 @@ import cv2
 import numpy as np
 
 import safenav
-from safenav.vision.lanbloc import STATUSES, CameraLoopSource, PIPELINE_SGBM
+from safenav.vision.lanbloc import CameraLoopSource
 from safenav.vision.render import StereoRig
 from safenav.results import save_figure
 
@@ -60,15 +59,6 @@ def _frames(sc, step: float):
     return out
 
 
-def _peer_sgbm():
-    bs = PIPELINE_SGBM["block_size"]
-    return cv2.StereoSGBM_create(minDisparity=0, numDisparities=PIPELINE_SGBM["num_disparities"], blockSize=bs,
-                                 P1=8 * bs * bs, P2=32 * bs * bs, disp12MaxDiff=1, preFilterCap=63,
-                                 uniquenessRatio=PIPELINE_SGBM["uniqueness_ratio"],
-                                 speckleWindowSize=PIPELINE_SGBM["speckle_window_size"],
-                                 speckleRange=PIPELINE_SGBM["speckle_range"], mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY)
-
-
 def _timed(f, *args):
     t0 = time.perf_counter()
     out = f(*args)
@@ -83,7 +73,7 @@ def figure(path: str) -> None:
     from matplotlib.patches import Ellipse, Rectangle
 
     sc = safenav.default_scenario()
-    src = CameraLoopSource(sc.world, seed=1)
+    src = CameraLoopSource(sc.world, StereoRig(), mode="full", seed=1)
     poly = sc.world.path_polyline(sc.path_types[1])
     a, b = poly[0], poly[1]
     length = float(np.linalg.norm(b - a))
@@ -129,117 +119,100 @@ def figure(path: str) -> None:
     print(f"wrote {path}")
 
 
+def _today(sc):
+    """The loop as it was: 640×480, whole frames, SGBM with 64 disparities, no occlusion."""
+    return CameraLoopSource(sc.world, StereoRig(), mode="full", occlusion=False, seed=1,
+                            sgbm=dict(min_disparity=0, num_disparities=64))
+
+
+def _regions(sc, **kw):
+    return CameraLoopSource.from_scenario(sc, seed=1, **kw)
+
+
+def _along(sc, src, step=1.5):
+    """Fix statistics of ``src`` along each path."""
+    out = {}
+    for pt in sc.path_types:
+        n, fixes, errs, near, nees = 0, 0, [], [], []
+        for i, (pn, x, y, th) in enumerate(f for f in _frames(sc, step) if f[0] == pt.name):
+            fix = src(np.array([x, y, 1.0, th]), i)
+            n += 1
+            if fix is None:
+                continue
+            fixes += 1
+            e = fix[0] - (x, y)
+            errs.append(float(np.linalg.norm(e)))
+            nees.append(float(e @ np.linalg.solve(fix[1], e)))
+            if max(o.range for o in src.last.observations if o.ok) <= 20.0:
+                near.append(errs[-1])
+        out[pt.name] = (n, fixes, errs, near, nees)
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="2 repeats instead of 5")
+    ap.add_argument("--quick", action="store_true", help="1 repeat, 5 reference frames")
     ap.add_argument("--step", type=float, default=4.0, help="metres between frames along the paths")
     ap.add_argument("--figure", metavar="PNG", help="only draw one camera-loop frame to PNG "
                     "(docs/figures/lanbloc_camera_loop.png) and exit")
-    ap.add_argument("--width", type=int, default=640,
-                    help="image width; the scenario camera (2560x1440, 85 deg) is scaled to it (480 rows at 640)")
-    ap.add_argument("--paths-only", action="store_true", help="skip the timings, only the along-path statistics")
     args = ap.parse_args()
     if args.figure:
         figure(args.figure)
         return
-    repeats = 2 if args.quick else 5
-
+    cv2.setNumThreads(1)
+    repeats = 1 if args.quick else 3
     sc = safenav.default_scenario()
-    rig = StereoRig() if args.width == 640 else StereoRig.from_camera(sc.camera, args.width, None)
-    src = CameraLoopSource(sc.world, rig, seed=1)
-    rig, renderer, lb = src.rig, src.renderer, src.pipeline
-    peer = _peer_sgbm()
+    loops = {"today": _today(sc), "regions": _regions(sc, occlusion=False),
+             "regions, no early out": _regions(sc, occlusion=False, early_out=False)}
+    ref = CameraLoopSource.from_scenario(sc, seed=1, occlusion=False, mode="full")
     poses = _frames(sc, args.step)
-    frames = [p for p in poses if len(renderer.culled(p[1:])) > 0]   # at least one marker in the field of view
-
+    rig = loops["regions"].rig
     print(f"safenav {safenav.__version__} | OpenCV (pip) {cv2.__version__} | {platform.processor() or platform.machine()}"
-          f" | {rig.width}x{rig.height}, f = {rig.focal_length_px:g} px, B = {rig.baseline_m:g} m")
-    print(f"{len(frames)} frames with a marker in view (of {len(poses)} poses every {args.step:g} m on P1-P3), "
-          f"{repeats} repeats" + (" (timings skipped)" if args.paths_only else "") + "\n")
-
-    if args.paths_only:
-        repeats = 0
-    t = {k: [] for k in ("render", "detect", "disparity", "disparity_full", "peer_sgbm", "range", "localize",
-                         "pipeline", "loop")}
+          f" | one thread")
+    print(f"{len(poses)} frames (poses every {args.step:g} m on P1-P3), {repeats} repeats; regions at "
+          f"{rig.width}x{rig.height}, f = {rig.focal_length_px:g} px; today at 640x480, f = 350 px\n")
+    t = {k: [] for k in (*loops, "full 2560")}
+    has_marker = []
     for rep in range(repeats):
-        for _, x, y, th in frames:
-            (left, right), dt = _timed(renderer.render, (x, y, th))
-            t["render"].append(dt)
-            dets, dt = _timed(lb.detector.detect, left)
-            t["detect"].append(dt)
-            boxes = [d.box for d in dets]
-            # ours and the peer alternate, order flipped every repeat
-            order = ("ours", "peer") if rep % 2 == 0 else ("peer", "ours")
-            for who in order:
-                if who == "ours":
-                    disp, dt = _timed(lb.disparity, left, right, boxes)
-                    t["disparity"].append(dt)
-                    _, dt = _timed(lb.matcher.disparity, left, right)
-                    t["disparity_full"].append(dt)
-                else:
-                    _, dt = _timed(peer.compute, left, right)
-                    t["peer_sgbm"].append(dt)
-            known = [d for d in dets if d.landmark_id in lb.landmarks]
-            obs, dt = _timed(lambda: [lb.observe(d, disp) for d in known])
-            t["range"].append(dt)
-            ok = [o for o in obs if o.ok]
-            if len(ok) >= 3:
-                _, dt = _timed(safenav.vision.localization.trilaterate, np.array([o.anchor[:2] for o in ok]),
-                               [o.range for o in ok], [o.sigma for o in ok])
-                t["localize"].append(dt)
-            _, dt = _timed(lb.localize, left, right)
-            t["pipeline"].append(dt)
-            _, dt = _timed(src, np.array([x, y, 1.0, th]), 0)
-            t["loop"].append(dt)
-
-    peer_ms = 1e3 * float(np.median(t["peer_sgbm"])) if repeats else math.nan
-    rows = [("render (left + right)", "render"), ("detect (ArUco, left)", "detect"),
-            ("disparity, row band (C++ SGBM)", "disparity"), ("disparity, full frame (C++ SGBM)", "disparity_full"),
-            ("peer: cv2.StereoSGBM, full frame", "peer_sgbm"), ("range (all boxes)", "range"),
-            ("localize (trilaterate)", "localize"), ("pipeline (detect..localize)", "pipeline"),
-            ("camera loop (render + pipeline)", "loop")]
-    if repeats:
-        print(f"{'stage':36s} {'median ms':>10s} {'min-max ms':>17s} {'fps':>9s} {'peer SGBM / stage':>18s}")
-    for label, key in rows:
-        v = 1e3 * np.array(t[key])
-        if len(v) == 0 or repeats == 0:
+        for i, (_, x, y, th) in enumerate(poses):
+            s = np.array([x, y, 1.0, th])
+            names = list(loops) if rep % 2 == 0 else list(loops)[::-1]
+            for name in names:
+                _, dt = _timed(loops[name], s, i)
+                t[name].append(dt)
+            if rep == 0:
+                has_marker.append(len(loops["regions"].renderer.culled((x, y, th))) > 0)
+    n_ref = 5 if args.quick else 20
+    marked = [p for p, m in zip(poses, has_marker) if m]
+    for _, x, y, th in marked[:: max(len(marked) // n_ref, 1)][:n_ref]:
+        _, dt = _timed(ref, np.array([x, y, 1.0, th]), 0)
+        t["full 2560"].append(dt)
+    mask = np.tile(np.array(has_marker), repeats)
+    today = 1e3 * np.array(t["today"])
+    print(f"{'loop':28s} {'frames':>7s} {'median ms':>10s} {'mean ms':>9s} {'today/loop':>11s} "
+          f"{'median ms, marker in view':>26s} {'today/loop':>11s}")
+    for name, v in t.items():
+        v = 1e3 * np.array(v)
+        if name == "full 2560":
+            print(f"{name:28s} {len(v):7d} {'':>10s} {'':>9s} {'':>11s} {np.median(v):26.2f} "
+                  f"{np.median(today[mask]) / np.median(v):11.3f}")
             continue
-        med = float(np.median(v))
-        print(f"{label:36s} {med:10.3f} {v.min():8.3f}-{v.max():8.3f} {1e3 / med:9.1f} {peer_ms / med:18.2f}")
+        print(f"{name:28s} {len(v):7d} {np.median(v):10.3f} {v.mean():9.3f} {np.median(today) / np.median(v):11.1f} "
+              f"{np.median(v[mask]):26.3f} {np.median(today[mask]) / np.median(v[mask]):11.1f}")
+    print(f"  mean over all frames: today {today.mean():.2f} ms, regions {1e3 * np.mean(t['regions']):.2f} ms "
+          f"({today.mean() / (1e3 * np.mean(t['regions'])):.1f}x)")
 
-    # ---- what the camera loop measures along the paths (one pass, every 1.5 m)
     print("\ncamera loop along the paths (every 1.5 m, heading along the path):")
-    fB = rig.fB
-    derr = []
-    false_ids = 0
-    for name in [p.name for p in sc.path_types]:
-        stats = {s: 0 for s in STATUSES}
-        errs, nees = [], []
-        for pn, x, y, th in _frames(sc, 1.5):
-            if pn != name:
-                continue
-            out = src(np.array([x, y, 1.0, th]), 0)
-            stats[src.last.status] += 1
-            corners = renderer.marker_corners((x, y, th))
-            false_ids += sum(o.landmark_id not in corners for o in src.last.observations)
-            for o in src.last.observations:
-                if o.ok and o.landmark_id in corners:
-                    _, z = renderer.project((x, y, th), corners[o.landmark_id].mean(axis=0)[None])
-                    derr.append(o.disparity - fB / z[0])
-            if out is not None:
-                e = out[0] - (x, y)
-                errs.append(float(np.linalg.norm(e)))
-                nees.append(float(e @ np.linalg.solve(out[1], e)))
-        n = sum(stats.values())
-        print(f"  {name}: {n} frames, fixes {stats['ok']} ({100 * stats['ok'] / n:.0f} %), "
-              + ", ".join(f"{k} {v}" for k, v in stats.items() if k != "ok" and v)
-              + (f"; error median {np.median(errs):.2f} m, 95 % {np.percentile(errs, 95):.2f} m, "
-                 f"mean NEES {np.mean(nees):.2f} (2 if consistent)" if errs else ""))
-    d = np.abs(np.array(derr))
-    print(f"  box-median disparity error on markers: RMS {math.sqrt(np.mean(d ** 2)):.3f} px, "
-          f"median {np.median(d):.3f} px, 99 % {np.percentile(d, 99):.3f} px, max {d.max():.3f} px "
-          f"({len(d)} ranges)")
-    print(f"  detections of markers that are not in the field of view (false ids): {false_ids}")
+    print(f"{'loop':30s} {'path':5s} {'frames':>7s} {'fixes':>6s} {'median m':>9s} {'p95 m':>7s} "
+          f"{'<=20 m: n':>10s} {'median m':>9s} {'NEES':>6s}")
+    rows = {"today (640, full)": _today(sc), "regions 2560, no occlusion": _regions(sc, occlusion=False),
+            "regions 2560, occlusion": _regions(sc, occlusion=True)}
+    for name, src in rows.items():
+        for path, (n, fixes, errs, near, nees) in _along(sc, src).items():
+            e = np.array(errs) if errs else np.array([np.nan])
+            print(f"{name:30s} {path:5s} {n:7d} {fixes:6d} {np.median(e):9.3f} {np.percentile(e, 95):7.3f} "
+                  f"{len(near):10d} {np.median(near) if near else math.nan:9.3f} "
+                  f"{np.mean(nees) if nees else math.nan:6.2f}")
 
 
 if __name__ == "__main__":

@@ -441,7 +441,7 @@ class LanBLoc:
         return self._observation(det, det.center, br.ok, br.range, br.sigma, br.point, float(br.disparity),
                                  int(br.n_valid), br.reason)
 
-    def observe_corners(self, det: Detection, right: Detection | None) -> LandmarkObservation:
+    def observe_corners(self, det: Detection, right: Detection | None, refine_level: int = 0) -> LandmarkObservation:
         """Range and bearing of a fiducial from its corners in both images (ours; issue 16).
 
         The four refined corners ``(u_i, v_i)`` of the left image and ``u'_i``
@@ -451,7 +451,9 @@ class LanBLoc:
         evaluated at the marker's centre, the diagonals' intersection
         ``(u_c, v_c)`` (the image of the centre under the homography).
         ``Z = f·B/(d_c + doffs)`` with ``σ_Z = Z²·σ_c/(f·B)``, σ_c =
-        ``corner_sigma_d`` (measured: bench/bench_vision.py); the centre's
+        ``corner_sigma_d·2^refine_level`` (measured at level 0:
+        bench/bench_vision.py; corners refined at pyramid level L are 2^L
+        times coarser, :meth:`localize_frame`); the centre's
         slant distance and horizontal range follow as for SGBM.  No range when
         the marker is not found in the right image, when its corners are more
         than ``max_row_error_px`` off their epipolar lines (rows), or when
@@ -485,7 +487,7 @@ class LanBLoc:
             return self._observation(det, centre, False, math.nan, math.nan, nan3, d, 4,
                                      f"beyond resolvable range ({Z:.1f} m > max_range_m = {self.max_range_m:g} m)")
         point = np.array([(centre[0] - cam.cx) * Z / cam.f, (centre[1] - cam.cy) * Z / cam.f, Z])
-        sigma_z = Z * Z * self.corner_sigma_d / (cam.f * cam.baseline)
+        sigma_z = Z * Z * self.corner_sigma_d * (1 << int(refine_level)) / (cam.f * cam.baseline)
         return self._observation(det, centre, True, Z, sigma_z, point, d, 4, "")
 
     def _observation(self, det: Detection, centre, ok: bool, depth: float, sigma_z: float, point, disparity: float,
@@ -628,9 +630,10 @@ class LanBLoc:
         Detection runs on each of the left image's :meth:`~StereoFrame.regions`
         at the pyramid level where its smallest marker is about
         ``detect_side_px`` pixels wide (grown by ``region_margin_px`` pixels
-        of that level), and a fiducial's corners found there are refined at
-        full resolution (``cv2.cornerSubPix`` in a window of
-        about 0.7 cell around each).  With ``ranging="corners"`` the same
+        of that level), and a fiducial's corners found there are refined
+        (``cv2.cornerSubPix``, one patch, in a window of about 0.7 cell) at
+        full resolution, or for a marker wider than :attr:`REFINE_SIDE_PX` at
+        the level where it is that wide.  With ``ranging="corners"`` the same
         is done in the right image and :meth:`observe_corners` triangulates
         the corners of the markers found in both (matched by their decoded
         id); with ``"sgbm"`` (natural landmarks, e.g. YOLO boxes) SGBM runs on
@@ -649,26 +652,30 @@ class LanBLoc:
         t = {"rectify": 0.0}
         t1 = time.perf_counter()
         found = self._detect_regions(frame, "left")
-        level = {id(d): lv for d, lv in found}
-        dets = self._known([d for d, _ in found])
+        level = {id(d): (lv, lr) for d, lv, lr in found}
+        dets = self._known([d for d, _, _ in found])
         t2 = time.perf_counter()
         t["detect"] = t2 - t1
         if not dets:
             return self._no_landmarks(t)
         if self.ranging == "corners":
-            right = [self._find_in_right(frame, d, level[id(d)]) for d in dets]
+            obs = []
+            for d in dets:
+                lv, lr = level[id(d)]
+                r, rr = self._find_in_right(frame, d, lv)
+                obs.append(self.observe_corners(d, r, refine_level=max(lr, rr)))
+            obs = tuple(obs)
             t3 = time.perf_counter()
             t["disparity"] = t3 - t2
-            obs = tuple(self.observe_corners(d, r) for d, r in zip(dets, right))
         else:
             obs = tuple(self._observe_strip(frame, d) for d in dets)
             t3 = time.perf_counter()
             t["disparity"] = t3 - t2
         return self._solve(dets, obs, t, t3, faults, position, seed)
 
-    def _detect_regions(self, frame: StereoFrame, camera: str) -> list[tuple[Detection, int]]:
-        """Detections in ``camera``'s regions of ``frame``, in level-0 pixels, corners refined at level 0,
-        each with the pyramid level it was found at."""
+    def _detect_regions(self, frame: StereoFrame, camera: str) -> list[tuple[Detection, int, int]]:
+        """Detections in ``camera``'s regions of ``frame``, in level-0 pixels, corners refined, each with
+        the pyramid levels it was found and refined at."""
         out = []
         for box, side in frame.regions(camera, self.region_margin_px):
             level = 0
@@ -686,51 +693,52 @@ class LanBLoc:
                     x0, y0, x1, y1 = d.box
                     bb = tuple(float(v) for v in ((np.array([x0, y0, x1, y1]).reshape(2, 2) + off + 0.5) * k - 0.5)
                                .ravel())
-                    out.append((dataclasses.replace(d, box=bb), level))
+                    out.append((dataclasses.replace(d, box=bb), level, level))
                     continue
-                corners = self._refine_corners(frame, camera, (np.asarray(d.corners, float) + off + 0.5) * k - 0.5)
+                corners, lr = self._refine_corners(frame, camera, (np.asarray(d.corners, float) + off + 0.5) * k - 0.5)
                 (x0, y0), (x1, y1) = corners.min(axis=0), corners.max(axis=0)
                 out.append((dataclasses.replace(d, box=(float(x0), float(y0), float(x1), float(y1)),
-                                                corners=corners), level))
+                                                corners=corners), level, lr))
         return out
 
-    def _refine_corners(self, frame: StereoFrame, camera: str, corners: np.ndarray) -> np.ndarray:
-        """``cv2.cornerSubPix`` of each corner at level 0, in a window of about 0.7 marker cell: one patch
-        around the whole marker when it is small, else one per corner.  A corner whose window leaves
-        the image keeps its position."""
+    #: Largest marker side [px] refined in one patch: bigger markers are refined at the pyramid level
+    #: where they are about this size.
+    REFINE_SIDE_PX = 128
+
+    def _refine_corners(self, frame: StereoFrame, camera: str, corners: np.ndarray) -> tuple[np.ndarray, int]:
+        """``cv2.cornerSubPix`` of the four corners (level-0 pixels) in one patch around the marker, at
+        the finest pyramid level where the marker is at most :attr:`REFINE_SIDE_PX` wide, in a window of
+        about 0.7 marker cell; returns the corners (level 0) and that level.  Corners whose window leaves
+        the image keep their position."""
         side = float(np.min(np.linalg.norm(corners - np.roll(corners, 1, axis=0), axis=1)))
+        level = 0
+        while side / (1 << level) > self.REFINE_SIDE_PX and level < 6:
+            level += 1
+        k = 1 << level
+        c = (corners + 0.5) / k - 0.5                       # level-L pixels
         cells = getattr(getattr(self.detector, "dictionary", None), "markerSize", 4) + 2
-        w = int(min(max(round(0.7 * side / cells), 2), 12))
-        W, H = frame.rig.width, frame.rig.height
+        w = int(min(max(round(0.7 * side / k / cells), 2), 12))
+        W, H = -(-frame.rig.width // k), -(-frame.rig.height // k)
+        lo = np.floor(c).astype(int) - w - 3
+        hi = np.floor(c).astype(int) + w + 5
+        inside = (lo >= 0).all(axis=1) & (hi[:, 0] <= W) & (hi[:, 1] <= H)
         out = corners.copy()
-        crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 30, 0.001)
-        lo = np.floor(corners.min(axis=0)).astype(int) - w - 3
-        hi = np.floor(corners.max(axis=0)).astype(int) + w + 5
-        inside = (np.floor(corners) - w - 3 >= 0).all(axis=1) & (np.floor(corners[:, 0]) + w + 5 <= W) \
-            & (np.floor(corners[:, 1]) + w + 5 <= H)
         if not inside.any():
-            return out
-        if (hi - lo).prod() <= 160 * 160:
-            x0, y0 = max(lo[0], 0), max(lo[1], 0)
-            img = frame.patch(camera, (x0, y0, min(hi[0], W), min(hi[1], H)), 0)
-            p = (corners[inside] - [x0, y0]).astype(np.float32).reshape(-1, 1, 2)
-            cv2.cornerSubPix(img, p, (w, w), (-1, -1), crit)
-            out[inside] = p.reshape(-1, 2) + [x0, y0]
-            return out
-        for i in np.flatnonzero(inside):
-            u, v = corners[i]
-            x0, y0 = int(math.floor(u)) - w - 3, int(math.floor(v)) - w - 3
-            img = frame.patch(camera, (x0, y0, x0 + 2 * w + 8, y0 + 2 * w + 8), 0)
-            p = np.array([[[u - x0, v - y0]]], np.float32)
-            cv2.cornerSubPix(img, p, (w, w), (-1, -1), crit)
-            out[i] = p[0, 0] + [x0, y0]
-        return out
+            return out, level
+        x0, y0 = lo[inside].min(axis=0)
+        x1, y1 = hi[inside].max(axis=0)
+        img = frame.patch(camera, (x0 * k, y0 * k, min(x1 * k, frame.rig.width), min(y1 * k, frame.rig.height)),
+                          level)
+        p = (c[inside] - [x0, y0]).astype(np.float32).reshape(-1, 1, 2)
+        cv2.cornerSubPix(img, p, (w, w), (-1, -1), (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 30, 0.001))
+        out[inside] = (p.reshape(-1, 2) + [x0, y0] + 0.5) * k - 0.5
+        return out, level
 
-    def _find_in_right(self, frame: StereoFrame, det: Detection, level: int) -> Detection | None:
+    def _find_in_right(self, frame: StereoFrame, det: Detection, level: int) -> tuple[Detection | None, int]:
         """The marker of the left detection ``det`` in the right image: its patch (pyramid level
         ``level``) matched along its rows over the disparity search (normalised cross-correlation,
-        parabolic sub-pixel peak), then the corners refined at level 0.  ``None`` when the best
-        correlation is below ``min_correlation``."""
+        parabolic sub-pixel peak), then the corners refined (:meth:`_refine_corners`; returned with
+        its level).  ``None`` when the best correlation is below ``min_correlation``."""
         k = 1 << level
         W, H = frame.rig.width, frame.rig.height
         cl = np.asarray(det.corners, float)
@@ -742,15 +750,15 @@ class LanBLoc:
         sx0, sx1 = max(tx0 - d_hi - g, 0), min(tx1 - d_lo + g, W)
         sy0, sy1 = max(ty0 - g, 0), min(ty1 + g, H)
         if sx1 - sx0 < tx1 - tx0 or sy1 - sy0 < ty1 - ty0:
-            return None
+            return None, 0
         tmpl = frame.patch("left", (tx0, ty0, tx1, ty1), level)
         search = frame.patch("right", (sx0, sy0, sx1, sy1), level)
         if search.shape[0] < tmpl.shape[0] or search.shape[1] < tmpl.shape[1]:
-            return None
+            return None, 0
         res = cv2.matchTemplate(search, tmpl, cv2.TM_CCOEFF_NORMED)
         _, score, _, (mx, my) = cv2.minMaxLoc(res)
         if not score >= self.min_correlation:
-            return None
+            return None, 0
         sub = 0.0
         if 0 < mx < res.shape[1] - 1:
             l_, c_, r_ = res[my, mx - 1], res[my, mx], res[my, mx + 1]
@@ -758,10 +766,10 @@ class LanBLoc:
             sub = 0.5 * (l_ - r_) / den if den < 0 else 0.0
         d = (tx0 // k - (sx0 // k + mx + sub)) * k
         dy = (ty0 // k - (sy0 // k + my)) * k
-        cr = self._refine_corners(frame, "right", cl - [d, dy])
+        cr, lr = self._refine_corners(frame, "right", cl - [d, dy])
         (x0, y0), (x1, y1) = cr.min(axis=0), cr.max(axis=0)
         return dataclasses.replace(det, box=(float(x0), float(y0), float(x1), float(y1)), corners=cr,
-                                   score=float(score))
+                                   score=float(score)), lr
 
     def _observe_strip(self, frame: StereoFrame, det: Detection) -> LandmarkObservation:
         """SGBM on the strip around ``det``'s box only (rows ± margin, columns from the box's left edge
@@ -959,11 +967,12 @@ class CameraLoopSource:
     def from_scenario(cls, scenario, width: int | None = None, height: int | None = None, *,
                       camera_height_m: float = 1.5, **kwargs) -> "CameraLoopSource":
         """From a :class:`~safenav.scenario.Scenario`: its world, its camera (at its own resolution, or
-        scaled to ``width`` px), its detection range and minimum landmark count."""
+        scaled to ``width`` px), its detection range, minimum landmark count and occlusion setting."""
         width = scenario.camera.image_width_px if width is None else width
         rig = StereoRig.from_camera(scenario.camera, width, height, camera_height_m=camera_height_m,
                                     max_range_m=scenario.detection.max_range_m)
         kwargs.setdefault("min_landmarks", max(3, scenario.detection.min_landmarks))
+        kwargs.setdefault("occlusion", getattr(scenario.detection, "occlusion", False))
         return cls(scenario.world, rig, **kwargs)
 
     def __call__(self, true_state, step: int):
