@@ -359,3 +359,9 @@ def test_make_navigator_turns_occlusion_off_in_the_papers_loop_only():
     off = dataclasses.replace(sc, detection=dataclasses.replace(sc.detection, occlusion=False))
     n = nv.make_navigator(off, path, record=False)
     assert n.sensors.occlusion is False and n.settings.guard.occlusion is False
+
+
+def test_landmarks_in_view_names_a_non_finite_state():
+    se = _core.SensorSettings()
+    with pytest.raises(ValueError, match=r"landmarks_in_view: state \(nan, 0, 0, 0\) is not finite"):
+        se.landmarks_in_view(np.array([np.nan, 0.0, 0.0, 0.0]), _checker())

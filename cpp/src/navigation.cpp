@@ -66,7 +66,9 @@ void SensorSettings::validate() const {
 }
 
 int SensorSettings::landmarks_in_view(const State& x, const ObstacleChecker* obstacles) const {
-  if (!x.allFinite()) bad("landmarks_in_view: state has a non-finite entry");
+  if (!x.allFinite())
+    bad("landmarks_in_view: state (" + num(x[0]) + ", " + num(x[1]) + ", " + num(x[2]) + ", " + num(x[3]) +
+        ") is not finite");
   int n = 0;
   for_each_in_view(x, obstacles, [&](Eigen::Index, double) { ++n; });
   return n;

@@ -134,6 +134,11 @@ class Shape {
   // CGAL::do_intersect); a disc by disc_touched_exact.
   bool occludes(const cgal::Segment& ab, const Vec2& a, const Vec2& b) const {
     if (disc_) {
+      // Far from the disc (in doubles, with a margin that dwarfs their rounding
+      // error): neither end is in it and the segment misses it.
+      const double r2 = radius_ * radius_;
+      const double far2 = std::max((a - center_).squaredNorm(), (b - center_).squaredNorm());
+      if (segment_point_distance2(a, b, center_) > r2 + 1e-9 * (far2 + r2)) return false;
       if (disc_contains_exact(a, center_, radius_) || disc_contains_exact(b, center_, radius_)) return false;
       return disc_touched_exact(a, b, center_, radius_);
     }

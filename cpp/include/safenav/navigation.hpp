@@ -13,7 +13,8 @@
 //      is blocked (the detour is spliced into the path it follows);
 //   3. moves the true vehicle;
 //   4. measures — a LanBLoc position fix when enough landmarks are in the
-//      camera's view (the measurement-level noise profile; or, ours, single
+//      camera's view, not hidden by an obstacle (SensorSettings::occlusion,
+//      ours) (the measurement-level noise profile; or, ours, single
 //      landmark ranges with landmark faults through LanBLoc's trilateration,
 //      FixModel::Ranges; or a user callback such as the camera-in-the-loop
 //      pipeline), plus IMU speed and heading — and updates the filter, each
