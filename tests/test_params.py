@@ -30,6 +30,8 @@ def test_every_declaration_is_complete_and_its_default_in_range(core_type):
             assert isinstance(v, int) and s.lo <= v <= s.hi, s.name
         elif s.kind == _core.ParamKind.REAL_LIST:
             assert 1 <= len(v) <= s.max_size and all(s.lo < x <= s.hi for x in v), s.name
+        elif s.kind == _core.ParamKind.BOOLEAN:
+            assert isinstance(v, bool) and (s.lo, s.hi) == (0, 1), s.name
         else:
             assert isinstance(v, float) and (s.lo < v if s.lo_open else s.lo <= v) and v <= s.hi, s.name
 
@@ -38,6 +40,14 @@ def test_every_declaration_is_complete_and_its_default_in_range(core_type):
 def test_set_param_checks_the_declared_range_at_its_ends(core_type):
     for s in core_type.params():
         obj = core_type()
+        if s.kind == _core.ParamKind.BOOLEAN:       # a switch: True or False, nothing else
+            for good in (True, False):
+                obj.set_param(s.name, good)
+                assert obj.get_param(s.name) is good, s.name
+            for bad in (1, 0.0, "true", None):
+                with pytest.raises(TypeError, match=rf"{s.name}: .* is not a bool"):
+                    obj.set_param(s.name, bad)
+            continue
         ok_lo = math.nextafter(s.lo, math.inf) if s.lo_open else s.lo
         if s.kind == _core.ParamKind.INTEGER:
             ok_lo = math.ceil(ok_lo)
@@ -95,6 +105,9 @@ def test_scenario_sections_mirror_nothing(key):
     d = cls()
     for name, (core_type, core_name) in getattr(cls, "CORE", {}).items():
         spec = next(s for s in core_type.params() if s.name == core_name)
+        if spec.kind == _core.ParamKind.BOOLEAN:
+            assert name in cls.FLAGS and getattr(d, name) is core_type().get_param(core_name), (key, name)
+            continue
         rng = cls.LISTS[name][0] if name in cls.LISTS else cls.RANGES[name]
         assert (rng.lo, rng.hi, rng.lo_open, rng.integer) == (
             spec.lo, spec.hi, spec.lo_open, spec.kind == _core.ParamKind.INTEGER), (key, name)

@@ -8,6 +8,7 @@ loop to show that the check can fail."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -85,8 +86,10 @@ def test_the_guard_is_off_in_the_papers_loop_and_changes_nothing_there():
     a = nv.make_navigator(sc, safe, paper=True, record=False)
     assert not a.settings.guard.enabled and a.settings.filter.gate_probability == 0.0
     from dataclasses import replace
-    b = nv.make_navigator(replace(sc, navigation=replace(sc.navigation, guard="off", gate_probability=0.0)), safe,
-                          record=False)
+    # the papers' loop is: no guard, no gate, and no occlusion (obstacles hide no landmark in the papers)
+    assert not a.sensors.occlusion
+    b = nv.make_navigator(replace(sc, navigation=replace(sc.navigation, guard="off", gate_probability=0.0),
+                                  detection=replace(sc.detection, occlusion=False)), safe, record=False)
     seeds = [1, 2, 3]
     da, db = a.run_many(seeds), b.run_many(seeds)
     for k in ("steps", "truth_ade", "nees", "min_clearance"):
@@ -251,6 +254,11 @@ def _nees_band(m: int) -> tuple[float, float]:
 
 def test_nees_under_faults_stays_in_its_band_with_the_gate_and_not_without(p2):
     sc, safe = p2
+    # The gate's test, on the landmarks the papers see: with occlusion on (the default since
+    # detection.occlusion), obstacles hide P2's first landmarks and seed 114 gets no fix in its
+    # first 377 steps; it starts 3.7 sigma off (no fix at the start) and collides, outside 3 sigma
+    # throughout (measured; reported with the occlusion change, not a property of the gate).
+    sc = dataclasses.replace(sc, detection=dataclasses.replace(sc.detection, occlusion=False))
     faulty = nv.with_faults(sc, 0.2, 0.05, 0.01)
     m = 16
     seeds = list(range(100, 100 + m))

@@ -16,7 +16,8 @@ void pybind_motion(py::module_& m) {
   py::enum_<ParamKind>(m, "ParamKind")
       .value("REAL", ParamKind::Real)
       .value("INTEGER", ParamKind::Integer)
-      .value("REAL_LIST", ParamKind::RealList);
+      .value("REAL_LIST", ParamKind::RealList)
+      .value("BOOLEAN", ParamKind::Boolean);
   py::class_<ParamSpec>(m, "ParamSpec", "One declared parameter (safenav/params.hpp).")
       .def_readonly("name", &ParamSpec::name)
       .def_readonly("kind", &ParamSpec::kind)

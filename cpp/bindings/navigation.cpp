@@ -129,12 +129,17 @@ void pybind_navigation(py::module_& m) {
       .def_readwrite("max_range", &SensorSettings::max_range)
       .def_readwrite("field_of_view", &SensorSettings::field_of_view)
       .def_readwrite("min_landmarks", &SensorSettings::min_landmarks)
+      .def_readwrite("occlusion", &SensorSettings::occlusion,
+                     "Obstacles hide landmarks from the simulated camera (ObstacleChecker.line_of_sight).")
       .def_readwrite("position_every", &SensorSettings::position_every)
       .def_readwrite("imu", &SensorSettings::imu)
       .def_readwrite("imu_speed_std", &SensorSettings::imu_speed_std)
       .def_readwrite("imu_heading_std", &SensorSettings::imu_heading_std)
       .def("validate", &SensorSettings::validate)
-      .def("landmarks_in_view", &SensorSettings::landmarks_in_view, py::arg("state"));
+      .def("landmarks_in_view", &SensorSettings::landmarks_in_view, py::arg("state"), py::arg("obstacles") = nullptr,
+           "Landmarks within max_range and the field of view of a vehicle at state (x, y, v, theta); with "
+           "`occlusion` on and `obstacles` (an ObstacleChecker of the true obstacles, no clearance) given, "
+           "less those an obstacle hides.");
 
   py::class_<NavigationProblem>(m, "NavigationProblem")
       .def(py::init<>())
@@ -159,6 +164,9 @@ void pybind_navigation(py::module_& m) {
       .def_readwrite("look_range", &GuardSettings::look_range)
       .def_readwrite("look_min_landmarks", &GuardSettings::look_min_landmarks)
       .def_readwrite("field_of_view", &GuardSettings::field_of_view)
+      .def_readwrite("occlusion", &GuardSettings::occlusion,
+                     "The look ignores landmarks that obstacles hide from the estimate (set from "
+                     "SensorSettings.occlusion by the Navigator).")
       .def("validate", &GuardSettings::validate);
 
   def_params<NavigationSettings>(py::class_<NavigationSettings>(m, "NavigationSettings"))

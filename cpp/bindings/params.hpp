@@ -26,6 +26,7 @@ Class def_params(Class cls) {
               case ParamKind::Real: return py::float_(v[0]);
               case ParamKind::Integer: return py::int_(static_cast<long long>(v[0]));
               case ParamKind::RealList: return py::cast(v);
+              case ParamKind::Boolean: return py::bool_(v[0] != 0.0);
             }
             return py::none();
           },
@@ -34,7 +35,14 @@ Class def_params(Class cls) {
           "set_param",
           [](T& t, const std::string& name, const py::object& value) {
             const auto& set = param_set<T>();
-            const bool list = set.entry(name).spec.kind == ParamKind::RealList;
+            const ParamKind kind = set.entry(name).spec.kind;
+            const bool list = kind == ParamKind::RealList;
+            if (kind == ParamKind::Boolean) {
+              if (!py::isinstance<py::bool_>(value) && !py::isinstance(value, py::module_::import("numpy").attr("bool_")))
+                throw py::type_error(name + ": " + std::string(py::repr(value)) + " is not a bool");
+              set.set(t, name, {value.cast<bool>() ? 1.0 : 0.0});
+              return;
+            }
             if (py::isinstance<py::bool_>(value) || (list ? py::isinstance<py::str>(value) : false))
               throw py::type_error(name + ": " + std::string(py::repr(value)) + " is not a number");
             set.set(t, name, list ? value.cast<std::vector<double>>() : std::vector<double>{value.cast<double>()});

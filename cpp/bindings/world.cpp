@@ -82,6 +82,11 @@ void pybind_world(py::module_& m) {
            "(H,): exact length [m] of segment a-b inside each hazard (boundary included).")
       .def("hazard_integral", &ObstacleChecker::hazard_integral, py::arg("a"), py::arg("b"),
            "Integral of risk along a-b: sum over hazards of risk * length inside (overlaps add).")
+      .def("line_of_sight", &ObstacleChecker::line_of_sight, py::arg("a"), py::arg("b"),
+           "Whether segment a-b meets no obstacle (not grown by the clearance; touching blocks), an obstacle "
+           "containing a or b excepted.  Hazards never occlude.  Exact.")
+      .def("visible_from", &ObstacleChecker::visible_from, py::arg("from_"), py::arg("targets"), release_gil(),
+           "(N,) bool: line_of_sight(from_, targets[i]) for each row of the (N, 2) targets.")
       .def("obstacle_distance", &ObstacleChecker::obstacle_distance, py::arg("a"), py::arg("b"),
            "Distance [m] from segment a-b to the nearest obstacle, not grown by the clearance (0 on contact, inf with none).");
 

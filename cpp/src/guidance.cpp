@@ -8,6 +8,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <utility>
+#include <vector>
 
 #include "errors.hpp"
 #include "rng.hpp"
@@ -348,34 +349,39 @@ struct Guidance::Impl {
     return w;
   }
 
-  /// Landmarks within look_range and inside the field of view centred on
-  /// `heading`, seen from p.
-  int landmarks_seen(const Eigen::Vector2d& p, double heading) const {
+  /// Bearings from p of the landmarks within look_range (not at p itself)
+  /// that p can see: with guard.occlusion, those no obstacle hides
+  /// (ObstacleChecker::line_of_sight, no clearance).
+  std::vector<double> bearings_in_range(const Eigen::Vector2d& p) const {
     const GuardSettings& g = settings.guard;
     const Landmarks& L = shared->landmarks;
-    int n = 0;
+    std::vector<double> out;
     for (Eigen::Index j = 0; j < L.rows(); ++j) {
-      const Eigen::Vector2d dj = L.row(j).transpose() - p;
+      const Eigen::Vector2d lj = L.row(j).transpose();
+      const Eigen::Vector2d dj = lj - p;
       if (dj.norm() > g.look_range || dj.squaredNorm() < 1e-18) continue;
-      n += std::abs(wrap_angle(std::atan2(dj.y(), dj.x()) - heading)) <= 0.5 * g.field_of_view;
+      if (g.occlusion && !shared->collisions.line_of_sight(p, lj)) continue;
+      out.push_back(std::atan2(dj.y(), dj.x()));
     }
+    return out;
+  }
+
+  /// How many of `bearings` lie inside the field of view centred on `heading`.
+  int landmarks_seen(const std::vector<double>& bearings, double heading) const {
+    const double half = 0.5 * settings.guard.field_of_view;
+    int n = 0;
+    for (double b : bearings) n += std::abs(wrap_angle(b - heading)) <= half;
     return n;
   }
 
   /// The heading change toward the landmark bearing that puts the most
-  /// landmarks within look_range inside the field of view (0 when none is
-  /// in range; ties: the smaller turn); `seen` gets that count.
-  double look_turn(const State& x, int* seen = nullptr) const {
-    const GuardSettings& g = settings.guard;
-    const Landmarks& L = shared->landmarks;
-    const Eigen::Vector2d p = x.head<2>();
+  /// landmarks of `bearings` inside the field of view (0 when there is none;
+  /// ties: the smaller turn); `seen` gets that count.
+  double look_turn(const State& x, const std::vector<double>& bearings, int* seen = nullptr) const {
     int best = 0;
     double best_turn = 0.0;
-    for (Eigen::Index i = 0; i < L.rows(); ++i) {
-      const Eigen::Vector2d di = L.row(i).transpose() - p;
-      if (di.norm() > g.look_range || di.squaredNorm() < 1e-18) continue;
-      const double bi = std::atan2(di.y(), di.x());
-      const int n = landmarks_seen(p, bi);
+    for (double bi : bearings) {
+      const int n = landmarks_seen(bearings, bi);
       const double turn = wrap_angle(bi - x[kTheta]);
       if (n > best || (n == best && std::abs(turn) < std::abs(best_turn))) {
         best = n;
@@ -412,12 +418,13 @@ struct Guidance::Impl {
       return;
     }
     int could_see = 0;
-    const double look = look_turn(x, &could_see);
+    const std::vector<double> bearings = bearings_in_range(x.head<2>());
+    const double look = look_turn(x, bearings, &could_see);
     // Look first: the way ahead is clear of the obstacles themselves (d0 > buffer), so the
     // conflict is the uncertainty; landmarks that would give a fix are in range
     // but out of view: stop and turn toward them, until they are in view and
     // a fix has halved σ, or for at most look_timeout.
-    const bool in_view = landmarks_seen(x.head<2>(), x[kTheta]) >= g.look_min_landmarks;
+    const bool in_view = landmarks_seen(bearings, x[kTheta]) >= g.look_min_landmarks;
     if (g.look_first && looking == 0 && d0 > g.buffer && could_see >= g.look_min_landmarks && !in_view) {
       looking = 1;
       look_sigma = c.position_std;

@@ -65,14 +65,18 @@ void SensorSettings::validate() const {
   param_set<SensorSettings>().check(*this, "sensors.");
 }
 
-int SensorSettings::landmarks_in_view(const State& x) const {
+int SensorSettings::landmarks_in_view(const State& x, const ObstacleChecker* obstacles) const {
+  if (!x.allFinite())
+    bad("landmarks_in_view: state (" + num(x[0]) + ", " + num(x[1]) + ", " + num(x[2]) + ", " + num(x[3]) +
+        ") is not finite");
   int n = 0;
-  for_each_in_view(x, [&](Eigen::Index, double) { ++n; });
+  for_each_in_view(x, obstacles, [&](Eigen::Index, double) { ++n; });
   return n;
 }
 
 template <class F>
-void SensorSettings::for_each_in_view(const State& x, F&& f) const {
+void SensorSettings::for_each_in_view(const State& x, const ObstacleChecker* obstacles, F&& f) const {
+  const bool hidden_possible = occlusion && obstacles != nullptr && obstacles->obstacle_count() > 0;
   const double r2 = max_range * max_range;
   const bool all_round = field_of_view >= 2.0 * kPi;
   const double half = 0.5 * field_of_view;
@@ -87,6 +91,8 @@ void SensorSettings::for_each_in_view(const State& x, F&& f) const {
       const double along = c * dx + s * dy;
       if (d2 > 0.0 && along < cos_half * std::sqrt(d2)) continue;
     }
+    if (hidden_possible && !obstacles->line_of_sight(x.head<2>(), Eigen::Vector2d(landmarks(i, 0), landmarks(i, 1))))
+      continue;  // occluded by an obstacle
     f(i, std::sqrt(d2));
   }
 }
@@ -117,6 +123,7 @@ struct Navigator::Impl {
     s.guard.field_of_view = std::min(se.field_of_view, 2.0 * kPi);
     s.guard.look_range = se.max_range;
     s.guard.look_min_landmarks = std::max(1, se.min_landmarks);
+    s.guard.occlusion = se.occlusion;
     return s;
   }
 
@@ -204,7 +211,7 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
   int fix_faults = 0;  // faulty ranges inside the last fix
   auto range_fix = [&](const State& x, Eigen::Vector2d& z, Eigen::Matrix2d& R) -> bool {
     obs.clear();
-    se.for_each_in_view(x, [&](Eigen::Index i, double d) {
+    se.for_each_in_view(x, &im.collisions, [&](Eigen::Index i, double d) {
       obs.push_back({static_cast<int>(i), std::max(0.0, d + se.range_std * sensor_rng.normal()), 0u});
     });
     res.observations += static_cast<int>(obs.size());
@@ -249,7 +256,7 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
       return true;
     }
     if (se.fix_model == FixModel::Ranges) return range_fix(x, z, R);
-    if (src.needs_landmarks && se.landmarks_in_view(x) < se.min_landmarks) return false;
+    if (src.needs_landmarks && se.landmarks_in_view(x, &im.collisions) < se.min_landmarks) return false;
     if (!source_noise.sample(x.head<2>(), sensor_draws, z)) return false;
     R = source_R;
     return true;

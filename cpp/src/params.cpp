@@ -51,12 +51,18 @@ void check_value(const ParamSpec& s, const std::vector<double>& v, const std::st
 }  // namespace
 
 std::string ParamSpec::range_text() const {
+  if (kind == ParamKind::Boolean) return "{0, 1}";
   const bool whole = kind == ParamKind::Integer;
   auto fmt = [whole](double v) { return whole ? std::to_string(static_cast<long long>(v)) : number(v); };
   return (lo_open ? "(" : "[") + fmt(lo) + ", " + fmt(hi) + "]";
 }
 
 void ParamSpec::check(double v, const std::string& prefix) const {
+  if (kind == ParamKind::Boolean) {
+    if (!(v == 0.0 || v == 1.0))
+      throw std::invalid_argument(prefix + name + " = " + number(v) + ": must be a boolean (0 or 1)");
+    return;
+  }
   const bool ok = std::isfinite(v) && (lo_open ? v > lo : v >= lo) && v <= hi &&
                   (kind != ParamKind::Integer || v == std::floor(v));
   if (!ok) {
@@ -94,7 +100,8 @@ std::vector<double> ParamSet<T>::get(const T& t, const std::string& name) const 
   return std::visit(Overload{[&](const RealRef& r) { return std::vector<double>{r(m)}; },
                              [&](const IntRef& r) { return std::vector<double>{static_cast<double>(r(m))}; },
                              [&](const Int64Ref& r) { return std::vector<double>{static_cast<double>(r(m))}; },
-                             [&](const ListRef& r) { return r(m); }},
+                             [&](const ListRef& r) { return r(m); },
+                             [&](const BoolRef& r) { return std::vector<double>{r(m) ? 1.0 : 0.0}; }},
                     entry(name).ref);
 }
 
@@ -105,7 +112,8 @@ void ParamSet<T>::set(T& t, const std::string& name, const std::vector<double>& 
   std::visit(Overload{[&](const RealRef& r) { r(t) = value[0]; },
                       [&](const IntRef& r) { r(t) = static_cast<int>(value[0]); },
                       [&](const Int64Ref& r) { r(t) = static_cast<std::int64_t>(value[0]); },
-                      [&](const ListRef& r) { r(t) = value; }},
+                      [&](const ListRef& r) { r(t) = value; },
+                      [&](const BoolRef& r) { r(t) = value[0] != 0.0; }},
              e.ref);
 }
 
@@ -145,6 +153,10 @@ struct Declare {
   }
   Declare& integer64(const char* name, typename PS::Int64Ref ref, Range r, const char* doc) {
     set.add(spec(name, ParamKind::Integer, "", r, doc), std::move(ref));
+    return *this;
+  }
+  Declare& flag(const char* name, typename PS::BoolRef ref, const char* doc) {
+    set.add(spec(name, ParamKind::Boolean, "", closed(0, 1), doc), std::move(ref));
     return *this;
   }
   Declare& list(const char* name, typename PS::ListRef ref, const char* unit, Range r, int max_size, const char* doc) {
@@ -264,6 +276,7 @@ const ParamSet<SensorSettings>& param_set<SensorSettings>() {
           .real("max_range", SN_REF(S, max_range), "m", above(0, 1e4), "landmarks farther than this are not detected")
           .real("field_of_view", SN_REF(S, field_of_view), "rad", above(0, 2 * kPi), "full horizontal field of view, centred on the heading; 2 pi = all round")
           .integer("min_landmarks", SN_REF(S, min_landmarks), closed(1, 1000), "a position fix needs this many landmarks in view [SafeNav-ext §V-A3(ii)]: clusters of >= 3")
+          .flag("occlusion", SN_REF(S, occlusion), "obstacles hide landmarks from the simulated camera (ours; off in the papers' loop)")
           .integer("position_every", SN_REF(S, position_every), closed(1, 1e6), "a position fix every n steps")
           .real("imu_speed_std", SN_REF(S, imu_speed_std), "m/s", closed(1e-6, 10), "sigma of the IMU's speed")
           .real("imu_heading_std", SN_REF(S, imu_heading_std), "rad", closed(1e-6, kPi), "sigma of the IMU's heading")

@@ -9,6 +9,9 @@
 #include <stdexcept>
 #include <string>
 
+#include <CGAL/Interval_nt.h>
+#include <CGAL/MP_Float.h>
+
 #include "cgal_util.hpp"
 #include "errors.hpp"
 
@@ -43,6 +46,46 @@ void check_finite(const Eigen::Ref<const Points2>& p, const char* what) {
 
 void check_margin(double margin) {
   if (!(margin >= 0.0) || !std::isfinite(margin)) bad("margin must be finite and >= 0, got " + std::to_string(margin));
+}
+
+// Exact disc predicates for the line of sight: the signs of polynomials in
+// the input doubles, in interval arithmetic first (CGAL::Interval_nt, which
+// rounds outward), exactly in CGAL::MP_Float (exact +, −, ×) when the
+// interval cannot decide.
+template <class NT>
+CGAL::Uncertain<bool> disc_contains_t(const NT& px, const NT& py, const NT& cx, const NT& cy, const NT& r) {
+  const NT dx = px - cx, dy = py - cy;
+  return CGAL::Uncertain<bool>(dx * dx + dy * dy <= r * r);
+}
+
+// The segment a–b, whose ends lie outside the disc, touches it: the foot of
+// the centre on the line lies within the segment, 0 ≤ (c − a)·d ≤ d·d with
+// d = b − a, and the line is within r of the centre, cross(d, c − a)² ≤ r²·d·d.
+// (When the foot lies outside, the nearest point is an end, which is outside.)
+template <class NT>
+CGAL::Uncertain<bool> disc_touched_t(const NT& ax, const NT& ay, const NT& bx, const NT& by, const NT& cx,
+                                     const NT& cy, const NT& r) {
+  const NT dx = bx - ax, dy = by - ay, wx = cx - ax, wy = cy - ay;
+  const NT along = wx * dx + wy * dy, dd = dx * dx + dy * dy, cr = dx * wy - dy * wx;
+  const NT zero(0);
+  return CGAL::Uncertain<bool>(zero <= along) & CGAL::Uncertain<bool>(along <= dd) &
+         CGAL::Uncertain<bool>(cr * cr <= r * r * dd);
+}
+
+bool disc_contains_exact(const Vec2& p, const Vec2& c, double r) {
+  using I = CGAL::Interval_nt<>;
+  const CGAL::Uncertain<bool> f = disc_contains_t<I>(p.x(), p.y(), c.x(), c.y(), r);
+  if (CGAL::is_certain(f)) return CGAL::get_certain(f);
+  using E = CGAL::MP_Float;
+  return CGAL::get_certain(disc_contains_t<E>(p.x(), p.y(), c.x(), c.y(), r));
+}
+
+bool disc_touched_exact(const Vec2& a, const Vec2& b, const Vec2& c, double r) {
+  using I = CGAL::Interval_nt<>;
+  const CGAL::Uncertain<bool> f = disc_touched_t<I>(a.x(), a.y(), b.x(), b.y(), c.x(), c.y(), r);
+  if (CGAL::is_certain(f)) return CGAL::get_certain(f);
+  using E = CGAL::MP_Float;
+  return CGAL::get_certain(disc_touched_t<E>(a.x(), a.y(), b.x(), b.y(), c.x(), c.y(), r));
 }
 
 // One disc or simple polygon as CGAL objects, built once.  A point or segment
@@ -82,6 +125,27 @@ class Shape {
     if (cgal::inside_or_on(polygon_, ab.source())) return true;
     for (const auto& e : edges_)
       if (CGAL::do_intersect(ab, e) || CGAL::squared_distance(ab, e) <= grow * grow) return true;
+    return false;
+  }
+
+  // The shape hides b from a (ObstacleChecker::line_of_sight): the segment
+  // a–b (a ≠ b) touches it and neither end lies in it (boundary included).
+  // With both ends outside, a polygon is touched iff an edge is (exact
+  // CGAL::do_intersect); a disc by disc_touched_exact.
+  bool occludes(const cgal::Segment& ab, const Vec2& a, const Vec2& b) const {
+    if (disc_) {
+      // Far from the disc (in doubles, with a margin that dwarfs their rounding
+      // error): neither end is in it and the segment misses it.
+      const double r2 = radius_ * radius_;
+      const double far2 = std::max((a - center_).squaredNorm(), (b - center_).squaredNorm());
+      if (segment_point_distance2(a, b, center_) > r2 + 1e-9 * (far2 + r2)) return false;
+      if (disc_contains_exact(a, center_, radius_) || disc_contains_exact(b, center_, radius_)) return false;
+      return disc_touched_exact(a, b, center_, radius_);
+    }
+    if (segment_point_distance2(a, b, center_) > cull2(0.0)) return false;
+    if (cgal::inside_or_on(polygon_, ab.source()) || cgal::inside_or_on(polygon_, ab.target())) return false;
+    for (const auto& e : edges_)
+      if (CGAL::do_intersect(ab, e)) return true;
     return false;
   }
 
@@ -205,6 +269,14 @@ class Obstacles {
     return true;
   }
 
+  bool line_of_sight(const Vec2& a, const Vec2& b) const {
+    if (a == b) return true;  // no obstacle lies between a point and itself
+    const cgal::Segment ab(cgal::point(a), cgal::point(b));
+    for (const auto& s : obstacles)
+      if (s.occludes(ab, a, b)) return false;
+    return true;
+  }
+
   PlanningMap map;
   std::vector<Shape> obstacles;  // circles, then polygons
   std::vector<Shape> hazards;    // in map.hazards' order
@@ -325,6 +397,21 @@ double ObstacleChecker::hazard_integral(const Vec2& a, const Vec2& b) const {
   double sum = 0.0;
   for (std::size_t k = 0; k < hz.size(); ++k) sum += impl_->map.hazards[k].risk * hz[k].length_inside(a, b);
   return sum;
+}
+
+bool ObstacleChecker::line_of_sight(const Vec2& a, const Vec2& b) const {
+  if (!a.allFinite()) bad("line of sight: a = " + fmt(a) + " is not finite");
+  if (!b.allFinite()) bad("line of sight: b = " + fmt(b) + " is not finite");
+  return impl_->line_of_sight(a, b);
+}
+
+Eigen::Matrix<bool, Eigen::Dynamic, 1> ObstacleChecker::visible_from(const Vec2& from,
+                                                                     const Eigen::Ref<const Points2>& targets) const {
+  if (!from.allFinite()) bad("visible_from: from = " + fmt(from) + " is not finite");
+  check_finite(targets, "target");
+  Eigen::Matrix<bool, Eigen::Dynamic, 1> out(targets.rows());
+  for (Eigen::Index i = 0; i < targets.rows(); ++i) out[i] = impl_->line_of_sight(from, row(targets, i));
+  return out;
 }
 
 namespace {

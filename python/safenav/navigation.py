@@ -142,6 +142,7 @@ def navigation_setup(scenario, safe_path, *, method: str = "centroid", world_map
     s.guard.field_of_view = float(np.deg2rad(scenario.camera.field_of_view_deg))  # it looks with the camera
     s.guard.look_range = float(scenario.detection.max_range_m)
     s.guard.look_min_landmarks = int(scenario.detection.min_landmarks)
+    s.guard.occlusion = bool(scenario.detection.occlusion) and not paper
     if paper:
         s.filter.gate_probability = 0.0
     s.method = choice("method", method, METHODS)
@@ -163,7 +164,8 @@ def make_navigator(scenario, safe_path, *, method: str = "centroid", filter: str
     ``filter``: ``"ekf"`` or ``"pf"``; ``source``: a :data:`SOURCES` name.
     ``world_map`` overrides the true obstacles (a ``PlanningMap``), e.g. to
     add obstacles the safe path was not planned around.  ``paper``: the
-    papers' loop whatever the scenario says — no guard, no gate."""
+    papers' loop whatever the scenario says — no guard, no gate, no
+    occlusion (obstacles hide no landmark, as in the papers)."""
     problem, s = navigation_setup(scenario, safe_path, method=method, world_map=world_map, max_steps=max_steps,
                                   replan=replan, planner_seed=planner_seed, paper=paper)
     s.filter.type = choice("filter", filter, FILTERS)
@@ -175,6 +177,8 @@ def make_navigator(scenario, safe_path, *, method: str = "centroid", filter: str
     se.landmarks = scenario.world.landmark_array()[:, :2]
     se.field_of_view = np.deg2rad(scenario.camera.field_of_view_deg)
     scenario.detection.apply(se)
+    if paper:  # the papers' loop reproduces the trials run before occlusion existed, bit for bit
+        se.occlusion = False
     se.position_every = integer("position_every", position_every)
     scenario.noise.apply(se)
     if source == "lanbloc":

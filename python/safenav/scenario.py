@@ -127,11 +127,17 @@ class _Params:
 
     RANGES: dict = {}
     LISTS: dict = {}   #: list fields: name -> (range of each entry, most entries)
+    FLAGS: tuple = ()  #: bool fields (the core's ParamKind.BOOLEAN): true or false, nothing else
     CORE: dict = {}    #: fields declared in the core: name -> (core settings type, its parameter name)
 
     def __post_init__(self):
         for name, rng in self.RANGES.items():
             object.__setattr__(self, name, rng.check(name, getattr(self, name)))
+        for name in self.FLAGS:
+            v = getattr(self, name)
+            if not isinstance(v, (bool, np.bool_)):
+                validation.fail(name, v, "must be true or false")
+            object.__setattr__(self, name, bool(v))
         for name, (rng, max_len) in self.LISTS.items():
             v = validation.items(name, getattr(self, name), max_len)
             if not v:
@@ -185,14 +191,17 @@ def _core_section(name: str, doc: str, keys, *, defaults=None, extra=None, own=(
     ``extra``: methods and class attributes of the section; ``own``: extra
     ``(name, type, dataclasses.field)`` fields that the section checks itself."""
     defaults = defaults or {}
-    spec_fields, ranges, lists, core = [], {}, {}, {}
+    spec_fields, ranges, lists, flags, core = [], {}, {}, [], {}
     for entry in keys:
         key, core_type, core_name = entry if len(entry) == 3 else (entry[1], entry[0], entry[1])
         spec = next(sp for sp in core_type.params() if sp.name == core_name)
         core[key] = (core_type, core_name)
         rng = Range(spec.lo, spec.hi, spec.lo_open, integer=spec.kind == _core.ParamKind.INTEGER)
         default = defaults.get(key, core_type().get_param(core_name))
-        if spec.kind == _core.ParamKind.REAL_LIST:
+        if spec.kind == _core.ParamKind.BOOLEAN:
+            flags.append(key)
+            spec_fields.append((key, bool, field(default=bool(default), metadata={"doc": spec.doc})))
+        elif spec.kind == _core.ParamKind.REAL_LIST:
             lists[key] = (rng, spec.max_size)
             spec_fields.append((key, tuple, field(default=tuple(default), metadata={"doc": spec.doc})))
         else:
@@ -200,7 +209,7 @@ def _core_section(name: str, doc: str, keys, *, defaults=None, extra=None, own=(
             kind = int if rng.integer else float
             spec_fields.append((key, kind, field(default=default, metadata={"doc": spec.doc, "unit": spec.unit})))
     spec_fields += list(own)
-    namespace = {"RANGES": ranges, "LISTS": lists, "CORE": core, "__doc__": doc, **(extra or {})}
+    namespace = {"RANGES": ranges, "LISTS": lists, "FLAGS": tuple(flags), "CORE": core, "__doc__": doc, **(extra or {})}
     return dataclass(frozen=True)(type(name, (_Params,), {"__annotations__": {k: t for k, t, _ in spec_fields},
                                                           **{k: f for k, _, f in spec_fields}, **namespace}))
 
@@ -217,8 +226,11 @@ BmmConfig = _core_section(
 DetectionParams = _core_section(
     "DetectionParams", "Landmark detection: the range limit and the trilateration minimum (paper: >= 3 landmarks).\n\n"
     "``max_range_m`` (3D distance) also bounds a path cluster's landmarks: each cluster on a path needs "
-    "``min_landmarks`` within it of its centroid.",
-    [("max_range_m", _core.SensorSettings, "max_range"), (_core.SensorSettings, "min_landmarks")])
+    "``min_landmarks`` within it of its centroid.\n\n"
+    "``occlusion`` (ours): obstacles hide the landmarks behind them from the simulated camera and from the "
+    "guard's look (``ObstacleChecker.line_of_sight``); the papers' loop (``paper=True``) turns it off.",
+    [("max_range_m", _core.SensorSettings, "max_range"), (_core.SensorSettings, "min_landmarks"),
+     (_core.SensorSettings, "occlusion")])
 
 FIX_MODELS = {"profile": "profile", "ranges": "ranges"}
 GUARD_MODES = {"on": "on", "off": "off"}

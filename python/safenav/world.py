@@ -36,8 +36,8 @@ import numpy as np
 
 from . import _core
 from .validation import (FIELD_SIZE, MAX_COORDINATE, MAX_HAZARDS, MAX_LANDMARKS, MAX_OBSTACLES,  # noqa: F401
-                         MAX_PATH_CLUSTERS, MAX_RADIUS, MAX_VERTICES, ScenarioError, at, cut, fail, integer, items,
-                         real, table, text, vector)
+                         MAX_PATH_CLUSTERS, MAX_RADIUS, MAX_VERTICES, ScenarioError, as_array, at, cut, fail, integer,
+                         items, real, table, text, vector)
 
 __all__ = [
     "ScenarioError", "Field", "Circle", "Polygon", "Shape", "Hazard", "Landmark",
@@ -425,6 +425,24 @@ class World(_CoreQueries):
     def hazard_risk(self, points) -> np.ndarray:
         """The highest hazard risk at each ``(N, 2)`` point (0 outside every hazard; boundary inside)."""
         return self._checker.hazard_risk(_points(points))
+
+    # ---- occlusion: the core's one line-of-sight query
+    def line_of_sight(self, a, b) -> bool:
+        """Whether ``b`` is seen from ``a`` (both ``(x, y)``): the segment ``ab`` meets no obstacle.
+
+        The obstacles themselves, not grown by any margin, and exact
+        (``ObstacleChecker::line_of_sight``, CGAL's exact predicates): touching an
+        obstacle's boundary blocks, but an obstacle containing ``a`` or ``b``
+        (boundary included) does not, so a landmark on a boulder is seen from
+        outside it.  Obstacles hide anything behind them (heights are not
+        modelled); hazards hide nothing.  ``ValueError`` names a non-finite or
+        misshapen ``a`` or ``b``.
+        """
+        return bool(self._checker.line_of_sight(as_array("a", a, (2,)), as_array("b", b, (2,))))
+
+    def visible_from(self, p, points) -> np.ndarray:
+        """``(N,)`` bool: :meth:`line_of_sight` from ``p`` to each of the ``(N, 2)`` ``points``."""
+        return self._checker.visible_from(as_array("p", p, (2,)), as_array("points", points, (None, 2)))
 
     # ---- landmarks and clusters
     def landmark_array(self) -> np.ndarray:

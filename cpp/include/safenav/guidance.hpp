@@ -78,6 +78,8 @@ struct NavigationProblem {
 ///     ends farthest from the obstacles (if farther than the vehicle is now);
 ///   * otherwise it stops and holds for a fix, turning toward the bearing that
 ///     puts the most mapped landmarks within look_range inside field_of_view.
+/// With `occlusion`, a landmark hidden by an obstacle from the estimated
+/// position counts for none of these looks.
 /// Off, the loop is the papers'.
 struct GuardSettings {
   bool enabled = true;
@@ -88,10 +90,14 @@ struct GuardSettings {
   double slow_distance = 1.0;        ///< margin below which it slows down [m]
   double min_speed_fraction = 0.25;  ///< slowest fraction of the commanded speed while slowing
   double horizon = 1.0;              ///< the way ahead: a control held this long, then braking [s]
-  // What the guard looks with: the Navigator sets these three from its SensorSettings.
+  // What the guard looks with: the Navigator sets these four from its SensorSettings.
   double look_range = 30.0;          ///< landmarks within this can be looked at while holding [m]
   int look_min_landmarks = 3;        ///< a fix needs this many landmarks in view
   double field_of_view = 85.0 * kPi / 180.0;  ///< the camera's full horizontal FOV [rad]
+  /// Obstacles hide landmarks (SensorSettings::occlusion): the look counts and
+  /// turns toward only the landmarks in line of sight of the estimated position
+  /// (ObstacleChecker::line_of_sight on the problem's map, no clearance).
+  bool occlusion = true;
   void validate() const;
 };
 

@@ -13,7 +13,8 @@
 //      is blocked (the detour is spliced into the path it follows);
 //   3. moves the true vehicle;
 //   4. measures — a LanBLoc position fix when enough landmarks are in the
-//      camera's view (the measurement-level noise profile; or, ours, single
+//      camera's view, not hidden by an obstacle (SensorSettings::occlusion,
+//      ours) (the measurement-level noise profile; or, ours, single
 //      landmark ranges with landmark faults through LanBLoc's trilateration,
 //      FixModel::Ranges; or a user callback such as the camera-in-the-loop
 //      pipeline), plus IMU speed and heading — and updates the filter, each
@@ -85,16 +86,24 @@ struct SensorSettings {
   double max_range = 30.0;             ///< landmark detection range [m]
   double field_of_view = 85.0 * kPi / 180.0;  ///< full horizontal FOV [rad], centred on the heading; ≥ 2π = all round
   int min_landmarks = 3;               ///< trilateration needs ≥ 3 ([SafeNav-ext §V-A3(ii)]: clusters of ≥ 3)
+  /// Obstacles hide landmarks from the camera (ours; ObstacleChecker::line_of_sight:
+  /// obstacles as tall as any landmark, hazards hide nothing).  Off in the papers' loop.
+  bool occlusion = true;
   int position_every = 1;              ///< a fix every n steps
   bool imu = true;                     ///< IMU speed and heading every step
   double imu_speed_std = 0.05;         ///< [m/s]
   double imu_heading_std = 0.02;       ///< [rad]
   void validate() const;
-  /// Landmarks within range and inside the field of view of a vehicle at (x, y, θ).
-  int landmarks_in_view(const State& x) const;
-  /// f(row, distance) for each landmark in view of a vehicle at x, in map order.
+  /// Landmarks in view of a vehicle at (x, y, θ): within max_range, inside
+  /// the field of view and, when `occlusion` is on and the map's `obstacles`
+  /// are given (true obstacles, no clearance), not hidden by one
+  /// (ObstacleChecker::line_of_sight).  Without `obstacles` nothing is hidden.
+  int landmarks_in_view(const State& x, const ObstacleChecker* obstacles = nullptr) const;
+  /// f(row, distance) for each landmark in view of a vehicle at x (as
+  /// landmarks_in_view), in map order.  The line of sight is asked only for
+  /// landmarks in range and inside the field of view.
   template <class F>
-  void for_each_in_view(const State& x, F&& f) const;
+  void for_each_in_view(const State& x, const ObstacleChecker* obstacles, F&& f) const;
 };
 
 

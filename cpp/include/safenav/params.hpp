@@ -25,6 +25,7 @@ enum class ParamKind {
   Real,      ///< a double
   Integer,   ///< an integer (int or int64 member)
   RealList,  ///< a list of doubles, each in the range, 1 … max_size entries
+  Boolean,   ///< a bool switch, read and written as 0 or 1 (range [0, 1])
 };
 
 /// One parameter's declaration.  The range is [lo, hi], open at lo when
@@ -39,7 +40,7 @@ struct ParamSpec {
   int max_size = 0;  ///< RealList: the most entries
   std::string doc;   ///< one line; cites the paper where the parameter comes from
 
-  /// "(lo, hi]" or "[lo, hi]" (integers without decimals).
+  /// "(lo, hi]" or "[lo, hi]" (integers without decimals); "{0, 1}" for a Boolean.
   std::string range_text() const;
   /// Throws std::invalid_argument "prefix.name = value: must be in range" unless v is in range.
   void check(double v, const std::string& prefix = "") const;
@@ -55,7 +56,8 @@ class ParamSet {
   using IntRef = std::function<int&(T&)>;
   using Int64Ref = std::function<std::int64_t&(T&)>;
   using ListRef = std::function<std::vector<double>&(T&)>;
-  using Ref = std::variant<RealRef, IntRef, Int64Ref, ListRef>;
+  using BoolRef = std::function<bool&(T&)>;
+  using Ref = std::variant<RealRef, IntRef, Int64Ref, ListRef, BoolRef>;
 
   struct Entry {
     ParamSpec spec;

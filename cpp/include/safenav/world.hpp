@@ -10,6 +10,12 @@
 // with a disc); segment tests are exact (CGAL's exact predicates for polygon
 // containment and edge crossings), so a segment that grazes a corner is caught.
 //
+// Occlusion (ObstacleChecker::line_of_sight, visible_from): the obstacles
+// themselves hide what lies behind them from a camera, as if tall enough to
+// hide any landmark (heights are not modelled); hazards hide nothing.  The
+// one query serves the simulated camera (SensorSettings::occlusion), the
+// guard's look, landmark placement and the renderer.
+//
 // Hazards: a hazard is passable at its risk, unless its risk reaches the
 // map's `forbidden_risk`; then it is an obstacle too (grown by the clearance
 // like every obstacle).  The length of a segment inside a hazard is exact:
@@ -119,6 +125,24 @@ class ObstacleChecker {
     bool inside = false;
   };
   HazardStep hazard_step(const Eigen::Vector2d& a, const Eigen::Vector2d& b) const;
+  /// Line of sight (occlusion by obstacles): true when the segment a–b meets
+  /// no obstacle (the map's circles and polygons themselves, not grown by
+  /// the clearance; touching the boundary blocks), except that an obstacle
+  /// containing a or b (boundary included) does not block: a landmark
+  /// mounted on a boulder is seen from outside it.  Obstacles are treated as
+  /// tall enough to hide anything behind them (heights are not modelled);
+  /// hazards never occlude, not even forbidden ones.  A zero-length segment
+  /// is always seen.  Exact: CGAL's exact predicates for polygon containment
+  /// and edge crossings, and for circles the sign of the closed-form
+  /// polynomials (inside: |p − c|² ≤ r²; touched: the foot of c on the line
+  /// within the segment and cross(b − a, c − a)² ≤ r²·|b − a|²) evaluated in
+  /// interval arithmetic, and exactly (CGAL::MP_Float) when that is unsure.
+  /// Throws std::invalid_argument when a or b is not finite.
+  bool line_of_sight(const Eigen::Vector2d& a, const Eigen::Vector2d& b) const;
+  /// line_of_sight(from, targets.row(i)) for each row i of the N×2 targets.
+  /// Throws std::invalid_argument naming a non-finite `from` or target.
+  Eigen::Matrix<bool, Eigen::Dynamic, 1> visible_from(const Eigen::Vector2d& from,
+                                                      const Eigen::Ref<const Points2>& targets) const;
   /// Distance [m] from the segment a–b to the nearest obstacle, not grown by
   /// the clearance (0 when it touches one; +inf with no obstacles).  Forbidden
   /// hazards are not obstacles here.
