@@ -652,8 +652,8 @@ class LanBLoc:
         t = {"rectify": 0.0}
         t1 = time.perf_counter()
         found = self._detect_regions(frame, "left")
-        level = {id(d): (lv, lr) for d, lv, lr in found}
-        dets = self._known([d for d, _, _ in found])
+        level = {id(d): (lv, lr, patch) for d, lv, lr, patch in found}
+        dets = self._known([d for d, *_ in found])
         t2 = time.perf_counter()
         t["detect"] = t2 - t1
         if not dets:
@@ -661,8 +661,8 @@ class LanBLoc:
         if self.ranging == "corners":
             obs = []
             for d in dets:
-                lv, lr = level[id(d)]
-                r, rr = self._find_in_right(frame, d, lv)
+                lv, lr, patch = level[id(d)]
+                r, rr = self._find_in_right(frame, d, lv, patch)
                 obs.append(self.observe_corners(d, r, refine_level=max(lr, rr)))
             obs = tuple(obs)
             t3 = time.perf_counter()
@@ -673,9 +673,10 @@ class LanBLoc:
             t["disparity"] = t3 - t2
         return self._solve(dets, obs, t, t3, faults, position, seed)
 
-    def _detect_regions(self, frame: StereoFrame, camera: str) -> list[tuple[Detection, int, int]]:
+    def _detect_regions(self, frame: StereoFrame, camera: str) -> list[tuple[Detection, int, int, tuple | None]]:
         """Detections in ``camera``'s regions of ``frame``, in level-0 pixels, corners refined, each with
-        the pyramid levels it was found and refined at."""
+        the pyramid levels it was found and refined at and the patch it was found in (image, its
+        level-pixel origin)."""
         out = []
         for box, side in frame.regions(camera, self.region_margin_px):
             level = 0
@@ -693,12 +694,12 @@ class LanBLoc:
                     x0, y0, x1, y1 = d.box
                     bb = tuple(float(v) for v in ((np.array([x0, y0, x1, y1]).reshape(2, 2) + off + 0.5) * k - 0.5)
                                .ravel())
-                    out.append((dataclasses.replace(d, box=bb), level, level))
+                    out.append((dataclasses.replace(d, box=bb), level, level, None))
                     continue
                 corners, lr = self._refine_corners(frame, camera, (np.asarray(d.corners, float) + off + 0.5) * k - 0.5)
                 (x0, y0), (x1, y1) = corners.min(axis=0), corners.max(axis=0)
                 out.append((dataclasses.replace(d, box=(float(x0), float(y0), float(x1), float(y1)),
-                                                corners=corners), level, lr))
+                                                corners=corners), level, lr, (img, box[0] // k, box[1] // k)))
         return out
 
     #: Largest marker side [px] refined in one patch: bigger markers are refined at the pyramid level
@@ -734,9 +735,10 @@ class LanBLoc:
         out[inside] = (p.reshape(-1, 2) + [x0, y0] + 0.5) * k - 0.5
         return out, level
 
-    def _find_in_right(self, frame: StereoFrame, det: Detection, level: int) -> tuple[Detection | None, int]:
+    def _find_in_right(self, frame: StereoFrame, det: Detection, level: int, patch=None
+                       ) -> tuple[Detection | None, int]:
         """The marker of the left detection ``det`` in the right image: its patch (pyramid level
-        ``level``) matched along its rows over the disparity search (normalised cross-correlation,
+        ``level``; cut from ``patch``, the detection's, when it holds it) matched along its rows over the disparity search (normalised cross-correlation,
         parabolic sub-pixel peak), then the corners refined (:meth:`_refine_corners`; returned with
         its level).  ``None`` when the best correlation is below ``min_correlation``."""
         k = 1 << level
@@ -751,7 +753,12 @@ class LanBLoc:
         sy0, sy1 = max(ty0 - g, 0), min(ty1 + g, H)
         if sx1 - sx0 < tx1 - tx0 or sy1 - sy0 < ty1 - ty0:
             return None, 0
-        tmpl = frame.patch("left", (tx0, ty0, tx1, ty1), level)
+        a0, b0, a1, b1 = tx0 // k, ty0 // k, -(-tx1 // k), -(-ty1 // k)
+        if patch is not None and a0 >= patch[1] and b0 >= patch[2] and a1 - patch[1] <= patch[0].shape[1] \
+                and b1 - patch[2] <= patch[0].shape[0]:   # the template from the patch it was found in
+            tmpl = patch[0][b0 - patch[2]:b1 - patch[2], a0 - patch[1]:a1 - patch[1]]
+        else:
+            tmpl = frame.patch("left", (tx0, ty0, tx1, ty1), level)
         search = frame.patch("right", (sx0, sy0, sx1, sy1), level)
         if search.shape[0] < tmpl.shape[0] or search.shape[1] < tmpl.shape[1]:
             return None, 0
@@ -893,12 +900,14 @@ class CameraLoopSource:
     (:meth:`~safenav.vision.render.StereoRenderer.hidden`).
 
     ``early_out`` (region mode, default on): a frame whose left image holds
-    fewer markers than ``min_landmarks`` cannot give a fix, so it is not
-    processed (status ``no_landmarks`` or ``too_few_ranges``, no
-    observations).  Each frame's pixel noise is its own stream
+    fewer whole markers (all four corners inside the image) than
+    ``min_landmarks`` cannot give a fix, so it is not processed (status ``no_landmarks`` or ``too_few_ranges``, no
+    observations; first a cheaper bound, the markers whose centres project
+    into the image).  Each frame's pixel noise is its own stream
     (``derive_seed(derive_seed(seed, NOISE_STREAM), step)``), so the fixes
-    are the same with and without it; only the per-landmark counts of the
-    skipped frames (``fault_stats``) are missing.
+    are the same with and without it; the per-landmark counts of the
+    skipped frames (``fault_stats``) are missing, and a skipped frame's
+    status is ``no_landmarks`` only when the bound is 0.
 
     The last frame's :class:`LanBLocResult` is :attr:`last` (detections,
     per-landmark ranges and bearings, status and reason, stage timings);
@@ -984,14 +993,18 @@ class CameraLoopSource:
                 isinstance(step, bool) or not isinstance(step, (int, np.integer)) or step < 0):
             raise ValueError(f"step = {step!r}: must be an integer >= 0")
         t0 = time.perf_counter()
+        in_view = None
         if self.mode == "full":
             left, right = self.renderer.render(pose)
+        elif self.early_out and (n := self.renderer.centres_in_view(pose)) < self.pipeline.min_landmarks:
+            left = right = None   # a cheap bound on the whole markers is short already
+            in_view = n
         else:
             left, right = self.renderer.frame(pose, int(_core.derive_seed(self._noise_seed, int(step)))), None
+            in_view = len(left.whole_markers("left"))
         t_render = time.perf_counter() - t0
-        in_view = len(left.footprints("left")) if self.mode == "regions" else None
         if self.early_out and in_view is not None and in_view < self.pipeline.min_landmarks:
-            # Fewer markers drawn in the left image than a fix needs: no detector can find more, so
+            # Fewer whole markers in the left image than a fix needs: no detector can find more, so
             # this frame gives no fix whatever the pipeline does (the frame's pixels are its own, so
             # skipping it changes no other frame).
             res = self.pipeline._early_out(in_view)

@@ -456,6 +456,25 @@ class StereoRenderer:
             out.append(img if not self.color else cv2.cvtColor(img, cv2.COLOR_GRAY2BGR))
         return out[0], out[1]
 
+    def centres_in_view(self, pose, camera: str = "left") -> int:
+        """How many culled landmarks have their marker's centre inside ``camera``'s image and are not
+        hidden: a bound on the whole markers a detector can find there (a marker wholly in the image
+        has its centre in it), much cheaper than drawing the frame."""
+        idx = self.culled(pose)
+        if len(idx) == 0:
+            return 0
+        x, y, th = _pose(pose)
+        C = self.rig.camera_centers((x, y, th))[0 if camera == "left" else 1]
+        pc = (self._L[idx] - C) @ camera_rotation(th, self.rig.pitch_rad).T
+        r = self.rig
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u = r.focal_length_px * pc[:, 0] / pc[:, 2] + r.cx
+            v = r.focal_length_px * pc[:, 1] / pc[:, 2] + r.cy
+        inside = (pc[:, 2] > r.near_m) & (u >= 0) & (u <= r.width - 1) & (v >= 0) & (v <= r.height - 1)
+        if self.occlusion and inside.any():
+            inside[inside] = self.world.visible_from(C[:2], self._L[idx[inside], :2])
+        return int(inside.sum())
+
     def hidden(self, pose) -> dict[str, set[int]]:
         """``{"left": ids, "right": ids}``: the culled landmarks that an obstacle hides from each
         camera's centre (the core's line-of-sight query); empty sets without occlusion."""
@@ -611,16 +630,17 @@ class StereoRenderer:
         cols = (np.arange(X0, X1) + shift) % tw
         return tile[rows[:, None], cols[None, :]]
 
-    def _noise(self, shape: tuple[int, int], std: float, rng: np.random.Generator) -> np.ndarray:
-        """Pixel noise N(0, std²) of ``shape`` for a patch: a window of a fixed tile of Gaussian draws at a
-        random offset drawn from ``rng`` (fresh draws for a patch larger than the tile)."""
+    def _noise(self, shape: tuple[int, int], std: float, rng: np.random.Generator, offset) -> np.ndarray:
+        """Pixel noise N(0, std²) of ``shape`` for a patch: a window of a fixed tile of Gaussian draws at
+        ``offset`` (two integers in [0, NOISE_TILE)); fresh draws from ``rng`` for a patch larger than
+        the tile."""
         n = self.NOISE_TILE
         if shape[0] > n or shape[1] > n:
             return rng.standard_normal(shape, dtype=np.float32) * np.float32(std)
         if self._noise_tile is None:
             t = np.random.default_rng([self._seed, 7]).standard_normal((n, n), dtype=np.float32)
             self._noise_tile = np.tile(t, (2, 2))
-        r0, c0 = rng.integers(0, n, 2)
+        r0, c0 = offset
         return self._noise_tile[r0:r0 + shape[0], c0:c0 + shape[1]] * np.float32(std)
 
 
@@ -635,6 +655,7 @@ class _Drawn:
     box: tuple[int, int, int, int]   # level-0 pixel box x0, y0, x1, y1 (ends exclusive), clipped to the image
     min_side: float         # shortest / longest board side, level-0 pixels
     max_side: float
+    whole: bool             # the marker's four corners (inside the quiet zone) lie in the image
 
 
 def _intersects(a, b) -> bool:
@@ -652,6 +673,7 @@ class StereoFrame:
     def __init__(self, renderer: StereoRenderer, pose, noise_seed: int | None = None):
         self.renderer = renderer
         self._rng = renderer._rng if noise_seed is None else np.random.default_rng(noise_seed)
+        self._offsets, self._next = None, 0   # noise-tile offsets, drawn 32 at a time
         r = self.rig = renderer.rig
         x, y, th = _pose(pose)
         self.pose = (x, y, th)
@@ -687,6 +709,8 @@ class StereoFrame:
         f, cx, cy = r.focal_length_px, r.cx, r.cy
         hidden = renderer.hidden(self.pose)
         ids = [renderer.landmarks[i].id for i in idx]
+        cells = renderer.dictionary.markerSize + 2
+        inner = cells / (cells + 2)   # marker side / board side
         for cam, C in zip(self.CAMERAS, r.camera_centers(self.pose)):
             pc = (corners - C) @ R.T                       # (n, 4, 3)
             pp = (pole - C) @ R.T
@@ -700,6 +724,11 @@ class StereoFrame:
             hi = np.ceil(uv.max(axis=1)) + 2
             side = np.linalg.norm(uv - np.roll(uv, 1, axis=1), axis=2)
             depth = pc[:, :, 2].mean(axis=1)
+            # the marker inside the quiet zone: a detector needs its four corners in the image
+            mc = pc.mean(axis=1, keepdims=True)
+            pm = mc + inner * (pc - mc)
+            um = f * pm[:, :, :2] / np.where(ok[:, None, None], pm[:, :, 2:3], 1.0) + [cx, cy]
+            whole = ((um >= 0).all(axis=2) & (um[:, :, 0] <= r.width - 1) & (um[:, :, 1] <= r.height - 1)).all(axis=1)
             items = []
             for k in np.flatnonzero(ok):
                 if ids[k] in hidden[cam]:
@@ -709,7 +738,7 @@ class StereoFrame:
                 if box[2] <= box[0] or box[3] <= box[1]:
                     continue
                 items.append(_Drawn(float(depth[k]), ids[k], uv[k], puv[k] if pole_ok[k] else None, box,
-                                    float(side[k].min()), float(side[k].max())))
+                                    float(side[k].min()), float(side[k].max()), bool(whole[k])))
             items.sort(key=lambda t: -t.depth)   # far first
             self._drawn[cam] = items
 
@@ -717,6 +746,11 @@ class StereoFrame:
         if camera not in self.CAMERAS:
             raise ValueError(f"camera = {camera!r}: must be 'left' or 'right'")
         return self._drawn[camera]
+
+    def whole_markers(self, camera: str = "left") -> list[int]:
+        """Ids of the markers drawn in ``camera`` with all four corners inside the image: the most a
+        detector can find (one cut by the image's edge has no fourth corner)."""
+        return [d.landmark_id for d in self._camera(camera) if d.whole]
 
     def footprints(self, camera: str = "left") -> dict[int, tuple[int, int, int, int]]:
         """``landmark id → level-0 pixel box (x0, y0, x1, y1)`` of every marker board drawn in ``camera``."""
@@ -776,6 +810,10 @@ class StereoFrame:
             self.renderer._warp_marker(img, d.landmark_id, (d.uv + 0.5) / k - 0.5 - off, d.max_side / k,
                                        transparent=True)
         if self.renderer.noise_std > 0:
-            noise = self.renderer._noise(img.shape, self.renderer.noise_std / k, self._rng)
+            if self._offsets is None or self._next >= len(self._offsets):
+                self._offsets = self._rng.integers(0, self.renderer.NOISE_TILE, (32, 2)).tolist()
+                self._next = 0
+            self._next += 1
+            noise = self.renderer._noise(img.shape, self.renderer.noise_std / k, self._rng, self._offsets[self._next - 1])
             img = np.clip(img + noise + 0.5, 0, 255).astype(np.uint8)
         return img
