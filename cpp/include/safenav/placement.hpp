@@ -176,7 +176,7 @@ struct PlacementOptions {
 struct EdgePlacement {
   std::vector<int> landmarks;
   std::vector<Interval> uncovered;  ///< arc-length stretches of the edge with < k (zero length: an alignment point)
-  int n_candidates = 0;             ///< candidates whose Lemma 2 interval is not empty
+  int n_candidates = 0;             ///< candidates whose Lemma 2 interval is not empty (and not wholly hidden)
 };
 
 /// The landmarks picked for the in-place turn at one interior vertex.
