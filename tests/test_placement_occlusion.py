@@ -118,6 +118,9 @@ class Obstacles:
         self._c = [(_q(c[:2]), F(c[2])) for c in self.circles]
         self._p = [[_q(v) for v in p] for p in self.polygons]
 
+    def __repr__(self):
+        return f"Obstacles({self.as_dict()!r})"
+
     def as_dict(self):
         return {"circles": [list(c) for c in self.circles], "polygons": [p.tolist() for p in self.polygons]}
 
@@ -314,25 +317,31 @@ def _edge_events(route, e, lms, cam, obs):
     ev = list(x - h) + list(x + h) + list(x)
     if cam.fov == "sector" and cam.angle < math.pi:
         ev += list(x - np.abs(y) / math.tan(cam.angle / 2))
+    view = list(ev)
     occ = P.occluders(obs.as_dict())
     if occ is not None:
         for lm in lms:
             ev += [v for s in _core.shadows_on_edge(a, b, lm, occ) for v in s]
-    return a, b, d, u, ev
+    return a, b, d, u, ev, np.array(view)
 
 
 def certificate_property(route, lms, cam, k, corners, obs):
     rep = P.check_coverage(route, lms, cam, k=k, corners=corners, obstacles=obs.as_dict())
     bad = list(zip(rep.kind, rep.index, rep.start, rep.end))
     for e in range(len(route) - 1):
-        a, b, d, u, ev = _edge_events(route, e, lms, cam, obs)
+        a, b, d, u, ev, view = _edge_events(route, e, lms, cam, obs)
         heading = math.atan2(u[1], u[0])
         stretches = [(s0, s1) for kd, i, s0, s1 in bad if kd == 0 and i == e]
         for t in _samples(d, ev, n=15):
             n = _bf_count(cam, a + t * u, heading, lms, obs, edge_point(a, b, t))
-            if n < k:   # never certified: the check reports t (within the 1e-9 slack)
+            # Never certified: the check reports t.  Within 2e-9 m of a range or
+            # field-of-view event the core's 1e-9 m slack in t (Lemma 2's ends,
+            # unchanged by occlusion) and this oracle's slack in distance and
+            # angle may differ; shadows get no such allowance.
+            in_slack = view.size and np.abs(view - t).min() <= 2 * TOL
+            if n < k and not in_slack:
                 assert any(s0 - 10 * TOL <= t <= s1 + 10 * TOL for s0, s1 in stretches), (e, t, n, stretches)
-            assert rep.min_count <= n or any(s0 - 10 * TOL <= t <= s1 + 10 * TOL for s0, s1 in stretches)
+            assert rep.min_count <= n or in_slack or any(s0 - 10 * TOL <= t <= s1 + 10 * TOL for s0, s1 in stretches)
         for s0, s1 in stretches:      # and a reported stretch is deficient (away from events)
             m = 0.5 * (s0 + s1)
             if s1 - s0 > 1e-6 and all(abs(m - v) > NEAR for v in ev):

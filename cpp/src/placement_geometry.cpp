@@ -492,9 +492,32 @@ struct Hull {
   bool empty() const { return lo > hi; }
 };
 
-/// The part of the edge's line inside the polygon (closed pieces, each
-/// shrunk by 2·kShadowPad so that no point outside is exempted by rounding).
-std::vector<Interval> polygon_on_line(const std::vector<cgal::Point>& poly, const std::vector<V2>& loc,
+/// The point a + (t / d)(b − a) of the edge, inside or on the polygon:
+/// exact rational arithmetic on the doubles (a route along an obstacle's
+/// edge is on its boundary, which a rounded point would miss).
+bool edge_point_in_polygon(const Points2& poly, const V2& a, const V2& b, double d, double t) {
+  const Q s = Q(t) / Q(d);
+  const Q px = Q(a.x()) + s * (Q(b.x()) - Q(a.x())), py = Q(a.y()) + s * (Q(b.y()) - Q(a.y()));
+  bool inside = false;
+  const Eigen::Index n = poly.rows();
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const Q ax(poly(i, 0)), ay(poly(i, 1)), bx(poly((i + 1) % n, 0)), by(poly((i + 1) % n, 1));
+    const Q o = (bx - ax) * (py - ay) - (by - ay) * (px - ax);
+    if (o == 0 && CGAL::min(ax, bx) <= px && px <= CGAL::max(ax, bx) && CGAL::min(ay, by) <= py &&
+        py <= CGAL::max(ay, by))
+      return true;  // on the boundary
+    if ((ay > py) != (by > py)) {
+      const Q x = ax + (py - ay) * (bx - ax) / (by - ay);
+      if (x > px) inside = !inside;
+    }
+  }
+  return inside;
+}
+
+/// The part of the edge a → b inside the polygon (closed pieces, each
+/// shrunk by 2·kShadowPad and kept only when its ends are inside, exactly,
+/// so that no point outside is exempted by rounding).
+std::vector<Interval> polygon_on_line(const Points2& poly, const std::vector<V2>& loc, const V2& a, const V2& b,
                                       const EdgeFrame& f, double tol) {
   std::vector<double> ts{0.0, f.length};
   const size_t n = loc.size();
@@ -508,14 +531,10 @@ std::vector<Interval> polygon_on_line(const std::vector<cgal::Point>& poly, cons
   std::sort(ts.begin(), ts.end());
   ts.erase(std::unique(ts.begin(), ts.end()), ts.end());
   std::vector<Interval> out;
+  auto in = [&](double t) { return edge_point_in_polygon(poly, a, b, f.length, t); };
   for (size_t i = 0; i + 1 < ts.size(); ++i) {
-    const double m = 0.5 * (ts[i] + ts[i + 1]);
-    if (!cgal::inside_or_on(poly, cgal::point(f.to_world(V2(m, 0.0))))) continue;
     const Interval s{ts[i] + 2 * kShadowPad, ts[i + 1] - 2 * kShadowPad};
-    // exempt only when its ends are inside too (exact): a crossing located
-    // badly (an obstacle edge almost along the route) drops the exemption
-    auto in = [&](double t) { return cgal::inside_or_on(poly, cgal::point(f.to_world(V2(t, 0.0)))); };
-    if (s.end > s.start && in(s.start) && in(s.end)) out.push_back(s);
+    if (s.end > s.start && in(0.5 * (ts[i] + ts[i + 1])) && in(s.start) && in(s.end)) out.push_back(s);
   }
   return merged(out);
 }
@@ -608,7 +627,7 @@ std::vector<Interval> edge_shadows(const V2& a, const V2& b, const V2& c, const 
     }
     if (mine.empty()) continue;
     mine = merged(mine);
-    const std::vector<Interval> exempt = polygon_on_line(cp, loc, f, ytol);
+    const std::vector<Interval> exempt = polygon_on_line(poly, loc, a, b, f, ytol);
     for (const auto& s : mine)
       for (const auto& piece : exempt.empty() ? std::vector<Interval>{s} : minus(s, exempt)) shadows.push_back(piece);
   }
