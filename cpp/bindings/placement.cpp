@@ -20,6 +20,38 @@ std::vector<Interval> to_intervals(const Eigen::Ref<const RowMatrixIv>& m) {
 
 void pybind_placement(py::module_& m) {
   m.attr("PLACEMENT_MAX_K") = kMaxLandmarksInView;
+  py::class_<Occluders>(m, "Occluders",
+                        "Obstacles that hide landmarks (circles as (n, 3) rows x, y, radius; simple polygons).")
+      .def(py::init([](const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>& circles,
+                       std::vector<Points2> polygons) {
+             Occluders o;
+             for (Eigen::Index i = 0; i < circles.rows(); ++i)
+               o.circles.push_back(CircleObstacle{Eigen::Vector2d(circles(i, 0), circles(i, 1)), circles(i, 2)});
+             o.polygons = std::move(polygons);
+             o.validate();
+             return o;
+           }),
+           py::arg("circles") = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>(0, 3), py::arg("polygons") = std::vector<Points2>{})
+      .def_static("from_map", &Occluders::from_map, py::arg("map"))
+      .def_property_readonly("circles",
+                             [](const Occluders& o) {
+                               Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> c(o.circles.size(), 3);
+                               for (size_t i = 0; i < o.circles.size(); ++i)
+                                 c.row(i) << o.circles[i].center.x(), o.circles[i].center.y(), o.circles[i].radius;
+                               return c;
+                             })
+      .def_readonly("polygons", &Occluders::polygons)
+      .def("empty", &Occluders::empty)
+      .def("validate", &Occluders::validate);
+  m.def("sight_blocked", &sight_blocked, py::arg("occluders"), py::arg("a"), py::arg("b"));
+  m.def(
+      "shadows_on_edge",
+      [](const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c, const Occluders& o) {
+        return stretches(shadows_on_edge(a, b, c, o));
+      },
+      py::arg("a"), py::arg("b"), py::arg("landmark"), py::arg("occluders"));
+  m.attr("PLACEMENT_SHADOW_PAD") = kShadowPad;
+
   py::enum_<FieldOfView>(m, "FieldOfView")
       .value("SECTOR", FieldOfView::Sector)
       .value("CIRCULAR", FieldOfView::Circular);
@@ -83,7 +115,7 @@ void pybind_placement(py::module_& m) {
       .def_property_readonly("covered", &Placement::covered);
 
   m.def("place_landmarks", &place_landmarks, py::arg("route"), py::arg("candidates"), py::arg("camera"),
-        py::arg("options"), release_gil());
+        py::arg("options"), py::arg("occluders") = Occluders(), release_gil());
 
   py::class_<VisibilityTable>(m, "VisibilityTable")
       .def_readonly("edge", &VisibilityTable::edge)
@@ -93,9 +125,9 @@ void pybind_placement(py::module_& m) {
       .def_readonly("x", &VisibilityTable::x)
       .def_readonly("y", &VisibilityTable::y);
   m.def("edge_visibility", &edge_visibility, py::arg("route"), py::arg("candidates"), py::arg("camera"),
-        release_gil());
+        py::arg("occluders") = Occluders(), release_gil());
   m.def("corner_visibility", &corner_visibility, py::arg("route"), py::arg("candidates"), py::arg("camera"),
-        release_gil());
+        py::arg("occluders") = Occluders(), release_gil());
   m.def("turn_angles", &turn_angles, py::arg("route"));
 
   py::class_<AlignmentTable>(m, "AlignmentTable")
@@ -103,7 +135,8 @@ void pybind_placement(py::module_& m) {
       .def_readonly("first", &AlignmentTable::first)
       .def_readonly("second", &AlignmentTable::second)
       .def_readonly("t", &AlignmentTable::t);
-  m.def("alignments", &alignments, py::arg("route"), py::arg("candidates"), py::arg("camera"), release_gil());
+  m.def("alignments", &alignments, py::arg("route"), py::arg("candidates"), py::arg("camera"),
+        py::arg("occluders") = Occluders(), release_gil());
   m.def("distance_to_route", &distance_to_route, py::arg("route"), py::arg("points"), release_gil());
 
   py::class_<CoverageReport>(m, "CoverageReport")
@@ -114,5 +147,5 @@ void pybind_placement(py::module_& m) {
       .def_readonly("start", &CoverageReport::start)
       .def_readonly("end", &CoverageReport::end);
   m.def("check_coverage", &check_coverage, py::arg("route"), py::arg("candidates"), py::arg("camera"), py::arg("k"),
-        py::arg("corners") = false, release_gil());
+        py::arg("corners") = false, py::arg("occluders") = Occluders(), release_gil());
 }

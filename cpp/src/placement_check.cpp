@@ -31,8 +31,10 @@ int distinct(std::vector<double> bearings) {
 std::vector<double> edge_events(const std::vector<Seen>& seen) {
   std::vector<double> pts;
   for (size_t i = 0; i < seen.size(); ++i) {
-    pts.push_back(seen[i].iv.start);
-    pts.push_back(seen[i].iv.end);
+    for (const auto& p : seen[i].pieces) {
+      pts.push_back(p.start);
+      pts.push_back(p.end);
+    }
     if (seen[i].local.y() == 0.0) pts.push_back(seen[i].local.x());
     for (size_t j = i + 1; j < seen.size(); ++j) {
       double t;
@@ -84,11 +86,13 @@ std::vector<Deficit> edge_deficits(const std::vector<Seen>& seen, double length,
 using namespace placement_detail;
 
 CoverageReport check_coverage(const Points2& route, const Points2& landmarks, const Camera& camera, int k,
-                              bool corners) {
+                              bool corners, const Occluders& occluders) {
   camera.validate();
   check_route(route);
   check_candidates(landmarks, "landmarks");
   check_k(k);
+  occluders.validate();
+  const Occluders* occ = occluders.empty() ? nullptr : &occluders;
   CoverageReport rep;
   rep.min_count = std::numeric_limits<int>::max();
   rep.min_distance = landmarks.rows() ? distance_to_route(route, landmarks).minCoeff()
@@ -111,7 +115,7 @@ CoverageReport check_coverage(const Points2& route, const Points2& landmarks, co
     }
   };
   for (Eigen::Index e = 0; e + 1 < route.rows(); ++e) {
-    const auto seen = seen_on_edge(route, e, landmarks, grid, {}, camera);
+    const auto seen = seen_on_edge(route, e, landmarks, grid, {}, camera, occ);
     const double d = (route.row(e + 1) - route.row(e)).norm();
     record(edge_deficits(seen, d, k, &rep.min_count), 0, static_cast<int>(e));
   }
@@ -120,7 +124,8 @@ CoverageReport check_coverage(const Points2& route, const Points2& landmarks, co
     for (Eigen::Index v = 1; v + 1 < route.rows(); ++v) {
       if (std::abs(turns(v - 1)) <= kEps) continue;
       const double theta_in = std::atan2(route(v, 1) - route(v - 1, 1), route(v, 0) - route(v - 1, 0));
-      const auto seen = seen_at_corner(route.row(v).transpose(), theta_in, turns(v - 1), landmarks, grid, {}, camera);
+      const auto seen =
+          seen_at_corner(route.row(v).transpose(), theta_in, turns(v - 1), landmarks, grid, {}, camera, occ);
       std::vector<double> pts;
       for (const auto& s : seen) {
         pts.push_back(s.iv.start);

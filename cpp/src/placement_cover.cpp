@@ -29,7 +29,7 @@ void one_per_line_side(std::vector<Seen>* pool, const std::vector<Seen>& pre) {
     const bool placed = std::any_of(pre.begin(), pre.end(), on_side);
     const Seen* keep = nullptr;
     for (const auto& s : *pool)
-      if (on_side(s) && !placed && (!keep || s.iv.end - s.iv.start > keep->iv.end - keep->iv.start)) keep = &s;
+      if (on_side(s) && !placed && (!keep || pieces_length(s) > pieces_length(*keep))) keep = &s;
     const int keep_idx = keep ? keep->idx : -1;
     pool->erase(std::remove_if(pool->begin(), pool->end(),
                                [&](const Seen& s) { return on_side(s) && s.idx != keep_idx; }),
@@ -52,7 +52,7 @@ void repair(std::vector<Seen>& set, const std::vector<Seen>& pool, std::vector<c
         if (taken[c] || !in_view_at(pool[c], g.probe)) continue;
         const double bc = bearing_at(pool[c].local, g.probe);
         const bool fresh = std::none_of(brg.begin(), brg.end(), [&](double b) { return same_bearing(b, bc); });
-        if (fresh && (best < 0 || pool[c].iv.end > pool[best].iv.end)) best = static_cast<int>(c);
+        if (fresh && (best < 0 || reach_at(pool[c], g.probe) > reach_at(pool[best], g.probe))) best = static_cast<int>(c);
       }
       if (best >= 0) break;
     }
@@ -63,11 +63,22 @@ void repair(std::vector<Seen>& set, const std::vector<Seen>& pool, std::vector<c
   }
 }
 
-/// Greedy cover of one edge (or turn) from a pool; returns pool indices picked.
+CoverResult greedy_groups(const std::vector<Interval>& intervals, const std::vector<int>& group, double length, int k,
+                          const std::vector<Interval>& preplaced);
+
+/// Greedy cover of one edge (or turn) from a pool, one interval per piece;
+/// returns pool indices picked (a candidate once).
 CoverResult cover_pool(const std::vector<Seen>& pool, const std::vector<Interval>& preplaced, double length, int k) {
-  std::vector<Interval> iv(pool.size());
-  for (size_t i = 0; i < pool.size(); ++i) iv[i] = pool[i].iv;
-  return greedy_cover(iv, length, k, preplaced);
+  std::vector<Interval> iv;
+  std::vector<int> group;
+  for (size_t i = 0; i < pool.size(); ++i)
+    for (const auto& p : pool[i].pieces) {
+      iv.push_back(p);
+      group.push_back(static_cast<int>(i));
+    }
+  CoverResult r = greedy_groups(iv, group, length, k, preplaced);
+  for (int& c : r.chosen) c = group[c];
+  return r;
 }
 
 /// Closed intervals kept as sorted starts and ends: the number covering
@@ -123,6 +134,19 @@ std::vector<Interval> deficient_stretches(const std::vector<Interval>& iv, doubl
 
 CoverResult greedy_cover(const std::vector<Interval>& intervals, double length, int k,
                          const std::vector<Interval>& preplaced) {
+  std::vector<int> group(intervals.size());
+  std::iota(group.begin(), group.end(), 0);
+  return greedy_groups(intervals, group, length, k, preplaced);
+}
+
+namespace {
+/// The greedy over intervals in groups (the pieces of one candidate): taking
+/// one interval takes its whole group, whose other intervals then count as
+/// chosen too (they are disjoint, so no point counts a group twice).  With
+/// one interval per group this is [Placement Alg. 1] generalised to k.
+/// `chosen` holds the interval picked per group.
+CoverResult greedy_groups(const std::vector<Interval>& intervals, const std::vector<int>& group, double length, int k,
+                          const std::vector<Interval>& preplaced) {
   check_k(k);
   if (!std::isfinite(length) || length < 0) fail("cover length = " + std::to_string(length) + " must be >= 0");
   for (size_t i = 0; i < intervals.size(); ++i)
@@ -172,9 +196,12 @@ CoverResult greedy_cover(const std::vector<Interval>& intervals, double length, 
       if (ok && (best < 0 || s.end > intervals[best].end)) best = static_cast<int>(i);
     }
     if (best >= 0) {
-      used[best] = 1;
       res.chosen.push_back(best);
-      have.add(intervals[best]);
+      for (size_t i = 0; i < intervals.size(); ++i)
+        if (group[i] == group[best] && !used[i]) {
+          used[i] = 1;
+          have.add(intervals[i]);
+        }
       continue;
     }
     // Stuck: nothing covers c.  Skip to where the next candidate starts.
@@ -184,10 +211,12 @@ CoverResult greedy_cover(const std::vector<Interval>& intervals, double length, 
     skipped.add({c, std::max(next, c + 2 * kEps)});
   }
   std::vector<Interval> real = preplaced;
-  for (int i : res.chosen) real.push_back(intervals[i]);
+  for (size_t i = 0; i < intervals.size(); ++i)
+    if (used[i]) real.push_back(intervals[i]);
   res.uncovered = deficient_stretches(real, length, k);
   return res;
 }
+}  // namespace
 
 bool Placement::covered() const {
   for (const auto& e : edges)
@@ -198,8 +227,8 @@ bool Placement::covered() const {
 }
 
 Placement place_landmarks(const Points2& route, const Points2& candidates, const Camera& camera,
-                          const PlacementOptions& opt) {
-  const CandidateSet set(route, candidates, camera);
+                          const PlacementOptions& opt, const Occluders& occluders) {
+  const CandidateSet set(route, candidates, camera, occluders);
   check_k(opt.k);
   const int k = opt.k;
   const Grid& grid = set.grid;
@@ -210,12 +239,12 @@ Placement place_landmarks(const Points2& route, const Points2& candidates, const
   std::vector<char> picked(candidates.rows(), 0);
 
   for (Eigen::Index e = 0; e + 1 < route.rows(); ++e) {
-    std::vector<Seen> all = seen_on_edge(route, e, candidates, grid, close, camera);
+    std::vector<Seen> all = seen_on_edge(route, e, candidates, grid, close, camera, set.occ);
     std::vector<Seen> pool, pre;
     for (const auto& s : all) (opt.reuse && picked[s.idx] ? pre : pool).push_back(s);
     if (opt.distinct_bearings) one_per_line_side(&pool, pre);
     std::vector<Interval> pre_iv;
-    for (const auto& s : pre) pre_iv.push_back(s.iv);
+    for (const auto& s : pre) pre_iv.insert(pre_iv.end(), s.pieces.begin(), s.pieces.end());
     const double d = (route.row(e + 1) - route.row(e)).norm();
     CoverResult r = cover_pool(pool, pre_iv, d, k);
     EdgePlacement ep;
@@ -242,7 +271,8 @@ Placement place_landmarks(const Points2& route, const Points2& candidates, const
       const double turn = turns(v - 1);
       if (std::abs(turn) <= kEps) continue;
       const double theta_in = std::atan2(route(v, 1) - route(v - 1, 1), route(v, 0) - route(v - 1, 0));
-      std::vector<Seen> all = seen_at_corner(route.row(v).transpose(), theta_in, turn, candidates, grid, close, camera);
+      std::vector<Seen> all =
+          seen_at_corner(route.row(v).transpose(), theta_in, turn, candidates, grid, close, camera, set.occ);
       // Landmarks on one ray from the vertex are one bearing for the whole turn:
       // keep one per ray, an already placed one first, else the nearest.
       std::vector<int> order(all.size());
@@ -280,7 +310,7 @@ Placement place_landmarks(const Points2& route, const Points2& candidates, const
   // The certificate: the exact check of the final landmarks, never the greedy's own count.
   Points2 placed(static_cast<Eigen::Index>(out.landmarks.size()), 2);
   for (size_t i = 0; i < out.landmarks.size(); ++i) placed.row(static_cast<Eigen::Index>(i)) = candidates.row(out.landmarks[i]);
-  const CoverageReport rep = check_coverage(route, placed, camera, k, opt.corners);
+  const CoverageReport rep = check_coverage(route, placed, camera, k, opt.corners, occluders);
   for (Eigen::Index i = 0; i < rep.start.size(); ++i) {
     const Interval s{rep.start(i), rep.end(i)};
     if (rep.kind(i) == 0) {

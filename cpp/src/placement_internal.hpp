@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <stdexcept>
 #include <string>
@@ -92,40 +93,76 @@ class Grid {
 std::vector<char> within(const Points2& route, const Points2& pts, const Grid& grid, double p);
 
 /// The candidates of one query: checked with the camera and the route (in
-/// that order: camera, route, candidates), bucketed for range searches, and
-/// those within the camera's clearance p of the route marked (they may not
-/// hold a landmark).
+/// that order: camera, route, candidates, occluders), bucketed for range
+/// searches, and those within the camera's clearance p of the route marked
+/// (they may not hold a landmark).  `occ` is null without occluders.
 struct CandidateSet {
-  CandidateSet(const Points2& route, const Points2& candidates, const Camera& camera);
+  CandidateSet(const Points2& route, const Points2& candidates, const Camera& camera,
+               const Occluders& occluders = {});
   Grid grid;
   std::vector<char> close;
+  const Occluders* occ = nullptr;
 };
 
-/// A candidate's Lemma 2 interval on one edge with its position in the edge frame.
+/// A candidate's Lemma 2 interval on one edge with its position in the edge
+/// frame, and the pieces of it where no occluder hides it (just {iv}
+/// without occluders; never empty).
 struct Seen {
   int idx;
   Interval iv;
   Eigen::Vector2d local;
+  std::vector<Interval> pieces;
 };
 
-/// All candidates (not excluded) with a non-empty interval on edge e, sorted by index.
+/// All candidates (not excluded) with a non-empty interval on edge e and at
+/// least one piece left by the occluders (`occ`, may be null), sorted by index.
 std::vector<Seen> seen_on_edge(const Points2& route, Eigen::Index e, const Points2& pts, const Grid& grid,
-                               const std::vector<char>& excluded, const Camera& cam);
+                               const std::vector<char>& excluded, const Camera& cam, const Occluders* occ = nullptr);
 
-/// Candidates around one interior vertex with their interval of turned angle.
+/// Candidates around one interior vertex with their interval of turned
+/// angle; those the occluders hide from the vertex are left out.
 std::vector<Seen> seen_at_corner(const Eigen::Vector2d& v, double theta_in, double turn, const Points2& pts,
-                                 const Grid& grid, const std::vector<char>& excluded, const Camera& cam);
+                                 const Grid& grid, const std::vector<char>& excluded, const Camera& cam,
+                                 const Occluders* occ = nullptr);
+
+/// shadows_on_edge, considering only occluders that can hide c from some
+/// t in `range` (the others cannot change the pieces of that interval).
+std::vector<Interval> edge_shadows(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c,
+                                   const Occluders& occ, const Interval& range);
+
+/// In one of the candidate's pieces (with the 1e-9 slack of every interval end).
+inline bool in_pieces(const Seen& s, double t);
+/// End of the piece containing t (the "reach" of the greedy), or -inf.
+inline double reach_at(const Seen& s, double t);
 
 inline double bearing_at(const Eigen::Vector2d& local, double t) { return std::atan2(local.y(), local.x() - t); }
 
 inline bool contains(const Interval& iv, double t) { return iv.start - kEps <= t && t <= iv.end + kEps; }
 
+inline bool in_pieces(const Seen& s, double t) {
+  for (const auto& p : s.pieces)
+    if (contains(p, t)) return true;
+  return false;
+}
+
+inline double reach_at(const Seen& s, double t) {
+  for (const auto& p : s.pieces)
+    if (contains(p, t)) return p.end;
+  return -std::numeric_limits<double>::infinity();
+}
+
+inline double pieces_length(const Seen& s) {
+  double n = 0.0;
+  for (const auto& p : s.pieces) n += p.end - p.start;
+  return n;
+}
+
 /// Two landmarks seen on one bearing from a point of the edge where both are in view.
 bool aligned_in_view(const Seen& a, const Seen& b, double* t);
 
-/// In view from (t, 0): inside its interval and not at the camera itself (no bearing there).
+/// In view from (t, 0): inside one of its pieces and not at the camera itself (no bearing there).
 inline bool in_view_at(const Seen& s, double t) {
-  return contains(s.iv, t) && (s.local - Eigen::Vector2d(t, 0.0)).norm() > kEps;
+  return in_pieces(s, t) && (s.local - Eigen::Vector2d(t, 0.0)).norm() > kEps;
 }
 
 inline bool same_bearing(double a, double b) { return std::abs(wrap(a - b)) <= kBearingTol; }

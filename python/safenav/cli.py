@@ -421,7 +421,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="camera loop: a fix every n steps (default 10)")
     s.add_argument("--particles", type=_at_least(1), default=1000, help="PF particles (default 1000)")
     s.add_argument("--no-placement", action="store_true",
-                   help="skip Table II's variant with landmarks placed along the safe paths (ILP, ~1 min)")
+                   help="skip Table II's variant with landmarks placed along the safe paths (ILP, with obstacles "
+                        "hiding landmarks, and again without for comparison; minutes)")
     s.add_argument("--path-types", nargs="+", default=None, help="default: all of the scenario's")
     _dask_options(s)
     s.add_argument("--seed", type=_at_least(0), default=None,

@@ -27,6 +27,26 @@
 // snapped to y = 0) share one bearing wherever both are in view (0 ahead, π
 // behind).  Intervals are closed; gaps shorter than 1e-9 m are rounding.
 //
+// Occlusion (issue 16; not in the paper, which has no obstacles): every
+// entry point takes optional Occluders (circles and simple polygons, treated
+// as tall and not grown).  A landmark c is in view from a route point a only
+// when, besides Lemma 2, the segment a–c meets no occluder that contains
+// neither a nor c (boundary included; a landmark on or in an obstacle is seen
+// from outside it, and an occluder the route runs through does not hide what
+// is seen from inside it).  On an edge the occluded set of t (a shadow) is a
+// union of closed intervals, computed in closed form: per polygon edge, and
+// per circle, the region beyond the obstacle as seen from c (the wedge
+// through the edge's endpoints, or between the tangents, beyond the
+// obstacle) is convex, so it meets the edge's line in one interval whose ends
+// are where the wedge's boundary crosses it.  The candidate's Lemma 2
+// interval minus its shadows is a list of *pieces*.  Each shadow is widened
+// by kShadowPad = 2e-9 m on both sides before it is cut out, so with the
+// 1e-9 m slack of every interval end the pieces stay inside the truly
+// visible set (rounding of the shadow's ends is far below that): pieces are
+// never larger than the truth, which keeps every certificate sound; they may
+// miss up to ~3e-9 m next to a shadow.  With no occluders every candidate has
+// exactly one piece, its Lemma 2 interval, and every result is as before.
+//
 // Certificates: every `uncovered` list and `covered()` below come from the
 // exact check (check_coverage) of the final landmark set, so a placement is
 // reported covered exactly when check_coverage finds ≥ k everywhere.
@@ -36,6 +56,7 @@
 #include <Eigen/Core>
 
 #include "safenav/types.hpp"
+#include "safenav/world.hpp"
 
 namespace safenav {
 
@@ -46,6 +67,24 @@ inline constexpr int kMaxLandmarksInView = 1000;
 /// Largest |coordinate| [m] accepted: beyond it a double's spacing exceeds
 /// the 1e-9 m rounding slack, and the checks would no longer be exact.
 inline constexpr double kMaxCoordinate = 1e6;
+
+/// Obstacles that hide landmarks from the camera (see the header comment):
+/// circles and simple polygons (≥ 3 vertices, open or closed), not grown.
+/// Empty (the default): nothing is hidden, as in the paper.
+struct Occluders {
+  std::vector<CircleObstacle> circles;
+  std::vector<Points2> polygons;
+  bool empty() const { return circles.empty() && polygons.empty(); }
+  /// Throws std::invalid_argument naming the first bad obstacle.
+  void validate() const;
+  /// The map's circles and polygons (not grown by its clearance; hazards do not hide).
+  static Occluders from_map(const PlanningMap& map);
+};
+
+/// Whether the segment a–b is blocked by the occluders: it meets one (boundary
+/// included) that contains neither a nor b.  Exact on the double inputs
+/// (CGAL's exact predicates for polygons, exact rational arithmetic for circles).
+bool sight_blocked(const Occluders& occluders, const Eigen::Vector2d& a, const Eigen::Vector2d& b);
 
 /// Shape of the camera's field of view.
 enum class FieldOfView { Sector, Circular };
@@ -90,6 +129,21 @@ bool in_region_of_influence(const Eigen::Vector2d& local, double length, const C
 /// false (and leaves `out` alone) when it is never in view.
 bool visibility_interval(const Eigen::Vector2d& local, double length, const Camera& camera, Interval* out);
 
+/// The shadows of the occluders on the edge a → b as seen from the landmark
+/// c: closed intervals of arc length t ∈ [0, |b − a|] where the segment
+/// c–p(t) is blocked (sight_blocked), sorted and merged, not widened.  Ends
+/// next to a part of the edge inside an occluder are closed here although
+/// those points are not hidden (the convention exempts them): a slight
+/// over-estimate, on the safe side.
+std::vector<Interval> shadows_on_edge(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c,
+                                      const Occluders& occluders);
+
+/// The pieces of `interval` left when the shadows, each widened by
+/// kShadowPad on both sides, are cut out (sorted, disjoint, closed).
+std::vector<Interval> cut_shadows(const Interval& interval, const std::vector<Interval>& shadows);
+
+/// Widening of a shadow on both sides before it is cut out [m].
+inline constexpr double kShadowPad = 2e-9;
 /// Result of a k-interval cover of [0, length].
 struct CoverResult {
   std::vector<int> chosen;          ///< indices into the interval list, in the order picked
@@ -122,7 +176,7 @@ struct PlacementOptions {
 struct EdgePlacement {
   std::vector<int> landmarks;
   std::vector<Interval> uncovered;  ///< arc-length stretches of the edge with < k (zero length: an alignment point)
-  int n_candidates = 0;             ///< candidates whose Lemma 2 interval is not empty
+  int n_candidates = 0;             ///< candidates whose Lemma 2 interval is not empty (and not wholly hidden)
 };
 
 /// The landmarks picked for the in-place turn at one interior vertex.
@@ -149,11 +203,20 @@ struct Placement {
 /// the first point of an edge the exact count finds below k, the candidate
 /// with a fresh bearing there that reaches farthest.  The stretches reported
 /// uncovered are those of check_coverage on the final landmarks.
+///
+/// With occluders, each candidate covers its pieces (Lemma 2 interval minus
+/// shadows) and the greedy covers with pieces: each piece is an interval of
+/// its own, and picking one piece places the landmark, so its other pieces
+/// on that edge are added for free (they are disjoint, so no point counts a
+/// landmark twice).  The greedy stays a valid cover, but with pieces it is
+/// no longer optimal per edge (Prop. 1 assumes one interval per landmark).
+/// At a corner a landmark hidden from the vertex does not count.
 Placement place_landmarks(const Points2& route, const Points2& candidates, const Camera& camera,
-                          const PlacementOptions& options = PlacementOptions());
+                          const PlacementOptions& options = PlacementOptions(), const Occluders& occluders = {});
 
 /// Every (edge, candidate) pair with a non-empty Lemma 2 interval, for
-/// candidates farther than p from the route.  (x, y) is the candidate in the
+/// candidates farther than p from the route; with occluders one row per
+/// piece (a candidate hidden from the whole interval has no row).  (x, y) is the candidate in the
 /// edge frame.  For corners (corner_visibility): `edge` is the vertex index,
 /// [start, end] the interval of turned angle, (x, y) the candidate relative to
 /// the vertex.
@@ -161,8 +224,11 @@ struct VisibilityTable {
   Eigen::VectorXi edge, candidate;
   Eigen::VectorXd start, end, x, y;
 };
-VisibilityTable edge_visibility(const Points2& route, const Points2& candidates, const Camera& camera);
-VisibilityTable corner_visibility(const Points2& route, const Points2& candidates, const Camera& camera);
+VisibilityTable edge_visibility(const Points2& route, const Points2& candidates, const Camera& camera,
+                                const Occluders& occluders = {});
+/// Corners: a candidate hidden from the vertex has no row.
+VisibilityTable corner_visibility(const Points2& route, const Points2& candidates, const Camera& camera,
+                                  const Occluders& occluders = {});
 
 /// Signed turn wrap(θ_{i} − θ_{i−1}) at every interior vertex i = 1 … n−2.
 Eigen::VectorXd turn_angles(const Points2& route);
@@ -173,7 +239,8 @@ struct AlignmentTable {
   Eigen::VectorXi edge, first, second;
   Eigen::VectorXd t;
 };
-AlignmentTable alignments(const Points2& route, const Points2& candidates, const Camera& camera);
+AlignmentTable alignments(const Points2& route, const Points2& candidates, const Camera& camera,
+                          const Occluders& occluders = {});
 
 /// Distance from each point to the route polyline.
 Eigen::VectorXd distance_to_route(const Points2& route, const Points2& points);
@@ -190,7 +257,9 @@ struct CoverageReport {
   Eigen::VectorXi index;        ///< edge index or vertex index
   Eigen::VectorXd start, end;   ///< the stretch (arc length, or turned angle)
 };
+/// With occluders a landmark counts only on its pieces (and, at a corner,
+/// only if not hidden from the vertex); piece ends are events too.
 CoverageReport check_coverage(const Points2& route, const Points2& landmarks, const Camera& camera, int k,
-                              bool corners = false);
+                              bool corners = false, const Occluders& occluders = {});
 
 }  // namespace safenav

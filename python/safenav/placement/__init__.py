@@ -26,6 +26,10 @@ Numbers in this package are the placement paper's (tag ``Placement`` in
   from the first to the last target, 2-opt + Or-opt; see :func:`plan_tour`).
 * :func:`place_along_path` — the same for a SafeNav safe path (a polyline,
   e.g. :meth:`safenav.World.path_polyline` or a planner's path).
+* Occlusion (ours; the paper has no obstacles): every entry point takes
+  ``obstacles=`` (a :class:`safenav.World`, a dict of circles and polygons,
+  see :func:`occluders`); a candidate an obstacle hides from part of an
+  edge does not cover that part.
 * :func:`simulate` — [Placement §III-A]: a ground robot at 0.2 m/s with
   a heading controller, bearings to the landmarks in view, and the extended
   information filter (:class:`safenav.InformationFilter`).
@@ -42,14 +46,14 @@ targets), :mod:`~safenav.placement.study` ([Placement Table I] and the
 """
 
 from .algorithm import (PAPER_AREA, PAPER_SPACING, CameraParams, PlacementResult, candidate_grid, check_coverage,
-                        place_along_path, place_along_route, place_optimal, place_through_targets)
+                        occluders, place_along_path, place_along_route, place_optimal, place_through_targets)
 from .plots import paper_figures, plot_corner_gap, plot_placement, plot_simulation
 from .study import PAPER_TABLE_ONE, SimulationResult, corner_gap_demo, random_instance, simulate, table_one
 from .tour import plan_tour, tour_length
 
 __all__ = [
     "CameraParams", "PlacementResult", "SimulationResult", "PAPER_TABLE_ONE", "PAPER_AREA", "PAPER_SPACING",
-    "candidate_grid", "plan_tour", "tour_length", "place_along_route", "place_through_targets",
+    "candidate_grid", "occluders", "plan_tour", "tour_length", "place_along_route", "place_through_targets",
     "place_along_path", "place_optimal", "check_coverage", "simulate", "random_instance",
     "table_one", "corner_gap_demo", "plot_placement", "plot_simulation", "plot_corner_gap", "paper_figures",
 ]

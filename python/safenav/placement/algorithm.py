@@ -125,6 +125,48 @@ def _k(k) -> int:
     return k
 
 
+def occluders(obstacles) -> "_core.Occluders | None":
+    """``obstacles`` as the core's :class:`~safenav._core.Occluders`, or None
+    for none (the paper: nothing hides a landmark).
+
+    Accepts None, a :class:`safenav.World` (its circle and polygon
+    obstacles, not grown; hazards do not hide), a
+    :class:`~safenav._core.PlanningMap`, a :class:`~safenav._core.Occluders`,
+    or a dict ``{"circles": [[x, y, radius], ...], "polygons": [[[x, y],
+    ...], ...]}``.  An empty set gives None, so results are bit for bit
+    those without occlusion.  Raises ``ValueError`` naming a bad obstacle.
+    """
+    if obstacles is None:
+        return None
+    if isinstance(obstacles, _core.Occluders):
+        occ = obstacles
+    elif isinstance(obstacles, _core.PlanningMap):
+        occ = _core.Occluders.from_map(obstacles)
+    elif hasattr(obstacles, "obstacle_arrays"):          # a safenav World
+        circles, polygons = obstacles.obstacle_arrays()
+        occ = _core.Occluders(circles, polygons)
+    elif isinstance(obstacles, dict):
+        bad = sorted(set(obstacles) - {"circles", "polygons"})
+        if bad:
+            raise ValueError(f"obstacles: unknown key {bad[0]!r} (known: circles, polygons)")
+        circ = obstacles.get("circles", [])
+        circles = as_array("obstacles.circles", circ, (None, 3)) if len(circ) else np.zeros((0, 3))
+        polys = obstacles.get("polygons", [])
+        if not isinstance(polys, (list, tuple)):
+            raise ValueError(f"obstacles.polygons must be a list of vertex lists, got {polys!r}")
+        polygons = [as_array(f"obstacles.polygons[{i}]", p, (None, 2)) for i, p in enumerate(polys)]
+        occ = _core.Occluders(circles, polygons)
+    else:
+        raise ValueError(f"obstacles = {obstacles!r} must be None, a World, a PlanningMap, an Occluders "
+                         "or a dict with 'circles' and 'polygons'")
+    return None if occ.empty() else occ
+
+
+def _occ_kw(obstacles) -> dict:
+    occ = occluders(obstacles)
+    return {} if occ is None else {"occluders": occ}
+
+
 def candidate_grid(lower, upper, spacing: float = PAPER_SPACING, margin: float = 0.0) -> np.ndarray:
     """Candidate locations on a square grid of ``spacing`` covering the box
     ``[lower − margin, upper + margin]`` (grid lines through ``lower − margin``)."""
@@ -165,6 +207,7 @@ class PlacementResult:
     too_close: np.ndarray = field(default_factory=lambda: np.zeros(0, int))  #: candidates within p (removed)
     seconds: float = 0.0
     optimal: bool | None = None       #: ILP only: proven optimal within the time limit
+    obstacles: object = None          #: the occluders (``_core.Occluders``) or None: nothing hides a landmark
 
     @property
     def landmarks(self) -> np.ndarray:
@@ -182,7 +225,7 @@ class PlacementResult:
     def check(self, *, corners: bool | None = None) -> "_core.CoverageReport":
         """Exact coverage check of this placement (see :func:`check_coverage`)."""
         return check_coverage(self.route, self.landmarks, self.camera, k=self.k,
-                              corners=self.corners if corners is None else corners)
+                              corners=self.corners if corners is None else corners, obstacles=self.obstacles)
 
     def to_dict(self) -> dict:
         """JSON-ready summary."""
@@ -202,6 +245,7 @@ class PlacementResult:
             "uncovered": [{"where": w, "index": int(i), "start": float(a), "end": float(b)}
                           for w, i, a, b in self.uncovered],
             "optimal": self.optimal,
+            "occlusion": self.obstacles is not None,
             "seconds": self.seconds,
         }
 
@@ -224,7 +268,7 @@ def _describe_uncovered(route, uncovered, k) -> str:
 
 def place_along_route(route, candidates, camera: CameraParams | dict | None = None, *, k: int = 2,
                       corners: bool = False, reuse: bool = False, distinct_bearings: bool = True,
-                      allow_uncovered: bool = False) -> PlacementResult:
+                      allow_uncovered: bool = False, obstacles=None) -> PlacementResult:
     """The paper's placement on a given route [Placement §II]: per edge the
     greedy k-interval cover [Placement Alg. 1] (generalised to k ≥ 1), then
     the union over the edges [Placement §II-B].
@@ -243,13 +287,23 @@ def place_along_route(route, candidates, camera: CameraParams | dict | None = No
     landmarks, in every mode: covered exactly when the exact check finds at
     least k distinct bearings everywhere.  Raises ``ValueError`` naming the
     first uncovered stretch unless ``allow_uncovered``.
+
+    ``obstacles`` (see :func:`occluders`; ours, not the paper's): a
+    candidate an obstacle hides from part of an edge does not cover that
+    part.  Each candidate then covers the pieces of its [Placement Lemma 2]
+    interval left by the shadows, and the greedy works with pieces (taking a
+    piece places the landmark, and its other pieces count too).  The greedy
+    remains a valid cover but is no longer optimal per edge: [Placement
+    Prop. 1] assumes one interval per landmark.  The certificate counts a
+    landmark only where it is not hidden.
     """
     cam = camera_params(camera)
     r, c, k = check_route(route), _candidates(candidates), _k(k)
+    occ = _occ_kw(obstacles)
     opt = _core.PlacementOptions()
     opt.k, opt.corners, opt.reuse, opt.distinct_bearings = k, bool(corners), bool(reuse), bool(distinct_bearings)
     t0 = time.perf_counter()
-    p = _core.place_landmarks(r, c, cam.to_core(), opt)
+    p = _core.place_landmarks(r, c, cam.to_core(), opt, **occ)
     sec = time.perf_counter() - t0
     unc = [("edge", i, a, b) for i, e in enumerate(p.edges) for a, b in e.uncovered]
     unc += [("corner", cp.vertex, a, b) for cp in p.corners for a, b in cp.uncovered]
@@ -260,21 +314,28 @@ def place_along_route(route, candidates, camera: CameraParams | dict | None = No
         method += " (Algorithm 1 verbatim)"
     return PlacementResult(route=r, candidates=c, indices=np.array(p.landmarks, dtype=int), camera=cam, k=k,
                            method=method, corners=bool(corners), edge_landmarks=[list(e.landmarks) for e in p.edges],
-                           uncovered=unc, too_close=np.array(p.too_close, dtype=int), seconds=sec)
+                           uncovered=unc, too_close=np.array(p.too_close, dtype=int), seconds=sec,
+                           obstacles=occ.get("occluders"))
 
 
 def check_coverage(route, landmarks, camera: CameraParams | dict | None = None, *, k: int = 2,
-                   corners: bool = False) -> "_core.CoverageReport":
+                   corners: bool = False, obstacles=None) -> "_core.CoverageReport":
     """Exact check: at every interval endpoint, alignment point, on-line
     landmark and the midpoint between consecutive ones, count the distinct
     bearings in view (DESIGN: check coverage at interval endpoints, not at
     sample points; the count is constant in between).  Landmarks must be
     pairwise distinct.  The report has ``min_count``,
     ``min_distance`` (closest landmark to the route) and the deficient
-    stretches (``kind`` 0 edge / 1 corner, ``index``, ``start``, ``end``)."""
+    stretches (``kind`` 0 edge / 1 corner, ``index``, ``start``, ``end``).
+
+    With ``obstacles`` (:func:`occluders`) a landmark counts only where no
+    obstacle hides it (the ends of its pieces are checked too); its pieces
+    are shrunk by ~1e-9 m next to each shadow, so the check never counts a
+    hidden landmark."""
     cam = camera_params(camera)
     lm = as_array("landmarks", landmarks, (None, 2))
-    return _core.check_coverage(check_route(route), lm, cam.to_core(), _k(k), bool(corners))
+    r, k = check_route(route), _k(k)
+    return _core.check_coverage(r, lm, cam.to_core(), k, bool(corners), **_occ_kw(obstacles))
 
 
 # ---------------------------------------------------------------------------
@@ -296,7 +357,7 @@ def _bearing_groups(bearings: np.ndarray) -> list[np.ndarray]:
 
 def place_optimal(route, candidates, camera: CameraParams | dict | None = None, *, k: int = 2,
                   corners: bool = False, distinct_bearings: bool = True, time_limit: float = 120.0,
-                  allow_uncovered: bool = False) -> PlacementResult:
+                  allow_uncovered: bool = False, obstacles=None) -> PlacementResult:
     """The fewest landmarks for the whole route at once: an integer program
     solved with ``scipy.optimize.milp`` (HiGHS).
 
@@ -313,6 +374,11 @@ def place_optimal(route, candidates, camera: CameraParams | dict | None = None, 
     ``distinct_bearings=False`` drops the groups; the certificate
     (:attr:`PlacementResult.uncovered`) is the exact check of the chosen
     landmarks either way, as for the greedy.
+
+    With ``obstacles`` (:func:`occluders`) the tables have one row per
+    piece of a candidate's interval left by the shadows; a probe counts a
+    candidate at most once, and piece ends are rows too, so the program
+    stays exact (up to the pieces' ~1e-9 m shrink next to a shadow).
     """
     from scipy.optimize import Bounds, LinearConstraint, milp
     from scipy.sparse import coo_matrix
@@ -323,8 +389,9 @@ def place_optimal(route, candidates, camera: CameraParams | dict | None = None, 
             or not (math.isfinite(time_limit) and time_limit > 0):
         raise ValueError(f"time_limit = {time_limit!r} must be a finite number of seconds > 0")
     core_cam = cam.to_core()
+    occ = _occ_kw(obstacles)
     t0 = time.perf_counter()
-    vis = _core.edge_visibility(r, c, core_cam)
+    vis = _core.edge_visibility(r, c, core_cam, **occ)
     too_close = np.flatnonzero(_core.distance_to_route(r, c) <= cam.clearance)
     col_of: dict[int, int] = {}
     z_groups: dict[tuple, int] = {}
@@ -355,7 +422,7 @@ def place_optimal(route, candidates, camera: CameraParams | dict | None = None, 
             seen_rows.add(key)
             rows.append((cols, need))
 
-    al = _core.alignments(r, c, core_cam) if distinct_bearings else None
+    al = _core.alignments(r, c, core_cam, **occ) if distinct_bearings else None
     for e in range(len(r) - 1):
         d = float(np.hypot(*(r[e + 1] - r[e])))
         m = vis.edge == e
@@ -366,6 +433,8 @@ def place_optimal(route, candidates, camera: CameraParams | dict | None = None, 
         inview = (a[None, :] - _EPS <= probe[:, None]) & (probe[:, None] <= b[None, :] + _EPS)
         for pi, t in enumerate(probe):
             idx = np.flatnonzero(inview[pi])
+            if occ and idx.size > 1:   # pieces of one candidate are disjoint; count it once all the same
+                idx = idx[np.unique(ci[idx], return_index=True)[1]]
             if distinct_bearings and idx.size > 1:
                 brg = np.arctan2(y[idx], x[idx] - t)
                 groups = [ci[idx[g]] for g in _bearing_groups(brg)]
@@ -375,7 +444,7 @@ def place_optimal(route, candidates, camera: CameraParams | dict | None = None, 
             hi = t if pi < len(pts) else pts[pi - len(pts) + 1]
             add_row(groups, "edge", e, lo, hi)
     if corners:
-        cv = _core.corner_visibility(r, c, core_cam)
+        cv = _core.corner_visibility(r, c, core_cam, **occ)
         turns = _core.turn_angles(r)
         for v in range(1, len(r) - 1):
             L = abs(float(turns[v - 1]))
@@ -402,8 +471,9 @@ def place_optimal(route, candidates, camera: CameraParams | dict | None = None, 
     method = "optimal" + ("+corners" if corners else "")
     if nx == 0:
         return PlacementResult(route=r, candidates=c, indices=np.zeros(0, int), camera=cam, k=k, method=method,
-                               corners=bool(corners), uncovered=_exact_uncovered(r, c[:0], cam, k, corners),
-                               too_close=too_close, seconds=time.perf_counter() - t0, optimal=True)
+                               corners=bool(corners), uncovered=_exact_uncovered(r, c[:0], cam, k, corners, occ),
+                               too_close=too_close, seconds=time.perf_counter() - t0, optimal=True,
+                               obstacles=occ.get("occluders"))
     ri, cj, vals, lb = [], [], [], []
     for row, (cols, need) in enumerate(rows):
         for kind, j in cols:
@@ -432,14 +502,15 @@ def place_optimal(route, candidates, camera: CameraParams | dict | None = None, 
         raise ValueError(f"the placement integer program found no solution ({res.message})")
     chosen = np.sort(cand_of_col[res.x[:nx] > 0.5])
     return PlacementResult(route=r, candidates=c, indices=chosen, camera=cam, k=k, method=method,
-                           corners=bool(corners), uncovered=_exact_uncovered(r, c[chosen], cam, k, corners),
-                           too_close=too_close, seconds=time.perf_counter() - t0, optimal=bool(res.status == 0))
+                           corners=bool(corners), uncovered=_exact_uncovered(r, c[chosen], cam, k, corners, occ),
+                           too_close=too_close, seconds=time.perf_counter() - t0, optimal=bool(res.status == 0),
+                           obstacles=occ.get("occluders"))
 
 
-def _exact_uncovered(route, landmarks, cam: CameraParams, k: int, corners: bool) -> list:
+def _exact_uncovered(route, landmarks, cam: CameraParams, k: int, corners: bool, occ: dict | None = None) -> list:
     """The certificate: the stretches the exact check finds with fewer than k
     distinct bearings, as ``[(where, index, start, end)]``."""
-    rep = _core.check_coverage(route, landmarks, cam.to_core(), k, corners)
+    rep = _core.check_coverage(route, landmarks, cam.to_core(), k, corners, **(occ or {}))
     return [("edge" if kind == 0 else "corner", int(i), float(a), float(b))
             for kind, i, a, b in zip(rep.kind, rep.index, rep.start, rep.end)]
 
@@ -479,7 +550,7 @@ def place_through_targets(targets, candidates, camera: CameraParams | dict | Non
 
 def place_along_path(path, camera: CameraParams | dict | None = None, *, candidates=None, spacing: float = 0.5,
                      world=None, k: int = 2, corners: bool = True, method: str = "reuse",
-                     allow_uncovered: bool = False) -> PlacementResult:
+                     allow_uncovered: bool = False, occlusion: bool = False) -> PlacementResult:
     """Landmarks along a SafeNav safe path (a polyline, e.g. from
     :meth:`safenav.World.path_polyline`, or a :func:`safenav.planning.plan`
     result) so
@@ -487,7 +558,11 @@ def place_along_path(path, camera: CameraParams | dict | None = None, *, candida
 
     Without ``candidates`` a grid of ``spacing`` within R of the path is used;
     with a ``world`` candidates inside obstacles or outside the field are
-    dropped.  Consecutive repeated path points are merged.
+    dropped.  Consecutive repeated path points are merged.  ``occlusion``
+    (needs ``world``): the world's obstacles hide landmarks (see
+    :func:`place_along_route`).  Off by default here, so that results stay
+    those of the paper's model; :func:`safenav.experiments.placed_scenario`
+    and ``safenav place`` turn it on.
     """
     cam = camera_params(camera)
     if hasattr(path, "path") and not isinstance(path, np.ndarray):  # a planner's PlanResult
@@ -508,7 +583,10 @@ def place_along_path(path, camera: CameraParams | dict | None = None, *, candida
         c = c[~world.obstacle_mask(c) & world.field.contains(c)]
     if len(c) == 0:
         raise ValueError("no candidate locations left around the path (all inside obstacles or outside the field)")
+    if occlusion and world is None:
+        raise ValueError("occlusion = True needs a world (its obstacles hide landmarks)")
+    obstacles = world if occlusion else None
     return place_through_targets(None, c, cam, k=k, corners=corners, method=method, route=p,
-                                 allow_uncovered=allow_uncovered)
+                                 allow_uncovered=allow_uncovered, obstacles=obstacles)
 
 

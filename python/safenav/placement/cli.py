@@ -1,6 +1,8 @@
 """``safenav place FILE``: landmark placement from the command line.
 
-Reads targets (or a route), the camera parameters and the candidate set from
+Reads targets (or a route), the camera parameters, the candidate set and
+optional obstacles that hide landmarks (``[obstacles]``: ``circles = [[x, y,
+radius], ...]``, ``polygons = [[[x, y], ...], ...]``) from
 a TOML or JSON file (see ``python/safenav/data/placement_example.toml``),
 places landmarks (:mod:`safenav.placement`) and writes ``placement.json`` and
 ``placement.png`` (plus ``placement_errors.png`` with ``--simulate``) through
@@ -15,11 +17,12 @@ import json
 import math
 from pathlib import Path
 
-_TOP = {"targets", "route", "camera", "placement", "candidates"}
+_TOP = {"targets", "route", "camera", "placement", "candidates", "obstacles"}
 _SECTIONS = {
     "camera": {"range", "angle_deg", "clearance", "fov"},
-    "placement": {"k", "method", "corners"},
+    "placement": {"k", "method", "corners", "occlusion"},
     "candidates": {"spacing", "margin", "points"},
+    "obstacles": {"circles", "polygons"},
 }
 
 
@@ -36,6 +39,9 @@ def register(sub, *, parents=(), positive=int, run_folder, wrote) -> None:
     s.add_argument("--method", choices=["greedy", "reuse", "optimal"], help="override [placement].method")
     s.add_argument("--k", type=positive, help="override [placement].k")
     s.add_argument("--corners", action=argparse.BooleanOptionalAction, help="override [placement].corners (--corners / --no-corners)")
+    s.add_argument("--occlusion", action=argparse.BooleanOptionalAction,
+                   help="obstacles ([obstacles] circles and polygons) hide landmarks (default: on when the input "
+                        "has obstacles; override [placement].occlusion)")
     s.add_argument("--allow-uncovered", action="store_true",
                    help="write the best-effort placement instead of failing when a stretch cannot be covered")
     s.add_argument("--simulate", action="store_true",
@@ -91,6 +97,13 @@ def _place(args, *, run_folder, wrote) -> int:
     corners = args.corners if args.corners is not None else opts.get("corners", False)
     if not isinstance(corners, bool):
         raise ValueError(f"{path}: placement.corners = {corners!r} must be true or false")
+    obstacles = data.get("obstacles") or None
+    occlusion = args.occlusion if args.occlusion is not None else opts.get("occlusion", obstacles is not None)
+    if not isinstance(occlusion, bool):
+        raise ValueError(f"{path}: placement.occlusion = {occlusion!r} must be true or false")
+    if occlusion and obstacles is None:
+        raise ValueError(f"{path}: occlusion is on but the input has no [obstacles]")
+    occ = P.occluders(obstacles) if occlusion else None
     key = "route" if "route" in data else "targets"
     pts = as_array(key, data[key], (None, 2))
     cs = data.get("candidates", {})
@@ -105,10 +118,12 @@ def _place(args, *, run_folder, wrote) -> int:
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0:
                 raise ValueError(f"{path}: {name} = {v!r} must be a finite number >= 0")
         cand = P.candidate_grid(pts.min(axis=0), pts.max(axis=0), spacing, margin=margin)
-    kw = dict(k=k, corners=corners, method=method, seed=args.seed, allow_uncovered=args.allow_uncovered)
+    kw = dict(k=k, corners=corners, method=method, seed=args.seed, allow_uncovered=args.allow_uncovered,
+              obstacles=occ)
     out = Path(args.out)
     with run_folder(args, out, seed=args.seed) as run:
-        with console.task(f"placing landmarks ({method}, k = {k}, {len(cand)} candidates)"):
+        with console.task(f"placing landmarks ({method}, k = {k}, {len(cand)} candidates"
+                          f"{', occlusion' if occ is not None else ''})"):
             if key == "route":
                 res = P.place_through_targets(None, cand, cam, route=pts, **kw)
             else:
@@ -126,7 +141,7 @@ def _place(args, *, run_folder, wrote) -> int:
             P.plot_simulation(sim, out / "placement_errors.png")
         write_json(out / "placement.json", summary)
         P.plot_placement(res, out / "placement.png", simulation=sim)
-        print(f"{res.method}: {res.count} landmarks for {len(res.route) - 1} edges "
+        print(f"{res.method}{' (occlusion)' if occ is not None else ''}: {res.count} landmarks for {len(res.route) - 1} edges "
               f"(route {P.tour_length(res.route):.2f} m, {len(cand)} candidates, {len(res.too_close)} within p), "
               f"{'covered' if res.covered else f'{len(res.uncovered)} stretches uncovered'}; min in view "
               f"{rep.min_count}")
