@@ -95,8 +95,8 @@ FAULT_STREAM = 1
 NOISE_STREAM = 2
 
 #: Default SGBM settings for the pipeline: 3-way SGBM, uniqueness 10.  The disparity search is not
-#: fixed: it follows from the camera and the depth range of interest, [``min_range_m`` at the image's
-#: edge, ``max_range_m``] (:func:`safenav.vision.stereo.disparity_range`).
+#: fixed: it follows from the camera and the depths of interest, from ``min_range_m`` at the image's
+#: edge to infinity (:func:`safenav.vision.stereo.disparity_range`).
 PIPELINE_SGBM = dict(block_size=5, mode="sgbm_3way", uniqueness_ratio=10, speckle_window_size=100, speckle_range=2)
 
 
@@ -283,9 +283,9 @@ class LanBLoc:
     sgbm:
         SGBM parameters (:data:`safenav.vision.stereo.SGBM_DEFAULTS` names), over
         :data:`PIPELINE_SGBM`; the disparity search (``min_disparity``,
-        ``num_disparities``) defaults to the depth range [``min_range_m``,
-        ``max_range_m``] (:meth:`~safenav.vision.stereo.StereoMatcher.for_depth_range`;
-        with ``max_range_m`` infinite, down to disparity 0).
+        ``num_disparities``) defaults to the depths from ``min_range_m`` to
+        infinity (:meth:`~safenav.vision.stereo.StereoMatcher.for_depth_range`);
+        ranges beyond ``max_range_m`` are then rejected.
     min_range_m:
         The nearest landmark of interest [m] (at the image's edge, for a
         rectified camera): the top of the disparity search.
@@ -315,7 +315,7 @@ class LanBLoc:
                  unknown_landmark: str = "error", resolve_ambiguity: bool = True, sgbm: Mapping | None = None,
                  trilateration: Mapping | None = None, ranging: str = "sgbm", corner_sigma_d: float = 0.035,
                  max_row_error_px: float = 1.0, detect_side_px: float = 48.0, region_margin_px: int = 8,
-                 min_range_m: float = 1.5, min_correlation: float = 0.8):
+                 min_range_m: float = 2.5, min_correlation: float = 0.8):
         self.landmarks = _landmark_table(landmarks)
         rig = camera if isinstance(camera, StereoRig) else None
         if rig is not None:
@@ -338,7 +338,10 @@ class LanBLoc:
             near = self.min_range_m
             if isinstance(camera, RectifiedCamera):   # the depth of a landmark at min_range_m on the image's edge
                 near *= math.cos(math.atan2(max(camera.cx, camera.width - 1 - camera.cx), camera.f))
-            self.matcher = StereoMatcher.for_depth_range(camera, near, float(max_range_m),
+            # The search reaches disparity 0 (depth ∞), not f·B/max_range: a landmark beyond the range
+            # keeps its true, small disparity and is rejected as too far, instead of being matched at
+            # the search's floor to a false depth inside the range.
+            self.matcher = StereoMatcher.for_depth_range(camera, near, math.inf,
                                                          **{**PIPELINE_SGBM, **dict(sgbm or {})})
         else:
             raise ValueError(f"camera = {camera!r}: must be a StereoRig, RectifiedCamera, StereoCalibration "
@@ -441,7 +444,8 @@ class LanBLoc:
         return self._observation(det, det.center, br.ok, br.range, br.sigma, br.point, float(br.disparity),
                                  int(br.n_valid), br.reason)
 
-    def observe_corners(self, det: Detection, right: Detection | None, refine_level: int = 0) -> LandmarkObservation:
+    def observe_corners(self, det: Detection, right: Detection | None, refine_level: int = 0,
+                        reason: str = "") -> LandmarkObservation:
         """Range and bearing of a fiducial from its corners in both images (ours; issue 16).
 
         The four refined corners ``(u_i, v_i)`` of the left image and ``u'_i``
@@ -455,7 +459,8 @@ class LanBLoc:
         bench/bench_vision.py; corners refined at pyramid level L are 2^L
         times coarser, :meth:`localize_frame`); the centre's
         slant distance and horizontal range follow as for SGBM.  No range when
-        the marker is not found in the right image, when its corners are more
+        the marker is not found in the right image (``right`` is None; ``reason`` says why), when its
+        corners are more
         than ``max_row_error_px`` off their epipolar lines (rows), or when
         ``d_c + doffs`` is below 1 px or the depth beyond ``max_range_m``.
         """
@@ -469,7 +474,7 @@ class LanBLoc:
         nan3 = np.full(3, np.nan)
         if right is None or right.corners is None:
             return self._observation(det, centre, False, math.nan, math.nan, nan3, math.nan, 0,
-                                     "not found in the right image")
+                                     reason or "not found in the right image")
         cr = np.asarray(right.corners, dtype=float).reshape(4, 2)
         dv = float(np.abs(cl[:, 1] - cr[:, 1]).max())
         if dv > self.max_row_error_px:
@@ -662,8 +667,8 @@ class LanBLoc:
             obs = []
             for d in dets:
                 lv, lr, patch = level[id(d)]
-                r, rr = self._find_in_right(frame, d, lv, patch)
-                obs.append(self.observe_corners(d, r, refine_level=max(lr, rr)))
+                r, rr, why = self._find_in_right(frame, d, lv, patch)
+                obs.append(self.observe_corners(d, r, refine_level=max(lr, rr), reason=why))
             obs = tuple(obs)
             t3 = time.perf_counter()
             t["disparity"] = t3 - t2
@@ -696,7 +701,8 @@ class LanBLoc:
                                .ravel())
                     out.append((dataclasses.replace(d, box=bb), level, level, None))
                     continue
-                corners, lr = self._refine_corners(frame, camera, (np.asarray(d.corners, float) + off + 0.5) * k - 0.5)
+                corners, lr, _ = self._refine_corners(frame, camera,
+                                                      (np.asarray(d.corners, float) + off + 0.5) * k - 0.5)
                 (x0, y0), (x1, y1) = corners.min(axis=0), corners.max(axis=0)
                 out.append((dataclasses.replace(d, box=(float(x0), float(y0), float(x1), float(y1)),
                                                 corners=corners), level, lr, (img, box[0] // k, box[1] // k)))
@@ -706,11 +712,12 @@ class LanBLoc:
     #: where they are about this size.
     REFINE_SIDE_PX = 128
 
-    def _refine_corners(self, frame: StereoFrame, camera: str, corners: np.ndarray) -> tuple[np.ndarray, int]:
+    def _refine_corners(self, frame: StereoFrame, camera: str, corners: np.ndarray
+                        ) -> tuple[np.ndarray, int, bool]:
         """``cv2.cornerSubPix`` of the four corners (level-0 pixels) in one patch around the marker, at
         the finest pyramid level where the marker is at most :attr:`REFINE_SIDE_PX` wide, in a window of
-        about 0.7 marker cell; returns the corners (level 0) and that level.  Corners whose window leaves
-        the image keep their position."""
+        about 0.7 marker cell; returns the corners (level 0), that level, and whether every corner was
+        refined (a corner whose window leaves the image keeps its position)."""
         side = float(np.min(np.linalg.norm(corners - np.roll(corners, 1, axis=0), axis=1)))
         level = 0
         while side / (1 << level) > self.REFINE_SIDE_PX and level < 6:
@@ -725,7 +732,7 @@ class LanBLoc:
         inside = (lo >= 0).all(axis=1) & (hi[:, 0] <= W) & (hi[:, 1] <= H)
         out = corners.copy()
         if not inside.any():
-            return out, level
+            return out, level, False
         x0, y0 = lo[inside].min(axis=0)
         x1, y1 = hi[inside].max(axis=0)
         img = frame.patch(camera, (x0 * k, y0 * k, min(x1 * k, frame.rig.width), min(y1 * k, frame.rig.height)),
@@ -733,14 +740,15 @@ class LanBLoc:
         p = (c[inside] - [x0, y0]).astype(np.float32).reshape(-1, 1, 2)
         cv2.cornerSubPix(img, p, (w, w), (-1, -1), (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 30, 0.001))
         out[inside] = (p.reshape(-1, 2) + [x0, y0] + 0.5) * k - 0.5
-        return out, level
+        return out, level, bool(inside.all())
 
     def _find_in_right(self, frame: StereoFrame, det: Detection, level: int, patch=None
-                       ) -> tuple[Detection | None, int]:
+                       ) -> tuple[Detection | None, int, str]:
         """The marker of the left detection ``det`` in the right image: its patch (pyramid level
         ``level``; cut from ``patch``, the detection's, when it holds it) matched along its rows over the disparity search (normalised cross-correlation,
         parabolic sub-pixel peak), then the corners refined (:meth:`_refine_corners`; returned with
-        its level).  ``None`` when the best correlation is below ``min_correlation``."""
+        its level).  ``None``, with the reason, when the best correlation is below
+        ``min_correlation`` or a corner's window leaves the right image."""
         k = 1 << level
         W, H = frame.rig.width, frame.rig.height
         cl = np.asarray(det.corners, float)
@@ -752,7 +760,7 @@ class LanBLoc:
         sx0, sx1 = max(tx0 - d_hi - g, 0), min(tx1 - d_lo + g, W)
         sy0, sy1 = max(ty0 - g, 0), min(ty1 + g, H)
         if sx1 - sx0 < tx1 - tx0 or sy1 - sy0 < ty1 - ty0:
-            return None, 0
+            return None, 0, "not found in the right image"
         a0, b0, a1, b1 = tx0 // k, ty0 // k, -(-tx1 // k), -(-ty1 // k)
         if patch is not None and a0 >= patch[1] and b0 >= patch[2] and a1 - patch[1] <= patch[0].shape[1] \
                 and b1 - patch[2] <= patch[0].shape[0]:   # the template from the patch it was found in
@@ -761,11 +769,12 @@ class LanBLoc:
             tmpl = frame.patch("left", (tx0, ty0, tx1, ty1), level)
         search = frame.patch("right", (sx0, sy0, sx1, sy1), level)
         if search.shape[0] < tmpl.shape[0] or search.shape[1] < tmpl.shape[1]:
-            return None, 0
+            return None, 0, "not found in the right image"
         res = cv2.matchTemplate(search, tmpl, cv2.TM_CCOEFF_NORMED)
         _, score, _, (mx, my) = cv2.minMaxLoc(res)
         if not score >= self.min_correlation:
-            return None, 0
+            return None, 0, (f"not found in the right image (best correlation {score:.2f} < "
+                             f"min_correlation = {self.min_correlation:g})")
         sub = 0.0
         if 0 < mx < res.shape[1] - 1:
             l_, c_, r_ = res[my, mx - 1], res[my, mx], res[my, mx + 1]
@@ -773,10 +782,12 @@ class LanBLoc:
             sub = 0.5 * (l_ - r_) / den if den < 0 else 0.0
         d = (tx0 // k - (sx0 // k + mx + sub)) * k
         dy = (ty0 // k - (sy0 // k + my)) * k
-        cr, lr = self._refine_corners(frame, "right", cl - [d, dy])
+        cr, lr, whole = self._refine_corners(frame, "right", cl - [d, dy])
+        if not whole:
+            return None, lr, "the marker leaves the right image"
         (x0, y0), (x1, y1) = cr.min(axis=0), cr.max(axis=0)
         return dataclasses.replace(det, box=(float(x0), float(y0), float(x1), float(y1)), corners=cr,
-                                   score=float(score)), lr
+                                   score=float(score)), lr, ""
 
     def _observe_strip(self, frame: StereoFrame, det: Detection) -> LandmarkObservation:
         """SGBM on the strip around ``det``'s box only (rows ± margin, columns from the box's left edge
