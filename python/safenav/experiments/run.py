@@ -499,6 +499,7 @@ def _run_all(keys, opts: ExperimentOptions, cache: dict, show) -> list[Experimen
         res.wall_s = time.perf_counter() - t0
         for title, df in res.tables.items():
             show(f"\n{title}\n{df.to_string(index=False, float_format=lambda v: f'{v:.4g}')}")
-        console.info(f"[experiment] {k}: {res.wall_s:.1f} s")
+        console.info(f"[experiment] {k}: {res.wall_s:.1f} s"
+                     + (f", of which the camera loop {res.camera_s:.1f} s" if res.camera_s else ""))
         done.append(res)
     return done

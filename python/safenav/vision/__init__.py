@@ -17,7 +17,7 @@ from .detect import (Detection, Detector, FiducialDetector, YoloOnnxDetector, ar
                      check_image, decode_yolo, letterbox, marker_image)
 from .lanbloc import STATUSES, CameraLoopSource, LanBLoc, LanBLocResult, LandmarkObservation
 from .localization import LocalizationResult, LocalizationStatus, horizontal_range, triangulate_bearings, trilaterate
-from .render import StereoRenderer, StereoRig, camera_rotation, periodic_noise
+from .render import StereoFrame, StereoRenderer, StereoRig, camera_rotation, periodic_noise
 from .stereo import (SGBM_DEFAULTS, BoxRange, DisparityScores, RectifiedCamera, SgbmMode, StereoCalibration,
                      StereoMatcher, disparity_range, disparity_scores)
 
@@ -27,6 +27,6 @@ __all__ = [
     "Detection", "Detector", "FiducialDetector", "YoloOnnxDetector", "aruco_dictionary", "marker_image",
     "letterbox", "decode_yolo", "as_gray", "check_image",
     "LocalizationResult", "LocalizationStatus", "trilaterate", "triangulate_bearings", "horizontal_range",
-    "StereoRig", "StereoRenderer", "camera_rotation", "periodic_noise",
+    "StereoRig", "StereoRenderer", "StereoFrame", "camera_rotation", "periodic_noise",
     "LandmarkObservation", "LanBLocResult", "LanBLoc", "CameraLoopSource", "STATUSES",
 ]
