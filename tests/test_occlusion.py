@@ -150,6 +150,16 @@ def test_line_of_sight_equals_the_exact_reference(obs, a, b):
     assert chk.line_of_sight(b, a) == chk.line_of_sight(a, b)        # symmetric
 
 
+@settings(max_examples=300, deadline=None)
+@given(obstacles, point, point)
+def test_placement_sight_test_is_the_same_rule(obs, a, b):
+    """Landmark placement's sight test (placement.hpp's sight_blocked, which its exact shadows
+    follow) and the world's line-of-sight query are one rule: they agree on every segment."""
+    circles, polygons = obs
+    occ = _core.Occluders(np.array(circles, dtype=float).reshape(-1, 3), [np.asarray(p, float) for p in polygons])
+    assert _core.sight_blocked(occ, a, b) == (not _checker(circles, polygons).line_of_sight(a, b))
+
+
 @settings(max_examples=150, deadline=None)
 @given(obstacles, point, st.lists(point, max_size=12))
 def test_visible_from_is_line_of_sight_row_by_row(obs, p, targets):
