@@ -194,3 +194,20 @@ def test_occlusion_hides_a_landmark_behind_a_wall():
     assert dets == {1}
     with pytest.raises(ValueError, match="World"):
         StereoRenderer(lms, rig, occlusion=True)
+
+
+def test_sgbm_on_region_strips_ranges_like_the_corners():
+    """Natural landmarks (boxes, no corners) keep SGBM, on a strip around each box only: on the
+    same frames its box-median ranges agree with the corner triangulation within 3 combined σ."""
+    r = StereoRenderer(SC.world, RIG, noise_std=1.0, occlusion=False, seed=2)
+    strips = LanBLoc(SC.world, RIG, ranging="sgbm", sigma_d=0.2)
+    corners = LanBLoc(SC.world, RIG, ranging="corners")
+    z = []
+    for pose in _poses(5.0, every=2)[:30]:
+        fr = r.frame(pose, noise_seed=1)
+        a = {o.landmark_id: o for o in strips.localize_frame(fr).observations if o.ok}
+        b = {o.landmark_id: o for o in corners.localize_frame(fr).observations if o.ok}
+        z += [(a[i].range - b[i].range) / math.hypot(a[i].sigma, b[i].sigma) for i in a.keys() & b.keys()]
+    z = np.abs(np.array(z))
+    assert len(z) >= 10
+    assert np.mean(z <= 3.0) >= 0.9, np.sort(z)[-5:]

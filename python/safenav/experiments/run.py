@@ -391,9 +391,10 @@ def _camera_variant(opts, safe, folder, res, cache, *, methods, filters, key, la
         row["camera ms/trial"] = c["time_ms"]
         rows.append(row)
     table = pd.DataFrame(rows)
-    title = (f"{label}, camera in the loop: LanBLoc rendered, detected, ranged by SGBM and trilaterated, against "
-             f"LanBLoc at the measurement level with the same fix rate (every {opts.camera_position_every} steps), "
-             f"same {n} trials per cell")
+    title = (f"{label}, camera in the loop: LanBLoc rendered and detected by region at the scenario camera's "
+             f"resolution, ranged by triangulating the markers' corners, trilaterated, against LanBLoc at the "
+             f"measurement level asked as often (every {opts.camera_position_every} steps), same {n} trials per "
+             f"cell")
     _write_summary(res, folder, "camera_loop", title, table)
     res.notes.append(f"Camera loop ({label}): {len(cam)} trials, {cam['time_ms'].median() / 1e3:.1f} s median per "
                      "trial. 'path ADE' is the estimate's mean distance to the safe path, 'goal FDE' its final "
