@@ -279,7 +279,10 @@ def map_ordered(fn, items, *, workers: int | None = None, scheduler=None, progre
     dataclasses).  ``workers``: local threads (default: all cores); useful when
     ``fn`` spends its time in C++ calls that release the GIL.  ``processes``:
     local processes instead (``spawn``), for work that holds the GIL (the
-    camera loop's Python per frame); with one worker it runs in this process.
+    camera loop's Python per frame; :func:`run_sweep` uses them for camera
+    sources, so a script that runs such a sweep needs Python's
+    ``if __name__ == "__main__":`` guard); with one worker it runs in this
+    process.
     ``scheduler``: a Dask scheduler address or a ``distributed.Client``."""
     items = list(items)
     if scheduler is None:
