@@ -15,7 +15,7 @@ from fractions import Fraction as Q
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import assume, given, settings, strategies as st
 
 import safenav
 from safenav import _core
@@ -156,7 +156,11 @@ def test_placement_sight_test_is_the_same_rule(obs, a, b):
     """Landmark placement's sight test (placement.hpp's sight_blocked, which its exact shadows
     follow) and the world's line-of-sight query are one rule: they agree on every segment."""
     circles, polygons = obs
-    occ = _core.Occluders(np.array(circles, dtype=float).reshape(-1, 3), [np.asarray(p, float) for p in polygons])
+    try:
+        occ = _core.Occluders(np.array(circles, dtype=float).reshape(-1, 3), [np.asarray(p, float) for p in polygons])
+    except ValueError as e:   # placement rejects what is not a simple polygon (a few star draws)
+        assert "not a simple polygon" in str(e)
+        assume(False)
     assert _core.sight_blocked(occ, a, b) == (not _checker(circles, polygons).line_of_sight(a, b))
 
 
