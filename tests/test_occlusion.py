@@ -25,74 +25,28 @@ from safenav.motion import BmmParams
 from safenav.scenario import DetectionParams, ScenarioError
 from safenav.world import Circle, Field, Hazard, Landmark, Polygon, World
 
+from exact_geometry import disc_meets_segment, in_disc, in_polygon, q, segments_meet
+
 # --------------------------------------------------------------------------- the exact reference
-
-
-def _q(p):
-    return (Q(float(p[0])), Q(float(p[1])))
-
-
-def _orient(p, q, r):
-    return (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0])
-
-
-def _on_segment(p, q, r):
-    """r, collinear with p–q, lies on the closed segment p–q."""
-    return min(p[0], q[0]) <= r[0] <= max(p[0], q[0]) and min(p[1], q[1]) <= r[1] <= max(p[1], q[1])
-
-
-def _segments_meet(p1, p2, q1, q2):
-    """The closed segments p1–p2 and q1–q2 share a point (touching and collinear overlaps included)."""
-    d1, d2 = _orient(q1, q2, p1), _orient(q1, q2, p2)
-    d3, d4 = _orient(p1, p2, q1), _orient(p1, p2, q2)
-    if ((d1 > 0 and d2 < 0) or (d1 < 0 and d2 > 0)) and ((d3 > 0 and d4 < 0) or (d3 < 0 and d4 > 0)):
-        return True
-    return ((d1 == 0 and _on_segment(q1, q2, p1)) or (d2 == 0 and _on_segment(q1, q2, p2))
-            or (d3 == 0 and _on_segment(p1, p2, q1)) or (d4 == 0 and _on_segment(p1, p2, q2)))
-
-
-def _in_polygon(pt, poly):
-    """pt inside the simple polygon or on its boundary (crossing number, exact)."""
-    n = len(poly)
-    for i in range(n):
-        a, b = poly[i], poly[(i + 1) % n]
-        if _orient(a, b, pt) == 0 and _on_segment(a, b, pt):
-            return True
-    inside = False
-    for i in range(n):
-        a, b = poly[i], poly[(i + 1) % n]
-        if (a[1] > pt[1]) != (b[1] > pt[1]):
-            x = a[0] + (pt[1] - a[1]) * (b[0] - a[0]) / (b[1] - a[1])
-            if pt[0] < x:
-                inside = not inside
-    return inside
-
-
-def _dist2_to_segment(c, a, b):
-    d = (b[0] - a[0], b[1] - a[1])
-    dd = d[0] * d[0] + d[1] * d[1]
-    t = Q(0) if dd == 0 else min(Q(1), max(Q(0), ((c[0] - a[0]) * d[0] + (c[1] - a[1]) * d[1]) / dd))
-    px, py = a[0] + t * d[0] - c[0], a[1] + t * d[1] - c[1]
-    return px * px + py * py
 
 
 def los_reference(a, b, circles, polygons):
     """Brute force: b is seen from a unless an obstacle that contains neither
     end (boundary included) touches the closed segment a–b."""
-    a, b = _q(a), _q(b)
+    a, b = q(a), q(b)
     if a == b:
         return True
     for cx, cy, r in circles:
-        c, r2 = _q((cx, cy)), Q(float(r)) ** 2
-        if _dist2_to_segment(c, a, a) <= r2 or _dist2_to_segment(c, b, b) <= r2:
+        c, r = q((cx, cy)), Q(float(r))
+        if in_disc(c, r, a) or in_disc(c, r, b):
             continue
-        if _dist2_to_segment(c, a, b) <= r2:
+        if disc_meets_segment(c, r, a, b):
             return False
     for poly in polygons:
-        pq = [_q(v) for v in poly]
-        if _in_polygon(a, pq) or _in_polygon(b, pq):
+        pq = [q(v) for v in poly]
+        if in_polygon(pq, a) or in_polygon(pq, b):
             continue
-        if any(_segments_meet(a, b, pq[i], pq[(i + 1) % len(pq)]) for i in range(len(pq))):
+        if any(segments_meet(a, b, pq[i], pq[(i + 1) % len(pq)]) for i in range(len(pq))):
             return False
     return True
 

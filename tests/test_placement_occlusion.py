@@ -42,6 +42,13 @@ from hypothesis import strategies as st
 from safenav import _core
 from safenav import placement as P
 
+from exact_geometry import disc_meets_segment as _disc_meets_segment
+from exact_geometry import in_disc as _in_disc
+from exact_geometry import in_polygon as _in_polygon
+from exact_geometry import orient as _orient
+from exact_geometry import q as _q
+from exact_geometry import segments_meet as _segments_meet
+
 TOL = 1e-9      # the core's slack at interval ends [m]
 NEAR = 1e-6     # tightness is not asked this close to a shadow's end [m]
 
@@ -53,61 +60,6 @@ FAST = settings(max_examples=60, deadline=None, derandomize=True,
 # ---------------------------------------------------------------------------
 # The exact reference
 # ---------------------------------------------------------------------------
-
-def _q(p):
-    return (F(float(p[0])), F(float(p[1])))
-
-
-def _orient(a, b, c):
-    return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
-
-
-def _on_segment(a, b, p):
-    """p on the closed segment a–b (exact)."""
-    return (_orient(a, b, p) == 0 and min(a[0], b[0]) <= p[0] <= max(a[0], b[0])
-            and min(a[1], b[1]) <= p[1] <= max(a[1], b[1]))
-
-
-def _segments_meet(p1, p2, q1, q2):
-    d1, d2 = _orient(q1, q2, p1), _orient(q1, q2, p2)
-    d3, d4 = _orient(p1, p2, q1), _orient(p1, p2, q2)
-    if ((d1 > 0 and d2 < 0) or (d1 < 0 and d2 > 0)) and ((d3 > 0 and d4 < 0) or (d3 < 0 and d4 > 0)):
-        return True
-    return (_on_segment(q1, q2, p1) or _on_segment(q1, q2, p2) or _on_segment(p1, p2, q1)
-            or _on_segment(p1, p2, q2))
-
-
-def _in_polygon(poly, p):
-    """p inside or on the boundary of a simple polygon (exact)."""
-    n = len(poly)
-    for i in range(n):
-        if _on_segment(poly[i], poly[(i + 1) % n], p):
-            return True
-    inside = False
-    for i in range(n):
-        a, b = poly[i], poly[(i + 1) % n]
-        if (a[1] > p[1]) != (b[1] > p[1]):
-            x = a[0] + (p[1] - a[1]) * (b[0] - a[0]) / (b[1] - a[1])
-            if x > p[0]:
-                inside = not inside
-    return inside
-
-
-def _in_disc(o, r, p):
-    return (p[0] - o[0]) ** 2 + (p[1] - o[1]) ** 2 <= r * r
-
-
-def _disc_meets_segment(o, r, a, b):
-    ab = (b[0] - a[0], b[1] - a[1])
-    ao = (o[0] - a[0], o[1] - a[1])
-    dot, l2 = ao[0] * ab[0] + ao[1] * ab[1], ab[0] ** 2 + ab[1] ** 2
-    if l2 == 0 or dot <= 0:
-        return _in_disc(o, r, a)
-    if dot >= l2:
-        return _in_disc(o, r, b)
-    cr = ao[0] * ab[1] - ao[1] * ab[0]
-    return cr * cr <= r * r * l2
-
 
 class Obstacles:
     """Circles ``[(x, y, r)]`` and polygons ``[[(x, y), ...]]`` with the exact line-of-sight test."""
