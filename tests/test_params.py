@@ -65,6 +65,10 @@ def test_set_param_checks_the_declared_range_at_its_ends(core_type):
         if s.kind == _core.ParamKind.INTEGER:
             with pytest.raises(ValueError, match=rf"{s.name} = .*: must be an integer"):
                 obj.set_param(s.name, ok_lo + 0.5)
+        what = "a list of numbers" if s.kind == _core.ParamKind.REAL_LIST else "a number"
+        for wrong_type in (None, "1.0" if s.kind != _core.ParamKind.REAL_LIST else ["a"], object()):
+            with pytest.raises(TypeError, match=rf"^{s.name}: .* is not {what}$"):
+                obj.set_param(s.name, wrong_type)
 
 
 def test_names_kinds_and_errors():

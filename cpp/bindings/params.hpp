@@ -43,9 +43,18 @@ Class def_params(Class cls) {
               set.set(t, name, {value.cast<bool>() ? 1.0 : 0.0});
               return;
             }
+            const auto not_a = [&](const char* what) {
+              return py::type_error(name + ": " + std::string(py::repr(value)) + " is not " + what);
+            };
             if (py::isinstance<py::bool_>(value) || (list ? py::isinstance<py::str>(value) : false))
-              throw py::type_error(name + ": " + std::string(py::repr(value)) + " is not a number");
-            set.set(t, name, list ? value.cast<std::vector<double>>() : std::vector<double>{value.cast<double>()});
+              throw not_a(list ? "a list of numbers" : "a number");
+            std::vector<double> v;
+            try {
+              v = list ? value.cast<std::vector<double>>() : std::vector<double>{value.cast<double>()};
+            } catch (const py::cast_error&) {
+              throw not_a(list ? "a list of numbers" : "a number");
+            }
+            set.set(t, name, v);
           },
           py::arg("name"), py::arg("value"), "Set parameter `name`; ValueError names it when out of range.")
       .def(

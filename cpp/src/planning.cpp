@@ -359,21 +359,14 @@ PathCost path_cost(const Eigen::Ref<const Points2>& path, const PlanningProblem&
 }
 
 // ---------------------------------------------------------------- planning
-PlanResult plan(const PlanningProblem& problem, const PlannerSettings& settings) {
-  problem.validate();
-  settings.validate();
-  const bool has_risk = problem.central_path.rows() > 0;
-  if (settings.stay_in_corridor && !has_risk) bad("stay_in_corridor needs a central_path");
-  if (settings.alpha == 0.0 && !has_risk) bad("alpha = 0 needs a central_path for the risk term");
+namespace {
+
+/// The state space (the map's box, the seeded corridor-biased sampler) and
+/// the space information with the validity and motion checkers.
+ob::SpaceInformationPtr make_space_information(const PlanningProblem& problem, const PlannerSettings& settings,
+                                               const ObstacleChecker& obstacles, const CentralPath& risk,
+                                               const CentralPath* corridor) {
   const PlanningMap& map = problem.map;
-  const ObstacleChecker obstacles(map);
-  const CentralPath risk(problem.central_path, problem.zones);
-  const CentralPath* corridor = settings.stay_in_corridor ? &risk : nullptr;
-  check_point(problem, settings, obstacles, risk, problem.start, "start");
-  check_point(problem, settings, obstacles, risk, problem.goal, "goal");
-
-  ompl::msg::setLogLevel(ompl::msg::LOG_ERROR);
-
   auto space = std::make_shared<ob::RealVectorStateSpace>(2);
   ob::RealVectorBounds bounds(2);
   bounds.setLow(0, map.lower.x());
@@ -394,8 +387,14 @@ PlanResult plan(const PlanningProblem& problem, const PlannerSettings& settings)
   si->setMotionValidator(
       std::make_shared<MotionChecker>(si, obstacles, corridor, problem.zones.half_width, settings.resolution));
   si->setup();
+  return si;
+}
 
-  // α·length + β·∫WRS (eqs. 16, 19) as a sum of OMPL objectives.
+/// α·length + β·∫WRS (eqs. 16, 19) as a sum of OMPL objectives, plus
+/// β_h·∫ risk ds (ours; with β_h = 0 the objective is the paper's, unchanged).
+ob::OptimizationObjectivePtr make_objective(const ob::SpaceInformationPtr& si, const PlanningProblem& problem,
+                                            const PlannerSettings& settings, const ObstacleChecker& obstacles,
+                                            const CentralPath& risk, bool has_risk) {
   ob::OptimizationObjectivePtr length = std::make_shared<ob::PathLengthOptimizationObjective>(si);
   ob::OptimizationObjectivePtr objective;
   if (settings.beta == 0.0 || !has_risk) {
@@ -404,24 +403,19 @@ PlanResult plan(const PlanningProblem& problem, const PlannerSettings& settings)
     ob::OptimizationObjectivePtr wrs_term = std::make_shared<WrsObjective>(si, risk);
     objective = settings.alpha == 0.0 ? settings.beta * wrs_term : settings.alpha * length + settings.beta * wrs_term;
   }
-  // β_h·∫ risk ds (ours); with β_h = 0 the objective above is the paper's, unchanged.
-  if (settings.hazard_weight > 0.0 && !map.hazards.empty())
-  {
+  if (settings.hazard_weight > 0.0 && !problem.map.hazards.empty()) {
     ob::OptimizationObjectivePtr hazard_term = std::make_shared<HazardObjective>(si, obstacles);
     objective = objective + settings.hazard_weight * hazard_term;
   }
   // Never "good enough": optimise until the budget is spent.
   objective->setCostThreshold(ob::Cost(-std::numeric_limits<double>::infinity()));
+  return objective;
+}
 
-  auto pdef = std::make_shared<ob::ProblemDefinition>(si);
-  ob::ScopedState<ob::RealVectorStateSpace> start(space), goal(space);
-  start[0] = problem.start.x();
-  start[1] = problem.start.y();
-  goal[0] = problem.goal.x();
-  goal[1] = problem.goal.y();
-  pdef->setStartAndGoalStates(start, goal, settings.goal_tolerance);
-  pdef->setOptimizationObjective(objective);
-
+/// Runs the seeded RRT* on `pdef` until the iteration or time budget is
+/// spent; fills the result's timing, iteration count and cost history.
+ob::PlannerStatus solve(const ob::SpaceInformationPtr& si, const ob::ProblemDefinitionPtr& pdef,
+                        const PlannerSettings& settings, PlanResult& result) {
   auto planner = std::make_shared<SeededRRTstar>(si, derive_seed32(settings.seed, 1));
   if (settings.range > 0.0) planner->setRange(settings.range);
   planner->setGoalBias(settings.goal_bias);
@@ -431,7 +425,6 @@ PlanResult plan(const PlanningProblem& problem, const PlannerSettings& settings)
   planner->setProblemDefinition(pdef);
   planner->setup();
 
-  PlanResult result;
   std::vector<std::array<double, 3>> history;
   const auto t0 = std::chrono::steady_clock::now();
   auto elapsed = [&t0] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
@@ -456,7 +449,66 @@ PlanResult plan(const PlanningProblem& problem, const PlannerSettings& settings)
     result.first_solution_iteration = static_cast<std::int64_t>(history.front()[0]);
     result.first_solution_time = history.front()[1];
   }
+  return status;
+}
 
+/// Cost-aware shortcuts (the objective judges every shortcut), then a dense
+/// re-check: the smoothed path replaces `points` only if it is free, inside
+/// the corridor when there is one, and no dearer.
+void smooth(const ob::SpaceInformationPtr& si, const ob::OptimizationObjectivePtr& objective,
+            const og::PathGeometric& solution, const PlanningProblem& problem, const PlannerSettings& settings,
+            const ObstacleChecker& obstacles, const CentralPath& risk, const CentralPath* corridor, bool has_risk,
+            Points2& points) {
+  SeededSimplifier simplifier(si, objective, derive_seed32(settings.seed, 2));
+  og::PathGeometric smoothed(solution);
+  simplifier.shortcutPath(smoothed);
+  if (settings.beta == 0.0 || !has_risk) simplifier.reduceVertices(smoothed);
+  const Points2 candidate = to_points(smoothed);
+  bool ok = path_is_free(problem.map, candidate);
+  if (ok && corridor) {
+    for (Eigen::Index i = 0; ok && i + 1 < candidate.rows(); ++i) {
+      const Vec2 a(candidate(i, 0), candidate(i, 1)), b(candidate(i + 1, 0), candidate(i + 1, 1));
+      const unsigned int n = std::max(1u, segment_count((b - a).norm(), settings.resolution));
+      for (unsigned int j = 0; ok && j <= n; ++j) {
+        const Vec2 q = a + (static_cast<double>(j) / n) * (b - a);
+        ok = risk.deviation(q) <= problem.zones.half_width;
+      }
+    }
+  }
+  if (ok && cost_of(candidate, risk, obstacles, problem, settings).total <=
+                cost_of(points, risk, obstacles, problem, settings).total)
+    points = candidate;
+}
+
+}  // namespace
+
+PlanResult plan(const PlanningProblem& problem, const PlannerSettings& settings) {
+  problem.validate();
+  settings.validate();
+  const bool has_risk = problem.central_path.rows() > 0;
+  if (settings.stay_in_corridor && !has_risk) bad("stay_in_corridor needs a central_path");
+  if (settings.alpha == 0.0 && !has_risk) bad("alpha = 0 needs a central_path for the risk term");
+  const ObstacleChecker obstacles(problem.map);
+  const CentralPath risk(problem.central_path, problem.zones);
+  const CentralPath* corridor = settings.stay_in_corridor ? &risk : nullptr;
+  check_point(problem, settings, obstacles, risk, problem.start, "start");
+  check_point(problem, settings, obstacles, risk, problem.goal, "goal");
+
+  ompl::msg::setLogLevel(ompl::msg::LOG_ERROR);
+  const ob::SpaceInformationPtr si = make_space_information(problem, settings, obstacles, risk, corridor);
+  const ob::OptimizationObjectivePtr objective = make_objective(si, problem, settings, obstacles, risk, has_risk);
+
+  auto pdef = std::make_shared<ob::ProblemDefinition>(si);
+  ob::ScopedState<ob::RealVectorStateSpace> start(si->getStateSpace()), goal(si->getStateSpace());
+  start[0] = problem.start.x();
+  start[1] = problem.start.y();
+  goal[0] = problem.goal.x();
+  goal[1] = problem.goal.y();
+  pdef->setStartAndGoalStates(start, goal, settings.goal_tolerance);
+  pdef->setOptimizationObjective(objective);
+
+  PlanResult result;
+  const ob::PlannerStatus status = solve(si, pdef, settings, result);
   const bool exact = status == ob::PlannerStatus::EXACT_SOLUTION && pdef->hasExactSolution();
   const bool approximate = !exact && pdef->hasSolution() && settings.allow_approximate;
   if (!exact && !approximate) {
@@ -466,36 +518,15 @@ PlanResult plan(const PlanningProblem& problem, const PlannerSettings& settings)
     return result;
   }
   auto path = std::static_pointer_cast<og::PathGeometric>(pdef->getSolutionPath());
-  og::PathGeometric solution(*path);
+  const og::PathGeometric solution(*path);
   Points2 points = to_points(solution);
-  if (settings.smooth && solution.getStateCount() > 2) {
-    SeededSimplifier simplifier(si, objective, derive_seed32(settings.seed, 2));
-    og::PathGeometric smoothed(solution);
-    // Cost-aware shortcuts (the objective judges every shortcut), then a
-    // dense re-check: the smoothed path is kept only if it is free and cheaper.
-    simplifier.shortcutPath(smoothed);
-    if (settings.beta == 0.0 || !has_risk) simplifier.reduceVertices(smoothed);
-    const Points2 candidate = to_points(smoothed);
-    bool ok = path_is_free(map, candidate);
-    if (ok && corridor) {
-      for (Eigen::Index i = 0; ok && i + 1 < candidate.rows(); ++i) {
-        const Vec2 a(candidate(i, 0), candidate(i, 1)), b(candidate(i + 1, 0), candidate(i + 1, 1));
-        const unsigned int n = std::max(1u, segment_count((b - a).norm(), settings.resolution));
-        for (unsigned int j = 0; ok && j <= n; ++j) {
-          const Vec2 q = a + (static_cast<double>(j) / n) * (b - a);
-          ok = risk.deviation(q) <= problem.zones.half_width;
-        }
-      }
-    }
-    if (ok && cost_of(candidate, risk, obstacles, problem, settings).total <=
-                  cost_of(points, risk, obstacles, problem, settings).total)
-      points = candidate;
-  }
+  if (settings.smooth && solution.getStateCount() > 2)
+    smooth(si, objective, solution, problem, settings, obstacles, risk, corridor, has_risk, points);
   result.status = exact ? PlanStatus::Exact : PlanStatus::Approximate;
   result.success = exact;
   result.path = points;
   result.cost = cost_of(points, risk, obstacles, problem, settings);
-  result.safety = path_safety(points, map);
+  result.safety = path_safety(points, problem.map);
   return result;
 }
 

@@ -376,10 +376,10 @@ BoxRange StereoMatcher::box_range(const Eigen::Ref<const DisparityMap>& disparit
     fail(os.str());
   }
   BoxRange out;
-  const int x0 = std::max(0, static_cast<int>(std::ceil(box.x_min)));
-  const int y0 = std::max(0, static_cast<int>(std::ceil(box.y_min)));
-  const int x1 = std::min(c.width, static_cast<int>(std::ceil(box.x_max)));
-  const int y1 = std::min(c.height, static_cast<int>(std::ceil(box.y_max)));
+  // Clamped in doubles first: a coordinate beyond int's range must not wrap.
+  const auto pixel = [](double v, int size) { return static_cast<int>(std::clamp(std::ceil(v), 0.0, double(size))); };
+  const int x0 = pixel(box.x_min, c.width), y0 = pixel(box.y_min, c.height);
+  const int x1 = pixel(box.x_max, c.width), y1 = pixel(box.y_max, c.height);
   if (x1 <= x0 || y1 <= y0) {
     out.reason = "box lies outside the image";
     return out;
@@ -417,7 +417,10 @@ BoxRange StereoMatcher::box_range(const Eigen::Ref<const DisparityMap>& disparit
   out.range = median(z);
   out.disparity = median(d);
   out.sigma = out.range * out.range * options.sigma_d / fb;
-  const double u = 0.5 * (box.x_min + box.x_max), v = 0.5 * (box.y_min + box.y_max);
+  // The centre of the part of the box inside the image, whose pixels gave
+  // the range (the same as the box's centre for a box inside the image).
+  const double u = 0.5 * (std::max(box.x_min, 0.0) + std::min(box.x_max, static_cast<double>(c.width)));
+  const double v = 0.5 * (std::max(box.y_min, 0.0) + std::min(box.y_max, static_cast<double>(c.height)));
   out.point = Eigen::Vector3d((u - c.cx) * out.range / c.f, (v - c.cy) * out.range / c.f, out.range);
   const double d_eff = fb / out.range;  // d + doffs at the median depth
   if (d_eff < options.min_disparity) {

@@ -119,8 +119,9 @@ struct BoxRange {
   double disparity = std::numeric_limits<double>::quiet_NaN();  ///< median disparity d (px)
   int n_valid = 0;
   int n_pixels = 0;
-  /// Box centre back-projected at depth `range`, in the rectified left
-  /// camera frame (x right, y down, z forward).
+  /// Centre of the box's part inside the image (whose pixels gave the
+  /// range) back-projected at depth `range`, in the rectified left camera
+  /// frame (x right, y down, z forward).
   Eigen::Vector3d point = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
   std::string reason;  ///< why there is no range (empty when ok)
 };

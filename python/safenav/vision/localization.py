@@ -153,7 +153,12 @@ def horizontal_range(slant_range, landmark_height, camera_height=0.0, sigma=None
             raise ValueError(f"{name} has non-finite values: {v!r}")
     if np.any(s < 0):
         raise ValueError(f"slant_range must be >= 0, got {s!r}")
-    h = np.sqrt(np.maximum(s * s - dh * dh, 0.0))
+    with np.errstate(over="ignore", invalid="ignore"):
+        h = np.sqrt(np.maximum(s * s - dh * dh, 0.0))
+    if not np.all(np.isfinite(h)):  # s² or Δh² overflowed: the same in units of s (no overflow)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            q = np.where(s > 0, dh / np.where(s > 0, s, 1.0), np.inf)
+            h = np.where(np.isfinite(h), h, s * np.sqrt(np.maximum(1.0 - np.minimum(q * q, 1.0), 0.0)))
     out = h if h.ndim else float(h)
     if sigma is None:
         return out
