@@ -118,7 +118,7 @@ void bind_navigation_settings(py::module_& m) {
       .def("validate", &NavigationSettings::validate);
 }
 
-/// The methods' controls: SafeNav-Centroid and SafeNav-CHull [SafeNav Algs. 1-2].
+/// The methods' controls: SafeNav-CHull [SafeNav Alg. 1] and SafeNav-Centroid [SafeNav Alg. 2].
 void bind_method_controls(py::module_& m) {
   m.def("centroid_control", &centroid_control, py::arg("segments"), py::arg("estimate"), py::arg("cruise_speed"));
   py::enum_<ChullAction>(m, "ChullAction", "What SafeNav Algorithm 1 (SafeNav-CHull) did with the default command.")
