@@ -343,3 +343,20 @@ def test_guidance_can_plan_its_safe_path_first():
                                 zones=problem.zones)
     with pytest.raises(ValueError):
         gd.Guidance.planned(blocked, P.PlannerSettings(max_iterations=100, seed=1), problem, s)
+
+
+def test_the_guard_looks_with_the_camera_in_one_place():
+    """look_with_camera maps a camera onto the guard's look (FOV at most 2π, at
+    least one landmark); guidance and the simulator's Navigator agree."""
+    g = _core.GuardSettings()
+    g.look_with_camera(7.0, 12.5, 0, False)
+    assert (g.field_of_view, g.look_range, g.look_min_landmarks, g.occlusion) == (2 * math.pi, 12.5, 1, False)
+    sc = __import__("safenav").default_scenario()
+    safe = np.array([(5.0, 20.0), (55.0, 20.0)])
+    a = gd.make_guidance(sc, safe).settings.guard
+    b = nv.make_navigator(sc, safe).settings.guard
+    for name in ("field_of_view", "look_range", "look_min_landmarks", "occlusion"):
+        assert getattr(a, name) == getattr(b, name), name
+    assert a.field_of_view == pytest.approx(math.radians(sc.camera.field_of_view_deg))
+    assert a.look_range == sc.detection.max_range_m
+

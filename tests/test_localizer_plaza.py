@@ -38,7 +38,7 @@ def run(name):
     log = rp.load(path, range_std=rp.PLAZA_RANGE_STD)
     r = rp.replay(log, rp.preset_settings("plaza"))
     m = r.metrics
-    return dict(rmse=m["rmse"], t_start=r.t_start - log.truth["t"].iloc[0], before=m["n_before_start"],
+    return dict(rmse=m["truth_rmse"], t_start=r.t_start - log.truth["t"].iloc[0], before=m["n_before_start"],
                 rejected=r.counts["rejected"], nees=m["nees"], label=m["label"])
 
 

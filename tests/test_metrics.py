@@ -596,3 +596,77 @@ def test_chi2_interval_covers_simulated_average_nees():
     lo, hi = metrics.chi2_interval(dim, M, 0.95)
     inside = np.mean((avg >= lo) & (avg <= hi))
     assert inside == pytest.approx(0.95, abs=0.015)  # binomial sd ≈ 0.0034
+
+
+# ---------------------------------------------------------------------------
+# TrajectoryScore: the one accumulator of the simulator's trials and the replay
+
+
+def _poses(n, dim, seed=3):
+    rng = np.random.default_rng(seed)
+    est = rng.normal(size=(n, dim))
+    tru = est + 0.5 * rng.normal(size=(n, dim))
+    A = rng.normal(size=(n, dim, dim))
+    P = A @ A.transpose(0, 2, 1) + 0.1 * np.eye(dim)
+    if dim == 4:
+        est[:, 3] = rng.uniform(-np.pi, np.pi, n)
+        tru[:, 3] = rng.uniform(-np.pi, np.pi, n)
+    return est, P, tru
+
+
+def test_trajectory_score_equals_the_textbook_formulas():
+    """ADE, FDE, RMSE against the truth, the state NEES (θ wrapped, ext eq. 21–22
+    and Bar-Shalom §5.4), the position NEES and the share outside 3σ."""
+    n = 150
+    est, P, tru = _poses(n, 4)
+    acc = metrics.TrajectoryScore(10)               # grows past its capacity
+    for i in range(n):
+        acc.add(est[i], P[i], tru[i])
+    e = tru - est
+    e[:, 3] = (e[:, 3] + np.pi) % (2 * np.pi) - np.pi
+    nees4 = np.einsum("ni,ni->n", e, np.linalg.solve(P, e[:, :, None])[:, :, 0])
+    ep = e[:, :2]
+    nees2 = np.einsum("ni,ni->n", ep, np.linalg.solve(P[:, :2, :2], ep[:, :, None])[:, :, 0])
+    d = np.linalg.norm(est[:, :2] - tru[:, :2], axis=1)
+    assert acc.size == n
+    np.testing.assert_array_equal(acc.estimates, est[:, :2])
+    assert acc.length == pytest.approx(np.linalg.norm(np.diff(est[:, :2], axis=0), axis=1).sum(), rel=1e-13)
+    assert acc.truth_ade == pytest.approx(d.mean(), rel=1e-13)
+    assert acc.truth_fde == pytest.approx(d[-1], rel=1e-14)
+    assert acc.truth_rmse == pytest.approx(np.sqrt(np.mean(d ** 2)), rel=1e-13)
+    assert acc.nees == pytest.approx(nees4.mean(), rel=1e-9) and acc.nees_poses == n
+    assert acc.position_nees == pytest.approx(nees2.mean(), rel=1e-9) and acc.position_nees_poses == n
+    assert acc.outside_3sigma == np.mean(nees2 > 9.0)
+
+
+def test_trajectory_score_rows_equal_pose_by_pose():
+    est, P, tru = _poses(40, 2)
+    one, rows = metrics.TrajectoryScore(), metrics.TrajectoryScore(40)
+    for i in range(40):
+        one.add(est[i], P[i], tru[i])
+    rows.add_rows(est, P.reshape(40, 4), tru)
+    for name in ("truth_ade", "truth_fde", "truth_rmse", "position_nees", "outside_3sigma", "length"):
+        assert getattr(one, name) == getattr(rows, name)
+    assert math.isnan(one.nees) and one.nees_poses == 0   # positions only: no state NEES
+
+
+def test_trajectory_score_without_a_positive_definite_covariance():
+    """A singular P has no NEES and counts outside 3σ; an empty score is NaN."""
+    acc = metrics.TrajectoryScore()
+    assert acc.size == 0 and math.isnan(acc.truth_ade) and math.isnan(acc.outside_3sigma)
+    acc.add(np.zeros(4), np.zeros((4, 4)), np.array([3.0, 4.0, 0.0, 0.0]))
+    assert acc.truth_ade == 5.0 and acc.outside_3sigma == 1.0
+    assert acc.nees_poses == 0 and acc.position_nees_poses == 0 and math.isnan(acc.nees)
+
+
+def test_trajectory_score_bad_input_names_it():
+    acc = metrics.TrajectoryScore()
+    with pytest.raises(ValueError, match="not finite"):
+        acc.add(np.array([np.nan, 0.0]), np.eye(2), np.zeros(2))
+    with pytest.raises(ValueError, match="position"):
+        acc.add(np.zeros(3), np.eye(3), np.zeros(3))
+    with pytest.raises(ValueError, match="covariance is 2x2"):
+        acc.add(np.zeros(4), np.eye(2), np.zeros(4))
+    with pytest.raises(ValueError, match="add_rows"):
+        acc.add_rows(np.zeros((3, 2)), np.zeros((2, 4)), np.zeros((3, 2)))
+    assert acc.size == 0

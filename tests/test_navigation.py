@@ -184,6 +184,24 @@ def test_trial_metrics_match_the_metric_functions(method):
     assert trial.position_fixes + trial.dropouts == trial.steps
 
 
+def test_trial_truth_metrics_are_the_trajectory_score_of_its_recorded_poses():
+    """The loop feeds the one accumulator (metrics.TrajectoryScore) pose by pose:
+    fed the recorded trajectories, it gives the trial's numbers bit for bit."""
+    trial = build(BEND, method="centroid").run(seed=7)
+    est, truth = trial.estimate[:, :2], trial.truth[:, :2]
+    acc = metrics.TrajectoryScore(len(est))
+    acc.add_rows(np.ascontiguousarray(est), np.tile([1.0, 0.0, 0.0, 1.0], (len(est), 1)), np.ascontiguousarray(truth))
+    assert acc.truth_ade == trial.metrics["truth_ade"] and acc.truth_fde == trial.metrics["truth_fde"]
+    L = metrics.path_length(BEND)
+    assert trial.metrics["path_error_percent"] == pytest.approx(abs(acc.length - L) / L * 100.0, rel=1e-12)
+
+
+def test_outcome_names_are_the_cores():
+    assert nv.OUTCOMES == ("arrived", "collision", "left_corridor", "step_limit", "lost_localization", "no_path")
+    for code, name in enumerate(nv.OUTCOMES):
+        assert _core.outcome_name(nv.TrialOutcome(code)) == name
+
+
 def test_same_seed_same_trial_and_run_many_equals_run():
     nav = build(BEND, method="centroid")
     a, b = nav.run(seed=11), nav.run(seed=11)

@@ -65,7 +65,7 @@ def test_replay_from_the_data_is_accurate_and_consistent(log_file):
     m = r.metrics
     assert r.started_from == "data" and m["label"] == "causal"
     assert m["n_before_start"] > 0 and m["n_scored"] + m["n_before_start"] == len(log.truth)
-    assert m["rmse"] < 0.1 and m["ade"] <= m["rmse"]
+    assert m["truth_rmse"] < 0.1 and m["truth_ade"] <= m["truth_rmse"]
     assert 0.2 < m["nees"] < 6.0
     assert r.counts["late"] == 0 and r.counts["applied"] > 1000
     assert list(r.trajectory.columns) == list(rp.TRAJECTORY_COLUMNS)
@@ -76,7 +76,7 @@ def test_replay_from_a_prior_scores_every_pose(log_file):
     log = read_log(log_file)
     t0, x, y, h = log.truth.iloc[0]
     r = rp.replay(log, localizer_settings(), prior=(t0, [x, y, 1.2, h], np.diag([0.1, 0.1, 0.5, 0.05]) ** 2))
-    assert r.started_from == "prior" and r.metrics["n_before_start"] == 0 and r.metrics["rmse"] < 0.1
+    assert r.started_from == "prior" and r.metrics["n_before_start"] == 0 and r.metrics["truth_rmse"] < 0.1
 
 
 def test_score_is_causal():
@@ -86,7 +86,38 @@ def test_score_is_causal():
     truth = pd.DataFrame({"t": [0.5, 1.0, 1.9, 2.0], "x": [0.0, 1.0, 1.0, 10.0], "y": [0.0] * 4})
     m = rp.score(traj, truth)
     assert m["n_before_start"] == 1 and m["n_scored"] == 3
-    assert m["ade"] == pytest.approx((1.0 + 1.0 + 0.0) / 3)
+    assert m["truth_ade"] == pytest.approx((1.0 + 1.0 + 0.0) / 3)
+    assert m["truth_fde"] == 0.0 and m["truth_rmse"] == pytest.approx(math.sqrt(2.0 / 3.0))
+
+
+def test_score_equals_the_textbook_formulas():
+    """RMSE, ADE, FDE, the 2-dof NEES eᵀP⁻¹e and the share outside 3σ of
+    ``score`` against numpy's direct evaluation (np.linalg.solve per pose)."""
+    rng = np.random.default_rng(5)
+    n = 200
+    t = np.arange(n) * 0.1
+    A = rng.normal(size=(n, 2, 2))
+    P = A @ A.transpose(0, 2, 1) + 0.05 * np.eye(2)
+    traj = pd.DataFrame({"t": t, "x": rng.normal(size=n), "y": rng.normal(size=n), "var_x": P[:, 0, 0],
+                         "var_y": P[:, 1, 1], "cov_xy": P[:, 0, 1]})
+    truth = pd.DataFrame({"t": t, "x": rng.normal(size=n), "y": rng.normal(size=n)})
+    m = rp.score(traj, truth)
+    e = traj[["x", "y"]].to_numpy() - truth[["x", "y"]].to_numpy()
+    d = np.linalg.norm(e, axis=1)
+    nees = np.einsum("ni,ni->n", e, np.linalg.solve(P, e[:, :, None])[:, :, 0])
+    assert m["n_scored"] == n and m["n_before_start"] == 0 and m["nees_dof"] == 2
+    assert m["truth_ade"] == pytest.approx(d.mean(), rel=1e-13)
+    assert m["truth_fde"] == pytest.approx(d[-1], rel=1e-14)
+    assert m["truth_rmse"] == pytest.approx(np.sqrt(np.mean(d ** 2)), rel=1e-13)
+    assert m["nees"] == pytest.approx(nees.mean(), rel=1e-10)
+    assert m["outside_3sigma"] == np.mean(nees > 9.0)
+
+
+def test_score_with_no_pose_after_the_start_is_nan():
+    traj = pd.DataFrame({"t": [5.0], "x": [0.0], "y": [0.0], "var_x": [1.0], "var_y": [1.0], "cov_xy": [0.0]})
+    truth = pd.DataFrame({"t": [1.0, 2.0], "x": [0.0, 1.0], "y": [0.0, 0.0]})
+    m = rp.score(traj, truth)
+    assert m["n_scored"] == 0 and m["n_before_start"] == 2 and math.isnan(m["truth_ade"]) and math.isnan(m["nees"])
 
 
 def test_replay_command_writes_the_trajectory_and_prints_the_scores(log_file, tmp_path, capsys):
@@ -95,7 +126,7 @@ def test_replay_command_writes_the_trajectory_and_prints_the_scores(log_file, tm
     text = capsys.readouterr().out
     assert "RMSE" in text and "causal" in text
     summary = json.loads((out / "replay.json").read_text())
-    assert summary["metrics"]["rmse"] < 0.1 and summary["started_from"] == "data"
+    assert summary["metrics"]["truth_rmse"] < 0.1 and summary["started_from"] == "data"
     traj = pd.read_csv(out / "trajectory.csv")
     assert len(traj) > 100 and (out / "manifest.json").is_file()
     assert main(["verify", str(out), "--quiet"]) == 0

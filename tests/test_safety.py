@@ -148,7 +148,7 @@ def test_the_guard_holds_and_looks_at_landmarks_when_no_way_is_clear():
 def test_bad_guard_settings_name_the_value():
     s = _core.NavigationSettings()
     s.guard.k_sigma = -1.0
-    with pytest.raises(ValueError, match="guard.k_sigma"):
+    with pytest.raises(ValueError, match=r"guard.k_sigma \(the scenario's navigation.guard_k\)"):
         s.validate()
     s = _core.NavigationSettings()
     s.guard.min_speed_fraction = 0.0
@@ -203,6 +203,15 @@ def test_a_misassociation_carries_a_nearby_landmarks_id():
         assert rows == [1] and flags == [2] and ranges == [1.0]   # the only other landmark in range
     rows, _, _, _ = f.apply([2], [1.0], marks, np.array([100.0, 99.0]), 30.0, 0)
     assert rows[0] in (0, 1)                                       # none near: any other
+
+
+def test_applying_faults_to_bad_observations_names_them():
+    marks = np.array([(0.0, 0.0), (5.0, 0.0)])
+    f = _core.LandmarkFaults(dropout_probability=0.5)
+    with pytest.raises(ValueError, match="rows and ranges differ in length: 2 and 1"):
+        f.apply([0, 1], [1.0], marks, np.zeros(2), 30.0, 0)
+    with pytest.raises(ValueError, match="row 2 is not a landmark of the map"):
+        f.apply([2], [1.0], marks, np.zeros(2), 30.0, 0)
 
 
 @pytest.mark.parametrize("field", ["dropout_probability", "outlier_probability", "misassociation_probability"])

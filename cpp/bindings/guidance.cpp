@@ -6,6 +6,7 @@
 
 #include "common.hpp"
 #include "params.hpp"
+#include "safenav/guard.hpp"
 #include "safenav/guidance.hpp"
 #include "safenav/localizer.hpp"
 
@@ -64,43 +65,103 @@ void def_inputs(Class& c) {
 
 }  // namespace
 
-void pybind_guidance(py::module_& m) {
-  py::enum_<InputStatus>(m, "InputStatus", "What became of one input to the online localizer.")
-      .value("APPLIED", InputStatus::Applied)
-      .value("REJECTED", InputStatus::Rejected)
-      .value("LATE", InputStatus::Late)
-      .value("BUFFERED", InputStatus::Buffered)
-      .value("IGNORED", InputStatus::Ignored)
-      .value("RESET", InputStatus::Reset);
+namespace {
 
-  py::class_<InputResult>(m, "InputResult")
-      .def_readonly("status", &InputResult::status)
-      .def_readonly("nis", &InputResult::nis)
-      .def_readonly("dim", &InputResult::dim)
-      .def_property_readonly("applied", &InputResult::applied)
-      .def("__repr__", [](const InputResult& r) {
-        return std::string("InputResult(") + to_string(r.status) + ", nis=" + std::to_string(r.nis) +
-               ", dim=" + std::to_string(r.dim) + ")";
-      });
-
-  def_params<LocalizerSettings>(py::class_<LocalizerSettings>(m, "LocalizerSettings"))
+/// GuardSettings (guard.hpp).
+void bind_guard_settings(py::module_& m) {
+  py::class_<GuardSettings>(m, "GuardSettings",
+                            "The uncertainty-aware guard (ours): keeps k sigma of position clear of obstacles and "
+                            "forbidden hazards by slowing, steering or holding for a fix.")
       .def(py::init<>())
-      .def_readwrite("bmm", &LocalizerSettings::bmm)
-      .def_readwrite("filter", &LocalizerSettings::filter)
-      .def_readwrite("init_window", &LocalizerSettings::init_window)
-      .def_readwrite("init_baseline", &LocalizerSettings::init_baseline)
-      .def_readwrite("init_speed_std", &LocalizerSettings::init_speed_std)
-      .def_readwrite("reset_after_rejections", &LocalizerSettings::reset_after_rejections)
-      .def("validate", &LocalizerSettings::validate);
+      .def_readwrite("enabled", &GuardSettings::enabled)
+      .def_readwrite("k_sigma", &GuardSettings::k_sigma)
+      .def_readwrite("buffer", &GuardSettings::buffer)
+      .def_readwrite("look_first", &GuardSettings::look_first)
+      .def_readwrite("look_timeout", &GuardSettings::look_timeout)
+      .def_readwrite("slow_distance", &GuardSettings::slow_distance)
+      .def_readwrite("min_speed_fraction", &GuardSettings::min_speed_fraction)
+      .def_readwrite("horizon", &GuardSettings::horizon)
+      .def_readwrite("look_range", &GuardSettings::look_range)
+      .def_readwrite("look_min_landmarks", &GuardSettings::look_min_landmarks)
+      .def_readwrite("field_of_view", &GuardSettings::field_of_view)
+      .def_readwrite("occlusion", &GuardSettings::occlusion,
+                     "The look ignores landmarks that obstacles hide from the estimate (look_with_camera).")
+      .def("look_with_camera", &GuardSettings::look_with_camera, py::arg("field_of_view"), py::arg("max_range"),
+           py::arg("min_landmarks"), py::arg("occlusion"),
+           "The guard looks with the vehicle's camera: full horizontal field of view [rad] (at most 2 pi), "
+           "detection range [m], landmarks a fix needs (at least 1), whether obstacles hide landmarks.")
+      .def("validate", &GuardSettings::validate);
+}
 
-  py::class_<LocalizerCounts>(m, "LocalizerCounts")
-      .def_readonly("motion", &LocalizerCounts::motion)
-      .def_readonly("applied", &LocalizerCounts::applied)
-      .def_readonly("rejected", &LocalizerCounts::rejected)
-      .def_readonly("resets", &LocalizerCounts::resets)
-      .def_readonly("late", &LocalizerCounts::late)
-      .def_readonly("buffered", &LocalizerCounts::buffered);
+/// NavigationSettings.
+void bind_navigation_settings(py::module_& m) {
+  def_params<NavigationSettings>(py::class_<NavigationSettings>(m, "NavigationSettings"))
+      .def(py::init<>())
+      .def_readwrite("method", &NavigationSettings::method)
+      .def_readwrite("cruise_speed", &NavigationSettings::cruise_speed)
+      .def_readwrite("arrival_radius", &NavigationSettings::arrival_radius)
+      .def_readwrite("max_steps", &NavigationSettings::max_steps)
+      .def_readwrite("segments", &NavigationSettings::segments)
+      .def_readwrite("lookahead", &NavigationSettings::lookahead)
+      .def_readwrite("step_back_speed", &NavigationSettings::step_back_speed)
+      .def_readwrite("replan", &NavigationSettings::replan)
+      .def_readwrite("sensing_range", &NavigationSettings::sensing_range)
+      .def_readwrite("obstacle_check_every", &NavigationSettings::obstacle_check_every)
+      .def_readwrite("replan_lookahead", &NavigationSettings::replan_lookahead)
+      .def_readwrite("max_replans", &NavigationSettings::max_replans)
+      .def_readwrite("planner", &NavigationSettings::planner)
+      .def_readwrite("corridor_margin", &NavigationSettings::corridor_margin)
+      .def_readwrite("lost_position_std", &NavigationSettings::lost_position_std)
+      .def_readwrite("filter", &NavigationSettings::filter)
+      .def_readwrite("guard", &NavigationSettings::guard)
+      .def_readwrite("record", &NavigationSettings::record)
+      .def("validate", &NavigationSettings::validate);
+}
 
+/// The methods' controls: SafeNav-CHull [SafeNav Alg. 1] and SafeNav-Centroid [SafeNav Alg. 2].
+void bind_method_controls(py::module_& m) {
+  m.def("centroid_control", &centroid_control, py::arg("segments"), py::arg("estimate"), py::arg("cruise_speed"));
+  py::enum_<ChullAction>(m, "ChullAction", "What SafeNav Algorithm 1 (SafeNav-CHull) did with the default command.")
+      .value("KEEP", ChullAction::Keep,
+             "the default command's prediction lies in hull k or k+1: kept (extended paper's line 13; conference "
+             "line 10)")
+      .value("CORRECTIVE", ChullAction::Corrective,
+             "a corrective control back to the path (extended paper's line 17; conference line 13)")
+      .value("STEP_BACK", ChullAction::StepBack, "outside hulls k-1, k and k+1: step back toward the path");
+  py::class_<ChullDecision>(m, "ChullDecision")
+      .def_readonly("control", &ChullDecision::control)
+      .def_readonly("segment", &ChullDecision::segment)
+      .def_readonly("action", &ChullDecision::action)
+      .def_readonly("predicted", &ChullDecision::predicted);
+  m.def("chull_control", &chull_control, py::arg("segments"), py::arg("bmm"), py::arg("estimate"),
+        py::arg("cruise_speed"), py::arg("lookahead"), py::arg("step_back_speed"),
+        py::arg("obstacles") = static_cast<const ObstacleChecker*>(nullptr));
+}
+
+}  // namespace
+
+void pybind_guidance_settings(py::module_& m) {
+  m.attr("NAVIGATION_MAX_STEPS") = NavigationSettings::kMaxSteps;
+  py::enum_<NavigationMethod>(m, "NavigationMethod")
+      .value("CHULL", NavigationMethod::CHull)
+      .value("CENTROID", NavigationMethod::Centroid);
+  py::class_<NavigationProblem>(m, "NavigationProblem")
+      .def(py::init<>())
+      .def_readwrite("path", &NavigationProblem::path)
+      .def_readwrite("zones", &NavigationProblem::zones)
+      .def_readwrite("map", &NavigationProblem::map)
+      .def_readwrite("bmm", &NavigationProblem::bmm)
+      .def("validate", &NavigationProblem::validate);
+
+  bind_guard_settings(m);
+  bind_navigation_settings(m);
+  bind_method_controls(m);
+}
+
+namespace {
+
+/// Localizer (localizer.hpp).
+void bind_localizer(py::module_& m) {
   py::class_<Localizer> loc(m, "Localizer",
                             "LanBLoc-BMM online (SafeNav eqs. 10-14 over the BMM of eqs. 3-9), ticked with "
                             "timestamped inputs.");
@@ -117,7 +178,10 @@ void pybind_guidance(py::module_& m) {
       .def_property_readonly("landmarks", &Localizer::landmarks)
       .def("landmark_index", &Localizer::landmark_index, py::arg("id"));
   def_inputs<Localizer>(loc);
+}
 
+/// Guidance, its status, events and commands.
+void bind_guidance(py::module_& m) {
   py::enum_<GuidanceStatus>(m, "GuidanceStatus")
       .value("INITIALIZING", GuidanceStatus::Initializing)
       .value("GUIDING", GuidanceStatus::Guiding)
@@ -175,4 +239,47 @@ void pybind_guidance(py::module_& m) {
       .def_property_readonly("problem", &Guidance::problem)
       .def_property_readonly("settings", &Guidance::settings);
   def_inputs<Guidance>(g);
+}
+
+}  // namespace
+
+void pybind_guidance(py::module_& m) {
+  py::enum_<InputStatus>(m, "InputStatus", "What became of one input to the online localizer.")
+      .value("APPLIED", InputStatus::Applied)
+      .value("REJECTED", InputStatus::Rejected)
+      .value("LATE", InputStatus::Late)
+      .value("BUFFERED", InputStatus::Buffered)
+      .value("IGNORED", InputStatus::Ignored)
+      .value("RESET", InputStatus::Reset);
+
+  py::class_<InputResult>(m, "InputResult")
+      .def_readonly("status", &InputResult::status)
+      .def_readonly("nis", &InputResult::nis)
+      .def_readonly("dim", &InputResult::dim)
+      .def_property_readonly("applied", &InputResult::applied)
+      .def("__repr__", [](const InputResult& r) {
+        return std::string("InputResult(") + to_string(r.status) + ", nis=" + std::to_string(r.nis) +
+               ", dim=" + std::to_string(r.dim) + ")";
+      });
+
+  def_params<LocalizerSettings>(py::class_<LocalizerSettings>(m, "LocalizerSettings"))
+      .def(py::init<>())
+      .def_readwrite("bmm", &LocalizerSettings::bmm)
+      .def_readwrite("filter", &LocalizerSettings::filter)
+      .def_readwrite("init_window", &LocalizerSettings::init_window)
+      .def_readwrite("init_baseline", &LocalizerSettings::init_baseline)
+      .def_readwrite("init_speed_std", &LocalizerSettings::init_speed_std)
+      .def_readwrite("reset_after_rejections", &LocalizerSettings::reset_after_rejections)
+      .def("validate", &LocalizerSettings::validate);
+
+  py::class_<LocalizerCounts>(m, "LocalizerCounts")
+      .def_readonly("motion", &LocalizerCounts::motion)
+      .def_readonly("applied", &LocalizerCounts::applied)
+      .def_readonly("rejected", &LocalizerCounts::rejected)
+      .def_readonly("resets", &LocalizerCounts::resets)
+      .def_readonly("late", &LocalizerCounts::late)
+      .def_readonly("buffered", &LocalizerCounts::buffered);
+
+  bind_localizer(m);
+  bind_guidance(m);
 }

@@ -3,9 +3,11 @@
 #include "common.hpp"
 #include "params.hpp"
 #include "safenav/navigation.hpp"
-#include "../src/rng.hpp"
 
 using namespace safenav;
+
+// bindings/guidance.cpp: guidance.hpp's method, problem and settings.
+void pybind_guidance_settings(py::module_& m);
 
 namespace {
 
@@ -57,24 +59,10 @@ py::dict metrics_dict(const TrialMetrics& m) {
 
 }  // namespace
 
-void pybind_navigation(py::module_& m) {
-  m.attr("NAVIGATION_MAX_STEPS") = NavigationSettings::kMaxSteps;
-  py::enum_<NavigationMethod>(m, "NavigationMethod")
-      .value("CHULL", NavigationMethod::CHull)
-      .value("CENTROID", NavigationMethod::Centroid);
-  py::enum_<TrialOutcome>(m, "TrialOutcome")
-      .value("ARRIVED", TrialOutcome::Arrived)
-      .value("COLLISION", TrialOutcome::Collision)
-      .value("LEFT_CORRIDOR", TrialOutcome::LeftCorridor)
-      .value("STEP_LIMIT", TrialOutcome::StepLimit)
-      .value("LOST_LOCALIZATION", TrialOutcome::LostLocalization)
-      .value("NO_PATH", TrialOutcome::NoPath);
-  m.def("outcome_name", [](TrialOutcome o) { return to_string(o); });
+namespace {
 
-  py::enum_<FixModel>(m, "FixModel", "Where the simulator's position fixes come from.")
-      .value("PROFILE", FixModel::Profile, "the measurement-level error profile (the paper's)")
-      .value("RANGES", FixModel::Ranges, "single landmark ranges, landmark faults, LanBLoc trilateration");
-
+/// LandmarkFaults.
+void bind_faults(py::module_& m) {
   py::class_<LandmarkFaults>(m, "LandmarkFaults",
                              "Landmark-level faults (ours): dropout, misassociation, outliers, in that order.")
       .def(py::init([](double dropout, double outlier, double magnitude, double misassociation) {
@@ -94,31 +82,18 @@ void pybind_navigation(py::module_& m) {
           "apply",
           [](const LandmarkFaults& f, const std::vector<int>& rows, const std::vector<double>& ranges,
              const Landmarks& landmarks, const Eigen::Vector2d& position, double confusion_range, std::uint64_t seed) {
-            if (rows.size() != ranges.size())
-              throw py::value_error("rows and ranges differ in length: " + std::to_string(rows.size()) + " and " +
-                                    std::to_string(ranges.size()));
-            f.validate();
-            std::vector<LandmarkFaults::Observation> obs;
-            for (std::size_t i = 0; i < rows.size(); ++i) obs.push_back({rows[i], ranges[i], 0u});
-            detail::Rng rng(seed);
-            RandomSourceOf<detail::Rng> draws(rng);
-            int dropped = 0;
-            f.apply(obs, landmarks, position, confusion_range, draws, &dropped);
-            std::vector<int> out_rows, out_faults;
-            std::vector<double> out_ranges;
-            for (const auto& o : obs) {
-              out_rows.push_back(o.row);
-              out_ranges.push_back(o.range);
-              out_faults.push_back(static_cast<int>(o.faults));
-            }
-            return py::make_tuple(out_rows, out_ranges, out_faults, dropped);
+            const FaultedObservations o = apply_faults(f, rows, ranges, landmarks, position, confusion_range, seed);
+            return py::make_tuple(o.rows, o.ranges, std::vector<int>(o.faults.begin(), o.faults.end()), o.dropped);
           },
           py::arg("rows"), py::arg("ranges"), py::arg("landmarks"), py::arg("position"), py::arg("confusion_range"),
           py::arg("seed"),
           "Apply the faults to observations (landmark rows, ranges) of a vehicle at `position`, drawing from the "
           "core's generator seeded with `seed`.  Returns (rows, ranges, fault flags, number dropped); flags: "
           "1 dropped (never returned), 2 misassociated, 4 outlier.");
+}
 
+/// SensorSettings.
+void bind_sensors(py::module_& m) {
   def_params<SensorSettings>(py::class_<SensorSettings>(m, "SensorSettings"))
       .def(py::init<>())
       .def_readwrite("position", &SensorSettings::position)
@@ -140,57 +115,10 @@ void pybind_navigation(py::module_& m) {
            "Landmarks within max_range and the field of view of a vehicle at state (x, y, v, theta); with "
            "`occlusion` on and `obstacles` (an ObstacleChecker of the true obstacles, no clearance) given, "
            "less those an obstacle hides.");
+}
 
-  py::class_<NavigationProblem>(m, "NavigationProblem")
-      .def(py::init<>())
-      .def_readwrite("path", &NavigationProblem::path)
-      .def_readwrite("zones", &NavigationProblem::zones)
-      .def_readwrite("map", &NavigationProblem::map)
-      .def_readwrite("bmm", &NavigationProblem::bmm)
-      .def("validate", &NavigationProblem::validate);
-
-  py::class_<GuardSettings>(m, "GuardSettings",
-                            "The uncertainty-aware guard (ours): keeps k sigma of position clear of obstacles and "
-                            "forbidden hazards by slowing, steering or holding for a fix.")
-      .def(py::init<>())
-      .def_readwrite("enabled", &GuardSettings::enabled)
-      .def_readwrite("k_sigma", &GuardSettings::k_sigma)
-      .def_readwrite("buffer", &GuardSettings::buffer)
-      .def_readwrite("look_first", &GuardSettings::look_first)
-      .def_readwrite("look_timeout", &GuardSettings::look_timeout)
-      .def_readwrite("slow_distance", &GuardSettings::slow_distance)
-      .def_readwrite("min_speed_fraction", &GuardSettings::min_speed_fraction)
-      .def_readwrite("horizon", &GuardSettings::horizon)
-      .def_readwrite("look_range", &GuardSettings::look_range)
-      .def_readwrite("look_min_landmarks", &GuardSettings::look_min_landmarks)
-      .def_readwrite("field_of_view", &GuardSettings::field_of_view)
-      .def_readwrite("occlusion", &GuardSettings::occlusion,
-                     "The look ignores landmarks that obstacles hide from the estimate (set from "
-                     "SensorSettings.occlusion by the Navigator).")
-      .def("validate", &GuardSettings::validate);
-
-  def_params<NavigationSettings>(py::class_<NavigationSettings>(m, "NavigationSettings"))
-      .def(py::init<>())
-      .def_readwrite("method", &NavigationSettings::method)
-      .def_readwrite("cruise_speed", &NavigationSettings::cruise_speed)
-      .def_readwrite("arrival_radius", &NavigationSettings::arrival_radius)
-      .def_readwrite("max_steps", &NavigationSettings::max_steps)
-      .def_readwrite("segments", &NavigationSettings::segments)
-      .def_readwrite("lookahead", &NavigationSettings::lookahead)
-      .def_readwrite("step_back_speed", &NavigationSettings::step_back_speed)
-      .def_readwrite("replan", &NavigationSettings::replan)
-      .def_readwrite("sensing_range", &NavigationSettings::sensing_range)
-      .def_readwrite("obstacle_check_every", &NavigationSettings::obstacle_check_every)
-      .def_readwrite("replan_lookahead", &NavigationSettings::replan_lookahead)
-      .def_readwrite("max_replans", &NavigationSettings::max_replans)
-      .def_readwrite("planner", &NavigationSettings::planner)
-      .def_readwrite("corridor_margin", &NavigationSettings::corridor_margin)
-      .def_readwrite("lost_position_std", &NavigationSettings::lost_position_std)
-      .def_readwrite("filter", &NavigationSettings::filter)
-      .def_readwrite("guard", &NavigationSettings::guard)
-      .def_readwrite("record", &NavigationSettings::record)
-      .def("validate", &NavigationSettings::validate);
-
+/// TrialResult.
+void bind_trial_result(py::module_& m) {
   py::class_<TrialResult>(m, "TrialResult")
       .def_property_readonly("outcome", [](const TrialResult& r) { return r.outcome; })
       .def_property_readonly("outcome_name", [](const TrialResult& r) { return to_string(r.outcome); })
@@ -223,7 +151,10 @@ void pybind_navigation(py::module_& m) {
       .def_readonly("controls", &TrialResult::controls)
       .def_readonly("position_std", &TrialResult::position_std)
       .def_readonly("followed_path", &TrialResult::followed_path);
+}
 
+/// Navigator.
+void bind_navigator(py::module_& m) {
   py::class_<Navigator>(m, "Navigator",
                         "Runs SafeNav trials (SafeNav Algorithms 1 and 2; the extended paper's Algorithm 4) on one "
                         "problem.")
@@ -293,21 +224,27 @@ void pybind_navigation(py::module_& m) {
           },
           py::arg("seeds"),
           "Trials for each seed (measurement-level source), metrics only, as a dict of arrays.  Releases the GIL.");
+}
 
-  m.def("centroid_control", &centroid_control, py::arg("segments"), py::arg("estimate"), py::arg("cruise_speed"));
-  py::enum_<ChullAction>(m, "ChullAction", "What SafeNav Algorithm 1 (SafeNav-CHull) did with the default command.")
-      .value("KEEP", ChullAction::Keep,
-             "the default command's prediction lies in hull k or k+1: kept (extended paper's line 13; conference "
-             "line 10)")
-      .value("CORRECTIVE", ChullAction::Corrective,
-             "a corrective control back to the path (extended paper's line 17; conference line 13)")
-      .value("STEP_BACK", ChullAction::StepBack, "outside hulls k-1, k and k+1: step back toward the path");
-  py::class_<ChullDecision>(m, "ChullDecision")
-      .def_readonly("control", &ChullDecision::control)
-      .def_readonly("segment", &ChullDecision::segment)
-      .def_readonly("action", &ChullDecision::action)
-      .def_readonly("predicted", &ChullDecision::predicted);
-  m.def("chull_control", &chull_control, py::arg("segments"), py::arg("bmm"), py::arg("estimate"),
-        py::arg("cruise_speed"), py::arg("lookahead"), py::arg("step_back_speed"),
-        py::arg("obstacles") = static_cast<const ObstacleChecker*>(nullptr));
+}  // namespace
+
+void pybind_navigation(py::module_& m) {
+  pybind_guidance_settings(m);  // first: the Navigator takes them
+  py::enum_<TrialOutcome>(m, "TrialOutcome")
+      .value("ARRIVED", TrialOutcome::Arrived)
+      .value("COLLISION", TrialOutcome::Collision)
+      .value("LEFT_CORRIDOR", TrialOutcome::LeftCorridor)
+      .value("STEP_LIMIT", TrialOutcome::StepLimit)
+      .value("LOST_LOCALIZATION", TrialOutcome::LostLocalization)
+      .value("NO_PATH", TrialOutcome::NoPath);
+  m.def("outcome_name", [](TrialOutcome o) { return to_string(o); });
+
+  py::enum_<FixModel>(m, "FixModel", "Where the simulator's position fixes come from.")
+      .value("PROFILE", FixModel::Profile, "the measurement-level error profile (the paper's)")
+      .value("RANGES", FixModel::Ranges, "single landmark ranges, landmark faults, LanBLoc trilateration");
+
+  bind_faults(m);
+  bind_sensors(m);
+  bind_trial_result(m);
+  bind_navigator(m);
 }

@@ -23,6 +23,9 @@ using detail::num;
 using detail::require_finite_nonneg;
 using detail::require_finite_positive;
 
+/// The event of each GuardAction (Keep has none).
+constexpr unsigned kGuardEvent[] = {0u, kGuardSlow, kGuardSteer, kGuardHold};
+
 double heading_to(const State& x, const Eigen::Vector2d& target) {
   const Eigen::Vector2d d = target - x.head<2>();
   if (d.squaredNorm() < 1e-18) return 0.0;
@@ -83,20 +86,6 @@ void NavigationSettings::validate() const {
     bad("settings.filter.type = InformationFilter: navigation supports the EKF and the particle filter");
   guard.validate();
   param_set<NavigationSettings>().check(*this, "settings.");
-}
-
-void GuardSettings::validate() const {
-  require_finite_positive(k_sigma, "settings.guard.k_sigma");
-  require_finite_nonneg(slow_distance, "settings.guard.slow_distance");
-  require_finite_nonneg(buffer, "settings.guard.buffer");
-  require_finite_nonneg(look_timeout, "settings.guard.look_timeout");
-  if (!(min_speed_fraction > 0.0 && min_speed_fraction <= 1.0))
-    bad("settings.guard.min_speed_fraction = " + num(min_speed_fraction) + ": must be in (0, 1]");
-  require_finite_positive(horizon, "settings.guard.horizon");
-  require_finite_nonneg(look_range, "settings.guard.look_range");
-  if (look_min_landmarks < 1)
-    bad("settings.guard.look_min_landmarks = " + std::to_string(look_min_landmarks) + ": must be >= 1");
-  require_finite_positive(field_of_view, "settings.guard.field_of_view");
 }
 
 // ---------------------------------------------------------------------------
@@ -286,208 +275,7 @@ struct Guidance::Impl {
   int replans = 0;
   int commands = 0;
   std::string detail;
-  // The guard's cached clearance: keep-out distance guard_d from guard_p
-  // (−inf: none yet).  A segment within r of guard_p is at least guard_d − r
-  // away, so the exact query runs only near obstacles.
-  Eigen::Vector2d guard_p = Eigen::Vector2d::Zero();
-  double guard_d = -std::numeric_limits<double>::infinity();
-  // Look first: 0 idle, > 0 the steps spent looking, −1 looked (until the margin is met).
-  int looking = 0;
-  double look_sigma = 0.0;  // σ when the look began
-  double look_start = 0.0;  // and its time [s]
-
-  /// Clearance of the segment a–b (a = the estimate) to obstacles and
-  /// forbidden hazards: exact when it could matter (bound − keep < slow_distance,
-  /// keep = k·σ + buffer), else the lower bound.
-  double clearance(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double keep) {
-    // The bound suffices when even it leaves the margin d − keep at slow_distance or more:
-    // the guard then keeps the control, as it would with the exact distance.
-    const double slow = settings.guard.slow_distance;
-    auto bound = [&] { return guard_d - std::max((a - guard_p).norm(), (b - guard_p).norm()); };
-    if (bound() - keep >= slow) return bound();
-    if ((a - guard_p).norm() > 0.0 || !std::isfinite(guard_d)) {
-      guard_p = a;
-      guard_d = shared->collisions.keep_out_distance(a, a);
-      if (bound() - keep >= slow) return bound();
-    }
-    return shared->collisions.keep_out_distance(a, b);
-  }
-
-  /// The guard's look at the way ahead under u: u held for guard.horizon
-  /// seconds (a constant-turn arc of the BMM, as in the dynamic window
-  /// approach), then braking to a stop.
-  struct WayAhead {
-    double clearance = std::numeric_limits<double>::infinity();  ///< least, along the arc [m]
-    double end_clearance = std::numeric_limits<double>::infinity();  ///< at the stop point [m]
-    double deviation = 0.0;  ///< largest distance of the arc from the path followed [m]
-  };
-  WayAhead way_ahead(const State& x, const Control& u, double keep, bool ends = false) {
-    const GuardSettings& g = settings.guard;
-    const Bmm& bmm = shared->bmm;
-    const int steps = std::max(1, static_cast<int>(std::ceil(g.horizon / problem.bmm.dt)));
-    constexpr int kEvery = 4;  // clearance checked over chords of this many steps
-    State xi = x;
-    Eigen::Vector2d a = x.head<2>();
-    WayAhead w;
-    for (int i = 1; i <= steps; ++i) {
-      xi = bmm.predict(xi, u);
-      if (i % kEvery == 0 || i == steps) {
-        const Eigen::Vector2d b = xi.head<2>();
-        w.clearance = std::min(w.clearance, clearance(a, b, keep));
-        if (ends) w.deviation = std::max(w.deviation, active->corridor().project(b).distance);
-        a = b;
-      }
-    }
-    const double v = xi[kV];
-    const Eigen::Vector2d stop =
-        xi.head<2>() + v * v / (2.0 * problem.bmm.deceleration) * Eigen::Vector2d(std::cos(xi[kTheta]), std::sin(xi[kTheta]));
-    w.clearance = std::min(w.clearance, clearance(a, stop, keep));
-    if (ends) {
-      w.deviation = std::max(w.deviation, active->corridor().project(stop).distance);
-      w.end_clearance = shared->collisions.keep_out_distance(stop, stop);
-    }
-    return w;
-  }
-
-  /// Bearings from p of the landmarks within look_range (not at p itself)
-  /// that p can see: with guard.occlusion, those no obstacle hides
-  /// (ObstacleChecker::line_of_sight, no clearance).
-  std::vector<double> bearings_in_range(const Eigen::Vector2d& p) const {
-    const GuardSettings& g = settings.guard;
-    const Landmarks& L = shared->landmarks;
-    std::vector<double> out;
-    for (Eigen::Index j = 0; j < L.rows(); ++j) {
-      const Eigen::Vector2d lj = L.row(j).transpose();
-      const Eigen::Vector2d dj = lj - p;
-      if (dj.norm() > g.look_range || dj.squaredNorm() < 1e-18) continue;
-      if (g.occlusion && !shared->collisions.line_of_sight(p, lj)) continue;
-      out.push_back(std::atan2(dj.y(), dj.x()));
-    }
-    return out;
-  }
-
-  /// How many of `bearings` lie inside the field of view centred on `heading`.
-  int landmarks_seen(const std::vector<double>& bearings, double heading) const {
-    const double half = 0.5 * settings.guard.field_of_view;
-    int n = 0;
-    for (double b : bearings) n += std::abs(wrap_angle(b - heading)) <= half;
-    return n;
-  }
-
-  /// The heading change toward the landmark bearing that puts the most
-  /// landmarks of `bearings` inside the field of view (0 when there is none;
-  /// ties: the smaller turn); `seen` gets that count.
-  double look_turn(const State& x, const std::vector<double>& bearings, int* seen = nullptr) const {
-    int best = 0;
-    double best_turn = 0.0;
-    for (double bi : bearings) {
-      const int n = landmarks_seen(bearings, bi);
-      const double turn = wrap_angle(bi - x[kTheta]);
-      if (n > best || (n == best && std::abs(turn) < std::abs(best_turn))) {
-        best = n;
-        best_turn = turn;
-      }
-    }
-    if (seen) *seen = best;
-    return best_turn;
-  }
-
-  /// The guard (GuardSettings): keeps the k-σ radius (plus a buffer) off
-  /// obstacles and forbidden hazards by slowing, looking, steering or holding.
-  void guard(double t, const State& x, Command& c) {
-    const GuardSettings& g = settings.guard;
-    const double rho = g.k_sigma * c.position_std;
-    const double keep = rho + g.buffer;  // the clearance the way ahead must keep
-    const Control u0 = c.control;
-    auto set = [&](const Control& u, unsigned event, double d) {
-      c.control = u;
-      c.events |= event;
-      c.clearance = d;
-      c.guard_margin = d - keep;
-    };
-    const double d0 = way_ahead(x, u0, keep).clearance;
-    set(u0, 0u, d0);
-    if (c.guard_margin >= 0.0 && looking < 0) looking = 0;  // clear again: a later conflict may look again
-    if (c.guard_margin >= g.slow_distance && looking == 0) return;
-    if (c.guard_margin >= 0.0 && looking == 0) {  // slow down
-      const double f = std::max(g.min_speed_fraction, g.slow_distance > 0 ? c.guard_margin / g.slow_distance : 1.0);
-      if (f < 1.0) {
-        const Control u(f * u0[0], u0[1]);
-        set(u, kGuardSlow, way_ahead(x, u, keep).clearance);
-      }
-      return;
-    }
-    int could_see = 0;
-    const std::vector<double> bearings = bearings_in_range(x.head<2>());
-    const double look = look_turn(x, bearings, &could_see);
-    // Look first: the way ahead is clear of the obstacles themselves (d0 > buffer), so the
-    // conflict is the uncertainty; landmarks that would give a fix are in range
-    // but out of view: stop and turn toward them, until they are in view and
-    // a fix has halved σ, or for at most look_timeout.
-    const bool in_view = landmarks_seen(bearings, x[kTheta]) >= g.look_min_landmarks;
-    if (g.look_first && looking == 0 && d0 > g.buffer && could_see >= g.look_min_landmarks && !in_view) {
-      looking = 1;
-      look_sigma = c.position_std;
-      look_start = t;
-    }
-    if (looking > 0) {
-      // A look runs to its end even if the margin clears meanwhile: stopped, the
-      // way ahead looks shorter, and ending there would start and stop the vehicle in turn.
-      const bool done = c.position_std <= 0.5 * look_sigma || t - look_start > g.look_timeout;
-      if (!done) {
-        ++looking;
-        const Control u(0.0, in_view ? 0.0 : look);
-        set(u, kGuardHold, way_ahead(x, u, keep).clearance);
-        return;
-      }
-      looking = -1;  // looked: no second look until the margin is met again
-    }
-    // Steer: arcs of a fan of turn rates within the BMM's limit, at a few
-    // speeds; the fastest speed with a clear arc, then the turn closest to
-    // the method's.  An arc may not take the k-σ disc out of the corridor
-    // (or, when it already is, any farther out).
-    const double lim = problem.bmm.max_heading_rate * problem.bmm.dt;
-    const double want = shared->bmm.clipped_heading_change(u0[1]);
-    const double out_now = active->corridor().project(x.head<2>()).distance;
-    const double dev_limit = std::max(problem.zones.half_width + settings.corridor_margin - rho, out_now);
-    constexpr int kTurns = 9;
-    const double speeds[3] = {u0[0], 0.5 * u0[0], g.min_speed_fraction * u0[0]};
-    // Escape when no arc is clear: the slow arc that ends farthest from the
-    // obstacles, if it ends farther than the vehicle is now and touches nothing.
-    const double here = shared->collisions.keep_out_distance(x.head<2>(), x.head<2>());
-    Control best = u0, escape = u0;
-    double best_cost = std::numeric_limits<double>::infinity(), best_d = 0.0;
-    double escape_end = here + 1e-3, escape_d = 0.0;
-    bool found = false, can_escape = false;
-    for (double v : speeds) {
-      for (int j = 0; j <= kTurns; ++j) {
-        const double dth = j == kTurns ? want : -lim + 2.0 * lim * j / (kTurns - 1);
-        const Control u(v, dth);
-        const WayAhead w = way_ahead(x, u, keep, true);
-        if (w.deviation > dev_limit) continue;
-        if (w.clearance - keep >= 0.0) {
-          const double cost = std::abs(dth - want);
-          if (cost < best_cost) {
-            best_cost = cost;
-            best = u;
-            best_d = w.clearance;
-            found = true;
-          }
-        } else if (v == speeds[2] && w.clearance > 0.0 && w.end_clearance > escape_end) {
-          escape = u;
-          escape_end = w.end_clearance;
-          escape_d = w.clearance;
-          can_escape = true;
-        }
-      }
-      if (found) break;
-    }
-    if (found) return set(best, kGuardSteer, best_d);
-    if (can_escape) return set(escape, kGuardSteer, escape_d);
-    // Hold for a fix: stop, turning toward where landmarks can be seen.
-    const Control u(0.0, look);
-    set(u, kGuardHold, way_ahead(x, u, keep).clearance);
-  }
+  Guard guard;  // the uncertainty-aware guard (guard.hpp)
 
   static LocalizerSettings seeded(LocalizerSettings s, std::uint64_t seed) {
     s.filter.seed = derive_seed(seed, 2);
@@ -500,7 +288,9 @@ struct Guidance::Impl {
         settings(shared->settings),
         active(shared->safe),
         localizer(seeded(shared->localizer, sd), shared->landmarks, shared->ids),
-        seed(sd) {}
+        seed(sd),
+        guard(settings.guard, shared->bmm, shared->collisions, shared->landmarks,
+              problem.zones.half_width + settings.corridor_margin) {}
 
   Eigen::Vector2d destination() const { return shared->safe->corridor().path().bottomRows<1>().transpose(); }
 
@@ -510,6 +300,50 @@ struct Guidance::Impl {
     if (!(pstd <= settings.lost_position_std)) return GuidanceStatus::LostLocalization;
     if ((localizer.x().head<2>() - destination()).norm() <= settings.arrival_radius) return GuidanceStatus::Arrived;
     return GuidanceStatus::Guiding;
+  }
+
+  /// Obstacles ahead [SafeNav-ext Alg. 4 ll. 7–9]: when the way ahead of the
+  /// estimate xe is blocked, splice a detour into the path (events in c).
+  /// False, with c's status NoPath, when none can be had.
+  bool check_ahead(const State& xe, Command& c) {
+    const double s = active->corridor().project(xe.head<2>()).arc_length;
+    if (!shared->blocked_ahead(active->corridor(), xe.head<2>(), s)) return true;
+    if (replans >= settings.max_replans) {
+      c.status = GuidanceStatus::NoPath;
+      c.events = kNoPath;
+      detail = "path blocked after " + std::to_string(replans) + " replans (max_replans)";
+      return false;
+    }
+    std::string why;
+    auto next = shared->detour(*active, xe.head<2>(), derive_seed(seed, 16 + static_cast<std::uint64_t>(replans)), &why);
+    ++replans;
+    if (!next) {
+      c.status = GuidanceStatus::NoPath;
+      c.events = kNoPath;
+      detail = "path blocked at s = " + num(s) + " m and no detour: " + why;
+      return false;
+    }
+    active = std::move(next);
+    c.events |= kDetourPlanned | kPathSpliced;
+    return true;
+  }
+
+  /// The method's control from the estimate xe [SafeNav Algs. 1–2].
+  void method_control(const State& xe, Command& c) const {
+    const NavigationSettings& st = settings;
+    if (st.method == NavigationMethod::Centroid) {
+      CentroidTarget target;
+      c.control = centroid_toward(*active, xe, st.cruise_speed, target);
+      c.predicted = shared->bmm.predict(xe, c.control).head<2>();
+      c.segment = target.segment;  // the segment of the centroid steered toward
+    } else {
+      const ChullDecision d = chull_control(*active, shared->bmm, xe, st.cruise_speed, st.lookahead,
+                                            st.step_back_speed, &shared->obstacles);
+      c.control = d.control;
+      c.predicted = d.predicted;
+      c.segment = d.segment;
+      c.action = d.action;
+    }
   }
 };
 
@@ -572,47 +406,18 @@ Command Guidance::command(double t) {
     return c;
   }
   const State& xe = im.localizer.x();
-  // Obstacles ahead [SafeNav-ext Alg. 4 ll. 7–9].
-  if (st.replan && im.commands % st.obstacle_check_every == 0) {
-    const double s = im.active->corridor().project(xe.head<2>()).arc_length;
-    if (im.shared->blocked_ahead(im.active->corridor(), xe.head<2>(), s)) {
-      if (im.replans >= st.max_replans) {
-        c.status = GuidanceStatus::NoPath;
-        c.events = kNoPath;
-        im.detail = "path blocked after " + std::to_string(im.replans) + " replans (max_replans)";
-        return c;
-      }
-      std::string why;
-      auto next = im.shared->detour(*im.active, xe.head<2>(), derive_seed(im.seed, 16 + static_cast<std::uint64_t>(im.replans)), &why);
-      ++im.replans;
-      if (!next) {
-        c.status = GuidanceStatus::NoPath;
-        c.events = kNoPath;
-        im.detail = "path blocked at s = " + num(s) + " m and no detour: " + why;
-        return c;
-      }
-      im.active = std::move(next);
-      c.events |= kDetourPlanned | kPathSpliced;
-    }
-  }
+  if (st.replan && im.commands % st.obstacle_check_every == 0 && !im.check_ahead(xe, c)) return c;
   ++im.commands;
-  // The control from the estimate [SafeNav Algs. 1–2].
-  if (st.method == NavigationMethod::Centroid) {
-    CentroidTarget target;
-    c.control = centroid_toward(*im.active, xe, st.cruise_speed, target);
-    c.predicted = im.shared->bmm.predict(xe, c.control).head<2>();
-    c.segment = target.segment;  // the segment of the centroid steered toward
-  } else {
-    const ChullDecision d = chull_control(*im.active, im.shared->bmm, xe, st.cruise_speed, st.lookahead, st.step_back_speed,
-                                          &im.shared->obstacles);
-    c.control = d.control;
-    c.predicted = d.predicted;
-    c.segment = d.segment;
-    c.action = d.action;
-  }
+  im.method_control(xe, c);
   if (st.guard.enabled) {
-    im.guard(t, xe, c);
-    if (c.events & (kGuardSlow | kGuardSteer | kGuardHold)) c.predicted = im.shared->bmm.predict(xe, c.control).head<2>();
+    const GuardDecision g = im.guard.decide(t, xe, c.position_std, c.control, im.active->corridor());
+    c.control = g.control;
+    c.clearance = g.clearance;
+    c.guard_margin = g.margin;
+    if (g.action != GuardAction::Keep) {
+      c.events |= kGuardEvent[static_cast<int>(g.action)];
+      c.predicted = im.shared->bmm.predict(xe, c.control).head<2>();
+    }
   }
   return c;
 }

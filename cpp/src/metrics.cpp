@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include <Eigen/Cholesky>
+#include <Eigen/LU>  // determinant
 
 namespace safenav {
 
@@ -147,6 +148,102 @@ Eigen::VectorXd nees(const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic
     }
   }
   return out;
+}
+
+// ---------------------------------------------------------------------------
+// TrajectoryScore
+
+TrajectoryScore::TrajectoryScore(Eigen::Index capacity) : points_(std::max<Eigen::Index>(capacity, 0), 2) {}
+
+void TrajectoryScore::add(const State& estimate, const StateCov& P, const State& truth) {
+  State e = truth - estimate;
+  e[kTheta] = wrap_angle(e[kTheta]);
+  // A P that is not positive definite (a particle cloud collapsed onto a few
+  // particles) has no NEES: left out of the mean.
+  const Eigen::LLT<Eigen::Matrix4d> llt(P);
+  const double n4 = llt.info() == Eigen::Success ? e.dot(llt.solve(e)) : std::numeric_limits<double>::quiet_NaN();
+  if (std::isfinite(n4)) {
+    nees_sum_ += n4;
+    ++nees_n_;
+  }
+  add_position(estimate.head<2>(), P.topLeftCorner<2, 2>(), truth.head<2>());
+}
+
+void TrajectoryScore::add(const Eigen::Vector2d& estimate, const Eigen::Matrix2d& P_xy, const Eigen::Vector2d& truth) {
+  add_position(estimate, P_xy, truth);
+}
+
+void TrajectoryScore::add_position(const Eigen::Vector2d& estimate, const Eigen::Matrix2d& Pxy,
+                                   const Eigen::Vector2d& truth) {
+  if (!estimate.allFinite() || !truth.allFinite()) {
+    std::ostringstream os;
+    os << "TrajectoryScore: pose " << n_ << ": estimate (" << estimate.x() << ", " << estimate.y() << ") or truth ("
+       << truth.x() << ", " << truth.y() << ") is not finite";
+    throw std::invalid_argument(os.str());
+  }
+  // Position NEES, 2 degrees of freedom: eᵀP_xy⁻¹e by the 2×2 inverse; a
+  // singular or indefinite P_xy puts the pose outside 3σ.
+  const Eigen::Vector2d ep = truth - estimate;
+  const double det = Pxy.determinant();
+  const double d2 = det > 0.0 ? (Pxy(1, 1) * ep.x() * ep.x() - 2.0 * Pxy(0, 1) * ep.x() * ep.y() + Pxy(0, 0) * ep.y() * ep.y()) / det
+                              : std::numeric_limits<double>::infinity();
+  if (!(d2 <= 9.0)) ++outside_;
+  if (det > 0.0 && Pxy(0, 0) > 0.0) {
+    pos_nees_sum_ += d2;
+    ++pos_nees_n_;
+  }
+  const double sq = (estimate - truth).squaredNorm();
+  const double d = std::sqrt(sq);  // = ‖p̂ − p‖ (Eigen's norm())
+  error_sum_ += d;
+  error2_sum_ += sq;
+  last_error_ = d;
+  if (n_ > 0) {
+    const Eigen::Vector2d prev = points_.row(n_ - 1).transpose();
+    length_ += (estimate - prev).norm();
+  }
+  if (n_ == points_.rows()) points_.conservativeResize(std::max<Eigen::Index>(16, 2 * n_), 2);
+  points_.row(n_) = estimate.transpose();
+  ++n_;
+}
+
+void TrajectoryScore::add_risk(double truth_deviation, double truth_wrs, double estimate_wrs) {
+  max_deviation_ = std::max(max_deviation_, truth_deviation);
+  wrs_truth_ += truth_wrs;
+  wrs_estimate_ += estimate_wrs;
+}
+
+void TrajectoryScore::add_clearance(double clearance) { min_clearance_ = std::min(min_clearance_, clearance); }
+
+void TrajectoryScore::add_hazard(double length, double exposure, bool inside, double dt) {
+  hazard_length_ += length;
+  exposure_ += exposure;
+  if (inside) hazard_time_ += dt;
+}
+
+namespace {
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+}
+
+double TrajectoryScore::truth_ade() const { return n_ > 0 ? error_sum_ / double(n_) : kNaN; }
+double TrajectoryScore::truth_fde() const { return n_ > 0 ? last_error_ : kNaN; }
+double TrajectoryScore::truth_rmse() const { return n_ > 0 ? std::sqrt(error2_sum_ / double(n_)) : kNaN; }
+double TrajectoryScore::nees() const { return nees_n_ > 0 ? nees_sum_ / double(nees_n_) : kNaN; }
+double TrajectoryScore::position_nees() const { return pos_nees_n_ > 0 ? pos_nees_sum_ / double(pos_nees_n_) : kNaN; }
+double TrajectoryScore::outside_3sigma() const { return n_ > 0 ? double(outside_) / double(n_) : kNaN; }
+
+void TrajectoryScore::fill(TrialMetrics& m) const {
+  const double rows = double(n_);
+  m.awrs = wrs_estimate_ / rows;
+  m.awrs_true = wrs_truth_ / rows;
+  m.truth_ade = truth_ade();
+  m.truth_fde = truth_fde();
+  m.max_deviation = max_deviation_;
+  m.min_clearance = min_clearance_;
+  m.hazard_time = hazard_time_;
+  m.hazard_length = hazard_length_;
+  m.exposure = exposure_;
+  m.nees = nees();
+  m.outside_3sigma = outside_3sigma();
 }
 
 }  // namespace safenav

@@ -65,6 +65,32 @@ void SensorSettings::validate() const {
   param_set<SensorSettings>().check(*this, "sensors.");
 }
 
+FaultedObservations apply_faults(const LandmarkFaults& faults, const std::vector<int>& rows,
+                                 const std::vector<double>& ranges, const Landmarks& landmarks,
+                                 const Eigen::Vector2d& position, double confusion_range, std::uint64_t seed) {
+  if (rows.size() != ranges.size())
+    bad("apply_faults: rows and ranges differ in length: " + std::to_string(rows.size()) + " and " +
+        std::to_string(ranges.size()));
+  for (int r : rows)
+    if (r < 0 || r >= landmarks.rows())
+      bad("apply_faults: row " + std::to_string(r) + " is not a landmark of the map (" +
+          std::to_string(landmarks.rows()) + " landmarks)");
+  faults.validate();
+  std::vector<LandmarkFaults::Observation> obs;
+  obs.reserve(rows.size());
+  for (std::size_t i = 0; i < rows.size(); ++i) obs.push_back({rows[i], ranges[i], 0u});
+  detail::Rng rng(seed);
+  RandomSourceOf<detail::Rng> draws(rng);
+  FaultedObservations out;
+  faults.apply(obs, landmarks, position, confusion_range, draws, &out.dropped);
+  for (const auto& o : obs) {
+    out.rows.push_back(o.row);
+    out.ranges.push_back(o.range);
+    out.faults.push_back(o.faults);
+  }
+  return out;
+}
+
 int SensorSettings::landmarks_in_view(const State& x, const ObstacleChecker* obstacles) const {
   if (!x.allFinite())
     bad("landmarks_in_view: state (" + num(x[0]) + ", " + num(x[1]) + ", " + num(x[2]) + ", " + num(x[3]) +
@@ -98,6 +124,358 @@ void SensorSettings::for_each_in_view(const State& x, const ObstacleChecker* obs
 }
 
 // ---------------------------------------------------------------------------
+// One trial [SafeNav-ext Alg. 4]: the simulated vehicle and sensors around
+// the vehicle's Guidance, and what the trial records.
+
+namespace {
+
+class Trial {
+ public:
+  Trial(const Guidance& prototype, const SensorSettings& sensors, const ObstacleChecker& collisions,
+        const Eigen::Matrix2d& imu_R, int max_steps, std::uint64_t seed, const PositionCallback& position, bool rec)
+      : t0_(std::chrono::steady_clock::now()),
+        se_(sensors),
+        bp_(prototype.problem().bmm),
+        st_(prototype.settings()),
+        collisions_(collisions),
+        imu_R_(imu_R),
+        position_cb_(position),
+        rec_(rec),
+        N_(max_steps),
+        bmm_(bp_),
+        motion_rng_(derive_seed(seed, 0)),
+        sensor_rng_(derive_seed(seed, 1)),
+        // The vehicle's guidance: the same object a vehicle program ticks (guidance.hpp).
+        guidance_(prototype.fresh(seed)),
+        safe_(guidance_.safe_path().corridor()),
+        zones_(guidance_.problem().zones),
+        sensor_draws_(sensor_rng_),
+        source_noise_(se_.position, sensor_draws_),
+        source_R_(se_.position.reported_cov()),
+        gate_(st_.filter.gate_probability),
+        score_(static_cast<Eigen::Index>(max_steps) + 1) {
+    // True start: first path vertex, at rest, heading along the first edge.
+    const Eigen::Vector2d t = safe_.tangent_at(0.0);
+    truth_ << safe_.path()(0, 0), safe_.path()(0, 1), 0.0, std::atan2(t.y(), t.x());
+    obs_.reserve(static_cast<std::size_t>(se_.landmarks.rows()));
+    trilateration_.seed = derive_seed(seed, 3);
+  }
+
+  TrialResult run();
+
+ private:
+  bool range_fix(const State& x, Eigen::Vector2d& z, Eigen::Matrix2d& R);
+  bool fix(const State& x, int step, Eigen::Vector2d& z, Eigen::Matrix2d& R);
+  void initialize();
+  void start_recording();
+  void record(int row, const Eigen::Vector2d& predicted, const Eigen::Vector2d* measured);
+  void track_safety(const Eigen::Vector2d& a, const Eigen::Vector2d& b);
+  bool command(int step, Command& cmd);
+  bool measure(int step, double t, Eigen::Vector2d& z);
+  bool ended(int step, const Eigen::Vector2d& before);
+  void finish(int step);
+  double fit_threshold(int dof) {
+    while (static_cast<int>(fit_thresholds_.size()) < dof)
+      fit_thresholds_.push_back(chi2_quantile(gate_, static_cast<int>(fit_thresholds_.size()) + 1));
+    return fit_thresholds_[static_cast<std::size_t>(dof - 1)];
+  }
+
+  const std::chrono::steady_clock::time_point t0_;
+  const SensorSettings& se_;
+  const BmmParams& bp_;
+  const NavigationSettings& st_;
+  const ObstacleChecker& collisions_;  // the true obstacles, no clearance
+  const Eigen::Matrix2d& imu_R_;
+  const PositionCallback& position_cb_;
+  const bool rec_;
+  const int N_;
+  const Bmm bmm_;
+  detail::Rng motion_rng_;
+  detail::Rng sensor_rng_;
+  Guidance guidance_;
+  const Corridor& safe_;
+  const RiskZones& zones_;
+  State truth_;
+  // Position source: the callback, or the measurement-level profile.
+  RandomSourceOf<detail::Rng> sensor_draws_;
+  PositionNoise::Trial source_noise_;
+  const Eigen::Matrix2d source_R_;
+  // FixModel::Ranges: landmark ranges, faults, LanBLoc trilateration.
+  std::vector<LandmarkFaults::Observation> obs_;
+  LocalizationOptions trilateration_;
+  const double gate_;
+  std::vector<double> fit_thresholds_;
+  int fix_faults_ = 0;  // faulty ranges inside the last fix
+  TrialResult res_;
+  // Metrics accumulate on the fly, so they need no recording.
+  TrajectoryScore score_;
+  // The true track's clearance: a cached lower bound, as the guard's.
+  Eigen::Vector2d clear_p_ = Eigen::Vector2d::Zero();
+  double clear_d_ = 0.0;
+  TrialOutcome outcome_ = TrialOutcome::StepLimit;
+  std::string reason_;
+};
+
+bool Trial::range_fix(const State& x, Eigen::Vector2d& z, Eigen::Matrix2d& R) {
+  TrialResult& res = res_;
+  obs_.clear();
+  se_.for_each_in_view(x, &collisions_, [&](Eigen::Index i, double d) {
+    obs_.push_back({static_cast<int>(i), std::max(0.0, d + se_.range_std * sensor_rng_.normal()), 0u});
+  });
+  res.observations += static_cast<int>(obs_.size());
+  se_.faults.apply(obs_, se_.landmarks, x.head<2>(), se_.max_range, sensor_draws_, &res.dropped);
+  for (const auto& o : obs_) {
+    res.outliers += (o.faults & LandmarkFaults::kOutlier) != 0;
+    res.misassociated += (o.faults & LandmarkFaults::kMisassociated) != 0;
+  }
+  if (static_cast<int>(obs_.size()) < std::max(3, se_.min_landmarks)) return false;
+  const Eigen::Index n = static_cast<Eigen::Index>(obs_.size());
+  Anchors anchors(n, 2);
+  Eigen::VectorXd ranges(n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    anchors.row(i) = se_.landmarks.row(obs_[static_cast<std::size_t>(i)].row);
+    ranges[i] = obs_[static_cast<std::size_t>(i)].range;
+  }
+  const LocalizationResult lr = trilaterate(anchors, ranges, Eigen::VectorXd::Constant(n, se_.range_std), trilateration_);
+  if (!lr.ok()) return false;
+  // The fix's own χ² test at the gate's probability (ours): with one range
+  // more than the two unknowns the fit's residual reveals a bad range even
+  // where the outlier test (>= 4 ranges) cannot name it.
+  const int used = static_cast<int>(lr.inliers.count());
+  if (gate_ > 0.0 && used > 2 && lr.chi2 > fit_threshold(used - 2)) {
+    res.ranges_rejected += static_cast<int>(n);  // the whole fix: its inliers fail, the outliers were out already
+    return false;
+  }
+  fix_faults_ = 0;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    if (!lr.inliers[i]) ++res.ranges_rejected;
+    else if (obs_[static_cast<std::size_t>(i)].faults) ++fix_faults_;
+  }
+  z = lr.position;
+  R = lr.covariance;
+  return true;
+}
+
+bool Trial::fix(const State& x, int step, Eigen::Vector2d& z, Eigen::Matrix2d& R) {
+  fix_faults_ = 0;
+  if (position_cb_) {
+    if (!position_cb_(x, step, z, R)) return false;
+    if (!z.allFinite() || !R.allFinite())
+      throw std::runtime_error("position callback returned a non-finite fix at step " + std::to_string(step));
+    return true;
+  }
+  if (se_.fix_model == FixModel::Ranges) return range_fix(x, z, R);
+  if (se_.position.needs_landmarks && se_.landmarks_in_view(x, &collisions_) < se_.min_landmarks) return false;
+  if (!source_noise_.sample(x.head<2>(), sensor_draws_, z)) return false;
+  R = source_R_;
+  return true;
+}
+
+/// The initial estimate (the localizer's prior): a LanBLoc fix, if one is available, and the IMU.
+void Trial::initialize() {
+  State x0 = truth_;
+  StateCov P0 = StateCov::Zero();
+  Eigen::Vector2d z;
+  Eigen::Matrix2d R;
+  if (fix(truth_, 0, z, R)) {
+    x0.head<2>() = z;
+    P0.topLeftCorner<2, 2>() = R;
+  } else {
+    // No fix at the start: the start point is known only roughly.
+    const double s0 = std::max(1.0, se_.position.std.maxCoeff());
+    x0.head<2>() += s0 * Eigen::Vector2d(sensor_rng_.normal(), sensor_rng_.normal());
+    P0.topLeftCorner<2, 2>() = s0 * s0 * Eigen::Matrix2d::Identity();
+  }
+  x0[kV] = std::max(0.0, truth_[kV] + se_.imu_speed_std * sensor_rng_.normal());
+  x0[kTheta] = wrap_angle(truth_[kTheta] + se_.imu_heading_std * sensor_rng_.normal());
+  P0(2, 2) = se_.imu_speed_std * se_.imu_speed_std;
+  P0(3, 3) = se_.imu_heading_std * se_.imu_heading_std;
+  guidance_.localizer().initialize(0.0, x0, P0);
+}
+
+void Trial::start_recording() {
+  res_.truth.resize(N_ + 1, 4);
+  res_.estimate.resize(N_ + 1, 4);
+  res_.predicted.resize(N_ + 1, 2);
+  res_.measured.resize(N_ + 1, 2);
+  res_.controls.resize(N_, 2);
+  res_.position_std.resize(N_ + 1);
+}
+
+void Trial::record(int row, const Eigen::Vector2d& predicted, const Eigen::Vector2d* measured) {
+  const Localizer& loc = guidance_.localizer();
+  const State& xe = loc.x();
+  score_.add(xe, loc.P(), truth_);
+  const double dev = safe_.project(truth_.head<2>()).distance;
+  score_.add_risk(dev, wrs(dev, zones_), safe_.wrs(Eigen::Vector2d(xe.head<2>())));
+  if (!rec_) return;
+  res_.truth.row(row) = truth_.transpose();
+  res_.estimate.row(row) = xe.transpose();
+  res_.predicted.row(row) = predicted.transpose();
+  if (measured) res_.measured.row(row) = measured->transpose();
+  else res_.measured.row(row).setConstant(kNaN);
+  res_.position_std[row] = loc.position_std();
+}
+
+/// Safety along the true step a–b: clearance (cached lower bound, as the guard's) and hazards.
+void Trial::track_safety(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  if (clear_d_ - std::max((a - clear_p_).norm(), (b - clear_p_).norm()) < score_.min_clearance()) {
+    score_.add_clearance(collisions_.keep_out_distance(a, b));
+    clear_p_ = b;
+    clear_d_ = collisions_.keep_out_distance(b, b);
+  }
+  const ObstacleChecker::HazardStep h = collisions_.hazard_step(a, b);
+  score_.add_hazard(h.length, h.exposure, h.inside, bp_.dt);
+}
+
+/// 1–2. The vehicle asks guidance for its control: obstacles ahead and
+/// detours [SafeNav-ext Alg. 4 ll. 7–9], then CHull or Centroid.  False when
+/// the trial ends with no path.
+bool Trial::command(int step, Command& cmd) {
+  cmd = guidance_.command(step * bp_.dt);
+  res_.guard_slow += (cmd.events & kGuardSlow) != 0;
+  res_.guard_steer += (cmd.events & kGuardSteer) != 0;
+  res_.guard_hold += (cmd.events & kGuardHold) != 0;
+  if (cmd.status == GuidanceStatus::NoPath) {
+    outcome_ = TrialOutcome::NoPath;
+    reason_ = guidance_.detail();
+    return false;
+  }
+  if (st_.method == NavigationMethod::CHull) {
+    switch (cmd.action) {
+      case ChullAction::Keep: ++res_.chull_default; break;
+      case ChullAction::Corrective: ++res_.chull_corrective; break;
+      case ChullAction::StepBack: ++res_.chull_step_back; break;
+    }
+  }
+  return true;
+}
+
+/// 4. The vehicle's inputs after its motion: a LanBLoc fix, the IMU.  True
+/// when a fix was measured (into z).
+bool Trial::measure(int step, double t, Eigen::Vector2d& z) {
+  Eigen::Matrix2d R;
+  bool have_fix = false;
+  if (step % se_.position_every == 0) {
+    have_fix = fix(truth_, step, z, R);
+    if (have_fix) {
+      if (guidance_.fix(t, z, R).applied()) {
+        ++res_.position_fixes;
+        res_.faults_through += fix_faults_;
+      } else {
+        ++res_.rejected;
+      }
+    } else {
+      ++res_.dropouts;
+    }
+  }
+  if (se_.imu) {
+    const Eigen::Vector2d zi(std::max(0.0, truth_[kV] + se_.imu_speed_std * sensor_rng_.normal()),
+                             wrap_angle(truth_[kTheta] + se_.imu_heading_std * sensor_rng_.normal()));
+    if (!guidance_.speed_heading(t, zi, imu_R_).applied()) ++res_.rejected;
+  }
+  return have_fix;
+}
+
+/// The ends after a step: the truth's (collision, corridor), then guidance's (lost, arrived).
+bool Trial::ended(int step, const Eigen::Vector2d& before) {
+  if (!collisions_.segment_free(before, truth_.head<2>())) {
+    outcome_ = TrialOutcome::Collision;
+    reason_ = "collision at (" + num(truth_[kX]) + ", " + num(truth_[kY]) + ") at step " + std::to_string(step);
+    return true;
+  }
+  const double dev = guidance_.path().corridor().project(truth_.head<2>()).distance;
+  if (dev > zones_.half_width + st_.corridor_margin) {
+    outcome_ = TrialOutcome::LeftCorridor;
+    reason_ = "left the corridor at step " + std::to_string(step) + ": deviation " + num(dev) + " m > " +
+              num(zones_.half_width + st_.corridor_margin) + " m";
+    return true;
+  }
+  const GuidanceStatus gs = guidance_.status();
+  if (gs == GuidanceStatus::LostLocalization) {
+    outcome_ = TrialOutcome::LostLocalization;
+    reason_ = "position std " + num(guidance_.localizer().position_std()) + " m > " + num(st_.lost_position_std) +
+              " m at step " + std::to_string(step);
+    return true;
+  }
+  if (gs == GuidanceStatus::Arrived) {
+    outcome_ = TrialOutcome::Arrived;
+    reason_ = "arrived in " + std::to_string(step) + " steps";
+    return true;
+  }
+  return false;
+}
+
+TrialResult Trial::run() {
+  initialize();
+  if (rec_) start_recording();
+  clear_p_ = truth_.head<2>();
+  clear_d_ = collisions_.keep_out_distance(clear_p_, clear_p_);
+  score_.add_clearance(clear_d_);
+  {
+    const Eigen::Vector2d z0 = guidance_.localizer().x().head<2>();
+    record(0, z0, &z0);
+  }
+  const Eigen::Vector4d sigma(bp_.position_noise, bp_.position_noise, bp_.speed_noise, bp_.heading_noise);
+  reason_ = "no arrival within " + std::to_string(N_) + " steps";
+  int step = 0;
+  Command cmd;
+  while (step < N_) {
+    if (!command(step, cmd)) break;
+    const Control& u = cmd.control;
+    ++step;
+    const double t1 = step * bp_.dt;
+    if (rec_) res_.controls.row(step - 1) = u.transpose();
+    // 3. Move the true vehicle.
+    const Eigen::Vector2d before = truth_.head<2>();
+    Eigen::Vector4d eps;
+    for (int i = 0; i < 4; ++i) eps[i] = sigma[i] * motion_rng_.normal();
+    truth_ = bmm_.transition(truth_, u, eps);
+    // 4. The vehicle's inputs: its commanded motion, a LanBLoc fix, the IMU.
+    guidance_.motion(t1, u);
+    Eigen::Vector2d z;
+    const bool have_fix = measure(step, t1, z);
+    // 5. Record.
+    record(step, cmd.predicted, have_fix ? &z : nullptr);
+    track_safety(before, truth_.head<2>());
+    if (ended(step, before)) break;
+  }
+  finish(step);
+  res_.wall_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0_).count();
+  return std::move(res_);
+}
+
+void Trial::finish(int step) {
+  TrialResult& res = res_;
+  res.outcome = outcome_;
+  res.success = outcome_ == TrialOutcome::Arrived;
+  res.reason = reason_;
+  res.steps = step;
+  res.replans = guidance_.replans();
+  res.resets = guidance_.localizer().counts().resets;
+  const Eigen::Index rows = step + 1;
+  if (rec_) {
+    res.truth.conservativeResize(rows, 4);
+    res.estimate.conservativeResize(rows, 4);
+    res.predicted.conservativeResize(rows, 2);
+    res.measured.conservativeResize(rows, 2);
+    res.controls.conservativeResize(step, 2);
+    res.position_std.conservativeResize(rows);
+    res.followed_path = guidance_.path().corridor().path();
+  }
+  // Metrics [SafeNav-ext eqs. 20–23] against the safe path (and the truth).
+  const Eigen::Vector2d destination = safe_.path().bottomRows<1>().transpose();
+  const Points2 est = score_.estimates();
+  TrialMetrics& m = res.metrics;
+  m.path_ade = safe_.distance(est).mean();
+  m.goal_fde = (est.bottomRows<1>().transpose() - destination).norm();
+  m.path_error_percent = std::abs(score_.length() - safe_.length()) / safe_.length() * 100.0;
+  score_.fill(m);
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------
 // Navigator
 
 struct Navigator::Impl {
@@ -120,10 +498,7 @@ struct Navigator::Impl {
   // The guard looks with the simulated camera.
   static NavigationSettings with_camera(NavigationSettings s, const SensorSettings& se) {
     se.validate();  // first, so that a bad sensor is named as such
-    s.guard.field_of_view = std::min(se.field_of_view, 2.0 * kPi);
-    s.guard.look_range = se.max_range;
-    s.guard.look_min_landmarks = std::max(1, se.min_landmarks);
-    s.guard.occlusion = se.occlusion;
+    s.guard.look_with_camera(se.field_of_view, se.max_range, se.min_landmarks, se.occlusion);
     return s;
   }
 
@@ -170,317 +545,9 @@ std::vector<TrialResult> Navigator::run_many(const std::vector<std::uint64_t>& s
 }
 
 TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& position_cb, bool rec) const {
-  const auto t0 = std::chrono::steady_clock::now();
   const Impl& im = *impl_;
-  const SensorSettings& se = im.sensors;
-  const BmmParams& bp = im.guidance.problem().bmm;
-  const NavigationSettings& st = im.guidance.settings();
-  const Bmm bmm(bp);
-  detail::Rng motion_rng(derive_seed(seed, 0));
-  detail::Rng sensor_rng(derive_seed(seed, 1));
-
-  // The vehicle's guidance: the same object a vehicle program ticks (guidance.hpp).
-  Guidance guidance = im.guidance.fresh(seed);
-  const Corridor& safe = guidance.safe_path().corridor();
-
-  // True start: first path vertex, at rest, heading along the first edge.
-  State truth;
-  {
-    const Eigen::Vector2d t = safe.tangent_at(0.0);
-    truth << safe.path()(0, 0), safe.path()(0, 1), 0.0, std::atan2(t.y(), t.x());
-  }
-
-  // Position source: the callback, or the measurement-level profile.
-  const PositionNoise& src = se.position;
-  RandomSourceOf<detail::Rng> sensor_draws(sensor_rng);
-  PositionNoise::Trial source_noise(src, sensor_draws);
-  const Eigen::Matrix2d source_R = src.reported_cov();
-  TrialResult res;
-  // FixModel::Ranges: landmark ranges, faults, LanBLoc trilateration.
-  std::vector<LandmarkFaults::Observation> obs;
-  obs.reserve(static_cast<std::size_t>(se.landmarks.rows()));
-  LocalizationOptions trilateration;
-  trilateration.seed = derive_seed(seed, 3);
-  const double gate = st.filter.gate_probability;
-  std::vector<double> fit_thresholds;
-  auto fit_threshold = [&](int dof) {
-    while (static_cast<int>(fit_thresholds.size()) < dof)
-      fit_thresholds.push_back(chi2_quantile(gate, static_cast<int>(fit_thresholds.size()) + 1));
-    return fit_thresholds[static_cast<std::size_t>(dof - 1)];
-  };
-  int fix_faults = 0;  // faulty ranges inside the last fix
-  auto range_fix = [&](const State& x, Eigen::Vector2d& z, Eigen::Matrix2d& R) -> bool {
-    obs.clear();
-    se.for_each_in_view(x, &im.collisions, [&](Eigen::Index i, double d) {
-      obs.push_back({static_cast<int>(i), std::max(0.0, d + se.range_std * sensor_rng.normal()), 0u});
-    });
-    res.observations += static_cast<int>(obs.size());
-    se.faults.apply(obs, se.landmarks, x.head<2>(), se.max_range, sensor_draws, &res.dropped);
-    for (const auto& o : obs) {
-      res.outliers += (o.faults & LandmarkFaults::kOutlier) != 0;
-      res.misassociated += (o.faults & LandmarkFaults::kMisassociated) != 0;
-    }
-    if (static_cast<int>(obs.size()) < std::max(3, se.min_landmarks)) return false;
-    const Eigen::Index n = static_cast<Eigen::Index>(obs.size());
-    Anchors anchors(n, 2);
-    Eigen::VectorXd ranges(n);
-    for (Eigen::Index i = 0; i < n; ++i) {
-      anchors.row(i) = se.landmarks.row(obs[static_cast<std::size_t>(i)].row);
-      ranges[i] = obs[static_cast<std::size_t>(i)].range;
-    }
-    const LocalizationResult lr = trilaterate(anchors, ranges, Eigen::VectorXd::Constant(n, se.range_std), trilateration);
-    if (!lr.ok()) return false;
-    // The fix's own χ² test at the gate's probability (ours): with one range
-    // more than the two unknowns the fit's residual reveals a bad range even
-    // where the outlier test (>= 4 ranges) cannot name it.
-    const int used = static_cast<int>(lr.inliers.count());
-    if (gate > 0.0 && used > 2 && lr.chi2 > fit_threshold(used - 2)) {
-      res.ranges_rejected += static_cast<int>(n);  // the whole fix: its inliers fail, the outliers were out already
-      return false;
-    }
-    fix_faults = 0;
-    for (Eigen::Index i = 0; i < n; ++i) {
-      if (!lr.inliers[i]) ++res.ranges_rejected;
-      else if (obs[static_cast<std::size_t>(i)].faults) ++fix_faults;
-    }
-    z = lr.position;
-    R = lr.covariance;
-    return true;
-  };
-  auto fix = [&](const State& x, int step, Eigen::Vector2d& z, Eigen::Matrix2d& R) -> bool {
-    fix_faults = 0;
-    if (position_cb) {
-      if (!position_cb(x, step, z, R)) return false;
-      if (!z.allFinite() || !R.allFinite())
-        throw std::runtime_error("position callback returned a non-finite fix at step " + std::to_string(step));
-      return true;
-    }
-    if (se.fix_model == FixModel::Ranges) return range_fix(x, z, R);
-    if (src.needs_landmarks && se.landmarks_in_view(x, &im.collisions) < se.min_landmarks) return false;
-    if (!source_noise.sample(x.head<2>(), sensor_draws, z)) return false;
-    R = source_R;
-    return true;
-  };
-
-  // Initial estimate (the localizer's prior): a LanBLoc fix, if one is available, and the IMU.
-  {
-    State x0 = truth;
-    StateCov P0 = StateCov::Zero();
-    Eigen::Vector2d z;
-    Eigen::Matrix2d R;
-    if (fix(truth, 0, z, R)) {
-      x0.head<2>() = z;
-      P0.topLeftCorner<2, 2>() = R;
-    } else {
-      // No fix at the start: the start point is known only roughly.
-      const double s0 = std::max(1.0, src.std.maxCoeff());
-      x0.head<2>() += s0 * Eigen::Vector2d(sensor_rng.normal(), sensor_rng.normal());
-      P0.topLeftCorner<2, 2>() = s0 * s0 * Eigen::Matrix2d::Identity();
-    }
-    x0[kV] = std::max(0.0, truth[kV] + se.imu_speed_std * sensor_rng.normal());
-    x0[kTheta] = wrap_angle(truth[kTheta] + se.imu_heading_std * sensor_rng.normal());
-    P0(2, 2) = se.imu_speed_std * se.imu_speed_std;
-    P0(3, 3) = se.imu_heading_std * se.imu_heading_std;
-    guidance.localizer().initialize(0.0, x0, P0);
-  }
-  const Localizer& loc = guidance.localizer();
-
-  const int N = im.max_steps;
-  if (rec) {
-    res.truth.resize(N + 1, 4);
-    res.estimate.resize(N + 1, 4);
-    res.predicted.resize(N + 1, 2);
-    res.measured.resize(N + 1, 2);
-    res.controls.resize(N, 2);
-    res.position_std.resize(N + 1);
-  }
-  // Metrics accumulate on the fly, so they need no recording.
-  Eigen::Vector2d prev_est = loc.x().head<2>();
-  double est_length = 0.0, loc_sum = 0.0, wrs_est = 0.0, wrs_true = 0.0, max_dev = 0.0;
-  std::vector<Eigen::Vector2d> est_points;
-  est_points.reserve(static_cast<std::size_t>(N) + 1);
-
-  // Safety along the true track: clearance (cached lower bound, as the guard's), hazards, consistency.
-  double min_clear = std::numeric_limits<double>::infinity(), nees_sum = 0.0;
-  int outside = 0, nees_n = 0;
-  Eigen::Vector2d clear_p = truth.head<2>();
-  double clear_d = im.collisions.keep_out_distance(clear_p, clear_p);
-  min_clear = clear_d;
-  auto track_safety = [&](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
-    if (clear_d - std::max((a - clear_p).norm(), (b - clear_p).norm()) < min_clear) {
-      min_clear = std::min(min_clear, im.collisions.keep_out_distance(a, b));
-      clear_p = b;
-      clear_d = im.collisions.keep_out_distance(b, b);
-    }
-    const ObstacleChecker::HazardStep h = im.collisions.hazard_step(a, b);
-    res.metrics.hazard_length += h.length;
-    res.metrics.exposure += h.exposure;
-    if (h.inside) res.metrics.hazard_time += bp.dt;
-  };
-  auto consistency = [&] {
-    State e = truth - loc.x();
-    e[kTheta] = wrap_angle(e[kTheta]);
-    // A P that is not positive definite (a particle cloud collapsed onto a few
-    // particles) has no NEES: left out of the mean, and counted outside 3σ below.
-    const Eigen::LLT<Eigen::Matrix4d> llt(loc.P());
-    const double n4 = llt.info() == Eigen::Success ? e.dot(llt.solve(e)) : kNaN;
-    if (std::isfinite(n4)) {
-      nees_sum += n4;
-      ++nees_n;
-    }
-    const Eigen::Vector2d ep = e.head<2>();
-    const Eigen::Matrix2d Pxy = loc.P().topLeftCorner<2, 2>();
-    const double det = Pxy.determinant();
-    const double d2 = det > 0.0 ? (Pxy(1, 1) * ep.x() * ep.x() - 2.0 * Pxy(0, 1) * ep.x() * ep.y() + Pxy(0, 0) * ep.y() * ep.y()) / det
-                                : std::numeric_limits<double>::infinity();
-    if (!(d2 <= 9.0)) ++outside;
-  };
-
-  const RiskZones& zones = guidance.problem().zones;
-  auto record = [&](int row, const Eigen::Vector2d& pred, const Eigen::Vector2d* meas) {
-    const State& xe = loc.x();
-    consistency();
-    const double dev = safe.project(truth.head<2>()).distance;
-    max_dev = std::max(max_dev, dev);
-    wrs_true += wrs(dev, zones);
-    wrs_est += safe.wrs(Eigen::Vector2d(xe.head<2>()));
-    loc_sum += (xe.head<2>() - truth.head<2>()).norm();
-    if (row > 0) est_length += (xe.head<2>() - prev_est).norm();
-    prev_est = xe.head<2>();
-    est_points.push_back(xe.head<2>());
-    if (!rec) return;
-    res.truth.row(row) = truth.transpose();
-    res.estimate.row(row) = xe.transpose();
-    res.predicted.row(row) = pred.transpose();
-    if (meas) res.measured.row(row) = meas->transpose();
-    else res.measured.row(row).setConstant(kNaN);
-    res.position_std[row] = loc.position_std();
-  };
-  {
-    const Eigen::Vector2d z0 = loc.x().head<2>();
-    record(0, z0, &z0);
-  }
-
-  const Eigen::Vector4d sigma(bp.position_noise, bp.position_noise, bp.speed_noise, bp.heading_noise);
-  TrialOutcome outcome = TrialOutcome::StepLimit;
-  std::string reason = "no arrival within " + std::to_string(N) + " steps";
-  int step = 0;
-  while (step < N) {
-    // 1–2. The vehicle asks guidance for its control: obstacles ahead and
-    // detours [SafeNav-ext Alg. 4 ll. 7–9], then CHull or Centroid.
-    const double t = step * bp.dt;
-    const Command cmd = guidance.command(t);
-    res.guard_slow += (cmd.events & kGuardSlow) != 0;
-    res.guard_steer += (cmd.events & kGuardSteer) != 0;
-    res.guard_hold += (cmd.events & kGuardHold) != 0;
-    if (cmd.status == GuidanceStatus::NoPath) {
-      outcome = TrialOutcome::NoPath;
-      reason = guidance.detail();
-      break;
-    }
-    if (st.method == NavigationMethod::CHull) {
-      switch (cmd.action) {
-        case ChullAction::Keep: ++res.chull_default; break;
-        case ChullAction::Corrective: ++res.chull_corrective; break;
-        case ChullAction::StepBack: ++res.chull_step_back; break;
-      }
-    }
-    const Control& u = cmd.control;
-    ++step;
-    const double t1 = step * bp.dt;
-    if (rec) res.controls.row(step - 1) = u.transpose();
-    // 3. Move the true vehicle.
-    const Eigen::Vector2d before = truth.head<2>();
-    Eigen::Vector4d eps;
-    for (int i = 0; i < 4; ++i) eps[i] = sigma[i] * motion_rng.normal();
-    truth = bmm.transition(truth, u, eps);
-    // 4. The vehicle's inputs: its commanded motion, a LanBLoc fix, the IMU.
-    guidance.motion(t1, u);
-    Eigen::Vector2d z;
-    Eigen::Matrix2d R;
-    bool have_fix = false;
-    if (step % se.position_every == 0) {
-      have_fix = fix(truth, step, z, R);
-      if (have_fix) {
-        if (guidance.fix(t1, z, R).applied()) {
-          ++res.position_fixes;
-          res.faults_through += fix_faults;
-        } else {
-          ++res.rejected;
-        }
-      } else {
-        ++res.dropouts;
-      }
-    }
-    if (se.imu) {
-      const Eigen::Vector2d zi(std::max(0.0, truth[kV] + se.imu_speed_std * sensor_rng.normal()),
-                               wrap_angle(truth[kTheta] + se.imu_heading_std * sensor_rng.normal()));
-      if (!guidance.speed_heading(t1, zi, im.imu_R).applied()) ++res.rejected;
-    }
-    // 5. Record.
-    record(step, cmd.predicted, have_fix ? &z : nullptr);
-    track_safety(before, truth.head<2>());
-    // Ends: the truth's (collision, corridor), then guidance's (lost, arrived).
-    if (!im.collisions.segment_free(before, truth.head<2>())) {
-      outcome = TrialOutcome::Collision;
-      reason = "collision at (" + num(truth[kX]) + ", " + num(truth[kY]) + ") at step " + std::to_string(step);
-      break;
-    }
-    const double dev = guidance.path().corridor().project(truth.head<2>()).distance;
-    if (dev > zones.half_width + st.corridor_margin) {
-      outcome = TrialOutcome::LeftCorridor;
-      reason = "left the corridor at step " + std::to_string(step) + ": deviation " + num(dev) + " m > " +
-               num(zones.half_width + st.corridor_margin) + " m";
-      break;
-    }
-    const GuidanceStatus gs = guidance.status();
-    if (gs == GuidanceStatus::LostLocalization) {
-      outcome = TrialOutcome::LostLocalization;
-      reason = "position std " + num(loc.position_std()) + " m > " + num(st.lost_position_std) + " m at step " +
-               std::to_string(step);
-      break;
-    }
-    if (gs == GuidanceStatus::Arrived) {
-      outcome = TrialOutcome::Arrived;
-      reason = "arrived in " + std::to_string(step) + " steps";
-      break;
-    }
-  }
-
-  res.outcome = outcome;
-  res.success = outcome == TrialOutcome::Arrived;
-  res.reason = reason;
-  res.steps = step;
-  res.replans = guidance.replans();
-  res.resets = loc.counts().resets;
-  const Eigen::Index rows = step + 1;
-  if (rec) {
-    res.truth.conservativeResize(rows, 4);
-    res.estimate.conservativeResize(rows, 4);
-    res.predicted.conservativeResize(rows, 2);
-    res.measured.conservativeResize(rows, 2);
-    res.controls.conservativeResize(step, 2);
-    res.position_std.conservativeResize(rows);
-    res.followed_path = guidance.path().corridor().path();
-  }
-  // Metrics [SafeNav-ext eqs. 20–23] against the safe path (and the truth).
-  const Eigen::Vector2d destination = safe.path().bottomRows<1>().transpose();
-  Points2 est(rows, 2);
-  for (Eigen::Index i = 0; i < rows; ++i) est.row(i) = est_points[static_cast<std::size_t>(i)].transpose();
-  TrialMetrics& m = res.metrics;
-  m.path_ade = safe.distance(est).mean();
-  m.goal_fde = (est.bottomRows<1>().transpose() - destination).norm();
-  m.path_error_percent = std::abs(est_length - safe.length()) / safe.length() * 100.0;
-  m.awrs = wrs_est / double(rows);
-  m.awrs_true = wrs_true / double(rows);
-  m.truth_ade = loc_sum / double(rows);
-  m.truth_fde = (loc.x().head<2>() - truth.head<2>()).norm();
-  m.max_deviation = max_dev;
-  m.min_clearance = min_clear;
-  m.nees = nees_n > 0 ? nees_sum / double(nees_n) : kNaN;
-  m.outside_3sigma = double(outside) / double(rows);
-  res.wall_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  return res;
+  Trial trial(im.guidance, im.sensors, im.collisions, im.imu_R, im.max_steps, seed, position_cb, rec);
+  return trial.run();
 }
 
 }  // namespace safenav

@@ -286,7 +286,7 @@ def _replay(args) -> int:
         if result.metrics:
             m = result.metrics
             print(f"against the truth ({m['label']}, {m['n_scored']} poses, {m['n_before_start']} before the start): "
-                  f"RMSE {m['rmse']:.3f} m, ADE {m['ade']:.3f} m, FDE {m['fde']:.3f} m, "
+                  f"RMSE {m['truth_rmse']:.3f} m, ADE {m['truth_ade']:.3f} m, FDE {m['truth_fde']:.3f} m, "
                   f"NEES {m['nees']:.2f} (2 if consistent)")
         _wrote(run)
     return 0

@@ -41,11 +41,16 @@ from __future__ import annotations
 import numpy as np
 
 from . import _core
+from .planning import map_from_world
 from .validation import as_array, as_seed, choice, integer
 
 Localizer = _core.Localizer
 LocalizerSettings = _core.LocalizerSettings
 Guidance = _core.Guidance
+NavigationMethod = _core.NavigationMethod
+NavigationProblem = _core.NavigationProblem
+NavigationSettings = _core.NavigationSettings
+GuardSettings = _core.GuardSettings
 Command = _core.Command
 InputResult = _core.InputResult
 InputStatus = _core.InputStatus
@@ -64,7 +69,11 @@ EVENTS = {
 }
 
 __all__ = ["Localizer", "LocalizerSettings", "Guidance", "Command", "InputResult", "InputStatus", "GuidanceStatus",
-           "EVENTS", "AUGMENTED", "event_names", "localizer_settings", "make_guidance"]
+           "NavigationMethod", "NavigationProblem", "NavigationSettings", "GuardSettings", "METHODS", "FILTERS",
+           "EVENTS", "AUGMENTED", "event_names", "localizer_settings", "navigation_setup", "make_guidance"]
+
+METHODS = {"chull": NavigationMethod.CHULL, "centroid": NavigationMethod.CENTROID}
+FILTERS = {"ekf": _core.FilterType.EKF, "pf": _core.FilterType.PF}
 
 
 def event_names(events: int) -> list[str]:
@@ -82,8 +91,6 @@ def localizer_settings(*, filter: str = "ekf", bmm=None, gate: float | None = No
     χ² gate probability of every update (default 0.99; 0 = off); ``augment``
     names augmented states to switch on (:data:`AUGMENTED`: a range scale k,
     a heading-rate bias β, per-landmark range biases b_j; safenav/augmented.hpp)."""
-    from .navigation import FILTERS
-
     s = LocalizerSettings()
     s.filter.type = choice("filter", filter, FILTERS)
     s.filter.n_particles = integer("n_particles", n_particles)
@@ -98,14 +105,43 @@ def localizer_settings(*, filter: str = "ekf", bmm=None, gate: float | None = No
     return s
 
 
+def navigation_setup(scenario, safe_path, *, method: str = "centroid", world_map=None, max_steps: int | None = None,
+                     replan: bool = True, planner_seed: int | None = None, paper: bool = False):
+    """The ``NavigationProblem`` and ``NavigationSettings`` of ``safe_path`` in
+    ``scenario``'s world (shared by :func:`make_navigator` and
+    :func:`make_guidance`).  The guard and the gate follow
+    ``scenario.navigation`` (on by default); ``paper=True`` turns both off."""
+    path = as_array("safe_path", safe_path, (None, 2))
+    nav = scenario.navigation
+    problem = NavigationProblem()
+    problem.path = path
+    problem.zones = scenario.risk_zones()
+    problem.map = world_map if world_map is not None else map_from_world(
+        scenario.world, clearance=nav.planning_clearance, forbidden_risk=scenario.planner.forbidden_risk)
+    problem.bmm = scenario.bmm_params()
+
+    s = nav.apply(NavigationSettings())
+    s.guard.enabled = nav.guard == "on" and not paper
+    s.guard.look_with_camera(float(np.deg2rad(scenario.camera.field_of_view_deg)),  # it looks with the camera
+                             float(scenario.detection.max_range_m), int(scenario.detection.min_landmarks),
+                             bool(scenario.detection.occlusion) and not paper)
+    if paper:
+        s.filter.gate_probability = 0.0
+    s.method = choice("method", method, METHODS)
+    if max_steps is not None:
+        s.max_steps = integer("max_steps", max_steps, 0)  # 0: from the path
+    s.replan = bool(replan)
+    scenario.planner.apply(s.planner)
+    s.planner.seed = as_seed("planner_seed", planner_seed or 0)
+    return problem, s
+
+
 def make_guidance(scenario, safe_path, *, method: str = "centroid", filter: str = "ekf", n_particles: int = 500,
                   gate: float | None = None, seed: int = 0, world_map=None) -> Guidance:
     """A :class:`Guidance` along ``safe_path`` in ``scenario``'s world: its
     obstacles (detours), its landmarks (observations, ids = their rows) and the
     scenario's BMM and navigation settings (those of
     :func:`~safenav.navigation.make_navigator`)."""
-    from .navigation import navigation_setup
-
     problem, settings = navigation_setup(scenario, as_array("safe_path", safe_path, (None, 2)), method=method,
                                          world_map=world_map)
     ls = localizer_settings(filter=filter, bmm=problem.bmm, gate=gate, n_particles=n_particles)

@@ -11,6 +11,9 @@
   so a point just inside zone 2 scores lower than one just inside zone 1's
   outer edge; we keep it as written and call it the paper's WRS.
 * NEES and NIS with their two-sided chi-square acceptance intervals.
+* :class:`TrajectoryScore` — the one accumulator of a trajectory's scores
+  against the truth (ADE, FDE, RMSE, NEES, share outside 3σ), fed pose by pose;
+  the simulator's trials and :func:`safenav.replay.score` both use it.
 
 Distances do not overflow in their squares (``std::hypot``; coordinates beyond
 2^500 are scaled by a power of two, which is exact), so any distance that is
@@ -29,6 +32,7 @@ from . import _core
 from .validation import as_array, as_positive_int
 
 RiskZones = _core.RiskZones
+TrajectoryScore = _core.TrajectoryScore
 
 
 def _pts(name, p):

@@ -41,20 +41,18 @@ from __future__ import annotations
 import numpy as np
 
 from . import _core
-from .validation import as_array, as_seed, choice, integer
+from .validation import as_array, choice, integer
 from .geometry import PathSegments
+from .guidance import (FILTERS, METHODS, GuardSettings, NavigationMethod, NavigationProblem, NavigationSettings,
+                       navigation_setup)
 from .measurement import PositionNoise
 from .planning import PlanningProblem, PlannerSettings, map_from_world, plan
 
 Navigator = _core.Navigator
-NavigationMethod = _core.NavigationMethod
-NavigationProblem = _core.NavigationProblem
-NavigationSettings = _core.NavigationSettings
 SensorSettings = _core.SensorSettings
 TrialOutcome = _core.TrialOutcome
 ChullAction = _core.ChullAction
 TrialResult = _core.TrialResult
-GuardSettings = _core.GuardSettings
 LandmarkFaults = _core.LandmarkFaults
 FixModel = _core.FixModel
 
@@ -64,10 +62,8 @@ __all__ = [
     "OUTCOMES", "position_source", "with_faults", "plan_safe_path", "navigation_setup", "make_navigator", "chull_control", "centroid_control",
 ]
 
-METHODS = {"chull": NavigationMethod.CHULL, "centroid": NavigationMethod.CENTROID}
-FILTERS = {"ekf": _core.FilterType.EKF, "pf": _core.FilterType.PF}
-#: Outcome codes (``TrialOutcome`` values) to names, in code order.
-OUTCOMES = ("arrived", "collision", "left_corridor", "step_limit", "lost_localization", "no_path")
+#: Outcome codes (``TrialOutcome`` values) to names, in code order, as the core names them.
+OUTCOMES = tuple(_core.outcome_name(TrialOutcome(code)) for code in range(len(TrialOutcome.__members__)))
 
 
 #: The named position sources (:class:`PositionNoise`, declared once in the
@@ -120,38 +116,6 @@ def plan_safe_path(scenario, path_type: str, *, seed: int | None = None, iterati
         raise RuntimeError(f"path type {path_type}: RAw-RRT* found no safe path ({result.status}, "
                            f"{result.iterations} iterations); raise navigation.plan_iterations")
     return result
-
-
-def navigation_setup(scenario, safe_path, *, method: str = "centroid", world_map=None, max_steps: int | None = None,
-                     replan: bool = True, planner_seed: int | None = None, paper: bool = False):
-    """The ``NavigationProblem`` and ``NavigationSettings`` of ``safe_path`` in
-    ``scenario``'s world (shared by :func:`make_navigator` and
-    :func:`safenav.guidance.make_guidance`).  The guard and the gate follow
-    ``scenario.navigation`` (on by default); ``paper=True`` turns both off."""
-    path = as_array("safe_path", safe_path, (None, 2))
-    nav = scenario.navigation
-    problem = NavigationProblem()
-    problem.path = path
-    problem.zones = scenario.risk_zones()
-    problem.map = world_map if world_map is not None else map_from_world(
-        scenario.world, clearance=nav.planning_clearance, forbidden_risk=scenario.planner.forbidden_risk)
-    problem.bmm = scenario.bmm_params()
-
-    s = nav.apply(NavigationSettings())
-    s.guard.enabled = nav.guard == "on" and not paper
-    s.guard.field_of_view = float(np.deg2rad(scenario.camera.field_of_view_deg))  # it looks with the camera
-    s.guard.look_range = float(scenario.detection.max_range_m)
-    s.guard.look_min_landmarks = int(scenario.detection.min_landmarks)
-    s.guard.occlusion = bool(scenario.detection.occlusion) and not paper
-    if paper:
-        s.filter.gate_probability = 0.0
-    s.method = choice("method", method, METHODS)
-    if max_steps is not None:
-        s.max_steps = integer("max_steps", max_steps, 0)  # 0: from the path
-    s.replan = bool(replan)
-    scenario.planner.apply(s.planner)
-    s.planner.seed = as_seed("planner_seed", planner_seed or 0)
-    return problem, s
 
 
 def make_navigator(scenario, safe_path, *, method: str = "centroid", filter: str = "ekf",

@@ -5,9 +5,13 @@ localizer event by event, in time order — every range at its own timestamp —
 exactly as a vehicle's loop would, and records the estimate after each motion
 input.  When the log carries ground truth, :func:`replay` scores the
 estimate at each truth time with the latest estimate at or before it
-(causal: nothing after that time is used): position RMSE, ADE (mean error),
-FDE (final error) and the mean position NEES (2 degrees of freedom; 2 for a
-consistent filter), over the truth rows from the localizer's start on.
+(causal: nothing after that time is used), through the core's one trajectory
+accumulator (:class:`safenav.metrics.TrajectoryScore`, as the simulator's
+trials): against the truth, the position RMSE (``truth_rmse``), ADE
+(``truth_ade``, mean error, [SafeNav-ext eq. 21] with the truth as
+reference), FDE (``truth_fde``, final error, eq. 22), the mean position NEES
+(2 degrees of freedom; 2 for a consistent filter) and the share of poses
+outside the 3σ ellipse, over the truth rows from the localizer's start on.
 
 ``safenav replay LOG`` is the command-line front end (``--help``).
 """
@@ -64,7 +68,8 @@ class ReplayResult:
     counts: dict                    #: the localizer's input counts (applied, rejected, late, buffered, motion)
     t_start: float                  #: time of the localizer's start (prior or from the data)
     started_from: str               #: "data" or "prior"
-    metrics: dict = field(default_factory=dict)  #: rmse, ade, fde, nees, n_scored, n_before_start, label
+    #: truth_rmse, truth_ade, truth_fde, nees, nees_dof, outside_3sigma, n_scored, n_before_start, label
+    metrics: dict = field(default_factory=dict)
 
 
 def load(path, *, range_std: float = 1.0) -> Log:
@@ -140,11 +145,11 @@ def score(trajectory: pd.DataFrame, truth: pd.DataFrame) -> dict:
     j = np.searchsorted(tt, gt[:, 0] + 1e-9, side="right") - 1   # latest estimate at or before each truth time
     ok = j >= 0
     j = j[ok]
-    e = trajectory[["x", "y"]].to_numpy(float)[j] - gt[ok, 1:3]
     vx, vy, cxy = (trajectory[c].to_numpy(float)[j] for c in ("var_x", "var_y", "cov_xy"))
-    det = vx * vy - cxy * cxy
-    nees = (vy * e[:, 0] ** 2 - 2 * cxy * e[:, 0] * e[:, 1] + vx * e[:, 1] ** 2) / det
-    d = np.hypot(e[:, 0], e[:, 1])
-    return {"label": "causal", "rmse": float(np.sqrt(np.mean(d ** 2))), "ade": float(d.mean()),
-            "fde": float(d[-1]), "nees": float(nees.mean()), "nees_dof": 2, "n_scored": int(ok.sum()),
-            "n_before_start": int((~ok).sum())}
+    covariances = np.column_stack([vx, cxy, cxy, vy])   # 2x2 row-major per pose
+    acc = _core.TrajectoryScore(len(j))
+    acc.add_rows(np.ascontiguousarray(trajectory[["x", "y"]].to_numpy(float)[j]), covariances,
+                 np.ascontiguousarray(gt[ok, 1:3]))
+    return {"label": "causal", "truth_rmse": acc.truth_rmse, "truth_ade": acc.truth_ade, "truth_fde": acc.truth_fde,
+            "nees": acc.position_nees, "nees_dof": 2, "outside_3sigma": acc.outside_3sigma,
+            "n_scored": int(acc.size), "n_before_start": int((~ok).sum())}

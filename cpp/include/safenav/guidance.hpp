@@ -28,6 +28,7 @@
 
 #include "safenav/corridor.hpp"
 #include "safenav/filters.hpp"
+#include "safenav/guard.hpp"
 #include "safenav/localizer.hpp"
 #include "safenav/motion.hpp"
 #include "safenav/planning.hpp"
@@ -52,54 +53,6 @@ struct NavigationProblem {
   void validate() const;
 };
 
-
-/// The uncertainty-aware guard (ours; the papers have none).  Each command
-/// it compares the estimate's k-σ position radius ρ = k·√λ_max(P_xy) with the
-/// clearance d of the way ahead to the nearest obstacle or forbidden hazard,
-/// less a buffer,
-/// (not grown: the true vehicle's collision test).  The way ahead of a
-/// control is the BMM arc of that control held for `horizon` seconds, then
-/// braking to a stop (a dynamic-window rollout).  With margin m = d − ρ − buffer for
-/// the method's control:
-///   * m ≥ slow_distance: the method's control is kept;
-
-///   * 0 ≤ m < slow_distance: it slows down, to a speed fraction m/slow_distance
-///     (at least min_speed_fraction);
-///   * m < 0, the way ahead clear of the obstacles themselves (the conflict
-///     is the uncertainty), and look_min_landmarks mapped landmarks within
-///     look_range that could be brought into view but are not in it: it
-///     stops and turns toward them ("look first": a fix shrinks ρ); the look
-///     lasts until σ halves or look_timeout passes, and the next look waits
-///     until the margin has been met again;
-///   * m < 0 otherwise: it steers — among arcs of a fan of turn rates within the BMM's
-///     limit at the commanded, half and slowest speeds, the fastest speed with
-///     a clear arc (m ≥ 0) that keeps the k-σ disc in the corridor, with the
-///     turn closest to the method's; if none is clear, the slowest arc that
-///     ends farthest from the obstacles (if farther than the vehicle is now);
-///   * otherwise it stops and holds for a fix, turning toward the bearing that
-///     puts the most mapped landmarks within look_range inside field_of_view.
-/// With `occlusion`, a landmark hidden by an obstacle from the estimated
-/// position counts for none of these looks.
-/// Off, the loop is the papers'.
-struct GuardSettings {
-  bool enabled = true;
-  double k_sigma = 3.0;              ///< k of the k-σ radius
-  double buffer = 0.25;              ///< kept beyond the k-σ radius (the vehicle's next step, the truth's process noise) [m]
-  bool look_first = true;            ///< before steering round an uncertain way ahead, turn to look at landmarks
-  double look_timeout = 6.0;         ///< the longest look [s]
-  double slow_distance = 1.0;        ///< margin below which it slows down [m]
-  double min_speed_fraction = 0.25;  ///< slowest fraction of the commanded speed while slowing
-  double horizon = 1.0;              ///< the way ahead: a control held this long, then braking [s]
-  // What the guard looks with: the Navigator sets these four from its SensorSettings.
-  double look_range = 30.0;          ///< landmarks within this can be looked at while holding [m]
-  int look_min_landmarks = 3;        ///< a fix needs this many landmarks in view
-  double field_of_view = 85.0 * kPi / 180.0;  ///< the camera's full horizontal FOV [rad]
-  /// Obstacles hide landmarks (SensorSettings::occlusion): the look counts and
-  /// turns toward only the landmarks in line of sight of the estimated position
-  /// (ObstacleChecker::line_of_sight on the problem's map, no clearance).
-  bool occlusion = true;
-  void validate() const;
-};
 
 struct NavigationSettings {
   NavigationMethod method = NavigationMethod::Centroid;
@@ -136,7 +89,7 @@ struct NavigationSettings {
     f.gate_probability = 0.99;
     return f;
   }();
-  GuardSettings guard;             ///< the uncertainty-aware guard (on; enabled = false: the papers' loop)
+  GuardSettings guard;             ///< the uncertainty-aware guard (guard.hpp; on; enabled = false: the papers' loop)
   bool record = true;              ///< keep the trajectories in the result
   void validate() const;
 };

@@ -8,7 +8,7 @@
 // safe path from its first to its last vertex.  Each step the navigator
 //   1. chooses a control from the filter's estimate with the selected method,
 //      which the uncertainty-aware guard may slow, steer or hold (ours,
-//      GuardSettings in guidance.hpp; off in the papers' loop);
+//      guard.hpp; off in the papers' loop);
 //   2. checks the path ahead for obstacles and replans with RAw-RRT* when it
 //      is blocked (the detour is spliced into the path it follows);
 //   3. moves the true vehicle;
@@ -20,7 +20,8 @@
 //      pipeline), plus IMU speed and heading — and updates the filter, each
 //      update through its χ² gate (ours; off in the papers' loop);
 //   5. records the true, predicted, measured and estimated trajectories, and
-//      the safety of the true track (TrialMetrics).
+//      feeds the trial's TrajectoryScore (metrics.hpp): the estimate against
+//      the truth, the risk and the safety of the true track (TrialMetrics).
 // It ends at the destination or with an explicit failure (TrialOutcome).
 //
 // Only Eigen and std types appear here.
@@ -76,6 +77,23 @@ enum class FixModel {
 };
 std::string to_string(FixModel model);
 
+/// Observations after LandmarkFaults::apply (landmark rows, ranges, fault
+/// flags) and how many were dropped.
+struct FaultedObservations {
+  std::vector<int> rows;
+  std::vector<double> ranges;
+  std::vector<unsigned> faults;  ///< LandmarkFaults flags of each observation
+  int dropped = 0;
+};
+/// `faults` applied to observations (landmark `rows` of `landmarks`, their
+/// `ranges`) of a vehicle at `position`, drawing from the core's generator
+/// seeded with `seed` (as the simulator's sensors draw).  Throws
+/// std::invalid_argument when rows and ranges differ in length, a row is not
+/// a landmark of the map, or the faults are invalid.
+FaultedObservations apply_faults(const LandmarkFaults& faults, const std::vector<int>& rows,
+                                 const std::vector<double>& ranges, const Landmarks& landmarks,
+                                 const Eigen::Vector2d& position, double confusion_range, std::uint64_t seed);
+
 /// What the vehicle senses.
 struct SensorSettings {
   PositionNoise position;              ///< the measurement-level source (LanBLoc by default)
@@ -108,28 +126,6 @@ struct SensorSettings {
 
 
 
-/// Per-trial metrics [SafeNav-ext eqs. 20–23], each named by what it compares
-/// against (as evo's results name their reference): `path_*` and `goal_*` take
-/// the safe path as ground truth (see Navigator::run), `truth_*` the true
-/// vehicle.
-struct TrialMetrics {
-  double path_ade = 0.0;        ///< ext eq. 21: mean distance of the estimate to the safe path (our reading)
-  double goal_fde = 0.0;        ///< ext eq. 22: final estimate vs the destination
-  double path_error_percent = 0.0;  ///< ext eq. 23: |L_est − L_path| / L_path · 100
-  double awrs = 0.0;            ///< ext eq. 20: mean WRS of the estimated trajectory (eq. 18, about the safe path)
-  double awrs_true = 0.0;       ///< mean WRS of the true trajectory
-  double truth_ade = 0.0;       ///< mean ‖estimate − truth‖
-  double truth_fde = 0.0;       ///< final ‖estimate − truth‖
-  double max_deviation = 0.0;   ///< largest deviation of the true vehicle from the safe path [m]
-  // Safety (ours): what the true vehicle met, and whether the filter knew its error.
-  double min_clearance = 0.0;   ///< least distance of the true track to an obstacle or forbidden hazard [m] (+inf: none)
-  double hazard_time = 0.0;     ///< time with the true vehicle inside a hazard [s]
-  double hazard_length = 0.0;   ///< Σ_k length of the true track inside hazard k [m]
-  double exposure = 0.0;        ///< Σ_k risk_k · length inside hazard k [m] (PathSafety::exposure of the track)
-  double nees = 0.0;            ///< mean NEES eᵀP⁻¹e of the 4-state estimate (4 when consistent), over the steps whose P is positive definite
-  double outside_3sigma = 0.0;  ///< fraction of steps with the truth outside the estimate's 3σ position ellipse (or a singular P_xy)
-};
-
 struct TrialResult {
   TrialOutcome outcome = TrialOutcome::StepLimit;
   bool success = false;          ///< outcome == Arrived
@@ -155,7 +151,7 @@ struct TrialResult {
   int chull_corrective = 0;      ///< Algorithm 1: corrective controls
   int chull_step_back = 0;       ///< Algorithm 1: step-back controls
   double wall_time = 0.0;        ///< [s]
-  TrialMetrics metrics;
+  TrialMetrics metrics;          ///< metrics.hpp (accumulated by TrajectoryScore)
   // Trajectories (rows 0 … steps), when NavigationSettings::record.
   RowMatrixX4 truth;             ///< true states
   RowMatrixX4 estimate;          ///< filter estimates

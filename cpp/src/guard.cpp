@@ -1,0 +1,238 @@
+// The uncertainty-aware guard (ours): safenav/guard.hpp.
+#include "safenav/guard.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "errors.hpp"
+
+namespace safenav {
+
+using detail::bad;
+using detail::num;
+using detail::require_finite_nonneg;
+using detail::require_finite_positive;
+
+void GuardSettings::look_with_camera(double camera_field_of_view, double max_range, int min_landmarks,
+                                     bool camera_occlusion) {
+  field_of_view = std::min(camera_field_of_view, 2.0 * kPi);
+  look_range = max_range;
+  look_min_landmarks = std::max(1, min_landmarks);
+  occlusion = camera_occlusion;
+}
+
+void GuardSettings::validate() const {
+  require_finite_positive(k_sigma, "settings.guard.k_sigma (the scenario's navigation.guard_k)");
+  require_finite_nonneg(slow_distance, "settings.guard.slow_distance");
+  require_finite_nonneg(buffer, "settings.guard.buffer");
+  require_finite_nonneg(look_timeout, "settings.guard.look_timeout");
+  if (!(min_speed_fraction > 0.0 && min_speed_fraction <= 1.0))
+    bad("settings.guard.min_speed_fraction = " + num(min_speed_fraction) + ": must be in (0, 1]");
+  require_finite_positive(horizon, "settings.guard.horizon");
+  require_finite_nonneg(look_range, "settings.guard.look_range");
+  if (look_min_landmarks < 1)
+    bad("settings.guard.look_min_landmarks = " + std::to_string(look_min_landmarks) + ": must be >= 1");
+  require_finite_positive(field_of_view, "settings.guard.field_of_view");
+}
+
+Guard::Guard(const GuardSettings& settings, const Bmm& bmm, const ObstacleChecker& obstacles,
+             const Points2& landmarks, double corridor_limit)
+    : settings_(settings), bmm_(bmm), obstacles_(obstacles), landmarks_(landmarks), corridor_limit_(corridor_limit) {}
+
+/// Clearance of the segment a–b (a = the estimate) to obstacles and
+/// forbidden hazards: exact when it could matter (bound − keep < slow_distance,
+/// keep = k·σ + buffer), else the lower bound.
+double Guard::clearance(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double keep) {
+  // The bound suffices when even it leaves the margin d − keep at slow_distance or more:
+  // the guard then keeps the control, as it would with the exact distance.
+  const double slow = settings_.slow_distance;
+  auto bound = [&] { return cache_d_ - std::max((a - cache_p_).norm(), (b - cache_p_).norm()); };
+  if (bound() - keep >= slow) return bound();
+  if ((a - cache_p_).norm() > 0.0 || !std::isfinite(cache_d_)) {
+    cache_p_ = a;
+    cache_d_ = obstacles_.keep_out_distance(a, a);
+    if (bound() - keep >= slow) return bound();
+  }
+  return obstacles_.keep_out_distance(a, b);
+}
+
+/// The way ahead under u: u held for horizon seconds (a constant-turn arc of
+/// the BMM, as in the dynamic window approach), then braking to a stop.  With
+/// `path`, also the arc's largest deviation from it and the clearance at the stop.
+Guard::WayAhead Guard::way_ahead(const State& x, const Control& u, double keep, const Corridor* path) {
+  const BmmParams& p = bmm_.params();
+  const int steps = std::max(1, static_cast<int>(std::ceil(settings_.horizon / p.dt)));
+  constexpr int kEvery = 4;  // clearance checked over chords of this many steps
+  State xi = x;
+  Eigen::Vector2d a = x.head<2>();
+  WayAhead w;
+  for (int i = 1; i <= steps; ++i) {
+    xi = bmm_.predict(xi, u);
+    if (i % kEvery == 0 || i == steps) {
+      const Eigen::Vector2d b = xi.head<2>();
+      w.clearance = std::min(w.clearance, clearance(a, b, keep));
+      if (path) w.deviation = std::max(w.deviation, path->project(b).distance);
+      a = b;
+    }
+  }
+  const double v = xi[kV];
+  const Eigen::Vector2d stop =
+      xi.head<2>() + v * v / (2.0 * p.deceleration) * Eigen::Vector2d(std::cos(xi[kTheta]), std::sin(xi[kTheta]));
+  w.clearance = std::min(w.clearance, clearance(a, stop, keep));
+  if (path) {
+    w.deviation = std::max(w.deviation, path->project(stop).distance);
+    w.end_clearance = obstacles_.keep_out_distance(stop, stop);
+  }
+  return w;
+}
+
+/// Bearings from p of the landmarks within look_range (not at p itself)
+/// that p can see: with occlusion, those no obstacle hides
+/// (ObstacleChecker::line_of_sight, no clearance).
+std::vector<double> Guard::bearings_in_range(const Eigen::Vector2d& p) const {
+  std::vector<double> out;
+  for (Eigen::Index j = 0; j < landmarks_.rows(); ++j) {
+    const Eigen::Vector2d lj = landmarks_.row(j).transpose();
+    const Eigen::Vector2d dj = lj - p;
+    if (dj.norm() > settings_.look_range || dj.squaredNorm() < 1e-18) continue;
+    if (settings_.occlusion && !obstacles_.line_of_sight(p, lj)) continue;
+    out.push_back(std::atan2(dj.y(), dj.x()));
+  }
+  return out;
+}
+
+/// How many of `bearings` lie inside the field of view centred on `heading`.
+int Guard::landmarks_seen(const std::vector<double>& bearings, double heading) const {
+  const double half = 0.5 * settings_.field_of_view;
+  int n = 0;
+  for (double b : bearings) n += std::abs(wrap_angle(b - heading)) <= half;
+  return n;
+}
+
+/// The heading change toward the landmark bearing that puts the most
+/// landmarks of `bearings` inside the field of view (0 when there is none;
+/// ties: the smaller turn); `seen` gets that count.
+double Guard::look_turn(const State& x, const std::vector<double>& bearings, int* seen) const {
+  int best = 0;
+  double best_turn = 0.0;
+  for (double bi : bearings) {
+    const int n = landmarks_seen(bearings, bi);
+    const double turn = wrap_angle(bi - x[kTheta]);
+    if (n > best || (n == best && std::abs(turn) < std::abs(best_turn))) {
+      best = n;
+      best_turn = turn;
+    }
+  }
+  if (seen) *seen = best;
+  return best_turn;
+}
+
+/// Steer: arcs of a fan of turn rates within the BMM's limit, at a few
+/// speeds; the fastest speed with a clear arc, then the turn closest to the
+/// method's.  An arc may not take the k-σ disc out of the corridor (or, when
+/// it already is, any farther out).  Failing that, the escape: the slow arc
+/// that ends farthest from the obstacles, if it ends farther than the vehicle
+/// is now and touches nothing.  False when neither exists.
+bool Guard::steer(const State& x, const Control& u0, double rho, double keep, const Corridor& path,
+                  GuardDecision& out) {
+  const BmmParams& p = bmm_.params();
+  const double lim = p.max_heading_rate * p.dt;
+  const double want = bmm_.clipped_heading_change(u0[1]);
+  const double out_now = path.project(x.head<2>()).distance;
+  const double dev_limit = std::max(corridor_limit_ - rho, out_now);
+  constexpr int kTurns = 9;
+  const double speeds[3] = {u0[0], 0.5 * u0[0], settings_.min_speed_fraction * u0[0]};
+  const double here = obstacles_.keep_out_distance(x.head<2>(), x.head<2>());
+  Control best = u0, escape = u0;
+  double best_cost = std::numeric_limits<double>::infinity(), best_d = 0.0;
+  double escape_end = here + 1e-3, escape_d = 0.0;
+  bool found = false, can_escape = false;
+  for (double v : speeds) {
+    for (int j = 0; j <= kTurns; ++j) {
+      const double dth = j == kTurns ? want : -lim + 2.0 * lim * j / (kTurns - 1);
+      const Control u(v, dth);
+      const WayAhead w = way_ahead(x, u, keep, &path);
+      if (w.deviation > dev_limit) continue;
+      if (w.clearance - keep >= 0.0) {
+        const double cost = std::abs(dth - want);
+        if (cost < best_cost) {
+          best_cost = cost;
+          best = u;
+          best_d = w.clearance;
+          found = true;
+        }
+      } else if (v == speeds[2] && w.clearance > 0.0 && w.end_clearance > escape_end) {
+        escape = u;
+        escape_end = w.end_clearance;
+        escape_d = w.clearance;
+        can_escape = true;
+      }
+    }
+    if (found) break;
+  }
+  if (!found && !can_escape) return false;
+  out.control = found ? best : escape;
+  out.action = GuardAction::Steer;
+  out.clearance = found ? best_d : escape_d;
+  out.margin = out.clearance - keep;
+  return true;
+}
+
+GuardDecision Guard::decide(double t, const State& x, double position_std, const Control& proposed,
+                            const Corridor& path) {
+  const GuardSettings& g = settings_;
+  const double rho = g.k_sigma * position_std;
+  const double keep = rho + g.buffer;  // the clearance the way ahead must keep
+  const Control u0 = proposed;
+  GuardDecision out;
+  auto set = [&](const Control& u, GuardAction action, double d) {
+    out.control = u;
+    out.action = action;
+    out.clearance = d;
+    out.margin = d - keep;
+    return out;
+  };
+  const double d0 = way_ahead(x, u0, keep).clearance;
+  set(u0, GuardAction::Keep, d0);
+  if (out.margin >= 0.0 && looking_ < 0) looking_ = 0;  // clear again: a later conflict may look again
+  if (out.margin >= g.slow_distance && looking_ == 0) return out;
+  if (out.margin >= 0.0 && looking_ == 0) {  // slow down
+    const double f = std::max(g.min_speed_fraction, g.slow_distance > 0 ? out.margin / g.slow_distance : 1.0);
+    if (f < 1.0) {
+      const Control u(f * u0[0], u0[1]);
+      set(u, GuardAction::Slow, way_ahead(x, u, keep).clearance);
+    }
+    return out;
+  }
+  int could_see = 0;
+  const std::vector<double> bearings = bearings_in_range(x.head<2>());
+  const double look = look_turn(x, bearings, &could_see);
+  // Look first: the way ahead is clear of the obstacles themselves (d0 > buffer), so the
+  // conflict is the uncertainty; landmarks that would give a fix are in range
+  // but out of view: stop and turn toward them, until they are in view and
+  // a fix has halved σ, or for at most look_timeout.
+  const bool in_view = landmarks_seen(bearings, x[kTheta]) >= g.look_min_landmarks;
+  if (g.look_first && looking_ == 0 && d0 > g.buffer && could_see >= g.look_min_landmarks && !in_view) {
+    looking_ = 1;
+    look_sigma_ = position_std;
+    look_start_ = t;
+  }
+  if (looking_ > 0) {
+    // A look runs to its end even if the margin clears meanwhile: stopped, the
+    // way ahead looks shorter, and ending there would start and stop the vehicle in turn.
+    const bool done = position_std <= 0.5 * look_sigma_ || t - look_start_ > g.look_timeout;
+    if (!done) {
+      ++looking_;
+      const Control u(0.0, in_view ? 0.0 : look);
+      return set(u, GuardAction::Hold, way_ahead(x, u, keep).clearance);
+    }
+    looking_ = -1;  // looked: no second look until the margin is met again
+  }
+  if (steer(x, u0, rho, keep, path, out)) return out;
+  // Hold for a fix: stop, turning toward where landmarks can be seen.
+  const Control u(0.0, look);
+  return set(u, GuardAction::Hold, way_ahead(x, u, keep).clearance);
+}
+
+}  // namespace safenav
