@@ -184,6 +184,98 @@ def test_no_obstacles_sees_everything_and_no_target_gives_an_empty_answer():
     assert chk.visible_from((0, 0), np.zeros((0, 2))).shape == (0,)
 
 
+# --------------------------------------------------------------------------- symmetry, at any distance
+
+#: far coordinates: the reported 1.8e19, and beyond what a double can square (1e160, 1e300)
+FAR = [1e19, -1e19, 1.8e19, -1.8e19, 1e160, -1e160, 1e300, -1e300]
+far = st.sampled_from(FAR) | st.floats(-1e20, 1e20, allow_nan=False, allow_infinity=False)
+
+
+@st.composite
+def scene_and_ends(draw):
+    """Obstacles and two ends drawn to make the hard cases common: far ends, ends on the line
+    of a polygon's edge (collinear, near or far along it), on a vertex, on a circle's boundary,
+    and tangent lines."""
+    circles, polygons = draw(obstacles)
+
+    def end():
+        kind = draw(st.integers(0, 4))
+        if kind == 1 or (kind >= 3 and not (polygons or circles)):
+            return draw(st.tuples(far, far) | st.tuples(grid, far) | st.tuples(far, grid))
+        if kind == 3 and polygons:                 # on an edge's line: t = 0, 1 are its ends
+            poly = draw(st.sampled_from(polygons))
+            i = draw(st.integers(0, len(poly) - 1))
+            (x0, y0), (x1, y1) = poly[i], poly[(i + 1) % len(poly)]
+            t = draw(st.sampled_from([-1e18, -3.0, -0.5, 0.0, 0.5, 1.0, 2.0, 1e18]))
+            return (x0 + t * (x1 - x0), y0 + t * (y1 - y0))
+        if kind == 4 and circles:                  # on a circle's boundary or its tangent, near or far
+            cx, cy, r = draw(st.sampled_from(circles))
+            return draw(st.sampled_from([(cx + r, cy), (cx, cy - r), (cx - 1e19, cy + r), (cx + 1e19, cy + r)]))
+        return draw(point)
+
+    return circles, polygons, end(), end()
+
+
+@settings(max_examples=400, deadline=None)
+@given(scene_and_ends())
+def test_line_of_sight_is_symmetric_and_exact_at_any_distance(scene):
+    circles, polygons, a, b = scene
+    chk = _checker(circles, polygons)
+    seen = chk.line_of_sight(a, b)
+    assert chk.line_of_sight(b, a) == seen                               # the very same answer both ways
+    assert seen == los_reference(a, b, circles, polygons)                # and the exact one
+    assert list(chk.visible_from(b, np.array([a], dtype=float))) == [seen]
+
+
+@settings(max_examples=200, deadline=None)
+@given(scene_and_ends())
+def test_placement_sight_test_is_the_world_predicate_at_any_distance(scene):
+    circles, polygons, a, b = scene
+    try:
+        occ = _core.Occluders(np.array(circles, dtype=float).reshape(-1, 3), [np.asarray(p, float) for p in polygons])
+    except ValueError as e:   # placement rejects what is not a simple polygon (a few star draws)
+        assert "not a simple polygon" in str(e)
+        assume(False)
+    blocked = _core.sight_blocked(occ, a, b)
+    assert _core.sight_blocked(occ, b, a) == blocked
+    assert blocked == (not _checker(circles, polygons).line_of_sight(a, b))
+
+
+def test_the_reported_far_endpoint_is_seen_alike_both_ways():
+    """The default world from (117.15, 31.27) to (1.8e19, 1.8e19): one answer both ways, the exact one."""
+    w = safenav.default_scenario().world
+    circles, polygons = w.obstacle_arrays()
+    a, b = (117.15, 31.27), (1.8e19, 1.8e19)
+    ref = los_reference(a, b, circles, polygons)
+    assert w.line_of_sight(a, b) == ref and w.line_of_sight(b, a) == ref
+
+
+@pytest.mark.parametrize("circles, polygons, a, b, seen, what", [
+    ([], [SQUARE], (-1e19, 0), (1e19, 0), False, "along a polygon edge's line, far both ways"),
+    ([], [SQUARE], (-2, 0), (1e300, 0), False, "along an edge, to beyond what a double can square"),
+    ([], [SQUARE], (-2, 0), (-1e300, 0), True, "on the edge's line, away from it"),
+    ([], [SQUARE], (-1e19, -1e19), (1e19, 1e19), False, "through two opposite vertices, far"),
+    ([], [SQUARE], (-1e19, 1e19), (1e19, -1e19), False, "through a vertex only, far"),
+    ([(0, 0, 1)], [], (-1e19, 1), (1e19, 1), False, "tangent to a circle, far both ways"),
+    ([(0, 0, 1)], [], (-1e300, 1), (1e300, 1), False, "tangent, beyond what a double can square"),
+    ([(0, 0, 1)], [], (-1e19, np.nextafter(1, 2)), (1e19, np.nextafter(1, 2)), True, "one ulp past the tangent, far"),
+    ([(0, 0, 1)], [], (1, 0), (1e300, 0), True, "from the circle's boundary outwards"),
+])
+def test_far_degenerate_cases(circles, polygons, a, b, seen, what):
+    chk = _checker(circles, polygons)
+    assert los_reference(a, b, circles, polygons) == seen, what
+    assert chk.line_of_sight(a, b) == seen, what
+    assert chk.line_of_sight(b, a) == seen, what
+
+
+def test_placement_sight_test_names_a_non_finite_end():
+    occ = _core.Occluders(np.array([(0.0, 0.0, 1.0)]))
+    with pytest.raises(ValueError, match=r"sight_blocked: a = \(nan, 0\) is not finite"):
+        _core.sight_blocked(occ, (np.nan, 0.0), (1.0, 1.0))
+    with pytest.raises(ValueError, match=r"sight_blocked: b = \(1, inf\) is not finite"):
+        _core.sight_blocked(occ, (0.0, 0.0), (1.0, np.inf))
+
+
 # --------------------------------------------------------------------------- World
 
 

@@ -361,3 +361,43 @@ def test_fuzz_every_call_returns_or_raises_one_value_error(scenario):
 @given(scenarios())
 def test_fuzz_every_call_returns_or_raises_one_value_error_many(scenario):
     _fuzz(scenario)
+
+
+any_float = st.floats(allow_nan=True, allow_infinity=True)
+any_point = st.tuples(any_float, any_float)
+
+
+@pytest.mark.parametrize("a, b, match", [
+    ((np.nan, 0.0), (1.0, 0.0), r"EdgeFrame: a = \(nan, 0\) is not finite"),
+    ((0.0, 0.0), (1.0, np.inf), r"EdgeFrame: b = \(1, inf\) is not finite"),
+    ((-1e300, 0.0), (1e300, 0.0), r"EdgeFrame: the edge \(-1e\+300, 0\) -> \(1e\+300, 0\) is too long"),
+])
+def test_edge_frame_names_bad_ends(a, b, match):
+    with pytest.raises(ValueError, match=match):
+        _core.EdgeFrame(a, b)
+
+
+def test_edge_frame_names_a_point_it_cannot_map():
+    f = _core.EdgeFrame((0.0, 0.0), (1.0, 1.0))
+    with pytest.raises(ValueError, match=r"EdgeFrame\.to_local: \(nan, 0\) is not finite or too far"):
+        f.to_local((np.nan, 0.0))
+    with pytest.raises(ValueError, match=r"EdgeFrame\.to_world: \(1\.5e\+308, 1\.5e\+308\) is not finite or too far"):
+        f.to_world((1.5e308, 1.5e308))
+
+
+@settings(max_examples=300, deadline=None)
+@given(any_point, any_point, any_point)
+def test_edge_frame_refuses_its_input_or_answers_finite(a, b, p):
+    try:
+        f = _core.EdgeFrame(a, b)
+    except ValueError as e:
+        assert str(e).startswith("EdgeFrame: ")
+        return
+    assert np.isfinite([f.length, f.heading, *f.origin]).all()
+    for name in ("to_local", "to_world"):
+        try:
+            out = getattr(f, name)(p)
+        except ValueError as e:
+            assert str(e).startswith(f"EdgeFrame.{name}: ")
+        else:
+            assert np.isfinite(out).all()

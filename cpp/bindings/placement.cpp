@@ -16,10 +16,8 @@ std::vector<Interval> to_intervals(const Eigen::Ref<const RowMatrixIv>& m) {
   for (Eigen::Index i = 0; i < m.rows(); ++i) v[i] = {m(i, 0), m(i, 1)};
   return v;
 }
-}  // namespace
-
-void pybind_placement(py::module_& m) {
-  m.attr("PLACEMENT_MAX_K") = kMaxLandmarksInView;
+// Occluders, the sight test and the shadows (occlusion, ours).
+void bind_occlusion(py::module_& m) {
   py::class_<Occluders>(m, "Occluders",
                         "Obstacles that hide landmarks (circles as (n, 3) rows x, y, radius; simple polygons).")
       .def(py::init([](const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>& circles,
@@ -43,7 +41,9 @@ void pybind_placement(py::module_& m) {
       .def_readonly("polygons", &Occluders::polygons)
       .def("empty", &Occluders::empty)
       .def("validate", &Occluders::validate);
-  m.def("sight_blocked", &sight_blocked, py::arg("occluders"), py::arg("a"), py::arg("b"));
+  m.def("sight_blocked", &sight_blocked, py::arg("occluders"), py::arg("a"), py::arg("b"),
+        "Whether the occluders hide b from a: the world's line of sight (ObstacleChecker.line_of_sight), "
+        "negated.  Exact and symmetric in a, b.");
   m.def(
       "shadows_on_edge",
       [](const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& c, const Occluders& o) {
@@ -51,7 +51,10 @@ void pybind_placement(py::module_& m) {
       },
       py::arg("a"), py::arg("b"), py::arg("landmark"), py::arg("occluders"));
   m.attr("PLACEMENT_SHADOW_PAD") = kShadowPad;
+}
 
+// The camera, edge frames, [Placement Lemma 1, Lemma 2, Cor. 1].
+void bind_camera(py::module_& m) {
   py::enum_<FieldOfView>(m, "FieldOfView")
       .value("SECTOR", FieldOfView::Sector)
       .value("CIRCULAR", FieldOfView::Circular);
@@ -81,7 +84,10 @@ void pybind_placement(py::module_& m) {
         return py::make_tuple(iv.start, iv.end);
       },
       py::arg("local"), py::arg("length"), py::arg("camera"));
+}
 
+// The greedy cover [Placement Alg. 1] and the placement of a whole route.
+void bind_cover(py::module_& m) {
   m.def(
       "greedy_cover",
       [](const Eigen::Ref<const RowMatrixIv>& intervals, double length, int k,
@@ -116,7 +122,10 @@ void pybind_placement(py::module_& m) {
 
   m.def("place_landmarks", &place_landmarks, py::arg("route"), py::arg("candidates"), py::arg("camera"),
         py::arg("options"), py::arg("occluders") = Occluders(), release_gil());
+}
 
+// The ILP's tables and the exact coverage check.
+void bind_tables(py::module_& m) {
   py::class_<VisibilityTable>(m, "VisibilityTable")
       .def_readonly("edge", &VisibilityTable::edge)
       .def_readonly("candidate", &VisibilityTable::candidate)
@@ -148,4 +157,13 @@ void pybind_placement(py::module_& m) {
       .def_readonly("end", &CoverageReport::end);
   m.def("check_coverage", &check_coverage, py::arg("route"), py::arg("candidates"), py::arg("camera"), py::arg("k"),
         py::arg("corners") = false, py::arg("occluders") = Occluders(), release_gil());
+}
+}  // namespace
+
+void pybind_placement(py::module_& m) {
+  m.attr("PLACEMENT_MAX_K") = kMaxLandmarksInView;
+  bind_occlusion(m);
+  bind_camera(m);
+  bind_cover(m);
+  bind_tables(m);
 }

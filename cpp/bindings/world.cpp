@@ -4,7 +4,9 @@
 
 using namespace safenav;
 
-void pybind_world(py::module_& m) {
+namespace {
+// The obstacles' and hazards' shapes.
+void bind_shapes(py::module_& m) {
   py::class_<CircleObstacle>(m, "CircleObstacle", "A disc obstacle (center [m], radius [m]).")
       .def(py::init([](const Eigen::Vector2d& center, double radius) { return CircleObstacle{center, radius}; }),
            py::arg("center"), py::arg("radius"))
@@ -29,7 +31,10 @@ void pybind_world(py::module_& m) {
       .def_readonly("polygon", &HazardZone::polygon)
       .def_readonly("disc", &HazardZone::disc)
       .def_readonly("risk", &HazardZone::risk);
+}
 
+// The map and the obstacles' inflation.
+void bind_map(py::module_& m) {
   const PlanningMap dm;
   def_params<PlanningMap>(py::class_<PlanningMap>(m, "PlanningMap", "The field (rectangle), its circle and polygon obstacles and its hazards."))
       .def(py::init([](const Eigen::Vector2d& lower, const Eigen::Vector2d& upper, std::vector<CircleObstacle> circles,
@@ -65,7 +70,10 @@ void pybind_world(py::module_& m) {
       .def_readwrite("margin", &Inflation::margin)
       .def_property_readonly("clearance", &Inflation::clearance)
       .def("validate", &Inflation::validate);
+}
 
+// The collision checker, line of sight included, and the path queries.
+void bind_checker(py::module_& m) {
   py::class_<ObstacleChecker>(m, "ObstacleChecker", "Repeated collision queries against one PlanningMap.")
       .def(py::init<const PlanningMap&>(), py::arg("map"))
       .def("point_free", &ObstacleChecker::point_free, py::arg("point"))
@@ -84,7 +92,7 @@ void pybind_world(py::module_& m) {
            "Integral of risk along a-b: sum over hazards of risk * length inside (overlaps add).")
       .def("line_of_sight", &ObstacleChecker::line_of_sight, py::arg("a"), py::arg("b"),
            "Whether segment a-b meets no obstacle (not grown by the clearance; touching blocks), an obstacle "
-           "containing a or b excepted.  Hazards never occlude.  Exact.")
+           "containing a or b excepted.  Hazards never occlude.  Exact and symmetric in a, b.")
       .def("visible_from", &ObstacleChecker::visible_from, py::arg("from_"), py::arg("targets"), release_gil(),
            "(N,) bool: line_of_sight(from_, targets[i]) for each row of the (N, 2) targets.")
       .def("obstacle_distance", &ObstacleChecker::obstacle_distance, py::arg("a"), py::arg("b"),
@@ -105,4 +113,11 @@ void pybind_world(py::module_& m) {
   m.def("point_is_free", &point_is_free, py::arg("map"), py::arg("point"));
   m.def("segment_is_free", &segment_is_free, py::arg("map"), py::arg("a"), py::arg("b"));
   m.def("path_is_free", &path_is_free, py::arg("map"), py::arg("path"), release_gil());
+}
+}  // namespace
+
+void pybind_world(py::module_& m) {
+  bind_shapes(m);
+  bind_map(m);
+  bind_checker(m);
 }

@@ -226,100 +226,118 @@ bool Placement::covered() const {
   return true;
 }
 
+namespace {
+/// One edge: the greedy cover by the candidates' pieces (those picked on
+/// earlier edges preplaced when reusing), then the non-coincidence repair.
+EdgePlacement place_on_edge(const Points2& route, Eigen::Index e, const Points2& candidates, const Camera& camera,
+                            const PlacementOptions& opt, const CandidateSet& cs, std::vector<char>* picked) {
+  const int k = opt.k;
+  std::vector<Seen> all = seen_on_edge(route, e, candidates, cs.grid, cs.close, camera, cs.occ);
+  std::vector<Seen> pool, pre;
+  for (const auto& s : all) (opt.reuse && (*picked)[s.idx] ? pre : pool).push_back(s);
+  if (opt.distinct_bearings) one_per_line_side(&pool, pre);
+  std::vector<Interval> pre_iv;
+  for (const auto& s : pre) pre_iv.insert(pre_iv.end(), s.pieces.begin(), s.pieces.end());
+  const double d = (route.row(e + 1) - route.row(e)).norm();
+  CoverResult r = cover_pool(pool, pre_iv, d, k);
+  EdgePlacement ep;
+  ep.n_candidates = static_cast<int>(all.size());
+  std::vector<char> taken(pool.size(), 0);
+  std::vector<Seen> set = pre;
+  for (int i : r.chosen) {
+    taken[i] = 1;
+    set.push_back(pool[i]);
+  }
+  std::vector<int> chosen = r.chosen;
+  if (opt.distinct_bearings) repair(set, pool, taken, d, k, &chosen);
+  for (int i : chosen) {
+    ep.landmarks.push_back(pool[i].idx);
+    (*picked)[pool[i].idx] = 1;
+  }
+  std::sort(ep.landmarks.begin(), ep.landmarks.end());
+  return ep;
+}
+
+/// The in-place turn at interior vertex v (turn ≠ 0): the greedy cover of
+/// the turned angle, landmarks already placed counting for free.
+CornerPlacement place_at_corner(const Points2& route, Eigen::Index v, double turn, const Points2& candidates,
+                                const Camera& camera, const PlacementOptions& opt, const CandidateSet& cs,
+                                std::vector<char>* picked) {
+  const std::vector<char>& was = *picked;
+  const double theta_in = std::atan2(route(v, 1) - route(v - 1, 1), route(v, 0) - route(v - 1, 0));
+  std::vector<Seen> all =
+      seen_at_corner(route.row(v).transpose(), theta_in, turn, candidates, cs.grid, cs.close, camera, cs.occ);
+  // Landmarks on one ray from the vertex are one bearing for the whole turn:
+  // keep one per ray, an already placed one first, else the nearest.
+  std::vector<int> order(all.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::vector<double> brg(all.size());
+  for (size_t i = 0; i < all.size(); ++i) brg[i] = std::atan2(all[i].local.y(), all[i].local.x());
+  std::sort(order.begin(), order.end(), [&](int a, int b) {
+    if (brg[a] != brg[b]) return brg[a] < brg[b];
+    if (was[all[a].idx] != was[all[b].idx]) return was[all[a].idx] > was[all[b].idx];
+    return all[a].local.norm() < all[b].local.norm();
+  });
+  std::vector<Seen> pool, pre;
+  double last = -10.0;
+  for (int i : order) {
+    if (opt.distinct_bearings && brg[i] - last <= kBearingTol) continue;
+    last = brg[i];
+    (was[all[i].idx] ? pre : pool).push_back(all[i]);
+  }
+  std::vector<Interval> pre_iv;
+  for (const auto& s : pre) pre_iv.push_back(s.iv);
+  CoverResult r = cover_pool(pool, pre_iv, std::abs(turn), opt.k);
+  CornerPlacement cp;
+  cp.vertex = static_cast<int>(v);
+  cp.turn = turn;
+  for (int i : r.chosen) {
+    cp.landmarks.push_back(pool[i].idx);
+    (*picked)[pool[i].idx] = 1;
+  }
+  std::sort(cp.landmarks.begin(), cp.landmarks.end());
+  return cp;
+}
+
+/// The certificate: the exact check of the final landmarks, never the
+/// greedy's own count, fills every `uncovered` list.
+void certify(const Points2& route, const Points2& candidates, const Camera& camera, const PlacementOptions& opt,
+             const Occluders& occluders, Placement* out) {
+  Points2 placed(static_cast<Eigen::Index>(out->landmarks.size()), 2);
+  for (size_t i = 0; i < out->landmarks.size(); ++i)
+    placed.row(static_cast<Eigen::Index>(i)) = candidates.row(out->landmarks[i]);
+  const CoverageReport rep = check_coverage(route, placed, camera, opt.k, opt.corners, occluders);
+  for (Eigen::Index i = 0; i < rep.start.size(); ++i) {
+    const Interval s{rep.start(i), rep.end(i)};
+    if (rep.kind(i) == 0) {
+      out->edges[rep.index(i)].uncovered.push_back(s);
+    } else {
+      for (auto& cp : out->corners)
+        if (cp.vertex == rep.index(i)) cp.uncovered.push_back(s);
+    }
+  }
+}
+}  // namespace
+
 Placement place_landmarks(const Points2& route, const Points2& candidates, const Camera& camera,
                           const PlacementOptions& opt, const Occluders& occluders) {
   const CandidateSet set(route, candidates, camera, occluders);
   check_k(opt.k);
-  const int k = opt.k;
-  const Grid& grid = set.grid;
-  const std::vector<char>& close = set.close;
   Placement out;
   for (Eigen::Index i = 0; i < candidates.rows(); ++i)
-    if (close[i]) out.too_close.push_back(static_cast<int>(i));
+    if (set.close[i]) out.too_close.push_back(static_cast<int>(i));
   std::vector<char> picked(candidates.rows(), 0);
-
-  for (Eigen::Index e = 0; e + 1 < route.rows(); ++e) {
-    std::vector<Seen> all = seen_on_edge(route, e, candidates, grid, close, camera, set.occ);
-    std::vector<Seen> pool, pre;
-    for (const auto& s : all) (opt.reuse && picked[s.idx] ? pre : pool).push_back(s);
-    if (opt.distinct_bearings) one_per_line_side(&pool, pre);
-    std::vector<Interval> pre_iv;
-    for (const auto& s : pre) pre_iv.insert(pre_iv.end(), s.pieces.begin(), s.pieces.end());
-    const double d = (route.row(e + 1) - route.row(e)).norm();
-    CoverResult r = cover_pool(pool, pre_iv, d, k);
-    EdgePlacement ep;
-    ep.n_candidates = static_cast<int>(all.size());
-    std::vector<char> taken(pool.size(), 0);
-    std::vector<Seen> set = pre;
-    for (int i : r.chosen) {
-      taken[i] = 1;
-      set.push_back(pool[i]);
-    }
-    std::vector<int> chosen = r.chosen;
-    if (opt.distinct_bearings) repair(set, pool, taken, d, k, &chosen);
-    for (int i : chosen) {
-      ep.landmarks.push_back(pool[i].idx);
-      picked[pool[i].idx] = 1;
-    }
-    std::sort(ep.landmarks.begin(), ep.landmarks.end());
-    out.edges.push_back(std::move(ep));
-  }
-
+  for (Eigen::Index e = 0; e + 1 < route.rows(); ++e)
+    out.edges.push_back(place_on_edge(route, e, candidates, camera, opt, set, &picked));
   if (opt.corners) {
     const Eigen::VectorXd turns = turn_angles(route);
-    for (Eigen::Index v = 1; v + 1 < route.rows(); ++v) {
-      const double turn = turns(v - 1);
-      if (std::abs(turn) <= kEps) continue;
-      const double theta_in = std::atan2(route(v, 1) - route(v - 1, 1), route(v, 0) - route(v - 1, 0));
-      std::vector<Seen> all =
-          seen_at_corner(route.row(v).transpose(), theta_in, turn, candidates, grid, close, camera, set.occ);
-      // Landmarks on one ray from the vertex are one bearing for the whole turn:
-      // keep one per ray, an already placed one first, else the nearest.
-      std::vector<int> order(all.size());
-      std::iota(order.begin(), order.end(), 0);
-      std::vector<double> brg(all.size());
-      for (size_t i = 0; i < all.size(); ++i) brg[i] = std::atan2(all[i].local.y(), all[i].local.x());
-      std::sort(order.begin(), order.end(), [&](int a, int b) {
-        if (brg[a] != brg[b]) return brg[a] < brg[b];
-        if (picked[all[a].idx] != picked[all[b].idx]) return picked[all[a].idx] > picked[all[b].idx];
-        return all[a].local.norm() < all[b].local.norm();
-      });
-      std::vector<Seen> pool, pre;
-      double last = -10.0;
-      for (int i : order) {
-        if (opt.distinct_bearings && brg[i] - last <= kBearingTol) continue;
-        last = brg[i];
-        (picked[all[i].idx] ? pre : pool).push_back(all[i]);
-      }
-      std::vector<Interval> pre_iv;
-      for (const auto& s : pre) pre_iv.push_back(s.iv);
-      CoverResult r = cover_pool(pool, pre_iv, std::abs(turn), k);
-      CornerPlacement cp;
-      cp.vertex = static_cast<int>(v);
-      cp.turn = turn;
-      for (int i : r.chosen) {
-        cp.landmarks.push_back(pool[i].idx);
-        picked[pool[i].idx] = 1;
-      }
-      std::sort(cp.landmarks.begin(), cp.landmarks.end());
-      out.corners.push_back(std::move(cp));
-    }
+    for (Eigen::Index v = 1; v + 1 < route.rows(); ++v)
+      if (std::abs(turns(v - 1)) > kEps)
+        out.corners.push_back(place_at_corner(route, v, turns(v - 1), candidates, camera, opt, set, &picked));
   }
   for (Eigen::Index i = 0; i < candidates.rows(); ++i)
     if (picked[i]) out.landmarks.push_back(static_cast<int>(i));
-  // The certificate: the exact check of the final landmarks, never the greedy's own count.
-  Points2 placed(static_cast<Eigen::Index>(out.landmarks.size()), 2);
-  for (size_t i = 0; i < out.landmarks.size(); ++i) placed.row(static_cast<Eigen::Index>(i)) = candidates.row(out.landmarks[i]);
-  const CoverageReport rep = check_coverage(route, placed, camera, k, opt.corners, occluders);
-  for (Eigen::Index i = 0; i < rep.start.size(); ++i) {
-    const Interval s{rep.start(i), rep.end(i)};
-    if (rep.kind(i) == 0) {
-      out.edges[rep.index(i)].uncovered.push_back(s);
-    } else {
-      for (auto& cp : out.corners)
-        if (cp.vertex == rep.index(i)) cp.uncovered.push_back(s);
-    }
-  }
+  certify(route, candidates, camera, opt, occluders, &out);
   return out;
 }
 

@@ -1,8 +1,10 @@
-// Private: what the three parts of landmark placement [Placement §II] share
-// (the public API is safenav/placement.hpp):
+// Private: what the parts of landmark placement [Placement §II] share (the
+// public API is safenav/placement.hpp):
 //   placement_geometry.cpp  checks, the candidate grid, [Placement Lemma 1,
-//                           Lemma 2, Cor. 1], edge frames, turns, and the
-//                           tables for the ILP;
+//                           Lemma 2, Cor. 1], edge frames and turns;
+//   placement_shadows.cpp   occlusion (ours): the sight test (sight.hpp's,
+//                           shared with the world) and the shadows on an edge;
+//   placement_tables.cpp    the tables for the ILP;
 //   placement_cover.cpp     the greedy k-interval cover [Placement Alg. 1], the
 //                           union over edges, non-coincidence and corners;
 //   placement_check.cpp     the exact coverage check.
@@ -124,6 +126,9 @@ std::vector<Seen> seen_on_edge(const Points2& route, Eigen::Index e, const Point
 std::vector<Seen> seen_at_corner(const Eigen::Vector2d& v, double theta_in, double turn, const Points2& pts,
                                  const Grid& grid, const std::vector<char>& excluded, const Camera& cam,
                                  const Occluders* occ = nullptr);
+
+/// sight_blocked without the checks: the occluders hide b from a (sight.hpp).
+bool hidden(const Occluders& occ, const Eigen::Vector2d& a, const Eigen::Vector2d& b);
 
 /// shadows_on_edge, considering only occluders that can hide c from some
 /// t in `range` (the others cannot change the pieces of that interval).

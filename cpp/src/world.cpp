@@ -9,11 +9,9 @@
 #include <stdexcept>
 #include <string>
 
-#include <CGAL/Interval_nt.h>
-#include <CGAL/MP_Float.h>
-
 #include "cgal_util.hpp"
 #include "errors.hpp"
+#include "sight.hpp"
 
 namespace safenav {
 namespace {
@@ -23,18 +21,8 @@ using Vec2 = Eigen::Vector2d;
 using detail::bad;
 using detail::fmt;
 
-// Polygon with a repeated closing vertex removed.
-Points2 open_polygon(const Points2& poly) {
-  if (poly.rows() > 1 && poly.row(0) == poly.row(poly.rows() - 1)) return poly.topRows(poly.rows() - 1);
-  return poly;
-}
-
-double segment_point_distance2(const Vec2& a, const Vec2& b, const Vec2& p) {
-  const Vec2 ab = b - a;
-  const double L2 = ab.squaredNorm();
-  const double t = L2 > 0.0 ? std::clamp((p - a).dot(ab) / L2, 0.0, 1.0) : 0.0;
-  return (a + t * ab - p).squaredNorm();
-}
+using sight::open_polygon;
+using sight::segment_point_distance2;
 
 Vec2 row(const Eigen::Ref<const Points2>& p, Eigen::Index i) { return Vec2(p(i, 0), p(i, 1)); }
 
@@ -48,62 +36,17 @@ void check_margin(double margin) {
   if (!(margin >= 0.0) || !std::isfinite(margin)) bad("margin must be finite and >= 0, got " + std::to_string(margin));
 }
 
-// Exact disc predicates for the line of sight: the signs of polynomials in
-// the input doubles, in interval arithmetic first (CGAL::Interval_nt, which
-// rounds outward), exactly in CGAL::MP_Float (exact +, −, ×) when the
-// interval cannot decide.
-template <class NT>
-CGAL::Uncertain<bool> disc_contains_t(const NT& px, const NT& py, const NT& cx, const NT& cy, const NT& r) {
-  const NT dx = px - cx, dy = py - cy;
-  return CGAL::Uncertain<bool>(dx * dx + dy * dy <= r * r);
-}
-
-// The segment a–b, whose ends lie outside the disc, touches it: the foot of
-// the centre on the line lies within the segment, 0 ≤ (c − a)·d ≤ d·d with
-// d = b − a, and the line is within r of the centre, cross(d, c − a)² ≤ r²·d·d.
-// (When the foot lies outside, the nearest point is an end, which is outside.)
-template <class NT>
-CGAL::Uncertain<bool> disc_touched_t(const NT& ax, const NT& ay, const NT& bx, const NT& by, const NT& cx,
-                                     const NT& cy, const NT& r) {
-  const NT dx = bx - ax, dy = by - ay, wx = cx - ax, wy = cy - ay;
-  const NT along = wx * dx + wy * dy, dd = dx * dx + dy * dy, cr = dx * wy - dy * wx;
-  const NT zero(0);
-  return CGAL::Uncertain<bool>(zero <= along) & CGAL::Uncertain<bool>(along <= dd) &
-         CGAL::Uncertain<bool>(cr * cr <= r * r * dd);
-}
-
-bool disc_contains_exact(const Vec2& p, const Vec2& c, double r) {
-  using I = CGAL::Interval_nt<>;
-  const CGAL::Uncertain<bool> f = disc_contains_t<I>(p.x(), p.y(), c.x(), c.y(), r);
-  if (CGAL::is_certain(f)) return CGAL::get_certain(f);
-  using E = CGAL::MP_Float;
-  return CGAL::get_certain(disc_contains_t<E>(p.x(), p.y(), c.x(), c.y(), r));
-}
-
-bool disc_touched_exact(const Vec2& a, const Vec2& b, const Vec2& c, double r) {
-  using I = CGAL::Interval_nt<>;
-  const CGAL::Uncertain<bool> f = disc_touched_t<I>(a.x(), a.y(), b.x(), b.y(), c.x(), c.y(), r);
-  if (CGAL::is_certain(f)) return CGAL::get_certain(f);
-  using E = CGAL::MP_Float;
-  return CGAL::get_certain(disc_touched_t<E>(a.x(), a.y(), b.x(), b.y(), c.x(), c.y(), r));
-}
-
-// One disc or simple polygon as CGAL objects, built once.  A point or segment
-// touches the shape grown by `grow` when it is inside or on the polygon
-// (CGAL::bounded_side_2), crosses an edge (CGAL::do_intersect) or comes
-// within `grow` of it (CGAL::squared_distance).
-class Shape {
+// One disc or simple polygon as CGAL objects, built once (sight::Occluder:
+// its bounding circle, vertex mean and farthest vertex, for a cheap reject).
+// A point or segment touches the shape grown by `grow` when it is inside or
+// on the polygon (CGAL::bounded_side_2), crosses an edge (CGAL::do_intersect)
+// or comes within `grow` of it (CGAL::squared_distance).  Whether it hides one
+// point from another is the shared sight predicate, sight::Occluder::hides.
+class Shape : public sight::Occluder {
  public:
-  explicit Shape(const CircleObstacle& c) : disc_(true), center_(c.center), radius_(c.radius) {}
-  explicit Shape(const Points2& raw) : disc_(false) {
-    const Points2 open = open_polygon(raw);
-    polygon_ = cgal::to_cgal(open);
-    for (std::size_t i = 0; i < polygon_.size(); ++i)
-      edges_.emplace_back(polygon_[i], polygon_[(i + 1) % polygon_.size()]);
-    // Bounding circle (vertex mean, farthest vertex) for a cheap reject.
-    center_ = open.colwise().mean().transpose();
-    radius_ = (open.rowwise() - center_.transpose()).rowwise().norm().maxCoeff();
-  }
+  explicit Shape(const CircleObstacle& c) : Occluder(c.center, c.radius) {}
+  explicit Shape(const Points2& raw) : Occluder(open_polygon(raw)) {}
+  using Occluder::contains;
 
   bool contains(const Vec2& p, double grow) const {
     if (disc_) return (p - center_).norm() <= radius_ + grow;
@@ -125,27 +68,6 @@ class Shape {
     if (cgal::inside_or_on(polygon_, ab.source())) return true;
     for (const auto& e : edges_)
       if (CGAL::do_intersect(ab, e) || CGAL::squared_distance(ab, e) <= grow * grow) return true;
-    return false;
-  }
-
-  // The shape hides b from a (ObstacleChecker::line_of_sight): the segment
-  // a–b (a ≠ b) touches it and neither end lies in it (boundary included).
-  // With both ends outside, a polygon is touched iff an edge is (exact
-  // CGAL::do_intersect); a disc by disc_touched_exact.
-  bool occludes(const cgal::Segment& ab, const Vec2& a, const Vec2& b) const {
-    if (disc_) {
-      // Far from the disc (in doubles, with a margin that dwarfs their rounding
-      // error): neither end is in it and the segment misses it.
-      const double r2 = radius_ * radius_;
-      const double far2 = std::max((a - center_).squaredNorm(), (b - center_).squaredNorm());
-      if (segment_point_distance2(a, b, center_) > r2 + 1e-9 * (far2 + r2)) return false;
-      if (disc_contains_exact(a, center_, radius_) || disc_contains_exact(b, center_, radius_)) return false;
-      return disc_touched_exact(a, b, center_, radius_);
-    }
-    if (segment_point_distance2(a, b, center_) > cull2(0.0)) return false;
-    if (cgal::inside_or_on(polygon_, ab.source()) || cgal::inside_or_on(polygon_, ab.target())) return false;
-    for (const auto& e : edges_)
-      if (CGAL::do_intersect(ab, e)) return true;
     return false;
   }
 
@@ -228,12 +150,6 @@ class Shape {
     const double r = radius_ + grow;
     return r * r * (1.0 + 1e-12);
   }
-
-  bool disc_;
-  Vec2 center_;    // the disc's, or the polygon's bounding circle's
-  double radius_;  // likewise
-  std::vector<cgal::Point> polygon_;
-  std::vector<cgal::Segment> edges_;
 };
 
 // A map's obstacles (circles, then polygons) and hazards, built once.
@@ -271,9 +187,9 @@ class Obstacles {
 
   bool line_of_sight(const Vec2& a, const Vec2& b) const {
     if (a == b) return true;  // no obstacle lies between a point and itself
-    const cgal::Segment ab(cgal::point(a), cgal::point(b));
-    for (const auto& s : obstacles)
-      if (s.occludes(ab, a, b)) return false;
+    const sight::Sight s(a, b);
+    for (const auto& o : obstacles)
+      if (o.hides(s)) return false;
     return true;
   }
 

@@ -435,8 +435,10 @@ class World(_CoreQueries):
         obstacle's boundary blocks, but an obstacle containing ``a`` or ``b``
         (boundary included) does not, so a landmark on a boulder is seen from
         outside it.  Obstacles hide anything behind them (heights are not
-        modelled); hazards hide nothing.  ``ValueError`` names a non-finite or
-        misshapen ``a`` or ``b``.
+        modelled); hazards hide nothing.  Symmetric: ``line_of_sight(b, a)``
+        gives the same answer, exactly, at any finite coordinates; landmark
+        placement's sight test is the same predicate.  ``ValueError`` names a
+        non-finite or misshapen ``a`` or ``b``.
         """
         return bool(self._checker.line_of_sight(as_array("a", a, (2,)), as_array("b", b, (2,))))
 

@@ -27,13 +27,14 @@
 // snapped to y = 0) share one bearing wherever both are in view (0 ahead, π
 // behind).  Intervals are closed; gaps shorter than 1e-9 m are rounding.
 //
-// Occlusion (issue 16; not in the paper, which has no obstacles): every
+// Occlusion (ours; not in the paper, which has no obstacles): every
 // entry point takes optional Occluders (circles and simple polygons, treated
 // as tall and not grown).  A landmark c is in view from a route point a only
 // when, besides Lemma 2, the segment a–c meets no occluder that contains
 // neither a nor c (boundary included; a landmark on or in an obstacle is seen
 // from outside it, and an occluder the route runs through does not hide what
-// is seen from inside it).  On an edge the occluded set of t (a shadow) is a
+// is seen from inside it): the world's line of sight
+// (ObstacleChecker::line_of_sight), one exact predicate for both.  On an edge the occluded set of t (a shadow) is a
 // union of closed intervals, computed in closed form: per polygon edge, and
 // per circle, the region beyond the obstacle as seen from c (the wedge
 // through the edge's endpoints, or between the tangents, beyond the
@@ -82,8 +83,11 @@ struct Occluders {
 };
 
 /// Whether the segment a–b is blocked by the occluders: it meets one (boundary
-/// included) that contains neither a nor b.  Exact on the double inputs
-/// (CGAL's exact predicates for polygons, exact rational arithmetic for circles).
+/// included) that contains neither a nor b.  The world's predicate:
+/// sight_blocked(Occluders::from_map(m), a, b) == !ObstacleChecker(m).line_of_sight(a, b),
+/// exact on the double inputs at any finite coordinates and symmetric in a, b
+/// (see ObstacleChecker::line_of_sight).  Throws std::invalid_argument naming
+/// a bad occluder or a non-finite a or b.
 bool sight_blocked(const Occluders& occluders, const Eigen::Vector2d& a, const Eigen::Vector2d& b);
 
 /// Shape of the camera's field of view.
@@ -106,6 +110,9 @@ struct Interval {
 };
 
 /// Rigid transform of the edge a → b to (0, 0) → (d, 0) ([Placement §II-A], steps 1–2).
+/// The constructor throws std::invalid_argument naming a non-finite end, or
+/// an edge whose length overflows a double; to_local and to_world throw
+/// naming a point whose image is not finite.
 struct EdgeFrame {
   EdgeFrame(const Eigen::Vector2d& a, const Eigen::Vector2d& b);
   Eigen::Vector2d origin;  ///< t_i

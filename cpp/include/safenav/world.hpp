@@ -137,7 +137,10 @@ class ObstacleChecker {
   /// polynomials (inside: |p − c|² ≤ r²; touched: the foot of c on the line
   /// within the segment and cross(b − a, c − a)² ≤ r²·|b − a|²) evaluated in
   /// interval arithmetic, and exactly (CGAL::MP_Float) when that is unsure.
-  /// Throws std::invalid_argument when a or b is not finite.
+  /// Symmetric: the ends are put in lexicographic order before anything is
+  /// computed, so line_of_sight(a, b) == line_of_sight(b, a) exactly, at any
+  /// finite coordinates.  Landmark placement's sight_blocked is the same
+  /// predicate.  Throws std::invalid_argument when a or b is not finite.
   bool line_of_sight(const Eigen::Vector2d& a, const Eigen::Vector2d& b) const;
   /// line_of_sight(from, targets.row(i)) for each row i of the N×2 targets.
   /// Throws std::invalid_argument naming a non-finite `from` or target.
