@@ -6,9 +6,9 @@ using namespace safenav;
 
 namespace {
 using PtsRef = const Eigen::Ref<const Points2>&;
-}
 
-void pybind_corridor(py::module_& m) {
+// The risk zones and the WRS of eq. 18 (free functions over a path).
+void bind_risk(py::module_& m) {
   const RiskZones d;
   def_params<RiskZones>(py::class_<RiskZones>(m, "RiskZones", "Safe-buffer risk zones of SafeNav-ext section V-A3(iii), eq. 18."))
       .def(py::init([](double half_width, std::vector<double> weights) {
@@ -38,7 +38,10 @@ void pybind_corridor(py::module_& m) {
                                  const RiskZones&>(&wrs),
         py::arg("points"), py::arg("path"), py::arg("zones"), release_gil());
   m.def("awrs", &awrs, py::arg("points"), py::arg("path"), py::arg("zones"), release_gil());
+}
 
+// The small result and option types of the corridor's queries.
+void bind_query_types(py::module_& m) {
   py::class_<PathProjection>(m, "PathProjection")
       .def_readonly("arc_length", &PathProjection::arc_length)
       .def_readonly("distance", &PathProjection::distance)
@@ -79,6 +82,10 @@ void pybind_corridor(py::module_& m) {
                ", ahead=" + (t.ahead ? "True" : "False") + ")";
       });
 
+}
+
+// Corridor and its segments (Algorithms 1 and 2).
+void bind_corridor(py::module_& m) {
   // Registered before Corridor, whose segments() returns one (else its
   // signature would name the C++ type).
   py::class_<PathSegments> path_segments(m, "PathSegments");
@@ -126,4 +133,11 @@ void pybind_corridor(py::module_& m) {
       .def_property_readonly("centroid_arc_lengths", &PathSegments::centroid_arc_lengths)
       .def("segment_centroids", &PathSegments::segment_centroids, py::arg("k"))
       .def("nearest_centroid_ahead", &PathSegments::nearest_centroid_ahead, py::arg("point"));
+}
+}  // namespace
+
+void pybind_corridor(py::module_& m) {
+  bind_risk(m);
+  bind_query_types(m);
+  bind_corridor(m);
 }

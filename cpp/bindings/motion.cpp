@@ -7,7 +7,9 @@
 
 using namespace safenav;
 
-void pybind_motion(py::module_& m) {
+namespace {
+// Seeds, angles and the parameter declarations' types.
+void bind_basics(py::module_& m) {
   m.def("derive_seed", &derive_seed, py::arg("seed"), py::arg("stream"),
         "The core's one seed rule (safenav/rng.hpp): an independent sub-seed of `seed` for random\n"
         "source `stream` (splitmix64).  Both are unsigned 64-bit integers.");
@@ -31,7 +33,10 @@ void pybind_motion(py::module_& m) {
       .def("__repr__", [](const ParamSpec& s) {
         return "ParamSpec(" + s.name + " in " + s.range_text() + (s.unit.empty() ? "" : " " + s.unit) + ")";
       });
+}
 
+// The BMM's parameters and the model (SafeNav eqs. 3-9).
+void bind_bmm(py::module_& m) {
   const BmmParams d;
   def_params<BmmParams>(py::class_<BmmParams>(m, "BmmParams", "Parameters of the Battlefield Motion Model (SafeNav eqs. 3-9)."))
       .def(py::init([](double acceleration, double deceleration, double max_speed, double max_heading_rate,
@@ -87,4 +92,10 @@ void pybind_motion(py::module_& m) {
       .def("process_cov", &Bmm::process_cov, py::arg("x"), py::arg("u"))
       .def("transition", &Bmm::transition, py::arg("x"), py::arg("u"), py::arg("eps"))
       .def("simulate", &Bmm::simulate, py::arg("x0"), py::arg("controls"), py::arg("seed"), release_gil());
+}
+}  // namespace
+
+void pybind_motion(py::module_& m) {
+  bind_basics(m);
+  bind_bmm(m);
 }

@@ -4,7 +4,9 @@
 
 using namespace safenav;
 
-void pybind_planning(py::module_& m) {
+namespace {
+// The problem and the planner's settings.
+void bind_problem(py::module_& m) {
   py::class_<PlanningProblem>(m, "PlanningProblem", "Map, start, goal and the central path of the risk term.")
       .def(py::init([](PlanningMap map, const Eigen::Vector2d& start, const Eigen::Vector2d& goal,
                        const Points2& central_path, RiskZones zones) {
@@ -54,6 +56,10 @@ void pybind_planning(py::module_& m) {
       .def_readwrite("hazard_weight", &PlannerSettings::hazard_weight)
       .def("validate", &PlannerSettings::validate);
 
+}
+
+// The result types and the planning calls (RAw-RRT*, eq. 19).
+void bind_planner(py::module_& m) {
   py::enum_<PlanStatus>(m, "PlanStatus")
       .value("EXACT", PlanStatus::Exact)
       .value("APPROXIMATE", PlanStatus::Approximate)
@@ -85,4 +91,10 @@ void pybind_planning(py::module_& m) {
   m.def("point_ahead", &point_ahead, py::arg("path"), py::arg("position"), py::arg("distance"), release_gil());
   m.def("path_cost", &path_cost, py::arg("path"), py::arg("problem"), py::arg("settings") = PlannerSettings{},
         release_gil());
+}
+}  // namespace
+
+void pybind_planning(py::module_& m) {
+  bind_problem(m);
+  bind_planner(m);
 }

@@ -27,9 +27,9 @@ py::array to_numpy(Image&& img) {
   if (heap->channels > 1) shape.push_back(heap->channels);
   return py::array_t<std::uint8_t>(shape, heap->data.data(), owner);
 }
-}  // namespace
 
-void pybind_stereo(py::module_& m) {
+// Calibration, SGBM and box-range settings, and the box range result.
+void bind_settings(py::module_& m) {
   py::class_<StereoCalibration>(m, "StereoCalibration")
       .def(py::init<>())
       .def_readwrite("K1", &StereoCalibration::K1)
@@ -92,7 +92,10 @@ void pybind_stereo(py::module_& m) {
       .def_readonly("n_pixels", &BoxRange::n_pixels)
       .def_readonly("point", &BoxRange::point)
       .def_readonly("reason", &BoxRange::reason);
+}
 
+// Rectification, SGBM disparity, depth and box ranges.
+void bind_matcher(py::module_& m) {
   py::class_<StereoMatcher>(m, "StereoMatcher")
       .def(py::init<const StereoCalibration&, const SgbmParams&, double>(), py::arg("calibration"),
            py::arg("params") = SgbmParams(), py::arg("alpha") = 0.0)
@@ -138,4 +141,10 @@ void pybind_stereo(py::module_& m) {
              double y_max, const BoxRangeOptions& o) { return s.box_range(d, Box{x_min, y_min, x_max, y_max}, o); },
           py::arg("disparity"), py::arg("x_min"), py::arg("y_min"), py::arg("x_max"), py::arg("y_max"),
           py::arg("options") = BoxRangeOptions());
+}
+}  // namespace
+
+void pybind_stereo(py::module_& m) {
+  bind_settings(m);
+  bind_matcher(m);
 }
