@@ -1,4 +1,5 @@
 #include "safenav/localization.hpp"
+#include "safenav/measurement.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
@@ -82,24 +83,32 @@ void check_inputs(const Eigen::Ref<const Anchors>& anchors, const Eigen::Ref<con
 struct RangeModel {
   static constexpr int kMinimal = 3;
   static constexpr const char* kWhat = "ranges";
-  double residual(const Eigen::Vector2d& p, const Eigen::Vector2d& a, double z) const { return z - (p - a).norm(); }
+  /// The landmark model (safenav/measurement.hpp) with k = b = 0 and the anchor as the landmark.
+  double residual(const Eigen::Vector2d& p, const Eigen::Vector2d& a, double z) const {
+    return z - predict_range(landmark_geometry(p.x(), p.y(), a.x(), a.y()), 0.0, 0.0);
+  }
   Eigen::RowVector2d jacobian(const Eigen::Vector2d& p, const Eigen::Vector2d& a) const {
-    const Eigen::Vector2d d = p - a;
-    const double r = d.norm();
-    return r > 0.0 ? Eigen::RowVector2d(d.transpose() / r) : Eigen::RowVector2d::Zero();
+    const LandmarkGeometry g = landmark_geometry(p.x(), p.y(), a.x(), a.y());
+    LandmarkJacobian J;
+    if (!(g.r > 0.0)) return Eigen::RowVector2d::Zero();
+    predict_range(g, 0.0, 0.0, &J);
+    return Eigen::RowVector2d(J.x, J.y);
   }
 };
 
+/// Absolute bearings: the landmark model's relative bearing at heading 0.
 struct BearingModel {
   static constexpr int kMinimal = 2;
   static constexpr const char* kWhat = "bearings";
   double residual(const Eigen::Vector2d& p, const Eigen::Vector2d& a, double z) const {
-    return wrap_angle(z - std::atan2(a.y() - p.y(), a.x() - p.x()));
+    return wrap_angle(z - predict_bearing(landmark_geometry(p.x(), p.y(), a.x(), a.y()), 0.0));
   }
   Eigen::RowVector2d jacobian(const Eigen::Vector2d& p, const Eigen::Vector2d& a) const {
-    const double dx = a.x() - p.x(), dy = a.y() - p.y();
-    const double r2 = dx * dx + dy * dy;
-    return r2 > 0.0 ? Eigen::RowVector2d(dy / r2, -dx / r2) : Eigen::RowVector2d::Zero();
+    const LandmarkGeometry g = landmark_geometry(p.x(), p.y(), a.x(), a.y());
+    LandmarkJacobian J;
+    if (!(g.q > 0.0)) return Eigen::RowVector2d::Zero();
+    predict_bearing(g, 0.0, &J);
+    return Eigen::RowVector2d(J.x, J.y);
   }
 };
 

@@ -521,9 +521,8 @@ InputResult Localizer::observe(double t, const LandmarkObservation& o) {
   if (!I.advance(t)) return I.status(InputStatus::Late);
   I.refresh();
   const State& x = I.x_cache;
-  const double dx = I.landmarks(row, 0) - x[kX], dy = I.landmarks(row, 1) - x[kY];
-  const double r2 = dx * dx + dy * dy, r = std::sqrt(r2);
-  if (!(r > 1e-9)) return I.status(InputStatus::Ignored);  // at the landmark: h is undefined
+  const LandmarkGeometry g = landmark_geometry(x[kX], x[kY], I.landmarks(row, 0), I.landmarks(row, 1));
+  if (!(g.r > 1e-9)) return I.status(InputStatus::Ignored);  // at the landmark: h is undefined
   // The augmented EKF and PF share their update interface.
   auto augmented = [&](auto& f) {
     const Eigen::Vector2d a = I.landmarks.row(row).transpose();
@@ -537,24 +536,23 @@ InputResult Localizer::observe(double t, const LandmarkObservation& o) {
   if (I.aekf) return augmented(*I.aekf);
   if (I.apf) return augmented(*I.apf);
   if (I.ekf) {
+    // The landmark model (safenav/measurement.hpp) with k = b = 0.
+    LandmarkJacobian Jr, Jb;
+    const double hr = has_r ? predict_range(g, 0.0, 0.0, &Jr) : 0.0;
+    const double hb = has_b ? predict_bearing(g, x[kTheta], &Jb) : 0.0;
     if (has_r && has_b) {
-      const Eigen::Vector2d y(o.range - r, wrap_angle(o.bearing - (std::atan2(dy, dx) - x[kTheta])));
+      const Eigen::Vector2d y(o.range - hr, wrap_angle(o.bearing - hb));
       Eigen::Matrix<double, 2, 4> H;
-      H << -dx / r, -dy / r, 0.0, 0.0, dy / r2, -dx / r2, 0.0, -1.0;
+      H << Jr.x, Jr.y, 0.0, Jr.theta, Jb.x, Jb.y, 0.0, Jb.theta;
       const Eigen::Matrix2d R = Eigen::Vector2d(o.range_std * o.range_std, o.bearing_std * o.bearing_std).asDiagonal();
       return I.counted(I.ekf->update_linearized(y, H, R, MeasurementKind::RangeBearing));
     }
+    const LandmarkJacobian& J = has_r ? Jr : Jb;
     Eigen::Matrix<double, 1, 1> y, R;
     Eigen::Matrix<double, 1, 4> H;
-    if (has_r) {
-      y(0) = o.range - r;
-      H << -dx / r, -dy / r, 0.0, 0.0;
-      R(0) = o.range_std * o.range_std;
-    } else {
-      y(0) = wrap_angle(o.bearing - (std::atan2(dy, dx) - x[kTheta]));
-      H << dy / r2, -dx / r2, 0.0, -1.0;
-      R(0) = o.bearing_std * o.bearing_std;
-    }
+    H << J.x, J.y, 0.0, J.theta;
+    y(0) = has_r ? o.range - hr : wrap_angle(o.bearing - hb);
+    R(0) = has_r ? o.range_std * o.range_std : o.bearing_std * o.bearing_std;
     return I.counted(I.ekf->update_linearized(y, H, R, has_r ? MeasurementKind::Range : MeasurementKind::Bearing));
   }
   const Landmarks lm = I.landmarks.row(row);
