@@ -5,6 +5,7 @@
 #include <Eigen/LU>
 #include <Eigen/QR>
 #include <algorithm>
+#include <cfloat>
 #include <cmath>
 #include <numeric>
 #include <sstream>
@@ -71,8 +72,12 @@ void check_inputs(const Eigen::Ref<const Anchors>& anchors, const Eigen::Ref<con
       os << zname << "[" << i << "] = " << z[i] << " must be finite" << (nonnegative ? " and >= 0" : "");
       throw std::invalid_argument(os.str());
     }
-    if (!(std::isfinite(sigmas[i]) && sigmas[i] > 0.0)) {
-      os << "sigmas[" << i << "] = " << sigmas[i] << " must be finite and > 0";
+    // σ², 1/σ² and the normal equations' weights must be finite and normal.
+    const double s2 = sigmas[i] * sigmas[i];
+    if (!(std::isfinite(sigmas[i]) && sigmas[i] > 0.0 && std::isfinite(s2) && s2 >= DBL_MIN &&
+          std::isfinite(1.0 / s2))) {
+      os << "sigmas[" << i << "] = " << sigmas[i] << " must be finite and > 0 with a finite, normal square "
+         << "(about 1e-154 to 1e154)";
       throw std::invalid_argument(os.str());
     }
   }
@@ -269,7 +274,7 @@ void geometry_at(const Model& m, const Problem& pr, const std::vector<int>& idx,
     const Eigen::RowVector2d J = m.jacobian(p, pr.a(i));
     G.noalias() += J.transpose() * J;
     A.noalias() += (1.0 / (pr.sigma[i] * pr.sigma[i])) * J.transpose() * J;
-    mean_range += (p - pr.a(i)).norm();
+    mean_range += landmark_geometry(p.x(), p.y(), pr.a(i).x(), pr.a(i).y()).r;
   }
   mean_range /= static_cast<double>(idx.size());
   Eigen::FullPivLU<Eigen::Matrix2d> luG(G), luA(A);
@@ -389,6 +394,13 @@ LocalizationResult solve_subset(const Model& m, const Problem& pr, const std::ve
     res.status = LocalizationStatus::Degenerate;
     os << "GDOP " << res.gdop << " exceeds max_gdop " << opt.max_gdop << " (anchors nearly in line with the position)";
     res.reason = os.str();
+    return res;
+  }
+  if (!res.covariance.allFinite()) {
+    res.status = LocalizationStatus::Degenerate;
+    os << "the position covariance is not finite (the weights 1/sigma^2 against the geometry overflow)";
+    res.reason = os.str();
+    res.covariance.setConstant(kNaN);
     return res;
   }
   res.status = LocalizationStatus::Ok;

@@ -148,6 +148,9 @@ class AugmentedParticleFilter {
   ~AugmentedParticleFilter();
   AugmentedParticleFilter(AugmentedParticleFilter&&) noexcept;
   AugmentedParticleFilter& operator=(AugmentedParticleFilter&&) noexcept;
+  /// Copies (the generator's state included); assignment reuses this filter's storage.
+  AugmentedParticleFilter(const AugmentedParticleFilter&);
+  AugmentedParticleFilter& operator=(const AugmentedParticleFilter&);
 
   int size() const;        ///< particles
   int state_size() const;  ///< entries of the augmented state

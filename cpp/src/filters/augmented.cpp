@@ -5,6 +5,7 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -302,6 +303,7 @@ struct AugmentedParticleFilter::Impl {
   double resample_threshold = 0.5;
   Eigen::MatrixXd X, X_next;                 // n × N particles
   Eigen::VectorXd logw, w;                   // log-weights and normalised weights
+  Eigen::VectorXd ll;                        // scratch: −log-likelihood of each particle
   Eigen::Matrix<double, 2, Eigen::Dynamic> Y;  // residuals of an update
   double gate_probability = 0.0, thr[3] = {0.0, 0.0, 0.0};
   double ess = 0.0;
@@ -360,6 +362,9 @@ struct AugmentedParticleFilter::Impl {
     }
     UpdateResult res;
     res.dim = M;
+    // A residual spread that overflows (a measurement ~1e154 from the
+    // particles) would give S = inf and a NIS of 0: refuse it, as check_nis.
+    if (!(S.allFinite() && ybar.allFinite())) check_nis(std::numeric_limits<double>::infinity(), "AugmentedParticleFilter", kind);
     const Eigen::LDLT<MatMM> ldlt(S);
     res.nis = ybar.dot(ldlt.solve(ybar));
     check_nis(res.nis, "AugmentedParticleFilter", kind);
@@ -370,8 +375,15 @@ struct AugmentedParticleFilter::Impl {
     const MatMM Ri = R.inverse();
     for (int i = 0; i < N; ++i) {
       const VecM y = Y.template block<M, 1>(0, i);
-      logw[i] -= 0.5 * y.dot(Ri * y);
+      ll[i] = 0.5 * y.dot(Ri * y);
     }
+    // Every log-likelihood finite, and one particle's at least representable
+    // against the others, before the weights change.
+    if (!ll.allFinite())
+      throw std::invalid_argument(std::string("AugmentedParticleFilter ") + to_string(kind) +
+                                  " update: a particle's log-likelihood overflows (the measurement is too far "
+                                  "from the particles for its covariance)");
+    logw -= ll;
     normalise();
     if (ess < resample_threshold * N) resample();
     return res;
@@ -416,6 +428,7 @@ AugmentedParticleFilter::AugmentedParticleFilter(const BmmParams& params, const 
   I.X_next.resize(n, I.N);
   I.Y.resize(2, I.N);
   I.logw = Eigen::VectorXd::Constant(I.N, -std::log(static_cast<double>(I.N)));
+  I.ll.resize(I.N);
   I.w = Eigen::VectorXd::Constant(I.N, 1.0 / I.N);
   I.ess = I.N;
   const Eigen::Matrix4d L = P0.llt().matrixL();
@@ -433,6 +446,12 @@ AugmentedParticleFilter::AugmentedParticleFilter(const BmmParams& params, const 
 AugmentedParticleFilter::~AugmentedParticleFilter() = default;
 AugmentedParticleFilter::AugmentedParticleFilter(AugmentedParticleFilter&&) noexcept = default;
 AugmentedParticleFilter& AugmentedParticleFilter::operator=(AugmentedParticleFilter&&) noexcept = default;
+AugmentedParticleFilter::AugmentedParticleFilter(const AugmentedParticleFilter& o)
+    : impl_(std::make_unique<Impl>(*o.impl_)) {}
+AugmentedParticleFilter& AugmentedParticleFilter::operator=(const AugmentedParticleFilter& o) {
+  if (this != &o) *impl_ = *o.impl_;
+  return *this;
+}
 
 int AugmentedParticleFilter::size() const { return impl_->N; }
 int AugmentedParticleFilter::state_size() const { return impl_->n; }
