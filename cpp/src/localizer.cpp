@@ -182,16 +182,19 @@ struct Localizer::Impl {
   template <class F>
   InputResult atomic(const char* what, double t, F&& f) {
     const Clock saved = clock();
+    const LocalizerCounts saved_counts = counts;
     Filter::Transaction tx(*filter);
     try {
       const InputResult r = f();
-      tx.commit();
+      tx.commit("filter result");
       return r;
     } catch (const std::invalid_argument& e) {
       set_clock(saved);
+      counts = saved_counts;
       bad(std::string(what) + " at t = " + num(t) + ": " + e.what());
     } catch (...) {
       set_clock(saved);
+      counts = saved_counts;
       throw;
     }
   }

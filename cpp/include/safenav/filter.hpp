@@ -86,12 +86,14 @@ class Filter {
 
   /// Calls inside a Transaction either all stand or, when one throws, the
   /// filter returns to its state at the Transaction's start.  Nested
-  /// Transactions join the outermost one.
+  /// Transactions join the outermost one, whose commit() checks the result
+  /// once (throwing, and so restoring, when it is not finite or not a valid
+  /// covariance; `step` names the call in the error).
   class Transaction {
    public:
     explicit Transaction(Filter& f);
     ~Transaction();
-    void commit() { committed_ = true; }
+    void commit(const char* step);
     Transaction(const Transaction&) = delete;
     Transaction& operator=(const Transaction&) = delete;
 

@@ -63,6 +63,11 @@ Filter::Transaction::Transaction(Filter& f) : f_(f), outer_(f.depth_ == 0) {
   ++f_.depth_;
 }
 
+void Filter::Transaction::commit(const char* step) {
+  if (outer_) f_.check_result(step);
+  committed_ = true;
+}
+
 Filter::Transaction::~Transaction() {
   --f_.depth_;
   if (outer_ && !committed_) {
@@ -110,8 +115,7 @@ UpdateResult Filter::checked(const char* step, F&& f) {
   const UpdateResult r = f();
   dirty_ = true;
   if (!std::isfinite(r.nis)) refuse(step, "NIS = " + num(r.nis) + " is not finite");
-  check_result(step);
-  tx.commit();
+  tx.commit(step);
   return r;
 }
 
