@@ -4,6 +4,7 @@
 #include "safenav/filter.hpp"
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <cfloat>
 #include <cmath>
 #include <optional>
@@ -41,6 +42,17 @@ void check_noise2(const Eigen::Vector2d& z, const Eigen::Matrix2d& R, const char
   if (!(det >= DBL_MIN && std::isfinite(det)))
     throw std::invalid_argument(std::string(step) + ": R has determinant " + num(det) +
                                 ", too close to singular (or too large) for its inverse");
+}
+
+/// A valid covariance: every variance ≥ 0, and positive definite (the fast
+/// Cholesky test) or, failing that, no eigenvalue below −1e-12·max|P_ij|
+/// (singular within rounding: a state without process noise, say).
+template <class M>
+bool is_covariance(const M& P) {
+  if ((P.diagonal().array() < 0.0).any()) return false;
+  if (Eigen::LLT<M>(P).info() == Eigen::Success) return true;
+  const Eigen::SelfAdjointEigenSolver<M> eig(P, Eigen::EigenvaluesOnly);
+  return eig.info() == Eigen::Success && eig.eigenvalues().minCoeff() >= -1e-12 * P.cwiseAbs().maxCoeff();
 }
 
 }  // namespace
@@ -100,11 +112,11 @@ void Filter::check_result(const char* step) const {
   if (!P.allFinite())
     refuse(step, "the covariance would not be finite (diagonal " + num(P(0, 0)) + ", " + num(P(1, 1)) + ", " +
                      num(P(2, 2)) + ", " + num(P(3, 3)) + ")");
-  // The EKF's P must stay positive definite; the particles' weighted covariance
-  // is positive semi-definite by construction (it may be singular: one particle).
-  if (type_ == FilterType::Ekf && Eigen::LLT<StateCov>(P).info() != Eigen::Success)
-    refuse(step, "the covariance would lose positive definiteness (diagonal " + num(P(0, 0)) + ", " + num(P(1, 1)) +
-                     ", " + num(P(2, 2)) + ", " + num(P(3, 3)) +
+  // The EKF's P must stay a covariance; the particles' weighted covariance is
+  // positive semi-definite by construction (it may be singular: one particle).
+  if (type_ == FilterType::Ekf && !is_covariance(P))
+    refuse(step, "the covariance would not be positive semi-definite (diagonal " + num(P(0, 0)) + ", " +
+                     num(P(1, 1)) + ", " + num(P(2, 2)) + ", " + num(P(3, 3)) +
                      "): the prior covariance is too large against the input's for double precision");
   check_state(step);
 }
@@ -302,9 +314,10 @@ class AugmentedEkfFilter final : public Filter {
     P = f_.P();
   }
   void check_state(const char* step) const override {
-    if (!f_.augmented().allFinite() || !f_.augmented_cov().allFinite() ||
-        llt_.compute(f_.augmented_cov()).info() != Eigen::Success)
-      refuse(step, "the augmented covariance would not be finite and positive definite");
+    const Eigen::MatrixXd& P = f_.augmented_cov();
+    if (!f_.augmented().allFinite() || !P.allFinite() || (P.diagonal().array() < 0.0).any() ||
+        (llt_.compute(P).info() != Eigen::Success && !is_covariance(P)))
+      refuse(step, "the augmented covariance would not be finite and positive semi-definite");
   }
   void save() override { spare_ = f_; }
   void restore() override { f_ = spare_; }
