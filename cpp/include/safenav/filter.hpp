@@ -18,8 +18,10 @@
 // The checks live here, once (a non-virtual interface): every public call
 // refuses bad input with std::invalid_argument naming it, and after the
 // implementation ran checks the result — a finite state and a covariance that
-// is finite, symmetric and positive definite (the EKF) or finite (the
-// particles' weighted covariance, positive semi-definite by construction).  A
+// is finite with no negative variance and positive semi-definite within
+// rounding (the EKF: Cholesky, else no eigenvalue below −1e-12·max|P_ij|) or
+// finite (the particles' weighted covariance, positive semi-definite by
+// construction).  A
 // call that fails leaves the filter as it was (a Transaction restores a
 // snapshot taken before it); the Localizer wraps the prediction to a
 // measurement's time and the update in one Transaction.
