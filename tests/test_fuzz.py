@@ -9,7 +9,11 @@ call slower than ``CALL_LIMIT_S``, a NaN or inf in the result,
 longer than ``MAX_MESSAGE`` characters (pybind11's own TypeError for
 arguments of the wrong type lists the signatures and is allowed as it is).
 ``FilterResult.nis`` is NaN by design on steps without an update; only its
-other entries are checked.  Localization (``trilaterate``,
+other entries are checked.  The online ``Localizer`` (EKF or particle filter,
+plain or augmented) gets sequences of inputs at hostile timestamps (jumps of
+1e8 and 1e12 s, repeats, steps back, ±1e300): an input that raises must leave
+the localizer exactly as it was, and one that returns must leave a finite
+estimate with a symmetric, positive semi-definite covariance.  Localization (``trilaterate``,
 ``triangulate_bearings``) is not fuzzed here: it reports failures as a
 status with a NaN position, by design of that module.
 
@@ -361,9 +365,91 @@ def _constructors(d: Draw):
     return m.dim, BmmParams()
 
 
+# The online API under hostile timestamps: jumps (1e8, 1e12 s), repeats, steps
+# back in time, 1e300, NaN.  Each input either raises an allowed error and
+# leaves the localizer exactly as it was (time, estimate, covariance, counts),
+# or returns with a finite estimate and a valid covariance (finite, symmetric,
+# positive semi-definite; the EKF's positive definite).
+LANDMARKS = np.array([[0.0, 0.0], [25.0, 0.0], [0.0, 25.0], [25.0, 25.0]])
+
+
+def _timestamp(d: Draw, t: float) -> float:
+    if d.rng.random() < 0.2:
+        kind = int(d.rng.integers(7))
+        v = [t + 1e8, t + 1e12, t, t - 5.0, 1e300, -1e300, t + 1e-12][kind]
+        return d._note(v)
+    return d._note(t + float(d.rng.uniform(0.01, 0.5)))
+
+
+def _snapshot(loc):
+    c = loc.counts
+    return (loc.initialized, np.float64(loc.time).tobytes(), np.array(loc.x, dtype=float).tobytes(), np.array(loc.P, dtype=float).tobytes(),
+            (c.motion, c.applied, c.rejected, c.late, c.buffered, c.resets))
+
+
+def _check_estimate(loc, where):
+    if not loc.initialized:
+        return
+    x, P = np.asarray(loc.x), np.asarray(loc.P)
+    if not (np.isfinite(x).all() and np.isfinite(P).all() and np.isfinite(loc.position_std)):
+        raise FloatingPointError(f"{where}: non-finite estimate x={x} P diag={np.diag(P)}")
+    if np.abs(P - P.T).max() > 1e-9 * max(1.0, np.abs(P).max()):
+        raise FloatingPointError(f"{where}: P is not symmetric")
+    lam = np.linalg.eigvalsh(P).min()
+    if lam < -1e-9 * max(1.0, np.abs(P).max()):
+        raise FloatingPointError(f"{where}: P has a negative eigenvalue {lam}")
+
+
+def _localizer(d: Draw):
+    from safenav.guidance import Localizer, localizer_settings
+
+    augment = [a for a in ("range_scale", "heading_rate_bias", "range_bias") if d.rng.random() < 0.3]
+    s = localizer_settings(filter=d._pick(["ekf", "pf"]), n_particles=int(d.rng.integers(1, 60)),
+                           seed=int(d.rng.integers(100)), augment=augment,
+                           gate=d._pick([0.0, 0.99, None]))
+    loc = Localizer(s, LANDMARKS)
+    t = 0.0
+    if d.rng.random() < 0.7:
+        x0 = d.state()
+        if isinstance(x0, np.ndarray) and x0.shape == (4,) and x0.dtype == np.float64 and d.rng.random() < 0.9:
+            x0[:2] = np.abs(x0[:2]) + 5.0  # mostly inside the map
+        loc.initialize(t, x0, d.cov(4))
+    results = []
+    for step in range(int(d.rng.integers(1, 25))):
+        t = _timestamp(d, t)
+        op = int(d.rng.integers(5))
+        before = _snapshot(loc)
+        try:
+            if op == 0:
+                r = loc.motion(t, d.num(0.0, 2.0), d.num(-0.3, 0.3))
+            elif op == 1:
+                r = loc.odometry(t, d.num(0.0, 1.0), d.num(-0.3, 0.3))
+            elif op == 2:
+                kw = {}
+                if d.rng.random() < 0.8:
+                    kw.update(range=d.pos(1.0, 40.0), range_std=d.pos(0.05, 2.0))
+                if d.rng.random() < 0.4 or not kw:
+                    kw.update(bearing=d.num(-3.0, 3.0), bearing_std=d.pos(0.01, 0.5))
+                r = loc.observe(t, int(d.rng.integers(4)), **kw)
+            elif op == 3:
+                r = loc.fix(t, d.num(0.0, 25.0), d.num(0.0, 25.0), d.cov(2))
+            else:
+                r = loc.speed_heading(t, d.num(0.0, 2.0), d.num(-3.0, 3.0), d.pos(0.01, 1.0), d.pos(0.01, 1.0))
+        except ALLOWED:
+            if _snapshot(loc) != before:
+                raise AssertionError(f"input {step} raised but changed the localizer") from None
+            t = loc.time if math.isfinite(loc.time) else 0.0
+            continue
+        _check_estimate(loc, f"input {step}")
+        results.append((r.nis if r.dim > 0 else 0.0, r.dim))
+        if not math.isfinite(t):
+            t = 0.0
+    return loc.x if loc.initialized else 0.0, loc.P if loc.initialized else 0.0, loc.position_std if loc.initialized else 0.0, results
+
+
 TARGETS = {"wrap_angle": _wrap_angle, "bmm": _bmm, "measurement": _measurement, "filter": _filter,
            "filter_trajectory": _filter_trajectory, "metrics": _metrics, "corridor": _corridor,
-           "segments": _segments, "hull": _hull, "constructors": _constructors}
+           "segments": _segments, "hull": _hull, "constructors": _constructors, "localizer": _localizer}
 NAMES = sorted(TARGETS)
 
 

@@ -1,9 +1,11 @@
 #include "safenav/localization.hpp"
+#include "safenav/measurement.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <Eigen/QR>
 #include <algorithm>
+#include <cfloat>
 #include <cmath>
 #include <numeric>
 #include <sstream>
@@ -70,8 +72,12 @@ void check_inputs(const Eigen::Ref<const Anchors>& anchors, const Eigen::Ref<con
       os << zname << "[" << i << "] = " << z[i] << " must be finite" << (nonnegative ? " and >= 0" : "");
       throw std::invalid_argument(os.str());
     }
-    if (!(std::isfinite(sigmas[i]) && sigmas[i] > 0.0)) {
-      os << "sigmas[" << i << "] = " << sigmas[i] << " must be finite and > 0";
+    // σ², 1/σ² and the normal equations' weights must be finite and normal.
+    const double s2 = sigmas[i] * sigmas[i];
+    if (!(std::isfinite(sigmas[i]) && sigmas[i] > 0.0 && std::isfinite(s2) && s2 >= DBL_MIN &&
+          std::isfinite(1.0 / s2))) {
+      os << "sigmas[" << i << "] = " << sigmas[i] << " must be finite and > 0 with a finite, normal square "
+         << "(about 1e-154 to 1e154)";
       throw std::invalid_argument(os.str());
     }
   }
@@ -82,24 +88,32 @@ void check_inputs(const Eigen::Ref<const Anchors>& anchors, const Eigen::Ref<con
 struct RangeModel {
   static constexpr int kMinimal = 3;
   static constexpr const char* kWhat = "ranges";
-  double residual(const Eigen::Vector2d& p, const Eigen::Vector2d& a, double z) const { return z - (p - a).norm(); }
+  /// The landmark model (safenav/measurement.hpp) with k = b = 0 and the anchor as the landmark.
+  double residual(const Eigen::Vector2d& p, const Eigen::Vector2d& a, double z) const {
+    return z - predict_range(landmark_geometry(p.x(), p.y(), a.x(), a.y()), 0.0, 0.0);
+  }
   Eigen::RowVector2d jacobian(const Eigen::Vector2d& p, const Eigen::Vector2d& a) const {
-    const Eigen::Vector2d d = p - a;
-    const double r = d.norm();
-    return r > 0.0 ? Eigen::RowVector2d(d.transpose() / r) : Eigen::RowVector2d::Zero();
+    const LandmarkGeometry g = landmark_geometry(p.x(), p.y(), a.x(), a.y());
+    LandmarkJacobian J;
+    if (!(g.r > 0.0)) return Eigen::RowVector2d::Zero();
+    predict_range(g, 0.0, 0.0, &J);
+    return Eigen::RowVector2d(J.x, J.y);
   }
 };
 
+/// Absolute bearings: the landmark model's relative bearing at heading 0.
 struct BearingModel {
   static constexpr int kMinimal = 2;
   static constexpr const char* kWhat = "bearings";
   double residual(const Eigen::Vector2d& p, const Eigen::Vector2d& a, double z) const {
-    return wrap_angle(z - std::atan2(a.y() - p.y(), a.x() - p.x()));
+    return wrap_angle(z - predict_bearing(landmark_geometry(p.x(), p.y(), a.x(), a.y()), 0.0));
   }
   Eigen::RowVector2d jacobian(const Eigen::Vector2d& p, const Eigen::Vector2d& a) const {
-    const double dx = a.x() - p.x(), dy = a.y() - p.y();
-    const double r2 = dx * dx + dy * dy;
-    return r2 > 0.0 ? Eigen::RowVector2d(dy / r2, -dx / r2) : Eigen::RowVector2d::Zero();
+    const LandmarkGeometry g = landmark_geometry(p.x(), p.y(), a.x(), a.y());
+    LandmarkJacobian J;
+    if (!(g.q > 0.0)) return Eigen::RowVector2d::Zero();
+    predict_bearing(g, 0.0, &J);
+    return Eigen::RowVector2d(J.x, J.y);
   }
 };
 
@@ -260,7 +274,7 @@ void geometry_at(const Model& m, const Problem& pr, const std::vector<int>& idx,
     const Eigen::RowVector2d J = m.jacobian(p, pr.a(i));
     G.noalias() += J.transpose() * J;
     A.noalias() += (1.0 / (pr.sigma[i] * pr.sigma[i])) * J.transpose() * J;
-    mean_range += (p - pr.a(i)).norm();
+    mean_range += landmark_geometry(p.x(), p.y(), pr.a(i).x(), pr.a(i).y()).r;
   }
   mean_range /= static_cast<double>(idx.size());
   Eigen::FullPivLU<Eigen::Matrix2d> luG(G), luA(A);
@@ -382,6 +396,13 @@ LocalizationResult solve_subset(const Model& m, const Problem& pr, const std::ve
     res.reason = os.str();
     return res;
   }
+  if (!res.covariance.allFinite()) {
+    res.status = LocalizationStatus::Degenerate;
+    os << "the position covariance is not finite (the weights 1/sigma^2 against the geometry overflow)";
+    res.reason = os.str();
+    res.covariance.setConstant(kNaN);
+    return res;
+  }
   res.status = LocalizationStatus::Ok;
   return res;
 }
@@ -413,28 +434,15 @@ double n_choose_k(int n, int k) {
   return r;
 }
 
+/// Consensus over minimal sets (all of them, or max_subsets drawn at random):
+/// the largest inlier set (cheapest on ties) into best_in, and every distinct
+/// consensus set met, with the minimal-set fit that found it, into consensus.
 template <class Model>
-LocalizationResult localize(const Model& m, const Problem& pr, const LocalizationOptions& opt) {
+void consensus_search(const Model& m, const Problem& pr, const LocalizationOptions& opt, std::vector<int>& best_in,
+                      std::vector<std::pair<std::vector<int>, Eigen::Vector2d>>& consensus) {
   const int n = static_cast<int>(pr.z.size());
-  std::vector<int> all(n);
-  std::iota(all.begin(), all.end(), 0);
-  auto finish = [&](LocalizationResult r, const std::vector<int>& in) {
-    r.inliers = Eigen::Array<bool, Eigen::Dynamic, 1>::Constant(n, false);
-    for (int i : in) r.inliers[i] = true;
-    return r;
-  };
-  LocalizationResult full = solve_subset(m, pr, all, opt);
-  if (!opt.reject_outliers || n <= Model::kMinimal) return finish(full, all);
-  if (full.ok() && static_cast<int>(inliers_at(m, pr, full.position, opt.outlier_threshold).size()) == n)
-    return finish(full, all);
-
-  // Consensus over minimal sets (all of them, or max_subsets drawn at random).
   const int k = Model::kMinimal;
-  std::vector<int> best_in;
   double best_cost = std::numeric_limits<double>::infinity();
-  // Every distinct consensus set met, with the minimal-set fit that found it
-  // (for the ambiguity check below).
-  std::vector<std::pair<std::vector<int>, Eigen::Vector2d>> consensus;
   auto consider = [&](const std::vector<int>& subset) {
     Eigen::Vector2d p0;
     if (!linear_start(m, pr, subset, p0)) return;
@@ -472,6 +480,69 @@ LocalizationResult localize(const Model& m, const Problem& pr, const Localizatio
       consider(subset);
     }
   }
+}
+
+/// Another consensus set as large as `in` that fits a position far from r's
+/// about as well: which measurements are the outliers cannot be told.  Fills
+/// amb (Degenerate, with the reason) and returns true then.
+template <class Model>
+bool ambiguous_outliers(const Model& m, const Problem& pr, const LocalizationOptions& opt, const LocalizationResult& r,
+                        const std::vector<int>& in,
+                        const std::vector<std::pair<std::vector<int>, Eigen::Vector2d>>& consensus,
+                        LocalizationResult& amb) {
+  const int n = static_cast<int>(pr.z.size());
+  const double sd = std::sqrt(std::max(0.0, r.covariance.trace()));
+  const double scale = 1.0 + r.position.norm();
+  for (const auto& s : consensus) {
+    if (s.first.size() != in.size() || s.first == in) continue;
+    const Fit g = levenberg_marquardt(m, pr, s.first, s.second, opt);
+    if (!g.converged || !g.p.allFinite()) continue;
+    if (inliers_at(m, pr, g.p, opt.outlier_threshold).size() < in.size()) continue;
+    const double sep = (g.p - r.position).norm();
+    if (sep > std::max(3.0 * sd, 1e-6 * scale) && std::abs(g.cost - r.chi2) <= opt.ambiguity_margin) {
+      auto list = [n](const std::vector<int>& keep) {
+        std::ostringstream o;
+        const char* sep_ = "";
+        for (int i = 0; i < n; ++i)
+          if (std::find(keep.begin(), keep.end(), i) == keep.end()) {
+            o << sep_ << i;
+            sep_ = ", ";
+          }
+        return o.str();
+      };
+      std::ostringstream os;
+      os << "ambiguous outliers: rejecting " << Model::kWhat << " {" << list(in) << "} gives " << point_str(r.position)
+         << " (chi2 " << r.chi2 << "), rejecting {" << list(s.first) << "} gives " << point_str(g.p) << " (chi2 "
+         << g.cost << "), within ambiguity_margin " << opt.ambiguity_margin;
+      amb.status = LocalizationStatus::Degenerate;
+      amb.reason = os.str();
+      amb.iterations = r.iterations;
+      return true;
+    }
+  }
+  return false;
+}
+
+template <class Model>
+LocalizationResult localize(const Model& m, const Problem& pr, const LocalizationOptions& opt) {
+  const int n = static_cast<int>(pr.z.size());
+  std::vector<int> all(n);
+  std::iota(all.begin(), all.end(), 0);
+  auto finish = [&](LocalizationResult r, const std::vector<int>& in) {
+    r.inliers = Eigen::Array<bool, Eigen::Dynamic, 1>::Constant(n, false);
+    for (int i : in) r.inliers[i] = true;
+    return r;
+  };
+  LocalizationResult full = solve_subset(m, pr, all, opt);
+  if (!opt.reject_outliers || n <= Model::kMinimal) return finish(full, all);
+  if (full.ok() && static_cast<int>(inliers_at(m, pr, full.position, opt.outlier_threshold).size()) == n)
+    return finish(full, all);
+
+  // Consensus over minimal sets (all of them, or max_subsets drawn at random).
+  const int k = Model::kMinimal;
+  std::vector<int> best_in;
+  std::vector<std::pair<std::vector<int>, Eigen::Vector2d>> consensus;
+  consensus_search(m, pr, opt, best_in, consensus);
   if (static_cast<int>(best_in.size()) < k) {
     // No minimal set agrees with enough others: report the full fit's problem.
     if (!full.ok()) return finish(full, all);
@@ -494,36 +565,8 @@ LocalizationResult localize(const Model& m, const Problem& pr, const Localizatio
     // Another consensus set as large as this one that fits a position far
     // away about as well: which measurements are the outliers cannot be told
     // (e.g. four ranges, one bad, where two triples each fit a point).
-    const double sd = std::sqrt(std::max(0.0, r.covariance.trace()));
-    const double scale = 1.0 + r.position.norm();
-    for (const auto& s : consensus) {
-      if (s.first.size() != in.size() || s.first == in) continue;
-      const Fit g = levenberg_marquardt(m, pr, s.first, s.second, opt);
-      if (!g.converged || !g.p.allFinite()) continue;
-      if (inliers_at(m, pr, g.p, opt.outlier_threshold).size() < in.size()) continue;
-      const double sep = (g.p - r.position).norm();
-      if (sep > std::max(3.0 * sd, 1e-6 * scale) && std::abs(g.cost - r.chi2) <= opt.ambiguity_margin) {
-        auto list = [n](const std::vector<int>& keep) {
-          std::ostringstream o;
-          const char* sep_ = "";
-          for (int i = 0; i < n; ++i)
-            if (std::find(keep.begin(), keep.end(), i) == keep.end()) {
-              o << sep_ << i;
-              sep_ = ", ";
-            }
-          return o.str();
-        };
-        std::ostringstream os;
-        os << "ambiguous outliers: rejecting " << Model::kWhat << " {" << list(in) << "} gives " << point_str(r.position)
-           << " (chi2 " << r.chi2 << "), rejecting {" << list(s.first) << "} gives " << point_str(g.p) << " (chi2 "
-           << g.cost << "), within ambiguity_margin " << opt.ambiguity_margin;
-        LocalizationResult amb;
-        amb.status = LocalizationStatus::Degenerate;
-        amb.reason = os.str();
-        amb.iterations = r.iterations;
-        return finish(amb, in);
-      }
-    }
+    LocalizationResult amb;
+    if (ambiguous_outliers(m, pr, opt, r, in, consensus, amb)) return finish(amb, in);
     std::ostringstream os;
     os << n - static_cast<int>(in.size()) << " of " << n << " " << Model::kWhat << " rejected as outliers";
     r.reason = os.str();

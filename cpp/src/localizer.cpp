@@ -12,6 +12,8 @@
 #include <utility>
 
 #include "errors.hpp"
+#include "localizer_fit.hpp"
+#include "safenav/filter.hpp"
 #include "safenav/rng.hpp"
 #include "safenav/params.hpp"
 
@@ -69,19 +71,19 @@ double position_std(const StateCov& P) {
   // √ of the largest eigenvalue of the 2×2 position block.
   const double a = P(0, 0), b = P(0, 1), c = P(1, 1);
   const double m = 0.5 * (a + c), r = std::sqrt(0.25 * (a - c) * (a - c) + b * b);
-  return std::sqrt(std::max(0.0, m + r));
+  if (std::isfinite(m + r) || !P.topLeftCorner<2, 2>().allFinite()) return std::sqrt(std::max(0.0, m + r));
+  // Entries beyond ~1e154 overflow the squares: the same eigenvalue of P/s, times s.
+  const double s = std::max({std::abs(a), std::abs(b), std::abs(c)});
+  const double as = a / s, bs = b / s, cs = c / s;
+  const double ls = 0.5 * (as + cs) + std::sqrt(0.25 * (as - cs) * (as - cs) + bs * bs);
+  return std::sqrt(s) * std::sqrt(std::max(0.0, ls));
 }
 
 void LocalizerSettings::validate() const {
   bmm.validate();
   if (filter.type == FilterType::InformationFilter)
     bad("localizer.filter.type = InformationFilter: the localizer runs the EKF or the particle filter");
-  if (filter.type == FilterType::ParticleFilter && filter.n_particles < 1)
-    bad("localizer.filter.n_particles = " + std::to_string(filter.n_particles) + ": must be >= 1");
-  if (!(filter.resample_threshold >= 0.0 && filter.resample_threshold <= 1.0))
-    bad("localizer.filter.resample_threshold = " + num(filter.resample_threshold) + ": must be in [0, 1]");
-  if (!(filter.gate_probability >= 0.0 && filter.gate_probability < 1.0))
-    bad("localizer.filter.gate_probability = " + num(filter.gate_probability) + ": must be in [0, 1) (0 = off)");
+  filter.validate("localizer.filter.");
   param_set<LocalizerSettings>().check(*this, "localizer.");
   augment.validate();
 }
@@ -92,13 +94,7 @@ struct Localizer::Impl {
   std::vector<int> ids;
   std::unordered_map<int, int> row_of;
   Bmm bmm;
-  std::optional<Ekf> ekf;
-  std::optional<AugmentedEkf> aekf;  // instead of ekf when settings.augment is on
-  std::optional<AugmentedParticleFilter> apf;  // instead of pf when settings.augment is on
-  std::optional<ParticleFilter> pf;
-  // Particle-filter models reused while their covariance stays the same.
-  std::optional<MeasurementModel> pf_fix, pf_imu;
-  Eigen::Matrix2d pf_fix_R, pf_imu_R;
+  std::unique_ptr<Filter> filter;  // the EKF or the PF, plain or augmented (safenav/filter.hpp); null until started
 
   double t_f = kNaN;       // filter time
   double t_motion = kNaN;  // time of the last motion input
@@ -110,9 +106,8 @@ struct Localizer::Impl {
   bool from_odometry = false;  // the motion input being applied is wheel odometry
   LocalizerCounts counts;
   int fix_rejections = 0;  // consecutive position fixes rejected by the gate
-  mutable State x_cache = State::Constant(kNaN);  // NaN until initialized
-  mutable StateCov P_cache = StateCov::Constant(kNaN);
-  mutable bool dirty = true;
+  State x_none = State::Constant(kNaN);  // the estimate until initialized
+  StateCov P_none = StateCov::Constant(kNaN);
 
   // Initialization from data.
   std::vector<BufferedRange> ranges;  // ranges within init_window of the newest motion input
@@ -145,69 +140,63 @@ struct Localizer::Impl {
     if (!initialized()) push_pose(t_motion);
   }
 
-  bool initialized() const { return ekf.has_value() || aekf.has_value() || pf.has_value() || apf.has_value(); }
+  bool initialized() const { return filter != nullptr; }
 
   void start(double t, const State& x0, const StateCov& P0) { start(t, x0, P0, settings.filter.seed); }
 
-  /// Starts the filter at (x0, P0); a particle filter draws with `seed`.
+  /// Starts the filter at (x0, P0); a particle filter draws with `seed`.  When
+  /// the prior is refused the localizer stays as it was.
   void start(double t, const State& x0, const StateCov& P0, std::uint64_t seed) {
-    const FilterOptions& o = settings.filter;
+    filter = make_filter(settings.filter, settings.bmm, settings.augment, static_cast<int>(landmarks.rows()), x0, P0,
+                         seed);
     fix_rejections = 0;
-    ekf.reset();
-    aekf.reset();
-    pf.reset();
-    apf.reset();
-    if (o.type == FilterType::Ekf && settings.augment.any()) {
-      aekf.emplace(settings.bmm, settings.augment, static_cast<int>(landmarks.rows()), x0, P0);
-      if (o.gate_probability > 0.0) aekf->set_gate(o.gate_probability);
-    } else if (o.type == FilterType::Ekf) {
-      ekf.emplace(settings.bmm, x0, P0);
-      if (o.gate_probability > 0.0) ekf->set_gate(o.gate_probability);
-    } else if (settings.augment.any()) {
-      apf.emplace(settings.bmm, settings.augment, static_cast<int>(landmarks.rows()), x0, P0, o.n_particles, seed,
-                  o.resample_threshold);
-      if (o.gate_probability > 0.0) apf->set_gate(o.gate_probability);
-    } else {
-      pf.emplace(settings.bmm, x0, P0, o.n_particles, seed, o.resample_threshold);
-      if (o.gate_probability > 0.0) pf->set_gate(o.gate_probability);
-    }
     t_f = t;
     if (!(t_motion <= t)) t_motion = t;
-    // Until the first input the estimate is the prior itself (not, say, the particles' sample mean).
-    x_cache = ekf ? ekf->x() : aekf ? aekf->x() : x0;
-    x_cache[kTheta] = wrap_angle(x_cache[kTheta]);
-    P_cache = ekf ? ekf->P() : aekf ? aekf->P() : P0;
-    dirty = false;
     owed_distance = owed_heading = 0.0;
     ranges.clear();
     track.clear();
     anchor.reset();
   }
 
-  void refresh() const {
-    if (!dirty) return;
-    if (ekf) {
-      x_cache = ekf->x();
-      P_cache = ekf->P();
-    } else if (aekf) {
-      x_cache = aekf->x();
-      P_cache = aekf->P();
-    } else if (pf) {
-      x_cache = pf->mean();
-      P_cache = pf->covariance(x_cache);
-    } else if (apf) {
-      x_cache = apf->mean();
-      P_cache = apf->covariance();
-    }
-    dirty = false;
+  void predict(const Control& u, double dt) { filter->predict(u, dt); }
+  /// The motion input u over (t − interval, t] once initialized (Localizer::motion).
+  InputResult move(double t, const Control& u, double interval);
+
+  /// The filter's clock and the motion input's rates and debts.
+  struct Clock {
+    double t_f, t_motion, rate_speed, rate_turn, owed_distance, owed_heading;
+  };
+  Clock clock() const { return {t_f, t_motion, rate_speed, rate_turn, owed_distance, owed_heading}; }
+  void set_clock(const Clock& c) {
+    t_f = c.t_f;
+    t_motion = c.t_motion;
+    rate_speed = c.rate_speed;
+    rate_turn = c.rate_turn;
+    owed_distance = c.owed_distance;
+    owed_heading = c.owed_heading;
   }
 
-  void predict(const Control& u, double dt) {
-    if (ekf) ekf->predict(u, dt);
-    else if (aekf) aekf->predict(u, dt);
-    else if (apf) apf->predict(u, dt);
-    else pf->predict(u, dt);
-    dirty = true;
+  /// Runs `f` (a prediction to t, then an update) as one step: when it
+  /// throws, the localizer and its filter are left as they were, and the
+  /// error names the input (`what` at t).
+  template <class F>
+  InputResult atomic(const char* what, double t, F&& f) {
+    const Clock saved = clock();
+    const LocalizerCounts saved_counts = counts;
+    Filter::Transaction tx(*filter);
+    try {
+      const InputResult r = f();
+      tx.commit("filter result");
+      return r;
+    } catch (const std::invalid_argument& e) {
+      set_clock(saved);
+      counts = saved_counts;
+      bad(std::string(what) + " at t = " + num(t) + ": " + e.what());
+    } catch (...) {
+      set_clock(saved);
+      counts = saved_counts;
+      throw;
+    }
   }
 
   /// Bring the filter to time t for a measurement; false when t is late.
@@ -215,8 +204,7 @@ struct Localizer::Impl {
     if (t < t_f - kSameTime) return false;
     if (t > t_f + kSameTime) {
       const double dt = t - t_f;
-      refresh();
-      const Control u = std::isfinite(rate_speed) ? Control(rate_speed, rate_turn * dt) : Control(x_cache[kV], 0.0);
+      const Control u = std::isfinite(rate_speed) ? Control(rate_speed, rate_turn * dt) : Control(filter->x()[kV], 0.0);
       predict(u, dt);
       owed_distance += u[0] * dt;
       owed_heading += u[1];
@@ -226,7 +214,6 @@ struct Localizer::Impl {
   }
 
   InputResult counted(const UpdateResult& r) {
-    dirty = true;
     InputResult out;
     out.nis = r.nis;
     out.dim = r.dim;
@@ -304,9 +291,7 @@ struct Localizer::Impl {
     for (std::size_t i = 1; i < track.size(); ++i)
       path += std::hypot(track[i][1] - track[i - 1][1], track[i][2] - track[i - 1][2]);
     if (path < settings.init_min_path) return;
-    struct Obs {
-      double qx, qy, ax, ay, z, s;
-    };
+    using Obs = detail::RangeObs;
     std::vector<Obs> obs;
     std::vector<int> rows;
     for (const BufferedRange& r : ranges) {
@@ -325,68 +310,10 @@ struct Localizer::Impl {
     }
     if (static_cast<int>(rows.size()) < settings.init_min_beacons) return;
     const double k0 = settings.augment.range_scale ? settings.augment.scale_prior : 0.0;
-    const auto n = static_cast<Eigen::Index>(obs.size());
-    Eigen::VectorXd e(n);
-    Eigen::MatrixXd J(n, 3);
-    std::vector<char> mask(obs.size(), 1);
-    // Normalised residuals e = (z − h)/σ and J = ∂e/∂(X, Y, φ) over the masked rows.
-    auto residuals = [&](const Eigen::Vector3d& th) {
-      const double c = std::cos(th[2]), s = std::sin(th[2]);
-      Eigen::Index m = 0;
-      for (std::size_t i = 0; i < obs.size(); ++i) {
-        if (!mask[i]) continue;
-        const Obs& o = obs[i];
-        const double dx = th[0] + c * o.qx - s * o.qy - o.ax, dy = th[1] + s * o.qx + c * o.qy - o.ay;
-        const double rho = std::max(std::hypot(dx, dy), 1e-6), ux = dx / rho, uy = dy / rho;
-        e[m] = (o.z - (1.0 + k0) * rho) / o.s;
-        J(m, 0) = -(1.0 + k0) * ux / o.s;
-        J(m, 1) = -(1.0 + k0) * uy / o.s;
-        J(m, 2) = -(1.0 + k0) * (ux * (-s * o.qx - c * o.qy) + uy * (c * o.qx - s * o.qy)) / o.s;
-        ++m;
-      }
-      return m;
-    };
-    auto gauss_newton = [&](Eigen::Vector3d th, int iters) {
-      for (int it = 0; it < iters; ++it) {
-        const Eigen::Index m = residuals(th);
-        const Eigen::Vector3d step = J.topRows(m).completeOrthogonalDecomposition().solve(-e.head(m));
-        th += step;
-        if (step.cwiseAbs().maxCoeff() < 1e-6) break;
-      }
-      return th;
-    };
-    double ax = 0.0, ay = 0.0;
-    for (const Obs& o : obs) ax += o.ax, ay += o.ay;
-    ax /= static_cast<double>(n);
-    ay /= static_cast<double>(n);
-    const double seeds[5][2] = {{ax, ay}, {ax + 30, ay}, {ax - 30, ay}, {ax, ay + 30}, {ax, ay - 30}};
-    double best_cost = std::numeric_limits<double>::infinity();
-    Eigen::Vector3d best = Eigen::Vector3d::Zero();
-    for (int h = 0; h < 16; ++h) {
-      const double phi0 = -kPi + 2.0 * kPi * h / 16.0;
-      for (const auto& sd : seeds) {
-        const Eigen::Vector3d th = gauss_newton(Eigen::Vector3d(sd[0], sd[1], phi0), 15);
-        const Eigen::Index m = residuals(th);
-        const double cost = e.head(m).squaredNorm();
-        if (cost < best_cost) best_cost = cost, best = th;
-      }
-    }
-    if (!std::isfinite(best_cost)) return;
-    // Drop residuals over 3σ and refit once.
-    residuals(best);
-    int inliers = 0;
-    for (Eigen::Index i = 0; i < n; ++i) inliers += (mask[i] = std::abs(e[i]) < 3.0);
-    if (inliers < 3) return;
-    const Eigen::Vector3d th = gauss_newton(best, 20);
-    const Eigen::Index m = residuals(th);
-    double ss = 0.0;
-    for (Eigen::Index i = 0, r = 0; i < n; ++i)
-      if (mask[i]) ss += (e[r] * obs[i].s) * (e[r] * obs[i].s), ++r;
-    const double rms = std::sqrt(ss / static_cast<double>(m));
-    const Eigen::Matrix3d JtJ = J.topRows(m).transpose() * J.topRows(m);
-    const Eigen::FullPivLU<Eigen::Matrix3d> lu(JtJ);
-    if (!lu.isInvertible()) return;
-    const Eigen::Matrix3d C = lu.inverse();
+    Eigen::Vector3d th;
+    double rms;
+    Eigen::Matrix3d C;
+    if (!detail::fit_transform(obs, k0, th, rms, C)) return;
     // The pose at t_now and the covariance of (x, y, θ) through the transform.
     const double c = std::cos(th[2]), s = std::sin(th[2]);
     const Eigen::Vector4d& q = track.back();
@@ -450,6 +377,11 @@ InputResult Localizer::motion(double t, const Control& u) {
     return I.status(InputStatus::Buffered);
   }
   if (interval <= kSameTime) return I.status(InputStatus::Late);  // no interval to move over
+  return I.atomic("motion", t, [&] { return I.move(t, u, interval); });
+}
+
+InputResult Localizer::Impl::move(double t, const Control& u, double interval) {
+  Impl& I = *this;
   const double dt = t - I.t_f;
   const double owed_d = I.owed_distance, owed_h = I.owed_heading;
   I.rate_speed = u[0];
@@ -463,14 +395,15 @@ InputResult Localizer::motion(double t, const Control& u) {
                            // rates; apply what this input's distance and heading change still owe.
                            : Control((u[0] * interval - owed_d) / dt, u[1] - owed_h);
   I.predict(step, dt);
-  if (I.from_odometry && I.aekf) {
+  const AugmentedEkf* aekf = I.filter->augmented_ekf();
+  if (I.from_odometry && aekf) {
     // Odometry measured its distance and heading change: what the BMM's limits
     // (eq. 3's speed in [0, v_max] and a·Δt, eq. 4's clip) kept this step from
     // applying is owed by the next one.  A catch-up step that follows a
     // measurement just before the input can ask for any speed, even a
     // negative one.  (Augmented path only: the plain EKF stays as it was.)
     const Bmm b = I.bmm.is_nominal_step(dt) ? I.bmm : I.bmm.with_step(dt);
-    I.owed_distance = I.aekf->x()[kV] * dt - step[0] * dt;
+    I.owed_distance = aekf->x()[kV] * dt - step[0] * dt;
     I.owed_heading = b.clipped_heading_change(step[1]) - step[1];
   }
   I.t_f = t;
@@ -518,52 +451,20 @@ InputResult Localizer::observe(double t, const LandmarkObservation& o) {
     I.ranges.push_back(BufferedRange{t, row, o.range, o.range_std});  // fitted after the next motion input
     return I.status(InputStatus::Buffered);
   }
-  if (!I.advance(t)) return I.status(InputStatus::Late);
-  I.refresh();
-  const State& x = I.x_cache;
-  const double dx = I.landmarks(row, 0) - x[kX], dy = I.landmarks(row, 1) - x[kY];
-  const double r2 = dx * dx + dy * dy, r = std::sqrt(r2);
-  if (!(r > 1e-9)) return I.status(InputStatus::Ignored);  // at the landmark: h is undefined
-  // The augmented EKF and PF share their update interface.
-  auto augmented = [&](auto& f) {
-    const Eigen::Vector2d a = I.landmarks.row(row).transpose();
-    if (has_r && has_b) {
-      const Eigen::Matrix2d R = Eigen::Vector2d(o.range_std * o.range_std, o.bearing_std * o.bearing_std).asDiagonal();
-      return I.counted(f.update_range_bearing(row, a, Eigen::Vector2d(o.range, o.bearing), R));
-    }
-    if (has_r) return I.counted(f.update_range(row, a, o.range, o.range_std * o.range_std));
-    return I.counted(f.update_bearing(row, a, o.bearing, o.bearing_std * o.bearing_std));
-  };
-  if (I.aekf) return augmented(*I.aekf);
-  if (I.apf) return augmented(*I.apf);
-  if (I.ekf) {
-    if (has_r && has_b) {
-      const Eigen::Vector2d y(o.range - r, wrap_angle(o.bearing - (std::atan2(dy, dx) - x[kTheta])));
-      Eigen::Matrix<double, 2, 4> H;
-      H << -dx / r, -dy / r, 0.0, 0.0, dy / r2, -dx / r2, 0.0, -1.0;
-      const Eigen::Matrix2d R = Eigen::Vector2d(o.range_std * o.range_std, o.bearing_std * o.bearing_std).asDiagonal();
-      return I.counted(I.ekf->update_linearized(y, H, R, MeasurementKind::RangeBearing));
-    }
-    Eigen::Matrix<double, 1, 1> y, R;
-    Eigen::Matrix<double, 1, 4> H;
-    if (has_r) {
-      y(0) = o.range - r;
-      H << -dx / r, -dy / r, 0.0, 0.0;
-      R(0) = o.range_std * o.range_std;
-    } else {
-      y(0) = wrap_angle(o.bearing - (std::atan2(dy, dx) - x[kTheta]));
-      H << dy / r2, -dx / r2, 0.0, -1.0;
-      R(0) = o.bearing_std * o.bearing_std;
-    }
-    return I.counted(I.ekf->update_linearized(y, H, R, has_r ? MeasurementKind::Range : MeasurementKind::Bearing));
-  }
-  const Landmarks lm = I.landmarks.row(row);
-  if (has_r && has_b)
-    return I.counted(I.pf->update(MeasurementModel::range_bearing(lm, o.range_std, o.bearing_std),
-                                  Eigen::Vector2d(o.range, o.bearing)));
-  if (has_r)
-    return I.counted(I.pf->update(MeasurementModel::range(lm, o.range_std), Eigen::Matrix<double, 1, 1>(o.range)));
-  return I.counted(I.pf->update(MeasurementModel::bearing(lm, o.bearing_std), Eigen::Matrix<double, 1, 1>(o.bearing)));
+  LandmarkMeasurement m;
+  m.row = row;
+  m.landmark = I.landmarks.row(row).transpose();
+  m.range = o.range;
+  m.bearing = o.bearing;
+  m.range_std = o.range_std;
+  m.bearing_std = o.bearing_std;
+  return I.atomic("observation", t, [&] {
+    if (!I.advance(t)) return I.status(InputStatus::Late);
+    const State& x = I.filter->x();
+    const LandmarkGeometry g = landmark_geometry(x[kX], x[kY], m.landmark.x(), m.landmark.y());
+    if (!(g.r > 1e-9)) return I.status(InputStatus::Ignored);  // at the landmark: h is undefined
+    return I.counted(I.filter->update(m));
+  });
 }
 
 InputResult Localizer::fix(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R) {
@@ -575,18 +476,11 @@ InputResult Localizer::fix(double t, const Eigen::Vector2d& z, const Eigen::Matr
     I.position_known(t, z, R);
     return I.status(InputStatus::Buffered);
   }
-  if (!I.advance(t)) return I.status(InputStatus::Late);
-  InputResult r;
-  if (I.ekf) r = I.counted(I.ekf->update_position(z, R));
-  else if (I.aekf) r = I.counted(I.aekf->update_position(z, R));
-  else if (I.apf) r = I.counted(I.apf->update_position(z, R));
-  else {
-    if (!I.pf_fix || I.pf_fix_R != R) {
-      I.pf_fix.emplace(MeasurementModel::position(R));
-      I.pf_fix_R = R;
-    }
-    r = I.counted(I.pf->update(*I.pf_fix, z));
-  }
+  InputResult r = I.atomic("fix", t, [&] {
+    if (!I.advance(t)) return I.status(InputStatus::Late);
+    return I.counted(I.filter->update_position(z, R));
+  });
+  if (r.status == InputStatus::Late) return r;
   if (r.status != InputStatus::Rejected) {
     I.fix_rejections = 0;
     return r;
@@ -594,10 +488,9 @@ InputResult Localizer::fix(double t, const Eigen::Vector2d& z, const Eigen::Matr
   const int n = I.settings.reset_after_rejections;
   if (n > 0 && ++I.fix_rejections > n) {
     check_covariance(R, "fix R");
-    I.refresh();
-    State x = I.x_cache;
+    State x = I.filter->x();
     x.head<2>() = z;
-    StateCov P = I.P_cache;
+    StateCov P = I.filter->P();
     P.topRows<2>().setZero();
     P.leftCols<2>().setZero();
     P.topLeftCorner<2, 2>() = R;
@@ -625,32 +518,14 @@ InputResult Localizer::speed_heading(double t, const Eigen::Vector2d& z, const E
     I.t_imu = t;
     return I.status(InputStatus::Buffered);
   }
-  if (!I.advance(t)) return I.status(InputStatus::Late);
-  if (I.ekf) {
-    // h(x) = (v, θ), H = [0 0 1 0; 0 0 0 1]: the arithmetic of update(MeasurementModel::speed_heading(R), z).
-    const State& x = I.ekf->x();
-    const Eigen::Vector2d y(z[0] - x[kV], wrap_angle(z[1] - x[kTheta]));
-    Eigen::Matrix<double, 2, 4> H;
-    H << 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0;
-    return I.counted(I.ekf->update_linearized(y, H, R, MeasurementKind::SpeedHeading));
-  }
-  if (I.aekf) return I.counted(I.aekf->update_speed_heading(z, R));
-  if (I.apf) return I.counted(I.apf->update_speed_heading(z, R));
-  if (!I.pf_imu || I.pf_imu_R != R) {
-    I.pf_imu.emplace(MeasurementModel::speed_heading(R));
-    I.pf_imu_R = R;
-  }
-  return I.counted(I.pf->update(*I.pf_imu, z));
+  return I.atomic("speed_heading", t, [&] {
+    if (!I.advance(t)) return I.status(InputStatus::Late);
+    return I.counted(I.filter->update_speed_heading(z, R));
+  });
 }
 
-const State& Localizer::x() const {
-  impl_->refresh();
-  return impl_->x_cache;
-}
-const StateCov& Localizer::P() const {
-  impl_->refresh();
-  return impl_->P_cache;
-}
+const State& Localizer::x() const { return impl_->filter ? impl_->filter->x() : impl_->x_none; }
+const StateCov& Localizer::P() const { return impl_->filter ? impl_->filter->P() : impl_->P_none; }
 double Localizer::position_std() const { return safenav::position_std(P()); }
 const LocalizerCounts& Localizer::counts() const { return impl_->counts; }
 const LocalizerSettings& Localizer::settings() const { return impl_->settings; }
@@ -660,11 +535,11 @@ int Localizer::landmark_index(int id) const {
   return it == impl_->row_of.end() ? -1 : it->second;
 }
 const Landmarks& Localizer::landmarks() const { return impl_->landmarks; }
-const AugmentedEkf* Localizer::augmented_filter() const { return impl_->aekf ? &*impl_->aekf : nullptr; }
+const AugmentedEkf* Localizer::augmented_filter() const {
+  return impl_->filter ? impl_->filter->augmented_ekf() : nullptr;
+}
 Eigen::VectorXd Localizer::augmented_state() const {
-  if (impl_->aekf) return impl_->aekf->augmented();
-  if (impl_->apf) return impl_->apf->augmented();
-  return Eigen::VectorXd();
+  return impl_->filter ? impl_->filter->augmented_state() : Eigen::VectorXd();
 }
 
 }  // namespace safenav

@@ -129,10 +129,6 @@ int dim_of(MeasurementKind k, Eigen::Index n_landmarks) {
   }
   return 0;
 }
-// Below this squared distance a landmark is "at" the vehicle: range and
-// bearing Jacobians are undefined there.
-constexpr double kMinDist2 = 1e-18;
-
 [[noreturn]] void landmark_at_vehicle(int i, const State& x) {
   std::ostringstream os;
   os << "landmark " << i << " coincides with the vehicle position (" << x[kX] << ", " << x[kY]
@@ -140,22 +136,17 @@ constexpr double kMinDist2 = 1e-18;
   throw std::invalid_argument(os.str());
 }
 
-/// Landmark i relative to the vehicle: (dx, dy), q = dx² + dy² and the range r
-/// (std::hypot when q overflows, so any representable range comes back).
-struct Offset {
-  double dx, dy, q, r;
-};
-Offset offset(const Landmarks& lm, Eigen::Index i, const State& x) {
-  const double dx = lm(i, 0) - x[kX], dy = lm(i, 1) - x[kY];
-  if (!std::isfinite(dx) || !std::isfinite(dy)) {
+/// Landmark i seen from the vehicle (landmark_geometry), checked: finite and not at the vehicle.
+LandmarkGeometry offset(const Landmarks& lm, Eigen::Index i, const State& x) {
+  const LandmarkGeometry g = landmark_geometry(x[kX], x[kY], lm(i, 0), lm(i, 1));
+  if (!g.finite()) {
     std::ostringstream os;
     os << "landmark " << i << " at (" << lm(i, 0) << ", " << lm(i, 1) << ") is farther than 1.8e308 from the vehicle ("
        << x[kX] << ", " << x[kY] << ")";
     throw std::invalid_argument(os.str());
   }
-  const double q = dx * dx + dy * dy;
-  if (q < kMinDist2) landmark_at_vehicle(static_cast<int>(i), x);
-  return {dx, dy, q, std::isfinite(q) ? std::sqrt(q) : std::hypot(dx, dy)};
+  if (!g.defined()) landmark_at_vehicle(static_cast<int>(i), x);
+  return g;
 }
 }  // namespace
 
@@ -237,23 +228,25 @@ void components(const State& x, StateIndex i, StateIndex j, Eigen::Ref<Eigen::Ve
   }
 }
 
-/// Range to a landmark at offset o, in row `row`: r = ‖ℓ − p‖, ∂r/∂(x,y) = −(dx, dy)/r.
-void range(const Offset& o, Eigen::Index row, Eigen::Ref<Eigen::VectorXd> zhat, Jacobian* H) {
-  zhat[row] = o.r;
+/// Range to a landmark (predict_range with k = b = 0) in row `row`.
+void range(const LandmarkGeometry& g, Eigen::Index row, Eigen::Ref<Eigen::VectorXd> zhat, Jacobian* H) {
+  LandmarkJacobian J;
+  zhat[row] = predict_range(g, 0.0, 0.0, H ? &J : nullptr);
   if (H) {
-    (*H)(row, kX) = -o.dx / o.r;
-    (*H)(row, kY) = -o.dy / o.r;
+    (*H)(row, kX) = J.x;
+    (*H)(row, kY) = J.y;
   }
 }
 
-/// Relative bearing to a landmark at offset o, in row `row`:
-/// b = wrap(atan2(dy, dx) − θ), ∂b/∂(x,y) = (dy, −dx)/q, ∂b/∂θ = −1.
-void bearing(const Offset& o, const State& x, Eigen::Index row, Eigen::Ref<Eigen::VectorXd> zhat, Jacobian* H) {
-  zhat[row] = wrap_angle(std::atan2(o.dy, o.dx) - x[kTheta]);
+/// Relative bearing to a landmark (predict_bearing), wrapped to (−π, π], in row `row`.
+void bearing(const LandmarkGeometry& g, const State& x, Eigen::Index row, Eigen::Ref<Eigen::VectorXd> zhat,
+             Jacobian* H) {
+  LandmarkJacobian J;
+  zhat[row] = wrap_angle(predict_bearing(g, x[kTheta], H ? &J : nullptr));
   if (H) {
-    (*H)(row, kX) = o.dy / o.q;
-    (*H)(row, kY) = -o.dx / o.q;
-    (*H)(row, kTheta) = -1.0;
+    (*H)(row, kX) = J.x;
+    (*H)(row, kY) = J.y;
+    (*H)(row, kTheta) = J.theta;
   }
 }
 
@@ -273,9 +266,9 @@ void evaluate(MeasurementKind kind, const Landmarks& lm, const State& x, Eigen::
       return;
     case MeasurementKind::RangeBearing:
       for (Eigen::Index i = 0; i < n; ++i) {
-        const Offset o = offset(lm, i, x);
-        range(o, 2 * i, zhat, H);
-        bearing(o, x, 2 * i + 1, zhat, H);
+        const LandmarkGeometry g = offset(lm, i, x);
+        range(g, 2 * i, zhat, H);
+        bearing(g, x, 2 * i + 1, zhat, H);
       }
       return;
   }

@@ -103,9 +103,11 @@ class AugmentedEkf {
 
  private:
   void check_row(int row, const char* what) const;
-  /// Range model at x̂: fills H_'s row `r` and returns h.
+  /// The landmark model (safenav/measurement.hpp) at x̂: fills H_'s row `r` and returns h.
+  LandmarkGeometry geometry(const Eigen::Vector2d& a, const char* what) const;
+  void set_row(int r, int landmark_row, const LandmarkJacobian& J);
   double range_row(int row, const Eigen::Vector2d& a, int r);
-  double bearing_row(const Eigen::Vector2d& a, int r);
+  double bearing_row(int row, const Eigen::Vector2d& a, int r);
   template <int M>
   UpdateResult apply(const Eigen::Matrix<double, M, 1>& y, const Eigen::Matrix<double, M, M>& R,
                      MeasurementKind kind);
@@ -146,6 +148,9 @@ class AugmentedParticleFilter {
   ~AugmentedParticleFilter();
   AugmentedParticleFilter(AugmentedParticleFilter&&) noexcept;
   AugmentedParticleFilter& operator=(AugmentedParticleFilter&&) noexcept;
+  /// Copies (the generator's state included); assignment reuses this filter's storage.
+  AugmentedParticleFilter(const AugmentedParticleFilter&);
+  AugmentedParticleFilter& operator=(const AugmentedParticleFilter&);
 
   int size() const;        ///< particles
   int state_size() const;  ///< entries of the augmented state

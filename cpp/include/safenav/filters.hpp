@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <vector>
 #include <Eigen/Core>
 
@@ -95,6 +96,10 @@ class ParticleFilter {
   ~ParticleFilter();
   ParticleFilter(ParticleFilter&&) noexcept;
   ParticleFilter& operator=(ParticleFilter&&) noexcept;
+  /// Copies (the generator's state included: a copy goes on exactly as the original).
+  ParticleFilter(const ParticleFilter&);
+  /// Copies the state into this filter's storage (no allocation for the same number of particles).
+  ParticleFilter& operator=(const ParticleFilter&);
 
   int size() const;
   /// Propagate every particle through the noisy BMM [SafeNav eqs. 6–9].
@@ -181,6 +186,9 @@ struct FilterOptions {
   double resample_threshold = 0.5;
   std::uint64_t seed = 0;
   double gate_probability = 0.0;  ///< EKF NIS gate (0 = off)
+  /// Throws std::invalid_argument naming the first bad field, each name
+  /// prefixed with `prefix` (e.g. "settings.filter.").
+  void validate(const std::string& prefix = "filter.") const;
 };
 
 /// Result of a batch run: estimate after each step's updates (row 0 = prior).

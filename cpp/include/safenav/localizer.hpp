@@ -34,13 +34,16 @@
 // (the heading from two fixes and the motion between them).  Until then
 // inputs return Buffered.  It never needs a true pose.
 //
-// Augmented states.  With settings.augment on (any of k, β, b_j) the filter
-// is the AugmentedEkf, or with the particle filter the
-// AugmentedParticleFilter (safenav/augmented.hpp): ranges through its
-// update_range, motion through its β-corrected predict; odometry then also
-// owes the next step what the BMM's limits kept a catch-up step from
-// applying.  With augment off the plain Ekf / ParticleFilter run exactly as
-// before.
+// The filter.  The localizer holds one Filter (safenav/filter.hpp): the EKF
+// or the particle filter, plain or — with settings.augment on (any of k, β,
+// b_j) — augmented (safenav/augmented.hpp; motion through the β-corrected
+// predict; with the augmented EKF odometry also owes the next step what the
+// BMM's limits kept a catch-up step from applying).
+//
+// Bad input.  Every input either raises std::invalid_argument naming it and
+// leaves the localizer as it was (time, estimate, counts: the prediction to a
+// measurement's time and its update are one transaction), or returns with a
+// finite estimate and a valid covariance.
 //
 // After construction a tick allocates nothing with the EKF (the particle
 // filter's update allocates its scratch); initialization from data does.

@@ -6,6 +6,7 @@
 // Jacobian H = ∂h/∂x, and an angle-aware residual z − h(x).
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -26,6 +27,75 @@ enum class MeasurementKind {
 const char* to_string(MeasurementKind kind);
 
 using Landmarks = Points2;
+
+// ---------------------------------------------------------------------------
+// The landmark observation model, written once.  In GTSAM's form (a factor's
+// evaluateError with optional Jacobians) it returns the prediction h and, when
+// asked, one row of ∂h/∂state by state block: the pose (x, y, θ; the speed v
+// never enters), the range scale k and the observed landmark's range bias b_j.
+//
+//   range    r = (1 + k)·ρ + b_j,  ρ = ‖a − p‖   [SafeNav eq. 10]; k, b_j are
+//            augmented states (ours, safenav/augmented.hpp), 0 in the plain model
+//   bearing  β = atan2(a_y − y, a_x − x) − θ      [Placement §III-A], relative,
+//            counter-clockwise, unwrapped (residuals wrap z − β)
+//
+// The EKF, the augmented EKF and PF, the particle filter's likelihood (through
+// MeasurementModel), the EIF, the online Localizer and trilateration /
+// triangulation (safenav/localization.hpp) all evaluate these two functions.
+
+/// Below this squared distance a landmark is "at" the vehicle: range and
+/// bearing Jacobians are undefined there.
+constexpr double kMinLandmarkDistance2 = 1e-18;
+
+/// Landmark a seen from the position p: the offset a − p, q = ‖a − p‖² and
+/// ρ = √q (std::hypot when q overflows, so any representable distance comes back).
+struct LandmarkGeometry {
+  double dx, dy;  ///< a − p
+  double q;       ///< dx² + dy²
+  double r;       ///< ρ
+  /// The offset is finite (false when a − p overflows).
+  bool finite() const { return std::isfinite(dx) && std::isfinite(dy); }
+  /// Range and bearing Jacobians are defined (the landmark is not at p).
+  bool defined() const { return !(q < kMinLandmarkDistance2); }
+};
+
+inline LandmarkGeometry landmark_geometry(double px, double py, double ax, double ay) {
+  const double dx = ax - px, dy = ay - py;
+  const double q = dx * dx + dy * dy;
+  return {dx, dy, q, std::isfinite(q) ? std::sqrt(q) : std::hypot(dx, dy)};
+}
+
+/// One row of ∂h/∂state of a landmark observation, by state block.
+struct LandmarkJacobian {
+  double x = 0.0, y = 0.0, theta = 0.0;  ///< pose block (∂h/∂v = 0)
+  double k = 0.0;                        ///< range scale
+  double b = 0.0;                        ///< the landmark's range bias b_j
+};
+
+/// r = (1 + k)·ρ + b; ∂r/∂(x, y) = −(1 + k)(a − p)/ρ, ∂r/∂k = ρ, ∂r/∂b = 1.
+/// Needs g.defined() for H.  With k = b = 0 this is the plain range ρ, exactly.
+inline double predict_range(const LandmarkGeometry& g, double k, double b, LandmarkJacobian* H = nullptr) {
+  const double s = 1.0 + k;
+  if (H) {
+    H->x = s * -g.dx / g.r;
+    H->y = s * -g.dy / g.r;
+    H->theta = 0.0;
+    H->k = g.r;
+    H->b = 1.0;
+  }
+  return s * g.r + b;
+}
+
+/// β = atan2(dy, dx) − θ; ∂β/∂(x, y) = (dy, −dx)/q, ∂β/∂θ = −1.  Needs g.defined() for H.
+inline double predict_bearing(const LandmarkGeometry& g, double theta, LandmarkJacobian* H = nullptr) {
+  if (H) {
+    H->x = g.dy / g.q;
+    H->y = -g.dx / g.q;
+    H->theta = -1.0;
+    H->k = H->b = 0.0;
+  }
+  return std::atan2(g.dy, g.dx) - theta;
+}
 
 /// Gaussian measurement noise N(0, R) with a block-diagonal R, validated
 /// once: each block must be finite, symmetric and positive definite.  R is

@@ -5,6 +5,7 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -158,33 +159,41 @@ void AugmentedEkf::predict(const Control& u, double dt) {
   sync4();
 }
 
-double AugmentedEkf::range_row(int row, const Eigen::Vector2d& a, int r) {
-  // h = (1+k)·ρ + b_row, ρ = ‖p − a‖: ∂h/∂p = (1+k)(p − a)/ρ, ∂h/∂k = ρ, ∂h/∂b_row = 1.
-  const double dx = x_[kX] - a.x(), dy = x_[kY] - a.y();
-  const double rho = std::hypot(dx, dy);
-  if (!(rho > 1e-9))
-    throw std::domain_error("AugmentedEkf range update: the estimate is at landmark row " + std::to_string(row) +
-                            " (range Jacobian undefined)");
-  const double k = ik_ >= 0 ? x_[ik_] : 0.0;
-  const double b = ib0_ >= 0 ? x_[ib0_ + row] : 0.0;
-  H_.row(r).setZero();
-  H_(r, kX) = (1.0 + k) * dx / rho;
-  H_(r, kY) = (1.0 + k) * dy / rho;
-  if (ik_ >= 0) H_(r, ik_) = rho;
-  if (ib0_ >= 0) H_(r, ib0_ + row) = 1.0;
-  return (1.0 + k) * rho + b;
+LandmarkGeometry AugmentedEkf::geometry(const Eigen::Vector2d& a, const char* what) const {
+  const LandmarkGeometry g = landmark_geometry(x_[kX], x_[kY], a.x(), a.y());
+  if (!g.finite())
+    throw std::invalid_argument(std::string("AugmentedEkf ") + what + " update: the landmark (" + num(a.x()) + ", " +
+                                num(a.y()) + ") is farther than 1.8e308 from the estimate");
+  if (!g.defined())
+    throw std::domain_error(std::string("AugmentedEkf ") + what +
+                            " update: the estimate is at the landmark (Jacobian undefined)");
+  return g;
 }
 
-double AugmentedEkf::bearing_row(const Eigen::Vector2d& a, int r) {
-  // h = atan2(a_y − y, a_x − x) − θ.
-  const double dx = a.x() - x_[kX], dy = a.y() - x_[kY];
-  const double r2 = dx * dx + dy * dy;
-  if (!(r2 > 1e-18)) throw std::domain_error("AugmentedEkf bearing update: the estimate is at the landmark (bearing undefined)");
+void AugmentedEkf::set_row(int r, int landmark_row, const LandmarkJacobian& J) {
+  // The model's Jacobian by state block, into row r of H (∂h/∂v = 0, other b_j 0).
   H_.row(r).setZero();
-  H_(r, kX) = dy / r2;
-  H_(r, kY) = -dx / r2;
-  H_(r, kTheta) = -1.0;
-  return std::atan2(dy, dx) - x_[kTheta];
+  H_(r, kX) = J.x;
+  H_(r, kY) = J.y;
+  H_(r, kTheta) = J.theta;
+  if (ik_ >= 0) H_(r, ik_) = J.k;
+  if (ib0_ >= 0) H_(r, ib0_ + landmark_row) = J.b;
+}
+
+double AugmentedEkf::range_row(int row, const Eigen::Vector2d& a, int r) {
+  const LandmarkGeometry g = geometry(a, "range");
+  LandmarkJacobian J;
+  const double h = predict_range(g, ik_ >= 0 ? x_[ik_] : 0.0, ib0_ >= 0 ? x_[ib0_ + row] : 0.0, &J);
+  set_row(r, row, J);
+  return h;
+}
+
+double AugmentedEkf::bearing_row(int row, const Eigen::Vector2d& a, int r) {
+  const LandmarkGeometry g = geometry(a, "bearing");
+  LandmarkJacobian J;
+  const double h = predict_bearing(g, x_[kTheta], &J);
+  set_row(r, row, J);
+  return h;
 }
 
 template <int M>
@@ -249,7 +258,7 @@ UpdateResult AugmentedEkf::update_bearing(int landmark_row, const Eigen::Vector2
   if (!landmark.allFinite()) throw std::invalid_argument("AugmentedEkf bearing update: the landmark position is not finite");
   if (!std::isfinite(bearing)) throw std::invalid_argument("AugmentedEkf bearing update: bearing = " + num(bearing) + " is not finite");
   check_variance(variance, "bearing");
-  const double h = bearing_row(landmark, 0);
+  const double h = bearing_row(landmark_row, landmark, 0);
   return apply<1>(Eigen::Matrix<double, 1, 1>(wrap_angle(bearing - h)), Eigen::Matrix<double, 1, 1>(variance),
                   MeasurementKind::Bearing);
 }
@@ -261,7 +270,7 @@ UpdateResult AugmentedEkf::update_range_bearing(int landmark_row, const Eigen::V
   check_finite2(z, "range-bearing");
   check_cov2(R, "AugmentedEkf range-bearing update:");
   const double hr = range_row(landmark_row, landmark, 0);
-  const double hb = bearing_row(landmark, 1);
+  const double hb = bearing_row(landmark_row, landmark, 1);
   return apply<2>(Eigen::Vector2d(z[0] - hr, wrap_angle(z[1] - hb)), R, MeasurementKind::RangeBearing);
 }
 
@@ -294,6 +303,7 @@ struct AugmentedParticleFilter::Impl {
   double resample_threshold = 0.5;
   Eigen::MatrixXd X, X_next;                 // n × N particles
   Eigen::VectorXd logw, w;                   // log-weights and normalised weights
+  Eigen::VectorXd ll;                        // scratch: −log-likelihood of each particle
   Eigen::Matrix<double, 2, Eigen::Dynamic> Y;  // residuals of an update
   double gate_probability = 0.0, thr[3] = {0.0, 0.0, 0.0};
   double ess = 0.0;
@@ -352,6 +362,9 @@ struct AugmentedParticleFilter::Impl {
     }
     UpdateResult res;
     res.dim = M;
+    // A residual spread that overflows (a measurement ~1e154 from the
+    // particles) would give S = inf and a NIS of 0: refuse it, as check_nis.
+    if (!(S.allFinite() && ybar.allFinite())) check_nis(std::numeric_limits<double>::infinity(), "AugmentedParticleFilter", kind);
     const Eigen::LDLT<MatMM> ldlt(S);
     res.nis = ybar.dot(ldlt.solve(ybar));
     check_nis(res.nis, "AugmentedParticleFilter", kind);
@@ -362,19 +375,27 @@ struct AugmentedParticleFilter::Impl {
     const MatMM Ri = R.inverse();
     for (int i = 0; i < N; ++i) {
       const VecM y = Y.template block<M, 1>(0, i);
-      logw[i] -= 0.5 * y.dot(Ri * y);
+      ll[i] = 0.5 * y.dot(Ri * y);
     }
+    // Every log-likelihood finite, and one particle's at least representable
+    // against the others, before the weights change.
+    if (!ll.allFinite())
+      throw std::invalid_argument(std::string("AugmentedParticleFilter ") + to_string(kind) +
+                                  " update: a particle's log-likelihood overflows (the measurement is too far "
+                                  "from the particles for its covariance)");
+    logw -= ll;
     normalise();
     if (ess < resample_threshold * N) resample();
     return res;
   }
 
+  /// The landmark observation model (safenav/measurement.hpp) at particle i.
   double range_h(int i, int row, const Eigen::Vector2d& a) const {
     const double k = ik >= 0 ? X(ik, i) : 0.0, b = ib0 >= 0 ? X(ib0 + row, i) : 0.0;
-    return (1.0 + k) * std::hypot(X(kX, i) - a.x(), X(kY, i) - a.y()) + b;
+    return predict_range(landmark_geometry(X(kX, i), X(kY, i), a.x(), a.y()), k, b);
   }
   double bearing_h(int i, const Eigen::Vector2d& a) const {
-    return std::atan2(a.y() - X(kY, i), a.x() - X(kX, i)) - X(kTheta, i);
+    return predict_bearing(landmark_geometry(X(kX, i), X(kY, i), a.x(), a.y()), X(kTheta, i));
   }
 };
 
@@ -407,6 +428,7 @@ AugmentedParticleFilter::AugmentedParticleFilter(const BmmParams& params, const 
   I.X_next.resize(n, I.N);
   I.Y.resize(2, I.N);
   I.logw = Eigen::VectorXd::Constant(I.N, -std::log(static_cast<double>(I.N)));
+  I.ll.resize(I.N);
   I.w = Eigen::VectorXd::Constant(I.N, 1.0 / I.N);
   I.ess = I.N;
   const Eigen::Matrix4d L = P0.llt().matrixL();
@@ -424,6 +446,12 @@ AugmentedParticleFilter::AugmentedParticleFilter(const BmmParams& params, const 
 AugmentedParticleFilter::~AugmentedParticleFilter() = default;
 AugmentedParticleFilter::AugmentedParticleFilter(AugmentedParticleFilter&&) noexcept = default;
 AugmentedParticleFilter& AugmentedParticleFilter::operator=(AugmentedParticleFilter&&) noexcept = default;
+AugmentedParticleFilter::AugmentedParticleFilter(const AugmentedParticleFilter& o)
+    : impl_(std::make_unique<Impl>(*o.impl_)) {}
+AugmentedParticleFilter& AugmentedParticleFilter::operator=(const AugmentedParticleFilter& o) {
+  if (this != &o) *impl_ = *o.impl_;
+  return *this;
+}
 
 int AugmentedParticleFilter::size() const { return impl_->N; }
 int AugmentedParticleFilter::state_size() const { return impl_->n; }

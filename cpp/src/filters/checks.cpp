@@ -42,6 +42,19 @@ double chi2_quantile(double probability, int dof) {
   return boost::math::quantile(boost::math::chi_squared(dof), probability);
 }
 
+void FilterOptions::validate(const std::string& prefix) const {
+  std::ostringstream os;
+  if (type == FilterType::ParticleFilter && n_particles < 1)
+    os << prefix << "n_particles = " << n_particles << ": must be >= 1";
+  else if (!(resample_threshold >= 0.0 && resample_threshold <= 1.0))
+    os << prefix << "resample_threshold = " << resample_threshold << ": must be in [0, 1]";
+  else if (!(gate_probability >= 0.0 && gate_probability < 1.0))
+    os << prefix << "gate_probability = " << gate_probability << ": must be in [0, 1) (0 = off)";
+  else
+    return;
+  throw std::invalid_argument(os.str());
+}
+
 void check_nis(double nis, const char* filter, MeasurementKind kind) {
   if (std::isfinite(nis)) return;
   std::ostringstream os;

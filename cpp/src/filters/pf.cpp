@@ -225,6 +225,27 @@ ParticleFilter::ParticleFilter(const BmmParams& params, const State& x0, const S
 ParticleFilter::~ParticleFilter() = default;
 ParticleFilter::ParticleFilter(ParticleFilter&&) noexcept = default;
 ParticleFilter& ParticleFilter::operator=(ParticleFilter&&) noexcept = default;
+ParticleFilter::ParticleFilter(const ParticleFilter& o) : impl_(std::make_unique<Impl>(*o.impl_)) {}
+ParticleFilter& ParticleFilter::operator=(const ParticleFilter& o) {
+  if (this == &o) return *this;
+  if (!impl_ || impl_->N != o.impl_->N) {
+    impl_ = std::make_unique<Impl>(*o.impl_);
+    return *this;
+  }
+  // The state only (the scratch columns are rewritten before they are read).
+  Impl& a = *impl_;
+  const Impl& b = *o.impl_;
+  a.bmm = b.bmm;
+  a.rng = b.rng;
+  a.resample_threshold = b.resample_threshold;
+  a.S = b.S;
+  a.W = b.W;
+  a.ess = b.ess;
+  a.n_resampled = b.n_resampled;
+  a.gate_probability = b.gate_probability;
+  a.gate_thresholds = b.gate_thresholds;
+  return *this;
+}
 
 int ParticleFilter::size() const { return impl_->n(); }
 double ParticleFilter::ess() const { return impl_->ess; }
