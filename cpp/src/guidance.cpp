@@ -76,12 +76,7 @@ void NavigationSettings::validate() const {
   planner.validate();
   require_finite_nonneg(corridor_margin, "settings.corridor_margin");
   require_finite_positive(lost_position_std, "settings.lost_position_std");
-  if (filter.type == FilterType::ParticleFilter && filter.n_particles < 1)
-    bad("settings.filter.n_particles = " + std::to_string(filter.n_particles) + ": must be >= 1");
-  if (!(filter.resample_threshold >= 0.0 && filter.resample_threshold <= 1.0))
-    bad("settings.filter.resample_threshold = " + num(filter.resample_threshold) + ": must be in [0, 1]");
-  if (!(filter.gate_probability >= 0.0 && filter.gate_probability < 1.0))
-    bad("settings.filter.gate_probability = " + num(filter.gate_probability) + ": must be in [0, 1)");
+  filter.validate("settings.filter.");
   if (filter.type == FilterType::InformationFilter)
     bad("settings.filter.type = InformationFilter: navigation supports the EKF and the particle filter");
   guard.validate();
