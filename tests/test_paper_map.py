@@ -126,7 +126,7 @@ UNBRACKETED_CHECKED = ("README.md", "docs/*.md", "cpp/src/navigation.cpp", "cpp/
                        "cpp/include/safenav/measurement.hpp", "cpp/src/corridor.cpp", "cpp/src/planning.cpp",
                        "cpp/src/world.cpp", "cpp/src/placement_internal.hpp", "cpp/bindings/corridor.cpp",
                        "python/safenav/geometry.py", "python/safenav/metrics.py", "python/safenav/world.py",
-                       "python/safenav/scenario.py")
+                       "python/safenav/scenario.py", "python/safenav/scenario_params.py")
 # The old, ambiguous forms (docs/paper_map.md, appendix), each with the qualifiers that make it unambiguous.
 OLD_FORMS = {
     "eqs. 20-23 without a version": re.compile(r"(?<!ext )(?<!SafeNav-ext )\beqs?\. 2[0-3]\b(?! \(extended)"),

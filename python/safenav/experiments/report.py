@@ -16,21 +16,10 @@ import numpy as np
 import pandas as pd
 
 from .. import navigation as nav
-from ..results import versions, write_text
+from ..results import markdown_table, versions, write_text
 from ..runner import SEED_RULE
 from .claims import BOOTSTRAP, CONFIDENCE, MIN_TRIALS
 from .synthetic import SyntheticConfig
-
-
-def markdown_table(df: pd.DataFrame, digits: int = 3) -> str:
-    """A DataFrame as a GitHub Markdown table (floats to ``digits`` significant digits)."""
-    def cell(v):
-        if isinstance(v, (float, np.floating)):
-            return "—" if np.isnan(v) else f"{v:.{digits}g}"
-        return str(v)
-    lines = ["| " + " | ".join(map(str, df.columns)) + " |", "|" + "---|" * len(df.columns)]
-    lines += ["| " + " | ".join(cell(v) for v in row) + " |" for row in df.itertuples(index=False)]
-    return "\n".join(lines) + "\n"
 
 
 def parameters(opts) -> dict:
