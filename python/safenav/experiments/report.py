@@ -47,7 +47,8 @@ def _synthetic_parameters(cfg: SyntheticConfig) -> dict:
     return out
 
 
-#: Where we depart from the paper (the report's list; DESIGN.md has the reasoning).
+#: Where we depart from the paper (the report's list; README "Where we depart from the papers" and
+#: docs/reproduce.md "Departures from the paper" give the reasoning).
 DEPARTURES = (
     "DeepLoc-GPS, DeepLoc-EKF-GPS and Sensor Fusion are emulated: error profiles we chose (white noise, bias, bias "
     "walk, outliers; see Parameters), not the original trained networks and GNSS/INS fusion, which cannot be had "
