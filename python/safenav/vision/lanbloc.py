@@ -208,10 +208,10 @@ class LanBLoc:
     }
 
     def __getattr__(self, name: str):
+        parts = self.__dict__
         for part, names in LanBLoc._SETTINGS.items():
-            if name in names:
-                return getattr(self.__dict__["ranger"] if part == "ranger" else self.__dict__["pipelines"][part],
-                               name)
+            if name in names and "pipelines" in parts:
+                return getattr(parts["ranger"] if part == "ranger" else parts["pipelines"][part], name)
         raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     # ---------------------------------------------------------------- stages (see the parts)
