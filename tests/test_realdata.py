@@ -162,6 +162,19 @@ def test_plaza1_replay_beats_dead_reckoning(plaza, plaza_replay):
     assert res.counts["applied"] > 0.95 * len(plaza.ranges) and res.counts["rejected"] < 20
 
 
+def test_plaza1_range_scale_is_the_one_the_localizer_estimates(plaza):
+    """The ranges read long by a scale: a least-squares fit of the range error against the true
+    distance (truth used only here) gives k = 0.0701, which the replay localizer's range-scale state
+    estimates online as 0.0695 (tests/test_localizer_plaza.py; docs/lanbloc.md)."""
+    t, b, r = plaza.ranges.T
+    gx = np.interp(t, plaza.gt[:, 0], plaza.gt[:, 1])
+    gy = np.interp(t, plaza.gt[:, 0], plaza.gt[:, 2])
+    a = np.array([plaza.beacons[int(i)] for i in b])
+    true = np.hypot(gx - a[:, 0], gy - a[:, 1])
+    k_fit = np.sum(true * (r - true)) / np.sum(true * true)
+    assert k_fit == pytest.approx(0.0695, abs=0.003)
+
+
 def test_plaza1_replay_estimate_matches_the_truth_at_the_end(plaza, plaza_replay):
     """The final estimate against the last true pose (the replay's FDE) and
     against an independent recomputation of it from the raw arrays."""
