@@ -48,8 +48,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-__all__ = ["atomic_write", "write_text", "write_json", "write_table", "markdown_table", "read_table", "save_figure", "RunFolder",
-           "IncompleteRunError", "verify_run", "versions", "TIMING_COLUMNS", "MANIFEST", "TEMP_PREFIX",
+__all__ = ["atomic_write", "write_text", "write_json", "write_table", "markdown_table", "read_table", "save_figure",
+           "RunFolder", "IncompleteRunError", "verify_run", "versions", "TIMING_COLUMNS", "MANIFEST", "TEMP_PREFIX",
            "STALE_TEMP_S"]
 
 TEMP_PREFIX = ".safenav-tmp-"

@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 
 from .. import navigation as nav
-from ..results import markdown_table, versions, write_text
+from ..results import versions, write_text
 from ..runner import SEED_RULE
 from .claims import BOOTSTRAP, CONFIDENCE, MIN_TRIALS
 from .synthetic import SyntheticConfig

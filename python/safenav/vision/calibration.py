@@ -7,7 +7,7 @@ by the core (``ValueError`` naming the field)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
