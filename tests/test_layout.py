@@ -203,3 +203,24 @@ def test_the_cycle_finder_sees_function_level_imports_and_skips_type_checking():
     edges["p.c"] = set()
     assert import_cycles(edges) == []
     assert import_cycles({"x": {"x"}}) == [["x"]]
+
+
+# --------------------------------------------------------------------------- names kept by the splits
+
+@pytest.mark.parametrize("module, names, home", [
+    ("safenav.scenario", ("CameraParams", "DetectionParams", "BmmConfig", "NoiseParams", "PlannerParams",
+                          "BufferParams", "NavigationParams", "Seeds", "MAX_STEPS", "_SECTIONS"), "safenav.scenario_params"),
+    ("safenav.vision.render", ("StereoRig", "camera_rotation"), "safenav.vision.rig"),
+    ("safenav.vision.render", ("StereoFrame",), "safenav.vision.frame"),
+    ("safenav.vision.stereo", ("StereoCalibration",), "safenav.vision.calibration"),
+    ("safenav.vision.stereo", ("DisparityScores", "disparity_scores", "MIDDLEBURY_THRESHOLDS"), "safenav.vision.scores"),
+    ("safenav.vision.lanbloc", ("LanBLocResult", "STATUSES", "MISASSOCIATED", "OUTLIER"), "safenav.vision.sighting"),
+    ("safenav.vision.lanbloc", ("PIPELINE_SGBM",), "safenav.vision.ranging"),
+])
+def test_split_modules_keep_their_names_importable(module, names, home):
+    """A module split by responsibility still offers the names it had, as the same objects as their new home."""
+    import importlib
+
+    old, new = importlib.import_module(module), importlib.import_module(home)
+    for name in names:
+        assert getattr(old, name) is getattr(new, "SECTIONS" if name == "_SECTIONS" else name), name
