@@ -209,11 +209,13 @@ def test_the_cycle_finder_sees_function_level_imports_and_skips_type_checking():
 
 @pytest.mark.parametrize("module, names, home", [
     ("safenav.scenario", ("CameraParams", "DetectionParams", "BmmConfig", "NoiseParams", "PlannerParams",
-                          "BufferParams", "NavigationParams", "Seeds", "MAX_STEPS", "_SECTIONS"), "safenav.scenario_params"),
+                          "BufferParams", "NavigationParams", "Seeds", "MAX_STEPS", "_SECTIONS"),
+     "safenav.scenario_params"),
     ("safenav.vision.render", ("StereoRig", "camera_rotation"), "safenav.vision.rig"),
     ("safenav.vision.render", ("StereoFrame",), "safenav.vision.frame"),
     ("safenav.vision.stereo", ("StereoCalibration",), "safenav.vision.calibration"),
-    ("safenav.vision.stereo", ("DisparityScores", "disparity_scores", "MIDDLEBURY_THRESHOLDS"), "safenav.vision.scores"),
+    ("safenav.vision.stereo", ("DisparityScores", "disparity_scores", "MIDDLEBURY_THRESHOLDS"),
+     "safenav.vision.scores"),
     ("safenav.vision.lanbloc", ("LanBLocResult", "STATUSES", "MISASSOCIATED", "OUTLIER"), "safenav.vision.sighting"),
     ("safenav.vision.lanbloc", ("PIPELINE_SGBM",), "safenav.vision.ranging"),
 ])

@@ -177,7 +177,8 @@ class RegionPipeline:
     def _find_in_right(self, frame: StereoFrame, det: Detection, level: int, patch=None
                        ) -> tuple[Detection | None, int, str]:
         """The marker of the left detection ``det`` in the right image: its patch (pyramid level
-        ``level``; cut from ``patch``, the detection's, when it holds it) matched along its rows over the disparity search (normalised cross-correlation,
+        ``level``; cut from ``patch``, the detection's, when it holds it) matched along its rows
+        over the disparity search (normalised cross-correlation,
         parabolic sub-pixel peak), then the corners refined (:meth:`_refine_corners`; returned with
         its level).  ``None``, with the reason, when the best correlation is below
         ``min_correlation`` or a corner's window leaves the right image."""
