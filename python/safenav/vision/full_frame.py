@@ -19,7 +19,6 @@ import numpy as np
 from .detect import Detector, check_image
 from .ranging import LandmarkRanging, check_faults, check_ranging
 from .sighting import LanBLocResult
-from .stereo import RectifiedCamera, StereoMatcher
 
 __all__ = ["FullFramePipeline"]
 
@@ -39,7 +38,6 @@ class FullFramePipeline:
         if isinstance(band_margin_px, bool) or not isinstance(band_margin_px, (int, np.integer)) or band_margin_px < 0:
             raise ValueError(f"band_margin_px = {band_margin_px!r}: must be an integer >= 0")
         self.band_margin_px = int(band_margin_px)
-        self._band_matchers: dict[tuple[int, int], StereoMatcher] = {}
 
     def check_pair(self, left, right) -> tuple[np.ndarray, np.ndarray]:
         """Validate a stereo pair (uint8, non-empty, same shape, the calibration's size)."""
@@ -64,14 +62,7 @@ class FullFramePipeline:
         y1 = min(-(-(int(math.ceil(b[:, 3].max())) + 1 + self.band_margin_px) // q) * q, h)
         if y1 - y0 >= 0.8 * h:
             return self.ranger.matcher.disparity(left, right)
-        m = self._band_matchers.get((y0, y1))
-        if m is None:
-            c = self.ranger.camera
-            band = RectifiedCamera(c.f, c.cx, c.cy - y0, c.baseline, c.doffs, c.width, y1 - y0)
-            m = StereoMatcher(band, **self.ranger.matcher.sgbm_params)
-            if len(self._band_matchers) > 64:
-                self._band_matchers.clear()
-            self._band_matchers[(y0, y1)] = m
+        m = self.ranger.crop_matcher(0, y0, self.ranger.camera.width, y1)
         out = np.full((h, left.shape[1]), np.nan, np.float32)
         out[y0:y1] = m.disparity(np.ascontiguousarray(left[y0:y1]), np.ascontiguousarray(right[y0:y1]))
         return out

@@ -184,6 +184,21 @@ class LandmarkRanging:
         self._ids = sorted(self.landmarks)
         self._rows = {i: k for k, i in enumerate(self._ids)}
         self._map_xy = np.array([self.landmarks[i][0][:2] for i in self._ids], dtype=float).reshape(-1, 2)
+        self._crop_matchers: dict[tuple[int, int, int, int], StereoMatcher] = {}
+
+    def crop_matcher(self, x0: int, y0: int, x1: int, y1: int) -> StereoMatcher:
+        """The pipeline's SGBM matcher for the crop ``[x0, x1) × [y0, y1)`` of the rectified images (the
+        camera's principal point shifted into it), cached: a row band or a strip around a box."""
+        key = (x0, y0, x1, y1)
+        m = self._crop_matchers.get(key)
+        if m is None:
+            c = self.camera
+            crop = RectifiedCamera(c.f, c.cx - x0, c.cy - y0, c.baseline, c.doffs, x1 - x0, y1 - y0)
+            m = StereoMatcher(crop, **self.matcher.sgbm_params)
+            if len(self._crop_matchers) > 64:
+                self._crop_matchers.clear()
+            self._crop_matchers[key] = m
+        return m
 
     def observe(self, det: Detection, disparity: np.ndarray) -> LandmarkSighting:
         """Range and bearing of one detection from the SGBM disparity: the median over its box shrunk by

@@ -26,7 +26,6 @@ from .detect import Detection, Detector
 from .ranging import LandmarkRanging, check_faults, check_finite, check_ranging
 from .frame import StereoFrame
 from .sighting import LandmarkSighting, LanBLocResult
-from .stereo import RectifiedCamera, StereoMatcher
 
 __all__ = ["RegionPipeline"]
 
@@ -56,7 +55,6 @@ class RegionPipeline:
         self.min_correlation = check_finite("min_correlation", min_correlation)
         if not -1.0 <= self.min_correlation <= 1.0:
             raise ValueError(f"min_correlation = {min_correlation!r}: must be in [-1, 1]")
-        self._band_matchers: dict[tuple[int, int, int, int], StereoMatcher] = {}
 
     def localize(self, frame: StereoFrame, *, faults=None, position=None, seed: int = 0) -> LanBLocResult:
         """The pipeline on a :class:`~safenav.vision.render.StereoFrame`, region by region (ours).
@@ -226,8 +224,8 @@ class RegionPipeline:
         """SGBM on the strip around ``det``'s box only (rows ± margin, columns from the box's left edge
         minus the disparity range to its right edge), then the box median as
         :meth:`~safenav.vision.ranging.LandmarkRanging.observe`."""
-        c = self.ranger.camera
-        p = self.ranger.matcher.sgbm_params
+        rg = self.ranger
+        c, p = rg.camera, rg.matcher.sgbm_params
         m = self.band_margin_px
         x0, y0, x1, y1 = det.box
         X0 = max(int(math.floor(x0)) - p["min_disparity"] - p["num_disparities"] - m, 0)
@@ -236,16 +234,8 @@ class RegionPipeline:
         Y1 = min(int(math.ceil(y1)) + 1 + m, c.height)
         box = (X0, Y0, X1, Y1)
         left, right = frame.patch("left", box), frame.patch("right", box)
-        key = (X0, Y0, X1 - X0, Y1 - Y0)
-        mt = self._band_matchers.get(key)
-        if mt is None:
-            strip = RectifiedCamera(c.f, c.cx - X0, c.cy - Y0, c.baseline, c.doffs, X1 - X0, Y1 - Y0)
-            mt = StereoMatcher(strip, **p)
-            if len(self._band_matchers) > 64:
-                self._band_matchers.clear()
-            self._band_matchers[key] = mt
+        mt = rg.crop_matcher(X0, Y0, X1, Y1)
         disp = mt.disparity(left, right)
-        rg = self.ranger
         sx, sy = rg.box_shrink * (x1 - x0), rg.box_shrink * (y1 - y0)
         br = mt.box_range(disp, (x0 + sx - X0, y0 + sy - Y0, x1 - sx - X0, y1 - sy - Y0), sigma_d=rg.sigma_d,
                           max_range=rg.max_range_m)
