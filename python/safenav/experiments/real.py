@@ -65,7 +65,7 @@ def motorcycle_evaluation(*, box: int = 40, num_disparities: int = 64, block_siz
     (mean absolute disparity error there), ``density`` (fraction of
     ground-truth pixels SGBM gives a disparity); ``bad2_all`` (the same
     error, unmatched ground-truth pixels counted as bad) and ``scores``, the
-    full :class:`~safenav.vision.stereo.DisparityScores` (bad-0.5/1/2/4 both
+    full :class:`~safenav.vision.scores.DisparityScores` (bad-0.5/1/2/4 both
     ways); and for a grid of ``box``×``box`` boxes the box-median depth
     against the median ground-truth depth of the same box: ``depth_rel_errors``
     (array), ``depth_median_rel_error`` and ``depth_p90_rel_error``, and
@@ -159,7 +159,7 @@ def middlebury_aloe(folder=None):
 def sgbm_evaluation(left, right, gt, camera, *, min_disparity: int = 0, num_disparities: int = 64,
                     block_size: int = 3, mode: str = "sgbm_3way", repeats: int = 1, **sgbm) -> dict:
     """SGBM on a rectified pair scored against ``gt`` both ways
-    (:func:`~safenav.vision.stereo.disparity_scores`): the scores' columns
+    (:func:`~safenav.vision.scores.disparity_scores`): the scores' columns
     (``bad2_all``, ``bad2_matched``, …, ``density``, ``mae``), the search
     (``min_disparity``, ``num_disparities``) and ``time ms``, the median of
     ``repeats`` SGBM runs (the first builds the matcher's buffers, and is

@@ -42,7 +42,7 @@ The pipeline has one implementation per kind of input, both ending in one
 shared step: :class:`~safenav.vision.full_frame.FullFramePipeline` (whole
 stereo pairs, steps 1–4 as above: the paper's pipeline and the reference),
 :class:`~safenav.vision.regions.RegionPipeline` (a renderer's
-:class:`~safenav.vision.render.StereoFrame`, region by region; ours) and
+:class:`~safenav.vision.frame.StereoFrame`, region by region; ours) and
 :class:`~safenav.vision.ranging.LandmarkRanging` (step 4's ranges and
 bearings from a depth, landmark faults and step 5).  :class:`LanBLoc` builds
 the three from one set of parameters and sends each input to its pipeline.
@@ -97,7 +97,6 @@ FAULT_STREAM = 1
 NOISE_STREAM = 2
 
 
-
 class LanBLoc:
     """The LanBLoc vision pipeline for one stereo rig and landmark map.
 
@@ -109,9 +108,9 @@ class LanBLoc:
         ``z`` is the height of the landmark's reference point (the marker
         centre) above the ground.
     camera:
-        A :class:`~safenav.vision.render.StereoRig` (rendered, rectified pairs), a
+        A :class:`~safenav.vision.rig.StereoRig` (rendered, rectified pairs), a
         :class:`~safenav.vision.stereo.RectifiedCamera`, a
-        :class:`~safenav.vision.stereo.StereoCalibration` (pairs are rectified first)
+        :class:`~safenav.vision.calibration.StereoCalibration` (pairs are rectified first)
         or a ready :class:`~safenav.vision.stereo.StereoMatcher`.
     detector:
         A :class:`~safenav.vision.detect.Detector`; default a
@@ -164,7 +163,7 @@ class LanBLoc:
         Largest row difference between a corner in the left and the right
         image (rectified: ideally 0) before the pair is rejected.
     detect_side_px, region_margin_px:
-        On a :class:`~safenav.vision.render.StereoFrame`: the marker side
+        On a :class:`~safenav.vision.frame.StereoFrame`: the marker side
         [px] at the pyramid level used for detection, and the margin around
         the markers' footprints (:meth:`localize_frame`).
 
@@ -240,7 +239,7 @@ class LanBLoc:
         """Run the pipeline on one stereo pair (raw if the camera needs rectification): the whole-frame
         pipeline (:meth:`FullFramePipeline.localize <safenav.vision.full_frame.FullFramePipeline.localize>`).
 
-        ``left`` may also be a :class:`~safenav.vision.render.StereoFrame` (with
+        ``left`` may also be a :class:`~safenav.vision.frame.StereoFrame` (with
         ``right=None``): then the region pipeline runs (:meth:`localize_frame`).
 
         ``faults``: landmark-level faults (a :class:`safenav.navigation.LandmarkFaults`) on
@@ -254,7 +253,7 @@ class LanBLoc:
         return self.pipelines["full"].localize(left, right, faults=faults, position=position, seed=seed)
 
     def localize_frame(self, frame: StereoFrame, *, faults=None, position=None, seed: int = 0) -> LanBLocResult:
-        """The pipeline on a :class:`~safenav.vision.render.StereoFrame`, region by region (ours):
+        """The pipeline on a :class:`~safenav.vision.frame.StereoFrame`, region by region (ours):
         :meth:`RegionPipeline.localize <safenav.vision.regions.RegionPipeline.localize>`."""
         return self.pipelines["regions"].localize(frame, faults=faults, position=position, seed=seed)
 
@@ -275,7 +274,7 @@ class CameraLoopSource:
 
     Two modes:
 
-    * ``"regions"`` (default): the renderer's :class:`~safenav.vision.render.StereoFrame`,
+    * ``"regions"`` (default): the renderer's :class:`~safenav.vision.frame.StereoFrame`,
       drawn only where markers project, and :meth:`LanBLoc.localize_frame`:
       detection in those regions and, for fiducials, ranging by triangulating
       the markers' refined corners (:meth:`LanBLoc.observe_corners`).  The work

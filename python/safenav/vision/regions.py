@@ -1,4 +1,4 @@
-"""LanBLoc's region pipeline (ours): a :class:`~safenav.vision.render.StereoFrame`
+"""LanBLoc's region pipeline (ours): a :class:`~safenav.vision.frame.StereoFrame`
 processed region by region, so that the work per frame grows with the
 markers in view rather than with the image (steps 2–5 of
 :mod:`safenav.vision.lanbloc`, [SafeNav §IV-A]).
@@ -57,7 +57,7 @@ class RegionPipeline:
             raise ValueError(f"min_correlation = {min_correlation!r}: must be in [-1, 1]")
 
     def localize(self, frame: StereoFrame, *, faults=None, position=None, seed: int = 0) -> LanBLocResult:
-        """The pipeline on a :class:`~safenav.vision.render.StereoFrame`, region by region (ours).
+        """The pipeline on a :class:`~safenav.vision.frame.StereoFrame`, region by region (ours).
 
         Detection runs on each of the left image's :meth:`~StereoFrame.regions`
         at the pyramid level where its smallest marker is about

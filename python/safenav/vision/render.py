@@ -26,7 +26,7 @@ coordinates, so a camera point ``(X, Y, Z)`` projects to
 ``u = f·X/Z + c_x``, ``v = f·Y/Z + c_y``, and a point at depth ``Z`` has
 disparity ``u_L − u_R = f·B/Z`` (the pair is rectified by construction,
 ``doffs = 0``).  :meth:`StereoRig.calibration` gives the matching
-:class:`safenav.vision.stereo.StereoCalibration` (zero distortion, ``R = I``,
+:class:`safenav.vision.calibration.StereoCalibration` (zero distortion, ``R = I``,
 ``T = (−B, 0, 0)``; ``cv2.stereoRectify`` of it is the identity) and
 :meth:`StereoRig.rectified_camera` the equivalent
 :class:`safenav.vision.stereo.RectifiedCamera`, so the LanBLoc pipeline can skip
@@ -238,7 +238,7 @@ class StereoRenderer:
 
     # ---- public API
     def calibration(self):
-        """The rig's :class:`safenav.vision.stereo.StereoCalibration` (images are already rectified)."""
+        """The rig's :class:`safenav.vision.calibration.StereoCalibration` (images are already rectified)."""
         return self.rig.calibration()
 
     def project(self, pose, points, camera: str = "left") -> tuple[np.ndarray, np.ndarray]:

@@ -90,7 +90,8 @@ class StereoRig:
         return self.focal_length_px * self.baseline_m
 
     def calibration(self):
-        """The matching :class:`safenav.vision.stereo.StereoCalibration` (no distortion, R = I, T = (−B, 0, 0))."""
+        """The matching :class:`safenav.vision.calibration.StereoCalibration` (no distortion, R = I,
+        T = (−B, 0, 0))."""
         from .stereo import StereoCalibration
         K = self.K
         return StereoCalibration(K, np.zeros(5), K, np.zeros(5), np.eye(3), np.array([-self.baseline_m, 0.0, 0.0]),
