@@ -48,11 +48,13 @@ PIPELINE_SGBM = dict(block_size=5, mode="sgbm_3way", uniqueness_ratio=10, speckl
 
 
 def _chi2_999(dof: int) -> float:
+    """The 99.9 % quantile of χ² with ``dof`` (at least 1) degrees of freedom."""
     from scipy.stats import chi2
     return float(chi2.ppf(0.999, max(dof, 1)))
 
 
 def _landmark_table(landmarks) -> dict[int, tuple[np.ndarray, str]]:
+    """``id → (map position (x, y, z), class name)`` from a World, Landmarks or a mapping (LanBLoc's ``landmarks``)."""
     if isinstance(landmarks, World):
         landmarks = landmarks.landmarks
     table = {}
@@ -79,6 +81,8 @@ def _landmark_table(landmarks) -> dict[int, tuple[np.ndarray, str]]:
 
 
 def check_finite(name, v, *, positive=False, nonneg=False):
+    """``v`` as a float, if a finite number (and > 0 with ``positive``, >= 0 with ``nonneg``); else
+    ``ValueError`` naming ``name``."""
     if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not math.isfinite(v):
         raise ValueError(f"{name} = {v!r}: must be a finite number")
     if (positive and not v > 0) or (nonneg and v < 0):
@@ -94,7 +98,6 @@ def check_faults(faults):
         raise ValueError(f"faults = {faults!r}: must be a safenav.navigation.LandmarkFaults or None")
     faults.validate()   # ValueError naming the bad field (faults.dropout_probability = ...)
     return faults
-
 
 
 def check_ranging(ranging: str, detector) -> str:
@@ -133,7 +136,6 @@ def _trilateration_options(trilateration: Mapping | None) -> dict:
     if unknown:
         raise ValueError(f"trilateration: unknown option {unknown[0]!r} (known: {', '.join(known)})")
     return options
-
 
 
 class LandmarkRanging:
