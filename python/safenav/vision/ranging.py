@@ -54,7 +54,8 @@ def _chi2_999(dof: int) -> float:
 
 
 def _landmark_table(landmarks) -> dict[int, tuple[np.ndarray, str]]:
-    """``id → (map position (x, y, z), class name)`` from a World, Landmarks or a mapping (LanBLoc's ``landmarks``)."""
+    """``id → (map position (x, y, z), class name)`` from a World, Landmarks or a mapping
+    (:class:`~safenav.vision.lanbloc.LanBLoc`'s ``landmarks``)."""
     if isinstance(landmarks, World):
         landmarks = landmarks.landmarks
     table = {}
