@@ -1,4 +1,4 @@
-"""The LanBLoc pipeline (issue 3) on rendered stereo pairs: detection of every
+"""The LanBLoc pipeline on rendered stereo pairs: detection of every
 visible marker, ranges, bearings and the fix within a bound derived from the
 geometry, the statuses, bad input, and the camera-in-the-loop source on a
 stretch of the default scenario's path P2."""
@@ -285,3 +285,78 @@ def test_measurement_sources_are_selectable_and_the_emulations_say_so():
     assert CameraLoopSource.name == "lanbloc-camera" and not CameraLoopSource.emulated
     with pytest.raises(ValueError, match="unknown position source"):
         nv.position_source("gps")
+
+
+# --------------------------------------------------------------------------- the pipeline's parts
+
+def test_one_pipeline_per_input_sharing_one_ranging_step():
+    """LanBLoc is a front: a pair goes to the whole-frame pipeline, a StereoFrame to the region
+    pipeline, and both use the one ranging and trilateration step.  Built by hand from the parts,
+    each pipeline gives the same result, number for number."""
+    from safenav.vision import FullFramePipeline, LandmarkRanging, RegionPipeline
+
+    pose, placements = SCENES[0]
+    world = _scene(pose, placements)
+    renderer = StereoRenderer(world, RIG)
+    left, right = renderer.render(pose)
+    frame = renderer.frame(pose, noise_seed=5)
+    lb = LanBLoc(world, RIG, ranging="corners", trilateration=dict(reject_outliers=False))
+    full, regions = lb.pipelines["full"], lb.pipelines["regions"]
+    assert isinstance(full, FullFramePipeline) and isinstance(regions, RegionPipeline)
+    assert full.ranger is regions.ranger is lb.ranger and full.detector is regions.detector
+    ranger = LandmarkRanging(world, RIG, trilateration=dict(reject_outliers=False))
+    detector = FiducialDetector(world)
+    for via_lanbloc, by_hand in (
+            (lb.localize(left, right), FullFramePipeline(ranger, detector, ranging="corners").localize(left, right)),
+            (lb.localize(frame, None), RegionPipeline(ranger, detector, ranging="corners").localize(frame))):
+        assert via_lanbloc.ok and by_hand.ok
+        np.testing.assert_array_equal(via_lanbloc.position, by_hand.position)
+        np.testing.assert_array_equal(via_lanbloc.covariance, by_hand.covariance)
+        assert [(o.landmark_id, o.range, o.sigma, o.bearing) for o in via_lanbloc.observations] == \
+               [(o.landmark_id, o.range, o.sigma, o.bearing) for o in by_hand.observations]
+    assert lb.localize_frame(frame).position.tolist() == lb.localize(frame, None).position.tolist()
+    with pytest.raises(ValueError, match="right must be None"):
+        lb.localize(frame, right)
+
+
+def test_lanbloc_reads_its_settings_from_the_parts():
+    pose, placements = SCENES[1]
+    world = _scene(pose, placements)
+    lb = LanBLoc(world, RIG, sigma_d=0.3, row_band=False, detect_side_px=40.0, min_landmarks=4)
+    assert (lb.sigma_d, lb.row_band, lb.detect_side_px, lb.min_landmarks) == (0.3, False, 40.0, 4)
+    assert lb.camera_height_m == RIG.camera_height_m and lb.camera is lb.ranger.camera
+    for part, names in LanBLoc._SETTINGS.items():
+        owner = lb.ranger if part == "ranger" else lb.pipelines[part]
+        for name in names:
+            assert getattr(lb, name) is getattr(owner, name), name
+    with pytest.raises(AttributeError, match="no attribute 'sigma_x'"):
+        lb.sigma_x
+
+
+def test_a_sighting_is_not_the_cores_landmark_observation():
+    """The vision result per landmark is a LandmarkSighting; the name LandmarkObservation belongs to
+    the core's localizer input (localizer.hpp) only."""
+    import safenav.vision as vision
+    from safenav.vision import LandmarkSighting
+
+    assert not hasattr(vision, "LandmarkObservation")
+    assert "LandmarkObservation" not in vision.__all__
+    pose, placements = SCENES[1]
+    world = _scene(pose, placements)
+    res = LanBLoc(world, RIG).localize(*StereoRenderer(world, RIG).render(pose))
+    assert res.observations and all(isinstance(o, LandmarkSighting) for o in res.observations)
+
+
+def test_the_parts_name_bad_settings():
+    from safenav.vision import FullFramePipeline, LandmarkRanging, RegionPipeline
+
+    pose, placements = SCENES[1]
+    ranger = LandmarkRanging(_scene(pose, placements), RIG)
+    with pytest.raises(ValueError, match="detector = 'aruco'"):
+        FullFramePipeline(ranger, "aruco")
+    with pytest.raises(ValueError, match="ranging = 'lidar'"):
+        RegionPipeline(ranger, FiducialDetector(), ranging="lidar")
+    with pytest.raises(ValueError, match="detect_side_px = 8"):
+        RegionPipeline(ranger, FiducialDetector(), detect_side_px=8)
+    with pytest.raises(ValueError, match="min_correlation = 2"):
+        LanBLoc(_scene(pose, placements), RIG, min_correlation=2)

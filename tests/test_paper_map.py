@@ -126,7 +126,7 @@ UNBRACKETED_CHECKED = ("README.md", "docs/*.md", "cpp/src/navigation.cpp", "cpp/
                        "cpp/include/safenav/measurement.hpp", "cpp/src/corridor.cpp", "cpp/src/planning.cpp",
                        "cpp/src/world.cpp", "cpp/src/placement_internal.hpp", "cpp/bindings/corridor.cpp",
                        "python/safenav/geometry.py", "python/safenav/metrics.py", "python/safenav/world.py",
-                       "python/safenav/scenario.py")
+                       "python/safenav/scenario.py", "python/safenav/scenario_params.py")
 # The old, ambiguous forms (docs/paper_map.md, appendix), each with the qualifiers that make it unambiguous.
 OLD_FORMS = {
     "eqs. 20-23 without a version": re.compile(r"(?<!ext )(?<!SafeNav-ext )\beqs?\. 2[0-3]\b(?! \(extended)"),
@@ -169,3 +169,53 @@ def test_old_unbracketed_forms_are_caught(old):
 ])
 def test_qualified_forms_pass(ok):
     assert old_citation_forms(ok) == [], ok
+
+
+# --------------------------------------------------------------------------- the map's Python names
+
+PYTHON_NAME = re.compile(r"`(safenav(?:\.[A-Za-z_][A-Za-z0-9_]*)+)")
+
+
+def resolve(name: str):
+    """The object a dotted ``safenav.…`` name denotes: the longest importable module, then attributes."""
+    import importlib
+
+    parts = name.split(".")
+    for i in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:i]))
+        except ImportError:
+            continue
+        for p in parts[i:]:
+            obj = getattr(obj, p)
+        return obj
+    raise ImportError(name)
+
+
+def test_every_python_name_in_the_paper_map_exists():
+    text = (ROOT / "docs" / "paper_map.md").read_text(encoding="utf-8")
+    names = sorted(set(PYTHON_NAME.findall(text)))
+    assert len(names) > 50
+    missing = []
+    for n in names:
+        try:
+            resolve(n)
+        except (ImportError, AttributeError) as exc:
+            missing.append(f"{n}: {exc}")
+    assert not missing, "\n".join(missing)
+
+
+def test_the_paper_map_cites_only_files_in_the_repository():
+    text = (ROOT / "docs" / "paper_map.md").read_text(encoding="utf-8")
+    assert "DESIGN.md" not in text
+    for doc in re.findall(r"`(docs/[\w.]+\.md)`", text):
+        assert (ROOT / doc).is_file(), doc
+
+
+def test_resolve_names_what_is_missing():
+    import safenav.vision.lanbloc as lb
+
+    assert resolve("safenav.vision.lanbloc.LanBLoc.localize") is lb.LanBLoc.localize
+    for gone in ("safenav.reproduce.run_synthetic", "safenav.plots.plot_field", "safenav.vision.Nothing"):
+        with pytest.raises((ImportError, AttributeError)):
+            resolve(gone)

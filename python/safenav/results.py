@@ -45,10 +45,11 @@ import threading
 import time
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
-__all__ = ["atomic_write", "write_text", "write_json", "write_table", "read_table", "save_figure", "RunFolder",
-           "IncompleteRunError", "verify_run", "versions", "TIMING_COLUMNS", "MANIFEST", "TEMP_PREFIX",
+__all__ = ["atomic_write", "write_text", "write_json", "write_table", "markdown_table", "read_table", "save_figure",
+           "RunFolder", "IncompleteRunError", "verify_run", "versions", "TIMING_COLUMNS", "MANIFEST", "TEMP_PREFIX",
            "STALE_TEMP_S"]
 
 TEMP_PREFIX = ".safenav-tmp-"
@@ -133,14 +134,23 @@ def _key_columns(df: pd.DataFrame) -> list:
     return [c for c in df.columns if c == "trial" or not pd.api.types.is_numeric_dtype(df[c])]
 
 
+def markdown_table(df: pd.DataFrame, digits: int = 3) -> str:
+    """A DataFrame as a GitHub Markdown table (floats to ``digits`` significant digits)."""
+    def cell(v):
+        if isinstance(v, (float, np.floating)):
+            return "—" if np.isnan(v) else f"{v:.{digits}g}"
+        return str(v)
+    lines = ["| " + " | ".join(map(str, df.columns)) + " |", "|" + "---|" * len(df.columns)]
+    lines += ["| " + " | ".join(cell(v) for v in row) + " |" for row in df.itertuples(index=False)]
+    return "\n".join(lines) + "\n"
+
+
 def write_table(df: pd.DataFrame, path, *, parquet: bool = True, markdown: str | None = None) -> list[Path]:
     """Write ``df`` as ``<name>.csv`` (and ``.parquet``; and ``.md`` headed by
     ``markdown`` when given) next to ``path`` (suffix replaced), each with
     :func:`atomic_write`.  Wall-time columns (:data:`TIMING_COLUMNS`) go to
     ``<name>_timings.csv`` with the row's key columns instead, so the table
     itself is deterministic.  Returns the paths written."""
-    from .experiments import markdown_table
-
     path = Path(path)
     timing = [c for c in df.columns if c in TIMING_COLUMNS]
     table = df.drop(columns=timing)

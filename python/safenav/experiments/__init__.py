@@ -47,12 +47,13 @@ Example::
     experiments.write_report(results, opts)
 """
 
+from ..results import markdown_table
 from .claims import BOOTSTRAP, CONFIDENCE, MIN_TRIALS, Claim, localization_claims, navigation_claims
 from .figures import navigation_figures
 from .paper import (METHOD_LABELS, PAPER_NAVIGATION, PAPER_PERCENT_ERROR, PAPER_SOURCES, PAPER_SYNTHETIC,
                     PAPER_TABLE1, PAPER_TABLE2, localization_table, navigation_table, percent_error_table,
                     source_label)
-from .report import DEPARTURES, markdown_table, parameters, write_report
+from .report import DEPARTURES, parameters, write_report
 from .run import ALIASES, EXPERIMENTS, ExperimentOptions, ExperimentResult, placed_scenario, resolve, run_experiments
 from .synthetic import (PRIOR_STD, SyntheticResult, run_synthetic, source_config, summarize_synthetic,
                         synthetic_experiment, synthetic_trial)

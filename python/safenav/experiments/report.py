@@ -22,17 +22,6 @@ from .claims import BOOTSTRAP, CONFIDENCE, MIN_TRIALS
 from .synthetic import SyntheticConfig
 
 
-def markdown_table(df: pd.DataFrame, digits: int = 3) -> str:
-    """A DataFrame as a GitHub Markdown table (floats to ``digits`` significant digits)."""
-    def cell(v):
-        if isinstance(v, (float, np.floating)):
-            return "—" if np.isnan(v) else f"{v:.{digits}g}"
-        return str(v)
-    lines = ["| " + " | ".join(map(str, df.columns)) + " |", "|" + "---|" * len(df.columns)]
-    lines += ["| " + " | ".join(cell(v) for v in row) + " |" for row in df.itertuples(index=False)]
-    return "\n".join(lines) + "\n"
-
-
 def parameters(opts) -> dict:
     """The run's parameters and seeds as plain values (``parameters.json`` and the report)."""
     sc = opts.scenario
@@ -58,7 +47,8 @@ def _synthetic_parameters(cfg: SyntheticConfig) -> dict:
     return out
 
 
-#: Where we depart from the paper (the report's list; DESIGN.md has the reasoning).
+#: Where we depart from the paper (the report's list; README "Where we depart from the papers" and
+#: docs/reproduce.md "Departures from the paper" give the reasoning).
 DEPARTURES = (
     "DeepLoc-GPS, DeepLoc-EKF-GPS and Sensor Fusion are emulated: error profiles we chose (white noise, bias, bias "
     "walk, outliers; see Parameters), not the original trained networks and GNSS/INS fusion, which cannot be had "

@@ -1,7 +1,7 @@
-"""Camera-in-the-loop rendering: the stereo pair a vehicle sees (issue 3).
+"""Camera-in-the-loop rendering: the stereo pair a vehicle sees.
 
 :class:`StereoRenderer` draws the left and right images of an ideal,
-already rectified stereo rig (:class:`StereoRig`: pinhole, same intrinsics
+already rectified stereo rig (:class:`~safenav.vision.rig.StereoRig`: pinhole, same intrinsics
 ``K`` for both cameras, baseline ``B`` along the camera x axis, camera height
 ``h``, a fixed pitch) at a vehicle pose ``(x, y, θ)``:
 
@@ -26,7 +26,7 @@ coordinates, so a camera point ``(X, Y, Z)`` projects to
 ``u = f·X/Z + c_x``, ``v = f·Y/Z + c_y``, and a point at depth ``Z`` has
 disparity ``u_L − u_R = f·B/Z`` (the pair is rectified by construction,
 ``doffs = 0``).  :meth:`StereoRig.calibration` gives the matching
-:class:`safenav.vision.stereo.StereoCalibration` (zero distortion, ``R = I``,
+:class:`safenav.vision.calibration.StereoCalibration` (zero distortion, ``R = I``,
 ``T = (−B, 0, 0)``; ``cv2.stereoRectify`` of it is the identity) and
 :meth:`StereoRig.rectified_camera` the equivalent
 :class:`safenav.vision.stereo.RectifiedCamera`, so the LanBLoc pipeline can skip
@@ -42,7 +42,7 @@ measurement-level visibility test and landmark placement use.  Occlusion is
 per landmark (its marker's centre), not per pixel: a marker half behind a
 boulder is either drawn whole or not at all.
 
-**Rendering by region** (:meth:`StereoRenderer.frame`, ours; issue 16).  A
+**Rendering by region** (:meth:`StereoRenderer.frame`, ours; :mod:`safenav.vision.frame`).  A
 frame of the scenario's camera (2560×1440) holds a few markers covering a
 small part of the image, so the camera loop renders only what it looks at.
 :class:`StereoFrame` is the pair at one pose, drawn on demand: its
@@ -64,7 +64,6 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
 from typing import Mapping
 
 import cv2
@@ -72,123 +71,10 @@ import numpy as np
 
 from ..world import Landmark, World
 from .detect import aruco_dictionary, marker_image
+from .frame import StereoFrame
+from .rig import StereoRig, as_pose, camera_rotation, check_positive
 
 __all__ = ["StereoRig", "StereoRenderer", "StereoFrame", "camera_rotation", "periodic_noise"]
-
-
-# --------------------------------------------------------------------------- the rig
-
-def _pos(name, v, *, allow_zero=False):
-    if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not math.isfinite(v) \
-            or v < 0 or (v == 0 and not allow_zero):
-        raise ValueError(f"{name} = {v!r}: must be a finite number {'>= 0' if allow_zero else '> 0'}")
-    return float(v)
-
-
-@dataclass(frozen=True)
-class StereoRig:
-    """An ideal rectified stereo rig on the vehicle.
-
-    The defaults scale the scenario camera ([SafeNav-ext §V-A2]: 2560×1440 px,
-    f = 1400 px, i.e. an 85° horizontal field of view, baseline 0.3 m) to
-    640×480 px: f = 350 px.
-    """
-
-    width: int = 640                  #: image width [px]
-    height: int = 480                 #: image height [px]
-    focal_length_px: float = 350.0    #: f [px] (both axes)
-    baseline_m: float = 0.3           #: B [m]
-    camera_height_m: float = 1.5      #: h, camera centres above the ground [m]
-    pitch_rad: float = 0.0            #: camera pitch, positive looks up [rad]
-    max_range_m: float = 30.0         #: landmarks farther than this (3D) are not drawn [m]
-    near_m: float = 0.2               #: near clipping depth [m]
-
-    def __post_init__(self):
-        for n in ("width", "height"):
-            v = getattr(self, n)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 16:
-                raise ValueError(f"{n} = {v!r}: must be an integer >= 16 [px]")
-            object.__setattr__(self, n, int(v))
-        for n in ("focal_length_px", "baseline_m", "camera_height_m", "max_range_m", "near_m"):
-            object.__setattr__(self, n, _pos(n, getattr(self, n)))
-        p = self.pitch_rad
-        if isinstance(p, bool) or not isinstance(p, (int, float, np.integer, np.floating)) or not abs(p) < 0.5:
-            raise ValueError(f"pitch_rad = {p!r}: must be a finite angle with |pitch| < 0.5 rad")
-        object.__setattr__(self, "pitch_rad", float(p))
-
-    @classmethod
-    def from_camera(cls, camera, width: int = 640, height: int | None = 480, *, camera_height_m: float = 1.5,
-                    max_range_m: float = 30.0, pitch_rad: float = 0.0) -> "StereoRig":
-        """The scenario's :class:`~safenav.scenario.CameraParams` scaled to ``width`` px (same field of view)."""
-        s = width / camera.image_width_px
-        h = int(round(camera.image_height_px * s)) if height is None else height
-        return cls(width, h, camera.focal_length_px * s, camera.baseline_m, camera_height_m, pitch_rad,
-                   max_range_m)
-
-    @property
-    def cx(self) -> float:
-        return (self.width - 1) / 2.0
-
-    @property
-    def cy(self) -> float:
-        return (self.height - 1) / 2.0
-
-    @property
-    def K(self) -> np.ndarray:
-        f = self.focal_length_px
-        return np.array([[f, 0.0, self.cx], [0.0, f, self.cy], [0.0, 0.0, 1.0]])
-
-    @property
-    def horizontal_fov_rad(self) -> float:
-        return 2.0 * math.atan2(self.width / 2.0, self.focal_length_px)
-
-    @property
-    def fB(self) -> float:
-        """f·B [px·m]: disparity d = f·B / Z."""
-        return self.focal_length_px * self.baseline_m
-
-    def calibration(self):
-        """The matching :class:`safenav.vision.stereo.StereoCalibration` (no distortion, R = I, T = (−B, 0, 0))."""
-        from .stereo import StereoCalibration
-        K = self.K
-        return StereoCalibration(K, np.zeros(5), K, np.zeros(5), np.eye(3), np.array([-self.baseline_m, 0.0, 0.0]),
-                                 (self.width, self.height))
-
-    def rectified_camera(self):
-        """The rig as a :class:`safenav.vision.stereo.RectifiedCamera` (``Z = f·B/d``, doffs = 0): no rectification."""
-        from .stereo import RectifiedCamera
-        return RectifiedCamera(self.focal_length_px, self.cx, self.cy, self.baseline_m, 0.0, self.width,
-                               self.height)
-
-    def camera_centers(self, pose) -> tuple[np.ndarray, np.ndarray]:
-        """World centres of the left and right cameras at ``pose = (x, y, θ)``."""
-        x, y, th = _pose(pose)
-        left = np.array([x, y, self.camera_height_m])
-        right = left + self.baseline_m * np.array([math.sin(th), -math.cos(th), 0.0])
-        return left, right
-
-
-def camera_rotation(theta: float, pitch: float = 0.0) -> np.ndarray:
-    """World → camera rotation (rows: camera x = right, y = down, z = forward) for heading θ and pitch."""
-    c, s, cp, sp = math.cos(theta), math.sin(theta), math.cos(pitch), math.sin(pitch)
-    fwd = np.array([c * cp, s * cp, sp])
-    right = np.array([s, -c, 0.0])
-    down = np.cross(fwd, right)
-    return np.stack([right, down, fwd])
-
-
-def _pose(pose) -> tuple[float, float, float]:
-    try:
-        p = np.asarray(pose, dtype=float).ravel()
-    except (TypeError, ValueError):
-        raise ValueError(f"pose = {pose!r}: must be (x, y, theta)") from None
-    if p.size not in (3, 4):
-        raise ValueError(f"pose = {pose!r}: must be (x, y, theta) or a state (x, y, v, theta)")
-    if p.size == 4:
-        p = p[[0, 1, 3]]
-    if not np.isfinite(p).all():
-        raise ValueError(f"pose = {tuple(p)}: must be finite")
-    return float(p[0]), float(p[1]), float(p[2])
 
 
 # --------------------------------------------------------------------------- textures
@@ -289,7 +175,7 @@ class StereoRenderer:
             if not isinstance(lm, Landmark):
                 raise ValueError(f"landmarks[{i}] = {lm!r}: must be a Landmark")
         self.landmarks: tuple[Landmark, ...] = tuple(lms)
-        self.marker_size_m = _pos("marker_size_m", marker_size_m)
+        self.marker_size_m = check_positive("marker_size_m", marker_size_m)
         self.dictionary = aruco_dictionary(dictionary)
         self.dictionary_name = dictionary
         n_dict = int(self.dictionary.bytesList.shape[0])
@@ -316,7 +202,7 @@ class StereoRenderer:
                 raise ValueError(f"facing = {facing!r}: must be finite")
             self._yaw = np.full(len(self.landmarks), y)
         self.color = bool(color)
-        self.noise_std = _pos("noise_std", noise_std, allow_zero=True)
+        self.noise_std = check_positive("noise_std", noise_std, allow_zero=True)
         self._rng = np.random.default_rng(seed)
         self._L = np.array([(*lm.position[:2], lm.height) for lm in self.landmarks], float).reshape(-1, 3)
         # textures (shared by every renderer with this texture seed)
@@ -352,14 +238,14 @@ class StereoRenderer:
 
     # ---- public API
     def calibration(self):
-        """The rig's :class:`safenav.vision.stereo.StereoCalibration` (images are already rectified)."""
+        """The rig's :class:`safenav.vision.calibration.StereoCalibration` (images are already rectified)."""
         return self.rig.calibration()
 
     def project(self, pose, points, camera: str = "left") -> tuple[np.ndarray, np.ndarray]:
         """Pinhole projection of world ``points`` (N, 3) into ``camera``: ``(uv (N, 2), depth Z (N,))``."""
         if camera not in ("left", "right"):
             raise ValueError(f"camera = {camera!r}: must be 'left' or 'right'")
-        x, y, th = _pose(pose)
+        x, y, th = as_pose(pose)
         P = np.asarray(points, dtype=float).reshape(-1, 3)
         R = camera_rotation(th, self.rig.pitch_rad)
         C = self.rig.camera_centers((x, y, th))[0 if camera == "left" else 1]
@@ -372,7 +258,7 @@ class StereoRenderer:
         """Indices of the landmarks that pass the cheap cull: within range and the horizontal field of view."""
         if len(self.landmarks) == 0:
             return np.zeros(0, dtype=int)
-        x, y, th = _pose(pose)
+        x, y, th = as_pose(pose)
         C = np.array([x, y, self.rig.camera_height_m])
         d = self._L - C
         dist = np.linalg.norm(d, axis=1)
@@ -397,7 +283,7 @@ class StereoRenderer:
     def visible(self, pose, margin_px: float = 2.0, min_side_px: float = 0.0) -> list[int]:
         """Landmark ids whose whole marker lies inside both images, faces the rig, has sides of at
         least ``min_side_px`` and is not hidden, even in part, by a nearer marker's board (both images)."""
-        x, y, th = _pose(pose)
+        x, y, th = as_pose(pose)
         boxes = {}   # (camera, id) -> board bounding box and depth, for the occlusion test
         for i in self.culled(pose):
             lid, board, _, facing = self._board(i, (x, y, th))
@@ -436,7 +322,7 @@ class StereoRenderer:
 
     def render(self, pose) -> tuple[np.ndarray, np.ndarray]:
         """The rectified ``(left, right)`` images at ``pose = (x, y, θ)`` (or a state (x, y, v, θ))."""
-        x, y, th = _pose(pose)
+        x, y, th = as_pose(pose)
         if not self._rig_ready:
             self._prepare_rig()
             self._rig_ready = True
@@ -463,7 +349,7 @@ class StereoRenderer:
         idx = self.culled(pose)
         if len(idx) == 0:
             return 0
-        x, y, th = _pose(pose)
+        x, y, th = as_pose(pose)
         C = self.rig.camera_centers((x, y, th))[0 if camera == "left" else 1]
         pc = (self._L[idx] - C) @ camera_rotation(th, self.rig.pitch_rad).T
         r = self.rig
@@ -482,7 +368,7 @@ class StereoRenderer:
         idx = self.culled(pose)
         if not self.occlusion or len(idx) == 0:
             return out
-        for cam, C in zip(("left", "right"), self.rig.camera_centers(_pose(pose))):
+        for cam, C in zip(("left", "right"), self.rig.camera_centers(as_pose(pose))):
             seen = self.world.visible_from(C[:2], self._L[idx, :2])
             out[cam] = {self.landmarks[i].id for i, v in zip(idx, seen) if not v}
         return out
@@ -503,7 +389,7 @@ class StereoRenderer:
         """Centre, in-plane right axis and up axis of landmark ``i``'s marker."""
         c = self._L[i]
         if self._yaw is None:
-            x, y, th = _pose(pose)
+            x, y, th = as_pose(pose)
             mid = np.array([x, y]) + 0.5 * self.rig.baseline_m * np.array([math.sin(th), -math.cos(th)])
             n = mid - c[:2]
             nn = math.hypot(*n)
@@ -517,7 +403,7 @@ class StereoRenderer:
         i = next(k for k, lm in enumerate(self.landmarks) if lm.id == lid)
         c, a, _ = self._frame(i, pose)
         n = np.array([a[1], -a[0]])
-        x, y, _th = _pose(pose)
+        x, y, _th = as_pose(pose)
         return float(n @ (np.array([x, y]) - c[:2])) > 0
 
     def _board(self, i: int, pose):
@@ -525,7 +411,7 @@ class StereoRenderer:
         hb = self._board_half_m
         corners = np.array([c - a * hb + up * hb, c + a * hb + up * hb, c + a * hb - up * hb, c - a * hb - up * hb])
         n = np.array([a[1], -a[0]])
-        x, y, _ = _pose(pose)
+        x, y, _ = as_pose(pose)
         facing = float(n @ (np.array([x, y]) - c[:2])) > 0
         bottom = c[2] - hb
         pw = 0.5 * self.POLE_WIDTH_M
@@ -642,178 +528,3 @@ class StereoRenderer:
             self._noise_tile = np.tile(t, (2, 2))
         r0, c0 = offset
         return self._noise_tile[r0:r0 + shape[0], c0:c0 + shape[1]] * np.float32(std)
-
-
-# --------------------------------------------------------------------------- rendering by region
-
-@dataclass(frozen=True)
-class _Drawn:
-    depth: float            # mean camera depth of the board's corners [m] (painter's order)
-    landmark_id: int
-    uv: np.ndarray          # (4, 2) board corners, level-0 pixels (TL, TR, BR, BL)
-    pole: np.ndarray | None  # (4, 2) pole quad, level-0 pixels
-    box: tuple[int, int, int, int]   # level-0 pixel box x0, y0, x1, y1 (ends exclusive), clipped to the image
-    min_side: float         # shortest / longest board side, level-0 pixels
-    max_side: float
-    whole: bool             # the marker's four corners (inside the quiet zone) lie in the image
-
-
-def _intersects(a, b) -> bool:
-    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
-
-
-class StereoFrame:
-    """The rectified stereo pair at one pose, drawn region by region on demand
-    (see "Rendering by region" in the module docstring).  Made by
-    :meth:`StereoRenderer.frame`; the markers' geometry is computed once, the
-    pixels only when :meth:`patch` asks for them."""
-
-    CAMERAS = ("left", "right")
-
-    def __init__(self, renderer: StereoRenderer, pose, noise_seed: int | None = None):
-        self.renderer = renderer
-        self._rng = renderer._rng if noise_seed is None else np.random.default_rng(noise_seed)
-        self._offsets, self._next = None, 0   # noise-tile offsets, drawn 32 at a time
-        r = self.rig = renderer.rig
-        x, y, th = _pose(pose)
-        self.pose = (x, y, th)
-        #: the background's horizontal offset: it slides f px per radian of heading, like one at infinity
-        self._bg_shift = int(round(-th * r.focal_length_px))
-        self._drawn: dict[str, list[_Drawn]] = {cam: [] for cam in self.CAMERAS}
-        idx = renderer.culled(self.pose)
-        if len(idx) == 0:
-            return
-        # every culled board at once (as StereoRenderer._board): centre, in-plane right axis, corners
-        c = renderer._L[idx]
-        if renderer._yaw is None:
-            mid = np.array([x, y]) + 0.5 * r.baseline_m * np.array([math.sin(th), -math.cos(th)])
-            n = mid - c[:, :2]
-            nn = np.hypot(n[:, 0], n[:, 1])
-            far = nn > 1e-9
-            n[far] /= nn[far, None]
-            n[~far] = (-math.cos(th), -math.sin(th))
-        else:
-            yaw = renderer._yaw[idx]
-            n = np.column_stack([np.cos(yaw), np.sin(yaw)])
-        facing = (n * (np.array([x, y]) - c[:, :2])).sum(axis=1) > 0
-        a = np.column_stack([-n[:, 1], n[:, 0], np.zeros(len(idx))])
-        up = np.array([0.0, 0.0, 1.0])
-        hb = renderer._board_half_m
-        sa, su = np.array([-1.0, 1.0, 1.0, -1.0]), np.array([1.0, 1.0, -1.0, -1.0])
-        corners = c[:, None, :] + hb * (sa[None, :, None] * a[:, None, :] + su[None, :, None] * up)
-        pw = 0.5 * renderer.POLE_WIDTH_M
-        bottom = c[:, 2] - hb
-        pole = np.stack([c + (bottom - c[:, 2])[:, None] * up - pw * a, c + (bottom - c[:, 2])[:, None] * up + pw * a,
-                         c - c[:, 2:3] * up + pw * a, c - c[:, 2:3] * up - pw * a], axis=1)
-        R = camera_rotation(th, r.pitch_rad)
-        f, cx, cy = r.focal_length_px, r.cx, r.cy
-        hidden = renderer.hidden(self.pose)
-        ids = [renderer.landmarks[i].id for i in idx]
-        cells = renderer.dictionary.markerSize + 2
-        inner = cells / (cells + 2)   # marker side / board side
-        for cam, C in zip(self.CAMERAS, r.camera_centers(self.pose)):
-            pc = (corners - C) @ R.T                       # (n, 4, 3)
-            pp = (pole - C) @ R.T
-            ok = facing & (pc[:, :, 2] > r.near_m).all(axis=1)
-            if not ok.any():
-                continue
-            uv = f * pc[:, :, :2] / np.where(ok[:, None, None], pc[:, :, 2:3], 1.0) + [cx, cy]
-            pole_ok = (bottom > 0) & (pp[:, :, 2] > r.near_m).all(axis=1)
-            puv = f * pp[:, :, :2] / np.where(pole_ok[:, None, None], pp[:, :, 2:3], 1.0) + [cx, cy]
-            lo = np.floor(uv.min(axis=1)) - 1
-            hi = np.ceil(uv.max(axis=1)) + 2
-            side = np.linalg.norm(uv - np.roll(uv, 1, axis=1), axis=2)
-            depth = pc[:, :, 2].mean(axis=1)
-            # the marker inside the quiet zone: a detector needs its four corners in the image
-            mc = pc.mean(axis=1, keepdims=True)
-            pm = mc + inner * (pc - mc)
-            um = f * pm[:, :, :2] / np.where(ok[:, None, None], pm[:, :, 2:3], 1.0) + [cx, cy]
-            whole = ((um >= 0).all(axis=2) & (um[:, :, 0] <= r.width - 1) & (um[:, :, 1] <= r.height - 1)).all(axis=1)
-            items = []
-            for k in np.flatnonzero(ok):
-                if ids[k] in hidden[cam]:
-                    continue
-                box = (int(max(lo[k, 0], 0)), int(max(lo[k, 1], 0)), int(min(hi[k, 0], r.width)),
-                       int(min(hi[k, 1], r.height)))
-                if box[2] <= box[0] or box[3] <= box[1]:
-                    continue
-                items.append(_Drawn(float(depth[k]), ids[k], uv[k], puv[k] if pole_ok[k] else None, box,
-                                    float(side[k].min()), float(side[k].max()), bool(whole[k])))
-            items.sort(key=lambda t: -t.depth)   # far first
-            self._drawn[cam] = items
-
-    def _camera(self, camera: str) -> list[_Drawn]:
-        if camera not in self.CAMERAS:
-            raise ValueError(f"camera = {camera!r}: must be 'left' or 'right'")
-        return self._drawn[camera]
-
-    def whole_markers(self, camera: str = "left") -> list[int]:
-        """Ids of the markers drawn in ``camera`` with all four corners inside the image: the most a
-        detector can find (one cut by the image's edge has no fourth corner)."""
-        return [d.landmark_id for d in self._camera(camera) if d.whole]
-
-    def footprints(self, camera: str = "left") -> dict[int, tuple[int, int, int, int]]:
-        """``landmark id → level-0 pixel box (x0, y0, x1, y1)`` of every marker board drawn in ``camera``."""
-        return {d.landmark_id: d.box for d in self._camera(camera)}
-
-    def regions(self, camera: str = "left", margin_px: int = 8) -> list[tuple[tuple[int, int, int, int], float]]:
-        """The image regions that hold markers: the footprints grown by ``margin_px`` (clipped to the
-        image) and merged where they overlap, each with the smallest board side in it [px]."""
-        if isinstance(margin_px, bool) or not isinstance(margin_px, (int, np.integer)) or margin_px < 0:
-            raise ValueError(f"margin_px = {margin_px!r}: must be an integer >= 0")
-        w, h = self.rig.width, self.rig.height
-        boxes = []
-        for d in self._camera(camera):
-            x0, y0, x1, y1 = d.box
-            boxes.append([max(x0 - margin_px, 0), max(y0 - margin_px, 0), min(x1 + margin_px, w),
-                          min(y1 + margin_px, h), d.min_side])
-        merged = True
-        while merged:
-            merged = False
-            for i in range(len(boxes)):
-                for j in range(i + 1, len(boxes)):
-                    a, b = boxes[i], boxes[j]
-                    if _intersects(a, b):
-                        boxes[i] = [min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3]), min(a[4], b[4])]
-                        del boxes[j]
-                        merged = True
-                        break
-                if merged:
-                    break
-        return [((int(b[0]), int(b[1]), int(b[2]), int(b[3])), b[4]) for b in boxes]
-
-    def patch(self, camera: str, box, level: int = 0) -> np.ndarray:
-        """The (grey, uint8) pixels of ``camera``'s image in the level-0 box ``(x0, y0, x1, y1)``
-        (ends exclusive), at pyramid level ``level``: the level-``L`` pixels ``x0 // 2^L ..
-        ceil(x1 / 2^L) − 1`` (and rows likewise)."""
-        items = self._camera(camera)
-        if isinstance(level, bool) or not isinstance(level, (int, np.integer)) or not 0 <= level <= 8:
-            raise ValueError(f"level = {level!r}: must be an integer in [0, 8]")
-        try:
-            x0, y0, x1, y1 = (int(v) for v in box)
-        except (TypeError, ValueError):
-            raise ValueError(f"box = {box!r}: must be four integers (x0, y0, x1, y1)") from None
-        if not (0 <= x0 < x1 <= self.rig.width and 0 <= y0 < y1 <= self.rig.height):
-            raise ValueError(f"box = {tuple(box)}: must lie inside the {self.rig.width}x{self.rig.height} image "
-                             f"with x0 < x1, y0 < y1")
-        k = 1 << int(level)
-        X0, Y0, X1, Y1 = x0 // k, y0 // k, -(-x1 // k), -(-y1 // k)
-        img = self.renderer._background_patch(int(level), X0, Y0, X1, Y1, self._bg_shift // k)
-        off = np.array([X0, Y0], float)
-        lbox = (X0 * k, Y0 * k, X1 * k, Y1 * k)
-        for d in items:
-            if not _intersects(d.box, lbox):
-                continue
-            if d.pole is not None:
-                cv2.fillConvexPoly(img, np.round(((d.pole + 0.5) / k - 0.5 - off) * 16).astype(np.int32), 70,
-                                   cv2.LINE_AA, 4)
-            self.renderer._warp_marker(img, d.landmark_id, (d.uv + 0.5) / k - 0.5 - off, d.max_side / k,
-                                       transparent=True)
-        if self.renderer.noise_std > 0:
-            if self._offsets is None or self._next >= len(self._offsets):
-                self._offsets = self._rng.integers(0, self.renderer.NOISE_TILE, (32, 2)).tolist()
-                self._next = 0
-            self._next += 1
-            noise = self.renderer._noise(img.shape, self.renderer.noise_std / k, self._rng, self._offsets[self._next - 1])
-            img = np.clip(img + noise + 0.5, 0, 255).astype(np.uint8)
-        return img

@@ -4,10 +4,9 @@ LanBLoc measures the distance from the vehicle to each recognised landmark
 with stereo matching, then trilaterates (:mod:`safenav.vision.localization`).  This
 module is the ranging half, in C++ over OpenCV:
 
-* :class:`StereoCalibration` — ``K1, D1, K2, D2, R, T`` and the image size,
-  exactly what ``cv2.stereoCalibrate`` returns (``X₂ = R X₁ + T``); loads and
-  saves OpenCV FileStorage YAML/XML (also OpenCV's ``stereo_calib`` sample
-  files with ``M1``/``M2`` in one file and ``R``/``T`` in another);
+* :class:`~safenav.vision.calibration.StereoCalibration` — ``K1, D1, K2, D2,
+  R, T`` and the image size, exactly what ``cv2.stereoCalibrate`` returns
+  (:mod:`safenav.vision.calibration`);
 * :class:`RectifiedCamera` — the ideal rectified rig ``(f, cx, cy, B, doffs)``
   with ``Z = f·B / (d + doffs)`` (Middlebury's convention; ``doffs`` is the
   right principal column minus the left one);
@@ -18,8 +17,9 @@ module is the ranging half, in C++ over OpenCV:
   the disparity noise σ_d through ``Z = f·B/(d + doffs)``).
   :meth:`StereoMatcher.for_depth_range` sizes SGBM's disparity search from
   the depths of interest (:func:`disparity_range`);
-* :func:`disparity_scores` — Middlebury-style scores of a disparity map
-  against ground truth, counted two ways (:class:`DisparityScores`).
+* :func:`~safenav.vision.scores.disparity_scores` — Middlebury-style scores
+  of a disparity map against ground truth, counted two ways
+  (:mod:`safenav.vision.scores`).
 
 Images are ``uint8`` arrays ``(H, W)`` or ``(H, W, 3)``; boxes are
 ``(x_min, y_min, x_max, y_max)`` pixels (xyxy), covering the pixel columns
@@ -30,12 +30,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
-from pathlib import Path
 
 import numpy as np
 
 from .. import _core
 from ..validation import as_array
+from .calibration import StereoCalibration
+from .scores import MIDDLEBURY_THRESHOLDS, DisparityScores, disparity_scores
 
 SgbmMode = _core.SgbmMode
 
@@ -48,159 +49,6 @@ SGBM_DEFAULTS = dict(min_disparity=0, num_disparities=64, block_size=5, P1=0, P2
                      pre_filter_cap=63, uniqueness_ratio=10, speckle_window_size=100, speckle_range=2,
                      mode="sgbm")
 _MODES = {"sgbm": SgbmMode.SGBM, "hh": SgbmMode.HH, "sgbm_3way": SgbmMode.SGBM_3WAY, "hh4": SgbmMode.HH4}
-
-
-# ---------------------------------------------------------------------------
-# calibration
-# ---------------------------------------------------------------------------
-
-def _image_size(value) -> tuple[int, int]:
-    try:
-        w, h = (int(v) for v in value)
-        ok = all(float(v) == int(v) for v in value)
-    except (TypeError, ValueError):
-        ok = False
-    if not ok or w <= 0 or h <= 0:
-        raise ValueError(f"image_size must be (width, height) positive integers, got {value!r}")
-    return w, h
-
-
-def _distortion(name, value) -> np.ndarray:
-    d = np.asarray(value, dtype=np.float64).ravel() if value is not None else np.zeros(0)
-    if d.size not in (0, 4, 5, 8, 12, 14):
-        raise ValueError(f"calibration {name} has {d.size} coefficients; OpenCV takes 0, 4, 5, 8, 12 or 14")
-    return np.ascontiguousarray(d)
-
-
-@dataclass(frozen=True)
-class StereoCalibration:
-    """A calibrated stereo rig (what ``cv2.stereoCalibrate`` returns).
-
-    ``K1``, ``K2`` are 3×3 intrinsics, ``D1``, ``D2`` distortion vectors
-    (0/4/5/8/12/14 coefficients), ``R`` (3×3) and ``T`` (3,) the pose of
-    camera 2 in camera 1's frame (``X₂ = R X₁ + T``; ``T[0] < 0`` when camera
-    2 is on the right), ``image_size = (width, height)``.  Validated on
-    construction: a NaN anywhere raises ``ValueError`` naming the field.
-    """
-
-    K1: np.ndarray
-    D1: np.ndarray
-    K2: np.ndarray
-    D2: np.ndarray
-    R: np.ndarray
-    T: np.ndarray
-    image_size: tuple[int, int]
-
-    def __post_init__(self):
-        for name in ("K1", "K2", "R"):
-            object.__setattr__(self, name, _matrix(name, getattr(self, name), (3, 3)))
-        object.__setattr__(self, "T", _matrix("T", np.asarray(self.T, dtype=np.float64).ravel(), (3,)))
-        object.__setattr__(self, "D1", _distortion("D1", self.D1))
-        object.__setattr__(self, "D2", _distortion("D2", self.D2))
-        object.__setattr__(self, "image_size", _image_size(self.image_size))
-        self._core().validate()  # NaN, rotation, baseline, rig orientation → ValueError naming the field
-
-    def _core(self) -> _core.StereoCalibration:
-        c = _core.StereoCalibration()
-        c.K1, c.D1, c.K2, c.D2, c.R, c.T = self.K1, self.D1, self.K2, self.D2, self.R, self.T
-        c.width, c.height = self.image_size
-        return c
-
-    @property
-    def baseline(self) -> float:
-        """‖T‖, in the unit of T."""
-        return float(np.linalg.norm(self.T))
-
-    def save(self, path) -> None:
-        """Write OpenCV FileStorage (``.yml``/``.yaml``/``.xml``/``.json``, by extension)."""
-        import cv2
-
-        path = Path(path)
-        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
-        if not fs.isOpened():
-            raise ValueError(f"cannot open {str(path)!r} for writing")
-        try:
-            for name in ("K1", "D1", "K2", "D2", "R"):
-                value = getattr(self, name)
-                fs.write(name, value.reshape(1, -1) if value.ndim == 1 else value)
-            fs.write("T", self.T.reshape(3, 1))
-            fs.write("image_width", int(self.image_size[0]))
-            fs.write("image_height", int(self.image_size[1]))
-        finally:
-            fs.release()
-
-    @classmethod
-    def load(cls, path, extrinsics_path=None) -> "StereoCalibration":
-        """Read OpenCV FileStorage written by :meth:`save` or by OpenCV itself.
-
-        Intrinsics may be named ``K1``/``K2`` or ``M1``/``M2`` (OpenCV's
-        ``stereo_calib`` sample, which writes ``intrinsics.yml`` and, with
-        ``R``/``T``, ``extrinsics.yml``: pass that as ``extrinsics_path``).
-        The image size is ``image_width``/``image_height``, ``image_size`` or
-        ``imageSize`` (``[width, height]``).  Missing nodes raise ``ValueError``
-        naming the node and the file.
-        """
-        import cv2
-
-        nodes = {}
-        for p in (path,) + ((extrinsics_path,) if extrinsics_path is not None else ()):
-            p = Path(p)
-            if not p.is_file():
-                raise ValueError(f"calibration file {str(p)!r} does not exist")
-            try:
-                fs = cv2.FileStorage(str(p), cv2.FILE_STORAGE_READ)
-            except (cv2.error, SystemError) as exc:  # cv2 raises SystemError on unparsable files
-                raise ValueError(f"calibration file {str(p)!r} is not OpenCV FileStorage: {exc}") from exc
-            if not fs.isOpened():
-                raise ValueError(f"calibration file {str(p)!r} is not OpenCV FileStorage")
-            try:
-                root = fs.root()
-                for key in root.keys():
-                    nodes[key] = (_read(root.getNode(key)), p)
-            finally:
-                fs.release()
-
-        def get(*names, required=True):
-            for n in names:
-                if n in nodes and nodes[n][0] is not None:
-                    return nodes[n][0]
-            if required:
-                raise ValueError(f"calibration file {str(path)!r} has no {' / '.join(names)} node")
-            return None
-
-        mats = dict(K1=get("K1", "M1"), D1=get("D1"), K2=get("K2", "M2"), D2=get("D2"), R=get("R"), T=get("T"))
-        if get("image_width", required=False) is not None:
-            size = (get("image_width"), get("image_height"))
-        else:
-            size = np.asarray(get("image_size", "imageSize")).ravel()
-        return cls(**mats, image_size=tuple(size))
-
-
-def _read(node):
-    if node.isNone():
-        return None
-    if node.isInt() or node.isReal():
-        return node.real()
-    if node.isSeq():
-        return np.array([node.at(i).real() for i in range(node.size())], dtype=np.float64)
-    m = node.mat()
-    if m is None:
-        # an empty matrix (e.g. no distortion coefficients) reads back as None: keep it as empty
-        if node.isMap() and not node.getNode("rows").isNone() and not node.getNode("cols").isNone() \
-                and int(node.getNode("rows").real()) * int(node.getNode("cols").real()) == 0:
-            return np.zeros(0)
-        return None
-    return np.asarray(m, dtype=np.float64)
-
-
-def _matrix(name, value, shape):
-    try:
-        arr = np.ascontiguousarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"calibration {name} must be numeric, got {value!r}") from exc
-    if arr.shape != shape:
-        raise ValueError(f"calibration {name} must have shape {shape}, got {arr.shape}")
-    return arr  # finiteness is checked in C++ with the entry named
 
 
 @dataclass(frozen=True)
@@ -576,91 +424,3 @@ class StereoMatcher:
         return BoxRange(ok=r.ok, range=r.range if r.ok else math.nan, sigma=r.sigma if r.ok else math.nan,
                         disparity=r.disparity, n_valid=r.n_valid, n_pixels=r.n_pixels,
                         point=np.array(r.point), reason=r.reason)
-
-
-# ---------------------------------------------------------------------------
-# scoring against ground truth
-# ---------------------------------------------------------------------------
-
-#: Middlebury 2014's error thresholds [px] (bad-0.5, bad-1, bad-2, bad-4).
-MIDDLEBURY_THRESHOLDS = (0.5, 1.0, 2.0, 4.0)
-
-
-@dataclass(frozen=True)
-class DisparityScores:
-    """Middlebury-style scores of a disparity map, counted two ways.
-
-    With ``G`` the pixels that have a ground truth, ``M ⊆ G`` those the
-    matcher gave a disparity and ``E_t ⊆ M`` those whose error
-    ``|d − d_gt|`` exceeds ``t`` pixels:
-
-    * ``bad_all[t]     = (|E_t| + |G − M|) / |G|`` — unmatched pixels count as
-      bad (Middlebury's convention for the ranking);
-    * ``bad_matched[t] = |E_t| / |M|`` — over matched pixels only, to be read
-      with ``density = |M| / |G|``.
-    """
-
-    thresholds: tuple[float, ...]  #: t [px]
-    bad_all: tuple[float, ...]     #: fraction of G that is unmatched or off by more than t
-    bad_matched: tuple[float, ...]  #: fraction of M off by more than t
-    density: float                 #: |M| / |G|
-    mae: float                     #: mean |d − d_gt| over M [px]
-    rmse: float                    #: RMS of d − d_gt over M [px]
-    n_ground_truth: int            #: |G|
-    n_matched: int                 #: |M|
-
-    def bad(self, threshold: float, counting: str = "all") -> float:
-        """The bad-``threshold`` fraction, ``counting`` = ``"all"`` or ``"matched"``."""
-        if threshold not in self.thresholds:
-            raise ValueError(f"threshold = {threshold!r} was not scored; scored: {self.thresholds}")
-        if counting not in ("all", "matched"):
-            raise ValueError(f"counting = {counting!r} must be 'all' or 'matched'")
-        i = self.thresholds.index(threshold)
-        return (self.bad_all if counting == "all" else self.bad_matched)[i]
-
-    def as_dict(self) -> dict:
-        """Flat columns: ``bad2_all``, ``bad2_matched``, … (``bad0.5_all`` for t = 0.5),
-        ``density``, ``mae``, ``rmse``, ``n_ground_truth``, ``n_matched``."""
-        out = {}
-        for t, a, m in zip(self.thresholds, self.bad_all, self.bad_matched):
-            out[f"bad{t:g}_all"] = a
-            out[f"bad{t:g}_matched"] = m
-        out.update(density=self.density, mae=self.mae, rmse=self.rmse, n_ground_truth=self.n_ground_truth,
-                   n_matched=self.n_matched)
-        return out
-
-
-def disparity_scores(disparity, ground_truth, thresholds=MIDDLEBURY_THRESHOLDS) -> DisparityScores:
-    """Score ``disparity`` (NaN where unmatched) against ``ground_truth``
-    (NaN or ±inf where unknown), both ``(H, W)`` pixels; see
-    :class:`DisparityScores`.  A ground truth with no known pixel raises
-    ``ValueError``; with no matched pixel the matched-only scores are NaN."""
-    d = np.asarray(disparity)
-    g = np.asarray(ground_truth)
-    for name, a in (("disparity", d), ("ground_truth", g)):
-        if a.ndim != 2 or not np.issubdtype(a.dtype, np.floating):
-            raise ValueError(f"{name} must be a 2-D float array, got shape {a.shape} dtype {a.dtype}")
-    if d.shape != g.shape:
-        raise ValueError(f"disparity and ground_truth differ in shape: {d.shape} vs {g.shape}")
-    ts = tuple(float(t) for t in thresholds)
-    if not ts or not all(math.isfinite(t) and t >= 0 for t in ts):
-        raise ValueError(f"thresholds = {thresholds!r} must be finite numbers >= 0")
-    if np.isinf(d).any():
-        raise ValueError("disparity has infinite values; mark unmatched pixels NaN")
-    known = np.isfinite(g)
-    n_g = int(known.sum())
-    if n_g == 0:
-        raise ValueError("ground_truth has no known pixel (all NaN/inf)")
-    matched = known & np.isfinite(d)
-    n_m = int(matched.sum())
-    err = np.abs(d[matched].astype(np.float64) - g[matched].astype(np.float64))
-    n_bad = [int((err > t).sum()) for t in ts]
-    nan = math.nan
-    return DisparityScores(
-        thresholds=ts,
-        bad_all=tuple((b + n_g - n_m) / n_g for b in n_bad),
-        bad_matched=tuple(b / n_m if n_m else nan for b in n_bad),
-        density=n_m / n_g,
-        mae=float(err.mean()) if n_m else nan,
-        rmse=float(np.sqrt(np.mean(err ** 2))) if n_m else nan,
-        n_ground_truth=n_g, n_matched=n_m)
