@@ -155,8 +155,8 @@ def test_plaza1_replay_beats_dead_reckoning(plaza, plaza_replay):
     dr = _dead_reckoning_rmse(plaza)
     assert dr == pytest.approx(1.93, abs=0.01)
     assert res.metrics["label"] == "causal"
-    assert res.metrics["rmse"] < 0.5
-    assert res.metrics["rmse"] < dr / 3
+    assert res.metrics["truth_rmse"] < 0.5
+    assert res.metrics["truth_rmse"] < dr / 3
     # scored over the truth poses from the localizer's start on: the loader's poses, minus those before
     assert res.metrics["n_scored"] + res.metrics["n_before_start"] == len(plaza.gt)
     assert res.counts["applied"] > 0.95 * len(plaza.ranges) and res.counts["rejected"] < 20
@@ -182,7 +182,7 @@ def test_plaza1_replay_estimate_matches_the_truth_at_the_end(plaza, plaza_replay
     last = res.trajectory.iloc[-1]
     err = float(np.hypot(last["x"] - plaza.gt[-1, 1], last["y"] - plaza.gt[-1, 2]))
     assert last["t"] == pytest.approx(plaza.gt[-1, 0])
-    assert err == pytest.approx(res.metrics["fde"], abs=1e-9)
+    assert err == pytest.approx(res.metrics["truth_fde"], abs=1e-9)
     assert err < 1.0
 
 
