@@ -1,4 +1,4 @@
-"""Landmark-level faults in the camera loop (issue 15, deliverable 3): the core's
+"""Landmark-level faults in the camera loop: the core's
 LandmarkFaults (dropout, misassociation, outliers; the simulator's
 FixModel.RANGES model) corrupt LanBLoc's per-landmark ranges between stereo
 ranging and trilateration.  One rendered scene with five markers in view and

@@ -1,4 +1,4 @@
-"""The camera loop by region (issue 16): StereoFrame patches, corner triangulation, and the region
+"""The camera loop by region: StereoFrame patches, corner triangulation, and the region
 path against the whole-frame reference."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Landmark recognition (issue 3): fiducial detection on generated and rendered
+"""Landmark recognition: fiducial detection on generated and rendered
 images, YOLOv8/11 ONNX decoding + class-wise NMS on tiny ONNX graphs built here
 with ``onnx.helper`` (no model download), and the model-file errors."""
 

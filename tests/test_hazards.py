@@ -1,4 +1,4 @@
-"""Hazard-aware planning, part 1 of issue 15: the exact in-hazard length, the
+"""Hazard-aware planning: the exact in-hazard length, the
 hazard term of the RAw-RRT* cost, forbidden hazards, obstacle inflation and the
 PathSafety report; the defaults leave the paper's planner bit for bit unchanged."""
 

@@ -114,7 +114,7 @@ def test_ambiguous_or_missing_citations_fail(bad):
     assert citation_errors(bad), bad
 
 
-# Files whose citations follow the convention without brackets too (issue 13 fixed them): SafeNav items
+# Files whose citations follow the convention without brackets too: SafeNav items
 # that the two versions number differently must name the version here as well.
 UNBRACKETED_CHECKED = ("README.md", "docs/*.md", "cpp/src/navigation.cpp", "cpp/src/placement_*.cpp",
                        "cpp/bindings/navigation.cpp", "cpp/include/safenav/navigation.hpp",

@@ -96,7 +96,7 @@ def test_names_kinds_and_errors():
     assert str(_core.BmmParams.params()[0]) == "ParamSpec(acceleration in (0, 100] m/s^2)"
 
 
-#: scenario defaults that differ from the core struct's, on purpose (scenario.py says why)
+#: scenario defaults that differ from the core struct's, on purpose (scenario_params.py says why)
 #: (none: navigation's 2 m clearance is now the core's Inflation default, vehicle_radius + margin = 1 + 1)
 OVERRIDES: dict = {}
 

@@ -1,4 +1,4 @@
-"""Occlusion in landmark placement (issue 16): property tests against an
+"""Occlusion in landmark placement: property tests against an
 exact brute-force line of sight written here from first principles.
 
 The reference knows nothing of shadows or pieces.  The segment a–b is

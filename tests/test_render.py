@@ -1,4 +1,4 @@
-"""The stereo renderer (issue 3, camera-in-the-loop): pinhole geometry of the
+"""The stereo renderer (camera in the loop): pinhole geometry of the
 markers, disparity f·B/Z of markers and of the ground, zero disparity of the
 background, culling, the matching calibration, determinism and bad input.
 

@@ -15,7 +15,7 @@ void pybind_geometry(py::module_& m);
 void pybind_corridor(py::module_& m);
 void pybind_world(py::module_& m);
 void pybind_planning(py::module_& m);
-void pybind_localization(py::module_& m);
+void pybind_trilateration(py::module_& m);
 void pybind_stereo(py::module_& m);
 void pybind_placement(py::module_& m);
 void pybind_navigation(py::module_& m);

@@ -15,7 +15,7 @@ PYBIND11_MODULE(_core, m) {
   pybind_corridor(m);
   pybind_world(m);
   pybind_planning(m);
-  pybind_localization(m);
+  pybind_trilateration(m);
   pybind_stereo(m);
   pybind_placement(m);
   pybind_navigation(m);

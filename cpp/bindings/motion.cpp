@@ -3,7 +3,7 @@
 #include "common.hpp"
 #include "params.hpp"
 #include "safenav/motion.hpp"
-#include "safenav/rng.hpp"
+#include "safenav/seed.hpp"
 
 using namespace safenav;
 
@@ -11,7 +11,7 @@ namespace {
 // Seeds, angles and the parameter declarations' types.
 void bind_basics(py::module_& m) {
   m.def("derive_seed", &derive_seed, py::arg("seed"), py::arg("stream"),
-        "The core's one seed rule (safenav/rng.hpp): an independent sub-seed of `seed` for random\n"
+        "The core's one seed rule (safenav/seed.hpp): an independent sub-seed of `seed` for random\n"
         "source `stream` (splitmix64).  Both are unsigned 64-bit integers.");
   m.def("wrap_angle", py::vectorize(&wrap_angle), py::arg("angle"), "Wrap angles to (-pi, pi].");
 

@@ -14,7 +14,7 @@
 #include "errors.hpp"
 #include "localizer_fit.hpp"
 #include "safenav/filter.hpp"
-#include "safenav/rng.hpp"
+#include "safenav/seed.hpp"
 #include "safenav/params.hpp"
 
 namespace safenav {

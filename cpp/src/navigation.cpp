@@ -16,7 +16,7 @@
 
 #include "rng.hpp"
 #include "errors.hpp"
-#include "safenav/localization.hpp"
+#include "safenav/trilateration.hpp"
 
 namespace safenav {
 

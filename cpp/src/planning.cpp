@@ -35,7 +35,7 @@
 
 #include "safenav/corridor.hpp"
 #include "safenav/params.hpp"
-#include "safenav/rng.hpp"
+#include "safenav/seed.hpp"
 #include "errors.hpp"
 
 namespace safenav {

@@ -18,7 +18,7 @@
 #include <cstdlib>
 #include <cstring>
 
-#include "safenav/rng.hpp"
+#include "safenav/seed.hpp"
 
 #if (defined(__GNUC__) || defined(__clang__)) && defined(__x86_64__) && !defined(__AVX2__) && \
     !defined(SAFENAV_NO_DISPATCH)

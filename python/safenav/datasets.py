@@ -21,7 +21,7 @@ initial speed is, or how noise enters; our choices (documented on
   the core's sampler exactly as the navigation loop draws them, an IMU
   speed/heading, or ranges/bearings to landmarks placed around the route.
 
-Seeds follow the core's one rule (``safenav/rng.hpp``): trial seed ``s``
+Seeds follow the core's one rule (``safenav/seed.hpp``): trial seed ``s``
 gives the true vehicle ``derive_seed(s, 0)``, the position source
 ``derive_seed(s, 1)`` (the navigation loop's sensor stream) and the IMU and
 landmark measurements ``derive_seed(s, 2)``.

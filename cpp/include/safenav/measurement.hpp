@@ -41,7 +41,7 @@ using Landmarks = Points2;
 //
 // The EKF, the augmented EKF and PF, the particle filter's likelihood (through
 // MeasurementModel), the EIF, the online Localizer and trilateration /
-// triangulation (safenav/localization.hpp) all evaluate these two functions.
+// triangulation (safenav/trilateration.hpp) all evaluate these two functions.
 
 /// Below this squared distance a landmark is "at" the vehicle: range and
 /// bearing Jacobians are undefined there.

@@ -71,7 +71,7 @@ enum class FixModel {
   Profile,
   /// LanBLoc from single landmark ranges (ours): each landmark in view gives
   /// a range with σ = range_std, landmark faults apply, and LanBLoc's
-  /// trilateration (with its outlier rejection, localization.hpp) turns them
+  /// trilateration (with its outlier rejection, trilateration.hpp) turns them
   /// into a fix with its own covariance.
   Ranges,
 };

@@ -1,4 +1,4 @@
-// safenav/localization.hpp — LanBLoc position fixes from landmark anchors
+// safenav/trilateration.hpp — LanBLoc position fixes from landmark anchors
 // ([SafeNav-ext §IV-A]: "recognized landmarks as anchor nodes for
 // trilateration ... with further position optimization"; the LanBLoc paper
 // itself is not among our sources, see docs/paper_map.md).

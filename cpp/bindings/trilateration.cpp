@@ -1,9 +1,9 @@
 #include "common.hpp"
-#include "safenav/localization.hpp"
+#include "safenav/trilateration.hpp"
 
 using namespace safenav;
 
-void pybind_localization(py::module_& m) {
+void pybind_trilateration(py::module_& m) {
   py::enum_<LocalizationStatus>(m, "LocalizationStatus")
       .value("OK", LocalizationStatus::Ok)
       .value("TOO_FEW", LocalizationStatus::TooFew)

@@ -1,4 +1,4 @@
-// safenav/rng.hpp — the one seed rule of the core.
+// safenav/seed.hpp — the one seed rule of the core.
 //
 // Every random source of a trial (true-vehicle motion, sensors, the particle
 // filter, each RAw-RRT* detour, the planner's sampler, tree and simplifier)

@@ -1,4 +1,4 @@
-#include "safenav/localization.hpp"
+#include "safenav/trilateration.hpp"
 #include "safenav/measurement.hpp"
 
 #include <Eigen/Eigenvalues>
