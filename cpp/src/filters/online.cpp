@@ -292,12 +292,17 @@ UpdateResult update_augmented(F& f, const LandmarkMeasurement& m) {
   return f.update_bearing(m.row, m.landmark, m.bearing, m.bearing_std * m.bearing_std);
 }
 
-class AugmentedEkfFilter final : public Filter {
+/// An augmented filter (EKF or PF: the same calls) behind Filter; the two
+/// differ only in how they report their estimate and check their state.
+template <class F>
+class AugmentedFilter : public Filter {
  public:
-  AugmentedEkfFilter(const BmmParams& p, const AugmentedStates& a, int K, const State& x0, const StateCov& P0)
-      : Filter(FilterType::Ekf, true, x0, P0), f_(p, a, K, x0, P0), spare_(f_), llt_(f_.size()) {}
   Eigen::VectorXd augmented_state() const override { return f_.augmented(); }
-  const AugmentedEkf* augmented_ekf() const override { return &f_; }
+
+ protected:
+  AugmentedFilter(FilterType type, const State& x0, const StateCov& P0, F f)
+      : Filter(type, true, x0, P0), f_(std::move(f)), spare_(f_) {}
+  F f_, spare_;
 
  private:
   void do_predict(const Control& u, double dt) override { f_.predict(u, dt); }
@@ -309,6 +314,17 @@ class AugmentedEkfFilter final : public Filter {
     return f_.update_speed_heading(z, R);
   }
   void do_set_gate(double p) override { f_.set_gate(p); }
+  void save() override { spare_ = f_; }
+  void restore() override { f_ = spare_; }
+};
+
+class AugmentedEkfFilter final : public AugmentedFilter<AugmentedEkf> {
+ public:
+  AugmentedEkfFilter(const BmmParams& p, const AugmentedStates& a, int K, const State& x0, const StateCov& P0)
+      : AugmentedFilter(FilterType::Ekf, x0, P0, AugmentedEkf(p, a, K, x0, P0)), llt_(f_.size()) {}
+  const AugmentedEkf* augmented_ekf() const override { return &f_; }
+
+ private:
   void estimate(State& x, StateCov& P) const override {
     x = f_.x();
     P = f_.P();
@@ -319,30 +335,17 @@ class AugmentedEkfFilter final : public Filter {
         (llt_.compute(P).info() != Eigen::Success && !is_covariance(P)))
       refuse(step, "the augmented covariance would not be finite and positive semi-definite");
   }
-  void save() override { spare_ = f_; }
-  void restore() override { f_ = spare_; }
 
-  AugmentedEkf f_, spare_;
   mutable Eigen::LLT<Eigen::MatrixXd> llt_;
 };
 
-class AugmentedPfFilter final : public Filter {
+class AugmentedPfFilter final : public AugmentedFilter<AugmentedParticleFilter> {
  public:
   AugmentedPfFilter(const BmmParams& p, const AugmentedStates& a, int K, const State& x0, const StateCov& P0, int n,
                     std::uint64_t seed, double thr)
-      : Filter(FilterType::ParticleFilter, true, x0, P0), f_(p, a, K, x0, P0, n, seed, thr), spare_(f_) {}
-  Eigen::VectorXd augmented_state() const override { return f_.augmented(); }
+      : AugmentedFilter(FilterType::ParticleFilter, x0, P0, AugmentedParticleFilter(p, a, K, x0, P0, n, seed, thr)) {}
 
  private:
-  void do_predict(const Control& u, double dt) override { f_.predict(u, dt); }
-  UpdateResult do_update(const LandmarkMeasurement& m) override { return update_augmented(f_, m); }
-  UpdateResult do_update_position(const Eigen::Vector2d& z, const Eigen::Matrix2d& R) override {
-    return f_.update_position(z, R);
-  }
-  UpdateResult do_update_speed_heading(const Eigen::Vector2d& z, const Eigen::Matrix2d& R) override {
-    return f_.update_speed_heading(z, R);
-  }
-  void do_set_gate(double p) override { f_.set_gate(p); }
   void estimate(State& x, StateCov& P) const override {
     x = f_.mean();
     P = f_.covariance();
@@ -350,10 +353,6 @@ class AugmentedPfFilter final : public Filter {
   void check_state(const char* step) const override {
     if (!f_.particles().allFinite()) refuse(step, "a particle's augmented state would not be finite");
   }
-  void save() override { spare_ = f_; }
-  void restore() override { f_ = spare_; }
-
-  AugmentedParticleFilter f_, spare_;
 };
 
 }  // namespace

@@ -17,7 +17,7 @@ import time
 import numpy as np
 
 from .detect import Detector, check_image
-from .ranging import LandmarkRanging, check_faults, check_ranging
+from .ranging import LandmarkRanging, check_faults, check_pixels, check_ranging
 from .sighting import LanBLocResult
 
 __all__ = ["FullFramePipeline"]
@@ -29,15 +29,11 @@ class FullFramePipeline:
 
     def __init__(self, ranger: LandmarkRanging, detector: Detector, *, ranging: str = "sgbm", row_band: bool = True,
                  band_margin_px: int = 24):
-        if not isinstance(detector, Detector):
-            raise ValueError(f"detector = {detector!r}: must be a safenav.vision.detect.Detector")
         self.ranger = ranger
         self.detector = detector
         self.ranging = check_ranging(ranging, detector)
         self.row_band = bool(row_band)
-        if isinstance(band_margin_px, bool) or not isinstance(band_margin_px, (int, np.integer)) or band_margin_px < 0:
-            raise ValueError(f"band_margin_px = {band_margin_px!r}: must be an integer >= 0")
-        self.band_margin_px = int(band_margin_px)
+        self.band_margin_px = check_pixels("band_margin_px", band_margin_px)
 
     def check_pair(self, left, right) -> tuple[np.ndarray, np.ndarray]:
         """Validate a stereo pair (uint8, non-empty, same shape, the calibration's size)."""

@@ -33,7 +33,7 @@ import numpy as np
 from .. import _core
 from ..motion import wrap_angle
 from ..world import Landmark, World
-from .detect import Detection
+from .detect import Detection, Detector
 from .localization import LocalizationResult, horizontal_range, trilaterate
 from .rig import StereoRig, camera_rotation
 from .sighting import STATUSES, LandmarkSighting, LanBLocResult
@@ -103,12 +103,21 @@ def check_faults(faults):
 
 def check_ranging(ranging: str, detector) -> str:
     """``ranging`` (``"sgbm"`` or ``"corners"``) checked against the ``detector`` it needs."""
+    if not isinstance(detector, Detector):
+        raise ValueError(f"detector = {detector!r}: must be a safenav.vision.detect.Detector")
     if ranging not in ("sgbm", "corners"):
         raise ValueError(f"ranging = {ranging!r}: must be 'sgbm' or 'corners'")
     if ranging == "corners" and not hasattr(detector, "dictionary"):
         raise ValueError(f"ranging = 'corners' needs a fiducial detector (marker corners), not "
                          f"{type(detector).__name__}")
     return ranging
+
+
+def check_pixels(name: str, value) -> int:
+    """A pixel count: an integer >= 0 (not a bool)."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+        raise ValueError(f"{name} = {value!r}: must be an integer >= 0")
+    return int(value)
 
 
 def _matcher(camera, min_range_m: float, sgbm: Mapping | None) -> StereoMatcher:

@@ -23,7 +23,7 @@ import cv2
 import numpy as np
 
 from .detect import Detection, Detector
-from .ranging import LandmarkRanging, check_faults, check_finite, check_ranging
+from .ranging import LandmarkRanging, check_faults, check_finite, check_pixels, check_ranging
 from .frame import StereoFrame
 from .sighting import LandmarkSighting, LanBLocResult
 
@@ -37,21 +37,14 @@ class RegionPipeline:
     def __init__(self, ranger: LandmarkRanging, detector: Detector, *, ranging: str = "sgbm",
                  band_margin_px: int = 24, detect_side_px: float = 48.0, region_margin_px: int = 8,
                  min_correlation: float = 0.8):
-        if not isinstance(detector, Detector):
-            raise ValueError(f"detector = {detector!r}: must be a safenav.vision.detect.Detector")
         self.ranger = ranger
         self.detector = detector
         self.ranging = check_ranging(ranging, detector)
-        if isinstance(band_margin_px, bool) or not isinstance(band_margin_px, (int, np.integer)) or band_margin_px < 0:
-            raise ValueError(f"band_margin_px = {band_margin_px!r}: must be an integer >= 0")
-        self.band_margin_px = int(band_margin_px)
+        self.band_margin_px = check_pixels("band_margin_px", band_margin_px)
         self.detect_side_px = check_finite("detect_side_px", detect_side_px, positive=True)
         if self.detect_side_px < 16:
             raise ValueError(f"detect_side_px = {detect_side_px!r}: must be >= 16 (ArUco needs ~4 px per cell)")
-        if isinstance(region_margin_px, bool) or not isinstance(region_margin_px, (int, np.integer)) \
-                or region_margin_px < 0:
-            raise ValueError(f"region_margin_px = {region_margin_px!r}: must be an integer >= 0")
-        self.region_margin_px = int(region_margin_px)
+        self.region_margin_px = check_pixels("region_margin_px", region_margin_px)
         self.min_correlation = check_finite("min_correlation", min_correlation)
         if not -1.0 <= self.min_correlation <= 1.0:
             raise ValueError(f"min_correlation = {min_correlation!r}: must be in [-1, 1]")
