@@ -1,11 +1,9 @@
 // Bindings of safenav/augmented.hpp: AugmentedStates, AugmentedEkf and
-// AugmentedParticleFilter.  Registered
-// after bindings/guidance.cpp: it adds LocalizerSettings.augment and
-// Localizer.augmented to the classes registered there.
+// AugmentedParticleFilter (registered before bindings/guidance.cpp, whose
+// LocalizerSettings holds an AugmentedStates).
 #include "common.hpp"
 #include "params.hpp"
 #include "safenav/augmented.hpp"
-#include "safenav/localizer.hpp"
 
 using namespace safenav;
 
@@ -55,22 +53,6 @@ void pybind_augmented(py::module_& m) {
            py::arg("z"), py::arg("R"))
       .def("update_position", &AugmentedEkf::update_position, py::arg("z"), py::arg("R"))
       .def("update_speed_heading", &AugmentedEkf::update_speed_heading, py::arg("z"), py::arg("R"));
-
-  // The Localizer's augmented parts, on the classes that bindings/guidance.cpp registers.
-  if (py::hasattr(m, "LocalizerSettings") && py::hasattr(m, "Localizer")) {
-    auto settings = m.attr("LocalizerSettings").cast<py::class_<LocalizerSettings>>();
-    settings.def_readwrite("augment", &LocalizerSettings::augment,
-                           "AugmentedStates: with any on (and the EKF) the localizer runs the AugmentedEkf.");
-    auto loc = m.attr("Localizer").cast<py::class_<Localizer>>();
-    loc.def_property_readonly(
-        "augmented",
-        [](const Localizer& l) -> py::object {
-          Eigen::VectorXd a = l.augmented_state();
-          if (a.size() == 0) return py::none();
-          return py::cast(a);
-        },
-        "The full augmented state (x, y, v, theta, [k], [beta], [b_j]), or None without augmented states.");
-  }
 
   py::class_<AugmentedParticleFilter>(
       m, "AugmentedParticleFilter",

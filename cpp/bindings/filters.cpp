@@ -9,9 +9,9 @@ void common_filter_api(py::class_<F>& c) {
   c.def("predict", py::overload_cast<const Control&>(&F::predict), py::arg("u"), "Predict one step with the BMM.")
       .def("update", &F::update, py::arg("model"), py::arg("z"), "Update with one measurement.");
 }
-}  // namespace
 
-void pybind_filters(py::module_& m) {
+// The step-by-step filters (SafeNav eqs. 10-14; the PF; the EIF of the placement paper).
+void bind_step_filters(py::module_& m) {
   m.def("chi2_quantile", &chi2_quantile, py::arg("probability"), py::arg("dof"));
   m.def("check_covariance", [](const Eigen::MatrixXd& P, const std::string& what) { check_covariance(P, what.c_str()); },
         py::arg("P"), py::arg("what") = "P");
@@ -56,6 +56,10 @@ void pybind_filters(py::module_& m) {
       .def_property_readonly("information_matrix", &InformationFilter::information_matrix);
   common_filter_api(eif);
 
+}
+
+// Batch filtering of a whole trajectory.
+void bind_batch(py::module_& m) {
   py::class_<MeasurementStream>(m, "MeasurementStream")
       .def(py::init<>())
       .def_readwrite("position", &MeasurementStream::position)
@@ -94,4 +98,10 @@ void pybind_filters(py::module_& m) {
 
   m.def("run_filter", &run_filter, py::arg("params"), py::arg("options"), py::arg("x0"), py::arg("P0"),
         py::arg("controls"), py::arg("stream"), release_gil());
+}
+}  // namespace
+
+void pybind_filters(py::module_& m) {
+  bind_step_filters(m);
+  bind_batch(m);
 }

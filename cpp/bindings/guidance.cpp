@@ -173,6 +173,14 @@ void bind_localizer(py::module_& m) {
       .def_property_readonly("x", &Localizer::x)
       .def_property_readonly("P", &Localizer::P)
       .def_property_readonly("position_std", &Localizer::position_std)
+      .def_property_readonly(
+          "augmented",
+          [](const Localizer& l) -> py::object {
+            Eigen::VectorXd a = l.augmented_state();
+            if (a.size() == 0) return py::none();
+            return py::cast(a);
+          },
+          "The full augmented state (x, y, v, theta, [k], [beta], [b_j]), or None without augmented states.")
       .def_property_readonly("counts", &Localizer::counts)
       .def_property_readonly("settings", &Localizer::settings)
       .def_property_readonly("landmarks", &Localizer::landmarks)
@@ -270,6 +278,8 @@ void pybind_guidance(py::module_& m) {
       .def_readwrite("init_baseline", &LocalizerSettings::init_baseline)
       .def_readwrite("init_speed_std", &LocalizerSettings::init_speed_std)
       .def_readwrite("reset_after_rejections", &LocalizerSettings::reset_after_rejections)
+      .def_readwrite("augment", &LocalizerSettings::augment,
+                     "AugmentedStates: with any on (and the EKF) the localizer runs the AugmentedEkf.")
       .def("validate", &LocalizerSettings::validate);
 
   py::class_<LocalizerCounts>(m, "LocalizerCounts")

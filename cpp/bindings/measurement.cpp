@@ -31,9 +31,8 @@ PositionNoise noise_from_state(const py::tuple& t) {
   return p;
 }
 
-}  // namespace
-
-void pybind_measurement(py::module_& m) {
+// The measurement models z = h(x) + v (SafeNav eq. 10 and ours).
+void bind_models(py::module_& m) {
   py::enum_<MeasurementKind>(m, "MeasurementKind")
       .value("POSITION", MeasurementKind::Position)
       .value("RANGE", MeasurementKind::Range)
@@ -76,6 +75,10 @@ void pybind_measurement(py::module_& m) {
           },
           py::arg("z"), py::arg("zhat"));
 
+}
+
+// The error model of a position source (LanBLoc's RMSE, the emulated baselines).
+void bind_position_noise(py::module_& m) {
   const PositionNoise d;
   py::class_<PositionNoise>(m, "PositionNoise",
                             "The error model of a position source (LanBLoc, or an emulated baseline's profile):\n"
@@ -136,4 +139,10 @@ void pybind_measurement(py::module_& m) {
            << ", emulated=" << (p.emulated ? "True" : "False") << ")";
         return os.str();
       });
+}
+}  // namespace
+
+void pybind_measurement(py::module_& m) {
+  bind_models(m);
+  bind_position_noise(m);
 }

@@ -9,6 +9,7 @@ PYBIND11_MODULE(_core, m) {
   pybind_motion(m);
   pybind_measurement(m);
   pybind_filters(m);
+  pybind_augmented(m);
   pybind_metrics(m);
   pybind_geometry(m);
   pybind_geometry_simple_polygon(m);
@@ -20,5 +21,4 @@ PYBIND11_MODULE(_core, m) {
   pybind_placement(m);
   pybind_navigation(m);
   pybind_guidance(m);
-  pybind_augmented(m);  // after guidance: adds LocalizerSettings.augment and Localizer.augmented
 }
