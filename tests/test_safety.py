@@ -147,8 +147,8 @@ def test_the_guard_holds_and_looks_at_landmarks_when_no_way_is_clear():
 
 def test_bad_guard_settings_name_the_value():
     s = _core.NavigationSettings()
-    s.guard.k_sigma = -1.0
-    with pytest.raises(ValueError, match=r"guard.k_sigma \(the scenario's navigation.guard_k\)"):
+    s.guard.k = -1.0
+    with pytest.raises(ValueError, match=r"guard.k \(the scenario's navigation.guard_k\)"):
         s.validate()
     s = _core.NavigationSettings()
     s.guard.min_speed_fraction = 0.0

@@ -74,7 +74,7 @@ void bind_guard_settings(py::module_& m) {
                             "forbidden hazards by slowing, steering or holding for a fix.")
       .def(py::init<>())
       .def_readwrite("enabled", &GuardSettings::enabled)
-      .def_readwrite("k_sigma", &GuardSettings::k_sigma)
+      .def_readwrite("k", &GuardSettings::k)
       .def_readwrite("buffer", &GuardSettings::buffer)
       .def_readwrite("look_first", &GuardSettings::look_first)
       .def_readwrite("look_timeout", &GuardSettings::look_timeout)

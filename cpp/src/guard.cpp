@@ -23,7 +23,7 @@ void GuardSettings::look_with_camera(double camera_field_of_view, double max_ran
 }
 
 void GuardSettings::validate() const {
-  require_finite_positive(k_sigma, "settings.guard.k_sigma (the scenario's navigation.guard_k)");
+  require_finite_positive(k, "settings.guard.k (the scenario's navigation.guard_k)");
   require_finite_nonneg(slow_distance, "settings.guard.slow_distance");
   require_finite_nonneg(buffer, "settings.guard.buffer");
   require_finite_nonneg(look_timeout, "settings.guard.look_timeout");
@@ -182,7 +182,7 @@ bool Guard::steer(const State& x, const Control& u0, double rho, double keep, co
 GuardDecision Guard::decide(double t, const State& x, double position_std, const Control& proposed,
                             const Corridor& path) {
   const GuardSettings& g = settings_;
-  const double rho = g.k_sigma * position_std;
+  const double rho = g.k * position_std;
   const double keep = rho + g.buffer;  // the clearance the way ahead must keep
   const Control u0 = proposed;
   GuardDecision out;

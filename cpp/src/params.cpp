@@ -259,7 +259,7 @@ const ParamSet<NavigationSettings>& param_set<NavigationSettings>() {
           .real("lost_position_std", SN_REF(N, lost_position_std), "m", above(0, 1e4), "lost localization above this position sigma")
           .integer("max_steps", SN_REF(N, max_steps), closed(0, N::kMaxSteps), "step budget; 0 = 3 x path length / (speed x dt) + 200")
           .real("gate_probability", SN_REF(N, filter.gate_probability), "", closed(0, 0.999999), "chi-square gate of each update (ours); 0 = off, the paper's loop")
-          .real("guard_k", SN_REF(N, guard.k_sigma), "", above(0, 100), "the guard keeps k x position sigma clear of obstacles and forbidden hazards (ours)")
+          .real("guard_k", SN_REF(N, guard.k), "", above(0, 100), "the guard keeps k x position sigma clear of obstacles and forbidden hazards (ours)")
           .real("guard_buffer", SN_REF(N, guard.buffer), "m", closed(0, 1e4), "the guard keeps this much beyond k sigma")
           .real("guard_slow_distance", SN_REF(N, guard.slow_distance), "m", closed(0, 1e4), "the guard slows down when its margin falls below this")
           .real("guard_horizon", SN_REF(N, guard.horizon), "s", above(0, 1e3), "the guard looks at the control held this long, then braking")

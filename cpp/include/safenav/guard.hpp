@@ -48,7 +48,7 @@ namespace safenav {
 /// Off, the loop is the papers'.
 struct GuardSettings {
   bool enabled = true;
-  double k_sigma = 3.0;              ///< k of the k-σ radius (the scenario's navigation.guard_k)
+  double k = 3.0;                    ///< k of the k-σ radius (the scenario's navigation.guard_k)
   double buffer = 0.25;              ///< kept beyond the k-σ radius (the vehicle's next step, the truth's process noise) [m]
   bool look_first = true;            ///< before steering round an uncertain way ahead, turn to look at landmarks
   double look_timeout = 6.0;         ///< the longest look [s]
