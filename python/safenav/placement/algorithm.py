@@ -14,14 +14,13 @@ import numpy as np
 from .. import _core
 from ..validation import as_array, as_positive_int
 from ..motion import wrap_angle
+from .cover_program import EPS as _EPS, CoverProgram
 from .tour import plan_tour, tour_length
 
 #: [Placement Table I] setup ([Placement §III-A]): a 4 × 8 area, candidates on a 0.5 grid.
 PAPER_AREA = (4.0, 8.0)
 PAPER_SPACING = 0.5
 
-_EPS = 1e-9          # [m] or [rad], the same rounding slack as the C++ core
-_BEARING_TOL = 1e-9  # [rad], bearings closer than this are one bearing
 
 
 # ---------------------------------------------------------------------------
@@ -342,19 +341,6 @@ def check_coverage(route, landmarks, camera: CameraParams | dict | None = None, 
 # Global optimum: integer program over interval endpoints (HiGHS)
 # ---------------------------------------------------------------------------
 
-def _bearing_groups(bearings: np.ndarray) -> list[np.ndarray]:
-    """Indices of ``bearings`` [rad, in (−π, π]] grouped where consecutive
-    sorted values differ by <= the bearing tolerance, across ±π too (as the
-    core's distinct-bearing count)."""
-    if bearings.size == 0:
-        return []
-    order = np.argsort(bearings, kind="stable")
-    groups = np.split(order, np.flatnonzero(np.diff(bearings[order]) > _BEARING_TOL) + 1)
-    if len(groups) > 1 and bearings[order[0]] + 2 * math.pi - bearings[order[-1]] <= _BEARING_TOL:
-        groups = [np.concatenate([groups[-1], groups[0]])] + groups[1:-1]
-    return groups
-
-
 def place_optimal(route, candidates, camera: CameraParams | dict | None = None, *, k: int = 2,
                   corners: bool = False, distinct_bearings: bool = True, time_limit: float = 120.0,
                   allow_uncovered: bool = False, obstacles=None) -> PlacementResult:
@@ -380,9 +366,6 @@ def place_optimal(route, candidates, camera: CameraParams | dict | None = None, 
     candidate at most once, and piece ends are rows too, so the program
     stays exact (up to the pieces' ~1e-9 m shrink next to a shadow).
     """
-    from scipy.optimize import Bounds, LinearConstraint, milp
-    from scipy.sparse import coo_matrix
-
     cam = camera_params(camera)
     r, c, k = check_route(route), _candidates(candidates), _k(k)
     if isinstance(time_limit, bool) or not isinstance(time_limit, (int, float, np.integer, np.floating)) \
@@ -391,119 +374,27 @@ def place_optimal(route, candidates, camera: CameraParams | dict | None = None, 
     core_cam = cam.to_core()
     occ = _occ_kw(obstacles)
     t0 = time.perf_counter()
-    vis = _core.edge_visibility(r, c, core_cam, **occ)
     too_close = np.flatnonzero(_core.distance_to_route(r, c) <= cam.clearance)
-    col_of: dict[int, int] = {}
-    z_groups: dict[tuple, int] = {}
-    rows: list[tuple[list[int], int]] = []   # (columns, required)
-    seen_rows: set = set()
-    unc: list = []
-
-    def col(i: int) -> int:
-        return col_of.setdefault(int(i), len(col_of))
-
-    def add_row(cands_groups: list[np.ndarray], where, idx, a, b):
-        cols = []
-        for g in cands_groups:
-            members = [col(i) for i in g]  # every candidate gets its own x, grouped or not
-            if len(g) == 1:
-                cols.append(("x", members[0]))
-            else:
-                key = tuple(sorted(int(i) for i in g))
-                cols.append(("z", z_groups.setdefault(key, len(z_groups))))
-        need = k
-        if len(cols) < k:
-            unc.append((where, idx, a, b))
-            need = len(cols)
-        if need == 0:
-            return
-        key = (tuple(sorted(cols)), need)
-        if key not in seen_rows:
-            seen_rows.add(key)
-            rows.append((cols, need))
-
+    program = CoverProgram(k, distinct_bearings)
+    vis = _core.edge_visibility(r, c, core_cam, **occ)
     al = _core.alignments(r, c, core_cam, **occ) if distinct_bearings else None
     for e in range(len(r) - 1):
-        d = float(np.hypot(*(r[e + 1] - r[e])))
-        m = vis.edge == e
-        a, b, x, y, ci = vis.start[m], vis.end[m], vis.x[m], vis.y[m], vis.candidate[m]
-        pts = np.concatenate([a, b, [0.0, d]] + ([al.t[al.edge == e]] if al is not None else []))
-        pts = np.unique(np.clip(pts, 0.0, d))
-        probe = np.concatenate([pts, 0.5 * (pts[:-1] + pts[1:])])
-        inview = (a[None, :] - _EPS <= probe[:, None]) & (probe[:, None] <= b[None, :] + _EPS)
-        for pi, t in enumerate(probe):
-            idx = np.flatnonzero(inview[pi])
-            if occ and idx.size > 1:   # pieces of one candidate are disjoint; count it once all the same
-                idx = idx[np.unique(ci[idx], return_index=True)[1]]
-            if distinct_bearings and idx.size > 1:
-                brg = np.arctan2(y[idx], x[idx] - t)
-                groups = [ci[idx[g]] for g in _bearing_groups(brg)]
-            else:
-                groups = [np.array([ci[i]]) for i in idx]
-            lo = t if pi < len(pts) else pts[pi - len(pts)]
-            hi = t if pi < len(pts) else pts[pi - len(pts) + 1]
-            add_row(groups, "edge", e, lo, hi)
+        program.add_edge(e, float(np.hypot(*(r[e + 1] - r[e]))), vis, vis.edge == e,
+                         al.t[al.edge == e] if al is not None else None, bool(occ))
     if corners:
         cv = _core.corner_visibility(r, c, core_cam, **occ)
         turns = _core.turn_angles(r)
         for v in range(1, len(r) - 1):
-            L = abs(float(turns[v - 1]))
-            if L <= _EPS:
-                continue
-            m = cv.edge == v
-            a, b, ci = cv.start[m], cv.end[m], cv.candidate[m]
-            brg = np.arctan2(cv.y[m], cv.x[m])
-            rays = _bearing_groups(brg) if distinct_bearings else [np.array([i]) for i in range(len(ci))]
-            pts = np.unique(np.clip(np.concatenate([a, b, [0.0, L]]), 0.0, L))
-            probe = np.concatenate([pts, 0.5 * (pts[:-1] + pts[1:])])
-            for pi, s in enumerate(probe):
-                groups = [ci[g] for g in rays if ((a[g] - _EPS <= s) & (s <= b[g] + _EPS)).any()]
-                lo = s if pi < len(pts) else pts[pi - len(pts)]
-                hi = s if pi < len(pts) else pts[pi - len(pts) + 1]
-                add_row(groups, "corner", v, lo, hi)
-    unc = _merge_uncovered(unc)
+            if abs(float(turns[v - 1])) > _EPS:
+                program.add_corner(v, abs(float(turns[v - 1])), cv, cv.edge == v)
+    unc = _merge_uncovered(program.uncovered)
     if unc and not allow_uncovered:
         raise ValueError(_describe_uncovered(r, unc, k))
-    nx, nz = len(col_of), len(z_groups)
-    cand_of_col = np.empty(nx, dtype=int)
-    for cand, j in col_of.items():
-        cand_of_col[j] = cand
-    method = "optimal" + ("+corners" if corners else "")
-    if nx == 0:
-        return PlacementResult(route=r, candidates=c, indices=np.zeros(0, int), camera=cam, k=k, method=method,
-                               corners=bool(corners), uncovered=_exact_uncovered(r, c[:0], cam, k, corners, occ),
-                               too_close=too_close, seconds=time.perf_counter() - t0, optimal=True,
-                               obstacles=occ.get("occluders"))
-    ri, cj, vals, lb = [], [], [], []
-    for row, (cols, need) in enumerate(rows):
-        for kind, j in cols:
-            ri.append(row)
-            cj.append(j if kind == "x" else nx + j)
-            vals.append(1.0)
-        lb.append(need)
-    nrow = len(rows)
-    for key, j in z_groups.items():   # z_g - sum_{l in g} x_l <= 0
-        ri.append(nrow)
-        cj.append(nx + j)
-        vals.append(1.0)
-        for cand in key:
-            ri.append(nrow)
-            cj.append(col_of[cand])
-            vals.append(-1.0)
-        nrow += 1
-    A = coo_matrix((vals, (ri, cj)), shape=(nrow, nx + nz)).tocsr()
-    lo = np.concatenate([lb, np.full(nz, -np.inf)])
-    hi = np.concatenate([np.full(len(rows), np.inf), np.zeros(nz)])
-    cost = np.concatenate([np.ones(nx), np.zeros(nz)])
-    integrality = np.concatenate([np.ones(nx), np.zeros(nz)])
-    res = milp(cost, constraints=LinearConstraint(A, lo, hi), integrality=integrality, bounds=Bounds(0, 1),
-               options={"time_limit": float(time_limit), "presolve": True})
-    if res.x is None:
-        raise ValueError(f"the placement integer program found no solution ({res.message})")
-    chosen = np.sort(cand_of_col[res.x[:nx] > 0.5])
-    return PlacementResult(route=r, candidates=c, indices=chosen, camera=cam, k=k, method=method,
-                           corners=bool(corners), uncovered=_exact_uncovered(r, c[chosen], cam, k, corners, occ),
-                           too_close=too_close, seconds=time.perf_counter() - t0, optimal=bool(res.status == 0),
+    chosen, optimal = (np.zeros(0, int), True) if not program.col_of else program.solve(time_limit)
+    return PlacementResult(route=r, candidates=c, indices=chosen, camera=cam, k=k,
+                           method="optimal" + ("+corners" if corners else ""), corners=bool(corners),
+                           uncovered=_exact_uncovered(r, c[chosen], cam, k, corners, occ),
+                           too_close=too_close, seconds=time.perf_counter() - t0, optimal=optimal,
                            obstacles=occ.get("occluders"))
 
 
