@@ -135,6 +135,33 @@ def simulate(route, landmarks, camera: CameraParams | dict | None = None, *, spe
     lm = as_array("landmarks", landmarks, (None, 2))
     if lm.shape[0] == 0:
         raise ValueError("landmarks must hold at least one landmark, got 0")
+    _check_simulation(speed, dt, bearing_std, heading_gain, prior_std, max_steps)
+    params = BmmParams()
+    params.dt = float(dt)
+    params.max_speed = max(1.0, 2 * speed)
+    params.max_heading_rate = 1.5
+    params.speed_noise, params.heading_noise, params.position_noise = 0.002, 0.002, 0.001
+    rng = np.random.default_rng(as_seed("seed", seed))
+    truth, u, turning = _drive(r, Bmm(params), speed, heading_gain, rng, max_steps)
+    # bearings to landmarks in view of the true pose
+    rel = lm[None, :, :] - truth[1:, None, :2]
+    dist = np.hypot(rel[..., 0], rel[..., 1])
+    brg = wrap_angle(np.arctan2(rel[..., 1], rel[..., 0]) - truth[1:, 3, None])
+    seen = (dist <= cam.range) & (dist > 0)
+    if cam.fov == "sector":
+        seen &= np.abs(brg) <= cam.angle / 2
+    z = np.where(seen, wrap_angle(brg + bearing_std * rng.standard_normal(brg.shape)), np.nan)
+    P0 = np.diag(np.square(prior_std))
+    x0 = truth[0] + rng.standard_normal(4) * np.asarray(prior_std)
+    res = filter_trajectory(u, x0, P0, params=params, filter="eif", bearings=z, bearing_std=bearing_std,
+                            landmarks=lm)
+    return SimulationResult(t=np.arange(len(u) + 1) * dt, truth=truth, estimate=res.states,
+                            covariance=res.covariances, n_in_view=np.concatenate([[0], seen.sum(axis=1)]),
+                            turning=np.array(turning), landmarks=lm, route=r)
+
+
+def _check_simulation(speed, dt, bearing_std, heading_gain, prior_std, max_steps) -> None:
+    """:func:`simulate`'s scalar arguments, each named in its error."""
     for name, v in (("speed", speed), ("dt", dt), ("bearing_std", bearing_std), ("heading_gain", heading_gain)):
         if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) \
                 or not (math.isfinite(v) and v > 0):
@@ -146,16 +173,16 @@ def simulate(route, landmarks, camera: CameraParams | dict | None = None, *, spe
     if prior.shape != (4,) or not (np.isfinite(prior).all() and (prior > 0).all()):
         raise ValueError(f"prior_std = {prior_std!r} must be 4 finite values > 0 (x, y, v, theta)")
     as_positive_int("max_steps", max_steps)
-    params = BmmParams()
-    params.dt = float(dt)
-    params.max_speed = max(1.0, 2 * speed)
-    params.max_heading_rate = 1.5
-    params.speed_noise, params.heading_noise, params.position_noise = 0.002, 0.002, 0.001
-    bmm = Bmm(params)
-    rng = np.random.default_rng(as_seed("seed", seed))
+
+
+def _drive(r: np.ndarray, bmm: Bmm, speed: float, heading_gain: float, rng, max_steps: int):
+    """[Placement §III-A]'s robot on route ``r``: the noisy BMM under the
+    waypoint controller of :func:`simulate`, closed on the true state.
+    Returns the true states (steps + 1), the controls and the turning flags."""
+    params = bmm.params
+    dt = params.dt
     sig_eps = np.array([params.position_noise, params.position_noise, params.speed_noise, params.heading_noise])
-    heading0 = math.atan2(*(r[1] - r[0])[::-1])
-    x = np.array([r[0, 0], r[0, 1], 0.0, heading0])
+    x = np.array([r[0, 0], r[0, 1], 0.0, math.atan2(*(r[1] - r[0])[::-1])])
     states, controls, turning = [x], [], [False]
     wp = 1
     lim = params.max_heading_rate * dt
@@ -175,24 +202,7 @@ def simulate(route, landmarks, camera: CameraParams | dict | None = None, *, spe
         states.append(x)
         controls.append(u)
         turning.append(turn)
-    truth = np.array(states)
-    u = np.array(controls, dtype=float)
-    n = len(u)
-    # bearings to landmarks in view of the true pose
-    rel = lm[None, :, :] - truth[1:, None, :2]
-    dist = np.hypot(rel[..., 0], rel[..., 1])
-    brg = wrap_angle(np.arctan2(rel[..., 1], rel[..., 0]) - truth[1:, 3, None])
-    seen = (dist <= cam.range) & (dist > 0)
-    if cam.fov == "sector":
-        seen &= np.abs(brg) <= cam.angle / 2
-    z = np.where(seen, wrap_angle(brg + bearing_std * rng.standard_normal(brg.shape)), np.nan)
-    P0 = np.diag(np.square(prior_std))
-    x0 = truth[0] + rng.standard_normal(4) * np.asarray(prior_std)
-    res = filter_trajectory(u, x0, P0, params=params, filter="eif", bearings=z, bearing_std=bearing_std,
-                            landmarks=lm)
-    return SimulationResult(t=np.arange(n + 1) * dt, truth=truth, estimate=res.states, covariance=res.covariances,
-                            n_in_view=np.concatenate([[0], seen.sum(axis=1)]), turning=np.array(turning),
-                            landmarks=lm, route=r)
+    return np.array(states), np.array(controls, dtype=float), turning
 
 
 def corner_gap_demo(seed: int = 3, n_targets: int = 6, *, camera: CameraParams | None = None, sim_seed: int = 0):
