@@ -343,48 +343,46 @@ def _dask_options(s) -> None:
     s.add_argument("--scheduler", default=None, help="Dask scheduler address: run the trials on that cluster")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="safenav", description="GPS-denied safe navigation experiments.")
-    p.add_argument("--version", action="version", version=f"safenav {__version__}")
-    sub = p.add_subparsers(dest="command", required=True)
-    common = _common()
-    scenario = _with_scenario(common)
+def _navigation_options(s, *, demo: bool) -> None:
+    """The options of demo and run."""
+    s.add_argument("--trials", type=_at_least(1), default=300 if demo else 1000,
+                   help=f"Monte Carlo trials per path type and method (default {300 if demo else 1000})")
+    s.add_argument("--methods", nargs="+", default=["chull", "centroid"], choices=["chull", "centroid"])
+    s.add_argument("--filters", nargs="+", default=["ekf"], choices=["ekf", "pf"])
+    s.add_argument("--sources", nargs="+", default=["lanbloc"],
+                   choices=["lanbloc", "lanbloc-camera", "deeploc-gps", "deeploc-ekf-gps", "sensor-fusion"],
+                   help="position source: LanBLoc at the measurement level, LanBLoc through the camera loop "
+                        "(rendered stereo pairs, detection, SGBM, trilateration; slow), or an emulated baseline")
+    s.add_argument("--position-every", type=_at_least(1), default=None,
+                   help="a position fix every n steps (default 1; 10 for lanbloc-camera)")
+    s.add_argument("--path-types", nargs="+", default=None, help="default: all of the scenario's")
+    s.add_argument("--particles", type=_at_least(1), default=500, help="PF particles (default 500)")
+    s.add_argument("--loop", choices=["ours", "paper"], default="ours",
+                   help="ours (default): the uncertainty-aware guard and the chi-square gate on; paper: the "
+                        "papers' loop, neither (docs/safety.md)")
+    s.add_argument("--faults", nargs=3, type=_probability, default=None,
+                   metavar=("DROPOUT", "OUTLIER", "MISASSOCIATION"),
+                   help="landmark faults: probabilities of a missed detection, an outlier range "
+                        "(noise.outlier_magnitude, 5 m) and a wrong landmark id; fixes then come from "
+                        "single landmark ranges (noise.fix_model = 'ranges')")
+    _dask_options(s)
+    s.add_argument("--seed", type=_at_least(0), default=None,
+                   help="trial seed (default: the scenario's seeds.trials)")
+    s.add_argument("--out", default="out/demo" if demo else "out/run", help="output folder")
+    s.set_defaults(func=lambda a: _navigation(a, demo=demo))
 
-    def navigation_options(s, *, demo: bool):
-        s.add_argument("--trials", type=_at_least(1), default=300 if demo else 1000,
-                       help=f"Monte Carlo trials per path type and method (default {300 if demo else 1000})")
-        s.add_argument("--methods", nargs="+", default=["chull", "centroid"], choices=["chull", "centroid"])
-        s.add_argument("--filters", nargs="+", default=["ekf"], choices=["ekf", "pf"])
-        s.add_argument("--sources", nargs="+", default=["lanbloc"],
-                       choices=["lanbloc", "lanbloc-camera", "deeploc-gps", "deeploc-ekf-gps", "sensor-fusion"],
-                       help="position source: LanBLoc at the measurement level, LanBLoc through the camera loop "
-                            "(rendered stereo pairs, detection, SGBM, trilateration; slow), or an emulated baseline")
-        s.add_argument("--position-every", type=_at_least(1), default=None,
-                       help="a position fix every n steps (default 1; 10 for lanbloc-camera)")
-        s.add_argument("--path-types", nargs="+", default=None, help="default: all of the scenario's")
-        s.add_argument("--particles", type=_at_least(1), default=500, help="PF particles (default 500)")
-        s.add_argument("--loop", choices=["ours", "paper"], default="ours",
-                       help="ours (default): the uncertainty-aware guard and the chi-square gate on; paper: the "
-                            "papers' loop, neither (docs/safety.md)")
-        s.add_argument("--faults", nargs=3, type=_probability, default=None,
-                       metavar=("DROPOUT", "OUTLIER", "MISASSOCIATION"),
-                       help="landmark faults: probabilities of a missed detection, an outlier range "
-                            "(noise.outlier_magnitude, 5 m) and a wrong landmark id; fixes then come from "
-                            "single landmark ranges (noise.fix_model = 'ranges')")
-        _dask_options(s)
-        s.add_argument("--seed", type=_at_least(0), default=None,
-                       help="trial seed (default: the scenario's seeds.trials)")
-        s.add_argument("--out", default="out/demo" if demo else "out/run", help="output folder")
-        s.set_defaults(func=lambda a: _navigation(a, demo=demo))
 
+
+def _add_experiment_commands(sub, common, scenario) -> None:
+    """demo, run, plan, synthetic and experiment."""
     s = sub.add_parser("demo", parents=[scenario],
                        help="the main job: SafeNav-CHull and SafeNav-Centroid with LanBLoc-BMM(EKF) on the default "
                             "scenario's three path types, beside the paper's Tables III-IV (conference numbering)")
-    navigation_options(s, demo=True)
+    _navigation_options(s, demo=True)
 
     s = sub.add_parser("run", parents=[scenario], help="run a scenario's navigation sweep")
     s.add_argument("scenario_file", nargs="?", default=None, help=argparse.SUPPRESS)   # the old positional form
-    navigation_options(s, demo=False)
+    _navigation_options(s, demo=False)
 
     s = sub.add_parser("plan", parents=[scenario], help="plan and draw the safe paths of a scenario (RAw-RRT*)")
     s.add_argument("scenario_file", nargs="?", default=None, help=argparse.SUPPRESS)   # the old positional form
@@ -429,6 +427,15 @@ def build_parser() -> argparse.ArgumentParser:
                    help="base seed (default: the scenario's seeds.trials)")
     s.add_argument("--out", default="out/experiments", help="output folder (default out/experiments)")
     s.set_defaults(func=_experiment)
+
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="safenav", description="GPS-denied safe navigation experiments.")
+    p.add_argument("--version", action="version", version=f"safenav {__version__}")
+    sub = p.add_subparsers(dest="command", required=True)
+    common = _common()
+    _add_experiment_commands(sub, common, _with_scenario(common))
 
     s = sub.add_parser("replay", parents=[common],
                        help="run a timestamped log (docs/replay.md; or a Plaza range-only .mat file) through the "
