@@ -53,11 +53,9 @@ else
   # The build requirements of pyproject.toml (the build runs without isolation).
   mapfile -t build_requires < <("$PY" -c "import tomllib; print(*tomllib.load(open('pyproject.toml', 'rb'))['build-system']['requires'], sep='\n')")
   "$PY" -m pip install -q "${build_requires[@]}"
-  # ccache (when installed) keeps the core's objects for the pip build test,
-  # which compiles the same sources again from a copy of the checkout.
-  if command -v ccache >/dev/null && [ -z "${CMAKE_CXX_COMPILER_LAUNCHER:-}" ]; then
-    export CMAKE_CXX_COMPILER_LAUNCHER=ccache CCACHE_BASEDIR="$PWD"
-  fi
+  # ccache, installed above, keeps the objects for the pip build test, which
+  # compiles the same sources again from a copy of the checkout (CMakeLists.txt
+  # turns it on: SAFENAV_CCACHE).
   "$PY" -m pip install -q --no-build-isolation -Ceditable.rebuild=true -Cbuild-dir=build/{wheel_tag} -e ".[test]"
   echo "$want" > "$stamp"
 fi

@@ -206,15 +206,15 @@ def test_log_replay_matches_python_replay(example_build, synthetic_log_path, tmp
 
     # (a) the C++ replay localizes well against the truth.
     assert info["started_from"] == ref.started_from
-    assert float(info["rmse"]) < 0.2
+    assert float(info["truth_rmse"]) < 0.2
     assert int(info["n_scored"]) == ref.metrics["n_scored"] and int(info["n_before_start"]) == ref.metrics[
         "n_before_start"]
     # (b) same Localizer, same inputs in the same order: the same numbers.
     assert list(ours.columns) == list(rp.TRAJECTORY_COLUMNS)
     assert ours.shape == ref.trajectory.shape and len(ours) > 100
     np.testing.assert_allclose(ours.to_numpy(), ref.trajectory.to_numpy(), rtol=1e-9, atol=1e-12)
-    for key in ("rmse", "ade", "fde"):
-        assert float(info[key]) == pytest.approx(ref.metrics[f"truth_{key}"], rel=1e-9)
+    for key in ("truth_rmse", "truth_ade", "truth_fde", "nees"):
+        assert float(info[key]) == pytest.approx(ref.metrics[key], rel=1e-9)
     for key in ("motion", "applied", "rejected", "late", "buffered"):
         assert int(info[key]) == ref.counts[key]
     assert float(info["t_start"]) == pytest.approx(ref.t_start, rel=1e-12)
@@ -225,13 +225,13 @@ def test_log_replay_to_stdout_and_errors(example_build, synthetic_log_path, tmp_
     proc = subprocess.run([exe, str(synthetic_log_path)], capture_output=True, text=True)
     assert proc.returncode == 0
     traj = pd.read_csv(io.StringIO(proc.stdout))      # the trajectory on stdout, the summary on stderr
-    assert len(traj) > 100 and "rmse=" in proc.stderr
+    assert len(traj) > 100 and "truth_rmse=" in proc.stderr
     # A log with no truth rows: a trajectory and no scores.
     no_truth = tmp_path / "no_truth.csv"
     table = pd.read_csv(synthetic_log_path)
     table[table["kind"] != "truth"].to_csv(no_truth, index=False)
     proc = subprocess.run([exe, str(no_truth), "-o", str(tmp_path / "t.csv")], capture_output=True, text=True)
-    assert proc.returncode == 0 and "rmse=" not in proc.stdout and "rows=" in proc.stdout
+    assert proc.returncode == 0 and "truth_rmse=" not in proc.stdout and "rows=" in proc.stdout
     proc = subprocess.run([exe, str(no_truth), "--prior-from-truth"], capture_output=True, text=True)
     assert proc.returncode == 2 and "no truth rows" in proc.stderr
     # Bad files are one-line errors naming the line, not crashes.

@@ -13,7 +13,7 @@
 // truth pose (σ = 0.1 m, 0.1 m, 0.5 m/s, 0.02 rad, as the Python CLI).  When
 // the log has truth rows the program prints the position RMSE, ADE and FDE,
 // causal: each truth pose is scored against the latest estimate at or before
-// its time (python/safenav/replay.py's `score`).
+// its time (python/safenav/replay.py's `score`), by the core's TrajectoryScore.
 //
 //   log_replay LOG.csv [-o TRAJECTORY.csv] [--prior-from-truth]
 //
@@ -35,6 +35,7 @@
 #include <vector>
 
 #include <safenav/localizer.hpp>
+#include <safenav/metrics.hpp>
 
 namespace {
 
@@ -238,10 +239,11 @@ int main(int argc, char** argv) {
   std::fprintf(info, "started_from=%s t_start=%.17g rows=%zu motion=%d applied=%d rejected=%d late=%d buffered=%d\n",
                prior_from_truth ? "prior" : "data", t_start, traj.size(), c.motion, c.applied, c.rejected, c.late,
                c.buffered);
-  // Causal scores: the latest estimate at or before each truth time.
+  // Causal scores: the latest estimate at or before each truth time, fed to
+  // the core's one trajectory-score accumulator (as safenav.replay.score).
   if (!log.truth.empty() && !traj.empty()) {
-    double sum2 = 0.0, sum = 0.0, last = kNaN;
-    int scored = 0, before = 0;
+    safenav::TrajectoryScore score(static_cast<Eigen::Index>(log.truth.size()));
+    int before = 0;
     for (const Row& g : log.truth) {
       const auto it = std::upper_bound(traj.begin(), traj.end(), g.v[T] + 1e-9,
                                        [](double t, const Estimate& e) { return t < e.t; });
@@ -250,14 +252,13 @@ int main(int argc, char** argv) {
         continue;
       }
       const Estimate& e = *(it - 1);
-      last = std::hypot(e.x - g.v[X], e.y - g.v[Y]);
-      sum += last;
-      sum2 += last * last;
-      ++scored;
+      score.add(Eigen::Vector2d(e.x, e.y), (Eigen::Matrix2d() << e.var_x, e.cov_xy, e.cov_xy, e.var_y).finished(),
+                Eigen::Vector2d(g.v[X], g.v[Y]));
     }
-    if (scored > 0)
-      std::fprintf(info, "rmse=%.17g ade=%.17g fde=%.17g n_scored=%d n_before_start=%d\n", std::sqrt(sum2 / scored),
-                   sum / scored, last, scored, before);
+    if (score.size() > 0)
+      std::fprintf(info, "truth_rmse=%.17g truth_ade=%.17g truth_fde=%.17g nees=%.17g n_scored=%d n_before_start=%d\n",
+                   score.truth_rmse(), score.truth_ade(), score.truth_fde(), score.position_nees(),
+                   static_cast<int>(score.size()), before);
   }
   return 0;
 }
