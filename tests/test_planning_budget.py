@@ -1,0 +1,54 @@
+"""Every planning call honours its ``max_time`` whatever the input's scale:
+the map, the central path and the end points from millimetres to 10¹² m,
+and a central path far from the map (a hostile input that once made a replan
+ignore its budget)."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from safenav import planning as P
+
+BUDGET = 0.3   # [s]
+SLACK = 2.0    # [s] set-up, the last iteration and the result's checks
+
+
+def _walled(scale: float):
+    """A 40 × 20 field (times ``scale``) whose goal (32, 10) is walled in: no
+    plan can reach it, so each run uses its whole budget."""
+    box = [np.array([(28, 4), (36, 4), (36, 5), (28, 5)]), np.array([(28, 15), (36, 15), (36, 16), (28, 16)]),
+           np.array([(28, 4), (29, 4), (29, 16), (28, 16)]), np.array([(35, 4), (36, 4), (36, 16), (35, 16)])]
+    return P.make_map(upper=(40 * scale, 20 * scale), polygons=[b * scale for b in box])
+
+
+def _timed(call):
+    t = time.perf_counter()
+    result = call()
+    return result, time.perf_counter() - t
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e7, 1e12])
+def test_plan_and_replan_stop_at_max_time_at_any_scale(scale):
+    central = np.array([(2.0, 10.0), (32.0, 10.0)]) * scale
+    prob = P.PlanningProblem(map=_walled(scale), start=central[0], goal=central[1], central_path=central)
+    # The step settings have physical limits (range <= 1e6 m, resolution <= 1e3 m): at 1e7 m and up
+    # a motion is checked in up to 10^10 steps, which the budget must still stop.
+    kw = dict(max_iterations=10**6, max_time=BUDGET, range=min(4.0 * scale, 1e6), resolution=min(0.5 * scale, 1e3),
+              beta=1.0)
+    r, dt = _timed(lambda: P.plan(prob, **kw))
+    assert r.status == P.PlanStatus.NO_PATH and dt < BUDGET + SLACK, (scale, dt)
+    r, dt = _timed(lambda: P.replan(prob, central[0], goal=central[1], corridor_bias=0.5, **kw))
+    assert r.status == P.PlanStatus.NO_PATH and dt < BUDGET + SLACK, (scale, dt)
+
+
+@pytest.mark.parametrize("far", [1e7, 1e10, 1e15])
+@pytest.mark.parametrize("corridor_bias", [0.0, 0.5])
+def test_replan_with_a_central_path_far_from_the_map_keeps_its_budget(far, corridor_bias):
+    central = np.array([(2.0, 10.0), (20.0, 15.0), (far, far)])
+    prob = P.PlanningProblem(map=_walled(1.0), start=(2, 10), goal=(32, 10), central_path=central)
+    r, dt = _timed(lambda: P.replan(prob, (2, 10), goal=(32, 10), max_iterations=10**6, max_time=BUDGET,
+                                    corridor_bias=corridor_bias, range=4.0))
+    assert r.status == P.PlanStatus.NO_PATH and dt < BUDGET + SLACK, (far, dt)
