@@ -154,9 +154,28 @@ def _parse(df: pd.DataFrame, source: str, *, csv: bool = False) -> Log:
             tab.fail(i, "kind", k, "missing" if missing else f"unknown kind (the kinds are: {', '.join(KINDS)})")
     kinds = kinds.astype(str)
     values = {c: tab.numeric(c) for c in _NUMERIC}
+    _check_values(tab, kinds, values)
+    landmarks = _landmark_map(tab, kinds, values)
 
-    # every check is (rows that break it, column, problem); the earliest row is reported
-    checks: list[tuple[np.ndarray, str, str]] = []
+    # the inputs and the truth, each sorted stably by time
+    rows = np.flatnonzero(np.isin(kinds, EVENT_KINDS))
+    if len(rows) == 0:
+        raise ScenarioError(f"{source}: empty log: no input rows (kinds {', '.join(EVENT_KINDS)})")
+    rows = rows[np.argsort(values["t"][rows], kind="stable")]
+    events = pd.DataFrame({c: kinds[rows] if c == "kind" else values[c][rows] for c in EVENT_COLUMNS})
+    events["landmark"] = events["landmark"].astype("Int64")
+    rows = np.flatnonzero(kinds == "truth")
+    truth = None
+    if len(rows):
+        rows = rows[np.argsort(values["t"][rows], kind="stable")]
+        truth = pd.DataFrame({c: values[c][rows] for c in TRUTH_COLUMNS})
+    return Log(landmarks=landmarks, events=events, truth=truth)
+
+
+def _check_values(tab: "_Table", kinds: np.ndarray, values: dict) -> None:
+    """Each row's columns against its kind, finiteness, signs and ids; the
+    earliest offending row is reported (on one row, the first check)."""
+    checks: list[tuple[np.ndarray, str, str]] = []   # (rows that break it, column, problem)
     for kind, (required, optional) in KINDS.items():
         rows = kinds == kind
         if not rows.any():
@@ -179,22 +198,25 @@ def _parse(df: pd.DataFrame, source: str, *, csv: bool = False) -> Log:
                        f"a landmark id must be an integer in [0, {INT32_MAX}]"))
     firsts = [_first(mask) for mask, _, _ in checks]
     if firsts and min(firsts) < len(kinds):
-        n = int(np.argmin(firsts))          # the earliest row; on one row, the first check
+        n = int(np.argmin(firsts))
         i, (_, c, problem) = firsts[n], checks[n]
         tab.fail(i, c, tab.df[c].iloc[i] if c in tab.df.columns else np.nan, problem)
 
-    # the map
-    rows = np.flatnonzero(kinds == "landmark")
+
+def _landmark_map(tab: "_Table", kinds: np.ndarray, values: dict) -> dict[int, tuple[float, float]]:
+    """The map from the landmark rows (ids distinct); every observation must
+    name a landmark of it."""
+    ids = values["landmark"]
     landmarks: dict[int, tuple[float, float]] = {}
     first_row: dict[int, int] = {}
-    for i in rows:
+    for i in np.flatnonzero(kinds == "landmark"):
         lid = int(ids[i])
         if lid in landmarks:
             tab.fail(i, "landmark", lid, f"duplicate landmark id (first defined on row {first_row[lid] + 1})")
         landmarks[lid] = (float(values["x"][i]), float(values["y"][i]))
         first_row[lid] = int(i)
     if len(landmarks) > MAX_LANDMARKS:
-        raise ScenarioError(f"{source}: {len(landmarks)} landmarks, at most {MAX_LANDMARKS} allowed")
+        raise ScenarioError(f"{tab.source}: {len(landmarks)} landmarks, at most {MAX_LANDMARKS} allowed")
     observed = np.isin(kinds, OBSERVATION_KINDS)
     if observed.any():
         i = _first(observed)
@@ -205,20 +227,7 @@ def _parse(df: pd.DataFrame, source: str, *, csv: bool = False) -> Log:
         i = _first(observed & ~known)
         if i < len(kinds):
             tab.fail(i, "landmark", int(ids[i]), f"unknown landmark id (the map has {cut(sorted(landmarks))})")
-
-    # the inputs and the truth, each sorted stably by time
-    rows = np.flatnonzero(np.isin(kinds, EVENT_KINDS))
-    if len(rows) == 0:
-        raise ScenarioError(f"{source}: empty log: no input rows (kinds {', '.join(EVENT_KINDS)})")
-    rows = rows[np.argsort(values["t"][rows], kind="stable")]
-    events = pd.DataFrame({c: kinds[rows] if c == "kind" else values[c][rows] for c in EVENT_COLUMNS})
-    events["landmark"] = events["landmark"].astype("Int64")
-    rows = np.flatnonzero(kinds == "truth")
-    truth = None
-    if len(rows):
-        rows = rows[np.argsort(values["t"][rows], kind="stable")]
-        truth = pd.DataFrame({c: values[c][rows] for c in TRUTH_COLUMNS})
-    return Log(landmarks=landmarks, events=events, truth=truth)
+    return landmarks
 
 
 def _table(log: Log) -> pd.DataFrame:
