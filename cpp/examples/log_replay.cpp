@@ -144,6 +144,96 @@ int usage(const char* msg) {
   return 2;
 }
 
+/// One input row to the localizer, by its kind.
+void feed(safenav::Localizer& loc, const Row& r) {
+  const double t = r.v[T];
+  if (r.kind == "odometry") {
+    loc.odometry(t, r.v[DISTANCE], r.v[HEADING_CHANGE]);
+  } else if (r.kind == "motion") {
+    loc.motion(t, safenav::Control(r.v[SPEED], r.v[HEADING_CHANGE]));
+  } else if (r.kind == "fix") {
+    Eigen::Matrix2d R = Eigen::Matrix2d::Zero();
+    R.diagonal() << r.v[STD_X] * r.v[STD_X], r.v[STD_Y] * r.v[STD_Y];
+    loc.fix(t, Eigen::Vector2d(r.v[X], r.v[Y]), R);
+  } else {  // range, bearing, range_bearing
+    safenav::LandmarkObservation obs;
+    obs.id = static_cast<int>(r.v[LANDMARK]);
+    obs.range = r.v[RANGE];
+    obs.bearing = r.v[BEARING];
+    obs.range_std = std::isnan(r.v[RANGE_STD]) ? 1.0 : r.v[RANGE_STD];
+    obs.bearing_std = std::isnan(r.v[BEARING_STD]) ? 0.05 : r.v[BEARING_STD];
+    loc.observe(t, obs);
+  }
+}
+
+/// Feeds the inputs in time order; records the start, then the estimate after
+/// each motion input.  Returns the start time (NaN: never started).
+double run(safenav::Localizer& loc, const Log& log, std::vector<Estimate>& traj) {
+  traj.reserve(log.events.size() + 1);
+  auto record = [&] {
+    const safenav::State& x = loc.x();
+    const safenav::StateCov& P = loc.P();
+    traj.push_back({loc.time(), x[0], x[1], x[2], x[3], P(0, 0), P(1, 1), P(0, 1), P(2, 2), P(3, 3)});
+  };
+  double t_start = kNaN;
+  if (loc.initialized()) {
+    t_start = loc.time();
+    record();
+  }
+  for (const Row& r : log.events) {
+    feed(loc, r);
+    const bool motion = r.kind == "odometry" || r.kind == "motion";
+    if (std::isnan(t_start) && loc.initialized()) {  // started from the data: its first estimate
+      t_start = loc.time();
+      record();
+    } else if (motion && loc.initialized()) {
+      record();
+    }
+  }
+  return t_start;
+}
+
+bool write_trajectory(const std::vector<Estimate>& traj, FILE* out) {
+  std::fprintf(out, "t,x,y,speed,heading,var_x,var_y,cov_xy,var_speed,var_heading\n");
+  for (const Estimate& e : traj)
+    std::fprintf(out, "%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g\n", e.t, e.x, e.y, e.speed,
+                 e.heading, e.var_x, e.var_y, e.cov_xy, e.var_speed, e.var_heading);
+  return !std::ferror(out);
+}
+
+/// Causal scores: the latest estimate at or before each truth time, fed to the
+/// core's one trajectory-score accumulator (as safenav.replay.score).
+void print_scores(const Log& log, const std::vector<Estimate>& traj, FILE* info) {
+  if (log.truth.empty() || traj.empty()) return;
+  safenav::TrajectoryScore score(static_cast<Eigen::Index>(log.truth.size()));
+  int before = 0;
+  for (const Row& g : log.truth) {
+    const auto it = std::upper_bound(traj.begin(), traj.end(), g.v[T] + 1e-9,
+                                     [](double t, const Estimate& e) { return t < e.t; });
+    if (it == traj.begin()) {
+      ++before;
+      continue;
+    }
+    const Estimate& e = *(it - 1);
+    score.add(Eigen::Vector2d(e.x, e.y), (Eigen::Matrix2d() << e.var_x, e.cov_xy, e.cov_xy, e.var_y).finished(),
+              Eigen::Vector2d(g.v[X], g.v[Y]));
+  }
+  if (score.size() > 0)
+    std::fprintf(info, "truth_rmse=%.17g truth_ade=%.17g truth_fde=%.17g nees=%.17g n_scored=%d n_before_start=%d\n",
+                 score.truth_rmse(), score.truth_ade(), score.truth_fde(), score.position_nees(),
+                 static_cast<int>(score.size()), before);
+}
+
+safenav::Localizer make_localizer(const Log& log) {
+  std::vector<int> ids;
+  safenav::Landmarks landmarks(static_cast<Eigen::Index>(log.landmarks.size()), 2);
+  for (const auto& [id, p] : log.landmarks) {
+    landmarks.row(static_cast<Eigen::Index>(ids.size())) = p.transpose();
+    ids.push_back(id);
+  }
+  return safenav::Localizer(safenav::LocalizerSettings(), landmarks, ids);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -168,14 +258,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "log_replay: %s\n", e.what());
     return 2;
   }
-
-  std::vector<int> ids;
-  safenav::Landmarks landmarks(static_cast<Eigen::Index>(log.landmarks.size()), 2);
-  for (const auto& [id, p] : log.landmarks) {
-    landmarks.row(static_cast<Eigen::Index>(ids.size())) = p.transpose();
-    ids.push_back(id);
-  }
-  safenav::Localizer loc(safenav::LocalizerSettings(), landmarks, ids);
+  safenav::Localizer loc = make_localizer(log);
   if (prior_from_truth) {
     if (log.truth.empty()) return usage("--prior-from-truth: the log has no truth rows");
     const Row& r = log.truth.front();
@@ -184,81 +267,23 @@ int main(int argc, char** argv) {
     P0.diagonal() << 0.1 * 0.1, 0.1 * 0.1, 0.5 * 0.5, 0.02 * 0.02;
     loc.initialize(r.v[T], safenav::State(r.v[X], r.v[Y], 0.0, r.v[HEADING]), P0);
   }
-
-  // Feed the inputs in time order; record the start, then the estimate after each motion input.
   std::vector<Estimate> traj;
-  traj.reserve(log.events.size() + 1);
-  auto record = [&] {
-    const safenav::State& x = loc.x();
-    const safenav::StateCov& P = loc.P();
-    traj.push_back({loc.time(), x[0], x[1], x[2], x[3], P(0, 0), P(1, 1), P(0, 1), P(2, 2), P(3, 3)});
-  };
-  double t_start = kNaN;
-  if (loc.initialized()) {
-    t_start = loc.time();
-    record();
-  }
-  for (const Row& r : log.events) {
-    const double t = r.v[T];
-    if (r.kind == "odometry" || r.kind == "motion") {
-      if (r.kind == "odometry") loc.odometry(t, r.v[DISTANCE], r.v[HEADING_CHANGE]);
-      else loc.motion(t, safenav::Control(r.v[SPEED], r.v[HEADING_CHANGE]));
-      if (loc.initialized() && !std::isnan(t_start)) record();
-    } else if (r.kind == "fix") {
-      Eigen::Matrix2d R = Eigen::Matrix2d::Zero();
-      R.diagonal() << r.v[STD_X] * r.v[STD_X], r.v[STD_Y] * r.v[STD_Y];
-      loc.fix(t, Eigen::Vector2d(r.v[X], r.v[Y]), R);
-    } else {  // range, bearing, range_bearing
-      safenav::LandmarkObservation obs;
-      obs.id = static_cast<int>(r.v[LANDMARK]);
-      obs.range = r.v[RANGE];
-      obs.bearing = r.v[BEARING];
-      obs.range_std = std::isnan(r.v[RANGE_STD]) ? 1.0 : r.v[RANGE_STD];
-      obs.bearing_std = std::isnan(r.v[BEARING_STD]) ? 0.05 : r.v[BEARING_STD];
-      loc.observe(t, obs);
-    }
-    if (std::isnan(t_start) && loc.initialized()) {  // started from the data: its first estimate
-      t_start = loc.time();
-      record();
-    }
-  }
+  const double t_start = run(loc, log, traj);
 
   FILE* out = stdout;
   if (!out_path.empty() && !(out = std::fopen(out_path.c_str(), "w"))) {
     std::fprintf(stderr, "log_replay: cannot write %s\n", out_path.c_str());
     return 2;
   }
-  std::fprintf(out, "t,x,y,speed,heading,var_x,var_y,cov_xy,var_speed,var_heading\n");
-  for (const Estimate& e : traj)
-    std::fprintf(out, "%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g,%.17g\n", e.t, e.x, e.y, e.speed,
-                 e.heading, e.var_x, e.var_y, e.cov_xy, e.var_speed, e.var_heading);
-  if (out != stdout) std::fclose(out);
+  const bool written = write_trajectory(traj, out);
+  if (out != stdout && std::fclose(out) != 0) return usage("cannot finish writing the trajectory");
+  if (!written) return usage("cannot write the trajectory");
 
   FILE* info = out_path.empty() ? stderr : stdout;
   const safenav::LocalizerCounts& c = loc.counts();
   std::fprintf(info, "started_from=%s t_start=%.17g rows=%zu motion=%d applied=%d rejected=%d late=%d buffered=%d\n",
                prior_from_truth ? "prior" : "data", t_start, traj.size(), c.motion, c.applied, c.rejected, c.late,
                c.buffered);
-  // Causal scores: the latest estimate at or before each truth time, fed to
-  // the core's one trajectory-score accumulator (as safenav.replay.score).
-  if (!log.truth.empty() && !traj.empty()) {
-    safenav::TrajectoryScore score(static_cast<Eigen::Index>(log.truth.size()));
-    int before = 0;
-    for (const Row& g : log.truth) {
-      const auto it = std::upper_bound(traj.begin(), traj.end(), g.v[T] + 1e-9,
-                                       [](double t, const Estimate& e) { return t < e.t; });
-      if (it == traj.begin()) {
-        ++before;
-        continue;
-      }
-      const Estimate& e = *(it - 1);
-      score.add(Eigen::Vector2d(e.x, e.y), (Eigen::Matrix2d() << e.var_x, e.cov_xy, e.cov_xy, e.var_y).finished(),
-                Eigen::Vector2d(g.v[X], g.v[Y]));
-    }
-    if (score.size() > 0)
-      std::fprintf(info, "truth_rmse=%.17g truth_ade=%.17g truth_fde=%.17g nees=%.17g n_scored=%d n_before_start=%d\n",
-                   score.truth_rmse(), score.truth_ade(), score.truth_fde(), score.position_nees(),
-                   static_cast<int>(score.size()), before);
-  }
+  print_scores(log, traj, info);
   return 0;
 }
