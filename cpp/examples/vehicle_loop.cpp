@@ -55,6 +55,39 @@ std::string event_names(unsigned events) {
 constexpr double kPi = 3.14159265358979323846;
 double wrap(double a) { return std::remainder(a, 2.0 * kPi); }
 
+/// The world: a straight safe path with a boulder on it.
+safenav::NavigationProblem make_problem() {
+  safenav::NavigationProblem problem;
+  problem.path.resize(3, 2);
+  problem.path << 10.0, 30.0, 50.0, 30.0, 90.0, 30.0;
+  problem.map.lower = Eigen::Vector2d(0.0, 0.0);
+  problem.map.upper = Eigen::Vector2d(100.0, 60.0);
+  problem.map.clearance = 0.5;  // the vehicle's radius
+  problem.map.circles.push_back(safenav::CircleObstacle{Eigen::Vector2d(50.0, 30.0), 2.5});
+  // problem.zones: the default 8 m safe buffer; problem.bmm: the default BMM (Δt = 0.05 s).
+  return problem;
+}
+
+/// The vehicle's camera: range and bearing to each landmark within range of the true pose.
+void sense(safenav::Guidance& guidance, double t, const safenav::State& truth, const safenav::Landmarks& landmarks,
+           std::mt19937_64& gen, std::normal_distribution<double>& n01, int& observations, int& rejected) {
+  constexpr double sensing_range = 25.0;  // [m]
+  constexpr double range_std = 0.2, bearing_std = 0.02;
+  for (Eigen::Index k = 0; k < landmarks.rows(); ++k) {
+    const Eigen::Vector2d d = landmarks.row(k).transpose() - truth.head<2>();
+    const double r = d.norm();
+    if (r > sensing_range) continue;
+    safenav::LandmarkObservation obs;
+    obs.id = static_cast<int>(k);  // default ids: the landmark rows
+    obs.range = r + range_std * n01(gen);
+    obs.bearing = wrap(std::atan2(d.y(), d.x()) - truth[3] + bearing_std * n01(gen));
+    obs.range_std = range_std;
+    obs.bearing_std = bearing_std;
+    ++observations;
+    if (!guidance.observe(t, obs).applied()) ++rejected;
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -65,20 +98,10 @@ int main(int argc, char** argv) {
     return 2;
   }
 
-  // The world: a straight safe path with an obstacle on it, and landmarks.
-  safenav::NavigationProblem problem;
-  problem.path.resize(3, 2);
-  problem.path << 10.0, 30.0, 50.0, 30.0, 90.0, 30.0;
-  problem.map.lower = Eigen::Vector2d(0.0, 0.0);
-  problem.map.upper = Eigen::Vector2d(100.0, 60.0);
-  problem.map.clearance = 0.5;  // the vehicle's radius
-  const safenav::CircleObstacle boulder{Eigen::Vector2d(50.0, 30.0), 2.5};
-  problem.map.circles.push_back(boulder);
-  // problem.zones: the default 8 m safe buffer; problem.bmm: the default BMM (Δt = 0.05 s).
+  const safenav::NavigationProblem problem = make_problem();
+  const safenav::CircleObstacle boulder = problem.map.circles.front();
   safenav::Landmarks landmarks(8, 2);
   landmarks << 20, 18, 20, 42, 40, 18, 40, 42, 60, 18, 60, 42, 80, 18, 80, 42;
-  const double sensing_range = 25.0;  // [m]
-  const double range_std = 0.2, bearing_std = 0.02;
 
   safenav::NavigationSettings settings;  // SafeNav-Centroid, 2 m/s, detours on
   safenav::Guidance guidance(problem, settings, safenav::LocalizerSettings(), landmarks, {}, seed);
@@ -135,19 +158,7 @@ int main(int argc, char** argv) {
     min_gap = std::min(min_gap, (truth.head<2>() - boulder.center).norm() - boulder.radius);
     // 3. Its inputs: the commanded motion, then each landmark within range.
     guidance.motion(t1, cmd.control);
-    for (Eigen::Index k = 0; k < landmarks.rows(); ++k) {
-      const Eigen::Vector2d d = landmarks.row(k).transpose() - truth.head<2>();
-      const double r = d.norm();
-      if (r > sensing_range) continue;
-      safenav::LandmarkObservation obs;
-      obs.id = static_cast<int>(k);  // default ids: the landmark rows
-      obs.range = r + range_std * n01(gen);
-      obs.bearing = wrap(std::atan2(d.y(), d.x()) - truth[3] + bearing_std * n01(gen));
-      obs.range_std = range_std;
-      obs.bearing_std = bearing_std;
-      ++observations;
-      if (!guidance.observe(t1, obs).applied()) ++rejected;
-    }
+    sense(guidance, t1, truth, landmarks, gen, n01, observations, rejected);
   }
 
   const safenav::Localizer& loc = guidance.localizer();
