@@ -133,6 +133,7 @@ struct LocalizerCounts {
   int rejected = 0;  ///< failed the gate (resets included: their fix failed it too)
   int late = 0;      ///< older than the filter's time
   int buffered = 0;  ///< before initialization
+  int ignored = 0;   ///< of no use (InputStatus::Ignored)
   int resets = 0;    ///< position resets after consecutive rejected fixes
 };
 
@@ -168,6 +169,10 @@ class Localizer {
   const StateCov& P() const;
   double position_std() const;
   const LocalizerCounts& counts() const;
+  /// Why the localizer has not started ("waiting: …": what the window holds,
+  /// what a start needs, and the last fit's verdict), or how it started
+  /// ("started at t = … from the data (…)").
+  std::string reason() const;
   const LocalizerSettings& settings() const;
   const Bmm& model() const;
   /// Row of landmark `id` in the map, or −1.
