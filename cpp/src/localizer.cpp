@@ -32,6 +32,9 @@ constexpr double kInitPositionFloor = 0.05, kInitHeadingFloor = 0.01;
 /// Starting from data with bearings or headings: the fit's heading σ must be
 /// below this [rad] (a range-only fit is judged by its position σ alone, as before).
 constexpr double kInitMaxHeadingStd = 0.1;
+/// A fit must keep at least this share of its residuals (≤ 3σ): one that explains
+/// the data only by dropping many of them (a mirror image of the truth) is not trusted.
+constexpr double kInitMinInlierShare = 0.9;
 
 using detail::bad;
 
@@ -123,6 +126,7 @@ struct Localizer::Impl {
   std::vector<BufferedHeading> headings;  // IMU headings within init_window
   bool fresh = false;  // an observation or heading with a bearing or heading arrived since the last fit
   std::string why = "waiting: no motion input yet";  // Localizer::reason()
+  int most_ranged = 0, most_beared = 0, most_both = 0;  // the most distinct landmarks in any window so far
   std::vector<Eigen::Vector4d> track;  // (t, x, y, θ): the motion integral at each motion input
   std::optional<Anchor> anchor;
   Eigen::Vector3d odo = Eigen::Vector3d::Zero();  // motion integral (x, y, θ) in its own frame
@@ -333,6 +337,9 @@ struct Localizer::Impl {
     const int nr = static_cast<int>(w.ranged.size()), nb = static_cast<int>(w.beared.size());
     const int n2 = static_cast<int>(w.both.size());
     const bool moved = w.path >= settings.init_min_path;
+    most_ranged = std::max(most_ranged, nr);
+    most_beared = std::max(most_beared, nb);
+    most_both = std::max(most_both, n2);
     const bool ok = (n2 >= 2) || (w.headings > 0 && n2 >= 1) || nb >= 3 || (nb >= 2 && moved) ||
                     (nr >= settings.init_min_beacons && moved);
     std::ostringstream os;
@@ -340,7 +347,8 @@ struct Localizer::Impl {
        << nb << " (" << n2 << " with both), " << w.headings << " heading(s), " << std::setprecision(3) << w.path
        << " m of motion; need range+bearing of 2 landmarks, or a heading and range+bearing of 1, or bearings of 3 "
        << "(2 after " << settings.init_min_path << " m), or ranges of " << settings.init_min_beacons << " after "
-       << settings.init_min_path << " m";
+       << settings.init_min_path << " m (so far at most " << most_ranged << " ranged, " << most_beared
+       << " with bearings, " << most_both << " with both in one window)";
     why = os.str();
     return ok;
   }
@@ -382,7 +390,9 @@ struct Localizer::Impl {
     const double k0 = settings.augment.range_scale ? settings.augment.scale_prior : 0.0;
     detail::FitResult fit;
     if (!detail::fit_transform(obs, hs, k0, fit)) {
-      why += "; last fit at t = " + num(t_now) + ": degenerate geometry (the data do not fix X, Y and the heading)";
+      why += "; last fit at t = " + num(t_now) +
+             (fit.ambiguous ? ": ambiguous (another pose explains the data as well)"
+                            : ": degenerate geometry (the data do not fix X, Y and the heading)");
       return;
     }
     accept_fit(t_now, fit);
@@ -406,12 +416,13 @@ struct Localizer::Impl {
     const bool angles = fit.angle_rows > 0;
     const double rms = angles ? fit.normalised_rms : fit.range_rms;
     std::ostringstream os;
-    os << std::setprecision(3) << "residual RMS " << rms << (angles ? " σ" : " m") << ", position σ " << pos_std
+    const bool kept = fit.rows >= kInitMinInlierShare * fit.all_rows;
+    os << std::setprecision(3) << fit.rows << " of " << fit.all_rows << " residuals kept, residual RMS " << rms << (angles ? " σ" : " m") << ", position σ " << pos_std
        << " m, heading σ " << heading_std << " rad";
-    if (!(rms <= settings.init_max_rms && pos_std <= settings.init_max_pos_std &&
+    if (!(kept && rms <= settings.init_max_rms && pos_std <= settings.init_max_pos_std &&
           (!angles || heading_std <= kInitMaxHeadingStd))) {
       std::ostringstream lim;
-      lim << std::setprecision(3) << " (limits " << settings.init_max_rms << ", " << settings.init_max_pos_std
+      lim << std::setprecision(3) << " (limits " << kInitMinInlierShare << " kept, " << settings.init_max_rms << ", " << settings.init_max_pos_std
           << " m" << (angles ? ", " + num(kInitMaxHeadingStd) + " rad" : std::string()) << ")";
       why += "; last fit at t = " + num(t_now) + ": " + os.str() + lim.str();
       return;
@@ -426,7 +437,7 @@ struct Localizer::Impl {
     P0(kV, kV) = settings.init_speed_std * settings.init_speed_std;
     const double speed = std::isfinite(rate_speed) ? std::max(0.0, rate_speed) : 0.0;
     start(t_now, State(px, py, speed, wrap_angle(th[2] + q[3])), 0.5 * (P0 + P0.transpose()));
-    why += " from the data (" + std::to_string(fit.rows) + " residuals, " + os.str() + ")";
+    why += " from the data (" + os.str() + ")";
   }
 };
 

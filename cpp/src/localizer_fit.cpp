@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 #include "safenav/measurement.hpp"
 #include "safenav/types.hpp"
@@ -12,6 +13,11 @@
 namespace safenav::detail {
 
 namespace {
+
+/// χ²₃ at 0.99: a local minimum this close in cost to the best one is as good.
+constexpr double kAmbiguousCost = 11.34;
+/// (5σ)²: a minimum this far from the fit in its own metric is another pose.
+constexpr double kAmbiguousDistance2 = 25.0;
 
 /// The residual rows of a fit and their Jacobian ∂e/∂(X, Y, φ), over the rows
 /// that the mask keeps.  Row order: each observation's range, then its
@@ -25,6 +31,7 @@ struct Rows {
   Eigen::MatrixXd J;
   std::vector<double> sigma;  // σ of each row (all rows)
   std::vector<char> is_range;
+  int undefined = 0;  // rows of the last eval with T(q) at their landmark (no model there)
 
   Rows(const std::vector<FitObs>& o, const std::vector<FitHeading>& h, double k) : obs(o), headings(h), k0(k) {
     for (const FitObs& x : obs) {
@@ -42,6 +49,7 @@ struct Rows {
     const double c = std::cos(th[2]), s = std::sin(th[2]);
     Eigen::Index m = 0;
     std::size_t i = 0;
+    undefined = 0;
     auto put = [&](double res, double jx, double jy, double jphi) {
       if (mask[i]) {
         e[m] = res / sigma[i];
@@ -58,6 +66,7 @@ struct Rows {
       const double dpx = -s * o.qx - c * o.qy, dpy = c * o.qx - s * o.qy;
       const LandmarkGeometry g = landmark_geometry(px, py, o.ax, o.ay);
       const bool ok = g.defined() && g.finite();  // at the landmark h has no Jacobian: the row counts 0
+      undefined += !ok;
       LandmarkJacobian H;
       if (!std::isnan(o.range)) {
         if (ok) {
@@ -128,10 +137,13 @@ bool fit_transform(const std::vector<FitObs>& obs, const std::vector<FitHeading>
   const auto n = static_cast<Eigen::Index>(rows.sigma.size());
   double best_cost = std::numeric_limits<double>::infinity();
   Eigen::Vector3d best = Eigen::Vector3d::Zero();
+  std::vector<std::pair<double, Eigen::Vector3d>> minima;  // (cost, th) from each start
   for (const Eigen::Vector3d& seed : seeds(obs, headings)) {
     const Eigen::Vector3d th = rows.gauss_newton(seed, 15);
     const Eigen::Index m = rows.eval(th);
-    const double cost = rows.e.head(m).squaredNorm();
+    // A transform that puts the vehicle on a landmark explains nothing there.
+    const double cost = rows.undefined ? std::numeric_limits<double>::infinity() : rows.e.head(m).squaredNorm();
+    minima.emplace_back(cost, th);
     if (cost < best_cost) best_cost = cost, best = th;
   }
   if (!std::isfinite(best_cost)) return false;
@@ -157,13 +169,25 @@ bool fit_transform(const std::vector<FitObs>& obs, const std::vector<FitHeading>
     ++r;
   }
   out.rows = static_cast<int>(m);
+  out.all_rows = static_cast<int>(n);
   out.range_rms = n_range ? std::sqrt(ss_range / n_range) : std::numeric_limits<double>::quiet_NaN();
   out.normalised_rms = std::sqrt(ss / static_cast<double>(m));
   const Eigen::Matrix3d JtJ = rows.J.topRows(m).transpose() * rows.J.topRows(m);
   const Eigen::FullPivLU<Eigen::Matrix3d> lu(JtJ);
   if (!lu.isInvertible()) return false;
   out.C = lu.inverse();
-  return out.C.allFinite();
+  if (!out.C.allFinite()) return false;
+  // Ambiguity: another local minimum nearly as good, far away in the fit's own metric.
+  for (const auto& [cost, th] : minima) {
+    if (!(cost <= best_cost + kAmbiguousCost)) continue;
+    Eigen::Vector3d d = th - out.th;
+    d[2] = wrap_angle(d[2]);
+    if (d.dot(JtJ * d) > kAmbiguousDistance2) {
+      out.ambiguous = true;
+      return false;
+    }
+  }
+  return true;
 }
 
 }  // namespace safenav::detail

@@ -33,6 +33,10 @@ struct FitResult {
   double range_rms = std::numeric_limits<double>::quiet_NaN();
   double normalised_rms = std::numeric_limits<double>::quiet_NaN();
   int rows = 0, angle_rows = 0;
+  int all_rows = 0;  ///< inliers and outliers
+  /// Another start reached a transform > 5σ away whose cost is within
+  /// χ²₃(0.99) = 11.34 of the best: the data do not single out one pose.
+  bool ambiguous = false;
   Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
 };
 
@@ -47,7 +51,7 @@ struct FitResult {
 /// headings × 5 positions (plus, with bearings or headings, the position that
 /// the newest range+bearing gives at each heading, and the heading an IMU
 /// gives); residuals > 3σ dropped, refitted.  Returns false when no fit is
-/// found or JᵀJ is singular (degenerate geometry).
+/// found, JᵀJ is singular (degenerate geometry) or the fit is ambiguous.
 bool fit_transform(const std::vector<FitObs>& obs, const std::vector<FitHeading>& headings, double k0,
                    FitResult& out);
 
