@@ -44,17 +44,8 @@ void check_time(double t, const char* what) {
   if (!std::isfinite(t)) bad(std::string(what) + ": time t = " + num(t) + " is not finite");
 }
 
-/// A landmark observation kept for initialization from data (NaN: not measured).
-struct BufferedObs {
-  double t;
-  int row;  // landmark row
-  double range, range_std, bearing, bearing_std;
-};
-
-/// An IMU heading kept for initialization from data.
-struct BufferedHeading {
-  double t, theta, std;
-};
+using detail::BufferedHeading;
+using detail::BufferedObs;
 
 /// A position known before the heading (trilateration or a fix), with the
 /// motion-integrated pose at that time.
@@ -126,7 +117,7 @@ struct Localizer::Impl {
   std::vector<BufferedHeading> headings;  // IMU headings within init_window
   bool fresh = false;  // an observation or heading with a bearing or heading arrived since the last fit
   std::string why = "waiting: no motion input yet";  // Localizer::reason()
-  int most_ranged = 0, most_beared = 0, most_both = 0;  // the most distinct landmarks in any window so far
+  detail::StartWindow::Most most;  // the most distinct landmarks in any window so far
   std::vector<Eigen::Vector4d> track;  // (t, x, y, θ): the motion integral at each motion input
   std::optional<Anchor> anchor;
   Eigen::Vector3d odo = Eigen::Vector3d::Zero();  // motion integral (x, y, θ) in its own frame
@@ -292,65 +283,9 @@ struct Localizer::Impl {
     track.push_back(Eigen::Vector4d(t, odo[0], odo[1], odo[2]));
   }
 
-  /// The motion integral's pose (x, y, θ) at time t, interpolated between
-  /// motion inputs (needs track.size() ≥ 2; the heading by its wrapped change).
-  Eigen::Vector3d odo_at(double t) const {
-    auto hi = std::lower_bound(track.begin(), track.end(), t, [](const Eigen::Vector4d& q, double s) { return q[0] < s; });
-    if (hi == track.end()) return track.back().tail<3>();
-    if (hi == track.begin() || (*hi)[0] == t) return hi->tail<3>();
-    const Eigen::Vector4d& lo = *(hi - 1);
-    const double w = (t - lo[0]) / ((*hi)[0] - lo[0]);
-    const Eigen::Vector2d q = lo.segment<2>(1) + w * (hi->segment<2>(1) - lo.segment<2>(1));
-    return Eigen::Vector3d(q.x(), q.y(), wrap_angle(lo[3] + w * wrap_angle((*hi)[3] - lo[3])));
-  }
-
-  /// What the buffered data of the window hold, for the start rules.
-  struct Window {
-    double path = 0.0;
-    std::vector<int> ranged, beared, both;  // distinct landmark rows
-    int headings = 0;
-    bool angles = false;  // any bearing or heading
-  };
-  Window window(double t_now) const {
-    Window w;
-    for (std::size_t i = 1; i < track.size(); ++i)
-      w.path += std::hypot(track[i][1] - track[i - 1][1], track[i][2] - track[i - 1][2]);
-    auto add = [](std::vector<int>& v, int row) {
-      if (std::find(v.begin(), v.end(), row) == v.end()) v.push_back(row);
-    };
-    for (const BufferedObs& o : ranges) {
-      if (o.t > t_now) continue;  // not interpolable yet
-      if (!std::isnan(o.range)) add(w.ranged, o.row);
-      if (!std::isnan(o.bearing)) add(w.beared, o.row), w.angles = true;
-      if (!std::isnan(o.range) && !std::isnan(o.bearing)) add(w.both, o.row);
-    }
-    for (const BufferedHeading& h : headings) w.headings += h.t <= t_now;
-    w.angles = w.angles || w.headings > 0;
-    return w;
-  }
-
-  /// The start rules (localizer.hpp, "Initialization"): (a) range and bearing
-  /// of 2 landmarks; (b) a heading and range and bearing of 1; (c) bearings of
-  /// 3 landmarks, or of 2 after init_min_path of motion; (d) ranges of
-  /// init_min_beacons after init_min_path.  Sets `why` to what the window has.
-  bool rules_hold(const Window& w) {
-    const int nr = static_cast<int>(w.ranged.size()), nb = static_cast<int>(w.beared.size());
-    const int n2 = static_cast<int>(w.both.size());
-    const bool moved = w.path >= settings.init_min_path;
-    most_ranged = std::max(most_ranged, nr);
-    most_beared = std::max(most_beared, nb);
-    most_both = std::max(most_both, n2);
-    const bool ok = (n2 >= 2) || (w.headings > 0 && n2 >= 1) || nb >= 3 || (nb >= 2 && moved) ||
-                    (nr >= settings.init_min_beacons && moved);
-    std::ostringstream os;
-    os << "waiting: in the last " << settings.init_window << " s ranges of " << nr << " landmark(s), bearings of "
-       << nb << " (" << n2 << " with both), " << w.headings << " heading(s), " << std::setprecision(3) << w.path
-       << " m of motion; need range+bearing of 2 landmarks, or a heading and range+bearing of 1, or bearings of 3 "
-       << "(2 after " << settings.init_min_path << " m), or ranges of " << settings.init_min_beacons << " after "
-       << settings.init_min_path << " m (so far at most " << most_ranged << " ranged, " << most_beared
-       << " with bearings, " << most_both << " with both in one window)";
-    why = os.str();
-    return ok;
+  /// The start rules (detail::start_rules); sets `why` to what the window holds.
+  bool rules_hold(const detail::StartWindow& w) {
+    return detail::start_rules(w, settings.init_window, settings.init_min_path, settings.init_min_beacons, most, why);
   }
 
   /// Starting from data: fit the rigid transform (X, Y, φ) from the motion
@@ -369,7 +304,7 @@ struct Localizer::Impl {
     headings.erase(std::remove_if(headings.begin(), headings.end(),
                                   [&](const BufferedHeading& h) { return h.t < t_first; }),
                    headings.end());
-    const Window w = window(t_now);
+    const detail::StartWindow w = detail::start_window(track, ranges, headings, t_now);
     const std::string waiting = why.rfind("waiting", 0) == 0 ? why : std::string();
     if (!rules_hold(w)) return;
     if (w.angles && !fresh) {  // nothing new since the last fit: keep its verdict
@@ -380,13 +315,13 @@ struct Localizer::Impl {
     std::vector<detail::FitObs> obs;
     for (const BufferedObs& r : ranges) {
       if (r.t > t_now) continue;
-      const Eigen::Vector3d q = odo_at(r.t);
+      const Eigen::Vector3d q = detail::odo_at(track, r.t);
       obs.push_back(detail::FitObs{q.x(), q.y(), q.z(), landmarks(r.row, 0), landmarks(r.row, 1), r.range,
                                    r.range_std, r.bearing, r.bearing_std});
     }
     std::vector<detail::FitHeading> hs;
     for (const BufferedHeading& h : headings)
-      if (h.t <= t_now) hs.push_back(detail::FitHeading{odo_at(h.t)[2], h.theta, h.std});
+      if (h.t <= t_now) hs.push_back(detail::FitHeading{detail::odo_at(track, h.t)[2], h.theta, h.std});
     const double k0 = settings.augment.range_scale ? settings.augment.scale_prior : 0.0;
     detail::FitResult fit;
     if (!detail::fit_transform(obs, hs, k0, fit)) {

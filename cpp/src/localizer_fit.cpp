@@ -4,7 +4,9 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <iomanip>
 #include <limits>
+#include <sstream>
 #include <utility>
 
 #include "safenav/measurement.hpp"
@@ -129,6 +131,56 @@ std::vector<Eigen::Vector3d> seeds(const std::vector<FitObs>& obs, const std::ve
 }
 
 }  // namespace
+
+Eigen::Vector3d odo_at(const std::vector<Eigen::Vector4d>& track, double t) {
+  auto hi = std::lower_bound(track.begin(), track.end(), t, [](const Eigen::Vector4d& q, double s) { return q[0] < s; });
+  if (hi == track.end()) return track.back().tail<3>();
+  if (hi == track.begin() || (*hi)[0] == t) return hi->tail<3>();
+  const Eigen::Vector4d& lo = *(hi - 1);
+  const double w = (t - lo[0]) / ((*hi)[0] - lo[0]);
+  const Eigen::Vector2d q = lo.segment<2>(1) + w * (hi->segment<2>(1) - lo.segment<2>(1));
+  return Eigen::Vector3d(q.x(), q.y(), wrap_angle(lo[3] + w * wrap_angle((*hi)[3] - lo[3])));
+}
+
+StartWindow start_window(const std::vector<Eigen::Vector4d>& track, const std::vector<BufferedObs>& obs,
+                         const std::vector<BufferedHeading>& headings, double t_now) {
+  StartWindow w;
+  for (std::size_t i = 1; i < track.size(); ++i)
+    w.path += std::hypot(track[i][1] - track[i - 1][1], track[i][2] - track[i - 1][2]);
+  auto add = [](std::vector<int>& v, int row) {
+    if (std::find(v.begin(), v.end(), row) == v.end()) v.push_back(row);
+  };
+  for (const BufferedObs& o : obs) {
+    if (o.t > t_now) continue;  // not interpolable yet
+    if (!std::isnan(o.range)) add(w.ranged, o.row);
+    if (!std::isnan(o.bearing)) add(w.beared, o.row), w.angles = true;
+    if (!std::isnan(o.range) && !std::isnan(o.bearing)) add(w.both, o.row);
+  }
+  for (const BufferedHeading& h : headings) w.headings += h.t <= t_now;
+  w.angles = w.angles || w.headings > 0;
+  return w;
+}
+
+bool start_rules(const StartWindow& w, double window, double min_path, int min_beacons, StartWindow::Most& most,
+                 std::string& why) {
+  const int nr = static_cast<int>(w.ranged.size()), nb = static_cast<int>(w.beared.size());
+  const int n2 = static_cast<int>(w.both.size());
+  const bool moved = w.path >= min_path;
+  most.ranged = std::max(most.ranged, nr);
+  most.beared = std::max(most.beared, nb);
+  most.both = std::max(most.both, n2);
+  const bool ok = (n2 >= 2) || (w.headings > 0 && n2 >= 1) || nb >= 3 || (nb >= 2 && moved) ||
+                  (nr >= min_beacons && moved);
+  std::ostringstream os;
+  os << "waiting: in the last " << window << " s ranges of " << nr << " landmark(s), bearings of " << nb << " ("
+     << n2 << " with both), " << w.headings << " heading(s), " << std::setprecision(3) << w.path
+     << " m of motion; need range+bearing of 2 landmarks, or a heading and range+bearing of 1, or bearings of 3 "
+     << "(2 after " << min_path << " m), or ranges of " << min_beacons << " after " << min_path
+     << " m (so far at most " << most.ranged << " ranged, " << most.beared << " with bearings, " << most.both
+     << " with both in one window)";
+  why = os.str();
+  return ok;
+}
 
 bool fit_transform(const std::vector<FitObs>& obs, const std::vector<FitHeading>& headings, double k0,
                    FitResult& out) {

@@ -3,11 +3,53 @@
 #pragma once
 
 #include <limits>
+#include <string>
 #include <vector>
 
 #include <Eigen/Core>
 
 namespace safenav::detail {
+
+/// A landmark observation kept for initialization from data (NaN: not measured).
+struct BufferedObs {
+  double t;
+  int row;  // landmark row
+  double range, range_std, bearing, bearing_std;
+};
+
+/// An IMU heading kept for initialization from data.
+struct BufferedHeading {
+  double t, theta, std;
+};
+
+/// The motion integral's pose (x, y, θ) at time t from `track` ((t, x, y, θ)
+/// at each motion input, ≥ 2 rows), interpolated (the heading by its wrapped
+/// change) and held at the ends.
+Eigen::Vector3d odo_at(const std::vector<Eigen::Vector4d>& track, double t);
+
+/// What the buffered data of the window hold, for the start rules.
+struct StartWindow {
+  double path = 0.0;                      ///< motion integral's path in the window [m]
+  std::vector<int> ranged, beared, both;  ///< distinct landmark rows with a range, a bearing, both at once
+  int headings = 0;                       ///< IMU headings
+  bool angles = false;                    ///< any bearing or heading
+  /// The most distinct landmarks seen in any window so far (for reason()).
+  struct Most {
+    int ranged = 0, beared = 0, both = 0;
+  };
+};
+
+/// The window of the observations and headings at or before t_now.
+StartWindow start_window(const std::vector<Eigen::Vector4d>& track, const std::vector<BufferedObs>& obs,
+                         const std::vector<BufferedHeading>& headings, double t_now);
+
+/// The start rules (localizer.hpp, "Initialization"): (a) range and bearing
+/// of 2 landmarks; (b) a heading and range and bearing of 1; (c) bearings of
+/// 3 landmarks, or of 2 after min_path of motion; (d) ranges of min_beacons
+/// after min_path.  Updates `most` and writes what the window holds and what
+/// a start needs into `why`.
+bool start_rules(const StartWindow& w, double window, double min_path, int min_beacons, StartWindow::Most& most,
+                 std::string& why);
 
 /// One buffered landmark observation: the motion integral's pose (qx, qy, qθ)
 /// at its time, the landmark (ax, ay), the range (NaN: not measured) with its
