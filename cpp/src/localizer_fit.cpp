@@ -103,9 +103,9 @@ struct Rows {
 };
 
 /// Starting points: 16 headings × 5 positions around the landmarks' centroid;
-/// with bearings, at each heading also the transform that puts the newest
-/// range+bearing's landmark where it was seen; with headings, the newest
-/// heading's φ at those positions too.
+/// with a range+bearing, at each heading instead the centroid and the
+/// transform that puts the newest range+bearing's landmark where it was seen;
+/// with headings, the newest heading's φ too.
 std::vector<Eigen::Vector3d> seeds(const std::vector<FitObs>& obs, const std::vector<FitHeading>& headings) {
   double ax = 0.0, ay = 0.0;
   for (const FitObs& o : obs) ax += o.ax, ay += o.ay;
@@ -120,11 +120,16 @@ std::vector<Eigen::Vector3d> seeds(const std::vector<FitObs>& obs, const std::ve
     if (!std::isnan(o.range) && !std::isnan(o.bearing)) rb = &o;
   std::vector<Eigen::Vector3d> out;
   for (const double phi : phis) {
-    for (const auto& sd : around) out.emplace_back(sd[0], sd[1], phi);
-    if (!rb) continue;
+    if (!rb) {
+      for (const auto& sd : around) out.emplace_back(sd[0], sd[1], phi);
+      continue;
+    }
+    // With a range+bearing the position at each heading is known: the centroid
+    // seed stays as a fallback, the ±30 m ones are dropped (a third of the work).
     // The landmark at range r and bearing β from T(q): T(q) = a − r·(cos, sin)(qθ + φ + β).
     const double c = std::cos(phi), s = std::sin(phi), b = rb->qth + phi + rb->bearing;
     const double px = rb->ax - rb->range * std::cos(b), py = rb->ay - rb->range * std::sin(b);
+    out.emplace_back(around[0][0], around[0][1], phi);
     out.emplace_back(px - (c * rb->qx - s * rb->qy), py - (s * rb->qx + c * rb->qy), phi);
   }
   return out;

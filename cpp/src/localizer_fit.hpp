@@ -90,9 +90,10 @@ struct FitResult {
 ///   bearing  e = wrap(z − h_β)/σ_b, h_β = predict_bearing(T(q), qθ + φ)  [Placement §III-A]
 ///   heading  e = wrap(θ − qθ − φ)/σ
 /// (the one landmark model, safenav/measurement.hpp), by Gauss–Newton from 16
-/// headings × 5 positions (plus, with bearings or headings, the position that
-/// the newest range+bearing gives at each heading, and the heading an IMU
-/// gives); residuals > 3σ dropped, refitted.  Returns false when no fit is
+/// headings × 5 positions around the landmarks' centroid (with a
+/// range+bearing: × the centroid and the position that the newest
+/// range+bearing gives at that heading; with an IMU heading, its φ too);
+/// residuals > 3σ dropped, refitted.  Returns false when no fit is
 /// found, JᵀJ is singular (degenerate geometry) or the fit is ambiguous.
 bool fit_transform(const std::vector<FitObs>& obs, const std::vector<FitHeading>& headings, double k0,
                    FitResult& out);

@@ -49,9 +49,9 @@
 // buffered range, bearing and heading, with predictions and Jacobians from
 // the one landmark model (landmark_geometry, predict_range, predict_bearing in
 // measurement.hpp; k fixed at augment.scale_prior when the scale state is on):
-// Gauss–Newton from 16 headings × 5 positions (plus, with bearings, the
-// position the newest range+bearing gives at each heading), residuals > 3σ
-// dropped, refitted.  With bearings or headings a fit is tried only when one
+// Gauss–Newton from 16 headings × 5 positions (with a range+bearing: × the
+// landmarks' centroid and the position the newest range+bearing gives at that
+// heading), residuals > 3σ dropped, refitted.  With bearings or headings a fit is tried only when one
 // arrived since the last try.  It starts the filter at the newest motion
 // input when
 //   - ≥ 90 % of the residuals are kept (≤ 3σ),
