@@ -10,6 +10,8 @@ One set of rules for every command:
   ``safenav: error: ...`` line and exit status 2;
 * output folders are written through :mod:`safenav.results` and end with
   ``manifest.json`` (``safenav verify FOLDER`` checks one);
+* ``replay`` exits 3 when the localizer never started (its files are still
+  written; the error line and ``replay.json`` say why);
 * table numbers are the conference version's (I synthetic, II real-imitated,
   III % path-length error, IV ADE/FDE/AWRS/time); the extended version
   numbers them one higher.  Figure numbers are the extended version's

@@ -12,6 +12,9 @@ trials): against the truth, the position RMSE (``truth_rmse``), ADE
 reference), FDE (``truth_fde``, final error, eq. 22), the mean position NEES
 (2 degrees of freedom; 2 for a consistent filter) and the share of poses
 outside the 3σ ellipse, over the truth rows from the localizer's start on.
+A replay never succeeds silently: :attr:`ReplayResult.reason` says why it
+never started (the localizer's ``reason()``) or how many truth poses lie
+before its start.
 
 ``safenav replay LOG`` is the command-line front end (``--help``).
 """
