@@ -128,6 +128,7 @@ def test_the_command_exits_3_and_writes_its_files_when_nothing_is_estimated(tmp_
     assert "never started" in err and len(err.strip().splitlines()) >= 1
     summary = json.loads((out / "replay.json").read_text())
     assert summary["reason"].startswith("never started") and summary["counts"]["motion"] == 0
+    assert summary["t_start"] is None and summary["metrics"] == {}
     assert (out / "trajectory.csv").exists() and (out / "manifest.json").exists()
     assert main(["verify", str(out), "--quiet"]) == 0
 

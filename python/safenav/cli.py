@@ -278,7 +278,7 @@ def _replay(args) -> int:
                    "augmented": [n for n in ("range_scale", "heading_rate_bias", "range_bias")
                                  if getattr(settings.augment, n)],
                    "started_from": result.started_from,
-                   "t_start": result.t_start, "counts": result.counts, "metrics": result.metrics,
+                   "t_start": result.t_start if result.estimated else None, "counts": result.counts, "metrics": result.metrics,
                    "reason": result.reason}
         write_json(out / "replay.json", summary)
         c = result.counts
