@@ -109,10 +109,10 @@ def test_a_two_landmarks_seen_one_at_a_time_while_moving():
 
 def test_b_one_landmark_gives_the_position_once_the_heading_is_known():
     run = Run((6.0, 2.0, 0.6))
-    run.drive(0.1, lambda t, p: [])   # the first motion input: the heading is then taken at a known point
-    run.loc.speed_heading(0.12, 0.0, 0.6 + 0.01 * run.rng.normal(), 0.01, 0.01)   # σ_θ = 0.01 rad
-    run.drive(0.9, lambda t, p: [(1,)], t0=0.1)
-    assert run.t_start == pytest.approx(0.3)      # the motion input after the first frame (t = 0.25)
+    # the heading before any motion input (σ_θ = 0.01 rad): taken where the motion integral starts
+    run.loc.speed_heading(0.0, 0.0, 0.6 + 0.01 * run.rng.normal(), 0.01, 0.01)
+    run.drive(1.0, lambda t, p: [(1,)])
+    assert run.t_start == pytest.approx(0.2)      # the motion input after the first frame (t = 0.15)
     pos, head = run.start_error()
     d = np.hypot(*(LANDMARKS[1] - run.pose[:2]))
     assert pos < tol_position(d) + K * 0.01 * d and head < K * 0.01

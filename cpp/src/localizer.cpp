@@ -301,8 +301,8 @@ struct Localizer::Impl {
     const double t_first = track.front()[0];
     ranges.erase(std::remove_if(ranges.begin(), ranges.end(), [&](const BufferedObs& r) { return r.t < t_first; }),
                  ranges.end());
-    headings.erase(std::remove_if(headings.begin(), headings.end(),
-                                  [&](const BufferedHeading& h) { return h.t < t_first; }),
+    // A heading from before the first motion input is taken at the integral's start.
+    headings.erase(std::remove_if(headings.begin(), headings.end(), [&](const BufferedHeading& h) { return h.t < t0; }),
                    headings.end());
     const detail::StartWindow w = detail::start_window(track, ranges, headings, t_now);
     const std::string waiting = why.rfind("waiting", 0) == 0 ? why : std::string();

@@ -33,7 +33,9 @@
 //       one instant (each sighting places the landmark relative to the
 //       vehicle; two of them fix the heading too); no motion needed;
 //   (b) an IMU heading (speed_heading) AND range and bearing of 1 landmark:
-//       the heading row fixes φ, the sighting the position.  One landmark
+//       the heading row fixes φ, the sighting the position (a heading from
+//       before the first motion input counts as taken where the motion
+//       integral starts: the vehicle has not moved yet).  One landmark
 //       without a heading never suffices: range and bearing are invariant to
 //       rotating the whole track about the landmark;
 //   (c) bearings alone: of ≥ 3 landmarks (resection, no motion needed), or of
