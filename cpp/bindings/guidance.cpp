@@ -182,6 +182,9 @@ void bind_localizer(py::module_& m) {
           },
           "The full augmented state (x, y, v, theta, [k], [beta], [b_j]), or None without augmented states.")
       .def_property_readonly("counts", &Localizer::counts)
+      .def("reason", &Localizer::reason,
+           "Why it has not started ('waiting: ...': what the recent data hold, what a start needs, the last "
+           "fit's verdict), or how it started ('started at t = ...').")
       .def_property_readonly("settings", &Localizer::settings)
       .def_property_readonly("landmarks", &Localizer::landmarks)
       .def("landmark_index", &Localizer::landmark_index, py::arg("id"));
@@ -288,7 +291,8 @@ void pybind_guidance(py::module_& m) {
       .def_readonly("rejected", &LocalizerCounts::rejected)
       .def_readonly("resets", &LocalizerCounts::resets)
       .def_readonly("late", &LocalizerCounts::late)
-      .def_readonly("buffered", &LocalizerCounts::buffered);
+      .def_readonly("buffered", &LocalizerCounts::buffered)
+      .def_readonly("ignored", &LocalizerCounts::ignored);
 
   bind_localizer(m);
   bind_guidance(m);

@@ -5,6 +5,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <iomanip>
 #include <optional>
 #include <sstream>
 #include <stdexcept>
@@ -28,6 +29,12 @@ constexpr double kSameTime = 1e-9;
 /// (the fit's own covariance ignores the odometry's drift within the window).
 constexpr std::size_t kMaxBufferedRanges = 100000;
 constexpr double kInitPositionFloor = 0.05, kInitHeadingFloor = 0.01;
+/// Starting from data with bearings or headings: the fit's heading σ must be
+/// below this [rad] (a range-only fit is judged by its position σ alone, as before).
+constexpr double kInitMaxHeadingStd = 0.1;
+/// A fit must keep at least this share of its residuals (≤ 3σ): one that explains
+/// the data only by dropping many of them (a mirror image of the truth) is not trusted.
+constexpr double kInitMinInlierShare = 0.9;
 
 using detail::bad;
 
@@ -37,12 +44,8 @@ void check_time(double t, const char* what) {
   if (!std::isfinite(t)) bad(std::string(what) + ": time t = " + num(t) + " is not finite");
 }
 
-/// A range kept for initialization from data.
-struct BufferedRange {
-  double t;
-  int row;  // landmark row
-  double range, std;
-};
+using detail::BufferedHeading;
+using detail::BufferedObs;
 
 /// A position known before the heading (trilateration or a fix), with the
 /// motion-integrated pose at that time.
@@ -110,7 +113,11 @@ struct Localizer::Impl {
   StateCov P_none = StateCov::Constant(kNaN);
 
   // Initialization from data.
-  std::vector<BufferedRange> ranges;  // ranges within init_window of the newest motion input
+  std::vector<BufferedObs> ranges;  // observations within init_window of the newest motion input
+  std::vector<BufferedHeading> headings;  // IMU headings within init_window
+  bool fresh = false;  // an observation or heading with a bearing or heading arrived since the last fit
+  std::string why = "waiting: no motion input yet";  // Localizer::reason()
+  detail::StartWindow::Most most;  // the most distinct landmarks in any window so far
   std::vector<Eigen::Vector4d> track;  // (t, x, y, θ): the motion integral at each motion input
   std::optional<Anchor> anchor;
   Eigen::Vector3d odo = Eigen::Vector3d::Zero();  // motion integral (x, y, θ) in its own frame
@@ -151,9 +158,11 @@ struct Localizer::Impl {
                          seed);
     fix_rejections = 0;
     t_f = t;
+    why = "started at t = " + num(t);
     if (!(t_motion <= t)) t_motion = t;
     owed_distance = owed_heading = 0.0;
     ranges.clear();
+    headings.clear();
     track.clear();
     anchor.reset();
   }
@@ -225,6 +234,7 @@ struct Localizer::Impl {
   InputResult status(InputStatus s) {
     if (s == InputStatus::Late) ++counts.late;
     if (s == InputStatus::Buffered) ++counts.buffered;
+    if (s == InputStatus::Ignored) ++counts.ignored;
     InputResult out;
     out.status = s;
     return out;
@@ -273,47 +283,60 @@ struct Localizer::Impl {
     track.push_back(Eigen::Vector4d(t, odo[0], odo[1], odo[2]));
   }
 
-  /// Starting from ranges: fit the rigid transform (X, Y, φ) from the motion
-  /// integral's frame to the world to the ranges of the last init_window
-  /// seconds (ours, after ref.py's _init_from_data): minimise
-  /// Σ (r − (1+k₀)‖T(q(t_r)) − a‖)²/σ_r², q(t_r) the motion integral's
-  /// position interpolated to the range's time; Gauss–Newton from 16 headings
-  /// × 5 positions, residuals > 3σ dropped, refitted.  Starts the filter at
-  /// the newest motion input when the fit is good enough.
+  /// The start rules (detail::start_rules); sets `why` to what the window holds.
+  bool rules_hold(const detail::StartWindow& w) {
+    return detail::start_rules(w, settings.init_window, settings.init_min_path, settings.init_min_beacons, most, why);
+  }
+
+  /// Starting from data: fit the rigid transform (X, Y, φ) from the motion
+  /// integral's frame to the world to the observations and headings of the
+  /// last init_window seconds (detail::fit_transform) once a start rule holds
+  /// (rules_hold); with bearings or headings only when one arrived since the
+  /// last fit.  Starts the filter at the newest motion input when the fit is
+  /// good enough (accept_fit).
   void try_fit(double t_now) {
     const double t0 = t_now - settings.init_window;
     track.erase(track.begin(), std::find_if(track.begin(), track.end(), [&](const Eigen::Vector4d& q) { return q[0] >= t0; }));
     if (track.size() < 2) return;
     const double t_first = track.front()[0];
-    ranges.erase(std::remove_if(ranges.begin(), ranges.end(), [&](const BufferedRange& r) { return r.t < t_first; }),
+    ranges.erase(std::remove_if(ranges.begin(), ranges.end(), [&](const BufferedObs& r) { return r.t < t_first; }),
                  ranges.end());
-    double path = 0.0;
-    for (std::size_t i = 1; i < track.size(); ++i)
-      path += std::hypot(track[i][1] - track[i - 1][1], track[i][2] - track[i - 1][2]);
-    if (path < settings.init_min_path) return;
-    using Obs = detail::RangeObs;
-    std::vector<Obs> obs;
-    std::vector<int> rows;
-    for (const BufferedRange& r : ranges) {
-      if (r.t > t_now) continue;  // not interpolable yet
-      auto hi = std::lower_bound(track.begin(), track.end(), r.t, [](const Eigen::Vector4d& q, double t) { return q[0] < t; });
-      Eigen::Vector2d q;
-      if (hi == track.end()) q = track.back().segment<2>(1);
-      else if (hi == track.begin() || (*hi)[0] == r.t) q = hi->segment<2>(1);
-      else {
-        const Eigen::Vector4d& lo = *(hi - 1);
-        const double w = (r.t - lo[0]) / ((*hi)[0] - lo[0]);
-        q = lo.segment<2>(1) + w * (hi->segment<2>(1) - lo.segment<2>(1));
-      }
-      obs.push_back(Obs{q.x(), q.y(), landmarks(r.row, 0), landmarks(r.row, 1), r.range, r.std});
-      if (std::find(rows.begin(), rows.end(), r.row) == rows.end()) rows.push_back(r.row);
+    // A heading from before the first motion input is taken at the integral's start.
+    headings.erase(std::remove_if(headings.begin(), headings.end(), [&](const BufferedHeading& h) { return h.t < t0; }),
+                   headings.end());
+    const detail::StartWindow w = detail::start_window(track, ranges, headings, t_now);
+    const std::string waiting = why.rfind("waiting", 0) == 0 ? why : std::string();
+    if (!rules_hold(w)) return;
+    if (w.angles && !fresh) {  // nothing new since the last fit: keep its verdict
+      if (!waiting.empty()) why = waiting;
+      return;
     }
-    if (static_cast<int>(rows.size()) < settings.init_min_beacons) return;
+    fresh = false;
+    std::vector<detail::FitObs> obs;
+    for (const BufferedObs& r : ranges) {
+      if (r.t > t_now) continue;
+      const Eigen::Vector3d q = detail::odo_at(track, r.t);
+      obs.push_back(detail::FitObs{q.x(), q.y(), q.z(), landmarks(r.row, 0), landmarks(r.row, 1), r.range,
+                                   r.range_std, r.bearing, r.bearing_std});
+    }
+    std::vector<detail::FitHeading> hs;
+    for (const BufferedHeading& h : headings)
+      if (h.t <= t_now) hs.push_back(detail::FitHeading{detail::odo_at(track, h.t)[2], h.theta, h.std});
     const double k0 = settings.augment.range_scale ? settings.augment.scale_prior : 0.0;
-    Eigen::Vector3d th;
-    double rms;
-    Eigen::Matrix3d C;
-    if (!detail::fit_transform(obs, k0, th, rms, C)) return;
+    detail::FitResult fit;
+    if (!detail::fit_transform(obs, hs, k0, fit)) {
+      why += "; last fit at t = " + num(t_now) +
+             (fit.ambiguous ? ": ambiguous (another pose explains the data as well)"
+                            : ": degenerate geometry (the data do not fix X, Y and the heading)");
+      return;
+    }
+    accept_fit(t_now, fit);
+  }
+
+  /// Starts the filter from a fit when its residual RMS, position σ and (with
+  /// bearings or headings) heading σ pass; else records why not.
+  void accept_fit(double t_now, const detail::FitResult& fit) {
+    const Eigen::Vector3d& th = fit.th;
     // The pose at t_now and the covariance of (x, y, θ) through the transform.
     const double c = std::cos(th[2]), s = std::sin(th[2]);
     const Eigen::Vector4d& q = track.back();
@@ -321,9 +344,24 @@ struct Localizer::Impl {
     Eigen::Matrix3d Jt = Eigen::Matrix3d::Identity();
     Jt(0, 2) = -s * q[1] - c * q[2];
     Jt(1, 2) = c * q[1] - s * q[2];
-    const Eigen::Matrix3d Cp = Jt * C * Jt.transpose();
+    const Eigen::Matrix3d Cp = Jt * fit.C * Jt.transpose();
     const double pos_std = std::sqrt(std::max(Cp(0, 0), Cp(1, 1)));
-    if (!(rms <= settings.init_max_rms && pos_std <= settings.init_max_pos_std)) return;
+    const double heading_std = std::sqrt(std::max(0.0, Cp(2, 2)));
+    // A range-only fit: its range RMS in metres; with bearings or headings the normalised RMS (in σ).
+    const bool angles = fit.angle_rows > 0;
+    const double rms = angles ? fit.normalised_rms : fit.range_rms;
+    std::ostringstream os;
+    const bool kept = fit.rows >= kInitMinInlierShare * fit.all_rows;
+    os << std::setprecision(3) << fit.rows << " of " << fit.all_rows << " residuals kept, residual RMS " << rms << (angles ? " σ" : " m") << ", position σ " << pos_std
+       << " m, heading σ " << heading_std << " rad";
+    if (!(kept && rms <= settings.init_max_rms && pos_std <= settings.init_max_pos_std &&
+          (!angles || heading_std <= kInitMaxHeadingStd))) {
+      std::ostringstream lim;
+      lim << std::setprecision(3) << " (limits " << kInitMinInlierShare << " kept, " << settings.init_max_rms << ", " << settings.init_max_pos_std
+          << " m" << (angles ? ", " + num(kInitMaxHeadingStd) + " rad" : std::string()) << ")";
+      why += "; last fit at t = " + num(t_now) + ": " + os.str() + lim.str();
+      return;
+    }
     StateCov P0 = StateCov::Zero();
     const int map[3] = {kX, kY, kTheta};
     for (int i = 0; i < 3; ++i)
@@ -334,6 +372,7 @@ struct Localizer::Impl {
     P0(kV, kV) = settings.init_speed_std * settings.init_speed_std;
     const double speed = std::isfinite(rate_speed) ? std::max(0.0, rate_speed) : 0.0;
     start(t_now, State(px, py, speed, wrap_angle(th[2] + q[3])), 0.5 * (P0 + P0.transpose()));
+    why += " from the data (" + os.str() + ")";
   }
 };
 
@@ -446,9 +485,11 @@ InputResult Localizer::observe(double t, const LandmarkObservation& o) {
     bad("observation of landmark " + std::to_string(o.id) + ": bearing_std = " + num(o.bearing_std) + " must be > 0");
   const int row = it->second;
   if (!I.initialized()) {
-    if (!has_r) return I.status(InputStatus::Ignored);
     if (I.ranges.size() >= kMaxBufferedRanges) I.ranges.erase(I.ranges.begin());
-    I.ranges.push_back(BufferedRange{t, row, o.range, o.range_std});  // fitted after the next motion input
+    // Fitted after the next motion input (range and bearing as measured, NaN where not).
+    I.ranges.push_back(BufferedObs{t, row, has_r ? o.range : kNaN, o.range_std, has_b ? o.bearing : kNaN,
+                                   o.bearing_std});
+    I.fresh = I.fresh || has_b;
     return I.status(InputStatus::Buffered);
   }
   LandmarkMeasurement m;
@@ -516,6 +557,9 @@ InputResult Localizer::speed_heading(double t, const Eigen::Vector2d& z, const E
     I.imu_heading = wrap_angle(z[1]);
     I.imu_heading_var = R(1, 1);
     I.t_imu = t;
+    if (I.headings.size() >= kMaxBufferedRanges) I.headings.erase(I.headings.begin());
+    I.headings.push_back(BufferedHeading{t, I.imu_heading, std::sqrt(R(1, 1))});
+    I.fresh = true;
     return I.status(InputStatus::Buffered);
   }
   return I.atomic("speed_heading", t, [&] {
@@ -528,6 +572,13 @@ const State& Localizer::x() const { return impl_->filter ? impl_->filter->x() : 
 const StateCov& Localizer::P() const { return impl_->filter ? impl_->filter->P() : impl_->P_none; }
 double Localizer::position_std() const { return safenav::position_std(P()); }
 const LocalizerCounts& Localizer::counts() const { return impl_->counts; }
+std::string Localizer::reason() const {
+  const Impl& I = *impl_;
+  if (!I.initialized() && !std::isfinite(I.t_motion))
+    return "waiting: no motion input yet (" + std::to_string(I.ranges.size()) + " observation(s), " +
+           std::to_string(I.headings.size()) + " heading(s) buffered)";
+  return I.why;
+}
 const LocalizerSettings& Localizer::settings() const { return impl_->settings; }
 const Bmm& Localizer::model() const { return impl_->bmm; }
 int Localizer::landmark_index(int id) const {

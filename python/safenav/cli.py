@@ -10,6 +10,8 @@ One set of rules for every command:
   ``safenav: error: ...`` line and exit status 2;
 * output folders are written through :mod:`safenav.results` and end with
   ``manifest.json`` (``safenav verify FOLDER`` checks one);
+* ``replay`` exits 3 when the localizer never started (its files are still
+  written; the error line and ``replay.json`` say why);
 * table numbers are the conference version's (I synthetic, II real-imitated,
   III % path-length error, IV ADE/FDE/AWRS/time); the extended version
   numbers them one higher.  Figure numbers are the extended version's
@@ -276,20 +278,25 @@ def _replay(args) -> int:
                    "augmented": [n for n in ("range_scale", "heading_rate_bias", "range_bias")
                                  if getattr(settings.augment, n)],
                    "started_from": result.started_from,
-                   "t_start": result.t_start, "counts": result.counts, "metrics": result.metrics}
+                   "t_start": result.t_start if result.estimated else None, "counts": result.counts, "metrics": result.metrics,
+                   "reason": result.reason}
         write_json(out / "replay.json", summary)
         c = result.counts
+        started = (f"started from the {result.started_from} at t = {result.t_start:.2f} s" if result.estimated
+                   else "never started")
         print(f"{args.log}: {len(log.events)} inputs, preset {preset}, {args.filter}, augmented states "
-              f"{summary['augmented'] or 'none'}; started from the {result.started_from} at t = "
-              f"{result.t_start:.2f} s; updates applied {c['applied']}, rejected {c['rejected']}, late {c['late']}, "
-              f"before the start {c['buffered']}")
+              f"{summary['augmented'] or 'none'}; {started}; updates applied {c['applied']}, rejected "
+              f"{c['rejected']}, late {c['late']}, before the start {c['buffered']}, ignored {c['ignored']}")
+        if result.reason:
+            print(f"{'safenav: error: ' if not result.estimated else ''}{result.reason}",
+                  file=sys.stderr if not result.estimated else sys.stdout)
         if result.metrics:
             m = result.metrics
             print(f"against the truth ({m['label']}, {m['n_scored']} poses, {m['n_before_start']} before the start): "
                   f"RMSE {m['truth_rmse']:.3f} m, ADE {m['truth_ade']:.3f} m, FDE {m['truth_fde']:.3f} m, "
                   f"NEES {m['nees']:.2f} (2 if consistent)")
         _wrote(run)
-    return 0
+    return 0 if result.estimated else 3   # 3: nothing was estimated (the files say why)
 
 
 def _experiment(args) -> int:

@@ -12,6 +12,9 @@ trials): against the truth, the position RMSE (``truth_rmse``), ADE
 reference), FDE (``truth_fde``, final error, eq. 22), the mean position NEES
 (2 degrees of freedom; 2 for a consistent filter) and the share of poses
 outside the 3σ ellipse, over the truth rows from the localizer's start on.
+A replay never succeeds silently: :attr:`ReplayResult.reason` says why it
+never started (the localizer's ``reason()``) or how many truth poses lie
+before its start.
 
 ``safenav replay LOG`` is the command-line front end (``--help``).
 """
@@ -70,6 +73,16 @@ class ReplayResult:
     started_from: str               #: "data" or "prior"
     #: truth_rmse, truth_ade, truth_fde, nees, nees_dof, outside_3sigma, n_scored, n_before_start, label
     metrics: dict = field(default_factory=dict)
+    #: why the replay estimated less than the whole log: the localizer's
+    #: :meth:`~safenav.guidance.Localizer.reason` when it never started
+    #: ("waiting: ..."), or how many truth poses lie before its start; "" when
+    #: every truth pose (or, without truth, every input) is covered.
+    reason: str = ""
+
+    @property
+    def estimated(self) -> bool:
+        """Whether the localizer produced any estimate."""
+        return len(self.trajectory) > 0
 
 
 def load(path, *, range_std: float = 1.0) -> Log:
@@ -132,9 +145,14 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None) -
     c = loc.counts
     result = ReplayResult(trajectory=traj, t_start=t_start, started_from="prior" if prior is not None else "data",
                           counts={"motion": c.motion, "applied": c.applied, "rejected": c.rejected, "late": c.late,
-                                  "buffered": c.buffered})
+                                  "buffered": c.buffered, "ignored": c.ignored})
     if log.truth is not None and len(traj):
         result.metrics = score(traj, log.truth)
+    if not len(traj):
+        result.reason = f"never started: {loc.reason()}"
+    elif result.metrics and result.metrics["n_before_start"] > 0:
+        n, m = result.metrics["n_before_start"], len(log.truth)
+        result.reason = f"{n} of {m} truth poses lie before the start, unscored; {loc.reason()}"
     return result
 
 

@@ -22,16 +22,50 @@
 // Equal times are applied in call order.
 //
 // Initialization.  initialize() takes a prior.  Without one the localizer
-// starts from the data.  From ranges: it dead-reckons the motion inputs in
-// their own frame and buffers them with the ranges; after each motion input,
-// once ranges of ≥ init_min_beacons landmarks lie within the last init_window
-// seconds and the motion path there is ≥ init_min_path, it fits the rigid
-// transform (X, Y, φ) from that frame to the world to the ranges (Gauss–Newton
-// from 16 headings × 5 positions, residuals > 3σ dropped, refitted; k fixed at
-// augment.scale_prior when the scale state is on) and starts when the fit's
-// inlier RMS and position σ are small enough.  From position fixes: with an
-// IMU heading at once, else once the vehicle has moved init_baseline metres
-// (the heading from two fixes and the motion between them).  Until then
+// starts from the data.  It dead-reckons the motion inputs in their own frame
+// (the motion integral: pose q(t) = (q_x, q_y, ψ_q)) and buffers every landmark
+// observation (range, bearing or both) and IMU heading.  After each motion
+// input it fits the rigid transform (X, Y, φ) from that frame to the world —
+// world position T(q) = (X, Y) + R(φ)q, world heading ψ_q + φ — to the buffered
+// data of the last init_window seconds (those at or after the first motion
+// input's start), once one of these rules holds (the condition for each):
+//   (a) range AND bearing of ≥ 2 distinct landmarks: the whole pose, even from
+//       one instant (each sighting places the landmark relative to the
+//       vehicle; two of them fix the heading too); no motion needed;
+//   (b) an IMU heading (speed_heading) AND range and bearing of 1 landmark:
+//       the heading row fixes φ, the sighting the position (a heading from
+//       before the first motion input counts as taken where the motion
+//       integral starts: the vehicle has not moved yet).  One landmark
+//       without a heading never suffices: range and bearing are invariant to
+//       rotating the whole track about the landmark;
+//   (c) bearings alone: of ≥ 3 landmarks (resection, no motion needed), or of
+//       2 once the motion integral's path in the window is ≥ init_min_path;
+//   (d) ranges of ≥ init_min_beacons landmarks once the path is ≥
+//       init_min_path (as before bearings were used: a range-only fit is
+//       tried after every motion input and accepted on its range RMS in
+//       metres and its position σ alone).
+// Position fixes start it as before: with an IMU heading at once, else once
+// the vehicle has moved init_baseline metres (the heading from two fixes and
+// the motion between them).
+// The fit (localizer_fit.hpp) minimises the normalised residuals of every
+// buffered range, bearing and heading, with predictions and Jacobians from
+// the one landmark model (landmark_geometry, predict_range, predict_bearing in
+// measurement.hpp; k fixed at augment.scale_prior when the scale state is on):
+// Gauss–Newton from 16 headings × 5 positions (with a range+bearing: × the
+// landmarks' centroid and the position the newest range+bearing gives at that
+// heading), residuals > 3σ dropped, refitted.  With bearings or headings a fit is tried only when one
+// arrived since the last try.  It starts the filter at the newest motion
+// input when
+//   - ≥ 90 % of the residuals are kept (≤ 3σ),
+//   - the inlier RMS ≤ init_max_rms: in metres of range for a range-only fit,
+//     in σ (normalised, dimensionless) when bearings or headings are mixed in,
+//   - the position σ at that input ≤ init_max_pos_std, and, with bearings or
+//     headings, the heading σ ≤ 0.1 rad,
+// and the geometry is not degenerate: JᵀJ is invertible (one landmark, no
+// motion for bearings, a track along the line of the landmarks fail here) and
+// no other start reached a transform > 5σ away with a cost within χ²₃(0.99)
+// of the best (a mirror image: ambiguous).  reason() says what the window
+// holds, what a start needs and the last fit's verdict.  Until the start
 // inputs return Buffered.  It never needs a true pose.
 //
 // The filter.  The localizer holds one Filter (safenav/filter.hpp): the EKF
@@ -111,9 +145,12 @@ struct LocalizerSettings {
   /// default.
   AugmentedStates augment;
   double init_window = 30.0;       ///< [s] odometry and ranges this recent are fitted together to start from the data
-  double init_min_path = 3.0;      ///< [m] odometry path within the window before a fit is tried
+  double init_min_path = 3.0;      ///< [m] odometry path within the window before a range-only fit (rule d) or a fit to bearings of 2 landmarks (rule c) is tried
   int init_min_beacons = 3;        ///< distinct landmarks ranged within the window before a fit is tried
-  double init_max_rms = 1.2;       ///< [m] accept the fit only if its inlier range residual RMS is below this
+  /// Accept the fit only if its inlier residual RMS is below this: [m] of
+  /// range for a range-only fit; in σ (normalised residuals, dimensionless)
+  /// when the fit mixes in bearings or headings.
+  double init_max_rms = 1.2;
   double init_max_pos_std = 0.5;   ///< [m] … and its position σ below this
   double init_cov_inflation = 4.0; ///< the fit's pose covariance is multiplied by this
   double init_baseline = 5.0;      ///< [m] motion before the heading is taken from two position fixes
@@ -133,6 +170,7 @@ struct LocalizerCounts {
   int rejected = 0;  ///< failed the gate (resets included: their fix failed it too)
   int late = 0;      ///< older than the filter's time
   int buffered = 0;  ///< before initialization
+  int ignored = 0;   ///< of no use (InputStatus::Ignored)
   int resets = 0;    ///< position resets after consecutive rejected fixes
 };
 
@@ -168,6 +206,10 @@ class Localizer {
   const StateCov& P() const;
   double position_std() const;
   const LocalizerCounts& counts() const;
+  /// Why the localizer has not started ("waiting: …": what the window holds,
+  /// what a start needs, and the last fit's verdict), or how it started
+  /// ("started at t = … from the data (…)").
+  std::string reason() const;
   const LocalizerSettings& settings() const;
   const Bmm& model() const;
   /// Row of landmark `id` in the map, or −1.
