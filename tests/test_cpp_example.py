@@ -234,6 +234,11 @@ def test_log_replay_to_stdout_and_errors(example_build, synthetic_log_path, tmp_
     assert proc.returncode == 0 and "truth_rmse=" not in proc.stdout and "rows=" in proc.stdout
     proc = subprocess.run([exe, str(no_truth), "--prior-from-truth"], capture_output=True, text=True)
     assert proc.returncode == 2 and "no truth rows" in proc.stderr
+    # A log with nothing to start from (motion only): the reason, and a failure (as `safenav replay`).
+    blind = tmp_path / "blind.csv"
+    table[table["kind"].isin(["landmark", "motion", "odometry", "truth"])].to_csv(blind, index=False)
+    proc = subprocess.run([exe, str(blind), "-o", str(tmp_path / "b.csv")], capture_output=True, text=True)
+    assert proc.returncode == 3 and "never started:" in proc.stderr and "rows=0" in proc.stdout, proc.stderr
     # Bad files are one-line errors naming the line, not crashes.
     bad = tmp_path / "bad.csv"
     bad.write_text("t,kind,landmark,x,y\n,landmark,0,1.0,2.0\n0.5,odom,,,\n")

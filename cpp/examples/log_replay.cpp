@@ -285,5 +285,9 @@ int main(int argc, char** argv) {
                prior_from_truth ? "prior" : "data", t_start, traj.size(), c.motion, c.applied, c.rejected, c.late,
                c.buffered);
   print_scores(log, traj, info);
+  if (std::isnan(t_start)) {  // nothing was estimated: say why, and fail (as `safenav replay`)
+    std::fprintf(stderr, "log_replay: never started: %s\n", loc.reason().c_str());
+    return 3;
+  }
   return 0;
 }
