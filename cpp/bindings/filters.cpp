@@ -1,4 +1,5 @@
 #include "common.hpp"
+#include "params.hpp"
 #include "safenav/filters.hpp"
 
 using namespace safenav;
@@ -78,7 +79,7 @@ void bind_batch(py::module_& m) {
       .value("PF", FilterType::ParticleFilter)
       .value("EIF", FilterType::InformationFilter);
 
-  py::class_<FilterOptions>(m, "FilterOptions")
+  def_params<FilterOptions>(py::class_<FilterOptions>(m, "FilterOptions"))
       .def(py::init<>())
       .def_readwrite("type", &FilterOptions::type)
       .def_readwrite("n_particles", &FilterOptions::n_particles)

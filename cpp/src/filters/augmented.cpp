@@ -35,8 +35,6 @@ void check_finite2(const Eigen::Vector2d& z, const char* what) {
 
 }  // namespace
 
-void AugmentedStates::validate() const { param_set<AugmentedStates>().check(*this, "augment."); }
-
 AugmentedEkf::AugmentedEkf(const BmmParams& params, const AugmentedStates& augment, int n_landmarks,
                            const State& x0, const StateCov& P0)
     : bmm_(params), augment_(augment), n_landmarks_(n_landmarks) {
