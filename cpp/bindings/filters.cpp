@@ -85,7 +85,10 @@ void bind_batch(py::module_& m) {
       .def_readwrite("n_particles", &FilterOptions::n_particles)
       .def_readwrite("resample_threshold", &FilterOptions::resample_threshold)
       .def_readwrite("seed", &FilterOptions::seed)
-      .def_readwrite("gate_probability", &FilterOptions::gate_probability);
+      .def_readwrite("gate_probability", &FilterOptions::gate_probability)
+      .def(
+          "validate", [](const FilterOptions& o) { o.validate(); },
+          "ValueError naming the first field (filter.<name>) outside its declared range.");
 
   py::class_<FilterRun>(m, "FilterRun")
       .def_readonly("states", &FilterRun::states)

@@ -4,6 +4,7 @@
 #include "safenav/params.hpp"
 
 #include <cmath>
+#include <cstdlib>
 #include <sstream>
 #include <stdexcept>
 
@@ -13,11 +14,17 @@ namespace safenav {
 
 namespace {
 
+/// The shortest text that reads back as v (1e-06, not 9.9999999999999995e-07).
 std::string number(double v) {
-  std::ostringstream os;
-  os.precision(17);
-  os << v;
-  return os.str();
+  std::string text;
+  for (int precision = 15; precision <= 17; ++precision) {
+    std::ostringstream os;
+    os.precision(precision);
+    os << v;
+    text = os.str();
+    if (!std::isfinite(v) || std::strtod(text.c_str(), nullptr) == v) break;
+  }
+  return text;
 }
 
 }  // namespace
