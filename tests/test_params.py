@@ -312,3 +312,25 @@ def test_the_named_position_profiles_lie_in_the_declared_ranges():
         p = _core.PositionNoise.named(name)
         p.check_params()
         assert (p.get_param("std_x"), p.get_param("std_y")) == tuple(p.std)
+
+
+def test_docs_list_the_core_settings_outside_scenario_files():
+    """docs/scenario.md has a table per struct whose parameters no scenario
+    section sets, with each declared parameter's range and unit."""
+    from pathlib import Path
+
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "scenario.md").read_text(encoding="utf-8")
+    part = doc.split("## Core settings outside scenario files", 1)[1]
+    nested = ("bmm_", "augment_", "filter_")
+    for core_type in (_core.GuardSettings, _core.FilterOptions, _core.SegmentOptions, _core.LocalizerSettings,
+                      _core.PositionNoise, _core.LocalizationOptions, _core.BoxRangeOptions):
+        section = part.split(f"### `{core_type.__name__}`", 1)[1].split("###", 1)[0]
+        rows = {cells[1].strip(): [c.strip() for c in cells[1:6]]
+                for cells in (line.split("|") for line in section.splitlines() if line.startswith("| `"))}
+        own = [s for s in core_type.params()
+               if core_type is not _core.LocalizerSettings or not (s.name.startswith(nested) or s.name == "gate_probability")]
+        assert sorted(rows) == sorted(f"`{s.name}`" for s in own), core_type.__name__
+        for s in own:
+            _, _, rng, unit, meaning = rows[f"`{s.name}`"]
+            assert rng == ("true or false" if s.kind == _core.ParamKind.BOOLEAN else s.range_text()), s.name
+            assert unit == s.unit and meaning, s.name
