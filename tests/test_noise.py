@@ -66,9 +66,9 @@ def test_profiles_pickle_and_keep_every_field():
 
 # --------------------------------------------------------------------------- validation
 
-BAD = [("std", (0.1, 0.0), r"position.std = \(0.1, 0\): both must be finite and > 0"),
-       ("std", (np.nan, 0.1), r"position.std = \(nan, 0.1\)"),
-       ("bias_std", -0.5, r"position.bias_std = -0.5: must be finite and >= 0"),
+BAD = [("std", (0.1, 0.0), r"position.std_y = 0: must be in \[1e-06, 100\] m"),
+       ("std", (np.nan, 0.1), r"position.std_x = nan"),
+       ("bias_std", -0.5, r"position.bias_std = -0.5: must be in \[0, 10000\] m"),
        ("bias_std", np.inf, r"position.bias_std = inf"),
        ("bias_walk_std", np.nan, r"position.bias_walk_std = nan"),
        ("outlier_std", -1.0, r"position.outlier_std = -1"),

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 
 import pytest
 
@@ -14,7 +15,9 @@ from safenav.scenario import (_SECTIONS, BmmConfig, BufferParams, DetectionParam
                               PlannerParams, default_scenario)
 
 CORE_TYPES = (_core.BmmParams, _core.RiskZones, _core.PlannerSettings, _core.PlanningMap,
-              _core.NavigationSettings, _core.SensorSettings, _core.LocalizerSettings, _core.AugmentedStates)
+              _core.NavigationSettings, _core.SensorSettings, _core.LocalizerSettings, _core.AugmentedStates,
+              _core.GuardSettings, _core.FilterOptions, _core.PositionNoise, _core.SegmentOptions,
+              _core.LocalizationOptions, _core.BoxRangeOptions)
 
 
 @pytest.mark.parametrize("core_type", CORE_TYPES, ids=lambda t: t.__name__)
@@ -57,7 +60,8 @@ def test_set_param_checks_the_declared_range_at_its_ends(core_type):
             got = obj.get_param(s.name)
             assert (got[0] if s.kind == _core.ParamKind.REAL_LIST else got) == good, s.name
         bad_lo = s.lo if s.lo_open else (s.lo - 1 if s.kind == _core.ParamKind.INTEGER else math.nextafter(s.lo, -math.inf))
-        for bad in (bad_lo, s.hi * 2 + 1, math.nan):
+        # an infinite hi is "no limit" (inf itself means "none"): nothing lies above it
+        for bad in (bad_lo, math.nan) + ((s.hi * 2 + 1,) if math.isfinite(s.hi) else ()):
             value = [bad] if s.kind == _core.ParamKind.REAL_LIST else bad
             label = f"{s.name}\\[0\\]" if s.kind == _core.ParamKind.REAL_LIST else s.name
             with pytest.raises(ValueError, match=rf"^{label} = .*: must be .*in [\[(]"):
@@ -174,3 +178,159 @@ def test_every_struct_validates_its_declared_ranges():
     s.min_landmarks = 0
     with pytest.raises(ValueError, match=r"sensors.min_landmarks = 0: must be an integer in \[1, 1000\]"):
         s.validate()
+
+
+# --------------------------------------------------------------------------- nested sets: each field declared once
+
+#: (outer struct, its member, the inner struct, prefix, names that keep a scenario key other than prefix + name)
+NESTED = [(_core.NavigationSettings, "guard", _core.GuardSettings, "guard_", {}),
+          (_core.NavigationSettings, "filter", _core.FilterOptions, "filter_", {"gate_probability": "gate_probability"}),
+          (_core.NavigationSettings, "segments", _core.SegmentOptions, "segment_", {"sub_segments": "sub_segments"}),
+          (_core.LocalizerSettings, "filter", _core.FilterOptions, "filter_", {"gate_probability": "gate_probability"}),
+          (_core.LocalizerSettings, "bmm", _core.BmmParams, "bmm_", {}),
+          (_core.LocalizerSettings, "augment", _core.AugmentedStates, "augment_", {})]
+
+
+def _spec_key(s):
+    return (s.kind, s.unit, s.lo, s.hi, s.lo_open, s.max_size, s.doc)
+
+
+@pytest.mark.parametrize("outer, member, inner, prefix, rename", NESTED,
+                         ids=lambda v: v if isinstance(v, str) and v else getattr(v, "__name__", None))
+def test_a_nested_struct_is_declared_once_and_reached_through_the_outer_set(outer, member, inner, prefix, rename):
+    """Every parameter of the inner struct appears in the outer set, with the
+    inner declaration's range, unit and doc, under prefix + name (or its kept
+    scenario key), and reads and writes the nested member."""
+    outer_specs = {s.name: s for s in outer.params()}
+    for s in inner.params():
+        name = rename.get(s.name, prefix + s.name)
+        assert name in outer_specs, (outer.__name__, name)
+        assert _spec_key(outer_specs[name]) == _spec_key(s), name
+        o = outer()
+        if s.kind == _core.ParamKind.BOOLEAN:
+            value = not o.get_param(name)
+        elif s.kind == _core.ParamKind.INTEGER:
+            value = int(s.hi) if o.get_param(name) != s.hi else int(max(s.lo + (1 if s.lo_open else 0), 0))
+        else:
+            value = s.hi if math.isfinite(s.hi) else 1.5 * (s.lo + 1.0)
+        o.set_param(name, value)
+        assert getattr(o, member).get_param(s.name) == value == o.get_param(name), name
+
+
+def test_the_scenario_keys_of_nested_fields_are_unchanged():
+    names = [s.name for s in _core.NavigationSettings.params()]
+    for key in ("segment_length", "sub_segments", "gate_probability", "guard_k", "guard_buffer",
+                "guard_slow_distance", "guard_horizon", "guard_min_speed_fraction"):
+        assert key in names
+    n = _core.NavigationSettings()
+    n.set_param("guard_k", 4.0)
+    n.set_param("segment_length", 7.0)
+    n.set_param("gate_probability", 0.5)
+    assert (n.guard.k, n.segments.length, n.filter.gate_probability) == (4.0, 7.0, 0.5)
+    with pytest.raises(ValueError, match=r"^guard_min_speed_fraction = 0: must be in \(0, 1\]$"):
+        n.set_param("guard_min_speed_fraction", 0.0)
+    with pytest.raises(ValueError, match=r"^gate_probability = 1: must be in \[0, 0.999999\]$"):
+        _core.LocalizerSettings().set_param("gate_probability", 1.0)
+
+
+# --------------------------------------------------------------------------- validate() checks the declared ranges
+
+def _out_of_range(s):
+    """A value just outside the declared range (below lo), or None for a switch."""
+    if s.kind == _core.ParamKind.BOOLEAN:
+        return None
+    if s.lo_open:
+        return s.lo
+    return int(s.lo) - 1 if s.kind == _core.ParamKind.INTEGER else math.nextafter(s.lo, -math.inf)
+
+
+# struct -> (how to build it with one field set directly, bypassing set_param; the prefix validate() names it with)
+STRUCTS = {
+    _core.GuardSettings: (lambda name, v: _with(_core.GuardSettings(), name, v), "settings.guard."),
+    _core.FilterOptions: (lambda name, v: _with(_core.FilterOptions(), name, v), "filter."),
+    _core.LocalizationOptions: (lambda name, v: _with(_core.LocalizationOptions(), name, v), ""),
+    _core.BoxRangeOptions: (lambda name, v: _with(_core.BoxRangeOptions(), name, v), ""),
+    _core.PositionNoise: (lambda name, v: _noise(name, v), "position."),
+}
+
+
+def _with(obj, name, v):
+    setattr(obj, name, v)
+    return obj
+
+
+def _noise(name, v):
+    p = _core.PositionNoise()
+    if name in ("std_x", "std_y"):
+        std = list(p.std)
+        std[name == "std_y"] = v
+        p.std = std
+    else:
+        setattr(p, name, v)
+    return p
+
+
+@pytest.mark.parametrize("core_type", list(STRUCTS), ids=lambda t: t.__name__)
+def test_validate_refuses_each_field_outside_its_declared_range(core_type):
+    """A field set directly (no set_param) outside its declared range, or NaN,
+    fails validate() with the parameter named: the range lives in the
+    declaration only."""
+    build, prefix = STRUCTS[core_type]
+    for s in core_type.params():
+        bad = _out_of_range(s)
+        if bad is None:
+            continue
+        bads = [bad] if s.kind == _core.ParamKind.INTEGER else [bad, math.nan]
+        if math.isfinite(s.hi):
+            bads.append(int(s.hi) + 1 if s.kind == _core.ParamKind.INTEGER else math.nextafter(s.hi, math.inf))
+        for v in bads:
+            with pytest.raises(ValueError, match=rf"^{re.escape(prefix + s.name)} = .*: must be "):
+                build(s.name, v).validate()
+
+
+def test_segment_options_and_localization_options_keep_their_other_rules():
+    for s in _core.SegmentOptions.params():
+        bad = _out_of_range(s)
+        with pytest.raises(ValueError, match=rf"^SegmentOptions\.{s.name} = "):
+            _core.SegmentOptions(**{s.name: bad})
+    # the closed declared range ends at pi/2; crossing lines at pi/2 are never parallel
+    o = _core.LocalizationOptions()
+    o.set_param("min_crossing_angle", math.pi / 2)
+    with pytest.raises(ValueError, match=r"^min_crossing_angle = 1.57\d*: must be below pi/2$"):
+        o.validate()
+    o.min_crossing_angle = 0.5
+    o.validate()
+    # an infinite max_range / max_gdop is "none"
+    b = _core.BoxRangeOptions()
+    b.set_param("max_range", math.inf)
+    b.validate()
+    assert _core.LocalizationOptions().get_param("max_gdop") == 100.0
+
+
+def test_the_named_position_profiles_lie_in_the_declared_ranges():
+    for name in _core.PositionNoise.names():
+        p = _core.PositionNoise.named(name)
+        p.check_params()
+        assert (p.get_param("std_x"), p.get_param("std_y")) == tuple(p.std)
+
+
+def test_docs_list_the_core_settings_outside_scenario_files():
+    """docs/scenario.md has a table per struct whose parameters no scenario
+    section sets, with each declared parameter's range and unit."""
+    from pathlib import Path
+
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "scenario.md").read_text(encoding="utf-8")
+    part = doc.split("## Core settings outside scenario files", 1)[1]
+    nested = ("bmm_", "augment_", "filter_")
+    for core_type in (_core.GuardSettings, _core.FilterOptions, _core.SegmentOptions, _core.LocalizerSettings,
+                      _core.PositionNoise, _core.LocalizationOptions, _core.BoxRangeOptions):
+        section = part.split(f"### `{core_type.__name__}`", 1)[1].split("###", 1)[0]
+        rows = {cells[1].strip(): [c.strip() for c in cells[1:6]]
+                for cells in (line.split("|") for line in section.splitlines() if line.startswith("| `"))}
+        own = [s for s in core_type.params()
+               if core_type is not _core.LocalizerSettings or not (s.name.startswith(nested) or s.name == "gate_probability")]
+        assert sorted(rows) == sorted(f"`{s.name}`" for s in own), core_type.__name__
+        for s in own:
+            _, _, rng, unit, meaning = rows[f"`{s.name}`"]
+            assert rng == ("true or false" if s.kind == _core.ParamKind.BOOLEAN else s.range_text()), s.name
+            assert unit == s.unit and meaning, s.name

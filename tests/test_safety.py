@@ -148,8 +148,10 @@ def test_the_guard_holds_and_looks_at_landmarks_when_no_way_is_clear():
 def test_bad_guard_settings_name_the_value():
     s = _core.NavigationSettings()
     s.guard.k = -1.0
-    with pytest.raises(ValueError, match=r"guard.k \(the scenario's navigation.guard_k\)"):
+    with pytest.raises(ValueError, match=r"settings.guard_k = -1: must be in \(0, 100\]"):   # the scenario's name
         s.validate()
+    with pytest.raises(ValueError, match=r"settings.guard.k = -1: must be in \(0, 100\]"):
+        s.guard.validate()
     s = _core.NavigationSettings()
     s.guard.min_speed_fraction = 0.0
     with pytest.raises(ValueError, match="min_speed_fraction"):

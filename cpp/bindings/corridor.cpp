@@ -55,7 +55,7 @@ void bind_query_types(py::module_& m) {
       });
 
   const SegmentOptions so;
-  py::class_<SegmentOptions>(m, "SegmentOptions")
+  def_params<SegmentOptions>(py::class_<SegmentOptions>(m, "SegmentOptions"))
       .def(py::init([](int count, double length, double spacing, int sub_segments, int disc_sides) {
              SegmentOptions o{count, length, spacing, sub_segments, disc_sides};
              o.validate();

@@ -1,4 +1,5 @@
 #include "common.hpp"
+#include "params.hpp"
 #include "safenav/filters.hpp"
 
 using namespace safenav;
@@ -78,13 +79,16 @@ void bind_batch(py::module_& m) {
       .value("PF", FilterType::ParticleFilter)
       .value("EIF", FilterType::InformationFilter);
 
-  py::class_<FilterOptions>(m, "FilterOptions")
+  def_params<FilterOptions>(py::class_<FilterOptions>(m, "FilterOptions"))
       .def(py::init<>())
       .def_readwrite("type", &FilterOptions::type)
       .def_readwrite("n_particles", &FilterOptions::n_particles)
       .def_readwrite("resample_threshold", &FilterOptions::resample_threshold)
       .def_readwrite("seed", &FilterOptions::seed)
-      .def_readwrite("gate_probability", &FilterOptions::gate_probability);
+      .def_readwrite("gate_probability", &FilterOptions::gate_probability)
+      .def(
+          "validate", [](const FilterOptions& o) { o.validate(); },
+          "ValueError naming the first field (filter.<name>) outside its declared range.");
 
   py::class_<FilterRun>(m, "FilterRun")
       .def_readonly("states", &FilterRun::states)

@@ -69,9 +69,9 @@ namespace {
 
 /// GuardSettings (guard.hpp).
 void bind_guard_settings(py::module_& m) {
-  py::class_<GuardSettings>(m, "GuardSettings",
+  def_params<GuardSettings>(py::class_<GuardSettings>(m, "GuardSettings",
                             "The uncertainty-aware guard (ours): keeps k sigma of position clear of obstacles and "
-                            "forbidden hazards by slowing, steering or holding for a fix.")
+                            "forbidden hazards by slowing, steering or holding for a fix."))
       .def(py::init<>())
       .def_readwrite("enabled", &GuardSettings::enabled)
       .def_readwrite("k", &GuardSettings::k)

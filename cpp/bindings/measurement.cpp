@@ -1,6 +1,7 @@
 #include <sstream>
 
 #include "common.hpp"
+#include "params.hpp"
 #include "safenav/measurement.hpp"
 
 using namespace safenav;
@@ -80,11 +81,11 @@ void bind_models(py::module_& m) {
 // The error model of a position source (LanBLoc's RMSE, the emulated baselines).
 void bind_position_noise(py::module_& m) {
   const PositionNoise d;
-  py::class_<PositionNoise>(m, "PositionNoise",
+  def_params<PositionNoise>(py::class_<PositionNoise>(m, "PositionNoise",
                             "The error model of a position source (LanBLoc, or an emulated baseline's profile):\n"
                             "a per-trial bias N(0, bias_std^2 I) that walks by N(0, bias_walk_std^2 I) per fix,\n"
                             "dropouts, white noise N(0, diag(std^2)) and outliers N(0, outlier_std^2 I).  Named\n"
-                            "profiles: PositionNoise.named(name), PositionNoise.names().")
+                            "profiles: PositionNoise.named(name), PositionNoise.names()."))
       .def(py::init([](std::string name, std::string label, const Eigen::Vector2d& std, double bias_std,
                        double bias_walk_std, double outlier_probability, double outlier_std,
                        double dropout_probability, bool needs_landmarks, bool emulated, std::string note) {

@@ -1,4 +1,5 @@
 #include "common.hpp"
+#include "params.hpp"
 #include "safenav/stereo.hpp"
 
 #include <pybind11/numpy.h>
@@ -74,7 +75,7 @@ void bind_settings(py::module_& m) {
       .def_readwrite("mode", &SgbmParams::mode)
       .def("validate", &SgbmParams::validate);
 
-  py::class_<BoxRangeOptions>(m, "BoxRangeOptions")
+  def_params<BoxRangeOptions>(py::class_<BoxRangeOptions>(m, "BoxRangeOptions"))
       .def(py::init<>())
       .def_readwrite("sigma_d", &BoxRangeOptions::sigma_d)
       .def_readwrite("min_valid_pixels", &BoxRangeOptions::min_valid_pixels)

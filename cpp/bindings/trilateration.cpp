@@ -1,4 +1,5 @@
 #include "common.hpp"
+#include "params.hpp"
 #include "safenav/trilateration.hpp"
 
 using namespace safenav;
@@ -11,7 +12,7 @@ void pybind_trilateration(py::module_& m) {
       .value("DID_NOT_CONVERGE", LocalizationStatus::DidNotConverge)
       .def("__str__", [](LocalizationStatus s) { return std::string(to_string(s)); });
 
-  py::class_<LocalizationOptions>(m, "LocalizationOptions")
+  def_params<LocalizationOptions>(py::class_<LocalizationOptions>(m, "LocalizationOptions"))
       .def(py::init<>())
       .def_readwrite("outlier_threshold", &LocalizationOptions::outlier_threshold)
       .def_readwrite("reject_outliers", &LocalizationOptions::reject_outliers)

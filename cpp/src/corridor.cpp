@@ -4,7 +4,6 @@
 // centroids of [SafeNav Algs. 1–2].  CGAL does the convex hulls
 // (convex_hull_2), orientation and point location (bounded_side_2).
 #include "safenav/corridor.hpp"
-#include "safenav/params.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -16,8 +15,14 @@
 #include <CGAL/convex_hull_2.h>
 
 #include "cgal_util.hpp"
+#include "declare.hpp"
 
 namespace safenav {
+
+template <>
+const ParamSet<RiskZones>& param_set<RiskZones>();  // defined below
+template <>
+const ParamSet<SegmentOptions>& param_set<SegmentOptions>();  // defined below
 
 namespace {
 
@@ -283,29 +288,7 @@ PathSegments Corridor::segments(const SegmentOptions& options) const { return Pa
 
 // --------------------------------------------------------------- PathSegments
 
-void SegmentOptions::validate() const {
-  std::ostringstream os;
-  if (count < 0) {
-    os << "SegmentOptions.count = " << count << " must be >= 1 (or 0 to use length)";
-    throw std::invalid_argument(os.str());
-  }
-  if (count == 0 && !(std::isfinite(length) && length > 0.0)) {
-    os << "SegmentOptions.length = " << length << " must be finite and > 0";
-    throw std::invalid_argument(os.str());
-  }
-  if (!(std::isfinite(spacing) && spacing > 0.0)) {
-    os << "SegmentOptions.spacing = " << spacing << " must be finite and > 0";
-    throw std::invalid_argument(os.str());
-  }
-  if (sub_segments < 1) {
-    os << "SegmentOptions.sub_segments = " << sub_segments << " must be >= 1";
-    throw std::invalid_argument(os.str());
-  }
-  if (disc_sides < 3) {
-    os << "SegmentOptions.disc_sides = " << disc_sides << " must be >= 3";
-    throw std::invalid_argument(os.str());
-  }
-}
+void SegmentOptions::validate() const { param_set<SegmentOptions>().check(*this, "SegmentOptions."); }
 
 struct PathSegments::Impl {
   std::vector<std::vector<Point>> hulls;
@@ -490,5 +473,39 @@ CentroidTarget PathSegments::nearest_centroid_ahead(const Eigen::Vector2d& p) co
   t.point = centroids_.row(best).transpose();
   return t;
 }
+
+
+// ---------------------------------------------------------------------------
+// Parameter declarations (safenav/params.hpp)
+
+constexpr int kMaxZones = 64;  ///< RiskZones::weights entries
+
+template <>
+const ParamSet<RiskZones>& param_set<RiskZones>() {
+  static const ParamSet<RiskZones> s =
+      Declare<RiskZones>{}
+          .real("half_width", SN_REF(RiskZones, half_width), "m", above(0, 1000), "d_max, the safe buffer's half-width [SafeNav eq. 18]")
+          .list("weights", SN_REF(RiskZones, weights), "", above(0, 1e6), kMaxZones, "w_1..w_n, the zones' weights, inner to outer [SafeNav eq. 18]")
+          .set;
+  return s;
+}
+
+template <>
+const ParamSet<SegmentOptions>& param_set<SegmentOptions>() {
+  using S = SegmentOptions;
+  // length and sub_segments first: NavigationSettings nests them as segment_length, sub_segments.
+  static const ParamSet<S> s =
+      Declare<S>{}
+          .real("length", SN_REF(S, length), "m", above(0, 1e5), "longest segment arc length when count = 0 [SafeNav Alg. 1], [SafeNav Alg. 2]")
+          .integer("sub_segments", SN_REF(S, sub_segments), closed(1, 1000), "sub-segments per segment [SafeNav Alg. 2]")
+          .integer("count", SN_REF(S, count), closed(0, 1e6), "K, the number of equal arc-length segments; 0 = derive K from length (at most 1e6 either way)")
+          .real("spacing", SN_REF(S, spacing), "m", above(0, 1e4), "densification step of a segment's central polyline")
+          .integer("disc_sides", SN_REF(S, disc_sides), closed(3, 1000), "sides of the polygon circumscribing each buffer disc (hull error W (1/cos(pi/sides) - 1))")
+          .set;
+  return s;
+}
+
+template class ParamSet<RiskZones>;
+template class ParamSet<SegmentOptions>;
 
 }  // namespace safenav

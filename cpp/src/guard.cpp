@@ -5,14 +5,12 @@
 #include <cmath>
 #include <string>
 
-#include "errors.hpp"
+#include "declare.hpp"
 
 namespace safenav {
 
-using detail::bad;
-using detail::num;
-using detail::require_finite_nonneg;
-using detail::require_finite_positive;
+template <>
+const ParamSet<GuardSettings>& param_set<GuardSettings>();  // defined below
 
 void GuardSettings::look_with_camera(double camera_field_of_view, double max_range, int min_landmarks,
                                      bool camera_occlusion) {
@@ -22,19 +20,7 @@ void GuardSettings::look_with_camera(double camera_field_of_view, double max_ran
   occlusion = camera_occlusion;
 }
 
-void GuardSettings::validate() const {
-  require_finite_positive(k, "settings.guard.k (the scenario's navigation.guard_k)");
-  require_finite_nonneg(slow_distance, "settings.guard.slow_distance");
-  require_finite_nonneg(buffer, "settings.guard.buffer");
-  require_finite_nonneg(look_timeout, "settings.guard.look_timeout");
-  if (!(min_speed_fraction > 0.0 && min_speed_fraction <= 1.0))
-    bad("settings.guard.min_speed_fraction = " + num(min_speed_fraction) + ": must be in (0, 1]");
-  require_finite_positive(horizon, "settings.guard.horizon");
-  require_finite_nonneg(look_range, "settings.guard.look_range");
-  if (look_min_landmarks < 1)
-    bad("settings.guard.look_min_landmarks = " + std::to_string(look_min_landmarks) + ": must be >= 1");
-  require_finite_positive(field_of_view, "settings.guard.field_of_view");
-}
+void GuardSettings::validate() const { param_set<GuardSettings>().check(*this, "settings.guard."); }
 
 Guard::Guard(const GuardSettings& settings, const Bmm& bmm, const ObstacleChecker& obstacles,
              const Points2& landmarks, double corridor_limit)
@@ -234,5 +220,33 @@ GuardDecision Guard::decide(double t, const State& x, double position_std, const
   const Control u(0.0, look);
   return set(u, GuardAction::Hold, way_ahead(x, u, keep).clearance);
 }
+
+
+// ---------------------------------------------------------------------------
+// Parameter declarations (safenav/params.hpp)
+
+template <>
+const ParamSet<GuardSettings>& param_set<GuardSettings>() {
+  using G = GuardSettings;
+  // NavigationSettings nests these as guard_<name> (the scenario's navigation.guard_k, …).
+  static const ParamSet<G> s =
+      Declare<G>{}
+          .real("k", SN_REF(G, k), "", above(0, 100), "the guard keeps k x position sigma clear of obstacles and forbidden hazards (ours)")
+          .real("buffer", SN_REF(G, buffer), "m", closed(0, 1e4), "the guard keeps this much beyond k sigma")
+          .real("slow_distance", SN_REF(G, slow_distance), "m", closed(0, 1e4), "the guard slows down when its margin falls below this")
+          .real("horizon", SN_REF(G, horizon), "s", above(0, 1e3), "the guard looks at the control held this long, then braking")
+          .real("min_speed_fraction", SN_REF(G, min_speed_fraction), "", above(0, 1), "slowest fraction of the commanded speed while the guard slows")
+          .flag("enabled", SN_REF(G, enabled), "the guard is on (off: the papers' loop)")
+          .flag("look_first", SN_REF(G, look_first), "before steering round an uncertain way ahead, turn to look at landmarks")
+          .real("look_timeout", SN_REF(G, look_timeout), "s", closed(0, 1e4), "the longest look")
+          .real("look_range", SN_REF(G, look_range), "m", closed(0, 1e4), "landmarks within this can be looked at (the camera's detection range, look_with_camera)")
+          .integer("look_min_landmarks", SN_REF(G, look_min_landmarks), closed(1, 1000), "a fix needs this many landmarks in view (the camera's, look_with_camera)")
+          .real("field_of_view", SN_REF(G, field_of_view), "rad", above(0, 2 * kPi), "the camera's full horizontal field of view (look_with_camera)")
+          .flag("occlusion", SN_REF(G, occlusion), "obstacles hide landmarks from the look (the camera's, look_with_camera)")
+          .set;
+  return s;
+}
+
+template class ParamSet<GuardSettings>;
 
 }  // namespace safenav

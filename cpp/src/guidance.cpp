@@ -37,10 +37,6 @@ double heading_to(const State& x, const Eigen::Vector2d& target) {
 // ---------------------------------------------------------------------------
 // names and validation
 
-std::string to_string(NavigationMethod method) {
-  return method == NavigationMethod::CHull ? "chull" : "centroid";
-}
-
 std::string to_string(GuidanceStatus status) {
   switch (status) {
     case GuidanceStatus::Initializing: return "initializing";
@@ -50,37 +46,6 @@ std::string to_string(GuidanceStatus status) {
     case GuidanceStatus::LostLocalization: return "lost_localization";
   }
   return "unknown";
-}
-
-void NavigationProblem::validate() const {
-  check_points(path, "problem.path", 2);
-  zones.validate();
-  map.validate();
-  bmm.validate();
-}
-
-void NavigationSettings::validate() const {
-  require_finite_positive(cruise_speed, "settings.cruise_speed");
-  require_finite_positive(arrival_radius, "settings.arrival_radius");
-  if (max_steps < 0 || max_steps > kMaxSteps)
-    bad("settings.max_steps = " + std::to_string(max_steps) + ": must be in [0, " + std::to_string(kMaxSteps) +
-        "] (0 = automatic)");
-  segments.validate();
-  require_finite_positive(lookahead, "settings.lookahead");
-  require_finite_positive(step_back_speed, "settings.step_back_speed");
-  require_finite_positive(sensing_range, "settings.sensing_range");
-  if (obstacle_check_every < 1)
-    bad("settings.obstacle_check_every = " + std::to_string(obstacle_check_every) + ": must be >= 1");
-  require_finite_positive(replan_lookahead, "settings.replan_lookahead");
-  if (max_replans < 0) bad("settings.max_replans = " + std::to_string(max_replans) + ": must be >= 0");
-  planner.validate();
-  require_finite_nonneg(corridor_margin, "settings.corridor_margin");
-  require_finite_positive(lost_position_std, "settings.lost_position_std");
-  filter.validate("settings.filter.");
-  if (filter.type == FilterType::InformationFilter)
-    bad("settings.filter.type = InformationFilter: navigation supports the EKF and the particle filter");
-  guard.validate();
-  param_set<NavigationSettings>().check(*this, "settings.");
 }
 
 // ---------------------------------------------------------------------------

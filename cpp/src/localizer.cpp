@@ -82,15 +82,6 @@ double position_std(const StateCov& P) {
   return std::sqrt(s) * std::sqrt(std::max(0.0, ls));
 }
 
-void LocalizerSettings::validate() const {
-  bmm.validate();
-  if (filter.type == FilterType::InformationFilter)
-    bad("localizer.filter.type = InformationFilter: the localizer runs the EKF or the particle filter");
-  filter.validate("localizer.filter.");
-  param_set<LocalizerSettings>().check(*this, "localizer.");
-  augment.validate();
-}
-
 struct Localizer::Impl {
   LocalizerSettings settings;
   Landmarks landmarks;

@@ -1,5 +1,5 @@
 #include "safenav/motion.hpp"
-#include "safenav/params.hpp"
+#include "declare.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -9,6 +9,9 @@
 #include "rng.hpp"
 
 namespace safenav {
+
+template <>
+const ParamSet<BmmParams>& param_set<BmmParams>();  // defined below
 
 namespace {
 void require(bool ok, const char* field, double value, const char* rule) {
@@ -212,5 +215,28 @@ Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor> Bmm::simulate(
   }
   return out;
 }
+
+
+// ---------------------------------------------------------------------------
+// Parameter declarations (safenav/params.hpp)
+
+template <>
+const ParamSet<BmmParams>& param_set<BmmParams>() {
+  static const ParamSet<BmmParams> s =
+      Declare<BmmParams>{}
+          .real("acceleration", SN_REF(BmmParams, acceleration), "m/s^2", above(0, 100), "a, acceleration capability [SafeNav eq. 3]")
+          .real("deceleration", SN_REF(BmmParams, deceleration), "m/s^2", above(0, 100), "d, deceleration capability [SafeNav eq. 3]")
+          .real("max_speed", SN_REF(BmmParams, max_speed), "m/s", above(0, 100), "v_max [SafeNav eq. 3]")
+          .real("max_heading_rate", SN_REF(BmmParams, max_heading_rate), "rad/s", above(0, 100), "m, manoeuvrability: |dtheta| <= m*dt [SafeNav eq. 4]")
+          .real("dt", SN_REF(BmmParams, dt), "s", above(0, 10), "the time step dt")
+          .real("terrain_effect", SN_REF(BmmParams, terrain_effect), "", closed(0, 100), "tau, terrain effect [SafeNav eq. 8] (see BmmParams)")
+          .real("speed_noise", SN_REF(BmmParams, speed_noise), "m/s", closed(0, 10), "sigma of eps_v per step [SafeNav eq. 6]")
+          .real("heading_noise", SN_REF(BmmParams, heading_noise), "rad", closed(0, kPi), "sigma of eps_theta per step [SafeNav eq. 6]")
+          .real("position_noise", SN_REF(BmmParams, position_noise), "m", closed(0, 10), "sigma of eps_x, eps_y per step [SafeNav eq. 7]")
+          .set;
+  return s;
+}
+
+template class ParamSet<BmmParams>;
 
 }  // namespace safenav

@@ -15,10 +15,14 @@
 #include <utility>
 
 #include "rng.hpp"
+#include "declare.hpp"
 #include "errors.hpp"
 #include "safenav/trilateration.hpp"
 
 namespace safenav {
+
+template <>
+const ParamSet<SensorSettings>& param_set<SensorSettings>();  // defined below
 
 namespace {
 
@@ -549,5 +553,32 @@ TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& pos
   Trial trial(im.guidance, im.sensors, im.collisions, im.imu_R, im.max_steps, seed, position_cb, rec);
   return trial.run();
 }
+
+
+// ---------------------------------------------------------------------------
+// Parameter declarations (safenav/params.hpp)
+
+template <>
+const ParamSet<SensorSettings>& param_set<SensorSettings>() {
+  using S = SensorSettings;
+  static const ParamSet<S> s =
+      Declare<S>{}
+          .real("max_range", SN_REF(S, max_range), "m", above(0, 1e4), "landmarks farther than this are not detected")
+          .real("field_of_view", SN_REF(S, field_of_view), "rad", above(0, 2 * kPi), "full horizontal field of view, centred on the heading; 2 pi = all round")
+          .integer("min_landmarks", SN_REF(S, min_landmarks), closed(1, 1000), "a position fix needs this many landmarks in view [SafeNav-ext §V-A3(ii)]: clusters of >= 3")
+          .flag("occlusion", SN_REF(S, occlusion), "obstacles hide landmarks from the simulated camera (ours; off in the papers' loop)")
+          .integer("position_every", SN_REF(S, position_every), closed(1, 1e6), "a position fix every n steps")
+          .real("imu_speed_std", SN_REF(S, imu_speed_std), "m/s", closed(1e-6, 10), "sigma of the IMU's speed")
+          .real("imu_heading_std", SN_REF(S, imu_heading_std), "rad", closed(1e-6, kPi), "sigma of the IMU's heading")
+          .real("range_std", SN_REF(S, range_std), "m", closed(1e-6, 100), "sigma of one landmark range (fixes from ranges)")
+          .real("dropout_probability", SN_REF(S, faults.dropout_probability), "", closed(0, 1), "a landmark observation is missed with this probability (ours)")
+          .real("outlier_probability", SN_REF(S, faults.outlier_probability), "", closed(0, 1), "a landmark range is an outlier with this probability (ours)")
+          .real("outlier_magnitude", SN_REF(S, faults.outlier_magnitude), "m", above(0, 1e4), "an outlier range is off by this much, either sign")
+          .real("misassociation_probability", SN_REF(S, faults.misassociation_probability), "", closed(0, 1), "a landmark observation carries another landmark's id with this probability (ours)")
+          .set;
+  return s;
+}
+
+template class ParamSet<SensorSettings>;
 
 }  // namespace safenav

@@ -8,11 +8,15 @@
 #include <string>
 #include <vector>
 
+#include "declare.hpp"
 #include "errors.hpp"
 #include "rng.hpp"
 #include "safenav/measurement.hpp"
 
 namespace safenav {
+
+template <>
+const ParamSet<PositionNoise>& param_set<PositionNoise>();  // defined below
 
 namespace {
 
@@ -69,14 +73,6 @@ Eigen::Vector2d normal_pair(RandomSource& rng) {
   return {rng.normal(), first};
 }
 
-/// Throws "position.<field> = <value>: <rule>" unless ok.
-void require(bool ok, const char* field, double value, const char* rule) {
-  if (ok) return;
-  std::ostringstream os;
-  os << "position." << field << " = " << value << ": " << rule;
-  throw std::invalid_argument(os.str());
-}
-
 }  // namespace
 
 PositionNoise PositionNoise::named(const std::string& name) {
@@ -93,20 +89,7 @@ std::vector<std::string> PositionNoise::names() {
   return out;
 }
 
-void PositionNoise::validate() const {
-  if (!std.allFinite() || (std.array() <= 0.0).any()) {
-    std::ostringstream os;
-    os << "position.std = (" << std[0] << ", " << std[1] << "): both must be finite and > 0";
-    throw std::invalid_argument(os.str());
-  }
-  const char* nonneg = "must be finite and >= 0";
-  require(std::isfinite(bias_std) && bias_std >= 0.0, "bias_std", bias_std, nonneg);
-  require(std::isfinite(bias_walk_std) && bias_walk_std >= 0.0, "bias_walk_std", bias_walk_std, nonneg);
-  require(std::isfinite(outlier_std) && outlier_std >= 0.0, "outlier_std", outlier_std, nonneg);
-  const char* unit = "must be in [0, 1]";
-  require(outlier_probability >= 0.0 && outlier_probability <= 1.0, "outlier_probability", outlier_probability, unit);
-  require(dropout_probability >= 0.0 && dropout_probability <= 1.0, "dropout_probability", dropout_probability, unit);
-}
+void PositionNoise::validate() const { param_set<PositionNoise>().check(*this, "position."); }
 
 Eigen::Matrix2d PositionNoise::reported_cov() const {
   Eigen::Matrix2d R = std.array().square().matrix().asDiagonal();
@@ -201,5 +184,30 @@ void LandmarkFaults::apply(std::vector<Observation>& obs, const Landmarks& landm
   }
   obs.resize(kept);
 }
+
+
+// ---------------------------------------------------------------------------
+// Parameter declarations (safenav/params.hpp)
+
+template <>
+const ParamSet<PositionNoise>& param_set<PositionNoise>() {
+  using P = PositionNoise;
+  // name, label and note are text, set directly.
+  static const ParamSet<P> s =
+      Declare<P>{}
+          .real("std_x", SN_REF(P, std[0]), "m", closed(1e-6, 100), "sigma of w in X (LanBLoc: its RMSE [SafeNav §IV-A]); the filters need sigma > 0")
+          .real("std_y", SN_REF(P, std[1]), "m", closed(1e-6, 100), "sigma of w in Y (LanBLoc: its RMSE [SafeNav §IV-A])")
+          .real("bias_std", SN_REF(P, bias_std), "m", closed(0, 1e4), "sigma of the per-trial bias b")
+          .real("bias_walk_std", SN_REF(P, bias_walk_std), "m", closed(0, 1e4), "sigma of the bias's random walk per fix")
+          .real("outlier_probability", SN_REF(P, outlier_probability), "", closed(0, 1), "a fix gets an outlier's extra error with this probability")
+          .real("outlier_std", SN_REF(P, outlier_std), "m", closed(0, 1e4), "sigma of an outlier's extra error")
+          .real("dropout_probability", SN_REF(P, dropout_probability), "", closed(0, 1), "a fix is lost at random with this probability")
+          .flag("needs_landmarks", SN_REF(P, needs_landmarks), "a fix needs >= min_landmarks landmarks in view (the navigation loop checks)")
+          .flag("emulated", SN_REF(P, emulated), "an emulated error profile, not the real method")
+          .set;
+  return s;
+}
+
+template class ParamSet<PositionNoise>;
 
 }  // namespace safenav

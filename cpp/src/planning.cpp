@@ -34,11 +34,14 @@
 #include <ompl/util/RandomNumbers.h>
 
 #include "safenav/corridor.hpp"
-#include "safenav/params.hpp"
+#include "declare.hpp"
 #include "safenav/seed.hpp"
 #include "errors.hpp"
 
 namespace safenav {
+
+template <>
+const ParamSet<PlannerSettings>& param_set<PlannerSettings>();  // defined below
 namespace {
 
 namespace ob = ompl::base;
@@ -559,5 +562,29 @@ PlanResult replan(const PlanningProblem& problem, const Vec2& position, double l
         " is blocked)");
   return replan_to(problem, position, goal, settings);
 }
+
+
+// ---------------------------------------------------------------------------
+// Parameter declarations (safenav/params.hpp)
+
+template <>
+const ParamSet<PlannerSettings>& param_set<PlannerSettings>() {
+  static const ParamSet<PlannerSettings> s =
+      Declare<PlannerSettings>{}
+          .real("alpha", SN_REF(PlannerSettings, alpha), "", above(0, 1e6), "alpha, weight of the length term [SafeNav eq. 19]")
+          .real("beta", SN_REF(PlannerSettings, beta), "", closed(0, 1e6), "beta, weight of the risk term [SafeNav eq. 19]; 0 = plain RRT*")
+          .real("range", SN_REF(PlannerSettings, range), "m", closed(0, 1e6), "longest tree edge; 0 = OMPL's default (20 % of the field's diagonal)")
+          .real("goal_bias", SN_REF(PlannerSettings, goal_bias), "", closed(0, 1), "probability of sampling the goal")
+          .integer64("max_iterations", SN_REF(PlannerSettings, max_iterations), closed(1, PlannerSettings::kMaxIterations), "RRT* iterations (the deterministic budget)")
+          .real("max_time", SN_REF(PlannerSettings, max_time), "s", closed(0, 1e6), "wall-clock budget; 0 = none")
+          .real("resolution", SN_REF(PlannerSettings, resolution), "m", above(0, 1e3), "cost-integration and corridor-check step along a motion")
+          .real("goal_tolerance", SN_REF(PlannerSettings, goal_tolerance), "m", closed(0, 1e3), "a tree node this close to the goal reaches it")
+          .real("corridor_bias", SN_REF(PlannerSettings, corridor_bias), "", closed(0, 1), "share of samples drawn inside the corridor (0 = uniform, as the paper)")
+          .real("hazard_weight", SN_REF(PlannerSettings, hazard_weight), "1/m", closed(0, 1e6), "beta_h, weight of the hazard term beta_h * integral of risk ds; 0 = the paper's cost")
+          .set;
+  return s;
+}
+
+template class ParamSet<PlannerSettings>;
 
 }  // namespace safenav

@@ -10,7 +10,12 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "declare.hpp"
+
 namespace safenav {
+
+template <>
+const ParamSet<BoxRangeOptions>& param_set<BoxRangeOptions>();  // defined below
 
 namespace {
 
@@ -155,20 +160,7 @@ void SgbmParams::validate() const {
   if (!os.str().empty()) fail(os.str());
 }
 
-void BoxRangeOptions::validate() const {
-  std::ostringstream os;
-  if (!(std::isfinite(sigma_d) && sigma_d > 0.0))
-    os << "sigma_d = " << sigma_d << " must be finite and > 0";
-  else if (min_valid_pixels < 1)
-    os << "min_valid_pixels = " << min_valid_pixels << " must be >= 1";
-  else if (!(min_valid_fraction >= 0.0 && min_valid_fraction <= 1.0))
-    os << "min_valid_fraction = " << min_valid_fraction << " must be in [0, 1]";
-  else if (!(std::isfinite(min_disparity) && min_disparity > 0.0))
-    os << "min_disparity = " << min_disparity << " must be finite and > 0";
-  else if (!(max_range > 0.0))
-    os << "max_range = " << max_range << " must be > 0";
-  if (!os.str().empty()) fail(os.str());
-}
+void BoxRangeOptions::validate() const { param_set<BoxRangeOptions>().check(*this); }
 
 // --------------------------------------------------------------------------
 // StereoMatcher
@@ -435,5 +427,26 @@ BoxRange StereoMatcher::box_range(const Eigen::Ref<const DisparityMap>& disparit
   }
   return out;
 }
+
+
+// ---------------------------------------------------------------------------
+// Parameter declarations (safenav/params.hpp)
+
+template <>
+const ParamSet<BoxRangeOptions>& param_set<BoxRangeOptions>() {
+  using B = BoxRangeOptions;
+  constexpr double kNone = std::numeric_limits<double>::infinity();
+  static const ParamSet<B> s =
+      Declare<B>{}
+          .real("sigma_d", SN_REF(B, sigma_d), "px", above(0, 100), "disparity noise sigma_d; sigma_Z = Z^2 sigma_d / (f B)")
+          .integer("min_valid_pixels", SN_REF(B, min_valid_pixels), closed(1, 1e8), "fewer valid pixels in the box: no range")
+          .real("min_valid_fraction", SN_REF(B, min_valid_fraction), "", closed(0, 1), "fewer valid pixels than this share of the box: no range")
+          .real("min_disparity", SN_REF(B, min_disparity), "px", above(0, 1e5), "d + doffs below this: beyond the resolvable range")
+          .real("max_range", SN_REF(B, max_range), "m", above(0, kNone), "a median depth Z above this: no range; inf = none")
+          .set;
+  return s;
+}
+
+template class ParamSet<BoxRangeOptions>;
 
 }  // namespace safenav

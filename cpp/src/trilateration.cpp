@@ -27,26 +27,6 @@ const char* to_string(LocalizationStatus status) {
   return "unknown";
 }
 
-void LocalizationOptions::validate() const {
-  std::ostringstream os;
-  if (!(std::isfinite(outlier_threshold) && outlier_threshold > 0.0))
-    os << "outlier_threshold = " << outlier_threshold << " must be finite and > 0";
-  else if (max_iterations < 1)
-    os << "max_iterations = " << max_iterations << " must be >= 1";
-  else if (!(std::isfinite(tolerance) && tolerance > 0.0))
-    os << "tolerance = " << tolerance << " must be finite and > 0";
-  else if (!(max_gdop > 0.0))
-    os << "max_gdop = " << max_gdop << " must be > 0";
-  else if (!(std::isfinite(ambiguity_margin) && ambiguity_margin >= 0.0))
-    os << "ambiguity_margin = " << ambiguity_margin << " must be finite and >= 0";
-  else if (!(std::isfinite(min_crossing_angle) && min_crossing_angle >= 0.0 && min_crossing_angle < kPi / 2))
-    os << "min_crossing_angle = " << min_crossing_angle << " must be in [0, pi/2)";
-  else if (max_subsets < 1)
-    os << "max_subsets = " << max_subsets << " must be >= 1";
-  const std::string msg = os.str();
-  if (!msg.empty()) throw std::invalid_argument(msg);
-}
-
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();

@@ -1,6 +1,6 @@
 // The map and its collision checker [SafeNav-ext §V-A3(ii)] (= [SafeNav-conf §V-A.2(ii)]).  See world.hpp.
 #include "safenav/world.hpp"
-#include "safenav/params.hpp"
+#include "declare.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -14,6 +14,11 @@
 #include "sight.hpp"
 
 namespace safenav {
+
+template <>
+const ParamSet<PlanningMap>& param_set<PlanningMap>();  // defined below
+template <>
+const ParamSet<Inflation>& param_set<Inflation>();  // defined below
 namespace {
 
 using Vec2 = Eigen::Vector2d;
@@ -398,5 +403,32 @@ bool path_is_free(const PlanningMap& map, const Eigen::Ref<const Points2>& path)
   }
   return true;
 }
+
+
+// ---------------------------------------------------------------------------
+// Parameter declarations (safenav/params.hpp)
+
+template <>
+const ParamSet<PlanningMap>& param_set<PlanningMap>() {
+  static const ParamSet<PlanningMap> s =
+      Declare<PlanningMap>{}
+          .real("clearance", SN_REF(PlanningMap, clearance), "m", closed(0, 100), "planned paths keep this far from every obstacle")
+          .real("forbidden_risk", SN_REF(PlanningMap, forbidden_risk), "", above(0, 1e6), "hazards with risk >= this are obstacles; above 1 = none (the paper)")
+          .set;
+  return s;
+}
+
+template <>
+const ParamSet<Inflation>& param_set<Inflation>() {
+  static const ParamSet<Inflation> s =
+      Declare<Inflation>{}
+          .real("vehicle_radius", SN_REF(Inflation, vehicle_radius), "m", closed(0, 50), "the vehicle's radius; clearance = vehicle_radius + margin")
+          .real("margin", SN_REF(Inflation, margin), "m", closed(0, 50), "distance kept beyond the vehicle's body; clearance = vehicle_radius + margin")
+          .set;
+  return s;
+}
+
+template class ParamSet<PlanningMap>;
+template class ParamSet<Inflation>;
 
 }  // namespace safenav

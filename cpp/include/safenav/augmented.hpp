@@ -126,8 +126,9 @@ class AugmentedEkf {
   // Scratch, sized at construction.
   Eigen::Matrix<double, 4, Eigen::Dynamic> JP_;  // rows 0..3 of F P
   Eigen::Matrix<double, 2, Eigen::Dynamic> H_;
-  Eigen::Matrix<double, Eigen::Dynamic, 2> PHt_, K_, AHt_, KR_;
-  Eigen::MatrixXd A_;
+  // The Kalman update's (cpp/src/filters/kalman_update.hpp): P Hᵀ, K, K R, A Hᵀ; P'; x'.
+  Eigen::Matrix<double, Eigen::Dynamic, 2> PHt_, K_, KR_, AHt_;
+  Eigen::MatrixXd P1_;
   Eigen::VectorXd x1_;
 };
 

@@ -5,10 +5,13 @@
 // Modelled on OMPL's ParamSet/GenericParam: one declaration gives the getter,
 // the setter, the range check and the documentation, so that scenario files,
 // the Python layer and benchmarks read and write parameters generically
-// instead of mirroring every field.  param_set<T>() is specialised for the
-// settings structs (cpp/src/params.cpp); the Python bindings expose each as
-// T.params(), T.get_param(name) and T.set_param(name, value), and
-// safenav.scenario builds its sections from them.
+// instead of mirroring every field.  param_set<T>() is specialised for each
+// settings struct in the source file of the area that implements it (see
+// below), built with the private cpp/src/declare.hpp; a struct that holds
+// another includes the nested struct's declared set under a name prefix
+// (Declare::nested), so that each field is declared once.  The Python
+// bindings expose each as T.params(), T.get_param(name) and
+// T.set_param(name, value), and safenav.scenario builds its sections from them.
 //
 // Only std types appear here.
 #pragma once
@@ -29,7 +32,9 @@ enum class ParamKind {
 };
 
 /// One parameter's declaration.  The range is [lo, hi], open at lo when
-/// lo_open.  Values are checked against it by ParamSet::set and ::check.
+/// lo_open; hi = +inf means no upper limit (+inf itself then allowed, for a
+/// parameter whose infinite default means "none").  Values are checked
+/// against it by ParamSet::set and ::check.
 struct ParamSpec {
   std::string name;
   ParamKind kind = ParamKind::Real;
@@ -81,9 +86,21 @@ class ParamSet {
   std::vector<Entry> entries_;
 };
 
-/// The parameter set of settings struct T (specialised in params.cpp for
-/// BmmParams, RiskZones, PlannerSettings, PlanningMap, NavigationSettings,
-/// SensorSettings, LocalizerSettings and AugmentedStates).
+/// The parameter set of settings struct T, specialised beside each struct:
+///   BmmParams                          cpp/src/motion.cpp
+///   RiskZones, SegmentOptions          cpp/src/corridor.cpp
+///   PlanningMap, Inflation             cpp/src/world.cpp
+///   PlannerSettings                    cpp/src/planning.cpp
+///   GuardSettings                      cpp/src/guard.cpp
+///   NavigationSettings                 cpp/src/navigation_settings.cpp
+///   SensorSettings                     cpp/src/navigation.cpp
+///   PositionNoise                      cpp/src/noise.cpp
+///   FilterOptions                      cpp/src/filters/checks.cpp
+///   AugmentedStates                    cpp/src/filters/augmented_params.cpp
+///   LocalizerSettings                  cpp/src/localizer_params.cpp
+///   LocalizationOptions                cpp/src/trilateration_params.cpp
+///   BoxRangeOptions                    cpp/src/stereo.cpp
+/// (a *_params.cpp file is a sibling of an area file near the 600-line limit).
 template <class T>
 const ParamSet<T>& param_set();
 

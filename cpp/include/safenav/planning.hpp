@@ -53,6 +53,8 @@ struct PlannerSettings {
   double range = 0.0;              ///< longest tree edge [m]; 0 = OMPL's default (20 % of the field's diagonal)
   double goal_bias = 0.05;         ///< probability of sampling the goal, in [0, 1]
   std::int64_t max_iterations = 5000;  ///< RRT* iterations (the deterministic budget), > 0
+  /// The most iterations of one plan (the declared range of max_iterations).
+  static constexpr std::int64_t kMaxIterations = 1'000'000;
   double max_time = 0.0;           ///< wall-clock budget [s]; 0 = none (then only iterations bound the run)
   std::uint64_t seed = 0;          ///< same seed + same iteration budget → identical path
   double resolution = 0.1;         ///< cost-integration (and corridor-check) step along a motion [m], > 0

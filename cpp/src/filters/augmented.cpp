@@ -11,6 +11,7 @@
 #include <string>
 
 #include "checks.hpp"
+#include "kalman_update.hpp"
 #include "../errors.hpp"
 #include "../rng.hpp"
 #include "safenav/params.hpp"
@@ -34,8 +35,6 @@ void check_finite2(const Eigen::Vector2d& z, const char* what) {
 }
 
 }  // namespace
-
-void AugmentedStates::validate() const { param_set<AugmentedStates>().check(*this, "augment."); }
 
 AugmentedEkf::AugmentedEkf(const BmmParams& params, const AugmentedStates& augment, int n_landmarks,
                            const State& x0, const StateCov& P0)
@@ -72,9 +71,9 @@ AugmentedEkf::AugmentedEkf(const BmmParams& params, const AugmentedStates& augme
   H_.resize(2, n);
   PHt_.resize(n, 2);
   K_.resize(n, 2);
-  AHt_.resize(n, 2);
   KR_.resize(n, 2);
-  A_.resize(n, n);
+  AHt_.resize(n, 2);
+  P1_.resize(n, n);
   x1_.resize(n);
   sync4();
 }
@@ -199,46 +198,16 @@ double AugmentedEkf::bearing_row(int row, const Eigen::Vector2d& a, int r) {
 template <int M>
 UpdateResult AugmentedEkf::apply(const Eigen::Matrix<double, M, 1>& y, const Eigen::Matrix<double, M, M>& R,
                                  MeasurementKind kind) {
-  using MatMM = Eigen::Matrix<double, M, M>;
-  auto H = H_.template topRows<M>();
-  auto PHt = PHt_.template leftCols<M>();
-  auto K = K_.template leftCols<M>();
-  PHt.noalias() = P_ * H.transpose();
-  MatMM S = H * PHt;  // eq. 12
-  S += R;
-  const Eigen::LLT<MatMM> llt(S);
-  if (llt.info() != Eigen::Success)
-    throw std::runtime_error(std::string("AugmentedEkf ") + to_string(kind) +
-                             " update: innovation covariance S is not positive definite");
-  UpdateResult res;
-  res.dim = M;
-  res.nis = y.dot(llt.solve(y));
-  check_nis(res.nis, "AugmentedEkf", kind);
-  if (gate_probability_ > 0.0 && res.nis > gate_threshold_[M]) {
-    res.accepted = false;
-    return res;
-  }
-  const MatMM Sinv = llt.solve(MatMM::Identity());
-  K.noalias() = PHt * Sinv;  // eq. 13
-  x1_ = x_;
-  x1_.noalias() += K * y;  // eq. 14
-  x1_[kTheta] = wrap_angle(x1_[kTheta]);
-  // Joseph form: A = (I − KH) P = P − K (P Hᵀ)ᵀ; P' = A (I − KH)ᵀ + K R Kᵀ = A − (A Hᵀ) Kᵀ + (K R) Kᵀ.
-  A_ = P_;
-  A_.noalias() -= K * PHt.transpose();
-  auto AHt = AHt_.template leftCols<M>();
-  auto KR = KR_.template leftCols<M>();
-  AHt.noalias() = A_ * H.transpose();
-  KR.noalias() = K * R;
-  A_.noalias() -= AHt * K.transpose();
-  A_.noalias() += KR * K.transpose();
-  for (int i = 0; i < n_; ++i)
-    for (int j = i + 1; j < n_; ++j) A_(i, j) = A_(j, i) = 0.5 * (A_(i, j) + A_(j, i));
-  if (!(A_.allFinite() && x1_.allFinite()))
+  // [SafeNav eqs. 12–14] in Joseph form: the update shared with Ekf (kalman_update.hpp), in scratch sized once.
+  const auto rejects = [this](double nis, int) { return gate_probability_ > 0.0 && nis > gate_threshold_[M]; };
+  const UpdateResult res = kalman_update<M>("AugmentedEkf", kind, x_, P_, y, H_.template topRows<M>(), R, rejects,
+                                            KalmanWork{PHt_, K_, KR_, AHt_, P1_, x1_});
+  if (!res.accepted) return res;
+  if (!(P1_.allFinite() && x1_.allFinite()))
     throw std::invalid_argument(std::string("AugmentedEkf ") + to_string(kind) +
                                 " update: the updated state or covariance is not finite");
   x_.swap(x1_);
-  P_.swap(A_);
+  P_.swap(P1_);
   sync4();
   return res;
 }

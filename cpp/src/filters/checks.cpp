@@ -8,7 +8,12 @@
 #include <stdexcept>
 #include <string>
 
+#include "../declare.hpp"
+
 namespace safenav {
+
+template <>
+const ParamSet<FilterOptions>& param_set<FilterOptions>();  // defined below
 
 void check_covariance(const Eigen::MatrixXd& P, const char* what) {
   std::ostringstream os;
@@ -42,18 +47,7 @@ double chi2_quantile(double probability, int dof) {
   return boost::math::quantile(boost::math::chi_squared(dof), probability);
 }
 
-void FilterOptions::validate(const std::string& prefix) const {
-  std::ostringstream os;
-  if (type == FilterType::ParticleFilter && n_particles < 1)
-    os << prefix << "n_particles = " << n_particles << ": must be >= 1";
-  else if (!(resample_threshold >= 0.0 && resample_threshold <= 1.0))
-    os << prefix << "resample_threshold = " << resample_threshold << ": must be in [0, 1]";
-  else if (!(gate_probability >= 0.0 && gate_probability < 1.0))
-    os << prefix << "gate_probability = " << gate_probability << ": must be in [0, 1) (0 = off)";
-  else
-    return;
-  throw std::invalid_argument(os.str());
-}
+void FilterOptions::validate(const std::string& prefix) const { param_set<FilterOptions>().check(*this, prefix); }
 
 void check_nis(double nis, const char* filter, MeasurementKind kind) {
   if (std::isfinite(nis)) return;
@@ -76,5 +70,24 @@ void check_cov2(const Eigen::Matrix2d& R, const char* what) {
     throw std::invalid_argument(os.str());
   }
 }
+
+
+// ---------------------------------------------------------------------------
+// Parameter declarations (safenav/params.hpp)
+
+template <>
+const ParamSet<FilterOptions>& param_set<FilterOptions>() {
+  using F = FilterOptions;
+  // The type is a choice and the seed a 64-bit integer (a double would round it): set directly.
+  static const ParamSet<F> s =
+      Declare<F>{}
+          .real("gate_probability", SN_REF(F, gate_probability), "", closed(0, 0.999999), "chi-square gate of each update (ours); 0 = off, the paper's loop; at 1 the gate would reject nothing")
+          .integer("n_particles", SN_REF(F, n_particles), closed(1, 1e7), "particles of the particle filter")
+          .real("resample_threshold", SN_REF(F, resample_threshold), "", closed(0, 1), "the particle filter resamples when the effective sample size falls below this share of n_particles")
+          .set;
+  return s;
+}
+
+template class ParamSet<FilterOptions>;
 
 }  // namespace safenav

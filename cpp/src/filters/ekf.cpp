@@ -6,6 +6,7 @@
 #include <string>
 
 #include "checks.hpp"
+#include "kalman_update.hpp"
 #include "safenav/filters.hpp"
 
 namespace safenav {
@@ -94,29 +95,15 @@ UpdateResult Ekf::update_fixed(const MeasurementModel& model, const Eigen::Ref<c
 template <int M>
 UpdateResult Ekf::apply(const Eigen::Matrix<double, M, 1>& y, const Eigen::Matrix<double, M, 4>& H,
                         const Eigen::Matrix<double, M, M>& R, MeasurementKind kind) {
-  using MatMM = Eigen::Matrix<double, M, M>;
+  // [SafeNav eqs. 12–14] in Joseph form: the update shared with AugmentedEkf (kalman_update.hpp).
   const int m = static_cast<int>(y.size());
-  const Eigen::Matrix<double, 4, M> PHt = P_ * H.transpose();
-  const MatMM S = H * PHt + R;  // eq. 12
-  const Eigen::LLT<MatMM> llt(S);
-  if (llt.info() != Eigen::Success) {
-    throw std::runtime_error(std::string("EKF ") + to_string(kind) +
-                             " update: innovation covariance S is not positive definite");
-  }
-  UpdateResult res;
-  res.dim = m;
-  res.nis = y.dot(llt.solve(y));
-  check_nis(res.nis, "EKF", kind);
-  if (gate_rejects(res.nis, m)) {
-    res.accepted = false;
-    return res;
-  }
-  const Eigen::Matrix<double, 4, M> K = llt.solve(PHt.transpose()).transpose();  // eq. 13
-  State x1 = x_ + K * y;                                                          // eq. 14
-  x1[kTheta] = wrap_angle(x1[kTheta]);
-  const Eigen::Matrix4d IKH = Eigen::Matrix4d::Identity() - K * H;
-  Eigen::Matrix4d P1 = IKH * P_ * IKH.transpose() + K * R * K.transpose();  // Joseph form of eq. 14
-  commit(x1, 0.5 * (P1 + P1.transpose()), "EKF update");
+  Eigen::Matrix<double, 4, M> PHt(4, m), unused(4, m);  // the fixed-size update keeps K, K R in locals
+  StateCov P1;
+  State x1;
+  const UpdateResult res =
+      kalman_update<M>("EKF", kind, x_, P_, y, H, R, [this](double nis, int dim) { return gate_rejects(nis, dim); },
+                       KalmanWork{PHt, unused, unused, unused, P1, x1});
+  if (res.accepted) commit(x1, P1, "EKF update");
   return res;
 }
 

@@ -1,0 +1,49 @@
+// LocalizerSettings (safenav/localizer.hpp): its parameter declarations and
+// validation, beside the localizer (localizer.cpp holds the filter itself).
+#include "safenav/localizer.hpp"
+
+#include "declare.hpp"
+#include "errors.hpp"
+
+namespace safenav {
+
+template <>
+const ParamSet<LocalizerSettings>& param_set<LocalizerSettings>();  // defined below
+
+void LocalizerSettings::validate() const {
+  bmm.validate();
+  if (filter.type == FilterType::InformationFilter)
+    detail::bad("localizer.filter.type = InformationFilter: the localizer runs the EKF or the particle filter");
+  filter.validate("localizer.filter.");
+  augment.validate();
+  param_set<LocalizerSettings>().check(*this, "localizer.");
+}
+
+template <>
+const ParamSet<LocalizerSettings>& param_set<LocalizerSettings>() {
+  using L = LocalizerSettings;
+  // The nested structs' parameters are declared beside them (FilterOptions in
+  // filters/checks.cpp, BmmParams in motion.cpp, AugmentedStates in
+  // filters/augmented_params.cpp) and included here: gate_probability,
+  // filter_n_particles, …, bmm_dt, …, augment_scale_prior, ….
+  static const ParamSet<L> s =
+      Declare<L>{}
+          .nested("filter_", param_set<FilterOptions>(), SN_REF(L, filter), {{"gate_probability", "gate_probability"}})
+          .real("init_window", SN_REF(L, init_window), "s", above(0, 1e4), "starting from the data: the odometry track and ranges of the last init_window seconds are fitted together")
+          .real("init_min_path", SN_REF(L, init_min_path), "m", closed(0, 1e4), "starting from the data: odometry path within the window before a fit is tried (heading is unobservable at rest)")
+          .integer("init_min_beacons", SN_REF(L, init_min_beacons), closed(2, 1000), "starting from the data: distinct landmarks ranged within the window before a fit is tried")
+          .real("init_max_rms", SN_REF(L, init_max_rms), "m", above(0, 1e4), "starting from the data: accept the fit only if its inlier range residual RMS is below this")
+          .real("init_max_pos_std", SN_REF(L, init_max_pos_std), "m", above(0, 1e4), "starting from the data: accept the fit only if its position sigma is below this")
+          .real("init_cov_inflation", SN_REF(L, init_cov_inflation), "", closed(1, 1e4), "starting from the data: the fit's pose covariance is multiplied by this")
+          .real("init_baseline", SN_REF(L, init_baseline), "m", above(0, 1e4), "starting from position fixes: motion before the heading is taken from two positions")
+          .real("init_speed_std", SN_REF(L, init_speed_std), "m/s", above(0, 100), "sigma of the initial speed when starting from the data")
+          .integer("reset_after_rejections", SN_REF(L, reset_after_rejections), closed(0, 1e6), "consecutive fixes rejected by the gate before the next resets the position; 0 = never")
+          .nested("bmm_", param_set<BmmParams>(), SN_REF(L, bmm))
+          .nested("augment_", param_set<AugmentedStates>(), SN_REF(L, augment))
+          .set;
+  return s;
+}
+
+template class ParamSet<LocalizerSettings>;
+
+}  // namespace safenav

@@ -1,0 +1,77 @@
+// NavigationProblem, NavigationSettings (safenav/navigation_settings.hpp):
+// validation and the parameter declarations of the navigation settings.
+#include "safenav/navigation_settings.hpp"
+
+#include <string>
+
+#include "declare.hpp"
+#include "errors.hpp"
+#include "safenav/metrics.hpp"
+
+namespace safenav {
+
+template <>
+const ParamSet<NavigationSettings>& param_set<NavigationSettings>();  // defined below
+
+using detail::bad;
+
+std::string to_string(NavigationMethod method) {
+  return method == NavigationMethod::CHull ? "chull" : "centroid";
+}
+
+void NavigationProblem::validate() const {
+  check_points(path, "problem.path", 2);
+  zones.validate();
+  map.validate();
+  bmm.validate();
+}
+
+void NavigationSettings::validate() const {
+  if (max_steps < 0 || max_steps > kMaxSteps)
+    bad("settings.max_steps = " + std::to_string(max_steps) + ": must be in [0, " + std::to_string(kMaxSteps) +
+        "] (0 = automatic)");
+  // The declared ranges, nested structs' included, named as the scenario names them (settings.guard_k, …).
+  param_set<NavigationSettings>().check(*this, "settings.");
+  if (filter.type == FilterType::InformationFilter)
+    bad("settings.filter.type = InformationFilter: navigation supports the EKF and the particle filter");
+  // The nested structs' own invariants beyond their ranges.
+  planner.validate();
+  segments.validate();
+  filter.validate("settings.filter.");
+  guard.validate();
+}
+
+// ---------------------------------------------------------------------------
+// Parameter declarations (safenav/params.hpp)
+
+template <>
+const ParamSet<NavigationSettings>& param_set<NavigationSettings>() {
+  using N = NavigationSettings;
+  // The nested structs' parameters are declared beside them (SegmentOptions in
+  // corridor.cpp, FilterOptions in filters/checks.cpp, GuardSettings in
+  // guard.cpp) and included here under the scenario's names.
+  static const ParamSet<N> s =
+      Declare<N>{}
+          .real("cruise_speed", SN_REF(N, cruise_speed), "m/s", closed(0.01, 100), "desired speed")
+          .real("arrival_radius", SN_REF(N, arrival_radius), "m", above(0, 100), "arrived when the estimate is this close to the destination")
+          .nested("segment_", param_set<SegmentOptions>(), SN_REF(N, segments), {{"sub_segments", "sub_segments"}})
+          .real("lookahead", SN_REF(N, lookahead), "m", above(0, 1e5), "the corrective control aims this far ahead [SafeNav Alg. 1]")
+          .real("step_back_speed", SN_REF(N, step_back_speed), "m/s", closed(0.01, 100), "speed of the step back [SafeNav Alg. 1]")
+          .real("sensing_range", SN_REF(N, sensing_range), "m", above(0, 1e5), "obstacles this far ahead on the path are detected")
+          .integer("obstacle_check_every", SN_REF(N, obstacle_check_every), closed(1, 1e6), "steps between obstacle checks")
+          .real("replan_lookahead", SN_REF(N, replan_lookahead), "m", above(0, 1e5), "a detour rejoins the path this far ahead")
+          .integer("max_replans", SN_REF(N, max_replans), closed(0, 1e6), "detours planned at most per trial")
+          .integer64("replan_iterations", SN_REF(N, planner.max_iterations), closed(1, PlannerSettings::kMaxIterations), "RAw-RRT* iterations of a detour")
+          .real("corridor_bias", SN_REF(N, planner.corridor_bias), "", closed(0, 1), "share of RAw-RRT* samples drawn inside the corridor")
+          .real("corridor_margin", SN_REF(N, corridor_margin), "m", closed(0, 1e5), "left the corridor: deviation beyond half_width + this")
+          .real("lost_position_std", SN_REF(N, lost_position_std), "m", above(0, 1e4), "lost localization above this position sigma")
+          .integer("max_steps", SN_REF(N, max_steps), closed(0, N::kMaxSteps), "step budget; 0 = 3 x path length / (speed x dt) + 200")
+          .nested("filter_", param_set<FilterOptions>(), SN_REF(N, filter), {{"gate_probability", "gate_probability"}})
+          .nested("guard_", param_set<GuardSettings>(), SN_REF(N, guard))
+          .set;
+  return s;
+}
+
+template class ParamSet<NavigationSettings>;
+
+}  // namespace safenav
