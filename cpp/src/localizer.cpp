@@ -29,12 +29,6 @@ constexpr double kSameTime = 1e-9;
 /// (the fit's own covariance ignores the odometry's drift within the window).
 constexpr std::size_t kMaxBufferedRanges = 100000;
 constexpr double kInitPositionFloor = 0.05, kInitHeadingFloor = 0.01;
-/// Starting from data with bearings or headings: the fit's heading σ must be
-/// below this [rad] (a range-only fit is judged by its position σ alone, as before).
-constexpr double kInitMaxHeadingStd = 0.1;
-/// A fit must keep at least this share of its residuals (≤ 3σ): one that explains
-/// the data only by dropping many of them (a mirror image of the truth) is not trusted.
-constexpr double kInitMinInlierShare = 0.9;
 
 using detail::bad;
 
@@ -342,14 +336,14 @@ struct Localizer::Impl {
     const bool angles = fit.angle_rows > 0;
     const double rms = angles ? fit.normalised_rms : fit.range_rms;
     std::ostringstream os;
-    const bool kept = fit.rows >= kInitMinInlierShare * fit.all_rows;
+    const bool kept = fit.rows >= settings.init_min_inlier_share * fit.all_rows;
     os << std::setprecision(3) << fit.rows << " of " << fit.all_rows << " residuals kept, residual RMS " << rms << (angles ? " σ" : " m") << ", position σ " << pos_std
        << " m, heading σ " << heading_std << " rad";
     if (!(kept && rms <= settings.init_max_rms && pos_std <= settings.init_max_pos_std &&
-          (!angles || heading_std <= kInitMaxHeadingStd))) {
+          (!angles || heading_std <= settings.init_max_heading_std))) {
       std::ostringstream lim;
-      lim << std::setprecision(3) << " (limits " << kInitMinInlierShare << " kept, " << settings.init_max_rms << ", " << settings.init_max_pos_std
-          << " m" << (angles ? ", " + num(kInitMaxHeadingStd) + " rad" : std::string()) << ")";
+      lim << std::setprecision(3) << " (limits " << settings.init_min_inlier_share << " kept, " << settings.init_max_rms << ", " << settings.init_max_pos_std
+          << " m" << (angles ? ", " + num(settings.init_max_heading_std) + " rad" : std::string()) << ")";
       why += "; last fit at t = " + num(t_now) + ": " + os.str() + lim.str();
       return;
     }

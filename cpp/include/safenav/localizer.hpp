@@ -152,6 +152,8 @@ struct LocalizerSettings {
   /// when the fit mixes in bearings or headings.
   double init_max_rms = 1.2;
   double init_max_pos_std = 0.5;   ///< [m] … and its position σ below this
+  double init_max_heading_std = 0.1;    ///< [rad] … and, with bearings or headings in the fit, its heading σ below this
+  double init_min_inlier_share = 0.9;   ///< … and it keeps at least this share of its residuals (≤ 3σ): a fit that explains the data only by dropping many (a mirror image) is not trusted
   double init_cov_inflation = 4.0; ///< the fit's pose covariance is multiplied by this
   double init_baseline = 5.0;      ///< [m] motion before the heading is taken from two position fixes
   double init_speed_std = 1.0;     ///< [m/s] σ of the initial speed (from the motion inputs)
