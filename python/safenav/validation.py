@@ -240,7 +240,9 @@ def table(name: str, value, *, required: Sequence[str], optional: Sequence[str])
     allowed = set(required) | set(optional)
     for k in value:
         if k not in allowed:
-            where = join(name, str(k) if len(str(k)) <= 40 else str(k)[:37] + "...")
+            # a key that is not a plain name (a newline, a number, …) is quoted, so the error stays one line
+            key = str(k) if isinstance(k, str) and k.isidentifier() else cut(k, 40)
+            where = join(name, key if len(key) <= 40 else key[:37] + "...")
             raise ScenarioError(f"{where} = {cut(value[k])}: unknown key (allowed: {', '.join(sorted(allowed))})")
     for k in required:
         if k not in value:
