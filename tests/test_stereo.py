@@ -332,8 +332,10 @@ def test_bad_boxes_and_disparities_name_the_value():
         m.box_range(d[:10], (0, 0, 5, 5))
     with pytest.raises(ValueError, match="sigma_d = 0"):
         m.box_range(d, (0, 0, 5, 5), sigma_d=0.0)
-    with pytest.raises(ValueError, match="min_valid_pixels = nan must be an integer"):
+    with pytest.raises(ValueError, match=r"min_valid_pixels = nan: must be an integer in \[1, 100000000\]"):
         m.box_range(d, (0, 0, 5, 5), min_valid_pixels=float("nan"))
+    with pytest.raises(TypeError, match="sigma_d: 'x' is not a number"):
+        m.box_range(d, (0, 0, 5, 5), sigma_d="x")
     with pytest.raises(ValueError, match=r"max_range = nan: must be in \(0, inf\] m"):
         m.box_range(d, (0, 0, 5, 5), max_range=float("nan"))
     assert isinstance(m.box_range(d, (100, 100, 120, 120)), BoxRange)

@@ -248,3 +248,14 @@ def table(name: str, value, *, required: Sequence[str], optional: Sequence[str])
         if k not in value:
             raise ScenarioError(f"{join(name, k)}: missing (required: {', '.join(required)})")
     return value
+
+
+def declared(settings_type, **values):
+    """A core settings struct (any with ``set_param``) with ``values`` set
+    through its parameter declarations: each value is checked against its
+    declared range and type, and an error names it (``ValueError`` out of
+    range, ``TypeError`` of the wrong type)."""
+    out = settings_type()
+    for name, value in values.items():
+        out.set_param(name, value.item() if isinstance(value, np.generic) else value)
+    return out

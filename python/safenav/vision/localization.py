@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import _core
-from ..validation import as_array
+from ..validation import as_array, declared
 
 LocalizationStatus = _core.LocalizationStatus
 
@@ -67,15 +67,9 @@ class LocalizationResult:
 
 def _options(outlier_threshold, reject_outliers, max_iterations, tolerance, max_gdop, ambiguity_margin,
              min_crossing_angle, max_subsets, seed) -> _core.LocalizationOptions:
-    o = _core.LocalizationOptions()
-    o.outlier_threshold = float(outlier_threshold)
-    o.reject_outliers = bool(reject_outliers)
-    o.max_iterations = int(max_iterations)
-    o.tolerance = float(tolerance)
-    o.max_gdop = float(max_gdop)
-    o.ambiguity_margin = float(ambiguity_margin)
-    o.min_crossing_angle = float(min_crossing_angle)
-    o.max_subsets = int(max_subsets)
+    o = declared(_core.LocalizationOptions, outlier_threshold=outlier_threshold, reject_outliers=reject_outliers,
+                 max_iterations=max_iterations, tolerance=tolerance, max_gdop=max_gdop,
+                 ambiguity_margin=ambiguity_margin, min_crossing_angle=min_crossing_angle, max_subsets=max_subsets)
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**64:
         raise ValueError(f"seed must be an integer in [0, 2**64), got {seed!r}")
     o.seed = int(seed)

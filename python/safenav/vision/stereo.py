@@ -34,7 +34,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from .. import _core
-from ..validation import as_array
+from ..validation import as_array, declared
 from .calibration import StereoCalibration
 from .scores import MIDDLEBURY_THRESHOLDS, DisparityScores, disparity_scores
 
@@ -408,18 +408,8 @@ class StereoMatcher:
         ``sigma_d`` is the disparity noise in pixels.
         """
         b = as_array("box", box, (4,))
-        if isinstance(min_valid_pixels, bool) or not isinstance(min_valid_pixels, (int, np.integer)):
-            raise ValueError(f"min_valid_pixels = {min_valid_pixels!r} must be an integer")
-        for name, v in (("sigma_d", sigma_d), ("min_valid_fraction", min_valid_fraction),
-                        ("min_disparity", min_disparity), ("max_range", max_range)):
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
-                raise ValueError(f"{name} = {v!r} must be a number")
-        o = _core.BoxRangeOptions()
-        o.sigma_d = float(sigma_d)
-        o.min_valid_pixels = int(min_valid_pixels)
-        o.min_valid_fraction = float(min_valid_fraction)
-        o.min_disparity = float(min_disparity)
-        o.max_range = float(max_range)
+        o = declared(_core.BoxRangeOptions, sigma_d=sigma_d, min_valid_pixels=min_valid_pixels,
+                     min_valid_fraction=min_valid_fraction, min_disparity=min_disparity, max_range=max_range)
         r = self._m.box_range(self._disparity(disparity), *b, o)
         return BoxRange(ok=r.ok, range=r.range if r.ok else math.nan, sigma=r.sigma if r.ok else math.nan,
                         disparity=r.disparity, n_valid=r.n_valid, n_pixels=r.n_pixels,
