@@ -40,7 +40,7 @@ from . import _core
 from .guidance import Localizer, LocalizerSettings, localizer_settings
 from .logs import Log, load_plaza, read_log
 
-__all__ = ["ReplayResult", "replay", "INNOVATION_COLUMNS", "load", "score", "PRESETS", "preset_settings"]
+__all__ = ["ReplayResult", "replay", "INNOVATION_COLUMNS", "causal_index", "load", "score", "PRESETS", "preset_settings"]
 
 #: Named localizer set-ups for replay.  ``default``: the online defaults
 #: (:func:`~safenav.guidance.localizer_settings`).  ``plaza``: the Plaza
@@ -200,12 +200,16 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None,
     return result
 
 
+def causal_index(t_estimates: np.ndarray, t_truth: np.ndarray):
+    """(j, ok): the row of the latest estimate at or before each truth time, and where there is one."""
+    j = np.searchsorted(t_estimates, t_truth + 1e-9, side="right") - 1
+    return j, j >= 0
+
+
 def score(trajectory: pd.DataFrame, truth: pd.DataFrame) -> dict:
     """Causal scores of ``trajectory`` against ``truth`` (see the module doc)."""
-    tt = trajectory["t"].to_numpy(float)
     gt = truth[["t", "x", "y"]].to_numpy(float)
-    j = np.searchsorted(tt, gt[:, 0] + 1e-9, side="right") - 1   # latest estimate at or before each truth time
-    ok = j >= 0
+    j, ok = causal_index(trajectory["t"].to_numpy(float), gt[:, 0])
     j = j[ok]
     vx, vy, cxy = (trajectory[c].to_numpy(float)[j] for c in ("var_x", "var_y", "cov_xy"))
     covariances = np.column_stack([vx, cxy, cxy, vy])   # 2x2 row-major per pose
