@@ -164,7 +164,14 @@ def _truth_nll(result, truth) -> tuple[float, float]:
     if not np.all(det > 0):
         return math.nan, math.nan
     nees = (c * e[:, 0] ** 2 - 2 * b * e[:, 0] * e[:, 1] + a * e[:, 1] ** 2) / det   # eᵀP⁻¹e, 2×2 inverse
-    return float(np.mean(0.5 * (nees + np.log(det) + 2 * _LOG_2PI))), float(np.mean(nees))
+    nll = 0.5 * (nees + np.log(det) + 2 * _LOG_2PI)
+    if "heading" in truth and np.isfinite(truth["heading"].to_numpy(float)[ok]).all():
+        # the heading as a term of its own: the trajectory keeps no position-heading covariance
+        eh = np.angle(np.exp(1j * (tr["heading"].to_numpy(float)[j] - truth["heading"].to_numpy(float)[ok])))
+        vh = tr["var_heading"].to_numpy(float)[j]
+        if np.all(vh > 0):
+            nll = nll + 0.5 * (eh ** 2 / vh + np.log(vh) + _LOG_2PI)
+    return float(np.mean(nll)), float(np.mean(nees))
 
 
 def consistency(log: Log, settings: LocalizerSettings, noise: NoiseOverrides | None = None, *,
@@ -234,6 +241,33 @@ def _copy_settings(settings: LocalizerSettings) -> LocalizerSettings:
     return _settings_from_tables(_settings_tables(settings), "settings")
 
 
+def _scale_line_search(objective, x0: np.ndarray, scales: list[int], bounds) -> np.ndarray:
+    """A start for the search: all observation σ scales times 3^k together,
+    k chosen by a line search.  Under-stated σ keep the localizer from
+    starting from the data (its fit's residuals, in σ, exceed the limit),
+    which leaves the objective flat: the search first climbs in σ until the
+    replay starts, then walks either way while J falls."""
+    if not scales:
+        return x0
+    step = np.zeros_like(x0)
+    step[scales] = math.log(3.0)
+    lo, hi = np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds])
+    best_x, best_j = x0, objective(x0)
+    for _ in range(4):                      # climb until it starts
+        if best_j < _PENALTY:
+            break
+        best_x = np.clip(best_x + step, lo, hi)
+        best_j = objective(best_x)
+    for direction in (step, -step):
+        for _ in range(3):
+            x = np.clip(best_x + direction, lo, hi)
+            j = objective(x)
+            if not j < best_j:
+                break
+            best_x, best_j = x, j
+    return best_x
+
+
 def tune(log: Log, settings: LocalizerSettings | None = None, *, noise: NoiseOverrides | None = None,
          use_truth="auto", base: str = "default", max_evaluations: int = 150) -> TuneResult:
     """Estimate the process noise and the observation σ of ``log`` (module
@@ -262,6 +296,7 @@ def tune(log: Log, settings: LocalizerSettings | None = None, *, noise: NoiseOve
         cand = _candidate(settings, noise, names, np.exp(z))
         return _objective_value(consistency(log, *cand, use_truth=use_truth), use_truth)
 
+    x0 = _scale_line_search(objective, x0, [i for i, n in enumerate(names) if n.endswith("_scale")], bounds)
     simplex = np.vstack([x0] + [x0 + math.log(3.0) * np.eye(len(x0))[i] for i in range(len(x0))])
     simplex = np.clip(simplex, [b[0] for b in bounds], [b[1] for b in bounds])
     opt = optimize.minimize(objective, x0, method="Nelder-Mead", bounds=bounds,
