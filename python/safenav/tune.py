@@ -70,7 +70,7 @@ from .logs import Log
 from .replay import causal_index, preset_settings, replay
 
 __all__ = ["NoiseOverrides", "TuneResult", "tune", "consistency", "save_preset", "load_preset", "is_preset_file",
-           "PROCESS_NOISE", "SCALE_RANGE", "PRESET_FORMAT"]
+           "preset_base", "report", "PROCESS_NOISE", "SCALE_RANGE", "PRESET_FORMAT"]
 
 #: The BMM process-noise parameters that :func:`tune` estimates (σ per nominal step bmm.dt).
 PROCESS_NOISE = ("speed_noise", "heading_noise", "position_noise")
@@ -312,6 +312,31 @@ def tune(log: Log, settings: LocalizerSettings | None = None, *, noise: NoiseOve
                       method="truth-based" if use_truth else "innovation-only",
                       before=consistency(log, settings, noise), after=consistency(log, best_s, best_n),
                       evaluations=count[0], base=base, message=str(opt.message))
+
+
+def _consistency_line(label: str, c: dict) -> str:
+    if not c["started"]:
+        return f"  {label}: the localizer never started from the data (no innovations)"
+    parts = [f"{k} NIS {v['mean']:.2f} (dof {v['dof']:g}, 95% band {v['band'][0]:.2f}-{v['band'][1]:.2f}, "
+             f"n {v['n']})" for k, v in c["nis"].items()]
+    if "nees" in c:
+        lo, hi = c["nees_band"]
+        parts.append(f"position NEES {c['nees']:.2f} (dof 2, band {lo:.2f}-{hi:.2f} if independent), "
+                     f"RMSE {c['rmse']:.3f} m")
+    return f"  {label}: " + "; ".join(parts)
+
+
+def report(result: TuneResult) -> str:
+    """The text report of a :func:`tune` result: method, parameters, consistency before and after."""
+    how = ("truth-based: innovation likelihood + likelihood of the true poses (Mehra 1970; Abbeel et al. 2005)"
+           if result.method == "truth-based" else "innovation-only: innovation likelihood (Mehra 1970)")
+    lines = [f"method: {how}; {result.evaluations} replays ({result.message})", "parameters (start -> tuned):"]
+    units = {p.name: p.unit for p in _core.BmmParams.params()}
+    for name, v in result.parameters.items():
+        unit = f" {units[name]} per step of {result.settings.bmm.dt:g} s" if name in units else ""
+        lines.append(f"  {name:>17} {result.start[name]:.4g} -> {v:.4g}{unit}")
+    lines += ["consistency:", _consistency_line("before", result.before), _consistency_line("after", result.after)]
+    return "\n".join(lines)
 
 
 # --------------------------------------------------------------------------- preset files
