@@ -39,7 +39,8 @@ from . import _core
 from .guidance import Localizer, LocalizerSettings, localizer_settings
 from .logs import Log, load_plaza, read_log
 
-__all__ = ["ReplayResult", "replay", "INNOVATION_COLUMNS", "causal_index", "load", "score", "PRESETS", "preset_settings"]
+__all__ = ["ReplayResult", "replay", "INNOVATION_COLUMNS", "causal_index", "load", "score", "PRESETS",
+           "preset_settings"]
 
 #: Named localizer set-ups for replay.  ``default``: the online defaults
 #: (:func:`~safenav.guidance.localizer_settings`).  ``plaza``: the Plaza

@@ -384,7 +384,8 @@ def _settings_from_tables(tables: dict, where: str) -> LocalizerSettings:
         if key in f:
             v = f[key]
             if isinstance(v, bool) or not isinstance(v, (int, float)) or (kind is int and not isinstance(v, int)):
-                raise ValueError(f"{where}: [filter] {key} = {v!r}: must be {'an integer' if kind is int else 'a number'}")
+                what = "an integer" if kind is int else "a number"
+                raise ValueError(f"{where}: [filter] {key} = {v!r}: must be {what}")
             try:
                 setattr(s.filter, key, kind(v))
             except (TypeError, ValueError) as exc:
