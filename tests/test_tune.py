@@ -100,6 +100,8 @@ def test_innovations_recorded_without_changing_the_replay(logs):
     assert len(inn) == int((logs[0].events["kind"] != "motion").sum())
     live = inn[np.isfinite(inn["nis"])]
     assert set(live["status"]) <= {"applied", "rejected"} and (live["dim"] == 2).all()
+    # the truth likelihood's NEES is the core's trajectory score's, pose for pose
+    assert tn._truth_nll(b, logs[0].truth)[1] == pytest.approx(b.metrics["nees"], rel=1e-9)
 
 
 def test_log_det_s_is_that_of_the_prior():
@@ -207,3 +209,21 @@ def test_cli_tune_then_replay(tmp_path, logs, capsys):
     assert "neither a named preset" in capsys.readouterr().err
     assert main(["replay", str(csv), "--preset", str(tmp_path / "missing.toml"), "--out", str(tmp_path / "x")]) == 2
     assert "missing.toml" in capsys.readouterr().err
+
+
+def test_several_logs_pool(logs):
+    """Two runs tuned together: the pooled consistency weighs each run by its samples."""
+    s = rp.preset_settings("default")
+    a, b = (tn.consistency(g, s) for g in logs)
+    both = tn.consistency(list(logs), s)
+    kind = "range_bearing"
+    n = a["nis"][kind]["n"] + b["nis"][kind]["n"]
+    assert both["nis"][kind]["n"] == n
+    assert both["nis"][kind]["mean"] == pytest.approx(
+        (a["nis"][kind]["mean"] * a["nis"][kind]["n"] + b["nis"][kind]["mean"] * b["nis"][kind]["n"]) / n)
+    m = a["n_scored"] + b["n_scored"]
+    assert both["rmse"] == pytest.approx(math.sqrt((a["rmse"] ** 2 * a["n_scored"] + b["rmse"] ** 2 * b["n_scored"]) / m))
+    r = tn.tune(list(logs), max_evaluations=6)
+    assert r.method == "truth-based" and r.after["nis"][kind]["n"] >= 1
+    with pytest.raises(ValueError, match="sequence of Logs"):
+        tn.tune([])

@@ -281,21 +281,19 @@ def _tune(args) -> int:
     from . import replay as rp
     from . import tune as tn
 
-    base = args.preset or ("plaza" if Path(args.log).suffix.lower() == ".mat" else "default")
+    base = args.preset or ("plaza" if Path(args.logs[0]).suffix.lower() == ".mat" else "default")
     range_std = args.range_std if args.range_std is not None else (rp.PLAZA_RANGE_STD if base == "plaza" else 1.0)
     settings = rp.preset_settings(base, filter=args.filter, gate=args.gate)
-    log = rp.load(args.log, range_std=range_std)
-    if args.no_truth:
-        use_truth = False
-    elif log.truth is None:
-        console.info(f"{args.log} has no truth rows: innovation-only")
-        use_truth = False
-    else:
-        use_truth = True
-    result = tn.tune(log, settings, use_truth=use_truth, base=base, max_evaluations=args.evaluations)
-    print(f"{args.log}: {len(log.events)} inputs, starting from preset {base}, {args.filter}")
+    logs = [rp.load(p, range_std=range_std) for p in args.logs]
+    blind = [p for p, g in zip(args.logs, logs) if g.truth is None]
+    if blind and not args.no_truth:
+        console.info(f"{', '.join(blind)}: no truth rows: innovation-only")
+    use_truth = not (args.no_truth or blind)
+    result = tn.tune(logs, settings, use_truth=use_truth, base=base, max_evaluations=args.evaluations)
+    print(f"{', '.join(args.logs)}: {sum(len(g.events) for g in logs)} inputs, starting from preset {base}, "
+          f"{args.filter}")
     print(tn.report(result))
-    comment = f"safenav tune {args.log}\n" + tn.report(result)
+    comment = f"safenav tune {' '.join(args.logs)}\n" + tn.report(result)
     tn.save_preset(args.out, result.settings, result.noise, base=base, comment=comment)
     console.info(f"wrote {args.out} (safenav replay LOG --preset {args.out})")
     return 0
@@ -491,7 +489,8 @@ def _add_tune_command(sub, common) -> None:
                        help="estimate the process noise and each observation kind's sigma from a logged run "
                             "(maximum likelihood; truth-based or innovation-only) and write a preset file for "
                             "safenav replay --preset")
-    s.add_argument("log", help="a log file (.csv or .parquet) or a Plaza-layout .mat file")
+    s.add_argument("logs", nargs="+", metavar="LOG",
+                   help="log files (.csv, .parquet or Plaza-layout .mat); several runs are tuned together")
     s.add_argument("--out", default="out/tune/preset.toml", help="preset file to write (default out/tune/preset.toml)")
     s.add_argument("--no-truth", action="store_true",
                    help="innovation-only even when the log has truth (as on a vehicle without ground truth)")

@@ -174,12 +174,50 @@ def _truth_nll(result, truth) -> tuple[float, float]:
     return float(np.mean(nll)), float(np.mean(nees))
 
 
-def consistency(log: Log, settings: LocalizerSettings, noise: NoiseOverrides | None = None, *,
+def _logs(log) -> list[Log]:
+    """``log`` as a non-empty list of logs (one Log, or several)."""
+    logs = [log] if isinstance(log, Log) else list(log)
+    if not logs or not all(isinstance(g, Log) for g in logs):
+        raise ValueError(f"log = {log!r:.80}: must be a Log or a non-empty sequence of Logs")
+    return logs
+
+
+def consistency(log, settings: LocalizerSettings, noise: NoiseOverrides | None = None, *,
                 use_truth: bool = True) -> dict:
-    """Replay ``log`` with ``settings`` and ``noise`` and measure: per
-    observation kind the mean NIS, its dimension, count and 95 % band; the
-    objective terms J_inn and (with truth) J_truth; RMSE and mean position
-    NEES against the truth."""
+    """Replay ``log`` (one :class:`~safenav.logs.Log` or several, pooled) with
+    ``settings`` and ``noise`` and measure: per observation kind the mean
+    NIS, its dimension, count and 95 % band; the objective terms J_inn and
+    (with truth) J_truth; RMSE and mean position NEES against the truth."""
+    parts = [_consistency_one(g, settings, noise, use_truth) for g in _logs(log)]
+    if len(parts) == 1:
+        return parts[0]
+    out = {"started": all(p["started"] for p in parts), "nis": {},
+           "n_innovations": sum(p["n_innovations"] for p in parts)}
+    for kind in sorted({k for p in parts for k in p["nis"]}):
+        got = [p["nis"][kind] for p in parts if kind in p["nis"]]
+        n = sum(g["n"] for g in got)
+        dof = sum(g["dof"] * g["n"] for g in got) / n
+        out["nis"][kind] = {"mean": sum(g["mean"] * g["n"] for g in got) / n, "dof": dof, "n": n,
+                            "band": _chi2_band(n, dof)}
+
+    def pooled(key, weight, square=False):
+        got = [(p[key], p[weight]) for p in parts if math.isfinite(p.get(key, math.nan)) and p[weight] > 0]
+        w = sum(n for _, n in got)
+        if not got or len(got) < len(parts):
+            return math.nan
+        v = sum((x * x if square else x) * n for x, n in got) / w
+        return math.sqrt(v) if square else v
+
+    out["j_inn"] = pooled("j_inn", "n_innovations")
+    if all("rmse" in p for p in parts):
+        n = sum(p["n_scored"] for p in parts)
+        out.update(j_truth=pooled("j_truth", "n_scored"), rmse=pooled("rmse", "n_scored", square=True),
+                   nees=pooled("nees", "n_scored"), nees_dof=2, n_scored=n, nees_band=_chi2_band(n, 2))
+    return out
+
+
+def _consistency_one(log: Log, settings: LocalizerSettings, noise, use_truth: bool) -> dict:
+    """:func:`consistency` of one log."""
     res = replay((noise or NoiseOverrides()).apply(log), settings, innovations=True)
     inn = res.innovations
     inn = inn[np.isfinite(inn["nis"].to_numpy(float)) & np.isfinite(inn["logdet_s"].to_numpy(float))]
@@ -204,7 +242,7 @@ def _objective_value(c: dict, use_truth: bool) -> float:
     return j if math.isfinite(j) else _PENALTY
 
 
-def _searched(log: Log, settings: LocalizerSettings) -> list[tuple[str, float, float, float]]:
+def _searched(logs: list[Log], settings: LocalizerSettings) -> list[tuple[str, float, float, float]]:
     """(name, start, low, high) of each searched parameter: the BMM process
     noise (bounds from BmmParams.params()) and the σ scale of each observation
     kind present in the log."""
@@ -214,10 +252,9 @@ def _searched(log: Log, settings: LocalizerSettings) -> list[tuple[str, float, f
         sp = specs[name]
         lo = max(sp.lo, FLOOR_SHARE * sp.hi)
         out.append((name, float(np.clip(settings.bmm.get_param(name), lo, sp.hi)), lo, sp.hi))
-    ev = log.events
-    present = {"range": np.isfinite(ev["range"].to_numpy(float)).any(),
-               "bearing": np.isfinite(ev["bearing"].to_numpy(float)).any(),
-               "fix": bool((ev["kind"] == "fix").any())}
+    present = {"range": any(np.isfinite(g.events["range"].to_numpy(float)).any() for g in logs),
+               "bearing": any(np.isfinite(g.events["bearing"].to_numpy(float)).any() for g in logs),
+               "fix": any(bool((g.events["kind"] == "fix").any()) for g in logs)}
     out += [(f"{k}_std_scale", 1.0, *SCALE_RANGE) for k in _OBS if present[k]]
     return out
 
@@ -268,18 +305,22 @@ def _scale_line_search(objective, x0: np.ndarray, scales: list[int], bounds) -> 
     return best_x
 
 
-def tune(log: Log, settings: LocalizerSettings | None = None, *, noise: NoiseOverrides | None = None,
+def tune(log, settings: LocalizerSettings | None = None, *, noise: NoiseOverrides | None = None,
          use_truth="auto", base: str = "default", max_evaluations: int = 150) -> TuneResult:
     """Estimate the process noise and the observation σ of ``log`` (module
-    doc), starting from ``settings`` (default: the ``base`` preset) and
-    ``noise`` (default: the log's own σ).  ``use_truth``: "auto" (truth-based
-    when the log has truth), True (requires truth) or False (innovation-only)."""
+    doc; a :class:`~safenav.logs.Log`, or several runs of one vehicle,
+    whose objectives are pooled), starting from ``settings`` (default: the
+    ``base`` preset) and ``noise`` (default: the log's own σ).
+    ``use_truth``: "auto" (truth-based when every log has truth), True
+    (requires truth) or False (innovation-only)."""
+    log = _logs(log)
+    has_truth = all(g.truth is not None for g in log)
     if use_truth == "auto":
-        use_truth = log.truth is not None
-    elif use_truth not in (True, False):
+        use_truth = has_truth
+    elif use_truth is not True and use_truth is not False:
         raise ValueError(f"use_truth = {use_truth!r}: must be 'auto', True or False")
-    if use_truth and log.truth is None:
-        raise ValueError("use_truth = True: the log has no truth rows")
+    if use_truth and not has_truth:
+        raise ValueError("use_truth = True: a log has no truth rows")
     if isinstance(max_evaluations, bool) or not isinstance(max_evaluations, int) or max_evaluations < 1:
         raise ValueError(f"max_evaluations = {max_evaluations!r}: must be an integer >= 1")
     settings = _copy_settings(settings if settings is not None else preset_settings(base))
