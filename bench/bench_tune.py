@@ -7,14 +7,16 @@ innovation-only with the truth rows dropped), and seed k + 1 is replayed with
 1. the ``default`` preset (the log's own σ, the default process noise);
 2. the preset tuned on seed k, truth-based;
 3. the preset tuned on seed k, innovation-only;
-4. the plain 3-state unicycle EKF of ``bench/bench_reallike.py`` (numpy,
+4. with ``--runs N`` (N > 1), the preset tuned truth-based on N runs
+   together: seeds k, k + 100, …, k + 100·(N − 1);
+5. the plain 3-state unicycle EKF of ``bench/bench_reallike.py`` (numpy,
    the generator's *true* noise, started at the replay's start from the
    true pose: a head start the localizer does not get), imported from there.
 
 It prints the causal position RMSE and mean position NEES (2 if consistent)
 per seed and their medians.
 
-    python bench/bench_tune.py [--seeds 0 1 2 3 4] [--duration 120] [--evaluations 150]
+    python bench/bench_tune.py [--seeds 0 1 2 3 4] [--duration 120] [--evaluations 150] [--runs 2]
 """
 
 from __future__ import annotations
@@ -48,9 +50,10 @@ def main():
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
     ap.add_argument("--duration", type=float, default=120.0)
     ap.add_argument("--evaluations", type=int, default=150)
+    ap.add_argument("--runs", type=int, default=1, help="also tune on this many runs together (seeds k + 100 i)")
     args = ap.parse_args()
     cfg = RealLikeConfig(duration=args.duration)
-    cols = ("default", "tuned (truth)", "tuned (innov.)")
+    cols = ("default", "tuned (truth)", "tuned (innov.)") + ((f"tuned ({args.runs} runs)",) if args.runs > 1 else ())
     print(f"tune on seed k, replay seed k+1 ({args.duration:g} s logs); RMSE [m] / mean position NEES (2 if "
           "consistent); plain EKF = numpy unicycle EKF with the true noise")
     print(f"{'k':>2} " + " ".join(f"{c:>18}" for c in cols) + f" {'plain EKF':>10} {'tune s':>7}")
@@ -60,10 +63,15 @@ def main():
         clock = time.perf_counter()
         with_truth = tn.tune(train, max_evaluations=args.evaluations)
         blind = tn.tune(Log(landmarks=train.landmarks, events=train.events), max_evaluations=args.evaluations)
+        presets = [(rp.preset_settings("default"), None), (with_truth.settings, with_truth.noise),
+                   (blind.settings, blind.noise)]
+        if args.runs > 1:
+            more = [train] + [reallike_log(k + 100 * i, cfg) for i in range(1, args.runs)]
+            several = tn.tune(more, max_evaluations=args.evaluations)
+            presets.append((several.settings, several.noise))
         wall = time.perf_counter() - clock
         row = []
-        for name, (s, n) in zip(cols, ((rp.preset_settings("default"), None), (with_truth.settings, with_truth.noise),
-                                       (blind.settings, blind.noise))):
+        for name, (s, n) in zip(cols, presets):
             c = tn.consistency(test, s, n)
             table[name].append((c.get("rmse", np.nan), c.get("nees", np.nan)))
             row.append(f"{c.get('rmse', np.nan):8.3f} / {c.get('nees', np.nan):6.2f}  ")
