@@ -44,6 +44,9 @@ no gradients.  Bounds come from each BMM parameter's declared range
 (``BmmParams.params()``); σ scales of the observations lie in
 :data:`SCALE_RANGE`.
 
+Several runs of one vehicle can be tuned together (``tune([log_a, log_b])``):
+their likelihoods are pooled, averaging out what is constant within a run.
+
 Observation σ are overrides of the σ in the log's rows
 (:class:`NoiseOverrides`): a scale (``range_std_scale``: the row's σ times
 it, so a σ that grows with range keeps its shape) or an absolute σ
