@@ -21,7 +21,9 @@ innovation (:attr:`ReplayResult.innovations`): its status, NIS
 ν = yᵀS⁻¹y with its dimension, and log det S, where S = H P⁻ Hᵀ + R comes
 from the core's measurement model (:class:`safenav._core.MeasurementModel`,
 its Jacobian H at the estimate before the input) and P⁻, the prior at the
-input's time, from the covariance after it (``_log_det_s``).  :mod:`safenav.tune` fits the noise to
+input's time, from the covariance after it (``_log_det_s``).  With
+augmented states on, the localizer exposes only the (x, y, v, θ) block, so
+log det S leaves out their share (an approximation).  :mod:`safenav.tune` fits the noise to
 these (innovation likelihood, Mehra 1970).
 
 ``safenav replay LOG`` is the command-line front end (``--help``).
