@@ -13,7 +13,7 @@ import safenav
 from safenav import cli, console, navigation, results, runner
 
 COMMANDS = {"demo": [], "run": [], "plan": [], "synthetic": [], "experiment": ["all"],
-            "place": ["in.toml"], "verify": ["folder"]}
+            "place": ["in.toml"], "verify": ["folder"], "tune": ["log.csv"]}
 SCENARIO_COMMANDS = ("demo", "run", "plan", "experiment")
 
 

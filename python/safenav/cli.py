@@ -251,17 +251,63 @@ def _plan(args) -> int:
     return 0
 
 
+def _replay_preset(args):
+    """(preset, settings, observation σ overrides or None, base named preset) of replay's --preset: a named
+    preset (safenav.replay.PRESETS) or a preset file (safenav.tune.load_preset) with the command's options."""
+    from . import replay as rp
+    from . import tune as tn
+    from .guidance import FILTERS, localizer_settings
+
+    preset = args.preset or ("plaza" if Path(args.log).suffix.lower() == ".mat" else "default")
+    if not tn.is_preset_file(preset):
+        if preset not in rp.PRESETS:
+            raise ValueError(f"--preset {preset!r}: neither a named preset ({', '.join(rp.PRESETS)}) nor a "
+                             ".toml or .json preset file (safenav tune writes one)")
+        return preset, rp.preset_settings(preset, filter=args.filter, gate=args.gate, n_particles=args.particles,
+                                          seed=args.seed, augment=args.augment or ()), None, preset
+    settings, noise = tn.load_preset(preset)
+    opts = localizer_settings(filter=args.filter, gate=args.gate, n_particles=args.particles, seed=args.seed,
+                              augment=args.augment or ())
+    settings.filter.type = FILTERS[args.filter]
+    settings.filter.n_particles, settings.filter.seed = opts.filter.n_particles, opts.filter.seed
+    if args.gate is not None:
+        settings.set_param("gate_probability", float(args.gate))
+    for name in args.augment or ():
+        setattr(settings.augment, name, True)
+    return preset, settings, noise, tn.preset_base(preset)
+
+
+def _tune(args) -> int:
+    from . import replay as rp
+    from . import tune as tn
+
+    base = args.preset or ("plaza" if Path(args.logs[0]).suffix.lower() == ".mat" else "default")
+    range_std = args.range_std if args.range_std is not None else (rp.PLAZA_RANGE_STD if base == "plaza" else 1.0)
+    settings = rp.preset_settings(base, filter=args.filter, gate=args.gate)
+    logs = [rp.load(p, range_std=range_std) for p in args.logs]
+    blind = [p for p, g in zip(args.logs, logs) if g.truth is None]
+    if blind and not args.no_truth:
+        console.info(f"{', '.join(blind)}: no truth rows: innovation-only")
+    use_truth = not (args.no_truth or blind)
+    result = tn.tune(logs, settings, use_truth=use_truth, base=base, max_evaluations=args.evaluations)
+    print(f"{', '.join(args.logs)}: {sum(len(g.events) for g in logs)} inputs, starting from preset {base}, "
+          f"{args.filter}")
+    print(tn.report(result))
+    comment = f"safenav tune {' '.join(args.logs)}\n" + tn.report(result)
+    tn.save_preset(args.out, result.settings, result.noise, base=base, comment=comment)
+    console.info(f"wrote {args.out} (safenav replay LOG --preset {args.out})")
+    return 0
+
+
 def _replay(args) -> int:
     from . import replay as rp
     from .results import write_table
 
-    mat = Path(args.log).suffix.lower() == ".mat"
-    preset = args.preset or ("plaza" if mat else "default")
-    range_std = args.range_std if args.range_std is not None else (
-        rp.PLAZA_RANGE_STD if preset == "plaza" else 1.0)
+    preset, settings, noise, base = _replay_preset(args)
+    range_std = args.range_std if args.range_std is not None else (rp.PLAZA_RANGE_STD if base == "plaza" else 1.0)
     log = rp.load(args.log, range_std=range_std)
-    settings = rp.preset_settings(preset, filter=args.filter, gate=args.gate, n_particles=args.particles,
-                                  seed=args.seed, augment=args.augment or ())
+    if noise is not None:
+        log = noise.apply(log)
     prior = None
     if args.prior_from_truth:
         if log.truth is None:
@@ -437,6 +483,28 @@ def _add_experiment_commands(sub, common, scenario) -> None:
 
 
 
+def _add_tune_command(sub, common) -> None:
+    """tune: noise identification from a logged run (safenav.tune)."""
+    s = sub.add_parser("tune", parents=[common],
+                       help="estimate the process noise and each observation kind's sigma from a logged run "
+                            "(maximum likelihood; truth-based or innovation-only) and write a preset file for "
+                            "safenav replay --preset")
+    s.add_argument("logs", nargs="+", metavar="LOG",
+                   help="log files (.csv, .parquet or Plaza-layout .mat); several runs are tuned together")
+    s.add_argument("--out", default="out/tune/preset.toml", help="preset file to write (default out/tune/preset.toml)")
+    s.add_argument("--no-truth", action="store_true",
+                   help="innovation-only even when the log has truth (as on a vehicle without ground truth)")
+    s.add_argument("--filter", choices=["ekf"], default="ekf",
+                   help="the filter tuned (ekf: the innovation likelihood needs its Gaussian S)")
+    s.add_argument("--preset", choices=["default", "plaza"], default=None,
+                   help="the named preset to start from (default: plaza for a .mat file, else default)")
+    s.add_argument("--gate", type=float, default=None, help="chi-square gate probability (default: the preset's)")
+    s.add_argument("--range-std", type=float, default=None,
+                   help="range sigma for a .mat file's ranges (default: 0.55 m with the plaza preset, else 1 m)")
+    s.add_argument("--evaluations", type=_at_least(1), default=150, help="replays the search may run (default 150)")
+    s.set_defaults(func=_tune)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="safenav", description="GPS-denied safe navigation experiments.")
     p.add_argument("--version", action="version", version=f"safenav {__version__}")
@@ -452,8 +520,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--particles", type=_at_least(1), default=1000, help="PF particles (default 1000)")
     s.add_argument("--gate", type=float, default=None,
                    help="chi-square gate probability of every update (default 0.99; 0 = off)")
-    s.add_argument("--preset", choices=["default", "plaza"], default=None,
-                   help="localizer set-up (safenav.replay.PRESETS; default: plaza for a .mat file, else default)")
+    s.add_argument("--preset", default=None, metavar="NAME|FILE",
+                   help="localizer set-up: default, plaza (safenav.replay.PRESETS) or a preset file that "
+                        "safenav tune wrote (.toml/.json); default: plaza for a .mat file, else default")
     s.add_argument("--augment", nargs="+", choices=["range_scale", "heading_rate_bias", "range_bias"],
                    help="augmented states to add (the plaza preset has range_scale and heading_rate_bias)")
     s.add_argument("--range-std", type=float, default=None,
@@ -463,6 +532,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--seed", type=_at_least(0), default=0, help="particle filter seed")
     s.add_argument("--out", default="out/replay", help="output folder (default out/replay)")
     s.set_defaults(func=_replay)
+
+    _add_tune_command(sub, common)
 
     from .placement.cli import register as register_place
     register_place(sub, parents=[common], positive=_at_least(1), run_folder=_run_folder, wrote=_wrote)

@@ -16,6 +16,16 @@ A replay never succeeds silently: :attr:`ReplayResult.reason` says why it
 never started (the localizer's ``reason()``) or how many truth poses lie
 before its start.
 
+With ``innovations=True`` it also records each measurement input's
+innovation (:attr:`ReplayResult.innovations`): its status, NIS
+ν = yᵀS⁻¹y with its dimension, and log det S, where S = H P⁻ Hᵀ + R comes
+from the core's measurement model (:class:`safenav._core.MeasurementModel`,
+its Jacobian H at the estimate before the input) and P⁻, the prior at the
+input's time, from the covariance after it (``_log_det_s``).  With
+augmented states on, the localizer exposes only the (x, y, v, θ) block, so
+log det S leaves out their share (an approximation).  :mod:`safenav.tune` fits the noise to
+these (innovation likelihood, Mehra 1970).
+
 ``safenav replay LOG`` is the command-line front end (``--help``).
 """
 
@@ -31,7 +41,8 @@ from . import _core
 from .guidance import Localizer, LocalizerSettings, localizer_settings
 from .logs import Log, load_plaza, read_log
 
-__all__ = ["ReplayResult", "replay", "load", "score", "PRESETS", "preset_settings"]
+__all__ = ["ReplayResult", "replay", "INNOVATION_COLUMNS", "causal_index", "load", "score", "PRESETS",
+           "preset_settings"]
 
 #: Named localizer set-ups for replay.  ``default``: the online defaults
 #: (:func:`~safenav.guidance.localizer_settings`).  ``plaza``: the Plaza
@@ -59,6 +70,8 @@ def preset_settings(name: str, *, filter: str = "ekf", n_particles: int = 1000, 
                               gate=0.999 if gate is None else gate,
                               augment=("range_scale", "heading_rate_bias", *augment))
 
+#: Columns of :attr:`ReplayResult.innovations`.
+INNOVATION_COLUMNS = ("t", "kind", "status", "nis", "dim", "logdet_s")
 #: Columns of :attr:`ReplayResult.trajectory`.
 TRAJECTORY_COLUMNS = ("t", "x", "y", "speed", "heading", "var_x", "var_y", "cov_xy", "var_speed", "var_heading")
 
@@ -78,6 +91,9 @@ class ReplayResult:
     #: ("waiting: ..."), or how many truth poses lie before its start; "" when
     #: every truth pose (or, without truth, every input) is covered.
     reason: str = ""
+    #: with ``replay(..., innovations=True)``: one row per measurement input
+    #: (INNOVATION_COLUMNS); NaN NIS and log det S before the start
+    innovations: pd.DataFrame | None = None
 
     @property
     def estimated(self) -> bool:
@@ -96,10 +112,40 @@ def load(path, *, range_std: float = 1.0) -> Log:
     return read_log(p)
 
 
-def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None) -> ReplayResult:
+def _log_det_s(kind: str, x, P_before, P_after, applied: bool, landmark, z_std) -> float:
+    """log det S, S = H P⁻ Hᵀ + R (Bar-Shalom, Li & Kirubarajan 2001, §5.2.3),
+    of one measurement input: H and R from the core's measurement model of
+    ``kind`` at ``landmark`` (x, y) with ``z_std`` = (σ_r, σ_b) or the fix's R.
+    P⁻ is the prior at the input's time: after a rejected input the filter's
+    covariance (predicted to that time, not updated); after an applied one,
+    from the information form of the update, P⁺⁻¹ = P⁻⁻¹ + Hᵀ R⁻¹ H (ibid.
+    §5.2.4), so the few milliseconds of prediction to the input's time are
+    in it.  H is taken at the estimate before the input."""
+    M = _core.MeasurementModel
+    if kind == "fix":
+        m = M.position(z_std)
+    elif kind == "range":
+        m = M.range(np.array([landmark], dtype=float), z_std[0])
+    elif kind == "bearing":
+        m = M.bearing(np.array([landmark], dtype=float), z_std[1])
+    else:
+        m = M.range_bearing(np.array([landmark], dtype=float), z_std[0], z_std[1])
+    H, R = m.jacobian(x), m.R
+    P = P_after
+    if applied:
+        P = np.linalg.inv(np.linalg.inv(P_after) - H.T @ np.linalg.solve(R, H))
+        if not np.all(np.linalg.eigvalsh(0.5 * (P + P.T)) > 0):
+            P = P_before         # the information form lost definiteness (augmented or nonlinear update)
+    return float(np.linalg.slogdet(H @ P @ H.T + R)[1])
+
+
+def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None,
+           innovations: bool = False) -> ReplayResult:
     """Run ``log`` through a :class:`Localizer` with ``settings`` (default:
     :func:`~safenav.guidance.localizer_settings`).  ``prior`` = ``(t, x0, P0)``
-    starts it from a prior; by default it starts from the data."""
+    starts it from a prior; by default it starts from the data.
+    ``innovations`` records each measurement input's NIS and log det S
+    (:attr:`ReplayResult.innovations`; the module doc)."""
     ids = sorted(log.landmarks)
     landmarks = np.array([log.landmarks[i] for i in ids], dtype=float).reshape(-1, 2)
     loc = Localizer(settings or localizer_settings(), landmarks, ids)
@@ -112,7 +158,7 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None) -
     lm = ev["landmark"].fillna(-1).to_numpy(np.int64)
     cols = {c: ev[c].to_numpy(float) for c in ("x", "y", "speed", "distance", "heading_change", "range", "bearing",
                                                 "range_std", "bearing_std", "std_x", "std_y")}
-    rows = []
+    rows, inno = [], []
 
     def record():
         x, P = loc.x, loc.P
@@ -131,13 +177,22 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None) -
                 loc.motion(t[i], cols["speed"][i], cols["heading_change"][i])
             if loc.initialized and not math.isnan(t_start):
                 record()
-        elif k == "fix":
-            R = np.diag([cols["std_x"][i] ** 2, cols["std_y"][i] ** 2])
-            loc.fix(t[i], cols["x"][i], cols["y"][i], R)
-        else:  # range, bearing, range_bearing
-            # read_log requires the σ of whatever a row measures; the other one is NaN and unused
-            loc.observe(t[i], int(lm[i]), cols["range"][i], cols["bearing"][i], cols["range_std"][i],
-                        cols["bearing_std"][i])
+        else:
+            before = (loc.x, loc.P) if innovations and loc.initialized else None
+            if k == "fix":
+                R = np.diag([cols["std_x"][i] ** 2, cols["std_y"][i] ** 2])
+                res = loc.fix(t[i], cols["x"][i], cols["y"][i], R)
+            else:  # range, bearing, range_bearing
+                # read_log requires the σ of whatever a row measures; the other one is NaN and unused
+                res = loc.observe(t[i], int(lm[i]), cols["range"][i], cols["bearing"][i], cols["range_std"][i],
+                                  cols["bearing_std"][i])
+            if innovations:
+                lds = math.nan
+                if before is not None and math.isfinite(res.nis) and (k == "fix" or int(lm[i]) in log.landmarks):
+                    lds = _log_det_s(k, before[0], before[1], loc.P, res.applied,
+                                     None if k == "fix" else log.landmarks[int(lm[i])],
+                                     R if k == "fix" else (cols["range_std"][i], cols["bearing_std"][i]))
+                inno.append((t[i], k, res.status.name.lower(), res.nis, res.dim, lds))
         if math.isnan(t_start) and loc.initialized:  # started from the data: its first estimate
             t_start = loc.time
             record()
@@ -146,6 +201,8 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None) -
     result = ReplayResult(trajectory=traj, t_start=t_start, started_from="prior" if prior is not None else "data",
                           counts={"motion": c.motion, "applied": c.applied, "rejected": c.rejected, "late": c.late,
                                   "buffered": c.buffered, "ignored": c.ignored})
+    if innovations:
+        result.innovations = pd.DataFrame(inno, columns=list(INNOVATION_COLUMNS))
     if log.truth is not None and len(traj):
         result.metrics = score(traj, log.truth)
     if not len(traj):
@@ -156,12 +213,16 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None) -
     return result
 
 
+def causal_index(t_estimates: np.ndarray, t_truth: np.ndarray):
+    """(j, ok): the row of the latest estimate at or before each truth time, and where there is one."""
+    j = np.searchsorted(t_estimates, t_truth + 1e-9, side="right") - 1
+    return j, j >= 0
+
+
 def score(trajectory: pd.DataFrame, truth: pd.DataFrame) -> dict:
     """Causal scores of ``trajectory`` against ``truth`` (see the module doc)."""
-    tt = trajectory["t"].to_numpy(float)
     gt = truth[["t", "x", "y"]].to_numpy(float)
-    j = np.searchsorted(tt, gt[:, 0] + 1e-9, side="right") - 1   # latest estimate at or before each truth time
-    ok = j >= 0
+    j, ok = causal_index(trajectory["t"].to_numpy(float), gt[:, 0])
     j = j[ok]
     vx, vy, cxy = (trajectory[c].to_numpy(float)[j] for c in ("var_x", "var_y", "cov_xy"))
     covariances = np.column_stack([vx, cxy, cxy, vy])   # 2x2 row-major per pose
