@@ -321,6 +321,14 @@ def git_info() -> str:
         return "unknown"
 
 
+def print_header(repeats: int, seed: int) -> None:
+    """The versions, the commit, the machine and the repeat count, as every benchmark here prints them."""
+    print(f"safenav {safenav.__version__} @ {git_info()} | numpy {np.__version__} | "
+          f"python {platform.python_version()} | {platform.machine()} | {platform.processor() or ''} "
+          f"| cores: {__import__('os').cpu_count()}")
+    print(f"seed {seed}, {repeats} interleaved repeats, medians [min-max]\n")
+
+
 # ---------------------------------------------------------------------------
 # Benchmarks
 # ---------------------------------------------------------------------------
@@ -399,10 +407,7 @@ def main(argv=None):
     repeats = args.repeats or (3 if args.quick else 9)
     trials = args.trials or (10 if args.quick else 20)
 
-    print(f"safenav {safenav.__version__} @ {git_info()} | numpy {np.__version__} | "
-          f"python {platform.python_version()} | {platform.machine()} | {platform.processor() or ''} "
-          f"| cores: {__import__('os').cpu_count()}")
-    print(f"seed {SEED}, {repeats} interleaved repeats, medians [min-max]\n")
+    print_header(repeats, SEED)
     t_start = time.perf_counter()
 
     ekf = bench_ekf(args.ekf_steps, repeats)

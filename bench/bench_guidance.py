@@ -40,8 +40,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
-import platform
 import re
 import shutil
 import subprocess
@@ -56,7 +54,7 @@ from safenav import _core
 from safenav.guidance import Localizer, localizer_settings
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_filters import BmmEkf, git_info, interleave, med, spread, wrap  # noqa: E402
+from bench_filters import BmmEkf, interleave, med, print_header, spread, wrap  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SEED = 20240601
@@ -236,10 +234,7 @@ def main(argv=None):
     ticks = args.ticks or (2000 if args.quick else 5000)
     cpp_ticks = args.cpp_ticks or (20000 if args.quick else 200000)
 
-    print(f"safenav {safenav.__version__} @ {git_info()} | numpy {np.__version__} | "
-          f"python {platform.python_version()} | {platform.machine()} | {platform.processor() or ''} "
-          f"| cores: {os.cpu_count()}")
-    print(f"seed {SEED}, {repeats} interleaved repeats, medians [min-max]\n")
+    print_header(repeats, SEED)
     t_start = time.perf_counter()
 
     py = bench_python(ticks, repeats)
