@@ -48,6 +48,8 @@ void FilterOptions::validate(const std::string& prefix) const {
     os << prefix << "n_particles = " << n_particles << ": must be >= 1";
   else if (!(resample_threshold >= 0.0 && resample_threshold <= 1.0))
     os << prefix << "resample_threshold = " << resample_threshold << ": must be in [0, 1]";
+  else if (!(bandwidth_scale >= 0.0 && bandwidth_scale <= 10.0))
+    os << prefix << "bandwidth_scale = " << bandwidth_scale << ": must be in [0, 10]";
   else if (!(gate_probability >= 0.0 && gate_probability < 1.0))
     os << prefix << "gate_probability = " << gate_probability << ": must be in [0, 1) (0 = off)";
   else

@@ -1,7 +1,9 @@
 // Particle filter (the Battlefield Motion Model's SIR filter): storage, weights,
-// resampling and the measurement update; the per-particle passes are the
-// kernels in pf_kernels.hpp.
+// resampling, regularisation (regularise.hpp; the method is documented at
+// ParticleFilter in safenav/filters.hpp) and the measurement update; the
+// per-particle passes are the kernels in pf_kernels.hpp.
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
@@ -12,6 +14,7 @@
 
 #include "checks.hpp"
 #include "pf_kernels.hpp"
+#include "regularise.hpp"
 #include "safenav/filters.hpp"
 
 namespace safenav {
@@ -54,7 +57,8 @@ class Columns {
 struct ParticleFilter::Impl {
   // Particle columns: x, y, v, θ, cos θ, sin θ; weight columns: log w, w.
   enum Column : int { kCos = 4, kSin = 5, kParticleColumns = 6 };
-  enum WeightColumn : int { kLogW = 0, kW = 1 };
+  // Weight columns: log w, w, the prior w of an update, 1/N (for the unweighted moments).
+  enum WeightColumn : int { kLogW = 0, kW = 1, kPriorW = 2, kUniform = 3, kWeightColumns = 4 };
   Bmm bmm;
   detail::BatchRng rng;
   double resample_threshold;
@@ -63,6 +67,7 @@ struct ParticleFilter::Impl {
   Columns W;                  // log-weights and normalised weights
   double ess = 0.0;           // 1/Σw², kept with w
   int n_resampled = 0;
+  double h = 0.0;             // kernel bandwidth (0: plain SIR, no jitter, no floor)
   double gate_probability = 0.0;     // NIS gate (0 = off)
   std::vector<double> gate_thresholds;  // chi-square quantile per measurement dimension
   // scratch
@@ -70,12 +75,16 @@ struct ParticleFilter::Impl {
   std::vector<int> start;     // resampling: the particle of each pointer
   Eigen::MatrixXd Y;          // residuals of a general measurement model
   Eigen::VectorXd zhat, resid;
+  Eigen::Matrix4d Sigma_prior;        // the prior cloud's weighted covariance (of an update)
+  Eigen::MatrixXd Cxy, Cyy;           // weighted state–residual and residual covariances (general models)
+  mutable Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> es;
 
-  Impl(const BmmParams& p, std::uint64_t seed, double thr, int n)
-      : bmm(p), rng(seed), resample_threshold(thr), N(n) {
+  Impl(const BmmParams& p, std::uint64_t seed, double thr, int n, double bandwidth_scale)
+      : bmm(p), rng(seed), resample_threshold(thr), N(n), h(kernel_bandwidth(n, 4, bandwidth_scale)) {
     S.resize(N, kParticleColumns);
     S_next.resize(N, kParticleColumns);
-    W.resize(N, 2);
+    W.resize(N, kWeightColumns);
+    std::fill_n(W.col(kUniform), N, 1.0 / N);  // padding stays 0
     noise.resize(N, 4);
     start.resize(static_cast<std::size_t>(N) + 1);
   }
@@ -132,16 +141,17 @@ struct ParticleFilter::Impl {
     ++n_resampled;
   }
 
-  State mean() const {
+  /// Mean under the weights in column `wc` of W (circular mean for θ).
+  State mean(int wc = kW) const {
     const Sums5 s = detail::dispatch<mean_sums<32>, mean_sums<16>>(N, col(kX), col(kY), col(kV), col(kCos),
-                                                                    col(kSin), w());
+                                                                    col(kSin), W.col(wc));
     return State(s.s[0], s.s[1], s.s[2], std::atan2(s.s[4], s.s[3]));  // circular mean for θ
   }
 
-  /// Weighted covariance Σ w_i d_i d_iᵀ about m, θ deviations wrapped.
-  StateCov covariance(const State& m) const {
+  /// Covariance Σ w_i d_i d_iᵀ about m under the weights in column `wc` of W, θ deviations wrapped.
+  StateCov covariance(const State& m, int wc = kW) const {
     const Sums10 t = detail::dispatch<covariance_sums<32>, covariance_sums<16>>(N, col(kX), col(kY), col(kV),
-                                                                                col(kTheta), w(), &m);
+                                                                                col(kTheta), W.col(wc), &m);
     const double* s = t.s;
     StateCov P;
     P << s[0], s[1], s[2], s[3],
@@ -154,6 +164,38 @@ struct ParticleFilter::Impl {
       check_finite_result(P, "particle filter P", os.str());
     }
     return P;
+  }
+
+  /// The reported covariance: the weighted one about m, floored by the
+  /// kernel covariance h²·C_u of the unweighted cloud (regularise.hpp).
+  StateCov reported_covariance(const State& m) const {
+    const StateCov P = covariance(m);
+    if (h <= 0.0) return P;
+    const StateCov floor = (h * h) * covariance(mean(kUniform), kUniform);
+    return loewner_floor(P, floor, es);
+  }
+
+  /// After a resampling: shrink toward the posterior mean m and add kernel
+  /// noise of covariance Pk (regularise.hpp), v clamped to [0, v_max], θ
+  /// wrapped.  Plain scalar code: the same bits on every CPU.
+  void regularise(const State& m, const Eigen::Matrix4d& Pk) {
+    Eigen::Matrix4d L;
+    psd_factor(Pk, es, L);
+    const double a = std::sqrt(std::max(0.0, 1.0 - h * h));
+    const double vmax = bmm.params().max_speed;
+    rng.fill_normal(noise.col(0), 4L * noise.stride());
+    double* c[4] = {col(kX), col(kY), col(kV), col(kTheta)};
+    const double* e[4] = {noise.col(0), noise.col(1), noise.col(2), noise.col(3)};
+    for (int i = 0; i < N; ++i) {
+      Eigen::Vector4d d(c[0][i] - m[0], c[1][i] - m[1], c[2][i] - m[2], wrap_angle(c[3][i] - m[3]));
+      d = a * d + L * Eigen::Vector4d(e[0][i], e[1][i], e[2][i], e[3][i]);
+      c[0][i] = m[0] + d[0];
+      c[1][i] = m[1] + d[1];
+      c[2][i] = std::clamp(m[2] + d[2], 0.0, vmax);
+      c[3][i] = wrap_angle(m[3] + d[3]);
+      col(kCos)[i] = std::cos(c[3][i]);
+      col(kSin)[i] = std::sin(c[3][i]);
+    }
   }
 
   /// Noisy BMM for every particle (eqs. 6–9, the body of Bmm::transition).
@@ -195,7 +237,7 @@ struct ParticleFilter::Impl {
 };
 
 ParticleFilter::ParticleFilter(const BmmParams& params, const State& x0, const StateCov& P0, int n_particles,
-                               std::uint64_t seed, double resample_threshold) {
+                               std::uint64_t seed, double resample_threshold, double bandwidth_scale) {
   if (n_particles < 1) {
     throw std::invalid_argument("n_particles = " + std::to_string(n_particles) + " must be >= 1");
   }
@@ -204,8 +246,13 @@ ParticleFilter::ParticleFilter(const BmmParams& params, const State& x0, const S
     os << "resample_threshold = " << resample_threshold << " must be in [0, 1]";
     throw std::invalid_argument(os.str());
   }
+  if (!(std::isfinite(bandwidth_scale) && bandwidth_scale >= 0.0 && bandwidth_scale <= 10.0)) {
+    std::ostringstream os;
+    os << "bandwidth_scale = " << bandwidth_scale << " must be in [0, 10] (0: no regularisation)";
+    throw std::invalid_argument(os.str());
+  }
   check_prior(x0, P0);
-  impl_ = std::make_unique<Impl>(params, seed, resample_threshold, n_particles);
+  impl_ = std::make_unique<Impl>(params, seed, resample_threshold, n_particles, bandwidth_scale);
   auto& I = *impl_;
   const int N = n_particles;
   const Eigen::Matrix4d L = P0.llt().matrixL();
@@ -238,6 +285,7 @@ ParticleFilter& ParticleFilter::operator=(const ParticleFilter& o) {
   a.bmm = b.bmm;
   a.rng = b.rng;
   a.resample_threshold = b.resample_threshold;
+  a.h = b.h;
   a.S = b.S;
   a.W = b.W;
   a.ess = b.ess;
@@ -251,8 +299,14 @@ int ParticleFilter::size() const { return impl_->n(); }
 double ParticleFilter::ess() const { return impl_->ess; }
 int ParticleFilter::resample_count() const { return impl_->n_resampled; }
 State ParticleFilter::mean() const { return impl_->mean(); }
-StateCov ParticleFilter::covariance() const { return impl_->covariance(impl_->mean()); }
-StateCov ParticleFilter::covariance(const State& about) const { return impl_->covariance(about); }
+StateCov ParticleFilter::covariance() const { return impl_->reported_covariance(impl_->mean()); }
+StateCov ParticleFilter::covariance(const State& about) const { return impl_->reported_covariance(about); }
+StateCov ParticleFilter::sample_covariance() const { return impl_->covariance(impl_->mean()); }
+double ParticleFilter::bandwidth() const { return impl_->h; }
+StateCov ParticleFilter::covariance_floor() const {
+  const auto& I = *impl_;
+  return (I.h * I.h) * I.covariance(I.mean(Impl::kUniform), Impl::kUniform);
+}
 Eigen::VectorXd ParticleFilter::weights() const { return Eigen::Map<const Eigen::VectorXd>(impl_->w(), size()); }
 
 Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor> ParticleFilter::particles() const {
@@ -317,7 +371,10 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
   UpdateResult res;
   res.dim = m;
   const Eigen::ArrayXd prior_logw = Eigen::Map<const Eigen::ArrayXd>(I.logw(), N);
-  if (model.kind() == MeasurementKind::Position) {
+  const bool regularised = I.h > 0.0;
+  if (regularised) std::copy_n(I.w(), N, I.W.col(Impl::kPriorW));  // the prior weights, for the kernel
+  const bool position = model.kind() == MeasurementKind::Position;
+  if (position) {
     // Fast path: 2-D residuals, log-likelihood and NIS moments in one pass.
     const Eigen::Matrix2d Ri = R.inverse();
     const PositionParams a{z[0], z[1], 0.5 * Ri(0, 0), Ri(0, 1), 0.5 * Ri(1, 1)};
@@ -346,6 +403,16 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
     const Eigen::MatrixXd D = I.Y.colwise() - ybar;
     const Eigen::MatrixXd S = D * w.asDiagonal() * D.transpose() + R;
     res.nis = ybar.dot(S.ldlt().solve(ybar));
+    if (regularised) {  // the kernel's statistical linearisation: C_yy = S − R, C_xy = Σ w_i (x_i − m)(y_i − ȳ)ᵀ
+      I.Cyy = S - R;
+      const State m0 = I.mean();
+      I.Cxy.setZero(4, m);
+      for (int i = 0; i < N; ++i) {
+        State dx = I.particle(i) - m0;
+        dx[kTheta] = wrap_angle(dx[kTheta]);
+        I.Cxy.noalias() += (w[i] * dx) * D.col(i).transpose();
+      }
+    }
     // log-likelihood −½ yᵀR⁻¹y = −½‖L⁻¹y‖², added to the log-weights.
     model.noise().whiten(I.Y);
     Eigen::Map<Eigen::ArrayXd>(I.logw(), N) -= 0.5 * I.Y.colwise().squaredNorm().transpose().array();
@@ -371,7 +438,26 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
     throw std::invalid_argument(os.str());
   }
   I.normalise(mx);
-  if (I.ess < I.resample_threshold * N) I.resample();
+  if (I.ess < I.resample_threshold * N) {
+    if (!regularised) {
+      I.resample();
+      return res;
+    }
+    // Regularise after resampling (regularise.hpp): the kernel h²Σ⁻ of the
+    // prior cloud, conditioned on z, is the jitter's covariance.
+    const State m_post = I.mean();
+    const Eigen::Matrix4d Sigma = I.covariance(I.mean(Impl::kPriorW), Impl::kPriorW);
+    Eigen::Matrix4d Pk;
+    if (position) {  // y = z − (x, y): C_xy = −Σ⁻ Hᵀ, C_yy = H Σ⁻ Hᵀ with H = [I₂ 0]
+      const Eigen::Matrix<double, 4, 2> Cxy = -Sigma.leftCols<2>();
+      const Eigen::Matrix2d Cyy = Sigma.topLeftCorner<2, 2>(), R2 = R;
+      Pk = conditioned_kernel(Sigma, Cxy, Cyy, R2, I.h);
+    } else {
+      Pk = conditioned_kernel(Sigma, I.Cxy, I.Cyy, R, I.h);
+    }
+    I.resample();
+    I.regularise(m_post, Pk);
+  }
   return res;
 }
 
