@@ -7,6 +7,7 @@
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <new>
 #include <sstream>
 #include <stdexcept>
@@ -58,7 +59,11 @@ struct ParticleFilter::Impl {
   // Particle columns: x, y, v, θ, cos θ, sin θ; weight columns: log w, w.
   enum Column : int { kCos = 4, kSin = 5, kParticleColumns = 6 };
   // Weight columns: log w, w, the prior w of an update, 1/N (for the unweighted moments).
-  enum WeightColumn : int { kLogW = 0, kW = 1, kPriorW = 2, kUniform = 3, kWeightColumns = 4 };
+  // Weight columns: log w, w, the prior w of an update (stage), 1/N (for the
+  // unweighted moments), the log-likelihood log p(z | x_i) of an update.
+  enum WeightColumn : int { kLogW = 0, kW = 1, kPriorW = 2, kUniform = 3, kGain = 4, kWeightColumns = 5 };
+  /// At most this many stages of progressive correction per update (the last takes what remains).
+  static constexpr int kMaxStages = 12;
   Bmm bmm;
   detail::BatchRng rng;
   double resample_threshold;
@@ -195,6 +200,126 @@ struct ParticleFilter::Impl {
       c[3][i] = wrap_angle(m[3] + d[3]);
       col(kCos)[i] = std::cos(c[3][i]);
       col(kSin)[i] = std::sin(c[3][i]);
+    }
+  }
+
+  /// log p(z | x_i) (up to a constant) of every particle into the gain
+  /// column; returns the NIS of the weighted-mean prediction (ȳ, S = Cov_w(y)
+  /// + R under the current weights), and keeps C_yy = Cov_w(y) and, when
+  /// `cross`, C_xy = Σ w_i (x_i − m)(y_i − ȳ)ᵀ for the kernel (regularise.hpp).
+  double likelihood(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z,
+                    const Eigen::MatrixXd& R, bool cross) {
+    const int m = model.dim();
+    double* gain = W.col(kGain);
+    if (model.kind() == MeasurementKind::Position) {
+      // Fast path: 2-D residuals, log-likelihood and NIS moments in one pass (C_xy follows from Σ⁻).
+      const Eigen::Matrix2d Ri = R.inverse();
+      const PositionParams a{z[0], z[1], 0.5 * Ri(0, 0), Ri(0, 1), 0.5 * Ri(1, 1)};
+      std::fill_n(gain, N, 0.0);
+      const Sums5 t = detail::dispatch<position_loglik<32>, position_loglik<16>>(N, col(kX), col(kY), w(), gain, &a);
+      const double* ps = t.s;
+      const double s0 = ps[0], s1 = ps[1];
+      const Eigen::Vector2d ybar(s0, s1);
+      Cyy.resize(2, 2);
+      Cyy << ps[2] - s0 * s0, ps[3] - s0 * s1, ps[3] - s0 * s1, ps[4] - s1 * s1;
+      return ybar.dot((Cyy + R).ldlt().solve(ybar));
+    }
+    // Residual of every particle, y_i = z ⊖ h(x_i), one per column.
+    Y.resize(m, N);
+    zhat.resize(m);
+    resid.resize(m);
+    for (int i = 0; i < N; ++i) {
+      model.predict(particle(i), zhat);
+      model.residual(z, zhat, resid);
+      Y.col(i) = resid;
+    }
+    const Eigen::Map<const Eigen::VectorXd> wv(w(), N);
+    const Eigen::VectorXd ybar = Y * wv;
+    const Eigen::MatrixXd D = Y.colwise() - ybar;
+    Cyy = D * wv.asDiagonal() * D.transpose();
+    const double nis = ybar.dot((Cyy + R).ldlt().solve(ybar));
+    if (cross) {
+      const State m0 = mean();
+      Cxy.setZero(4, m);
+      for (int i = 0; i < N; ++i) {
+        State dx = particle(i) - m0;
+        dx[kTheta] = wrap_angle(dx[kTheta]);
+        Cxy.noalias() += (wv[i] * dx) * D.col(i).transpose();
+      }
+    }
+    // log-likelihood −½ yᵀR⁻¹y = −½‖L⁻¹y‖²
+    model.noise().whiten(Y);
+    Eigen::Map<Eigen::ArrayXd>(gain, N) = -0.5 * Y.colwise().squaredNorm().transpose().array();
+    return nis;
+  }
+
+  /// ESS of the weights ∝ exp(log w_i + λ·gain_i).
+  double ess_at(double lambda) const {
+    const double* lw = W.col(kLogW);
+    const double* g = W.col(kGain);
+    double mx = -std::numeric_limits<double>::infinity();
+    for (int i = 0; i < N; ++i) mx = std::max(mx, lw[i] + lambda * g[i]);
+    double s1 = 0.0, s2 = 0.0;
+    for (int i = 0; i < N; ++i) {
+      const double e = std::exp(lw[i] + lambda * g[i] - mx);
+      s1 += e;
+      s2 += e * e;
+    }
+    return s1 * s1 / s2;
+  }
+
+  /// The share λ ≤ remaining of the likelihood for the next stage: all of it
+  /// when that leaves ESS ≥ resample_threshold·N (or on the last stage),
+  /// else the largest λ that does (bisection to 2⁻¹² of `remaining`).
+  double stage_fraction(double remaining, int stage) const {
+    const double target = resample_threshold * N;
+    if (stage + 1 >= kMaxStages || ess_at(remaining) >= target) return remaining;
+    double lo = 0.0, hi = remaining;
+    for (int k = 0; k < 12; ++k) {
+      const double mid = 0.5 * (lo + hi);
+      (ess_at(mid) >= target ? lo : hi) = mid;
+    }
+    return std::max(lo, 1e-6 * remaining);
+  }
+
+  /// The update in stages [Musso et al. 2001, progressive correction]:
+  /// p(z|x) = Π_s p(z|x)^{λ_s}, Σλ_s = 1, each λ_s as large as leaves
+  /// ESS ≥ resample_threshold·N; after each stage but the last, resample and
+  /// regularise with the stage's kernel (noise R/λ_s), then re-evaluate the
+  /// likelihood at the moved particles.  A likelihood far narrower than the
+  /// cloud (a LanBLoc fix after a gap) is so reached in several steps, each
+  /// with enough particles to carry it.
+  void progressive_correction(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z,
+                              const Eigen::MatrixXd& R) {
+    const bool position = model.kind() == MeasurementKind::Position;
+    double remaining = 1.0;
+    for (int stage = 0;; ++stage) {
+      if (stage > 0) likelihood(model, z, R, !position);
+      std::copy_n(w(), N, W.col(kPriorW));  // the stage's prior weights, for its kernel
+      const double lambda = stage_fraction(remaining, stage);
+      const bool last = lambda >= remaining;
+      double* lw = logw();
+      const double* g = W.col(kGain);
+      double mx = -std::numeric_limits<double>::infinity();
+      for (int i = 0; i < N; ++i) mx = std::max(mx, lw[i] += lambda * g[i]);
+      normalise(mx);
+      if (last && ess >= resample_threshold * N) return;
+      // The kernel h²Σ⁻ of the stage's prior cloud conditioned on z with noise R/λ (regularise.hpp).
+      const Eigen::Matrix4d Sigma = covariance(mean(kPriorW), kPriorW);
+      const Eigen::MatrixXd Rs = R / lambda;
+      Eigen::Matrix4d Pk;
+      if (position) {  // y = z − (x, y): C_xy = −Σ⁻ Hᵀ, C_yy = H Σ⁻ Hᵀ with H = [I₂ 0]
+        const Eigen::Matrix<double, 4, 2> C = -Sigma.leftCols<2>();
+        const Eigen::Matrix2d Cy = Sigma.topLeftCorner<2, 2>(), R2 = Rs;
+        Pk = conditioned_kernel(Sigma, C, Cy, R2, h);
+      } else {
+        Pk = conditioned_kernel(Sigma, Cxy, Cyy, Rs, h);
+      }
+      const State m_post = mean();
+      resample();
+      regularise(m_post, Pk);
+      if (last) return;
+      remaining -= lambda;
     }
   }
 
@@ -370,66 +495,22 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
   const Eigen::MatrixXd R = model.noise().cov();
   UpdateResult res;
   res.dim = m;
-  const Eigen::ArrayXd prior_logw = Eigen::Map<const Eigen::ArrayXd>(I.logw(), N);
   const bool regularised = I.h > 0.0;
-  if (regularised) std::copy_n(I.w(), N, I.W.col(Impl::kPriorW));  // the prior weights, for the kernel
-  const bool position = model.kind() == MeasurementKind::Position;
-  if (position) {
-    // Fast path: 2-D residuals, log-likelihood and NIS moments in one pass.
-    const Eigen::Matrix2d Ri = R.inverse();
-    const PositionParams a{z[0], z[1], 0.5 * Ri(0, 0), Ri(0, 1), 0.5 * Ri(1, 1)};
-    const Sums5 t =
-        detail::dispatch<position_loglik<32>, position_loglik<16>>(N, I.col(kX), I.col(kY), I.w(), I.logw(), &a);
-    const double* ps = t.s;
-    const double s0 = ps[0], s1 = ps[1];
-    const Eigen::Vector2d ybar(s0, s1);
-    Eigen::Matrix2d S;
-    S << ps[2] - s0 * s0, ps[3] - s0 * s1, ps[3] - s0 * s1, ps[4] - s1 * s1;
-    S += R;
-    res.nis = ybar.dot(S.ldlt().solve(ybar));
-  } else {
-    // Residual of every particle, y_i = z ⊖ h(x_i), one per column.
-    I.Y.resize(m, N);
-    I.zhat.resize(m);
-    I.resid.resize(m);
-    for (int i = 0; i < N; ++i) {
-      model.predict(I.particle(i), I.zhat);
-      model.residual(z, I.zhat, I.resid);
-      I.Y.col(i) = I.resid;
-    }
-    // NIS (diagnostic) of the prior predictive: mean residual ȳ, S = Cov_w(y) + R.
-    const Eigen::Map<const Eigen::VectorXd> w(I.w(), N);
-    const Eigen::VectorXd ybar = I.Y * w;
-    const Eigen::MatrixXd D = I.Y.colwise() - ybar;
-    const Eigen::MatrixXd S = D * w.asDiagonal() * D.transpose() + R;
-    res.nis = ybar.dot(S.ldlt().solve(ybar));
-    if (regularised) {  // the kernel's statistical linearisation: C_yy = S − R, C_xy = Σ w_i (x_i − m)(y_i − ȳ)ᵀ
-      I.Cyy = S - R;
-      const State m0 = I.mean();
-      I.Cxy.setZero(4, m);
-      for (int i = 0; i < N; ++i) {
-        State dx = I.particle(i) - m0;
-        dx[kTheta] = wrap_angle(dx[kTheta]);
-        I.Cxy.noalias() += (w[i] * dx) * D.col(i).transpose();
-      }
-    }
-    // log-likelihood −½ yᵀR⁻¹y = −½‖L⁻¹y‖², added to the log-weights.
-    model.noise().whiten(I.Y);
-    Eigen::Map<Eigen::ArrayXd>(I.logw(), N) -= 0.5 * I.Y.colwise().squaredNorm().transpose().array();
-  }
+  res.nis = I.likelihood(model, z, R, regularised);  // log p(z | x_i) into the gain column
   if (I.gate_probability > 0.0 && std::isfinite(res.nis)) {
     if (static_cast<int>(I.gate_thresholds.size()) <= m) I.gate_thresholds.resize(m + 1, -1.0);
     double& t = I.gate_thresholds[m];
     if (t < 0.0) t = chi2_quantile(I.gate_probability, m);
     if (res.nis > t) {  // rejected: the weights stay as they were
-      Eigen::Map<Eigen::ArrayXd>(I.logw(), N) = prior_logw;
       res.accepted = false;
       return res;
     }
   }
-  const double mx = Eigen::Map<const Eigen::ArrayXd>(I.logw(), N).maxCoeff();  // exact in any order
-  if (!std::isfinite(mx) || !std::isfinite(res.nis)) {  // keep the prior weights, then say why
-    Eigen::Map<Eigen::ArrayXd>(I.logw(), N) = prior_logw;
+  double* logw = I.logw();
+  const double* gain = I.W.col(Impl::kGain);
+  double mx = -std::numeric_limits<double>::infinity();
+  for (int i = 0; i < N; ++i) mx = std::max(mx, logw[i] + gain[i]);  // exact in any order
+  if (!std::isfinite(mx) || !std::isfinite(res.nis)) {  // the weights stay as they were; say why
     check_nis(res.nis, "particle filter", model.kind());
     // every likelihood underflowed (residuals beyond ~1e154 σ)
     std::ostringstream os;
@@ -437,27 +518,13 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
        << "every particle (log-likelihood " << mx << ")";
     throw std::invalid_argument(os.str());
   }
-  I.normalise(mx);
-  if (I.ess < I.resample_threshold * N) {
-    if (!regularised) {
-      I.resample();
-      return res;
-    }
-    // Regularise after resampling (regularise.hpp): the kernel h²Σ⁻ of the
-    // prior cloud, conditioned on z, is the jitter's covariance.
-    const State m_post = I.mean();
-    const Eigen::Matrix4d Sigma = I.covariance(I.mean(Impl::kPriorW), Impl::kPriorW);
-    Eigen::Matrix4d Pk;
-    if (position) {  // y = z − (x, y): C_xy = −Σ⁻ Hᵀ, C_yy = H Σ⁻ Hᵀ with H = [I₂ 0]
-      const Eigen::Matrix<double, 4, 2> Cxy = -Sigma.leftCols<2>();
-      const Eigen::Matrix2d Cyy = Sigma.topLeftCorner<2, 2>(), R2 = R;
-      Pk = conditioned_kernel(Sigma, Cxy, Cyy, R2, I.h);
-    } else {
-      Pk = conditioned_kernel(Sigma, I.Cxy, I.Cyy, R, I.h);
-    }
-    I.resample();
-    I.regularise(m_post, Pk);
+  if (!regularised) {
+    for (int i = 0; i < N; ++i) logw[i] += gain[i];
+    I.normalise(mx);
+    if (I.ess < I.resample_threshold * N) I.resample();
+    return res;
   }
+  I.progressive_correction(model, z, R);
   return res;
 }
 
