@@ -136,11 +136,17 @@ class AugmentedEkf {
 /// the noisy BMM (Bmm::transition over dt, at θ − β·dt) and each augmented
 /// state by its random walk; weights multiply by the Gaussian likelihood of
 /// r = (1+k)·ρ + b_j etc. (log space), systematic resampling when
-/// ESS < resample_threshold·N, then the regularisation of ParticleFilter
-/// (see its comment in safenav/filters.hpp) over the whole augmented state,
-/// d = state_size(): kernel jitter with Liu & West's shrinkage, which keeps
-/// the slowly varying k, β, b_j from collapsing onto a few values after
-/// resamplings (their random walks are far too small to restore diversity).
+/// ESS < resample_threshold·N.  With bandwidth_scale > 0 each resampling is
+/// regularised over the whole augmented state, d = state_size() (Musso et
+/// al.'s post-regularised PF; the references are at ParticleFilter in
+/// safenav/filters.hpp): x_i ← m + a(x_i − m) + L ε_i, a = √(1 − h²) (Liu &
+/// West's shrinkage), L Lᵀ = P_k, the kernel h²Σ⁻ of the cloud before the
+/// update conditioned on z by statistical linearisation, P_k = h²Σ⁻ −
+/// h⁴C_xy(h²C_yy + R)⁻¹C_xyᵀ (Musso et al. use h² times the weighted
+/// posterior covariance, ~0 when the weights degenerate).  This keeps the
+/// slowly varying k, β, b_j from collapsing onto a few values (their random
+/// walks are far too small to restore diversity).  The weights stay those of
+/// the SIR filter (ParticleFilter's kernel update is not used here).
 /// covariance() is floored as ParticleFilter's.  Gate as
 /// ParticleFilter::set_gate: the NIS of the weighted-mean prediction
 /// (S = weighted covariance of the particles' residuals + R).  A plain

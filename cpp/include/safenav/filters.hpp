@@ -84,47 +84,53 @@ class Ekf {
 };
 
 /// Particle filter on the BMM with log-weights, systematic resampling and
-/// regularisation.  The paper prints no PF equations; the filter is the
-/// bootstrap (SIR) filter of [Gordon, Salmond & Smith 1993], regularised after
-/// each resampling as the post-regularised PF of [Musso, Oudjane & Le Gland
-/// 2001, "Improving regularised particle filters", ch. 12 of Doucet, de
-/// Freitas & Gordon (eds.), Sequential Monte Carlo Methods in Practice]:
+/// regularisation.  The paper prints no PF equations.  bandwidth_scale = 0
+/// gives the bootstrap (SIR) filter of [Gordon, Salmond & Smith 1993]:
 ///
-///  predict:   every particle through the noisy BMM [SafeNav eqs. 3–9]
-///  update:    log w_i += log p(z | x_i); resample (systematic) when
-///             ESS = 1/Σw² < resample_threshold·N
-///  bandwidth: h = c·(4/(N(d+2)))^{1/(d+4)}, d = 4, c = bandwidth_scale:
-///             Musso et al.'s optimal Gaussian-kernel bandwidth h_opt (c = 1)
-///  jitter:    after a resampling x_i ← m + a(x_i − m) + L ε_i, ε_i ~ N(0, I),
-///             L Lᵀ = P_k, a = √(1 − h²), m the weighted posterior mean
+///  predict: every particle through the noisy BMM [SafeNav eqs. 3–9]
+///  update:  log w_i += log p(z | x_i); resample (systematic) when
+///           ESS = 1/Σw² < resample_threshold·N
+///
+/// The default (bandwidth_scale = c > 0) is a regularised PF: the particles
+/// are the centres of Gaussian kernels, as in the regularised PF of [Musso,
+/// Oudjane & Le Gland 2001, "Improving regularised particle filters", ch. 12
+/// of Doucet, de Freitas & Gordon (eds.), Sequential Monte Carlo Methods in
+/// Practice], and the update is that of the adaptive Gaussian mixture filter
+/// [Stordal, Karlsen, Nævdal, Skaug & Vallès 2011, "Bridging the ensemble
+/// Kalman filter and particle filters", Comput. Geosci. 15:293–305]:
+///
+///  bandwidth: h = c·(4/(N(d+2)))^{1/(d+4)}, d = 4: Musso et al.'s optimal
+///             Gaussian-kernel bandwidth h_opt at c = 1
+///  kernels:   N(c_i, h²Σ⁻), c_i = m + a(x_i − m), a = √(1 − h²) [Liu & West
+///             2001, ch. 10 of the same book]: the mixture keeps the cloud's
+///             mean m and covariance Σ⁻ (weighted, before the update)
+///  update:    S_h = h²C_yy + R, K = h²C_xh S_h⁻¹, P_k = h²Σ⁻ − K S_h Kᵀ, with
+///             C_yy, C_xh the weighted covariances of the residuals
+///             y_i = z ⊖ h(x_i) and of x with h(x) (statistical linearisation
+///             over the particles, exact for the position and IMU models);
+///             y_c,i = ȳ + a(y_i − ȳ), log w_i += −½ y_c,iᵀ S_h⁻¹ y_c,i,
+///             centre c_i + K y_c,i; resample when ESS < resample_threshold·N;
+///             then each particle is redrawn from its kernel: + L ε_i,
+///             L Lᵀ = P_k, ε_i ~ N(0, I)
 ///  report:    P = P̂ + (h²C_u − P̂)₊ (⪰ P̂ and ⪰ h²C_u), P̂ the weighted
 ///             covariance of the particles, C_u their unweighted covariance
 ///
-/// Where this departs from Musso et al. (their kernel covariance is h² times
-/// the weighted covariance of the posterior particles):
-///  * The kernel is taken from the prior cloud, h²Σ⁻ (Σ⁻ its weighted
-///    covariance before the update), and conditioned on z by statistical
-///    linearisation over the particles, as the ensemble Kalman filter updates
-///    a member and the adaptive Gaussian mixture filter [Stordal, Karlsen,
-///    Nævdal, Skaug & Vallès 2011, Comput. Geosci. 15:293–305] a kernel:
-///    P_k = h²Σ⁻ − h⁴ C_xy (h²C_yy + R)⁻¹ C_xyᵀ, with C_xy, C_yy the weighted
-///    state–residual and residual covariances.  A likelihood much narrower
-///    than the particle spacing (a LanBLoc fix after a gap) leaves one or two
-///    particles with weight; their weighted covariance is ~0, so Musso's
-///    kernel would be ~0 too and the cloud would stay collapsed.  P_k keeps
-///    the resolution of the prior cloud in the directions z does not
-///    observe, and that of the measurement (at most) in those it does.
-///  * The jitter shrinks toward m by a = √(1 − h²) [Liu & West 2001, ch. 10
-///    of the same book], so that when P_k ≈ h²P̂ the jitter keeps the cloud's
-///    mean and covariance instead of inflating it by (1 + h²) per
-///    resampling (which would also turn the slow augmented states of
-///    AugmentedParticleFilter into a fast random walk).
-///  * The reported covariance is floored by the kernel covariance of the
-///    unweighted cloud: N particles cannot resolve a density narrower than
-///    their kernel, so the weighted covariance of a degenerate weight vector
-///    (between resamplings, or with resample_threshold = 0) is not reported
-///    as the filter's uncertainty.
-/// bandwidth_scale = 0 gives the plain SIR filter (no jitter, no floor).
+/// Why: with LanBLoc fixes (σ ≈ 1–4 cm) after a few steps without one, the
+/// SIR likelihood is far narrower than the particle spacing; one or two
+/// particles take all the weight and the reported covariance collapses
+/// (mean NEES 1e11–1e16 in the navigation loop).  Each kernel here is
+/// weighted by its own predictive likelihood (S_h ⪰ R) and moved toward z
+/// by K, so a fix narrower than the cloud, or beyond it, moves the cloud
+/// instead of selecting one particle, and the redraw keeps the cloud from
+/// collapsing after resampling.
+/// Where this departs from the references: Musso et al. regularise after
+/// resampling only, with kernel h²·(weighted posterior covariance), which
+/// is ~0 when the weights are degenerate; Stordal et al. choose h
+/// adaptively from the ESS, here h is Musso's h_opt times a fixed scale; the
+/// kernel centres are shrunk (Liu & West) so that the mixture does not
+/// inflate the covariance by (1 + h²) per update; the reported covariance is
+/// floored by the unweighted cloud's kernel covariance, which the particles
+/// cannot resolve below.
 ///
 /// A run is fixed by its seed: the same numbers on every x86-64 CPU, with or
 /// without AVX2 (its hot loops have an AVX2 copy chosen at run time that
@@ -154,9 +160,7 @@ class ParticleFilter {
   /// were and returns accepted = false.  0 (default) disables it.
   void set_gate(double probability);
   double gate() const;
-  /// Multiply weights by the measurement likelihood (in log space); resample
-  /// (systematic) when ESS < resample_threshold·N, then regularise (see the
-  /// class comment).  Returns the NIS of the
+  /// The update of the class comment (SIR or regularised).  Returns the NIS of the
   /// weighted-mean prediction (for diagnostics); resample_count() counts the
   /// resamplings.
   UpdateResult update(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z);

@@ -59,11 +59,9 @@ struct ParticleFilter::Impl {
   // Particle columns: x, y, v, θ, cos θ, sin θ; weight columns: log w, w.
   enum Column : int { kCos = 4, kSin = 5, kParticleColumns = 6 };
   // Weight columns: log w, w, the prior w of an update, 1/N (for the unweighted moments).
-  // Weight columns: log w, w, the prior w of an update (stage), 1/N (for the
-  // unweighted moments), the log-likelihood log p(z | x_i) of an update.
-  enum WeightColumn : int { kLogW = 0, kW = 1, kPriorW = 2, kUniform = 3, kGain = 4, kWeightColumns = 5 };
-  /// At most this many stages of progressive correction per update (the last takes what remains).
-  static constexpr int kMaxStages = 12;
+  // Weight columns: log w, w, 1/N (for the unweighted moments), the
+  // log-likelihood log p(z | x_i) of an update.
+  enum WeightColumn : int { kLogW = 0, kW = 1, kUniform = 2, kGain = 3, kWeightColumns = 4 };
   Bmm bmm;
   detail::BatchRng rng;
   double resample_threshold;
@@ -81,7 +79,9 @@ struct ParticleFilter::Impl {
   Eigen::MatrixXd Y;          // residuals of a general measurement model
   Eigen::VectorXd zhat, resid;
   Eigen::Matrix4d Sigma_prior;        // the prior cloud's weighted covariance (of an update)
-  Eigen::MatrixXd Cxy, Cyy;           // weighted state–residual and residual covariances (general models)
+  Eigen::MatrixXd Cxy, Cyy;           // weighted state–residual and residual covariances
+  Eigen::VectorXd ybar;               // weighted mean residual
+  Eigen::MatrixXd Yraw;               // residuals of a general model (before whitening)
   mutable Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> es;
 
   Impl(const BmmParams& p, std::uint64_t seed, double thr, int n, double bandwidth_scale)
@@ -180,29 +180,6 @@ struct ParticleFilter::Impl {
     return loewner_floor(P, floor, es);
   }
 
-  /// After a resampling: shrink toward the posterior mean m and add kernel
-  /// noise of covariance Pk (regularise.hpp), v clamped to [0, v_max], θ
-  /// wrapped.  Plain scalar code: the same bits on every CPU.
-  void regularise(const State& m, const Eigen::Matrix4d& Pk) {
-    Eigen::Matrix4d L;
-    psd_factor(Pk, es, L);
-    const double a = std::sqrt(std::max(0.0, 1.0 - h * h));
-    const double vmax = bmm.params().max_speed;
-    rng.fill_normal(noise.col(0), 4L * noise.stride());
-    double* c[4] = {col(kX), col(kY), col(kV), col(kTheta)};
-    const double* e[4] = {noise.col(0), noise.col(1), noise.col(2), noise.col(3)};
-    for (int i = 0; i < N; ++i) {
-      Eigen::Vector4d d(c[0][i] - m[0], c[1][i] - m[1], c[2][i] - m[2], wrap_angle(c[3][i] - m[3]));
-      d = a * d + L * Eigen::Vector4d(e[0][i], e[1][i], e[2][i], e[3][i]);
-      c[0][i] = m[0] + d[0];
-      c[1][i] = m[1] + d[1];
-      c[2][i] = std::clamp(m[2] + d[2], 0.0, vmax);
-      c[3][i] = wrap_angle(m[3] + d[3]);
-      col(kCos)[i] = std::cos(c[3][i]);
-      col(kSin)[i] = std::sin(c[3][i]);
-    }
-  }
-
   /// log p(z | x_i) (up to a constant) of every particle into the gain
   /// column; returns the NIS of the weighted-mean prediction (ȳ, S = Cov_w(y)
   /// + R under the current weights), and keeps C_yy = Cov_w(y) and, when
@@ -219,7 +196,7 @@ struct ParticleFilter::Impl {
       const Sums5 t = detail::dispatch<position_loglik<32>, position_loglik<16>>(N, col(kX), col(kY), w(), gain, &a);
       const double* ps = t.s;
       const double s0 = ps[0], s1 = ps[1];
-      const Eigen::Vector2d ybar(s0, s1);
+      ybar = Eigen::Vector2d(s0, s1);
       Cyy.resize(2, 2);
       Cyy << ps[2] - s0 * s0, ps[3] - s0 * s1, ps[3] - s0 * s1, ps[4] - s1 * s1;
       return ybar.dot((Cyy + R).ldlt().solve(ybar));
@@ -234,7 +211,7 @@ struct ParticleFilter::Impl {
       Y.col(i) = resid;
     }
     const Eigen::Map<const Eigen::VectorXd> wv(w(), N);
-    const Eigen::VectorXd ybar = Y * wv;
+    ybar = Y * wv;
     const Eigen::MatrixXd D = Y.colwise() - ybar;
     Cyy = D * wv.asDiagonal() * D.transpose();
     const double nis = ybar.dot((Cyy + R).ldlt().solve(ybar));
@@ -246,6 +223,7 @@ struct ParticleFilter::Impl {
         dx[kTheta] = wrap_angle(dx[kTheta]);
         Cxy.noalias() += (wv[i] * dx) * D.col(i).transpose();
       }
+      Yraw = Y;
     }
     // log-likelihood −½ yᵀR⁻¹y = −½‖L⁻¹y‖²
     model.noise().whiten(Y);
@@ -253,73 +231,67 @@ struct ParticleFilter::Impl {
     return nis;
   }
 
-  /// ESS of the weights ∝ exp(log w_i + λ·gain_i).
-  double ess_at(double lambda) const {
-    const double* lw = W.col(kLogW);
-    const double* g = W.col(kGain);
-    double mx = -std::numeric_limits<double>::infinity();
-    for (int i = 0; i < N; ++i) mx = std::max(mx, lw[i] + lambda * g[i]);
-    double s1 = 0.0, s2 = 0.0;
-    for (int i = 0; i < N; ++i) {
-      const double e = std::exp(lw[i] + lambda * g[i] - mx);
-      s1 += e;
-      s2 += e * e;
-    }
-    return s1 * s1 / s2;
-  }
-
-  /// The share λ ≤ remaining of the likelihood for the next stage: all of it
-  /// when that leaves ESS ≥ resample_threshold·N (or on the last stage),
-  /// else the largest λ that does (bisection to 2⁻¹² of `remaining`).
-  double stage_fraction(double remaining, int stage) const {
-    const double target = resample_threshold * N;
-    if (stage + 1 >= kMaxStages || ess_at(remaining) >= target) return remaining;
-    double lo = 0.0, hi = remaining;
-    for (int k = 0; k < 12; ++k) {
-      const double mid = 0.5 * (lo + hi);
-      (ess_at(mid) >= target ? lo : hi) = mid;
-    }
-    return std::max(lo, 1e-6 * remaining);
-  }
-
-  /// The update in stages [Musso et al. 2001, progressive correction]:
-  /// p(z|x) = Π_s p(z|x)^{λ_s}, Σλ_s = 1, each λ_s as large as leaves
-  /// ESS ≥ resample_threshold·N; after each stage but the last, resample and
-  /// regularise with the stage's kernel (noise R/λ_s), then re-evaluate the
-  /// likelihood at the moved particles.  A likelihood far narrower than the
-  /// cloud (a LanBLoc fix after a gap) is so reached in several steps, each
-  /// with enough particles to carry it.
-  void progressive_correction(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z,
-                              const Eigen::MatrixXd& R) {
+  /// The regularised update (see ParticleFilter in safenav/filters.hpp): each
+  /// particle is the centre of a kernel N(c_i, h²Σ⁻), c_i = m + a(x_i − m);
+  /// the kernels are updated by statistical linearisation (one gain K for
+  /// all), weighted by their own predictive likelihood N(y_c,i; 0, S_h), and
+  /// each particle is redrawn from its updated kernel (C_xh = −C_xy):
+  ///   S_h = h²C_yy + R,  K = h²C_xh S_h⁻¹,  P_k = h²Σ⁻ − K S_h Kᵀ
+  ///   y_c,i = ȳ + a(y_i − ȳ),  log w_i += −½ y_c,iᵀ S_h⁻¹ y_c,i
+  ///   x_i ← c_i + K y_c,i + L ε_i,  L Lᵀ = P_k
+  /// then systematic resampling when ESS < resample_threshold·N.  Needs
+  /// likelihood() called first under the prior weights (ȳ, C_yy, C_xy).
+  void kernel_update(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z,
+                     const Eigen::MatrixXd& R) {
     const bool position = model.kind() == MeasurementKind::Position;
-    double remaining = 1.0;
-    for (int stage = 0;; ++stage) {
-      if (stage > 0) likelihood(model, z, R, !position);
-      std::copy_n(w(), N, W.col(kPriorW));  // the stage's prior weights, for its kernel
-      const double lambda = stage_fraction(remaining, stage);
-      const bool last = lambda >= remaining;
-      double* lw = logw();
-      const double* g = W.col(kGain);
-      double mx = -std::numeric_limits<double>::infinity();
-      for (int i = 0; i < N; ++i) mx = std::max(mx, lw[i] += lambda * g[i]);
-      normalise(mx);
-      if (last && ess >= resample_threshold * N) return;
-      // The kernel h²Σ⁻ of the stage's prior cloud conditioned on z with noise R/λ (regularise.hpp).
-      const Eigen::Matrix4d Sigma = covariance(mean(kPriorW), kPriorW);
-      const Eigen::MatrixXd Rs = R / lambda;
-      Eigen::Matrix4d Pk;
-      if (position) {  // y = z − (x, y): C_xy = −Σ⁻ Hᵀ, C_yy = H Σ⁻ Hᵀ with H = [I₂ 0]
-        const Eigen::Matrix<double, 4, 2> C = -Sigma.leftCols<2>();
-        const Eigen::Matrix2d Cy = Sigma.topLeftCorner<2, 2>(), R2 = Rs;
-        Pk = conditioned_kernel(Sigma, C, Cy, R2, h);
+    const int m = model.dim();
+    const State m0 = mean();
+    const Eigen::Matrix4d Sigma = covariance(m0);
+    if (position) Cxy = -Sigma.leftCols<2>();  // y = z − (x, y): C_xy = −Σ⁻Hᵀ with H = [I₂ 0]
+    const double h2 = h * h, a = std::sqrt(std::max(0.0, 1.0 - h2));
+    const Eigen::MatrixXd Sh = h2 * Cyy + R;
+    const Eigen::LLT<Eigen::MatrixXd> llt(Sh);
+    // The gain of x on h(x) is h²C_xh S_h⁻¹, and C_xh = −C_xy (y = z ⊖ h(x)).
+    const Eigen::MatrixXd K = llt.solve((-h2 * Cxy).transpose()).transpose();
+    const Eigen::Matrix4d Pk = conditioned_kernel(Sigma, Cxy, Cyy, R, h);
+    Eigen::Matrix4d L;
+    psd_factor(Pk, es, L);
+    const Eigen::MatrixXd Linv = llt.matrixL().solve(Eigen::MatrixXd::Identity(m, m));  // S_h = L Lᵀ
+    rng.fill_normal(noise.col(0), 4L * noise.stride());
+    const double vmax = bmm.params().max_speed;
+    double* c[4] = {col(kX), col(kY), col(kV), col(kTheta)};
+    const double* e[4] = {noise.col(0), noise.col(1), noise.col(2), noise.col(3)};
+    double* lw = logw();
+    double mx = -std::numeric_limits<double>::infinity();
+    Eigen::VectorXd y(m), yc(m);
+    for (int i = 0; i < N; ++i) {
+      if (position) {
+        y << z[0] - c[0][i], z[1] - c[1][i];
       } else {
-        Pk = conditioned_kernel(Sigma, Cxy, Cyy, Rs, h);
+        y = Yraw.col(i);
       }
-      const State m_post = mean();
-      resample();
-      regularise(m_post, Pk);
-      if (last) return;
-      remaining -= lambda;
+      yc = ybar + a * (y - ybar);
+      lw[i] -= 0.5 * (Linv * yc).squaredNorm();
+      mx = std::max(mx, lw[i]);
+      Eigen::Vector4d d(c[0][i] - m0[0], c[1][i] - m0[1], c[2][i] - m0[2], wrap_angle(c[3][i] - m0[3]));
+      d = a * d + K * yc;  // the updated kernel's centre
+      c[0][i] = m0[0] + d[0];
+      c[1][i] = m0[1] + d[1];
+      c[2][i] = m0[2] + d[2];
+      c[3][i] = m0[3] + d[3];
+    }
+    normalise(mx);
+    if (ess < resample_threshold * N) resample();  // copies centres (cos/sin are rewritten below)
+    // A draw from each (resampled) particle's updated kernel (resample() swapped the columns).
+    for (int k = 0; k < 4; ++k) c[k] = col(k);
+    for (int i = 0; i < N; ++i) {
+      const Eigen::Vector4d d = L * Eigen::Vector4d(e[0][i], e[1][i], e[2][i], e[3][i]);
+      c[0][i] += d[0];
+      c[1][i] += d[1];
+      c[2][i] = std::clamp(c[2][i] + d[2], 0.0, vmax);
+      c[3][i] = wrap_angle(c[3][i] + d[3]);
+      col(kCos)[i] = std::cos(c[3][i]);
+      col(kSin)[i] = std::sin(c[3][i]);
     }
   }
 
@@ -496,7 +468,7 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
   UpdateResult res;
   res.dim = m;
   const bool regularised = I.h > 0.0;
-  res.nis = I.likelihood(model, z, R, regularised);  // log p(z | x_i) into the gain column
+  res.nis = I.likelihood(model, z, R, regularised);  // log p(z | x_i) into the gain column, ȳ, C_yy, C_xy
   if (I.gate_probability > 0.0 && std::isfinite(res.nis)) {
     if (static_cast<int>(I.gate_thresholds.size()) <= m) I.gate_thresholds.resize(m + 1, -1.0);
     double& t = I.gate_thresholds[m];
@@ -524,7 +496,7 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
     if (I.ess < I.resample_threshold * N) I.resample();
     return res;
   }
-  I.progressive_correction(model, z, R);
+  I.kernel_update(model, z, R);
   return res;
 }
 

@@ -1,16 +1,16 @@
-// Private: the regularisation shared by ParticleFilter (pf.cpp) and
-// AugmentedParticleFilter (augmented_pf.cpp).  The method and its references
-// are documented at ParticleFilter in safenav/filters.hpp; in short:
+// Private: the kernel arithmetic shared by ParticleFilter (pf.cpp, the kernel
+// update of the adaptive Gaussian mixture filter) and AugmentedParticleFilter
+// (augmented_pf.cpp, regularisation after resampling).  The methods and their
+// references are documented at those classes; the pieces here:
 //
 //  bandwidth    h = c · (4 / (N (d + 2)))^{1/(d+4)}       [Musso et al. 2001]
-//  kernel       K_h = N(0, h² Σ⁻), Σ⁻ the prior cloud's weighted covariance
-//  conditioned  P_k = h²Σ⁻ − h⁴ C_xy (h² C_yy + R)⁻¹ C_xyᵀ  (statistical
-//               linearisation over the prior cloud, as the ensemble Kalman
-//               filter and the adaptive Gaussian mixture filter of Stordal et
-//               al. 2011 update each kernel; C_xy, C_yy the weighted cross- and
-//               residual covariances of the particles)
-//  jitter       x_i ← m + a (x_i − m) + L ε_i, L Lᵀ = P_k, a = √(1 − h²)
-//               (Liu & West 2001's shrinkage toward the weighted mean m)
+//  conditioned  P_k = h²Σ⁻ − h⁴ C_xy (h² C_yy + R)⁻¹ C_xyᵀ: the kernel h²Σ⁻
+//               of the prior cloud updated by statistical linearisation
+//               (C_xy, C_yy the weighted state–residual and residual
+//               covariances of the particles), as the ensemble Kalman filter
+//               and the adaptive Gaussian mixture filter of Stordal et al.
+//               2011 update a member / a kernel
+//  factor       L Lᵀ = P₊ for the kernel draws
 //  floor        P_reported = P̂ + (h² C_u − P̂)₊ ⪰ P̂ and ⪰ h² C_u, with P̂ the
 //               weighted and C_u the unweighted covariance of the particles
 #pragma once
