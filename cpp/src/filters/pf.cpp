@@ -490,7 +490,15 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
        << "every particle (log-likelihood " << mx << ")";
     throw std::invalid_argument(os.str());
   }
-  if (!regularised) {
+  // The SIR weights, unless they would fall below the resampling threshold
+  // and the filter is regularised: then the kernel update instead.
+  double s1 = 0.0, s2 = 0.0;  // ESS = s1²/s2 of the SIR weights
+  for (int i = 0; regularised && i < N; ++i) {
+    const double e = std::exp(logw[i] + gain[i] - mx);
+    s1 += e;
+    s2 += e * e;
+  }
+  if (!regularised || s1 * s1 >= I.resample_threshold * N * s2) {
     for (int i = 0; i < N; ++i) logw[i] += gain[i];
     I.normalise(mx);
     if (I.ess < I.resample_threshold * N) I.resample();
