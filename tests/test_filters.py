@@ -117,7 +117,13 @@ def test_pf_mean_and_covariance_match_numpy_from_particles():
     np.testing.assert_allclose(pf.x, [*mean, theta], atol=1e-12)
     d = X - pf.x
     d[:, 3] = (d[:, 3] + np.pi) % (2 * np.pi) - np.pi
-    np.testing.assert_allclose(pf.P, (d * w[:, None]).T @ d, atol=1e-12)
+    np.testing.assert_allclose(pf.sample_covariance, (d * w[:, None]).T @ d, atol=1e-12)
+    # the reported covariance is that one floored by the kernel covariance h² C_u of the unweighted cloud
+    # (binding here: no resampling, so the weights are far from uniform)
+    F = pf.bandwidth**2 * np.cov(X.T, bias=True)
+    np.testing.assert_allclose(pf.covariance_floor[:3, :3], F[:3, :3], rtol=1e-9)
+    for B in (pf.sample_covariance, pf.covariance_floor):
+        assert np.linalg.eigvalsh(pf.P - B).min() > -1e-12
 
 
 def test_pf_is_deterministic_for_a_seed():

@@ -91,8 +91,10 @@ class Ekf {
 ///  update:  log w_i += log p(z | x_i); resample (systematic) when
 ///           ESS = 1/Σw² < resample_threshold·N
 ///
-/// The default (bandwidth_scale = c > 0) is a regularised PF: the particles
-/// are the centres of Gaussian kernels, as in the regularised PF of [Musso,
+/// The default (bandwidth_scale = c > 0) is a regularised PF.  An update whose
+/// SIR weights keep ESS ≥ resample_threshold·N is the SIR update above;
+/// otherwise the particles are the centres of Gaussian kernels, as in the
+/// regularised PF of [Musso,
 /// Oudjane & Le Gland 2001, "Improving regularised particle filters", ch. 12
 /// of Doucet, de Freitas & Gordon (eds.), Sequential Monte Carlo Methods in
 /// Practice], and the update is that of the adaptive Gaussian mixture filter
@@ -126,7 +128,11 @@ class Ekf {
 /// Where this departs from the references: Musso et al. regularise after
 /// resampling only, with kernel h²·(weighted posterior covariance), which
 /// is ~0 when the weights are degenerate; Stordal et al. choose h
-/// adaptively from the ESS, here h is Musso's h_opt times a fixed scale; the
+/// adaptively from the ESS, here h is Musso's h_opt times a fixed scale and
+/// the kernel update is used only when the SIR weights would degenerate
+/// (the sampled cross-covariances of statistical linearisation bias the
+/// variances of weakly observed components low, so it is kept for the
+/// updates that need it); the
 /// kernel centres are shrunk (Liu & West) so that the mixture does not
 /// inflate the covariance by (1 + h²) per update; the reported covariance is
 /// floored by the unweighted cloud's kernel covariance, which the particles
