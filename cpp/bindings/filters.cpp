@@ -36,8 +36,8 @@ void bind_step_filters(py::module_& m) {
 
   py::class_<ParticleFilter> pf(
       m, "ParticleFilter",
-      "Regularised particle filter on the BMM (log-weights, systematic resampling, kernel jitter after each "
-      "resampling, covariance floored by the kernel's).");
+      "Regularised particle filter on the BMM (log-weights, systematic resampling, the kernel update of the "
+      "adaptive Gaussian mixture filter when the weights would degenerate, covariance floored by the kernel's).");
   pf.def(py::init<const BmmParams&, const State&, const StateCov&, int, std::uint64_t, double, double>(),
          py::arg("params"), py::arg("x0"), py::arg("P0"), py::arg("n_particles") = 1000, py::arg("seed") = 0,
          py::arg("resample_threshold") = 0.5, py::arg("bandwidth_scale") = 1.0)

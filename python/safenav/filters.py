@@ -59,12 +59,15 @@ class Ekf(_StepApi, _core.Ekf):
 
 
 class ParticleFilter(_StepApi, _core.ParticleFilter):
-    """Regularised particle filter on the BMM: log-weights, systematic resampling
-    when the ESS drops below ``resample_threshold`` * N, then kernel jitter
-    (Musso et al. 2001's optimal bandwidth times ``bandwidth_scale``; 0 gives
-    the plain SIR filter).  ``P`` is the weighted covariance floored by
-    ``covariance_floor`` (the kernel covariance of the unweighted cloud);
-    ``sample_covariance`` is the unfloored one."""
+    """Regularised particle filter on the BMM: log-weights and systematic
+    resampling when the ESS drops below ``resample_threshold`` * N; an update
+    that would drop it there is instead the kernel update of the adaptive
+    Gaussian mixture filter (Gaussian kernels of Musso et al. 2001's optimal
+    bandwidth times ``bandwidth_scale``; 0 gives the plain SIR filter).  ``P``
+    is the weighted covariance floored by ``covariance_floor`` (the kernel
+    covariance of the unweighted cloud); ``sample_covariance`` is the
+    unfloored one.  The equations and references are in the C++ header
+    ``safenav/filters.hpp``."""
 
     def __init__(self, params: BmmParams, x0, P0, *, n_particles: int = 1000, seed: int = 0,
                  resample_threshold: float = 0.5, bandwidth_scale: float = 1.0):
