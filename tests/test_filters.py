@@ -59,7 +59,10 @@ def test_pf_log_weights_survive_a_wildly_unlikely_measurement():
 
 
 def test_pf_resamples_systematically_when_ess_drops():
-    pf = safenav.ParticleFilter(PARAMS, X0, P0, n_particles=1000, seed=5, resample_threshold=0.5)
+    # The SIR filter (bandwidth_scale 0): the regularised one redraws every
+    # particle from its kernel, so its particles are no longer exact copies.
+    pf = safenav.ParticleFilter(PARAMS, X0, P0, n_particles=1000, seed=5, resample_threshold=0.5,
+                                bandwidth_scale=0.0)
     assert pf.ess == pytest.approx(1000)
     pf.predict([2.0, 0.0])
     before = pf.particles.copy()
@@ -69,7 +72,8 @@ def test_pf_resamples_systematically_when_ess_drops():
     after = pf.particles
     assert all((np.abs(before - p).sum(axis=1) == 0).any() for p in after[::50])
     # no resampling while ESS stays above threshold
-    pf2 = safenav.ParticleFilter(PARAMS, X0, P0, n_particles=1000, seed=5, resample_threshold=0.0)
+    pf2 = safenav.ParticleFilter(PARAMS, X0, P0, n_particles=1000, seed=5, resample_threshold=0.0,
+                                 bandwidth_scale=0.0)
     pf2.predict([2.0, 0.0])
     pf2.update(POS, pf2.x[:2])
     assert pf2.resample_count == 0 and pf2.ess < 1000
@@ -81,9 +85,11 @@ def test_systematic_resampling_preserves_weights_in_expectation():
     # with probability f_i = frac(N w_i): the count minus N w_i has mean 0 and
     # variance f_i (1 - f_i).  Summed over seeds, the gap must stay within a
     # few of its standard deviations (4 sd: a false alarm about once in 10^4).
+    # The SIR filter (bandwidth_scale 0), whose particles are exact copies.
     n, counts, wsum, var = 50, np.zeros(50), np.zeros(50), np.zeros(50)
     for seed in range(300):
-        pf = safenav.ParticleFilter(PARAMS, X0, P0 * 100, n_particles=n, seed=seed, resample_threshold=1.0)
+        pf = safenav.ParticleFilter(PARAMS, X0, P0 * 100, n_particles=n, seed=seed, resample_threshold=1.0,
+                                    bandwidth_scale=0.0)
         parts = pf.particles
         pf.update(POS, X0[:2])
         w = np.exp(-0.5 * np.sum((parts[:, :2] - X0[:2]) ** 2 / np.diag(R), axis=1))
@@ -111,7 +117,13 @@ def test_pf_mean_and_covariance_match_numpy_from_particles():
     np.testing.assert_allclose(pf.x, [*mean, theta], atol=1e-12)
     d = X - pf.x
     d[:, 3] = (d[:, 3] + np.pi) % (2 * np.pi) - np.pi
-    np.testing.assert_allclose(pf.P, (d * w[:, None]).T @ d, atol=1e-12)
+    np.testing.assert_allclose(pf.sample_covariance, (d * w[:, None]).T @ d, atol=1e-12)
+    # the reported covariance is that one floored by the kernel covariance h² C_u of the unweighted cloud
+    # (binding here: no resampling, so the weights are far from uniform)
+    F = pf.bandwidth**2 * np.cov(X.T, bias=True)
+    np.testing.assert_allclose(pf.covariance_floor[:3, :3], F[:3, :3], rtol=1e-9)
+    for B in (pf.sample_covariance, pf.covariance_floor):
+        assert np.linalg.eigvalsh(pf.P - B).min() > -1e-12
 
 
 def test_pf_is_deterministic_for_a_seed():

@@ -58,9 +58,10 @@ void pybind_augmented(py::module_& m) {
       m, "AugmentedParticleFilter",
       "Particle filter on the BMM over (x, y, v, theta, [k], [beta], [b_j]): the PF counterpart of AugmentedEkf.")
       .def(py::init<const BmmParams&, const AugmentedStates&, int, const State&, const StateCov&, int, std::uint64_t,
-                    double>(),
+                    double, double>(),
            py::arg("params"), py::arg("augment"), py::arg("n_landmarks"), py::arg("x0"), py::arg("P0"),
-           py::arg("n_particles") = 1000, py::arg("seed") = 0, py::arg("resample_threshold") = 0.5)
+           py::arg("n_particles") = 1000, py::arg("seed") = 0, py::arg("resample_threshold") = 0.5,
+           py::arg("bandwidth_scale") = 1.0)
       .def_property_readonly("size", &AugmentedParticleFilter::size)
       .def_property_readonly("state_size", &AugmentedParticleFilter::state_size)
       .def_property_readonly("scale_index", &AugmentedParticleFilter::scale_index)
@@ -68,6 +69,9 @@ void pybind_augmented(py::module_& m) {
       .def_property("gate", &AugmentedParticleFilter::gate, &AugmentedParticleFilter::set_gate)
       .def_property_readonly("x", &AugmentedParticleFilter::mean)
       .def_property_readonly("P", &AugmentedParticleFilter::covariance)
+      .def_property_readonly("sample_covariance", &AugmentedParticleFilter::sample_covariance)
+      .def_property_readonly("covariance_floor", &AugmentedParticleFilter::covariance_floor)
+      .def_property_readonly("bandwidth", &AugmentedParticleFilter::bandwidth)
       .def_property_readonly("augmented", &AugmentedParticleFilter::augmented)
       .def_property_readonly("particles", &AugmentedParticleFilter::particles)
       .def_property_readonly("weights", &AugmentedParticleFilter::weights)

@@ -35,15 +35,21 @@ void bind_step_filters(py::module_& m) {
       .def_property("gate", &Ekf::gate, &Ekf::set_gate);
   common_filter_api(ekf);
 
-  py::class_<ParticleFilter> pf(m, "ParticleFilter", "Particle filter on the BMM (log-weights, systematic resampling).");
-  pf.def(py::init<const BmmParams&, const State&, const StateCov&, int, std::uint64_t, double>(), py::arg("params"),
-         py::arg("x0"), py::arg("P0"), py::arg("n_particles") = 1000, py::arg("seed") = 0,
-         py::arg("resample_threshold") = 0.5)
+  py::class_<ParticleFilter> pf(
+      m, "ParticleFilter",
+      "Regularised particle filter on the BMM (log-weights, systematic resampling, the kernel update of the "
+      "adaptive Gaussian mixture filter when the weights would degenerate, covariance floored by the kernel's).");
+  pf.def(py::init<const BmmParams&, const State&, const StateCov&, int, std::uint64_t, double, double>(),
+         py::arg("params"), py::arg("x0"), py::arg("P0"), py::arg("n_particles") = 1000, py::arg("seed") = 0,
+         py::arg("resample_threshold") = 0.5, py::arg("bandwidth_scale") = 1.0)
       .def_property_readonly("size", &ParticleFilter::size)
       .def_property_readonly("ess", &ParticleFilter::ess)
       .def_property_readonly("resample_count", &ParticleFilter::resample_count)
       .def_property_readonly("x", &ParticleFilter::mean)
       .def_property_readonly("P", py::overload_cast<>(&ParticleFilter::covariance, py::const_))
+      .def_property_readonly("sample_covariance", &ParticleFilter::sample_covariance)
+      .def_property_readonly("covariance_floor", &ParticleFilter::covariance_floor)
+      .def_property_readonly("bandwidth", &ParticleFilter::bandwidth)
       .def_property_readonly("particles", &ParticleFilter::particles)
       .def_property_readonly("weights", &ParticleFilter::weights);
   common_filter_api(pf);
@@ -84,6 +90,7 @@ void bind_batch(py::module_& m) {
       .def_readwrite("type", &FilterOptions::type)
       .def_readwrite("n_particles", &FilterOptions::n_particles)
       .def_readwrite("resample_threshold", &FilterOptions::resample_threshold)
+      .def_readwrite("bandwidth_scale", &FilterOptions::bandwidth_scale)
       .def_readwrite("seed", &FilterOptions::seed)
       .def_readwrite("gate_probability", &FilterOptions::gate_probability)
       .def(

@@ -59,12 +59,20 @@ class Ekf(_StepApi, _core.Ekf):
 
 
 class ParticleFilter(_StepApi, _core.ParticleFilter):
-    """Particle filter on the BMM with log-weights and systematic resampling."""
+    """Regularised particle filter on the BMM: log-weights and systematic
+    resampling when the ESS drops below ``resample_threshold`` * N; an update
+    that would drop it there is instead the kernel update of the adaptive
+    Gaussian mixture filter (Gaussian kernels of Musso et al. 2001's optimal
+    bandwidth times ``bandwidth_scale``; 0 gives the plain SIR filter).  ``P``
+    is the weighted covariance floored by ``covariance_floor`` (the kernel
+    covariance of the unweighted cloud); ``sample_covariance`` is the
+    unfloored one.  The equations and references are in the C++ header
+    ``safenav/filters.hpp``."""
 
     def __init__(self, params: BmmParams, x0, P0, *, n_particles: int = 1000, seed: int = 0,
-                 resample_threshold: float = 0.5):
+                 resample_threshold: float = 0.5, bandwidth_scale: float = 1.0):
         super().__init__(params, *_prior(x0, P0), as_positive_int("n_particles", n_particles),
-                         as_seed("seed", seed), float(resample_threshold))
+                         as_seed("seed", seed), float(resample_threshold), float(bandwidth_scale))
 
 
 class InformationFilter(_StepApi, _core.InformationFilter):
@@ -92,7 +100,8 @@ def filter_trajectory(controls, x0, P0, *, params: BmmParams | None = None, filt
                       position=None, position_cov=None, speed_heading=None, speed_heading_cov=None,
                       ranges=None, range_std: float = 1.0, bearings=None, bearing_std: float = 0.05,
                       landmarks=None, n_particles: int = 1000, seed: int = 0,
-                      resample_threshold: float = 0.5, gate: float = 0.0) -> FilterResult:
+                      resample_threshold: float = 0.5, bandwidth_scale: float = 1.0,
+                      gate: float = 0.0) -> FilterResult:
     """Filter a whole trajectory in one call.
 
     ``controls`` is ``(N, 2)``.  Each measurement stream is optional and has
@@ -135,6 +144,7 @@ def filter_trajectory(controls, x0, P0, *, params: BmmParams | None = None, filt
     opt.n_particles = as_positive_int("n_particles", n_particles)
     opt.seed = as_seed("seed", seed)
     opt.resample_threshold = float(resample_threshold)
+    opt.bandwidth_scale = float(bandwidth_scale)
     opt.gate_probability = float(gate)
     run = _core.run_filter(params if params is not None else BmmParams(), opt, x0, P0, u, st)
     return FilterResult(

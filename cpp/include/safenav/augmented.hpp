@@ -137,15 +137,28 @@ class AugmentedEkf {
 /// the noisy BMM (Bmm::transition over dt, at θ − β·dt) and each augmented
 /// state by its random walk; weights multiply by the Gaussian likelihood of
 /// r = (1+k)·ρ + b_j etc. (log space), systematic resampling when
-/// ESS < resample_threshold·N.  Gate as ParticleFilter::set_gate: the NIS of
-/// the weighted-mean prediction (S = weighted covariance of the particles'
-/// residuals + R).  A plain scalar loop; predict and the updates allocate
-/// nothing after construction.
+/// ESS < resample_threshold·N.  With bandwidth_scale > 0 each resampling is
+/// regularised over the whole augmented state, d = state_size() (Musso et
+/// al.'s post-regularised PF; the references are at ParticleFilter in
+/// safenav/filters.hpp): x_i ← m + a(x_i − m) + L ε_i, a = √(1 − h²) (Liu &
+/// West's shrinkage), L Lᵀ = P_k, the kernel h²Σ⁻ of the cloud before the
+/// update conditioned on z by statistical linearisation, P_k = h²Σ⁻ −
+/// h⁴C_xy(h²C_yy + R)⁻¹C_xyᵀ (Musso et al. use h² times the weighted
+/// posterior covariance, ~0 when the weights degenerate).  This keeps the
+/// slowly varying k, β, b_j from collapsing onto a few values (their random
+/// walks are far too small to restore diversity).  The weights stay those of
+/// the SIR filter (ParticleFilter's kernel update is not used here).
+/// covariance() is floored as ParticleFilter's.  Gate as
+/// ParticleFilter::set_gate: the NIS of the weighted-mean prediction
+/// (S = weighted covariance of the particles' residuals + R).  A plain
+/// scalar loop; predict and the updates allocate nothing after construction
+/// except the regularisation after a resampling (a few small matrices).
 class AugmentedParticleFilter {
  public:
+  /// bandwidth_scale ∈ [0, 10] as ParticleFilter's (0: no regularisation).
   AugmentedParticleFilter(const BmmParams& params, const AugmentedStates& augment, int n_landmarks,
                           const State& x0, const StateCov& P0, int n_particles, std::uint64_t seed,
-                          double resample_threshold = 0.5);
+                          double resample_threshold = 0.5, double bandwidth_scale = 1.0);
   ~AugmentedParticleFilter();
   AugmentedParticleFilter(AugmentedParticleFilter&&) noexcept;
   AugmentedParticleFilter& operator=(AugmentedParticleFilter&&) noexcept;
@@ -168,9 +181,16 @@ class AugmentedParticleFilter {
   UpdateResult update_position(const Eigen::Vector2d& z, const Eigen::Matrix2d& R);
   UpdateResult update_speed_heading(const Eigen::Vector2d& z, const Eigen::Matrix2d& R);
 
-  /// Weighted mean (circular for θ) and covariance of (x, y, v, θ).
+  /// Weighted mean (circular for θ) of (x, y, v, θ).
   State mean() const;
+  /// The reported covariance of (x, y, v, θ): sample_covariance() floored by covariance_floor().
   StateCov covariance() const;
+  /// The weighted covariance of (x, y, v, θ), unfloored.
+  StateCov sample_covariance() const;
+  /// h²·C_u over (x, y, v, θ) (C_u: the unweighted covariance of the particles).
+  StateCov covariance_floor() const;
+  /// The kernel bandwidth h (dimensionless, in [0, 1]).
+  double bandwidth() const;
   /// Weighted mean of the full augmented state (θ circular).
   Eigen::VectorXd augmented() const;
   /// Particles (state_size() × N, one per column) and normalised weights.

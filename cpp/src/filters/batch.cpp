@@ -185,7 +185,8 @@ FilterRun run_filter(const BmmParams& params, const FilterOptions& options, cons
       return run_impl(f, controls, stream, [] { return 0; });
     }
     case FilterType::ParticleFilter: {
-      ParticleFilter f(params, x0, P0, options.n_particles, options.seed, options.resample_threshold);
+      ParticleFilter f(params, x0, P0, options.n_particles, options.seed, options.resample_threshold,
+                       options.bandwidth_scale);
       return run_impl(f, controls, stream, [&f] { return f.resample_count(); });
     }
     case FilterType::InformationFilter: {

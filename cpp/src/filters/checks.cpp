@@ -84,6 +84,7 @@ const ParamSet<FilterOptions>& param_set<FilterOptions>() {
           .real("gate_probability", SN_REF(F, gate_probability), "", closed(0, 0.999999), "chi-square gate of each update (ours); 0 = off, the paper's loop; at 1 the gate would reject nothing")
           .integer("n_particles", SN_REF(F, n_particles), closed(1, 1e7), "particles of the particle filter")
           .real("resample_threshold", SN_REF(F, resample_threshold), "", closed(0, 1), "the particle filter resamples when the effective sample size falls below this share of n_particles")
+          .real("bandwidth_scale", SN_REF(F, bandwidth_scale), "", closed(0, 10), "particle filter kernel bandwidth as a multiple of Musso et al.'s optimal h_opt = (4/(N(d+2)))^(1/(d+4)); 0 = the plain SIR filter (no kernel update, no covariance floor)")
           .set;
   return s;
 }

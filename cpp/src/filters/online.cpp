@@ -238,8 +238,9 @@ class EkfFilter final : public Filter {
 /// The particle filter on the 4-state BMM.
 class PfFilter final : public Filter {
  public:
-  PfFilter(const BmmParams& p, const State& x0, const StateCov& P0, int n, std::uint64_t seed, double thr)
-      : Filter(FilterType::ParticleFilter, false, x0, P0), f_(p, x0, P0, n, seed, thr), spare_(f_) {}
+  PfFilter(const BmmParams& p, const State& x0, const StateCov& P0, int n, std::uint64_t seed, double thr,
+           double bandwidth_scale)
+      : Filter(FilterType::ParticleFilter, false, x0, P0), f_(p, x0, P0, n, seed, thr, bandwidth_scale), spare_(f_) {}
 
  private:
   void do_predict(const Control& u, double dt) override { f_.predict(u, dt); }
@@ -342,8 +343,9 @@ class AugmentedEkfFilter final : public AugmentedFilter<AugmentedEkf> {
 class AugmentedPfFilter final : public AugmentedFilter<AugmentedParticleFilter> {
  public:
   AugmentedPfFilter(const BmmParams& p, const AugmentedStates& a, int K, const State& x0, const StateCov& P0, int n,
-                    std::uint64_t seed, double thr)
-      : AugmentedFilter(FilterType::ParticleFilter, x0, P0, AugmentedParticleFilter(p, a, K, x0, P0, n, seed, thr)) {}
+                    std::uint64_t seed, double thr, double bandwidth_scale)
+      : AugmentedFilter(FilterType::ParticleFilter, x0, P0,
+                        AugmentedParticleFilter(p, a, K, x0, P0, n, seed, thr, bandwidth_scale)) {}
 
  private:
   void estimate(State& x, StateCov& P) const override {
@@ -369,9 +371,9 @@ std::unique_ptr<Filter> make_filter(const FilterOptions& o, const BmmParams& par
     f = std::make_unique<EkfFilter>(params, x0, P0);
   else if (augment.any())
     f = std::make_unique<AugmentedPfFilter>(params, augment, n_landmarks, x0, P0, o.n_particles, seed,
-                                            o.resample_threshold);
+                                            o.resample_threshold, o.bandwidth_scale);
   else
-    f = std::make_unique<PfFilter>(params, x0, P0, o.n_particles, seed, o.resample_threshold);
+    f = std::make_unique<PfFilter>(params, x0, P0, o.n_particles, seed, o.resample_threshold, o.bandwidth_scale);
   if (o.gate_probability > 0.0) f->set_gate(o.gate_probability);
   return f;
 }

@@ -1,10 +1,13 @@
 // Particle filter (the Battlefield Motion Model's SIR filter): storage, weights,
-// resampling and the measurement update; the per-particle passes are the
-// kernels in pf_kernels.hpp.
+// resampling, regularisation (regularise.hpp; the method is documented at
+// ParticleFilter in safenav/filters.hpp) and the measurement update; the
+// per-particle passes are the kernels in pf_kernels.hpp.
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <new>
 #include <sstream>
 #include <stdexcept>
@@ -12,6 +15,7 @@
 
 #include "checks.hpp"
 #include "pf_kernels.hpp"
+#include "regularise.hpp"
 #include "safenav/filters.hpp"
 
 namespace safenav {
@@ -54,7 +58,10 @@ class Columns {
 struct ParticleFilter::Impl {
   // Particle columns: x, y, v, θ, cos θ, sin θ; weight columns: log w, w.
   enum Column : int { kCos = 4, kSin = 5, kParticleColumns = 6 };
-  enum WeightColumn : int { kLogW = 0, kW = 1 };
+  // Weight columns: log w, w, the prior w of an update, 1/N (for the unweighted moments).
+  // Weight columns: log w, w, 1/N (for the unweighted moments), the
+  // log-likelihood log p(z | x_i) of an update.
+  enum WeightColumn : int { kLogW = 0, kW = 1, kUniform = 2, kGain = 3, kWeightColumns = 4 };
   Bmm bmm;
   detail::BatchRng rng;
   double resample_threshold;
@@ -63,6 +70,7 @@ struct ParticleFilter::Impl {
   Columns W;                  // log-weights and normalised weights
   double ess = 0.0;           // 1/Σw², kept with w
   int n_resampled = 0;
+  double h = 0.0;             // kernel bandwidth (0: plain SIR, no jitter, no floor)
   double gate_probability = 0.0;     // NIS gate (0 = off)
   std::vector<double> gate_thresholds;  // chi-square quantile per measurement dimension
   // scratch
@@ -70,12 +78,18 @@ struct ParticleFilter::Impl {
   std::vector<int> start;     // resampling: the particle of each pointer
   Eigen::MatrixXd Y;          // residuals of a general measurement model
   Eigen::VectorXd zhat, resid;
+  Eigen::Matrix4d Sigma_prior;        // the prior cloud's weighted covariance (of an update)
+  Eigen::MatrixXd Cxy, Cyy;           // weighted state–residual and residual covariances
+  Eigen::VectorXd ybar;               // weighted mean residual
+  Eigen::MatrixXd Yraw;               // residuals of a general model (before whitening)
+  mutable Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> es;
 
-  Impl(const BmmParams& p, std::uint64_t seed, double thr, int n)
-      : bmm(p), rng(seed), resample_threshold(thr), N(n) {
+  Impl(const BmmParams& p, std::uint64_t seed, double thr, int n, double bandwidth_scale)
+      : bmm(p), rng(seed), resample_threshold(thr), N(n), h(kernel_bandwidth(n, 4, bandwidth_scale)) {
     S.resize(N, kParticleColumns);
     S_next.resize(N, kParticleColumns);
-    W.resize(N, 2);
+    W.resize(N, kWeightColumns);
+    std::fill_n(W.col(kUniform), N, 1.0 / N);  // padding stays 0
     noise.resize(N, 4);
     start.resize(static_cast<std::size_t>(N) + 1);
   }
@@ -132,16 +146,17 @@ struct ParticleFilter::Impl {
     ++n_resampled;
   }
 
-  State mean() const {
+  /// Mean under the weights in column `wc` of W (circular mean for θ).
+  State mean(int wc = kW) const {
     const Sums5 s = detail::dispatch<mean_sums<32>, mean_sums<16>>(N, col(kX), col(kY), col(kV), col(kCos),
-                                                                    col(kSin), w());
+                                                                    col(kSin), W.col(wc));
     return State(s.s[0], s.s[1], s.s[2], std::atan2(s.s[4], s.s[3]));  // circular mean for θ
   }
 
-  /// Weighted covariance Σ w_i d_i d_iᵀ about m, θ deviations wrapped.
-  StateCov covariance(const State& m) const {
+  /// Covariance Σ w_i d_i d_iᵀ about m under the weights in column `wc` of W, θ deviations wrapped.
+  StateCov covariance(const State& m, int wc = kW) const {
     const Sums10 t = detail::dispatch<covariance_sums<32>, covariance_sums<16>>(N, col(kX), col(kY), col(kV),
-                                                                                col(kTheta), w(), &m);
+                                                                                col(kTheta), W.col(wc), &m);
     const double* s = t.s;
     StateCov P;
     P << s[0], s[1], s[2], s[3],
@@ -154,6 +169,130 @@ struct ParticleFilter::Impl {
       check_finite_result(P, "particle filter P", os.str());
     }
     return P;
+  }
+
+  /// The reported covariance: the weighted one about m, floored by the
+  /// kernel covariance h²·C_u of the unweighted cloud (regularise.hpp).
+  StateCov reported_covariance(const State& m) const {
+    const StateCov P = covariance(m);
+    if (h <= 0.0) return P;
+    const StateCov floor = (h * h) * covariance(mean(kUniform), kUniform);
+    return loewner_floor(P, floor, es);
+  }
+
+  /// log p(z | x_i) (up to a constant) of every particle into the gain
+  /// column; returns the NIS of the weighted-mean prediction (ȳ, S = Cov_w(y)
+  /// + R under the current weights), and keeps C_yy = Cov_w(y) and, when
+  /// `cross`, C_xy = Σ w_i (x_i − m)(y_i − ȳ)ᵀ for the kernel (regularise.hpp).
+  double likelihood(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z,
+                    const Eigen::MatrixXd& R, bool cross) {
+    const int m = model.dim();
+    double* gain = W.col(kGain);
+    if (model.kind() == MeasurementKind::Position) {
+      // Fast path: 2-D residuals, log-likelihood and NIS moments in one pass (C_xy follows from Σ⁻).
+      const Eigen::Matrix2d Ri = R.inverse();
+      const PositionParams a{z[0], z[1], 0.5 * Ri(0, 0), Ri(0, 1), 0.5 * Ri(1, 1)};
+      std::fill_n(gain, N, 0.0);
+      const Sums5 t = detail::dispatch<position_loglik<32>, position_loglik<16>>(N, col(kX), col(kY), w(), gain, &a);
+      const double* ps = t.s;
+      const double s0 = ps[0], s1 = ps[1];
+      ybar = Eigen::Vector2d(s0, s1);
+      Cyy.resize(2, 2);
+      Cyy << ps[2] - s0 * s0, ps[3] - s0 * s1, ps[3] - s0 * s1, ps[4] - s1 * s1;
+      return ybar.dot((Cyy + R).ldlt().solve(ybar));
+    }
+    // Residual of every particle, y_i = z ⊖ h(x_i), one per column.
+    Y.resize(m, N);
+    zhat.resize(m);
+    resid.resize(m);
+    for (int i = 0; i < N; ++i) {
+      model.predict(particle(i), zhat);
+      model.residual(z, zhat, resid);
+      Y.col(i) = resid;
+    }
+    const Eigen::Map<const Eigen::VectorXd> wv(w(), N);
+    ybar = Y * wv;
+    const Eigen::MatrixXd D = Y.colwise() - ybar;
+    Cyy = D * wv.asDiagonal() * D.transpose();
+    const double nis = ybar.dot((Cyy + R).ldlt().solve(ybar));
+    if (cross) {
+      const State m0 = mean();
+      Cxy.setZero(4, m);
+      for (int i = 0; i < N; ++i) {
+        State dx = particle(i) - m0;
+        dx[kTheta] = wrap_angle(dx[kTheta]);
+        Cxy.noalias() += (wv[i] * dx) * D.col(i).transpose();
+      }
+      Yraw = Y;
+    }
+    // log-likelihood −½ yᵀR⁻¹y = −½‖L⁻¹y‖²
+    model.noise().whiten(Y);
+    Eigen::Map<Eigen::ArrayXd>(gain, N) = -0.5 * Y.colwise().squaredNorm().transpose().array();
+    return nis;
+  }
+
+  /// The regularised update (see ParticleFilter in safenav/filters.hpp): each
+  /// particle is the centre of a kernel N(c_i, h²Σ⁻), c_i = m + a(x_i − m);
+  /// the kernels are updated by statistical linearisation (one gain K for
+  /// all), weighted by their own predictive likelihood N(y_c,i; 0, S_h), and
+  /// each particle is redrawn from its updated kernel (C_xh = −C_xy):
+  ///   S_h = h²C_yy + R,  K = h²C_xh S_h⁻¹,  P_k = h²Σ⁻ − K S_h Kᵀ
+  ///   y_c,i = ȳ + a(y_i − ȳ),  log w_i += −½ y_c,iᵀ S_h⁻¹ y_c,i
+  ///   x_i ← c_i + K y_c,i + L ε_i,  L Lᵀ = P_k
+  /// then systematic resampling when ESS < resample_threshold·N.  Needs
+  /// likelihood() called first under the prior weights (ȳ, C_yy, C_xy).
+  void kernel_update(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z,
+                     const Eigen::MatrixXd& R) {
+    const bool position = model.kind() == MeasurementKind::Position;
+    const int m = model.dim();
+    const State m0 = mean();
+    const Eigen::Matrix4d Sigma = covariance(m0);
+    if (position) Cxy = -Sigma.leftCols<2>();  // y = z − (x, y): C_xy = −Σ⁻Hᵀ with H = [I₂ 0]
+    const double h2 = h * h, a = std::sqrt(std::max(0.0, 1.0 - h2));
+    const Eigen::MatrixXd Sh = h2 * Cyy + R;
+    const Eigen::LLT<Eigen::MatrixXd> llt(Sh);
+    // The gain of x on h(x) is h²C_xh S_h⁻¹, and C_xh = −C_xy (y = z ⊖ h(x)).
+    const Eigen::MatrixXd K = llt.solve((-h2 * Cxy).transpose()).transpose();
+    const Eigen::Matrix4d Pk = conditioned_kernel(Sigma, Cxy, Cyy, R, h);
+    Eigen::Matrix4d L;
+    psd_factor(Pk, es, L);
+    const Eigen::MatrixXd Linv = llt.matrixL().solve(Eigen::MatrixXd::Identity(m, m));  // S_h = L Lᵀ
+    rng.fill_normal(noise.col(0), 4L * noise.stride());
+    const double vmax = bmm.params().max_speed;
+    double* c[4] = {col(kX), col(kY), col(kV), col(kTheta)};
+    const double* e[4] = {noise.col(0), noise.col(1), noise.col(2), noise.col(3)};
+    double* lw = logw();
+    double mx = -std::numeric_limits<double>::infinity();
+    Eigen::VectorXd y(m), yc(m);
+    for (int i = 0; i < N; ++i) {
+      if (position) {
+        y << z[0] - c[0][i], z[1] - c[1][i];
+      } else {
+        y = Yraw.col(i);
+      }
+      yc = ybar + a * (y - ybar);
+      lw[i] -= 0.5 * (Linv * yc).squaredNorm();
+      mx = std::max(mx, lw[i]);
+      Eigen::Vector4d d(c[0][i] - m0[0], c[1][i] - m0[1], c[2][i] - m0[2], wrap_angle(c[3][i] - m0[3]));
+      d = a * d + K * yc;  // the updated kernel's centre
+      c[0][i] = m0[0] + d[0];
+      c[1][i] = m0[1] + d[1];
+      c[2][i] = m0[2] + d[2];
+      c[3][i] = m0[3] + d[3];
+    }
+    normalise(mx);
+    if (ess < resample_threshold * N) resample();  // copies centres (cos/sin are rewritten below)
+    // A draw from each (resampled) particle's updated kernel (resample() swapped the columns).
+    for (int k = 0; k < 4; ++k) c[k] = col(k);
+    for (int i = 0; i < N; ++i) {
+      const Eigen::Vector4d d = L * Eigen::Vector4d(e[0][i], e[1][i], e[2][i], e[3][i]);
+      c[0][i] += d[0];
+      c[1][i] += d[1];
+      c[2][i] = std::clamp(c[2][i] + d[2], 0.0, vmax);
+      c[3][i] = wrap_angle(c[3][i] + d[3]);
+      col(kCos)[i] = std::cos(c[3][i]);
+      col(kSin)[i] = std::sin(c[3][i]);
+    }
   }
 
   /// Noisy BMM for every particle (eqs. 6–9, the body of Bmm::transition).
@@ -195,7 +334,7 @@ struct ParticleFilter::Impl {
 };
 
 ParticleFilter::ParticleFilter(const BmmParams& params, const State& x0, const StateCov& P0, int n_particles,
-                               std::uint64_t seed, double resample_threshold) {
+                               std::uint64_t seed, double resample_threshold, double bandwidth_scale) {
   if (n_particles < 1) {
     throw std::invalid_argument("n_particles = " + std::to_string(n_particles) + " must be >= 1");
   }
@@ -204,8 +343,13 @@ ParticleFilter::ParticleFilter(const BmmParams& params, const State& x0, const S
     os << "resample_threshold = " << resample_threshold << " must be in [0, 1]";
     throw std::invalid_argument(os.str());
   }
+  if (!(std::isfinite(bandwidth_scale) && bandwidth_scale >= 0.0 && bandwidth_scale <= 10.0)) {
+    std::ostringstream os;
+    os << "bandwidth_scale = " << bandwidth_scale << " must be in [0, 10] (0: no regularisation)";
+    throw std::invalid_argument(os.str());
+  }
   check_prior(x0, P0);
-  impl_ = std::make_unique<Impl>(params, seed, resample_threshold, n_particles);
+  impl_ = std::make_unique<Impl>(params, seed, resample_threshold, n_particles, bandwidth_scale);
   auto& I = *impl_;
   const int N = n_particles;
   const Eigen::Matrix4d L = P0.llt().matrixL();
@@ -238,6 +382,7 @@ ParticleFilter& ParticleFilter::operator=(const ParticleFilter& o) {
   a.bmm = b.bmm;
   a.rng = b.rng;
   a.resample_threshold = b.resample_threshold;
+  a.h = b.h;
   a.S = b.S;
   a.W = b.W;
   a.ess = b.ess;
@@ -251,8 +396,14 @@ int ParticleFilter::size() const { return impl_->n(); }
 double ParticleFilter::ess() const { return impl_->ess; }
 int ParticleFilter::resample_count() const { return impl_->n_resampled; }
 State ParticleFilter::mean() const { return impl_->mean(); }
-StateCov ParticleFilter::covariance() const { return impl_->covariance(impl_->mean()); }
-StateCov ParticleFilter::covariance(const State& about) const { return impl_->covariance(about); }
+StateCov ParticleFilter::covariance() const { return impl_->reported_covariance(impl_->mean()); }
+StateCov ParticleFilter::covariance(const State& about) const { return impl_->reported_covariance(about); }
+StateCov ParticleFilter::sample_covariance() const { return impl_->covariance(impl_->mean()); }
+double ParticleFilter::bandwidth() const { return impl_->h; }
+StateCov ParticleFilter::covariance_floor() const {
+  const auto& I = *impl_;
+  return (I.h * I.h) * I.covariance(I.mean(Impl::kUniform), Impl::kUniform);
+}
 Eigen::VectorXd ParticleFilter::weights() const { return Eigen::Map<const Eigen::VectorXd>(impl_->w(), size()); }
 
 Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor> ParticleFilter::particles() const {
@@ -316,53 +467,22 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
   const Eigen::MatrixXd R = model.noise().cov();
   UpdateResult res;
   res.dim = m;
-  const Eigen::ArrayXd prior_logw = Eigen::Map<const Eigen::ArrayXd>(I.logw(), N);
-  if (model.kind() == MeasurementKind::Position) {
-    // Fast path: 2-D residuals, log-likelihood and NIS moments in one pass.
-    const Eigen::Matrix2d Ri = R.inverse();
-    const PositionParams a{z[0], z[1], 0.5 * Ri(0, 0), Ri(0, 1), 0.5 * Ri(1, 1)};
-    const Sums5 t =
-        detail::dispatch<position_loglik<32>, position_loglik<16>>(N, I.col(kX), I.col(kY), I.w(), I.logw(), &a);
-    const double* ps = t.s;
-    const double s0 = ps[0], s1 = ps[1];
-    const Eigen::Vector2d ybar(s0, s1);
-    Eigen::Matrix2d S;
-    S << ps[2] - s0 * s0, ps[3] - s0 * s1, ps[3] - s0 * s1, ps[4] - s1 * s1;
-    S += R;
-    res.nis = ybar.dot(S.ldlt().solve(ybar));
-  } else {
-    // Residual of every particle, y_i = z ⊖ h(x_i), one per column.
-    I.Y.resize(m, N);
-    I.zhat.resize(m);
-    I.resid.resize(m);
-    for (int i = 0; i < N; ++i) {
-      model.predict(I.particle(i), I.zhat);
-      model.residual(z, I.zhat, I.resid);
-      I.Y.col(i) = I.resid;
-    }
-    // NIS (diagnostic) of the prior predictive: mean residual ȳ, S = Cov_w(y) + R.
-    const Eigen::Map<const Eigen::VectorXd> w(I.w(), N);
-    const Eigen::VectorXd ybar = I.Y * w;
-    const Eigen::MatrixXd D = I.Y.colwise() - ybar;
-    const Eigen::MatrixXd S = D * w.asDiagonal() * D.transpose() + R;
-    res.nis = ybar.dot(S.ldlt().solve(ybar));
-    // log-likelihood −½ yᵀR⁻¹y = −½‖L⁻¹y‖², added to the log-weights.
-    model.noise().whiten(I.Y);
-    Eigen::Map<Eigen::ArrayXd>(I.logw(), N) -= 0.5 * I.Y.colwise().squaredNorm().transpose().array();
-  }
+  const bool regularised = I.h > 0.0;
+  res.nis = I.likelihood(model, z, R, regularised);  // log p(z | x_i) into the gain column, ȳ, C_yy, C_xy
   if (I.gate_probability > 0.0 && std::isfinite(res.nis)) {
     if (static_cast<int>(I.gate_thresholds.size()) <= m) I.gate_thresholds.resize(m + 1, -1.0);
     double& t = I.gate_thresholds[m];
     if (t < 0.0) t = chi2_quantile(I.gate_probability, m);
     if (res.nis > t) {  // rejected: the weights stay as they were
-      Eigen::Map<Eigen::ArrayXd>(I.logw(), N) = prior_logw;
       res.accepted = false;
       return res;
     }
   }
-  const double mx = Eigen::Map<const Eigen::ArrayXd>(I.logw(), N).maxCoeff();  // exact in any order
-  if (!std::isfinite(mx) || !std::isfinite(res.nis)) {  // keep the prior weights, then say why
-    Eigen::Map<Eigen::ArrayXd>(I.logw(), N) = prior_logw;
+  double* logw = I.logw();
+  const double* gain = I.W.col(Impl::kGain);
+  double mx = -std::numeric_limits<double>::infinity();
+  for (int i = 0; i < N; ++i) mx = std::max(mx, logw[i] + gain[i]);  // exact in any order
+  if (!std::isfinite(mx) || !std::isfinite(res.nis)) {  // the weights stay as they were; say why
     check_nis(res.nis, "particle filter", model.kind());
     // every likelihood underflowed (residuals beyond ~1e154 σ)
     std::ostringstream os;
@@ -370,8 +490,21 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
        << "every particle (log-likelihood " << mx << ")";
     throw std::invalid_argument(os.str());
   }
-  I.normalise(mx);
-  if (I.ess < I.resample_threshold * N) I.resample();
+  // The SIR weights, unless they would fall below the resampling threshold
+  // and the filter is regularised: then the kernel update instead.
+  double s1 = 0.0, s2 = 0.0;  // ESS = s1²/s2 of the SIR weights
+  for (int i = 0; regularised && i < N; ++i) {
+    const double e = std::exp(logw[i] + gain[i] - mx);
+    s1 += e;
+    s2 += e * e;
+  }
+  if (!regularised || s1 * s1 >= I.resample_threshold * N * s2) {
+    for (int i = 0; i < N; ++i) logw[i] += gain[i];
+    I.normalise(mx);
+    if (I.ess < I.resample_threshold * N) I.resample();
+    return res;
+  }
+  I.kernel_update(model, z, R);
   return res;
 }
 

@@ -1,0 +1,71 @@
+// Private: the kernel arithmetic shared by ParticleFilter (pf.cpp, the kernel
+// update of the adaptive Gaussian mixture filter) and AugmentedParticleFilter
+// (augmented_pf.cpp, regularisation after resampling).  The methods and their
+// references are documented at those classes; the pieces here:
+//
+//  bandwidth    h = c · (4 / (N (d + 2)))^{1/(d+4)}       [Musso et al. 2001]
+//  conditioned  P_k = h²Σ⁻ − h⁴ C_xy (h² C_yy + R)⁻¹ C_xyᵀ: the kernel h²Σ⁻
+//               of the prior cloud updated by statistical linearisation
+//               (C_xy, C_yy the weighted state–residual and residual
+//               covariances of the particles), as the ensemble Kalman filter
+//               and the adaptive Gaussian mixture filter of Stordal et al.
+//               2011 update a member / a kernel
+//  factor       L Lᵀ = P₊ for the kernel draws
+//  floor        P_reported = P̂ + (h² C_u − P̂)₊ ⪰ P̂ and ⪰ h² C_u, with P̂ the
+//               weighted and C_u the unweighted covariance of the particles
+#pragma once
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+
+namespace safenav::detail {
+
+/// h = scale · (4 / (N (d + 2)))^{1/(d+4)}: the bandwidth of a Gaussian kernel
+/// that minimises the mean integrated squared error for a Gaussian density
+/// [Musso et al. 2001, h_opt = A·N^{−1/(d+4)}, A = (4/(d+2))^{1/(d+4)}],
+/// capped at 1 (the shrinkage √(1 − h²) needs h ≤ 1).  scale = 0 gives 0.
+inline double kernel_bandwidth(int n_particles, int dim, double scale) {
+  if (!(scale > 0.0)) return 0.0;
+  const double h = scale * std::pow(4.0 / (static_cast<double>(n_particles) * (dim + 2.0)), 1.0 / (dim + 4.0));
+  return std::min(h, 1.0);
+}
+
+/// The kernel h²Σ conditioned on the measurement by statistical linearisation:
+/// P_k = h²Σ − h⁴ C_xy (h² C_yy + R)⁻¹ C_xyᵀ, symmetrised.  C_xy is the
+/// weighted covariance of the states with the residuals (n × m), C_yy that of
+/// the residuals (m × m), R the measurement noise.  PSD by construction (a
+/// Schur complement of a PSD joint covariance, R ≻ 0); rounding is clamped
+/// later by psd_factor.
+template <class MatN, class MatNM, class MatM>
+MatN conditioned_kernel(const MatN& Sigma, const MatNM& Cxy, const MatM& Cyy, const MatM& R, double h) {
+  const double h2 = h * h;
+  const MatM S = h2 * Cyy + R;
+  const MatNM G = S.ldlt().solve(Cxy.transpose()).transpose();  // C_xy S⁻¹
+  MatN P = h2 * Sigma;
+  P.noalias() -= (h2 * h2) * G * Cxy.transpose();
+  return 0.5 * (P + P.transpose());
+}
+
+/// L with L Lᵀ = A₊ (A symmetric; its negative eigenvalues, from rounding,
+/// set to 0).  `es` is caller-owned scratch (no allocation at a fixed size).
+template <class Mat, class Solver>
+void psd_factor(const Mat& A, Solver& es, Mat& L) {
+  es.compute(A);
+  L = es.eigenvectors() * es.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal();
+}
+
+/// A + (B − A)₊: the smallest correction of A, along the eigenvectors of
+/// B − A, that makes it ⪰ B (it stays ⪰ A).  A is returned unchanged when
+/// A ⪰ B already.
+template <class Mat, class Solver>
+Mat loewner_floor(const Mat& A, const Mat& B, Solver& es) {
+  Mat D = B - A;
+  D = 0.5 * (D + D.transpose()).eval();
+  es.compute(D);
+  if (es.eigenvalues().maxCoeff() <= 0.0) return A;
+  return A + es.eigenvectors() * es.eigenvalues().cwiseMax(0.0).asDiagonal() * es.eigenvectors().transpose();
+}
+
+}  // namespace safenav::detail

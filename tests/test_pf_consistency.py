@@ -1,0 +1,168 @@
+"""The regularised particle filter stays consistent: its NEES against the
+chi-square band on a near-linear problem and after fix gaps (where the plain
+SIR filter collapses), its reported covariance never below the kernel floor,
+the jitter's bandwidth as Musso et al. 2001 give it, and fixed seeds.
+
+Truth from ``Bmm(params).simulate`` with the filter's own parameters; position
+fixes with noise drawn from the R the filter is given; the initial estimate
+drawn from N(truth_0, P0).  The controls keep eq. 3 exactly linear (the desired
+speed alternates far above and far below v), as in test_consistency.py.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import safenav
+from safenav import Bmm, BmmParams, MeasurementModel
+from safenav.metrics import chi2_interval, nees
+
+PARAMS = BmmParams(acceleration=2.0, deceleration=2.0, max_speed=10.0, max_heading_rate=1.0, dt=0.1,
+                   speed_noise=0.05, heading_noise=0.01, position_noise=0.02)
+P0 = np.diag([0.1**2, 0.1**2, 0.1**2, 0.03**2])
+X0_TRUE = np.array([0.0, 0.0, 3.0, 0.4])
+#: LanBLoc's fix noise (0.014 m in x, 0.039 m in y): far narrower than the
+#: spread a cloud reaches after a few steps without a fix.
+R_LANBLOC = np.diag([0.014**2, 0.039**2])
+
+
+def controls(n):
+    k = np.arange(n)
+    vd = np.where((k // 5) % 2 == 0, 50.0, -50.0)  # always rate-limited: v' = v +- 0.2
+    dth = 0.02 * np.sin(2 * np.pi * k / n)           # |dth| < m*dt: the clip never binds
+    return np.column_stack([vd, dth])
+
+
+def monte_carlo(n_runs, n_steps, seed, *, R, fix_every=1, **kw):
+    """Per-run NEES sequences (n_runs, n_steps) of the PF's estimate after each step."""
+    u = controls(n_steps)
+    bmm = Bmm(PARAMS)
+    out = np.empty((n_runs, n_steps))
+    for i, ss in enumerate(np.random.SeedSequence(seed).spawn(n_runs)):
+        rng = np.random.default_rng(ss)
+        truth = bmm.simulate(X0_TRUE, u, seed=int(rng.integers(2**63)))
+        z = truth[1:, :2] + rng.multivariate_normal(np.zeros(2), R, size=n_steps)
+        z[np.arange(n_steps) % fix_every != fix_every - 1] = np.nan  # gaps: a fix every fix_every steps
+        x0 = rng.multivariate_normal(X0_TRUE, P0)
+        res = safenav.filter_trajectory(u, x0, P0, params=PARAMS, filter="pf", position=z, position_cov=R,
+                                        seed=int(rng.integers(2**63)), **kw)
+        out[i] = nees_or_inf(res.states[1:], truth[1:], res.covariances[1:])
+    return out
+
+
+def nees_or_inf(est, truth, covs):
+    """metrics.nees, with inf where the covariance is singular (a collapsed cloud)."""
+    out = np.full(len(est), np.inf)
+    for k, P in enumerate(covs):
+        try:
+            out[k] = nees(est[k:k + 1], truth[k:k + 1], P[None])[0]
+        except ValueError:  # not positive definite
+            pass
+    return out
+
+
+def test_bandwidth_is_musso_optimal():
+    """h = c (4 / (N (d + 2)))^(1/(d+4)) with d = 4 (and d = the augmented size), capped at 1."""
+    for n, c in ((500, 1.0), (2000, 0.5), (1, 1.0), (10, 3.0)):
+        pf = safenav.ParticleFilter(PARAMS, X0_TRUE, P0, n_particles=n, bandwidth_scale=c)
+        assert pf.bandwidth == pytest.approx(min(1.0, c * (4 / (n * 6)) ** (1 / 8)), rel=1e-14)
+    assert safenav.ParticleFilter(PARAMS, X0_TRUE, P0, n_particles=50, bandwidth_scale=0.0).bandwidth == 0.0
+    from safenav import _core
+    a = _core.AugmentedStates()
+    a.range_scale = a.heading_rate_bias = True
+    f = _core.AugmentedParticleFilter(PARAMS, a, 3, X0_TRUE, P0, n_particles=400)
+    assert f.state_size == 6
+    assert f.bandwidth == pytest.approx((4 / (400 * 8)) ** (1 / 10), rel=1e-14)
+    with pytest.raises(ValueError, match="bandwidth_scale = -1"):
+        safenav.ParticleFilter(PARAMS, X0_TRUE, P0, n_particles=50, bandwidth_scale=-1.0)
+
+
+def test_anees_inside_chi2_interval_on_near_linear_problem():
+    """Fixes every step (R comparable to the cloud): the two-sided 95 % band of the mean of M time-averaged NEES."""
+    M, N = 80, 40
+    e = monte_carlo(M, N, seed=11, R=np.diag([0.2**2, 0.25**2]), n_particles=500)
+    lo, hi = chi2_interval(dof=4, n_runs=M)
+    anees = e.mean(axis=1).mean()
+    assert lo < anees < hi, (anees, lo, hi)
+
+
+def test_anees_stays_in_band_after_fix_gaps_where_sir_collapses():
+    """A LanBLoc fix every 8 steps: the fix is far narrower than the particle
+    spacing, one or two particles take all the weight.  The plain SIR filter
+    (bandwidth_scale = 0) then reports a covariance of almost nothing; the
+    regularised one stays in the chi-square band (per-step 95 % band of the
+    mean of M chi2(4) values, two-sided)."""
+    M, N = 60, 48
+    kw = dict(R=R_LANBLOC, fix_every=8, n_particles=500)
+    sir = monte_carlo(M, N, seed=12, bandwidth_scale=0.0, **kw)
+    rpf = monte_carlo(M, N, seed=12, **kw)
+    assert np.mean(sir.mean(axis=1) > 100.0) > 0.1, np.sort(sir.mean(axis=1))
+    lo, hi = chi2_interval(dof=4, n_runs=M)
+    anees = rpf.mean(axis=1).mean()
+    # the band of a consistent filter, widened by the per-run time averages' extra spread
+    assert 0.75 * lo < anees < 1.25 * hi, (anees, lo, hi)
+    assert np.percentile(rpf.mean(axis=1), 95) < 15.0, np.sort(rpf.mean(axis=1))[-5:]
+
+
+THR = 0.5
+
+
+def test_reported_covariance_never_collapses_with_one_landmark():
+    """200 range updates to one landmark (one direction observed, the other
+    only through the motion): the reported covariance stays above the
+    kernel floor h^2 C_u and the weighted one (Loewner order) after every
+    update, and the NEES stays bounded, below the SIR filter's."""
+    landmark = np.array([[5.0, 5.0]])
+    model = MeasurementModel.range(landmark, 0.05)
+    bmm = Bmm(PARAMS)
+    rng = np.random.default_rng(4)
+    u = controls(200)
+    truth = bmm.simulate(X0_TRUE, u, seed=4)
+    out = {}
+    for c in (0.0, 1.0):
+        pf = safenav.ParticleFilter(PARAMS, X0_TRUE, P0, n_particles=400, seed=9, resample_threshold=THR,
+                                    bandwidth_scale=c)
+        e, ess = [], []
+        for k in range(len(u)):
+            pf.predict(u[k])
+            r = np.hypot(*(truth[k + 1, :2] - landmark[0])) + 0.05 * rng.standard_normal()
+            pf.update(model, [r])
+            P, F = pf.P, pf.covariance_floor
+            if c > 0:
+                np.testing.assert_allclose(F, pf.bandwidth**2 * np.cov(pf.particles.T, bias=True), rtol=1e-6,
+                                           atol=1e-12)
+                assert np.linalg.eigvalsh(P - F).min() > -1e-9 * np.abs(F).max(), k
+                assert np.linalg.eigvalsh(P - pf.sample_covariance).min() > -1e-12, k
+            e.append(float(nees_or_inf(pf.x[None], truth[k + 1][None], P[None])[0]))
+            ess.append(pf.ess)
+        out[c] = np.array(e), np.array(ess)
+    e_sir, _ = out[0.0]
+    e_rpf, _ = out[1.0]
+    assert np.isfinite(e_rpf).all() and np.median(e_rpf) < 8.0, np.median(e_rpf)
+    assert np.median(e_rpf) < np.median(e_sir), (np.median(e_rpf), np.median(e_sir))
+
+
+def test_same_seed_same_numbers():
+    u = controls(60)
+    truth = Bmm(PARAMS).simulate(X0_TRUE, u, seed=2)
+    z = truth[1:, :2] + np.random.default_rng(2).multivariate_normal(np.zeros(2), R_LANBLOC, size=60)
+    z[::3] = np.nan
+    run = lambda seed: safenav.filter_trajectory(u, X0_TRUE, P0, params=PARAMS, filter="pf", position=z,
+                                                 position_cov=R_LANBLOC, n_particles=300, seed=seed)
+    a, b, c = run(5), run(5), run(6)
+    assert a.n_resampled > 5
+    np.testing.assert_array_equal(a.states, b.states)
+    np.testing.assert_array_equal(a.covariances, b.covariances)
+    assert not np.array_equal(a.states, c.states)
+    # the step API: two filters with one seed stay equal through resamplings and their jitter
+    pos = MeasurementModel.position(R_LANBLOC)
+    f, g = (safenav.ParticleFilter(PARAMS, X0_TRUE, P0, n_particles=300, seed=5) for _ in range(2))
+    for k in range(len(u)):
+        for h in (f, g):
+            h.predict(u[k])
+            if not np.isnan(z[k, 0]):
+                h.update(pos, z[k])
+    assert f.resample_count > 5
+    np.testing.assert_array_equal(f.particles, g.particles)
+    np.testing.assert_array_equal(f.P, g.P)
