@@ -34,6 +34,28 @@ def test_nis_gate_rejects_outliers_and_keeps_the_estimate():
     assert good.nis == pytest.approx(y @ np.linalg.solve(S, y), rel=1e-12)
 
 
+@pytest.mark.parametrize("model", ["position", "range", "bearing", "range_bearing"])
+def test_log_det_s_is_that_of_the_updates_innovation_covariance(model):
+    """UpdateResult.log_det_s = log det(H P Hᵀ + R) [SafeNav eq. 12] of the
+    update's own S (with its NIS, the innovation likelihood), accepted or
+    gated out; the information filter reports the same."""
+    lm = np.array([[6.0, 4.0]])
+    m = {"position": POS, "range": MeasurementModel.range(lm, 0.3), "bearing": MeasurementModel.bearing(lm, 0.05),
+         "range_bearing": MeasurementModel.range_bearing(lm, 0.3, 0.05)}[model]
+    for gate, offset in ((0.0, 0.05), (0.99, 50.0)):
+        ekf = safenav.Ekf(PARAMS, X0, P0, gate=gate)
+        ekf.predict([2.0, 0.1])
+        x, P = ekf.x.copy(), ekf.P.copy()
+        H = m.jacobian(x)
+        want = np.linalg.slogdet(H @ P @ H.T + m.R)[1]
+        z = m.predict(x) + offset
+        res = ekf.update(m, z)
+        assert res.accepted == (gate == 0.0)
+        assert res.log_det_s == pytest.approx(want, abs=1e-10)
+        eif = safenav.InformationFilter(PARAMS, x, P)
+        assert eif.update(m, z).log_det_s == pytest.approx(want, abs=1e-10)
+
+
 def test_batch_gate_counts_rejections():
     rng = np.random.default_rng(0)
     n = 200

@@ -20,6 +20,7 @@ void bind_step_filters(py::module_& m) {
   py::class_<UpdateResult>(m, "UpdateResult")
       .def_readonly("accepted", &UpdateResult::accepted)
       .def_readonly("nis", &UpdateResult::nis)
+      .def_readonly("log_det_s", &UpdateResult::log_det_s)
       .def_readonly("dim", &UpdateResult::dim)
       .def("__repr__", [](const UpdateResult& r) {
         return "UpdateResult(accepted=" + std::string(r.accepted ? "True" : "False") +

@@ -266,6 +266,7 @@ void pybind_guidance(py::module_& m) {
   py::class_<InputResult>(m, "InputResult")
       .def_readonly("status", &InputResult::status)
       .def_readonly("nis", &InputResult::nis)
+      .def_readonly("log_det_s", &InputResult::log_det_s)
       .def_readonly("dim", &InputResult::dim)
       .def_property_readonly("applied", &InputResult::applied)
       .def("__repr__", [](const InputResult& r) {

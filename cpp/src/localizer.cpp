@@ -211,6 +211,7 @@ struct Localizer::Impl {
     InputResult out;
     out.nis = r.nis;
     out.dim = r.dim;
+    out.log_det_s = r.log_det_s;
     out.status = r.accepted ? InputStatus::Applied : InputStatus::Rejected;
     ++(r.accepted ? counts.applied : counts.rejected);
     return out;

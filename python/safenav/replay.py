@@ -18,13 +18,11 @@ before its start.
 
 With ``innovations=True`` it also records each measurement input's
 innovation (:attr:`ReplayResult.innovations`): its status, NIS
-ν = yᵀS⁻¹y with its dimension, and log det S, where S = H P⁻ Hᵀ + R comes
-from the core's measurement model (:class:`safenav._core.MeasurementModel`,
-its Jacobian H at the estimate before the input) and P⁻, the prior at the
-input's time, from the covariance after it (``_log_det_s``).  With
-augmented states on, the localizer exposes only the (x, y, v, θ) block, so
-log det S leaves out their share (an approximation).  :mod:`safenav.tune` fits the noise to
-these (innovation likelihood, Mehra 1970).
+ν = yᵀS⁻¹y with its dimension, and log det S, both of the S that the
+filter's own update used (``InputResult.log_det_s``: S = H P⁻ Hᵀ + R of the
+EKF [SafeNav eq. 12], augmented states included; the particles' predictive
+covariance plus R for the particle filter).  :mod:`safenav.tune` fits the
+noise to these (innovation likelihood, Mehra 1970).
 
 ``safenav replay LOG`` is the command-line front end (``--help``).
 """
@@ -112,33 +110,6 @@ def load(path, *, range_std: float = 1.0) -> Log:
     return read_log(p)
 
 
-def _log_det_s(kind: str, x, P_before, P_after, applied: bool, landmark, z_std) -> float:
-    """log det S, S = H P⁻ Hᵀ + R (Bar-Shalom, Li & Kirubarajan 2001, §5.2.3),
-    of one measurement input: H and R from the core's measurement model of
-    ``kind`` at ``landmark`` (x, y) with ``z_std`` = (σ_r, σ_b) or the fix's R.
-    P⁻ is the prior at the input's time: after a rejected input the filter's
-    covariance (predicted to that time, not updated); after an applied one,
-    from the information form of the update, P⁺⁻¹ = P⁻⁻¹ + Hᵀ R⁻¹ H (ibid.
-    §5.2.4), so the few milliseconds of prediction to the input's time are
-    in it.  H is taken at the estimate before the input."""
-    M = _core.MeasurementModel
-    if kind == "fix":
-        m = M.position(z_std)
-    elif kind == "range":
-        m = M.range(np.array([landmark], dtype=float), z_std[0])
-    elif kind == "bearing":
-        m = M.bearing(np.array([landmark], dtype=float), z_std[1])
-    else:
-        m = M.range_bearing(np.array([landmark], dtype=float), z_std[0], z_std[1])
-    H, R = m.jacobian(x), m.R
-    P = P_after
-    if applied:
-        P = np.linalg.inv(np.linalg.inv(P_after) - H.T @ np.linalg.solve(R, H))
-        if not np.all(np.linalg.eigvalsh(0.5 * (P + P.T)) > 0):
-            P = P_before         # the information form lost definiteness (augmented or nonlinear update)
-    return float(np.linalg.slogdet(H @ P @ H.T + R)[1])
-
-
 def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None,
            innovations: bool = False) -> ReplayResult:
     """Run ``log`` through a :class:`Localizer` with ``settings`` (default:
@@ -178,7 +149,6 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None,
             if loc.initialized and not math.isnan(t_start):
                 record()
         else:
-            before = (loc.x, loc.P) if innovations and loc.initialized else None
             if k == "fix":
                 R = np.diag([cols["std_x"][i] ** 2, cols["std_y"][i] ** 2])
                 res = loc.fix(t[i], cols["x"][i], cols["y"][i], R)
@@ -187,12 +157,7 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None,
                 res = loc.observe(t[i], int(lm[i]), cols["range"][i], cols["bearing"][i], cols["range_std"][i],
                                   cols["bearing_std"][i])
             if innovations:
-                lds = math.nan
-                if before is not None and math.isfinite(res.nis) and (k == "fix" or int(lm[i]) in log.landmarks):
-                    lds = _log_det_s(k, before[0], before[1], loc.P, res.applied,
-                                     None if k == "fix" else log.landmarks[int(lm[i])],
-                                     R if k == "fix" else (cols["range_std"][i], cols["bearing_std"][i]))
-                inno.append((t[i], k, res.status.name.lower(), res.nis, res.dim, lds))
+                inno.append((t[i], k, res.status.name.lower(), res.nis, res.dim, res.log_det_s))
         if math.isnan(t_start) and loc.initialized:  # started from the data: its first estimate
             t_start = loc.time
             record()

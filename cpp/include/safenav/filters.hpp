@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -21,6 +22,9 @@ struct UpdateResult {
   bool accepted = true;  ///< false when rejected by the NIS gate
   double nis = 0.0;      ///< normalised innovation squared yᵀ S⁻¹ y
   int dim = 0;           ///< measurement dimension (chi-square degrees of freedom)
+  /// log det S of that S: with the NIS, the innovation's log-likelihood
+  /// −½(nis + log det S + dim·log 2π) (noise identification; NaN if unknown).
+  double log_det_s = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// Validate a covariance: finite, symmetric (relative tolerance 1e-9) and

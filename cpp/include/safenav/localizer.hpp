@@ -118,6 +118,7 @@ struct InputResult {
   InputStatus status = InputStatus::Applied;
   double nis = std::numeric_limits<double>::quiet_NaN();  ///< normalised innovation squared (updates)
   int dim = 0;                                            ///< its degrees of freedom
+  double log_det_s = std::numeric_limits<double>::quiet_NaN();  ///< log det S of the NIS's S (UpdateResult)
   bool applied() const { return status == InputStatus::Applied || status == InputStatus::Reset; }
 };
 

@@ -182,6 +182,7 @@ struct AugmentedParticleFilter::Impl {
     if (!(S.allFinite() && ybar.allFinite())) check_nis(std::numeric_limits<double>::infinity(), "AugmentedParticleFilter", kind);
     const Eigen::LDLT<MatMM> ldlt(S);
     res.nis = ybar.dot(ldlt.solve(ybar));
+    res.log_det_s = ldlt.vectorD().array().log().sum();
     check_nis(res.nis, "AugmentedParticleFilter", kind);
     if (gate_probability > 0.0 && res.nis > thr[M]) {
       res.accepted = false;

@@ -58,7 +58,9 @@ UpdateResult InformationFilter::update(const MeasurementModel& model, const Eige
   UpdateResult res;
   res.dim = model.dim();
   const Eigen::MatrixXd S = H * P() * H.transpose() + R;
-  res.nis = nu.dot(S.ldlt().solve(nu));
+  const Eigen::LDLT<Eigen::MatrixXd> ldlt(S);
+  res.nis = nu.dot(ldlt.solve(nu));
+  res.log_det_s = ldlt.vectorD().array().log().sum();
   check_nis(res.nis, "information filter", model.kind());
   Eigen::Matrix4d Y1 = Y_ + H.transpose() * RinvH;
   Y1 = 0.5 * (Y1 + Y1.transpose());

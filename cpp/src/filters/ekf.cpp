@@ -143,6 +143,7 @@ UpdateResult Ekf::update_position(const Eigen::Vector2d& z, const Eigen::Matrix2
   UpdateResult res;
   res.dim = 2;
   res.nis = y.dot(llt.solve(y));
+  res.log_det_s = 2.0 * llt.matrixLLT().diagonal().array().log().sum();
   check_nis(res.nis, "EKF", MeasurementKind::Position);
   if (gate_rejects(res.nis, 2)) {
     res.accepted = false;

@@ -70,6 +70,7 @@ UpdateResult kalman_update(const char* filter, MeasurementKind kind, const X& x,
   UpdateResult res;
   res.dim = m;
   res.nis = y.dot(llt.solve(y));
+  res.log_det_s = 2.0 * llt.matrixLLT().diagonal().array().log().sum();
   check_nis(res.nis, filter, kind);
   if (rejects(res.nis, m)) {
     res.accepted = false;
