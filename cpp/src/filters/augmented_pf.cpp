@@ -184,6 +184,7 @@ struct AugmentedParticleFilter::Impl {
     res.nis = ybar.dot(ldlt.solve(ybar));
     res.log_det_s = ldlt.vectorD().array().log().sum();
     check_nis(res.nis, "AugmentedParticleFilter", kind);
+    check_log_det_s(res.log_det_s, "AugmentedParticleFilter", kind);
     if (gate_probability > 0.0 && res.nis > thr[M]) {
       res.accepted = false;
       return res;

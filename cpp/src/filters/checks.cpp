@@ -56,6 +56,13 @@ void check_nis(double nis, const char* filter, MeasurementKind kind) {
      << " is not finite (the measurement is too far from the prediction for its covariance)";
   throw std::invalid_argument(os.str());
 }
+void check_log_det_s(double log_det_s, const char* filter, MeasurementKind kind) {
+  if (std::isfinite(log_det_s)) return;
+  std::ostringstream os;
+  os << filter << " " << to_string(kind) << " update: log det S = " << log_det_s
+     << ": the innovation covariance is not positive definite in double precision";
+  throw std::invalid_argument(os.str());
+}
 void check_prior(const State& x0, const StateCov& P0, const char* xname, const char* pname) {
   check_finite_state(x0, xname);
   check_covariance(P0, pname);

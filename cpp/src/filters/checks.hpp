@@ -1,6 +1,8 @@
 // Private: argument and result checks shared by the filters in this folder.
 #pragma once
 
+#include <cmath>
+
 #include <string>
 
 #include "safenav/filters.hpp"
@@ -10,6 +12,17 @@ namespace safenav {
 /// Throws when the NIS yᵀS⁻¹y of an update overflows (a measurement ~1e308 from
 /// the prediction): called before any state changes.
 void check_nis(double nis, const char* filter, MeasurementKind kind);
+/// Throws std::invalid_argument unless log det S is finite: an innovation
+/// covariance that is not positive definite in double precision (a spread of
+/// the particles, or a state, beyond ~1e150) makes the update meaningless.
+void check_log_det_s(double log_det_s, const char* filter, MeasurementKind kind);
+/// log det S = 2 Σ log L_ii from the Cholesky factor's diagonal: one log of
+/// the product where that is a normal number (the EKF's hot path), else the sum of logs.
+template <class Diagonal>
+inline double log_det_from_cholesky(const Diagonal& d) {
+  const double p = d.prod();
+  return 2.0 * ((p > 1e-300 && p < 1e300) ? std::log(p) : d.array().log().sum());
+}
 /// A 2×2 noise covariance: finite, symmetric, positive definite, checked
 /// without allocating; the message starts with `what`.
 void check_cov2(const Eigen::Matrix2d& R, const char* what);

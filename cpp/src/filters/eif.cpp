@@ -62,6 +62,7 @@ UpdateResult InformationFilter::update(const MeasurementModel& model, const Eige
   res.nis = nu.dot(ldlt.solve(nu));
   res.log_det_s = ldlt.vectorD().array().log().sum();
   check_nis(res.nis, "information filter", model.kind());
+  check_log_det_s(res.log_det_s, "information filter", model.kind());
   Eigen::Matrix4d Y1 = Y_ + H.transpose() * RinvH;
   Y1 = 0.5 * (Y1 + Y1.transpose());
   const State y1 = y_ + RinvH.transpose() * (nu + H * xb);

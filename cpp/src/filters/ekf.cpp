@@ -143,8 +143,9 @@ UpdateResult Ekf::update_position(const Eigen::Vector2d& z, const Eigen::Matrix2
   UpdateResult res;
   res.dim = 2;
   res.nis = y.dot(llt.solve(y));
-  res.log_det_s = 2.0 * llt.matrixLLT().diagonal().array().log().sum();
+  res.log_det_s = log_det_from_cholesky(llt.matrixLLT().diagonal());
   check_nis(res.nis, "EKF", MeasurementKind::Position);
+  check_log_det_s(res.log_det_s, "EKF", MeasurementKind::Position);
   if (gate_rejects(res.nis, 2)) {
     res.accepted = false;
     return res;

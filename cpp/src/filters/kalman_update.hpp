@@ -70,8 +70,9 @@ UpdateResult kalman_update(const char* filter, MeasurementKind kind, const X& x,
   UpdateResult res;
   res.dim = m;
   res.nis = y.dot(llt.solve(y));
-  res.log_det_s = 2.0 * llt.matrixLLT().diagonal().array().log().sum();
+  res.log_det_s = log_det_from_cholesky(llt.matrixLLT().diagonal());
   check_nis(res.nis, filter, kind);
+  check_log_det_s(res.log_det_s, filter, kind);
   if (rejects(res.nis, m)) {
     res.accepted = false;
     return res;

@@ -470,6 +470,7 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
   const bool regularised = I.h > 0.0;
   res.nis = I.likelihood(model, z, R, regularised);  // log p(z | x_i) into the gain column, ȳ, C_yy, C_xy
   res.log_det_s = (I.Cyy + R).ldlt().vectorD().array().log().sum();  // the S of the NIS
+  if (std::isfinite(res.nis)) check_log_det_s(res.log_det_s, "particle filter", model.kind());
   if (I.gate_probability > 0.0 && std::isfinite(res.nis)) {
     if (static_cast<int>(I.gate_thresholds.size()) <= m) I.gate_thresholds.resize(m + 1, -1.0);
     double& t = I.gate_thresholds[m];
