@@ -152,6 +152,22 @@ def test_preset_round_trip(tmp_path):
     assert tn._settings_tables(s3) == tn._settings_tables(s) and n3 == noise
 
 
+def test_a_saved_preset_states_each_value_once_and_an_edit_takes_effect(tmp_path):
+    import tomllib
+    s = rp.preset_settings("plaza")
+    s.filter.bandwidth_scale = 0.5
+    path = tn.save_preset(tmp_path / "p.toml", s)
+    tables = tomllib.loads(path.read_text())
+    keys = [k for t in ("filter", "bmm", "localizer", "augment") for k in tables[t]]
+    assert not [k for k in tables["localizer"] if k.startswith(("bmm_", "augment_", "filter_"))]
+    assert len(keys) == len(set(keys)) and tables["filter"]["bandwidth_scale"] == 0.5
+    edited = path.read_text().replace(f"speed_noise = {tables['bmm']['speed_noise']!r}", "speed_noise = 0.3")
+    assert edited != path.read_text()
+    path.write_text(edited)
+    s2, _ = tn.load_preset(path)
+    assert s2.bmm.speed_noise == 0.3 and s2.filter.bandwidth_scale == 0.5
+
+
 GOOD = """[preset]
 format = "safenav-preset"
 version = 1

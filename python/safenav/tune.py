@@ -385,18 +385,31 @@ def report(result: TuneResult) -> str:
 
 # --------------------------------------------------------------------------- preset files
 
+#: LocalizerSettings declares its nested structs' parameters too (bmm_*, augment_*, filter_*); a preset
+#: keeps each in its own table, once, so that an edit in one table is never overridden by another.
+_NESTED_PREFIXES = ("bmm_", "augment_", "filter_")
+
+
+def _table_params() -> dict[str, list[str]]:
+    """The declared parameters each preset table holds (gate_probability in [localizer], as documented)."""
+    return {"filter": [p.name for p in _core.FilterOptions.params() if p.name != "gate_probability"],
+            "bmm": [p.name for p in _core.BmmParams.params()],
+            "localizer": [p.name for p in LocalizerSettings.params() if not p.name.startswith(_NESTED_PREFIXES)],
+            "augment": [p.name for p in _core.AugmentedStates.params()]}
+
+
 def _settings_tables(settings: LocalizerSettings) -> dict:
-    """The preset tables of ``settings``: every declared parameter by name (params()), the filter and the
-    augmented states."""
+    """The preset tables of ``settings``: every declared parameter by name, once, the filter type and
+    seed, and the augmented states."""
     f = settings.filter
     aug = settings.augment
+    names = _table_params()
     return {
-        "filter": {"type": f.type.name.lower(), "n_particles": int(f.n_particles), "seed": int(f.seed),
-                   "resample_threshold": float(f.resample_threshold)},
-        "bmm": {p.name: settings.bmm.get_param(p.name) for p in _core.BmmParams.params()},
-        "localizer": {p.name: settings.get_param(p.name) for p in LocalizerSettings.params()},
+        "filter": {"type": f.type.name.lower(), "seed": int(f.seed), **{n: f.get_param(n) for n in names["filter"]}},
+        "bmm": {n: settings.bmm.get_param(n) for n in names["bmm"]},
+        "localizer": {n: settings.get_param(n) for n in names["localizer"]},
         "augment": {"states": [n for n in ("range_scale", "heading_rate_bias", "range_bias") if getattr(aug, n)],
-                    **{p.name: aug.get_param(p.name) for p in _core.AugmentedStates.params()}},
+                    **{n: aug.get_param(n) for n in names["augment"]}},
     }
 
 
@@ -417,31 +430,27 @@ def _known(table: str, data: dict, keys, where: str) -> None:
 def _settings_from_tables(tables: dict, where: str) -> LocalizerSettings:
     """:class:`LocalizerSettings` from preset tables (each key optional; the rest default)."""
     s = LocalizerSettings()
-    f = tables.get("filter", {})
-    _known("filter", f, ("type", "n_particles", "seed", "resample_threshold"), where)
+    names = _table_params()
+    f = dict(tables.get("filter", {}))
+    _known("filter", f, ["type", "seed", *names["filter"]], where)
     if "type" in f:
-        names = {k.lower(): v for k, v in FILTERS.items()}
-        if f["type"] not in names:
-            raise ValueError(f"{where}: [filter] type = {f['type']!r}: must be one of {sorted(names)}")
-        s.filter.type = names[f["type"]]
-    for key, kind in (("n_particles", int), ("seed", int), ("resample_threshold", float)):
-        if key in f:
-            v = f[key]
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or (kind is int and not isinstance(v, int)):
-                what = "an integer" if kind is int else "a number"
-                raise ValueError(f"{where}: [filter] {key} = {v!r}: must be {what}")
-            try:
-                setattr(s.filter, key, kind(v))
-            except (TypeError, ValueError) as exc:
-                raise ValueError(f"{where}: [filter] {key} = {v!r}: {exc}") from None
-    for table, obj, names in (("bmm", s.bmm, _core.BmmParams.params()), ("localizer", s, LocalizerSettings.params())):
-        data = tables.get(table, {})
-        _known(table, data, [p.name for p in names], where)
+        types = {k.lower(): v for k, v in FILTERS.items()}
+        if f["type"] not in types:
+            raise ValueError(f"{where}: [filter] type = {f['type']!r}: must be one of {sorted(types)}")
+        s.filter.type = types[f.pop("type")]
+    if "seed" in f:   # 64 bits: not a declared (double) parameter
+        seed = f.pop("seed")
+        if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**64:
+            raise ValueError(f"{where}: [filter] seed = {seed!r}: must be an integer in [0, 2**64)")
+        s.filter.seed = seed
+    for table, obj in (("filter", s.filter), ("bmm", s.bmm), ("localizer", s)):
+        data = f if table == "filter" else tables.get(table, {})
+        _known(table, data, names[table], where)
         for k, v in data.items():
             _set(obj, table, k, v, where)
     aug = dict(tables.get("augment", {}))
     states = aug.pop("states", [])
-    _known("augment", aug, [p.name for p in _core.AugmentedStates.params()], where)
+    _known("augment", aug, names["augment"], where)
     if not isinstance(states, list) or any(n not in ("range_scale", "heading_rate_bias", "range_bias") for n in states):
         raise ValueError(f"{where}: [augment] states = {states!r}: must be a list of range_scale, "
                          "heading_rate_bias, range_bias")

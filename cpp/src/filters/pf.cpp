@@ -80,6 +80,7 @@ struct ParticleFilter::Impl {
   Eigen::VectorXd zhat, resid;
   Eigen::Matrix4d Sigma_prior;        // the prior cloud's weighted covariance (of an update)
   Eigen::MatrixXd Cxy, Cyy;           // weighted state–residual and residual covariances
+  double log_det_s = 0.0;             // log det (C_yy + R) of the last likelihood()
   Eigen::VectorXd ybar;               // weighted mean residual
   Eigen::MatrixXd Yraw;               // residuals of a general model (before whitening)
   mutable Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> es;
@@ -184,6 +185,13 @@ struct ParticleFilter::Impl {
   /// column; returns the NIS of the weighted-mean prediction (ȳ, S = Cov_w(y)
   /// + R under the current weights), and keeps C_yy = Cov_w(y) and, when
   /// `cross`, C_xy = Σ w_i (x_i − m)(y_i − ȳ)ᵀ for the kernel (regularise.hpp).
+  /// The NIS ȳᵀ S⁻¹ ȳ of S = C_yy + R, keeping log det S in log_det_s (one factorisation for both).
+  double innovation(const Eigen::MatrixXd& R) {
+    const Eigen::LDLT<Eigen::MatrixXd> ldlt(Cyy + R);
+    log_det_s = ldlt.vectorD().array().log().sum();
+    return ybar.dot(ldlt.solve(ybar));
+  }
+
   double likelihood(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z,
                     const Eigen::MatrixXd& R, bool cross) {
     const int m = model.dim();
@@ -199,7 +207,7 @@ struct ParticleFilter::Impl {
       ybar = Eigen::Vector2d(s0, s1);
       Cyy.resize(2, 2);
       Cyy << ps[2] - s0 * s0, ps[3] - s0 * s1, ps[3] - s0 * s1, ps[4] - s1 * s1;
-      return ybar.dot((Cyy + R).ldlt().solve(ybar));
+      return innovation(R);
     }
     // Residual of every particle, y_i = z ⊖ h(x_i), one per column.
     Y.resize(m, N);
@@ -214,7 +222,7 @@ struct ParticleFilter::Impl {
     ybar = Y * wv;
     const Eigen::MatrixXd D = Y.colwise() - ybar;
     Cyy = D * wv.asDiagonal() * D.transpose();
-    const double nis = ybar.dot((Cyy + R).ldlt().solve(ybar));
+    const double nis = innovation(R);
     if (cross) {
       const State m0 = mean();
       Cxy.setZero(4, m);
@@ -469,7 +477,7 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
   res.dim = m;
   const bool regularised = I.h > 0.0;
   res.nis = I.likelihood(model, z, R, regularised);  // log p(z | x_i) into the gain column, ȳ, C_yy, C_xy
-  res.log_det_s = (I.Cyy + R).ldlt().vectorD().array().log().sum();  // the S of the NIS
+  res.log_det_s = I.log_det_s;  // of the NIS's S
   if (std::isfinite(res.nis)) check_log_det_s(res.log_det_s, "particle filter", model.kind());
   if (I.gate_probability > 0.0 && std::isfinite(res.nis)) {
     if (static_cast<int>(I.gate_thresholds.size()) <= m) I.gate_thresholds.resize(m + 1, -1.0);
