@@ -115,11 +115,29 @@ def read_map(path) -> dict[int, tuple[float, float]]:
 
 # --------------------------------------------------------------------------- reading messages
 
-def _yaw(q) -> float:
-    """The yaw of a quaternion (rotation about z), NaN for the all-zero "unknown" one."""
-    if q.x == 0.0 and q.y == 0.0 and q.z == 0.0 and q.w == 0.0:
-        return float("nan")
-    return float(np.arctan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z)))
+def _pose(p) -> tuple:
+    """x, y and the quaternion of a geometry_msgs/Pose."""
+    o = p.orientation
+    return p.position.x, p.position.y, o.x, o.y, o.z, o.w
+
+
+#: role -> the fields read from each message (taken at once: keeping whole messages costs the
+#: garbage collector more than deserialising them).
+_FIELDS = {
+    "odom": lambda m: (*_pose(m.pose.pose), m.twist.twist.linear.x, m.twist.twist.angular.z),
+    "imu": lambda m: (m.angular_velocity.z,),
+    "ranges": lambda m: (m.range, getattr(m, "variance", 0.0)),
+    "bearings": lambda m: (*_pose(m.pose.pose), m.pose.covariance[35]),
+    "fix": lambda m: (*_pose(m.pose.pose), m.pose.covariance[0], m.pose.covariance[7]),
+    "ground_truth": lambda m: _pose(m.pose.pose if hasattr(m.pose, "pose") else m.pose),
+}
+
+
+def _yaw(q: np.ndarray) -> np.ndarray:
+    """The yaw (rotation about z) of quaternions (n, 4) = (x, y, z, w); NaN for the all-zero "unknown" one."""
+    x, y, z, w = q.T
+    yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    return np.where((q == 0.0).all(axis=1), np.nan, yaw)
 
 
 def _wrap(a):
@@ -127,8 +145,49 @@ def _wrap(a):
     return np.pi - np.mod(np.pi - np.asarray(a, dtype=float), 2.0 * np.pi)
 
 
+class _Topic:
+    """One role's messages: stamps, frame ids and the fields of :data:`_FIELDS` (columns of ``v``)."""
+
+    def __init__(self, bag: "_Bag", role: str, name: str, ns=(), frames=(), values=()):
+        self.bag, self.role, self.name = bag, role, name
+        self.ns = np.array(ns, dtype=np.int64)
+        self.frames = list(frames)
+        self.v = np.array(values, dtype=float).reshape(len(self.ns), -1 if len(self.ns) else 0)
+
+    def __len__(self) -> int:
+        return len(self.ns)
+
+    def fail(self, problem: str, i: int | None = None):
+        at = "" if i is None else f"message {i + 1} at {self.ns[i] / 1e9!r} s: "
+        raise ValueError(f"{self.bag.name}: topic {self.name!r}: {at}{problem}")
+
+    def stamps(self, *, strict: bool = False) -> np.ndarray:
+        """Header stamps [s], checked to never go back in time (``strict``: to increase)."""
+        d = np.diff(self.ns)
+        bad = np.flatnonzero(d <= 0 if strict else d < 0)
+        if len(bad):
+            i = int(bad[0]) + 1
+            self.fail(f"header stamps are not {'increasing' if strict else 'monotonic'}: it follows "
+                      f"{self.ns[i - 1] / 1e9!r} s", i)
+        return self.ns / 1e9
+
+    def landmark_ids(self, landmarks) -> np.ndarray:
+        """The landmark id of each message's ``header.frame_id`` (``landmark_<id>``), checked against the map."""
+        ids = np.empty(len(self), dtype=np.int64)
+        for i, frame in enumerate(self.frames):
+            hit = _FRAME.match(frame)
+            if hit is None:
+                self.fail(f"frame_id {frame!r} does not name a landmark (landmark_<id>)", i)
+            ids[i] = int(hit.group(1))
+            if ids[i] not in landmarks:
+                known = sorted(landmarks)
+                self.fail(f"frame_id {frame!r}: unknown landmark {ids[i]} (the map has "
+                          f"{known[:10]}{' ...' if len(known) > 10 else ''})", i)
+        return ids
+
+
 class _Bag:
-    """An open bag: its topics, and each role's messages as arrays."""
+    """An open bag: its topics by name."""
 
     def __init__(self, reader, name: str):
         self.reader = reader
@@ -137,79 +196,55 @@ class _Bag:
         for c in reader.connections:
             self.connections.setdefault(c.topic, []).append(c)
 
-    def fail(self, topic: str, problem: str):
-        raise ValueError(f"{self.name}: topic {topic!r}: {problem}")
-
-    def messages(self, role: str, topic: str, required: bool):
-        """The deserialised messages of ``topic`` in the bag's order ([] when
-        absent and not required), after checking the message type."""
-        conns = self.connections.get(topic)
+    def topic(self, role: str, name: str | None, required: bool) -> _Topic:
+        """The messages of topic ``name`` for ``role`` in the bag's order (none when absent and not
+        required), after checking the message type."""
+        conns = self.connections.get(name) if name else None
         if not conns:
-            if not required:
-                return []
-            flag = f"--{role.replace('_', '-')}"
-            raise ValueError(f"{self.name}: no topic {topic!r} for {role} (the bag has: "
-                             f"{', '.join(sorted(self.connections)) or 'no topics'}; name another with {flag} TOPIC)")
+            if required:
+                raise ValueError(f"{self.name}: no topic {name!r} for {role} (the bag has: "
+                                 f"{', '.join(sorted(self.connections)) or 'no topics'}; name another with "
+                                 f"--{role.replace('_', '-')} TOPIC)")
+            return _Topic(self, role, name or "")
         for c in conns:
             if c.msgtype not in MESSAGE_TYPES[role]:
-                self.fail(topic, f"message type {c.msgtype} cannot be read as {role} "
+                raise ValueError(f"{self.name}: topic {name!r}: message type {c.msgtype} cannot be read as {role} "
                                  f"(it takes {' or '.join(MESSAGE_TYPES[role])})")
-        de = self.reader.deserialize
-        return [de(raw, c.msgtype) for c, _, raw in self.reader.messages(connections=conns)]
-
-    def stamps(self, topic: str, msgs, *, strict: bool = False) -> np.ndarray:
-        """Header stamps [s], checked to never go back in time (``strict``: to increase)."""
-        ns = np.array([m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec for m in msgs], dtype=np.int64)
-        d = np.diff(ns)
-        bad = np.flatnonzero(d <= 0 if strict else d < 0)
-        if len(bad):
-            i = int(bad[0]) + 1
-            self.fail(topic, f"header stamps are not {'increasing' if strict else 'monotonic'}: message {i + 1} "
-                             f"at {ns[i] / 1e9!r} s follows {ns[i - 1] / 1e9!r} s")
-        return ns / 1e9
-
-    def landmark_ids(self, topic: str, msgs, t, landmarks) -> np.ndarray:
-        """The landmark id of each message's ``header.frame_id`` (``landmark_<id>``), checked against the map."""
-        ids = np.empty(len(msgs), dtype=np.int64)
-        for i, m in enumerate(msgs):
-            hit = _FRAME.match(m.header.frame_id)
-            if hit is None:
-                self.fail(topic, f"message {i + 1} at {t[i]!r} s: frame_id {m.header.frame_id!r} does not name a "
-                                 "landmark (landmark_<id>)")
-            ids[i] = int(hit.group(1))
-            if ids[i] not in landmarks:
-                known = sorted(landmarks)
-                self.fail(topic, f"message {i + 1} at {t[i]!r} s: frame_id {m.header.frame_id!r}: unknown landmark "
-                                 f"{ids[i]} (the map has {known[:10]}{' ...' if len(known) > 10 else ''})")
-        return ids
+        de, fields = self.reader.deserialize, _FIELDS[role]
+        ns, frames, values = [], [], []
+        for c, _, raw in self.reader.messages(connections=conns):
+            m = de(raw, c.msgtype)
+            stamp = m.header.stamp
+            ns.append(stamp.sec * 1_000_000_000 + stamp.nanosec)
+            frames.append(m.header.frame_id)
+            values.append(fields(m))
+        return _Topic(self, role, name, ns, frames, values)
 
 
 def _rows(kind: str, t, **cells) -> pd.DataFrame:
     return pd.DataFrame({"t": t, "kind": kind, **cells})
 
 
-def _motion(bag: _Bag, topic: str, msgs, twist: bool) -> pd.DataFrame:
+def _motion(odom: _Topic, twist: bool) -> pd.DataFrame:
     """odometry (pose increments) or motion (twist) rows of an Odometry topic (module doc)."""
-    t = bag.stamps(topic, msgs, strict=True)
-    if len(msgs) < 2:
-        bag.fail(topic, f"{len(msgs)} message(s): odometry needs two or more (the first one starts the increments)")
+    t = odom.stamps(strict=True)
+    if len(odom) < 2:
+        odom.fail(f"{len(odom)} message(s): odometry needs two or more (the first one starts the increments)")
     if twist:
-        v = np.array([m.twist.twist.linear.x for m in msgs])
-        w = np.array([m.twist.twist.angular.z for m in msgs])
-        return _rows("motion", t[1:], speed=v[1:], heading_change=w[1:] * np.diff(t))
-    p = np.array([(m.pose.pose.position.x, m.pose.pose.position.y, _yaw(m.pose.pose.orientation)) for m in msgs])
-    if np.isnan(p[:, 2]).any():
-        bag.fail(topic, f"message {int(np.flatnonzero(np.isnan(p[:, 2]))[0]) + 1}: a zero quaternion (no heading)")
-    dh = _wrap(np.diff(p[:, 2]))
-    mid = p[:-1, 2] + dh / 2.0
-    dx, dy = np.diff(p[:, 0]), np.diff(p[:, 1])
+        return _rows("motion", t[1:], speed=odom.v[1:, 6], heading_change=odom.v[1:, 7] * np.diff(t))
+    h = _yaw(odom.v[:, 2:6])
+    if np.isnan(h).any():
+        odom.fail("a zero quaternion (no heading)", int(np.flatnonzero(np.isnan(h))[0]))
+    dh = _wrap(np.diff(h))
+    mid = h[:-1] + dh / 2.0
+    dx, dy = np.diff(odom.v[:, 0]), np.diff(odom.v[:, 1])
     return _rows("odometry", t[1:], distance=dx * np.cos(mid) + dy * np.sin(mid), heading_change=dh)
 
 
-def _imu_heading_change(bag: _Bag, topic: str, msgs, t_rows: np.ndarray, t_first: float) -> np.ndarray:
+def _imu_heading_change(imu: _Topic, t_rows: np.ndarray, t_first: float) -> np.ndarray:
     """∫ω dt of the IMU yaw rate over each motion row's interval (module doc)."""
-    ts = bag.stamps(topic, msgs, strict=True)
-    w = np.array([m.angular_velocity.z for m in msgs])
+    ts = imu.stamps(strict=True)
+    w = imu.v[:, 0]
     cum = np.concatenate([[0.0], np.cumsum(np.diff(ts) * (w[1:] + w[:-1]) / 2.0)])
 
     def integral(tq):
@@ -221,72 +256,57 @@ def _imu_heading_change(bag: _Bag, topic: str, msgs, t_rows: np.ndarray, t_first
         slope[inner] = (w[j + 1] - w[j]) / (ts[j + 1] - ts[j])
         return cum[i] + w[i] * dt + 0.5 * slope * dt * dt
 
-    edges = integral(np.concatenate([[t_first], t_rows]))
-    return np.diff(edges)
+    return np.diff(integral(np.concatenate([[t_first], t_rows])))
 
 
-def _observations(bag: _Bag, msgs: dict, landmarks, range_std: float) -> list[pd.DataFrame]:
+def _observations(ranges: _Topic, bearings: _Topic, landmarks, range_std: float) -> list[pd.DataFrame]:
     """range, bearing and range_bearing rows (a range and a bearing of one landmark at one stamp joined)."""
     parts = {}
-    for role in ("ranges", "bearings"):
-        topic, ms = msgs[role]
-        if not ms:
-            continue
-        t = bag.stamps(topic, ms)
-        ids = bag.landmark_ids(topic, ms, t, landmarks)
-        if role == "ranges":
-            r = np.array([m.range for m in ms], dtype=float)
-            var = np.array([getattr(m, "variance", 0.0) for m in ms], dtype=float)
-            std = np.where(var > 0, np.sqrt(np.where(var > 0, var, 1.0)), range_std)
-            keep = np.isfinite(r)
-            if (r[keep] < 0).any():
-                i = int(np.flatnonzero(keep & (r < 0))[0])
-                bag.fail(topic, f"message {i + 1} at {t[i]!r} s: range {r[i]} < 0")
-            parts[role] = pd.DataFrame({"t": t, "landmark": ids, "range": r, "range_std": std,
-                                        "seq": np.arange(len(ms))})[keep]
-        else:
-            b = np.array([_yaw(m.pose.pose.orientation) for m in ms])
-            var = np.array([m.pose.covariance[35] for m in ms], dtype=float)
-            bad = np.flatnonzero(~(var > 0) | np.isnan(b))
-            if len(bad):
-                i = int(bad[0])
-                bag.fail(topic, f"message {i + 1} at {t[i]!r} s: a bearing needs an orientation and covariance[35] "
-                                f"(yaw variance) > 0, got {var[i]}")
-            parts[role] = pd.DataFrame({"t": t, "landmark": ids, "bearing": b, "bearing_std": np.sqrt(var),
-                                        "seq": np.arange(len(ms))})
+    if len(ranges):
+        t, ids = ranges.stamps(), ranges.landmark_ids(landmarks)
+        r, var = ranges.v[:, 0], ranges.v[:, 1]
+        std = np.where(var > 0, np.sqrt(np.where(var > 0, var, 1.0)), range_std)
+        keep = np.isfinite(r)
+        if (r[keep] < 0).any():
+            i = int(np.flatnonzero(keep & (r < 0))[0])
+            ranges.fail(f"range {r[i]} < 0", i)
+        parts["range"] = pd.DataFrame({"t": t, "landmark": ids, "range": r, "range_std": std,
+                                       "seq": np.arange(len(r))})[keep]
+    if len(bearings):
+        t, ids = bearings.stamps(), bearings.landmark_ids(landmarks)
+        b, var = _yaw(bearings.v[:, 2:6]), bearings.v[:, 6]
+        bad = np.flatnonzero(~(var > 0) | np.isnan(b))
+        if len(bad):
+            bearings.fail(f"a bearing needs an orientation and covariance[35] (yaw variance) > 0, got "
+                          f"{var[bad[0]]}", int(bad[0]))
+        parts["bearing"] = pd.DataFrame({"t": t, "landmark": ids, "bearing": b, "bearing_std": np.sqrt(var),
+                                         "seq": np.arange(len(b))})
     if len(parts) == 2:   # one sighting: the same landmark at the same stamp on both topics
-        r, b = parts["ranges"], parts["bearings"]
+        r, b = parts["range"], parts["bearing"]
         r = r.assign(k=r.groupby(["t", "landmark"]).cumcount())
         b = b.assign(k=b.groupby(["t", "landmark"]).cumcount())
         both = r.merge(b.drop(columns="seq"), on=["t", "landmark", "k"], how="outer", indicator=True, sort=False)
         both["seq"] = both["seq"].fillna(-1)
         kind = both["_merge"].map({"both": "range_bearing", "left_only": "range", "right_only": "bearing"})
-        rows = both.drop(columns=["k", "_merge"]).assign(kind=kind.astype(str))
-        return [rows]
-    return [df.assign(kind={"ranges": "range", "bearings": "bearing"}[role]) for role, df in parts.items()]
+        return [both.drop(columns=["k", "_merge"]).assign(kind=kind.astype(str))]
+    return [df.assign(kind=kind) for kind, df in parts.items()]
 
 
-def _truth(bag: _Bag, topic: str, msgs) -> pd.DataFrame | None:
-    if not msgs:
+def _truth(truth: _Topic) -> pd.DataFrame | None:
+    if not len(truth):
         return None
-    t = bag.stamps(topic, msgs)
-    poses = [m.pose.pose if hasattr(m.pose, "pose") else m.pose for m in msgs]
-    return _rows("truth", t, x=[p.position.x for p in poses], y=[p.position.y for p in poses],
-                 heading=[_yaw(p.orientation) for p in poses])
+    return _rows("truth", truth.stamps(), x=truth.v[:, 0], y=truth.v[:, 1], heading=_yaw(truth.v[:, 2:6]))
 
 
-def _fixes(bag: _Bag, topic: str, msgs) -> pd.DataFrame | None:
-    if not msgs:
+def _fixes(fix: _Topic) -> pd.DataFrame | None:
+    if not len(fix):
         return None
-    t = bag.stamps(topic, msgs)
-    cov = np.array([(m.pose.covariance[0], m.pose.covariance[7]) for m in msgs], dtype=float)
+    t, cov = fix.stamps(), fix.v[:, 6:8]
     bad = np.flatnonzero(~(cov > 0).all(axis=1))
     if len(bad):
-        i = int(bad[0])
-        bag.fail(topic, f"message {i + 1} at {t[i]!r} s: a fix needs covariance[0] and [7] (x, y variance) > 0, "
-                        f"got {cov[i].tolist()}")
-    return _rows("fix", t, x=[m.pose.pose.position.x for m in msgs], y=[m.pose.pose.position.y for m in msgs],
-                 std_x=np.sqrt(cov[:, 0]), std_y=np.sqrt(cov[:, 1]))
+        fix.fail(f"a fix needs covariance[0] and [7] (x, y variance) > 0, got {cov[bad[0]].tolist()}", int(bad[0]))
+    return _rows("fix", t, x=fix.v[:, 0], y=fix.v[:, 1], std_x=np.sqrt(cov[:, 0]), std_y=np.sqrt(cov[:, 1]),
+                 seq=np.arange(len(t)))
 
 
 def _open(path: Path):
@@ -332,26 +352,24 @@ def read_bag(path, landmarks=None, *, topics: dict | None = None, odom_twist: bo
         landmarks = read_map(landmarks)
     with _open(p) as reader:
         bag = _Bag(reader, str(p))
-        msgs = {role: (topic, bag.messages(role, topic, required=role == "odom" or role in topics) if topic else [])
-                for role, topic in names.items()}
-    motion = _motion(bag, *msgs["odom"], odom_twist)
-    if msgs["imu"][1]:
-        t_first = bag.stamps(msgs["odom"][0], msgs["odom"][1][:1])[0]
-        motion["heading_change"] = _imu_heading_change(bag, *msgs["imu"], motion["t"].to_numpy(), t_first)
+        msgs = {role: bag.topic(role, name, required=role == "odom" or role in topics) for role, name in names.items()}
+    motion = _motion(msgs["odom"], odom_twist)
+    if len(msgs["imu"]):
+        t_rows = motion["t"].to_numpy()
+        motion["heading_change"] = _imu_heading_change(msgs["imu"], t_rows, msgs["odom"].ns[0] / 1e9)
     motion["seq"] = np.arange(len(motion))
-    obs = _observations(bag, msgs, landmarks, range_std)
-    if any(len(o) for o in obs) and not landmarks:
-        raise ValueError(f"{p}: landmark observations but no map: give --map FILE (a CSV id,x,y or a scenario file) "
-                         "or put landmarks.csv in the bag's folder")
-    fixes = _fixes(bag, *msgs["fix"])
-    events = pd.concat([motion, *obs, *([fixes.assign(seq=np.arange(len(fixes)))] if fixes is not None else [])],
-                       ignore_index=True)
+    if (len(msgs["ranges"]) or len(msgs["bearings"])) and not landmarks:
+        raise ValueError(f"{p}: landmark observations on {msgs['ranges'].name or msgs['bearings'].name!r} but no map: "
+                         "give --map FILE (a CSV id,x,y or a scenario file) or put landmarks.csv in the bag's folder")
+    obs = _observations(msgs["ranges"], msgs["bearings"], landmarks, range_std)
+    fixes = _fixes(msgs["fix"])
+    events = pd.concat([motion, *obs, *([] if fixes is None else [fixes])], ignore_index=True)
     order = np.lexsort((events["seq"].to_numpy(), events["kind"].map(_PRIORITY).to_numpy(), events["t"].to_numpy()))
     events = events.iloc[order].drop(columns="seq")
     ids = list(landmarks)
     xy = np.array([landmarks[i] for i in ids], dtype=float).reshape(-1, 2)
     table = pd.concat([pd.DataFrame({"kind": "landmark", "landmark": ids, "x": xy[:, 0], "y": xy[:, 1]}), events,
-                       _truth(bag, *msgs["ground_truth"])], ignore_index=True)
+                       _truth(msgs["ground_truth"])], ignore_index=True)
     return _parse(table.reindex(columns=list(COLUMNS)).astype({"landmark": float}), str(p))
 
 
