@@ -158,7 +158,7 @@ class _Topic:
         return len(self.ns)
 
     def fail(self, problem: str, i: int | None = None):
-        at = "" if i is None else f"message {i + 1} at {self.ns[i] / 1e9!r} s: "
+        at = "" if i is None else f"message {i + 1} at {float(self.ns[i]) / 1e9!r} s: "
         raise ValueError(f"{self.bag.name}: topic {self.name!r}: {at}{problem}")
 
     def stamps(self, *, strict: bool = False) -> np.ndarray:
@@ -168,7 +168,7 @@ class _Topic:
         if len(bad):
             i = int(bad[0]) + 1
             self.fail(f"header stamps are not {'increasing' if strict else 'monotonic'}: it follows "
-                      f"{self.ns[i - 1] / 1e9!r} s", i)
+                      f"{float(self.ns[i - 1]) / 1e9!r} s", i)
         return self.ns / 1e9
 
     def landmark_ids(self, landmarks) -> np.ndarray:
@@ -352,7 +352,8 @@ def read_bag(path, landmarks=None, *, topics: dict | None = None, odom_twist: bo
         landmarks = read_map(landmarks)
     with _open(p) as reader:
         bag = _Bag(reader, str(p))
-        msgs = {role: bag.topic(role, name, required=role == "odom" or role in topics) for role, name in names.items()}
+        msgs = {role: bag.topic(role, name, required=name is not None and (role == "odom" or role in topics))
+                for role, name in names.items()}
     motion = _motion(msgs["odom"], odom_twist)
     if len(msgs["imu"]):
         t_rows = motion["t"].to_numpy()

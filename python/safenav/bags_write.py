@@ -102,8 +102,10 @@ class _Messages:
             fields["variance"] = float(std) ** 2
         return self.T[_RANGE](**fields)
 
-    def add(self, topic: str, ns: int, msg) -> None:
-        self.out.append((max(int(ns), 0), topic, msg.__msgtype__, self.serialize(msg, msg.__msgtype__)))
+    def add(self, topic: str, ns: int, msg, record: int | None = None) -> None:
+        """Collect ``msg`` with record time ``record`` [ns] (default: its stamp ``ns``)."""
+        ns = int(ns) if record is None else int(record)
+        self.out.append((max(ns, 0), topic, msg.__msgtype__, self.serialize(msg, msg.__msgtype__)))
 
     def write(self, path: Path, storage: str) -> None:
         """Write the collected messages, in record-time order (stable), to a new bag at ``path``."""
