@@ -27,7 +27,7 @@ FLOATS = ["t", "x", "y", "speed", "distance", "heading_change", "range", "bearin
           "std_x", "std_y"]
 
 
-def assert_same_rows(a: Log, b: Log, *, rel32=True):
+def assert_same_rows(a: Log, b: Log):
     """Same kinds, landmarks and map; values equal up to float32 (ranges) and 1 ns (stamps)."""
     assert b.landmarks == a.landmarks
     ea, eb = a.events, b.events

@@ -72,6 +72,9 @@ _POSE_COV, _POSE = "geometry_msgs/msg/PoseWithCovarianceStamped", "geometry_msgs
 MESSAGE_TYPES = {"odom": (_ODOM,), "imu": (_IMU,), "ranges": (_RANGE,), "bearings": (_POSE_COV,),
                  "fix": (_POSE_COV,), "ground_truth": (_ODOM, _POSE, _POSE_COV)}
 _FRAME = re.compile(r"landmark_(\d+)\Z")
+_ROLE_HELP = {"odom": "wheel odometry", "imu": "yaw rate", "ranges": "landmark ranges (frame_id landmark_<id>)",
+              "bearings": "landmark bearings (frame_id landmark_<id>)", "fix": "position fixes",
+              "ground_truth": "ground truth"}
 #: rows of one stamp: motion first, then observations, then fixes (the order of the log files we write).
 _PRIORITY = {"odometry": 0, "motion": 0, "range": 1, "bearing": 1, "range_bearing": 1, "fix": 2}
 
@@ -380,9 +383,10 @@ def add_bag_arguments(parser: argparse.ArgumentParser) -> None:
     """``safenav replay``'s bag flags: one per topic role, ``--odom-twist`` and ``--map``."""
     g = parser.add_argument_group("ROS bags (rosbag2 folder, .mcap or ROS 1 .bag; docs/replay.md)")
     for role, default in TOPICS.items():
+        types = " or ".join(t.replace("/msg/", "/") for t in MESSAGE_TYPES[role])
+        used = "" if role == "odom" else ", read when present; none: off"
         g.add_argument(f"--{role.replace('_', '-')}", dest=f"topic_{role}", metavar="TOPIC", default=None,
-                       help=f"{' or '.join(t.split('/msg/')[0] + '/' + t.split('/msg/')[1] for t in MESSAGE_TYPES[role])}"
-                            f" topic (default {default}{'' if role == 'odom' else ', used when present; none: off'})")
+                       help=f"{_ROLE_HELP[role]}: a {types} topic (default {default}{used})")
     g.add_argument("--odom-twist", action="store_true",
                    help="motion rows from the odometry's twist instead of odometry rows from its pose increments")
     g.add_argument("--map", default=None, metavar="FILE",

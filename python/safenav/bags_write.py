@@ -77,13 +77,15 @@ class _Messages:
     def pose(self, x: float, y: float, yaw: float):
         T = self.T
         q = (0.0, 0.0, 0.0, 0.0) if np.isnan(yaw) else (0.0, 0.0, float(np.sin(yaw / 2)), float(np.cos(yaw / 2)))
-        return T["geometry_msgs/msg/Pose"](position=T["geometry_msgs/msg/Point"](x=float(x), y=float(y), z=0.0),
-                                           orientation=T["geometry_msgs/msg/Quaternion"](x=q[0], y=q[1], z=q[2], w=q[3]))
+        point = T["geometry_msgs/msg/Point"](x=float(x), y=float(y), z=0.0)
+        quaternion = T["geometry_msgs/msg/Quaternion"](x=q[0], y=q[1], z=q[2], w=q[3])
+        return T["geometry_msgs/msg/Pose"](position=point, orientation=quaternion)
 
     def odometry(self, ns, x, y, yaw, v=0.0, w=0.0, pose_cov=None, twist_cov=None):
         T = self.T
         vec = T["geometry_msgs/msg/Vector3"]
-        twist = T["geometry_msgs/msg/Twist"](linear=vec(x=float(v), y=0.0, z=0.0), angular=vec(x=0.0, y=0.0, z=float(w)))
+        twist = T["geometry_msgs/msg/Twist"](linear=vec(x=float(v), y=0.0, z=0.0),
+                                             angular=vec(x=0.0, y=0.0, z=float(w)))
         return T[_ODOM](header=self.header(ns, "map"), child_frame_id="base_link",
                         pose=T["geometry_msgs/msg/PoseWithCovariance"](
                             pose=self.pose(x, y, yaw), covariance=np.zeros(36) if pose_cov is None else pose_cov),

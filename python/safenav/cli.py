@@ -525,7 +525,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--augment", nargs="+", choices=["range_scale", "heading_rate_bias", "range_bias"],
                    help="augmented states to add (the plaza preset has range_scale and heading_rate_bias)")
     s.add_argument("--range-std", type=float, default=None,
-                   help="range sigma for a .mat file's ranges (default: 0.55 m with the plaza preset, else 1 m)")
+                   help="range sigma of a .mat file's ranges and of a bag's Range messages without variance "
+                        "(default: 0.55 m with the plaza preset, else 1 m)")
     s.add_argument("--prior-from-truth", action="store_true",
                    help="start from the first truth pose instead of from the data (for comparison only)")
     s.add_argument("--seed", type=_at_least(0), default=0, help="particle filter seed")
