@@ -274,6 +274,35 @@ def test_wrong_message_type(tmp_path):
         bags.read_bag(path, topics={"ranges": "/odom"})
 
 
+def test_a_default_topic_of_another_type_and_an_unreadable_bag(tmp_path):
+    m = _Messages(ros1=False)
+    extra = [("/fix", 0, range_msg(m, 0, "landmark_0"))]     # e.g. a GNSS NavSatFix on /fix
+    path = odom_bag(tmp_path / "b", [0.0, 0.1], extra=extra)
+    with pytest.raises(ValueError, match=r"topic '/fix': message type sensor_msgs/msg/Range cannot be read as fix "
+                                         r"\(it takes geometry_msgs/msg/PoseWithCovarianceStamped; --fix none skips it\)"):
+        bags.read_bag(path)
+    assert len(bags.read_bag(path, topics={"fix": None}).events) == 1
+    (tmp_path / "junk.mcap").write_bytes(b"not an mcap file")
+    with pytest.raises(ValueError, match=r"junk.mcap: not a readable ROS bag"):
+        bags.read_bag(tmp_path / "junk.mcap")
+
+
+def test_cli_topic_and_map_flags(tmp_path, capsys):
+    log = reallike_log(2, RealLikeConfig(duration=20.0))
+    write_bag(log, tmp_path / "bag", topics={"ranges": "/beacons", "odom": "/wheels"})
+    (tmp_path / "bag" / "landmarks.csv").rename(tmp_path / "map.csv")
+    base = ["replay", str(tmp_path / "bag"), "--odom-twist", "--out", str(tmp_path / "o")]
+    assert main([*base, "--map", str(tmp_path / "map.csv")]) == 2
+    assert "no topic '/odom' for odom (the bag has: /beacons, /bearings, /ground_truth, /wheels" in capsys.readouterr().err
+    assert main([*base, "--odom", "/wheels"]) == 2
+    assert "no map: give --map FILE" in capsys.readouterr().err
+    assert main([*base, "--odom", "/wheels", "--map", str(tmp_path / "map.csv"), "--ranges", "/beacons"]) == 0
+    with_ranges = json.loads((tmp_path / "o" / "replay.json").read_text())
+    assert main([*base, "--odom", "/wheels", "--map", str(tmp_path / "map.csv"), "--ground-truth", "none"]) == 0
+    bearings_only = json.loads((tmp_path / "o" / "replay.json").read_text())
+    assert with_ranges["metrics"]["truth_rmse"] < 0.2 and bearings_only["metrics"] == {}
+
+
 def test_stamps_that_go_back_in_time(tmp_path):
     path = odom_bag(tmp_path / "b", [0.0, 0.2, 0.1])
     with pytest.raises(ValueError, match=r"topic '/odom': message 3 at 0.1 s: header stamps are not increasing: "

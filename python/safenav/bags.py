@@ -52,6 +52,7 @@ topic's order), then fixes.  The map is ``{id: (x, y)}``, read by
 from __future__ import annotations
 
 import argparse
+import contextlib
 import re
 from pathlib import Path
 
@@ -211,8 +212,9 @@ class _Bag:
             return _Topic(self, role, name or "")
         for c in conns:
             if c.msgtype not in MESSAGE_TYPES[role]:
+                skip = "" if required else f"; --{role.replace('_', '-')} none skips it"
                 raise ValueError(f"{self.name}: topic {name!r}: message type {c.msgtype} cannot be read as {role} "
-                                 f"(it takes {' or '.join(MESSAGE_TYPES[role])})")
+                                 f"(it takes {' or '.join(MESSAGE_TYPES[role])}{skip})")
         de, fields = self.reader.deserialize, _FIELDS[role]
         ns, frames, values = [], [], []
         for c, _, raw in self.reader.messages(connections=conns):
@@ -312,7 +314,9 @@ def _fixes(fix: _Topic) -> pd.DataFrame | None:
                  seq=np.arange(len(t)))
 
 
+@contextlib.contextmanager
 def _open(path: Path):
+    """An open rosbags ``AnyReader`` on the bag ``path``; an unreadable bag is a ValueError naming it."""
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_typestore
 
@@ -321,9 +325,14 @@ def _open(path: Path):
         raise FileNotFoundError(f"{p}: no such bag")
     store = Stores.ROS1_NOETIC if p.suffix.lower() == ".bag" else Stores.ROS2_JAZZY
     try:
-        return AnyReader([p], default_typestore=get_typestore(store))
-    except Exception as exc:  # rosbags raises its own error classes for unreadable bags
-        raise ValueError(f"{p}: not a readable ROS bag ({exc})") from None
+        reader = AnyReader([p], default_typestore=get_typestore(store))
+        reader.open()
+    except Exception as exc:  # rosbags raises its own error classes (and struct, OS errors) for unreadable bags
+        raise ValueError(f"{p}: not a readable ROS bag ({type(exc).__name__}: {exc})") from None
+    try:
+        yield reader
+    finally:
+        reader.close()
 
 
 def read_bag(path, landmarks=None, *, topics: dict | None = None, odom_twist: bool = False,
