@@ -278,8 +278,9 @@ def test_a_default_topic_of_another_type_and_an_unreadable_bag(tmp_path):
     m = _Messages(ros1=False)
     extra = [("/fix", 0, range_msg(m, 0, "landmark_0"))]     # e.g. a GNSS NavSatFix on /fix
     path = odom_bag(tmp_path / "b", [0.0, 0.1], extra=extra)
-    with pytest.raises(ValueError, match=r"topic '/fix': message type sensor_msgs/msg/Range cannot be read as fix "
-                                         r"\(it takes geometry_msgs/msg/PoseWithCovarianceStamped; --fix none skips it\)"):
+    with pytest.raises(ValueError, match=r"topic '/fix': message type sensor_msgs/msg/Range cannot be read as "
+                                         r"fix \(it takes geometry_msgs/msg/PoseWithCovarianceStamped; --fix none "
+                                         r"skips it\)"):
         bags.read_bag(path)
     assert len(bags.read_bag(path, topics={"fix": None}).events) == 1
     (tmp_path / "junk.mcap").write_bytes(b"not an mcap file")
@@ -293,7 +294,8 @@ def test_cli_topic_and_map_flags(tmp_path, capsys):
     (tmp_path / "bag" / "landmarks.csv").rename(tmp_path / "map.csv")
     base = ["replay", str(tmp_path / "bag"), "--odom-twist", "--out", str(tmp_path / "o")]
     assert main([*base, "--map", str(tmp_path / "map.csv")]) == 2
-    assert "no topic '/odom' for odom (the bag has: /beacons, /bearings, /ground_truth, /wheels" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "no topic '/odom' for odom (the bag has: /beacons, /bearings, /ground_truth, /wheels" in err
     assert main([*base, "--odom", "/wheels"]) == 2
     assert "no map: give --map FILE" in capsys.readouterr().err
     assert main([*base, "--odom", "/wheels", "--map", str(tmp_path / "map.csv"), "--ranges", "/beacons"]) == 0
