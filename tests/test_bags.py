@@ -324,6 +324,9 @@ def test_bag_flags_on_a_log_file_and_a_bad_map(tmp_path, capsys):
     (tmp_path / "map.csv").write_text("id,x,y\n1,0,0\n1,2,3\n")
     with pytest.raises(ValueError, match="duplicate landmark id 1"):
         bags.read_map(tmp_path / "map.csv")
+    (tmp_path / "map.csv").write_text("id,x,y\n1,0,0\n2,east,3\n")
+    with pytest.raises(ValueError, match=r"row 2 = \[2, 'east', 3\]: an id is an integer in \[0, 2147483647\]"):
+        bags.read_map(tmp_path / "map.csv")
     (tmp_path / "map.csv").write_text("name,x,y\n")
     with pytest.raises(ValueError, match="a map's columns are id,x,y"):
         bags.read_map(tmp_path / "map.csv")

@@ -60,6 +60,7 @@ import numpy as np
 import pandas as pd
 
 from .logs import COLUMNS, Log
+from .validation import INT32_MAX
 
 __all__ = ["TOPICS", "MESSAGE_TYPES", "read_bag", "read_map", "is_bag", "add_bag_arguments", "load",
            "add_convert_command"]
@@ -106,12 +107,15 @@ def read_map(path) -> dict[int, tuple[float, float]]:
         raise ValueError(f"{p}: not a CSV map with columns id,x,y ({exc})") from None
     if list(df.columns) != ["id", "x", "y"]:
         raise ValueError(f"{p}: a map's columns are id,x,y, got {','.join(map(str, df.columns))}")
-    xy = df[["x", "y"]].to_numpy(dtype=float)
-    ids = df["id"].to_numpy()
-    bad = [i for i, v in enumerate(ids) if not float(v).is_integer() or v < 0]
-    if bad or not np.isfinite(xy).all():
-        i = bad[0] if bad else int(np.flatnonzero(~np.isfinite(xy).all(axis=1))[0])
-        raise ValueError(f"{p}: row {i + 1} = {df.iloc[i].tolist()}: an id is an integer >= 0, x and y finite")
+    ids, x, y = (pd.to_numeric(df[c], errors="coerce").to_numpy(float) for c in ("id", "x", "y"))
+    with np.errstate(invalid="ignore"):
+        bad = ~((ids == np.floor(ids)) & (ids >= 0) & (ids <= INT32_MAX) & np.isfinite(x) & np.isfinite(y))
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        row = df.astype(object).iloc[i].tolist()
+        raise ValueError(f"{p}: row {i + 1} = {row}: an id is an integer in [0, {INT32_MAX}], x and y are finite "
+                         "numbers")
+    xy = np.column_stack([x, y])
     if len(set(ids.tolist())) != len(ids):
         raise ValueError(f"{p}: duplicate landmark id {pd.Series(ids)[pd.Series(ids).duplicated()].iloc[0]}")
     return {int(i): (float(x), float(y)) for i, (x, y) in zip(ids, xy)}
@@ -182,11 +186,12 @@ class _Topic:
             hit = _FRAME.match(frame)
             if hit is None:
                 self.fail(f"frame_id {frame!r} does not name a landmark (landmark_<id>)", i)
-            ids[i] = int(hit.group(1))
-            if ids[i] not in landmarks:
+            lid = int(hit.group(1))
+            if lid not in landmarks:
                 known = sorted(landmarks)
-                self.fail(f"frame_id {frame!r}: unknown landmark {ids[i]} (the map has "
+                self.fail(f"frame_id {frame!r}: unknown landmark {lid} (the map has "
                           f"{known[:10]}{' ...' if len(known) > 10 else ''})", i)
+            ids[i] = lid
         return ids
 
 
