@@ -444,10 +444,12 @@ def add_convert_command(sub, parents, run_folder, wrote) -> None:
         log = load(args, args.range_std if args.range_std is not None else PLAZA_RANGE_STD if mat else 1.0)
         with run_folder(args, args.out) as run:
             write_bag(log, args.out)
+            hints = [h for h, needed in (("--odom-twist: its motion rows are twists",
+                                              (log.events["kind"] == "motion").any()),
+                                             ("--preset plaza, the preset of .mat files", mat)) if needed]
             print(f"{args.log}: {len(log.events)} inputs, {len(log.landmarks)} landmarks, "
                   f"{0 if log.truth is None else len(log.truth)} truth poses -> {args.out}"
-                  + (" (replay with --odom-twist: its motion rows are twists)"
-                     if (log.events["kind"] == "motion").any() else ""))
+                  + (f" (replay it with {'; '.join(hints)})" if hints else ""))
             wrote(run)
         return 0
     s.set_defaults(func=convert)
