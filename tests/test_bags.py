@@ -64,9 +64,9 @@ def small_log(n=40, seed=0) -> Log:
         if k % 9 == 0:
             rows.append(dict(t=t + 0.05, kind="bearing", landmark=5, bearing=rng.uniform(-3, 3), bearing_std=0.05))
         rows.append(dict(t=t, kind="truth", x=0.05 * k, y=0.0))
-    from safenav.logs import _parse
+    from safenav.logs import parse_table
 
-    return _parse(pd.DataFrame(rows), "small")
+    return parse_table(pd.DataFrame(rows), "small")
 
 
 # --------------------------------------------------------------------------- round trips

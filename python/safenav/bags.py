@@ -59,15 +59,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .bags_write import TOPICS
 from .logs import COLUMNS, Log
 from .validation import INT32_MAX
 
 __all__ = ["TOPICS", "MESSAGE_TYPES", "read_bag", "read_map", "is_bag", "add_bag_arguments", "load",
            "add_convert_command"]
 
-#: role -> default topic.
-TOPICS = {"odom": "/odom", "imu": "/imu", "ranges": "/ranges", "bearings": "/bearings", "fix": "/fix",
-          "ground_truth": "/ground_truth"}
 _ODOM, _IMU, _RANGE = "nav_msgs/msg/Odometry", "sensor_msgs/msg/Imu", "sensor_msgs/msg/Range"
 _POSE_COV, _POSE = "geometry_msgs/msg/PoseWithCovarianceStamped", "geometry_msgs/msg/PoseStamped"
 #: role -> the message types it reads.
@@ -352,7 +350,7 @@ def read_bag(path, landmarks=None, *, topics: dict | None = None, odom_twist: bo
     pose increments (``odometry`` rows).  ``range_std`` is the σ of ranges
     whose message has no variance.
     """
-    from .logs import _parse
+    from .logs import parse_table
 
     p = Path(path)
     topics = dict(topics or {})
@@ -388,7 +386,7 @@ def read_bag(path, landmarks=None, *, topics: dict | None = None, odom_twist: bo
     xy = np.array([landmarks[i] for i in ids], dtype=float).reshape(-1, 2)
     table = pd.concat([pd.DataFrame({"kind": "landmark", "landmark": ids, "x": xy[:, 0], "y": xy[:, 1]}), events,
                        _truth(msgs["ground_truth"])], ignore_index=True)
-    return _parse(table.reindex(columns=list(COLUMNS)).astype({"landmark": float}), str(p))
+    return parse_table(table.reindex(columns=list(COLUMNS)).astype({"landmark": float}), str(p))
 
 
 # --------------------------------------------------------------------------- command line

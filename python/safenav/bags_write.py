@@ -34,7 +34,11 @@ import pandas as pd
 from .logs import Log
 from .results import TEMP_PREFIX, atomic_write, write_text
 
-__all__ = ["write_bag", "write_trajectories", "integrate_odometry", "STORAGES"]
+__all__ = ["TOPICS", "write_bag", "write_trajectories", "write_trajectory", "integrate_odometry", "STORAGES"]
+
+#: role -> default topic (read by safenav.bags, written here).
+TOPICS = {"odom": "/odom", "imu": "/imu", "ranges": "/ranges", "bearings": "/bearings", "fix": "/fix",
+          "ground_truth": "/ground_truth"}
 
 #: write_bag's storages: rosbag2 with MCAP or sqlite3 storage (a folder), or a ROS 1 .bag file.
 STORAGES = ("mcap", "sqlite3", "ros1")
@@ -195,9 +199,7 @@ def write_bag(log: Log, out, *, storage: str = "mcap", topics: dict | None = Non
     (``storage`` ``mcap`` or ``sqlite3``) with ``landmarks.csv`` in it, or for
     ``ros1`` a ``.bag`` file with ``landmarks.csv`` beside it (ranges only:
     ROS 1's Range has no variance).  ``topics`` overrides
-    :data:`safenav.bags.TOPICS` by role.  Returns ``out``."""
-    from .bags import TOPICS
-
+    :data:`TOPICS` by role.  Returns ``out``."""
     if storage not in STORAGES:
         raise ValueError(f"storage {storage!r}: one of {', '.join(STORAGES)}")
     out = Path(out)
@@ -267,3 +269,13 @@ def write_trajectories(out, trajectory: pd.DataFrame, truth: pd.DataFrame | None
         paths.append(out / "trajectory.mcap")
         _copy_in(bag / "trajectory.mcap", paths[-1])
     return paths
+
+
+def write_trajectory(out, result, log: Log) -> None:
+    """A replay's (:class:`safenav.replay.ReplayResult`) ``trajectory.csv`` in the folder ``out``, and for evo and MCAP viewers
+    ``trajectory.tum``, ``truth.tum`` (with truth) and ``trajectory.mcap``
+    (:func:`write_trajectories`)."""
+    from .results import write_table
+
+    write_table(result.trajectory, Path(out) / "trajectory.csv", parquet=False)
+    write_trajectories(out, result.trajectory, log.truth)

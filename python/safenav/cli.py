@@ -301,6 +301,7 @@ def _tune(args) -> int:
 
 def _replay(args) -> int:
     from . import bags, replay as rp
+    from .bags_write import write_trajectory
 
     preset, settings, noise, base = _replay_preset(args)
     range_std = args.range_std if args.range_std is not None else (rp.PLAZA_RANGE_STD if base == "plaza" else 1.0)
@@ -318,7 +319,7 @@ def _replay(args) -> int:
     result = rp.replay(log, settings, prior=prior)
     out = Path(args.out)
     with _run_folder(args, out, seed=args.seed) as run:
-        rp.write_trajectory(out, result, log)   # trajectory.csv, .tum, .mcap; truth.tum
+        write_trajectory(out, result, log)   # trajectory.csv, .tum, .mcap; truth.tum
         summary = {"log": str(args.log), "preset": preset, "filter": args.filter,
                    "augmented": [n for n in ("range_scale", "heading_rate_bias", "range_bias")
                                  if getattr(settings.augment, n)],

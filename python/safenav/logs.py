@@ -30,7 +30,7 @@ import pandas as pd
 from .results import atomic_write
 from .validation import INT32_MAX, MAX_LANDMARKS, ScenarioError, as_array, cut, fail, real
 
-__all__ = ["Log", "read_log", "write_log", "load_plaza", "plaza1_path", "COLUMNS", "KINDS", "EVENT_KINDS",
+__all__ = ["Log", "read_log", "write_log", "parse_table", "load_plaza", "plaza1_path", "COLUMNS", "KINDS", "EVENT_KINDS",
            "OBSERVATION_KINDS", "EVENT_COLUMNS", "TRUTH_COLUMNS", "PLAZA_ARRAYS"]
 
 #: The columns of a log file, in this order.
@@ -137,8 +137,9 @@ def _first(mask: np.ndarray) -> int:
     return int(hits[0]) if len(hits) else len(mask)
 
 
-def _parse(df: pd.DataFrame, source: str, *, csv: bool = False) -> Log:
-    """Check a raw log table (file columns) and build the :class:`Log`."""
+def parse_table(df: pd.DataFrame, source: str, *, csv: bool = False) -> Log:
+    """Check a raw log table (the file's columns, ``COLUMNS``; ``source`` names it in errors) and build the
+    :class:`Log`: what :func:`read_log` does after reading a file, for tables built in memory (a ROS bag)."""
     unknown = [c for c in df.columns if c not in COLUMNS]
     if unknown:
         raise ScenarioError(f"{source}: unknown column {cut(unknown[0])} (the columns are: {', '.join(COLUMNS)})")
@@ -287,7 +288,7 @@ def read_log(path) -> Log:
         raise ValueError(f"{path}: empty log: the file has no header") from None
     except (pd.errors.ParserError, UnicodeDecodeError, ValueError, OSError) as exc:
         raise ValueError(f"{path}: not a {'CSV' if suffix == '.csv' else 'Parquet'} log table ({exc})") from exc
-    return _parse(df, str(path), csv=suffix == ".csv")
+    return parse_table(df, str(path), csv=suffix == ".csv")
 
 
 def write_log(log: Log, path) -> Path:
@@ -300,7 +301,7 @@ def write_log(log: Log, path) -> Path:
     Returns ``path``."""
     path = Path(path)
     suffix = _suffix(path)
-    log = _parse(_table(log), f"log for {path}")        # checked, and its rows in time order
+    log = parse_table(_table(log), f"log for {path}")        # checked, and its rows in time order
     table = _table(log)
     table["landmark"] = table["landmark"].astype("Int64")    # ids are written as integers
     if suffix == ".csv":
@@ -398,4 +399,4 @@ def load_plaza(path, *, range_std: float = 1.0) -> Log:
             else:
                 table[c][start:start + size] = v
         start += size
-    return _parse(pd.DataFrame({"kind": kind, **table}), str(path))
+    return parse_table(pd.DataFrame({"kind": kind, **table}), str(path))

@@ -40,7 +40,7 @@ from .guidance import Localizer, LocalizerSettings, localizer_settings
 from .logs import Log, load_plaza, read_log
 
 __all__ = ["ReplayResult", "replay", "INNOVATION_COLUMNS", "causal_index", "load", "score", "PRESETS",
-           "preset_settings", "write_trajectory"]
+           "preset_settings"]
 
 #: Named localizer set-ups for replay.  Both take a log's motion rows as the
 #: speed the vehicle *reported* (``bmm.unicycle``: signed, no acceleration
@@ -182,19 +182,6 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None,
         n, m = result.metrics["n_before_start"], len(log.truth)
         result.reason = f"{n} of {m} truth poses lie before the start, unscored; {loc.reason()}"
     return result
-
-
-def write_trajectory(out, result: ReplayResult, log: Log) -> None:
-    """``trajectory.csv`` in the folder ``out``, and for evo and MCAP viewers
-    ``trajectory.tum``, ``truth.tum`` (with truth) and ``trajectory.mcap``
-    (:func:`safenav.bags_write.write_trajectories`)."""
-    from pathlib import Path
-
-    from .bags_write import write_trajectories
-    from .results import write_table
-
-    write_table(result.trajectory, Path(out) / "trajectory.csv", parquet=False)
-    write_trajectories(out, result.trajectory, log.truth)
 
 
 def causal_index(t_estimates: np.ndarray, t_truth: np.ndarray):
