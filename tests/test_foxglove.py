@@ -272,3 +272,13 @@ def test_rerun_converts_poses_transforms_points_and_logs(runs, tmp_path):
                         ("/trial/centroid/P3/tf", "Transform3D:translation"),
                         ("/world/landmarks", "Points3D:positions"), ("/trial/centroid/P3/log", "TextLog:text")):
         assert any(topic in line and kind in line for line in text.splitlines()), (topic, kind)
+
+
+def test_plot_view_draws_the_file_from_above(runs, tmp_path):
+    from safenav.foxglove_plot import plot_view, read_view as library_read_view
+
+    mcap = runs / "viewed" / "run.mcap"
+    png = plot_view(mcap, tmp_path / "view.png", t_s=10.0)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    mine, theirs = read_view(mcap), library_read_view(mcap)
+    assert {t: (s, len(m)) for t, (s, m) in mine.items()} == {t: (s, len(m)) for t, (s, m) in theirs.items()}

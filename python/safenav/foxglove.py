@@ -30,7 +30,7 @@ import numpy as np
 
 from . import _core
 from . import foxglove_scene as fs
-from .foxglove_trial import ns, write_replay, write_trial
+from .foxglove_trial import write_replay, write_trial
 from .results import atomic_write
 
 __all__ = ["View", "write_view", "add_view_argument", "write_world", "write_plan", "write_trial", "write_replay",
