@@ -282,3 +282,28 @@ def test_plot_view_draws_the_file_from_above(runs, tmp_path):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     mine, theirs = read_view(mcap), library_read_view(mcap)
     assert {t: (s, len(m)) for t, (s, m) in mine.items()} == {t: (s, len(m)) for t, (s, m) in theirs.items()}
+
+
+def test_a_replay_that_never_starts_still_writes_its_view_with_the_reason(tmp_path):
+    from test_replay import circle_log
+
+    rows = circle_log(seconds=2.0)
+    rows = rows[rows["kind"].isin(["landmark", "odometry", "truth"])]        # nothing to start from
+    rows.to_csv(tmp_path / "blind.csv", index=False)
+    out = tmp_path / "out"
+    assert cli.main(["replay", str(tmp_path / "blind.csv"), "--out", str(out), "--view", str(out / "v.mcap"),
+                     "--quiet"]) == 3
+    view = read_view(out / "v.mcap")
+    (_, _, log), = view["/replay/log"][1]
+    assert log.level == 4 and "never started" in log.message                  # ERROR
+    assert "/replay/estimate" not in view and len(view["/replay/truth"][1]) == int((rows["kind"] == "truth").sum())
+
+
+def test_a_failed_view_leaves_no_file_behind(tmp_path):
+    def fill(view):
+        view.write("/x", fs.point_cloud(0, np.zeros((1, 2)), fs.COLORS["truth"]), 0)
+        raise RuntimeError("stop")
+
+    with pytest.raises(RuntimeError, match="stop"):
+        foxglove.write_view(tmp_path / "v.mcap", fill)
+    assert list(tmp_path.iterdir()) == []

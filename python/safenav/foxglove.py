@@ -33,7 +33,8 @@ from . import foxglove_scene as fs
 from .foxglove_trial import write_replay, write_trial
 from .results import atomic_write
 
-__all__ = ["View", "write_view", "add_view_argument", "write_world", "write_plan", "write_trial", "write_replay",
+__all__ = ["View", "write_view", "add_view_argument", "write_world", "write_field", "write_obstacles",
+           "write_hazards", "write_outlines", "write_landmarks", "write_plan", "write_trial", "write_replay",
            "navigation_view", "plan_view", "replay_view", "schema_data", "SUFFIX", "PROFILE"]
 
 #: The suffix of a view file.
@@ -140,13 +141,9 @@ def add_view_argument(parser) -> None:
 
 # --------------------------------------------------------------------------- content: the world
 
-def write_world(view: View, world, t_ns: int = 0) -> None:
-    """The field, obstacles (extruded, :data:`~safenav.foxglove_scene.OBSTACLE_HEIGHT`),
-    hazards (flat, coloured by risk) and landmarks of a ``safenav.World``;
-    plus their outlines as a point cloud (Rerun draws point clouds, not scene entities)."""
+def write_field(view: View, world, t_ns: int = 0) -> None:
+    """The field's border on ``/world/field``."""
     from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
-
-    from .world import Circle
 
     b = np.asarray(world.field.bounds, dtype=float)
     u = SceneUpdate()
@@ -154,6 +151,16 @@ def write_world(view: View, world, t_ns: int = 0) -> None:
     fs.add_line(e, [(b[0, 0], b[0, 1]), (b[1, 0], b[0, 1]), (b[1, 0], b[1, 1]), (b[0, 0], b[1, 1])],
                 fs.COLORS["field"], thickness=0.3, loop=True)
     view.write("/world/field", u, t_ns)
+
+
+def write_obstacles(view: View, world, t_ns: int = 0) -> list:
+    """One entity per obstacle on ``/world/obstacles``: a cylinder for a
+    circle, an extruded polygon with its outline, both
+    :data:`~safenav.foxglove_scene.OBSTACLE_HEIGHT` tall.  Returns the outlines
+    (points, colour) for :func:`write_outlines`."""
+    from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
+
+    from .world import Circle
 
     u, rings = SceneUpdate(), []
     for i, o in enumerate(world.obstacles):
@@ -167,8 +174,18 @@ def write_world(view: View, world, t_ns: int = 0) -> None:
             fs.add_line(e, ring, fs.COLORS["obstacle_edge"], thickness=0.1, loop=True, z=fs.OBSTACLE_HEIGHT)
         rings.append((fs.outline(ring, 0.5), fs.COLORS["obstacle"]))
     view.write("/world/obstacles", u, t_ns)
+    return rings
 
-    u = SceneUpdate()
+
+def write_hazards(view: View, world, t_ns: int = 0) -> list:
+    """One flat entity per hazard on ``/world/hazards``, coloured by its risk
+    (:func:`~safenav.foxglove_scene.risk_color`; metadata ``risk``).  Returns
+    the outlines (points, colour) for :func:`write_outlines`."""
+    from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
+
+    from .world import Circle
+
+    u, rings = SceneUpdate(), []
     top = max((h.risk for h in world.hazards), default=1.0)
     for i, h in enumerate(world.hazards):
         rgba = fs.risk_color(h.risk, top)
@@ -182,13 +199,29 @@ def write_world(view: View, world, t_ns: int = 0) -> None:
         fs.add_line(e, ring, (*rgba[:3], 1.0), thickness=0.08, loop=True, z=0.03)
         rings.append((fs.outline(ring, 0.5), (*rgba[:3], 1.0)))
     view.write("/world/hazards", u, t_ns)
+    return rings
 
+
+def write_outlines(view: View, rings: list, t_ns: int = 0) -> None:
+    """Outlines as one point cloud on ``/world/outlines`` (Rerun draws point clouds, not scene entities)."""
     pts = np.vstack([r for r, _ in rings]) if rings else np.zeros((0, 2))
     colors = np.vstack([np.tile(c, (len(r), 1)) for r, c in rings]) if rings else np.zeros((0, 4))
     view.write("/world/outlines", fs.point_cloud(t_ns, pts, colors), t_ns)
+
+
+def write_landmarks(view: View, world, t_ns: int = 0) -> None:
+    """The landmarks as a point cloud on ``/world/landmarks`` (field ``id``: each one's id)."""
     lm = world.landmark_array()
     view.write("/world/landmarks", fs.point_cloud(t_ns, lm[:, :2], fs.COLORS["landmark"],
                                                   ids=[m.id for m in world.landmarks]), t_ns)
+
+
+def write_world(view: View, world, t_ns: int = 0) -> None:
+    """A ``safenav.World``: its field, obstacles, hazards, their outlines, and its landmarks."""
+    write_field(view, world, t_ns)
+    rings = write_obstacles(view, world, t_ns) + write_hazards(view, world, t_ns)
+    write_outlines(view, rings, t_ns)
+    write_landmarks(view, world, t_ns)
 
 
 # --------------------------------------------------------------------------- content: a plan

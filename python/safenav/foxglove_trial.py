@@ -19,7 +19,8 @@ import numpy as np
 
 from . import foxglove_scene as fs
 
-__all__ = ["write_trial", "write_replay", "landmarks_in_view", "ns"]
+__all__ = ["write_trial", "write_replay", "write_poses", "write_covariance", "write_observations", "write_commands",
+           "write_events", "landmarks_in_view", "ns", "ELLIPSE_SIGMA"]
 
 #: The k of the covariance ellipse drawn around each estimate (k-σ).
 ELLIPSE_SIGMA = 3.0
@@ -140,6 +141,69 @@ def _closing_line(trial) -> tuple[str, str]:
     return text, level
 
 
+def write_poses(view, prefix: str, frames: dict, t, states) -> None:
+    """Per row: each state's pose on ``<prefix>/<name>`` (``foxglove.PoseInFrame``)
+    and one ``foxglove.FrameTransforms`` on ``<prefix>/tf``, ``map`` → frame ``frames[name]``.
+    ``states`` maps a name to its (rows, ≥ 4) states (x, y, v, θ)."""
+    for k, tk in enumerate(t):
+        for name, x in states.items():
+            view.write(f"{prefix}/{name}", _pose_msg(tk, *x[k, [0, 1, 3]]), tk)
+        view.write(f"{prefix}/tf", _transforms(tk, {frames[name]: x[k, [0, 1, 3]] for name, x in states.items()}), tk)
+
+
+def write_covariance(view, topic: str, t, centers, covariances, metadata=None) -> None:
+    """Per row: the :data:`ELLIPSE_SIGMA`-σ ellipse of a 2×2 position
+    covariance around its center, one ``foxglove.SceneUpdate`` each."""
+    for k, tk in enumerate(t):
+        ring = fs.ellipse(centers[k], covariances[k], ELLIPSE_SIGMA)
+        meta = {"k_sigma": ELLIPSE_SIGMA, **({m: f"{v[k]:.6g}" for m, v in metadata.items()} if metadata else {})}
+        view.write(topic, _scene(tk, "covariance", lambda e, ring=ring: fs.add_line(
+            e, ring, fs.COLORS["ellipse"], thickness=0.06, loop=True, z=0.08), metadata=meta), tk)
+
+
+def write_observations(view, topic: str, t, truth, seen: dict, landmarks, ids, measured, every: int) -> None:
+    """Per row: lines from the true position to the landmarks in view
+    (``seen``: row → landmark indices) and the fix when one was measured."""
+    for k, tk in enumerate(t):
+        rows = seen.get(k, np.zeros(0, dtype=int))
+        fix = measured[k] if np.isfinite(measured[k]).all() else None
+
+        def draw(e, rows=rows, fix=fix, k=k):
+            if len(rows):
+                pairs = np.repeat(truth[k:k + 1, :2], len(rows), axis=0)
+                fs.add_line(e, np.c_[pairs, landmarks[rows]].reshape(-1, 2), fs.COLORS["landmark_seen"],
+                            thickness=0.04, segments=True, z=0.1)
+            if fix is not None:
+                fs.add_sphere(e, fix, 0.5, fs.COLORS["fix"], z=0.1)
+
+        view.write(topic, _scene(tk, "observations", draw, metadata={
+            "fix_step": k % every == 0, "in_view": " ".join(str(ids[i]) for i in rows),
+            "fix": "none" if fix is None else f"{fix[0]:.4f} {fix[1]:.4f}"}), tk)
+
+
+def write_commands(view, topic: str, t, estimate, controls, predicted) -> None:
+    """Per step k: the command (v, Δθ) chosen at estimate k, an arrow along
+    θ + Δθ that is v metres long, and its BMM prediction (``predicted`` row k + 1)."""
+    for k, (v, dth) in enumerate(controls):
+        def draw(e, k=k, v=v, dth=dth):
+            fs.add_arrow(e, estimate[k, :2], estimate[k, 3] + dth, max(v, 0.05), fs.COLORS["command"])
+            fs.add_sphere(e, predicted[k + 1], 0.25, fs.COLORS["predicted"], z=0.1)
+
+        view.write(topic, _scene(t[k], "command", draw, metadata={"speed_m_s": f"{v:.6g}",
+                                                                 "heading_change_rad": f"{dth:.6g}"}), t[k])
+
+
+def write_events(view, topic: str, key: str, t, navigator, trial) -> None:
+    """The trial's start, and its outcome with its totals (the guard's events
+    and Algorithm 1's actions among them) at its last row: ``foxglove.Log``."""
+    dt = float(navigator.problem.bmm.dt)
+    view.write(topic, _log(t[0], key, f"trial {key}: {navigator.settings.method.name.lower()}, filter "
+                                      f"{navigator.settings.filter.type.name.lower()}, Δt {dt:g} s, "
+                                      f"{len(t) - 1} steps"), t[0])
+    text, level = _closing_line(trial)
+    view.write(topic, _log(t[-1], key, text, level), t[-1])
+
+
 def write_trial(view, key: str, navigator, trial, world, t0_ns: int = 0) -> None:
     """A recorded trial under ``/trial/<key>/``: per row the true and estimated
     poses (``truth``, ``estimate``; frames ``<key>/truth`` and
@@ -155,57 +219,25 @@ def write_trial(view, key: str, navigator, trial, world, t0_ns: int = 0) -> None
     dt = float(navigator.problem.bmm.dt)
     t = [t0_ns + ns(k * dt) for k in range(n)]
     sigma = np.asarray(trial.position_std, dtype=float)
-    measured = np.asarray(trial.measured, dtype=float)
-    controls, predicted = np.asarray(trial.controls, dtype=float), np.asarray(trial.predicted, dtype=float)
     sensors = navigator.sensors
     every = int(sensors.position_every)
-    seen = landmarks_in_view(sensors, world, truth, range(0, n, every))
-    L = np.asarray(sensors.landmarks, dtype=float)
-    ids = [m.id for m in world.landmarks]
 
-    view.write(f"{prefix}/log", _log(t[0], key, f"trial {key}: {navigator.settings.method.name.lower()}, filter "
-                                     f"{navigator.settings.filter.type.name.lower()}, Δt {dt:g} s, {n - 1} steps"),
-               t[0])
+    write_events(view, f"{prefix}/log", key, t, navigator, trial)
     _tracks(view, prefix, t[0], {"truth": (truth[:, :2], fs.COLORS["truth"]),
                                  "estimate": (est[:, :2], fs.COLORS["estimate"]),
                                  "followed_path": (np.asarray(trial.followed_path, dtype=float).reshape(-1, 2),
                                                    fs.COLORS["followed"])})
-    for k in range(n):
-        tk = t[k]
-        view.write(f"{prefix}/truth", _pose_msg(tk, *truth[k, [0, 1, 3]]), tk)
-        view.write(f"{prefix}/estimate", _pose_msg(tk, *est[k, [0, 1, 3]]), tk)
-        view.write(f"{prefix}/tf", _transforms(tk, {f"{key}/truth": truth[k, [0, 1, 3]],
-                                                    f"{key}/estimate": est[k, [0, 1, 3]]}), tk)
-        ring = fs.circle(est[k, :2], ELLIPSE_SIGMA * sigma[k])
-        view.write(f"{prefix}/covariance", _scene(tk, "covariance", lambda e: fs.add_line(
-            e, ring, fs.COLORS["ellipse"], thickness=0.06, loop=True, z=0.08),
-            metadata={"position_std_m": f"{sigma[k]:.6g}", "k_sigma": ELLIPSE_SIGMA}), tk)
-        rows = seen.get(k, np.zeros(0, dtype=int))
-        fix = measured[k] if np.isfinite(measured[k]).all() else None
-
-        def observations(e, rows=rows, fix=fix, k=k):
-            if len(rows):
-                pairs = np.repeat(truth[k:k + 1, :2], len(rows), axis=0)
-                fs.add_line(e, np.c_[pairs, L[rows]].reshape(-1, 2), fs.COLORS["landmark_seen"], thickness=0.04,
-                            segments=True, z=0.1)
-            if fix is not None:
-                fs.add_sphere(e, fix, 0.5, fs.COLORS["fix"], z=0.1)
-
-        view.write(f"{prefix}/observations", _scene(tk, "observations", observations, metadata={
-            "fix_step": k % every == 0, "in_view": " ".join(str(ids[i]) for i in rows),
-            "fix": "none" if fix is None else f"{fix[0]:.4f} {fix[1]:.4f}"}), tk)
-        if k < len(controls):
-            v, dth = controls[k]
-            nxt = predicted[k + 1]
-
-            def command(e, k=k, v=v, dth=dth, nxt=nxt):
-                fs.add_arrow(e, est[k, :2], est[k, 3] + dth, max(v, 0.05), fs.COLORS["command"])
-                fs.add_sphere(e, nxt, 0.25, fs.COLORS["predicted"], z=0.1)
-
-            view.write(f"{prefix}/command", _scene(tk, "command", command, metadata={
-                "speed_m_s": f"{v:.6g}", "heading_change_rad": f"{dth:.6g}"}), tk)
-    text, level = _closing_line(trial)
-    view.write(f"{prefix}/log", _log(t[-1], key, text, level), t[-1])
+    write_poses(view, prefix, {"truth": f"{key}/truth", "estimate": f"{key}/estimate"}, t,
+                {"truth": truth, "estimate": est})
+    # √λ_max(P_xy) is all a recorded trial keeps: σ²·I, whose 3σ circle holds the 3σ ellipse
+    write_covariance(view, f"{prefix}/covariance", t, est[:, :2], sigma[:, None, None] ** 2 * np.eye(2),
+                     metadata={"position_std_m": sigma})
+    write_observations(view, f"{prefix}/observations", t, truth,
+                       landmarks_in_view(sensors, world, truth, range(0, n, every)),
+                       np.asarray(sensors.landmarks, dtype=float), [m.id for m in world.landmarks],
+                       np.asarray(trial.measured, dtype=float), every)
+    write_commands(view, f"{prefix}/command", t, est, np.asarray(trial.controls, dtype=float),
+                   np.asarray(trial.predicted, dtype=float))
 
 
 # --------------------------------------------------------------------------- a replayed log
@@ -274,14 +306,9 @@ def write_replay(view, log, result) -> None:
     view.write("/replay/log", _log(ns(traj_t[0]), "replay", f"started from the {result.started_from} at "
                                    f"t = {traj_t[0]:.3f} s"), ns(traj_t[0]))
     cov = traj[["var_x", "cov_xy", "cov_xy", "var_y"]].to_numpy(float).reshape(-1, 2, 2)
-    for k, tt in enumerate(traj_t):
-        tk = ns(tt)
-        view.write("/replay/estimate", _pose_msg(tk, est[k, 0], est[k, 1], est[k, 3]), tk)
-        view.write("/replay/tf", _transforms(tk, {"replay/estimate": est[k, [0, 1, 3]]}), tk)
-        ring = fs.ellipse(est[k, :2], cov[k], ELLIPSE_SIGMA)
-        view.write("/replay/covariance", _scene(tk, "covariance", lambda e, ring=ring: fs.add_line(
-            e, ring, fs.COLORS["ellipse"], thickness=0.06, loop=True, z=0.08), metadata={"k_sigma": ELLIPSE_SIGMA}),
-            tk)
+    tt = [ns(x) for x in traj_t]
+    write_poses(view, "/replay", {"estimate": "replay/estimate"}, tt, {"estimate": est})
+    write_covariance(view, "/replay/covariance", tt, est[:, :2], cov)
     _replay_observations(view, log, result, traj_t, est)
     c, m = result.counts, result.metrics
     text = (f"updates applied {c['applied']}, rejected {c['rejected']}, late {c['late']}, before the start "
