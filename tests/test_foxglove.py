@@ -32,7 +32,7 @@ SCHEMAS = {"/world/field": "foxglove.SceneUpdate", "/world/obstacles": "foxglove
 TRIAL_SCHEMAS = {"log": "foxglove.Log", "tracks": "foxglove.SceneUpdate", "track_points": "foxglove.PointCloud",
                  "truth": "foxglove.PoseInFrame", "estimate": "foxglove.PoseInFrame", "tf": "foxglove.FrameTransforms",
                  "covariance": "foxglove.SceneUpdate", "observations": "foxglove.SceneUpdate",
-                 "command": "foxglove.SceneUpdate"}
+                 "command": "foxglove.SceneUpdate", "vehicle": "foxglove.PointCloud"}
 
 
 def read_view(path) -> dict:
@@ -137,7 +137,7 @@ def test_a_run_view_holds_the_world_the_plan_and_the_recorded_trial(runs, record
     steps = int(pd.read_csv(runs / "viewed" / "trials.csv").query("trial == 0")["steps"].iloc[0])
     assert steps == trial.steps
     n = {t: len(m) for t, (_, m) in view.items()}
-    for k in ("truth", "estimate", "tf", "covariance", "observations"):
+    for k in ("truth", "estimate", "tf", "covariance", "observations", "vehicle"):
         assert n[f"/trial/centroid/P3/{k}"] == steps + 1, k
     assert n["/trial/centroid/P3/command"] == steps and n["/trial/centroid/P3/log"] == 2
     (_, _, obstacles), = view["/world/obstacles"][1]
@@ -172,6 +172,14 @@ def test_trial_messages_are_the_recorded_states_at_simulation_time(runs, recorde
         pts = np.array([(p.x, p.y) for p in m.entities[0].lines[0].points])
         r = np.hypot(*(pts - trial.estimate[97 * k, :2]).T)
         np.testing.assert_allclose(r, 3 * trial.position_std[97 * k], rtol=1e-9)
+    # the vehicle's point cloud: truth, estimate, then the circle (float32)
+    for k, (_, _, m) in list(enumerate(view["/trial/centroid/P3/vehicle"][1]))[::211]:
+        off = {f.name: f.offset for f in m.fields}
+        raw = np.frombuffer(m.data, np.uint8).reshape(-1, m.point_stride)
+        xy = np.c_[[raw[:, off[c]:off[c] + 4].copy().view("<f4")[:, 0] for c in "xy"]].T
+        np.testing.assert_allclose(xy[:2], [trial.truth[k, :2], trial.estimate[k, :2]], atol=1e-4)
+        np.testing.assert_allclose(np.hypot(*(xy[2:] - trial.estimate[k, :2]).T), 3 * trial.position_std[k],
+                                   rtol=1e-4, atol=1e-4)
     # commands: the recorded (v, Δθ) from the estimate's heading
     for k, (_, _, m) in enumerate(view["/trial/centroid/P3/command"][1][:50]):
         meta = {kv.key: float(kv.value) for kv in m.entities[0].metadata}
@@ -247,7 +255,7 @@ def test_a_replay_view_holds_every_estimate_with_its_covariance_ellipse(tmp_path
     log = safenav.logs.read_log(log_file)
     view = read_view(out / "replay.mcap")
     n = {t: len(m) for t, (_, m) in view.items()}
-    assert n["/replay/estimate"] == n["/replay/covariance"] == n["/replay/tf"] == len(traj)
+    assert n["/replay/estimate"] == n["/replay/covariance"] == n["/replay/tf"] == n["/replay/vehicle"] == len(traj)
     assert n["/replay/truth"] == len(log.truth)
     assert n["/replay/observations"] == int(log.events["kind"].isin(["range", "bearing", "range_bearing", "fix"]).sum())
     for k in range(0, len(traj), 13):
@@ -270,7 +278,8 @@ def test_rerun_converts_poses_transforms_points_and_logs(runs, tmp_path):
     text = subprocess.run(["rerun", "rrd", "print", str(rrd)], check=True, capture_output=True, text=True).stdout
     for topic, kind in (("/trial/centroid/P3/estimate", "InstancePoses3D:translations"),
                         ("/trial/centroid/P3/tf", "Transform3D:translation"),
-                        ("/world/landmarks", "Points3D:positions"), ("/trial/centroid/P3/log", "TextLog:text")):
+                        ("/world/landmarks", "Points3D:positions"), ("/trial/centroid/P3/log", "TextLog:text"),
+                        ("/trial/centroid/P3/vehicle", "Points3D:positions")):
         assert any(topic in line and kind in line for line in text.splitlines()), (topic, kind)
 
 

@@ -20,7 +20,7 @@ import numpy as np
 from . import foxglove_scene as fs
 
 __all__ = ["write_trial", "write_replay", "write_poses", "write_covariance", "write_observations", "write_commands",
-           "write_events", "landmarks_in_view", "ns", "ELLIPSE_SIGMA"]
+           "write_events", "write_vehicle", "landmarks_in_view", "ns", "ELLIPSE_SIGMA"]
 
 #: The k of the covariance ellipse drawn around each estimate (k-σ).
 ELLIPSE_SIGMA = 3.0
@@ -151,14 +151,30 @@ def write_poses(view, prefix: str, frames: dict, t, states) -> None:
         view.write(f"{prefix}/tf", _transforms(tk, {frames[name]: x[k, [0, 1, 3]] for name, x in states.items()}), tk)
 
 
-def write_covariance(view, topic: str, t, centers, covariances, metadata=None) -> None:
+def write_covariance(view, topic: str, t, centers, covariances, metadata=None) -> list:
     """Per row: the :data:`ELLIPSE_SIGMA`-σ ellipse of a 2×2 position
-    covariance around its center, one ``foxglove.SceneUpdate`` each."""
+    covariance around its center, one ``foxglove.SceneUpdate`` each.
+    Returns the ellipses' points, one (n, 2) array per row."""
+    rings = []
     for k, tk in enumerate(t):
         ring = fs.ellipse(centers[k], covariances[k], ELLIPSE_SIGMA)
         meta = {"k_sigma": ELLIPSE_SIGMA, **({m: f"{v[k]:.6g}" for m, v in metadata.items()} if metadata else {})}
         view.write(topic, _scene(tk, "covariance", lambda e, ring=ring: fs.add_line(
             e, ring, fs.COLORS["ellipse"], thickness=0.06, loop=True, z=0.08), metadata=meta), tk)
+        rings.append(ring)
+    return rings
+
+
+def write_vehicle(view, topic: str, t, positions: dict, rings) -> None:
+    """Per row: one ``foxglove.PointCloud`` of the vehicle's positions
+    (``positions``: name → ((rows, 2), colour); the truth black, the estimate
+    red) and the points of its ellipse.  Rerun draws point clouds and not scene
+    entities, so this is what moves in Rerun."""
+    faint = (*fs.COLORS["ellipse"][:3], 0.5)
+    colors = np.vstack([np.asarray([c for _, c in positions.values()]), np.tile(faint, (len(rings[0]), 1))])
+    for k, tk in enumerate(t):
+        pts = np.vstack([np.asarray([p[k, :2] for p, _ in positions.values()]), rings[k]])
+        view.write(topic, fs.point_cloud(tk, pts, colors), tk)
 
 
 def write_observations(view, topic: str, t, truth, seen: dict, landmarks, ids, measured, every: int) -> None:
@@ -208,7 +224,8 @@ def write_trial(view, key: str, navigator, trial, world, t0_ns: int = 0) -> None
     """A recorded trial under ``/trial/<key>/``: per row the true and estimated
     poses (``truth``, ``estimate``; frames ``<key>/truth`` and
     ``<key>/estimate`` on ``tf``), the 3σ circle of the estimate
-    (``covariance``: radius 3·√λ_max(P_xy), which holds the 3σ ellipse), the
+    (``covariance``: radius 3·√λ_max(P_xy), which holds the 3σ ellipse), both
+    positions and the circle as points (``vehicle``, for Rerun), the
     landmarks in view and the fix (``observations``), per step the command
     and its BMM prediction (``command``); the whole tracks (``tracks``,
     ``track_points``) and the start and outcome (``log``)."""
@@ -230,8 +247,10 @@ def write_trial(view, key: str, navigator, trial, world, t0_ns: int = 0) -> None
     write_poses(view, prefix, {"truth": f"{key}/truth", "estimate": f"{key}/estimate"}, t,
                 {"truth": truth, "estimate": est})
     # √λ_max(P_xy) is all a recorded trial keeps: σ²·I, whose 3σ circle holds the 3σ ellipse
-    write_covariance(view, f"{prefix}/covariance", t, est[:, :2], sigma[:, None, None] ** 2 * np.eye(2),
-                     metadata={"position_std_m": sigma})
+    rings = write_covariance(view, f"{prefix}/covariance", t, est[:, :2], sigma[:, None, None] ** 2 * np.eye(2),
+                             metadata={"position_std_m": sigma})
+    write_vehicle(view, f"{prefix}/vehicle", t, {"truth": (truth, fs.COLORS["truth"]),
+                                                 "estimate": (est, fs.COLORS["estimate"])}, rings)
     write_observations(view, f"{prefix}/observations", t, truth,
                        landmarks_in_view(sensors, world, truth, range(0, n, every)),
                        np.asarray(sensors.landmarks, dtype=float), [m.id for m in world.landmarks],
@@ -308,7 +327,8 @@ def write_replay(view, log, result) -> None:
     cov = traj[["var_x", "cov_xy", "cov_xy", "var_y"]].to_numpy(float).reshape(-1, 2, 2)
     tt = [ns(x) for x in traj_t]
     write_poses(view, "/replay", {"estimate": "replay/estimate"}, tt, {"estimate": est})
-    write_covariance(view, "/replay/covariance", tt, est[:, :2], cov)
+    rings = write_covariance(view, "/replay/covariance", tt, est[:, :2], cov)
+    write_vehicle(view, "/replay/vehicle", tt, {"estimate": (est, fs.COLORS["estimate"])}, rings)
     _replay_observations(view, log, result, traj_t, est)
     c, m = result.counts, result.metrics
     text = (f"updates applied {c['applied']}, rejected {c['rejected']}, late {c['late']}, before the start "
