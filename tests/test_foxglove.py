@@ -316,3 +316,23 @@ def test_a_failed_view_leaves_no_file_behind(tmp_path):
     with pytest.raises(RuntimeError, match="stop"):
         foxglove.write_view(tmp_path / "v.mcap", fill)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_every_message_is_in_the_map_frame_and_stamped_with_its_log_time(runs):
+    """Foxglove and Rerun place a message by its frame and time: one frame, ``map``;
+    every ``timestamp`` (of a message, a scene entity, a transform) equals the log time."""
+    view = read_view(runs / "viewed" / "run.mcap")
+    checked = 0
+    for topic, (schema, msgs) in view.items():
+        for log_time, publish_time, m in msgs:
+            assert log_time == publish_time
+            if schema == "foxglove.SceneUpdate":
+                assert all(e.frame_id == "map" and stamp(e) == log_time for e in m.entities), topic
+            elif schema == "foxglove.FrameTransforms":
+                assert all(t.parent_frame_id == "map" and stamp(t) == log_time for t in m.transforms), topic
+            else:
+                assert stamp(m) == log_time, topic
+                if schema != "foxglove.Log":
+                    assert m.frame_id == "map", topic
+            checked += 1
+    assert checked == sum(len(m) for _, m in view.values()) > 10000
