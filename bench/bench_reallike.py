@@ -5,7 +5,7 @@ v, ω at 67 Hz with scale, bias and noise; a forward camera's range+bearing
 rows; truth).  Then
 
 1. the online localizer (``safenav replay``'s default preset, started from the
-   data alone) replays it: the start time after the first sighting of any
+   data alone; its motion model is the unicycle form, ``bmm.unicycle``) replays it: the start time after the first sighting of any
    landmark and of a second one, and the causal RMSE against the truth;
 2. a plain 3-state unicycle EKF (x, y, θ) in numpy, written here and not in
    the library, runs on the same rows with the generator's *true* noise:
@@ -16,7 +16,10 @@ rows; truth).  Then
    small prior (a head start the localizer does not get), and scored on the
    same truth rows.
 
-    python bench/bench_reallike.py [--seeds 0 1 2]
+   The last RMSE column is the same replay with the paper's eq. 3 (speed in
+   [0, v_max], reached at a·Δt per step) in place of the unicycle form.
+
+    python bench/bench_reallike.py [--seeds 0 1 2] [--reverse-share 0.5 --duration 90]
 """
 
 from __future__ import annotations
@@ -86,10 +89,14 @@ def rmse_at_truth(est: np.ndarray, truth, t_from: float) -> float:
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    ap.add_argument("--reverse-share", type=float, default=0.0, help="RealLikeConfig.reverse_share (backing up)")
+    ap.add_argument("--duration", type=float, default=RealLikeConfig.duration, help="[s] length of each run")
     args = ap.parse_args()
-    cfg = RealLikeConfig()
+    cfg = RealLikeConfig(reverse_share=args.reverse_share, duration=args.duration)
+    eq3 = rp.preset_settings("default")
+    eq3.bmm.unicycle = False          # the paper's eq. 3: speed in [0, v_max], a·Δt per step
     print(f"{'seed':>4} {'1st sight':>9} {'2nd lm':>7} {'start':>7} {'start-2nd':>9} {'replay RMSE':>11} "
-          f"{'NEES':>5} {'EKF RMSE':>9} {'replay s':>8}")
+          f"{'NEES':>5} {'EKF RMSE':>9} {'eq. 3 RMSE':>10} {'replay s':>8}")
     for seed in args.seeds:
         log = reallike_log(seed, cfg)
         t1, t2 = first_sighting(log), first_sighting(log, distinct=2)
@@ -105,8 +112,10 @@ def main():
                        wrap(np.interp(res.t_start, tr["t"], th))])
         ekf = unicycle_ekf(log, cfg, res.t_start, x0)
         m = res.metrics
+        paper = rp.replay(log, settings=eq3).metrics.get("truth_rmse", float("nan"))
         print(f"{seed:>4} {t1:9.2f} {t2:7.2f} {res.t_start:7.2f} {res.t_start - t2:9.2f} "
-              f"{m['truth_rmse']:9.3f} m {m['nees']:5.2f} {rmse_at_truth(ekf, tr, res.t_start):7.3f} m {wall:8.2f}")
+              f"{m['truth_rmse']:9.3f} m {m['nees']:5.2f} {rmse_at_truth(ekf, tr, res.t_start):7.3f} m "
+              f"{paper:8.3f} m {wall:8.2f}")
 
 
 if __name__ == "__main__":

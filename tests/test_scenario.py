@@ -99,8 +99,9 @@ def test_docs_state_every_range():
             n += 1
     assert n == 52
     flags = [(key, name) for key, cls in _SECTIONS.items() for name in getattr(cls, "FLAGS", ())]
-    assert flags == [("detection", "occlusion")]    # the one bool field: its row says what it takes
-    assert "| true or false |" in rows["`detection.occlusion`"]
+    assert sorted(flags) == [("bmm", "unicycle"), ("detection", "occlusion")]    # the bool fields: their rows say what they take
+    for key, name in flags:
+        assert "| true or false |" in rows[f"`{key}.{name}`"]
     assert f"| {NavigationParams.CLEARANCE} |" in rows["`navigation.clearance`"]
     assert f"each {NoiseParams.LANBLOC_STD} |" in rows["`noise.lanbloc_std`"]
     assert f"each {BufferParams.WEIGHT}, not decreasing |" in rows["`buffer.weights`"]

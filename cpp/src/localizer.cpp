@@ -238,7 +238,7 @@ struct Localizer::Impl {
       P0.topLeftCorner<2, 2>() = cov;
       P0(2, 2) = v_var;
       P0(3, 3) = imu_heading_var;
-      start(t, State(p.x(), p.y(), std::max(0.0, speed), imu_heading), P0);
+      start(t, State(p.x(), p.y(), std::max(bmm.params().min_speed(), speed), imu_heading), P0);
       return;
     }
     if (!anchor) {
@@ -261,7 +261,7 @@ struct Localizer::Impl {
     P0.topLeftCorner<2, 2>() = cov;
     P0(2, 2) = v_var;
     P0(3, 3) = std::min(2.0 * pos_var / (moved * moved), kPi * kPi);
-    start(t, State(p.x(), p.y(), std::max(0.0, speed), wrap_angle(phi + odo[2])), P0);
+    start(t, State(p.x(), p.y(), std::max(bmm.params().min_speed(), speed), wrap_angle(phi + odo[2])), P0);
   }
 
   /// The motion integral's pose at a motion input at time t (the first one starts it at 0).
@@ -356,7 +356,7 @@ struct Localizer::Impl {
     P0(kY, kY) += kInitPositionFloor * kInitPositionFloor;
     P0(kTheta, kTheta) += kInitHeadingFloor * kInitHeadingFloor;
     P0(kV, kV) = settings.init_speed_std * settings.init_speed_std;
-    const double speed = std::isfinite(rate_speed) ? std::max(0.0, rate_speed) : 0.0;
+    const double speed = std::isfinite(rate_speed) ? std::max(bmm.params().min_speed(), rate_speed) : 0.0;
     start(t_now, State(px, py, speed, wrap_angle(th[2] + q[3])), 0.5 * (P0 + P0.transpose()));
     why += " from the data (" + os.str() + ")";
   }
@@ -423,7 +423,7 @@ InputResult Localizer::Impl::move(double t, const Control& u, double interval) {
   const AugmentedEkf* aekf = I.filter->augmented_ekf();
   if (I.from_odometry && aekf) {
     // Odometry measured its distance and heading change: what the BMM's limits
-    // (eq. 3's speed in [0, v_max] and a·Δt, eq. 4's clip) kept this step from
+    // (eq. 3's speed in [v_min, v_max] and a·Δt, eq. 4's clip) kept this step from
     // applying is owed by the next one.  A catch-up step that follows a
     // measurement just before the input can ask for any speed, even a
     // negative one.  (Augmented path only: the plain EKF stays as it was.)

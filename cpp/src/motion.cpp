@@ -114,7 +114,7 @@ State Bmm::transition(const State& x, const Control& u, const Eigen::Vector4d& e
   }
   // eqs. 3, 4 and 6: speed and heading with their noise; eq. 7/9: the position
   // moves with the *updated* speed and heading.
-  const double v1 = std::clamp(next_speed(x[kV], u[0]) + eps[2], 0.0, params_.max_speed);
+  const double v1 = std::clamp(next_speed(x[kV], u[0]) + eps[2], params_.min_speed(), params_.max_speed);
   const double th1 = wrap_angle(x[kTheta] + clipped_heading_change(u[1]) + eps[3]);
   const double k = params_.terrain_factor() * params_.dt;
   State out;
@@ -134,9 +134,12 @@ State Bmm::linearize(const State& x, const Control& u, Eigen::Matrix4d* F, Eigen
   const double k = p.terrain_factor() * p.dt;
   const double c = std::cos(th1), s = std::sin(th1);
   if (F) {
-    // ∂v'/∂v: 1 where v' follows v ± a·Δt, 0 where a limit (v_desired, v_max, 0) binds.
+    // ∂v'/∂v: 1 where v' follows v ± a·Δt, 0 where a limit (v_desired, v_max, 0) binds
+    // (always, with `unicycle`: the speed comes from the input).
     double dv = 0.0;
-    if (desired > v) {
+    if (p.unicycle) {
+      dv = 0.0;
+    } else if (desired > v) {
       const double up = v + p.acceleration * p.dt;
       dv = (up <= desired && up <= p.max_speed && up >= 0.0) ? 1.0 : 0.0;
     } else {
@@ -233,6 +236,7 @@ const ParamSet<BmmParams>& param_set<BmmParams>() {
           .real("speed_noise", SN_REF(BmmParams, speed_noise), "m/s", closed(0, 10), "sigma of eps_v per step [SafeNav eq. 6]")
           .real("heading_noise", SN_REF(BmmParams, heading_noise), "rad", closed(0, kPi), "sigma of eps_theta per step [SafeNav eq. 6]")
           .real("position_noise", SN_REF(BmmParams, position_noise), "m", closed(0, 10), "sigma of eps_x, eps_y per step [SafeNav eq. 7]")
+          .flag("unicycle", SN_REF(BmmParams, unicycle), "speed from the input, signed, no acceleration limit (ours, in place of [SafeNav eq. 3])")
           .set;
   return s;
 }

@@ -304,12 +304,11 @@ def _tune(args) -> int:
 
 
 def _replay(args) -> int:
-    from . import replay as rp
-    from .results import write_table
+    from . import bags, replay as rp
 
     preset, settings, noise, base = _replay_preset(args)
     range_std = args.range_std if args.range_std is not None else (rp.PLAZA_RANGE_STD if base == "plaza" else 1.0)
-    log = rp.load(args.log, range_std=range_std)
+    log = bags.load(args, range_std)   # a log file, a Plaza .mat file or a ROS bag
     if noise is not None:
         log = noise.apply(log)
     prior = None
@@ -323,7 +322,7 @@ def _replay(args) -> int:
     result = rp.replay(log, settings, prior=prior, innovations=args.view is not None)
     out = Path(args.out)
     with _run_folder(args, out, seed=args.seed) as run:
-        write_table(result.trajectory, out / "trajectory.csv", parquet=False)
+        rp.write_trajectory(out, result, log)   # trajectory.csv, .tum, .mcap; truth.tum
         summary = {"log": str(args.log), "preset": preset, "filter": args.filter,
                    "augmented": [n for n in ("range_scale", "heading_rate_bias", "range_bias")
                                  if getattr(settings.augment, n)],
@@ -522,7 +521,7 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("replay", parents=[common],
                        help="run a timestamped log (docs/replay.md; or a Plaza range-only .mat file) through the "
                             "online localizer; with ground truth, print RMSE, ADE, FDE and NEES (causal)")
-    s.add_argument("log", help="a log file (.csv or .parquet) or a Plaza-layout .mat file")
+    s.add_argument("log", help="a log file (.csv or .parquet), a Plaza-layout .mat file or a ROS bag")
     s.add_argument("--filter", choices=["ekf", "pf"], default="ekf")
     s.add_argument("--particles", type=_at_least(1), default=1000, help="PF particles (default 1000)")
     s.add_argument("--gate", type=float, default=None,
@@ -533,14 +532,17 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--augment", nargs="+", choices=["range_scale", "heading_rate_bias", "range_bias"],
                    help="augmented states to add (the plaza preset has range_scale and heading_rate_bias)")
     s.add_argument("--range-std", type=float, default=None,
-                   help="range sigma for a .mat file's ranges (default: 0.55 m with the plaza preset, else 1 m)")
+                   help="range sigma of a .mat file's ranges and of a bag's Range messages without variance "
+                        "(default: 0.55 m with the plaza preset, else 1 m)")
     s.add_argument("--prior-from-truth", action="store_true",
                    help="start from the first truth pose instead of from the data (for comparison only)")
     s.add_argument("--seed", type=_at_least(0), default=0, help="particle filter seed")
     s.add_argument("--out", default="out/replay", help="output folder (default out/replay)")
     foxglove.add_view_argument(s)
     s.set_defaults(func=_replay)
-
+    from . import bags
+    bags.add_bag_arguments(s)
+    bags.add_convert_command(sub, [common], _run_folder, _wrote)
     _add_tune_command(sub, common)
 
     from .placement.cli import register as register_place

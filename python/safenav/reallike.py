@@ -6,7 +6,8 @@ unicycle robot drives a smooth wandering path through a field of landmarks
 while
 
 * its **motion rows** are the *commanded* speed and turn rate (``motion``
-  kind: ``speed`` = v_cmd, ``heading_change`` = ω_cmd·Δt) at ``motion_rate``
+  kind: ``speed`` = v_cmd, negative while it backs up to a ``reverse_share``
+  of its waypoints; ``heading_change`` = ω_cmd·Δt) at ``motion_rate``
   Hz with timing jitter.  The robot does not do exactly what it is told: its
   actual speed is v = (1 + s_v)·v_cmd + N(0, σ_v²) and its actual turn rate
   ω = (1 + s_ω)·ω_cmd + b_ω + N(0, σ_ω²), where the scale errors s_v, s_ω
@@ -51,6 +52,7 @@ class RealLikeConfig:
     n_landmarks: int = 15              #: landmarks on a jittered grid over the arena
     idle: float = 2.0                  #: [s] the robot stands still this long at the start
     speed_range: tuple[float, float] = (0.1, 0.35)  #: [m/s] commanded cruise speeds, drawn per waypoint
+    reverse_share: float = 0.0         #: share of waypoints the robot backs up to (commanded speed < 0)
     max_turn_rate: float = 0.8         #: [rad/s] |ω_cmd| limit
     turn_gain: float = 1.5             #: ω_cmd = gain · heading error toward the waypoint
     motion_rate: float = 67.0          #: [Hz] command rows
@@ -84,6 +86,8 @@ class RealLikeConfig:
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0):
                 raise ValueError(f"RealLikeConfig.{name} = {v!r}: must be finite and >= 0")
+        if not 0 <= self.reverse_share <= 1:
+            raise ValueError(f"RealLikeConfig.reverse_share = {self.reverse_share!r}: must be in [0, 1]")
         if not 0 < self.detection_probability <= 1:
             raise ValueError(f"RealLikeConfig.detection_probability = {self.detection_probability!r}: "
                              "must be in (0, 1]")
@@ -129,18 +133,23 @@ def _commands(cfg: RealLikeConfig, rng: np.random.Generator):
     w_cmd = np.zeros(len(t))
 
     def waypoint():
-        return np.array([rng.uniform(margin, w - margin), rng.uniform(margin, h - margin)]), \
-            rng.uniform(*cfg.speed_range)
+        goal = np.array([rng.uniform(margin, w - margin), rng.uniform(margin, h - margin)])
+        cruise = rng.uniform(*cfg.speed_range)
+        # backing up: the rear (θ + π) steers toward the goal, at a negative speed
+        # (no draw without reversing, so that such logs stay as they were)
+        back = cfg.reverse_share > 0 and rng.uniform() < cfg.reverse_share
+        return goal, cruise, (-1.0 if back else 1.0)
 
-    goal, cruise = waypoint()
+    goal, cruise, sign = waypoint()
     for i in range(1, len(t)):
         x, y, th = pose[i - 1]
         if np.hypot(goal[0] - x, goal[1] - y) < 0.5:
-            goal, cruise = waypoint()
+            goal, cruise, sign = waypoint()
         if t[i] > cfg.idle:
-            err = np.angle(np.exp(1j * (np.arctan2(goal[1] - y, goal[0] - x) - th)))
+            facing = th if sign > 0 else th + np.pi
+            err = np.angle(np.exp(1j * (np.arctan2(goal[1] - y, goal[0] - x) - facing)))
             w_cmd[i] = np.clip(cfg.turn_gain * err, -cfg.max_turn_rate, cfg.max_turn_rate)
-            v_cmd[i] = cruise * max(0.2, np.cos(err))   # slow down in sharp turns
+            v_cmd[i] = sign * cruise * max(0.2, np.cos(err))   # slow down in sharp turns
         dt = t[i] - t[i - 1]
         moving = v_cmd[i] != 0.0 or w_cmd[i] != 0.0
         v = (1.0 + s_v) * v_cmd[i] + (rng.normal(0.0, cfg.speed_noise) if moving else 0.0)

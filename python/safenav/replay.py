@@ -40,9 +40,12 @@ from .guidance import Localizer, LocalizerSettings, localizer_settings
 from .logs import Log, load_plaza, read_log
 
 __all__ = ["ReplayResult", "replay", "INNOVATION_COLUMNS", "causal_index", "load", "score", "PRESETS",
-           "preset_settings"]
+           "preset_settings", "write_trajectory"]
 
-#: Named localizer set-ups for replay.  ``default``: the online defaults
+#: Named localizer set-ups for replay.  Both take a log's motion rows as the
+#: speed the vehicle *reported* (``bmm.unicycle``: signed, no acceleration
+#: limit; docs/replay.md says why this departs from [SafeNav eq. 3]).
+#: ``default``: otherwise the online defaults
 #: (:func:`~safenav.guidance.localizer_settings`).  ``plaza``: the Plaza
 #: range-only robot — odometry at 5 Hz (BMM Δt = 0.2 s with limits that do not
 #: bind odometry; process noise 0.02 m, 0.05 m/s, 0.0007 rad per step), ranges
@@ -61,9 +64,12 @@ def preset_settings(name: str, *, filter: str = "ekf", n_particles: int = 1000, 
 
     choice("preset", name, dict.fromkeys(PRESETS))
     if name == "default":
-        return localizer_settings(filter=filter, n_particles=n_particles, seed=seed, gate=gate, augment=augment)
+        s = localizer_settings(filter=filter, n_particles=n_particles, seed=seed, gate=gate, augment=augment)
+        s.bmm.unicycle = True
+        return s
     bmm = _core.BmmParams(acceleration=100.0, deceleration=100.0, max_speed=100.0, max_heading_rate=100.0, dt=0.2,
-                          terrain_effect=0.0, speed_noise=0.05, heading_noise=0.0007, position_noise=0.02)
+                          terrain_effect=0.0, speed_noise=0.05, heading_noise=0.0007, position_noise=0.02,
+                          unicycle=True)
     return localizer_settings(filter=filter, n_particles=n_particles, seed=seed, bmm=bmm,
                               gate=0.999 if gate is None else gate,
                               augment=("range_scale", "heading_rate_bias", *augment))
@@ -113,13 +119,13 @@ def load(path, *, range_std: float = 1.0) -> Log:
 def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None,
            innovations: bool = False) -> ReplayResult:
     """Run ``log`` through a :class:`Localizer` with ``settings`` (default:
-    :func:`~safenav.guidance.localizer_settings`).  ``prior`` = ``(t, x0, P0)``
+    the ``default`` preset, :func:`preset_settings`).  ``prior`` = ``(t, x0, P0)``
     starts it from a prior; by default it starts from the data.
     ``innovations`` records each measurement input's NIS and log det S
     (:attr:`ReplayResult.innovations`; the module doc)."""
     ids = sorted(log.landmarks)
     landmarks = np.array([log.landmarks[i] for i in ids], dtype=float).reshape(-1, 2)
-    loc = Localizer(settings or localizer_settings(), landmarks, ids)
+    loc = Localizer(settings or preset_settings("default"), landmarks, ids)
     if prior is not None:
         t0, x0, P0 = prior
         loc.initialize(float(t0), np.asarray(x0, dtype=float), np.asarray(P0, dtype=float))
@@ -176,6 +182,19 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None,
         n, m = result.metrics["n_before_start"], len(log.truth)
         result.reason = f"{n} of {m} truth poses lie before the start, unscored; {loc.reason()}"
     return result
+
+
+def write_trajectory(out, result: ReplayResult, log: Log) -> None:
+    """``trajectory.csv`` in the folder ``out``, and for evo and MCAP viewers
+    ``trajectory.tum``, ``truth.tum`` (with truth) and ``trajectory.mcap``
+    (:func:`safenav.bags_write.write_trajectories`)."""
+    from pathlib import Path
+
+    from .bags_write import write_trajectories
+    from .results import write_table
+
+    write_table(result.trajectory, Path(out) / "trajectory.csv", parquet=False)
+    write_trajectories(out, result.trajectory, log.truth)
 
 
 def causal_index(t_estimates: np.ndarray, t_truth: np.ndarray):

@@ -35,11 +35,21 @@ struct BmmParams {
   double speed_noise = 0.05;       ///< σ of ε_v [m/s]
   double heading_noise = 0.01;     ///< σ of ε_θ [rad]
   double position_noise = 0.01;    ///< σ of ε_x and ε_y [m]
+  /// Speed from the input (ours, not the paper's): v' = clamp(v_desired,
+  /// −v_max, v_max) at once, with no acceleration limit and a signed speed
+  /// (reversing), in place of eq. 3; eq. 4's heading clip and eqs. 6–9 stay.
+  /// This is the unicycle model of a vehicle that *reports* its speed (wheel
+  /// odometry, commanded speed) rather than one that is asked for a speed it
+  /// reaches at a and d: eq. 3 keeps such a vehicle's speed ≥ 0 and lags its
+  /// speed changes by (Δv/a), which a unicycle does not (docs/replay.md).
+  bool unicycle = false;
 
   /// Throws std::invalid_argument naming the first bad field.
   void validate() const;
   /// Multiplier on v·Δt in the position update: 1/(1+τ).
   double terrain_factor() const { return 1.0 / (1.0 + terrain_effect); }
+  /// The lowest speed: 0 (eq. 3), or −v_max with `unicycle`.
+  double min_speed() const { return unicycle ? -max_speed : 0.0; }
 };
 
 /// The BMM as a transition function f(x, u) with its Jacobians.
@@ -59,9 +69,11 @@ class Bmm {
   /// Whether `dt` counts as the nominal step (|dt − Δt| ≤ 1e-6·Δt).
   bool is_nominal_step(double dt) const { return std::abs(dt - params_.dt) <= 1e-6 * params_.dt; }
 
-  /// Eq. 3: speed update with acceleration/deceleration limits and [0, v_max].
+  /// Eq. 3: speed update with acceleration/deceleration limits and [0, v_max];
+  /// with `unicycle`, the desired speed clamped to [−v_max, v_max].
   double next_speed(double v, double desired) const {
     const auto& p = params_;
+    if (p.unicycle) return std::clamp(desired, -p.max_speed, p.max_speed);
     if (desired > v) return std::max(0.0, std::min({v + p.acceleration * p.dt, desired, p.max_speed}));
     return std::min(p.max_speed, std::max({v - p.deceleration * p.dt, desired, 0.0}));
   }

@@ -110,7 +110,7 @@ struct AugmentedParticleFilter::Impl {
     }
   }
 
-  /// After a resampling: x_i ← m + a(x_i − m) + L ε_i (regularise.hpp), v clamped to [0, v_max], θ wrapped.
+  /// After a resampling: x_i ← m + a(x_i − m) + L ε_i (regularise.hpp), v clamped to [v_min, v_max], θ wrapped.
   void regularise() {
     detail::psd_factor(Pk, es, L);
     const double a = std::sqrt(std::max(0.0, 1.0 - h * h));
@@ -121,7 +121,7 @@ struct AugmentedParticleFilter::Impl {
       dev *= a;
       dev.noalias() += L * eps;
       X.col(i) = m_post + dev;
-      X(kV, i) = std::clamp(X(kV, i), 0.0, vmax);
+      X(kV, i) = std::clamp(X(kV, i), bmm.params().min_speed(), vmax);
       X(kTheta, i) = wrap_angle(X(kTheta, i));
     }
   }

@@ -266,7 +266,7 @@ struct ParticleFilter::Impl {
     psd_factor(Pk, es, L);
     const Eigen::MatrixXd Linv = llt.matrixL().solve(Eigen::MatrixXd::Identity(m, m));  // S_h = L Lᵀ
     rng.fill_normal(noise.col(0), 4L * noise.stride());
-    const double vmax = bmm.params().max_speed;
+    const double vmin = bmm.params().min_speed(), vmax = bmm.params().max_speed;
     double* c[4] = {col(kX), col(kY), col(kV), col(kTheta)};
     const double* e[4] = {noise.col(0), noise.col(1), noise.col(2), noise.col(3)};
     double* lw = logw();
@@ -296,7 +296,7 @@ struct ParticleFilter::Impl {
       const Eigen::Vector4d d = L * Eigen::Vector4d(e[0][i], e[1][i], e[2][i], e[3][i]);
       c[0][i] += d[0];
       c[1][i] += d[1];
-      c[2][i] = std::clamp(c[2][i] + d[2], 0.0, vmax);
+      c[2][i] = std::clamp(c[2][i] + d[2], vmin, vmax);
       c[3][i] = wrap_angle(c[3][i] + d[3]);
       col(kCos)[i] = std::cos(c[3][i]);
       col(kSin)[i] = std::sin(c[3][i]);
@@ -321,9 +321,12 @@ struct ParticleFilter::Impl {
     const double* ey = noise.col(1);
     const double* ev = noise.col(2);
     const double* et = noise.col(3);
-    const StepParams a{desired_speed, heading_step, p.acceleration * p.dt, p.deceleration * p.dt,
-                       p.max_speed,   k,            p.speed_noise,         p.heading_noise,
-                       p.position_noise};
+    // With `unicycle` the speed follows the input (Bmm::next_speed): steps of
+    // 2·v_max reach any desired speed in [−v_max, v_max] from any speed there.
+    const double up = p.unicycle ? 2.0 * p.max_speed : p.acceleration * p.dt;
+    const double down = p.unicycle ? 2.0 * p.max_speed : p.deceleration * p.dt;
+    const StepParams a{desired_speed, heading_step, up,          down,          p.min_speed(),
+                       p.max_speed,   k,            p.speed_noise, p.heading_noise, p.position_noise};
     const long n_big = detail::dispatch<particles_step>(N, x, y, v, th, cs, sn, ex, ey, ev, et, &a);
     if (n_big > 0) {  // rare: large turns get exact trigonometry
       for (int i = 0; i < N; ++i) {

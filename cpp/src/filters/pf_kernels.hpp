@@ -124,7 +124,7 @@ SAFENAV_ALWAYS_INLINE void store_lanes(const D4<Bytes>& a, double* p, int n) {
 /// arrays as __restrict parameters: GCC honours restrict there, through
 /// inlining, and not on local copies.)
 struct StepParams {
-  double vdes, heading_step, up_step, down_step, vmax, k, sv, st, sp;
+  double vdes, heading_step, up_step, down_step, vmin, vmax, k, sv, st, sp;
 };
 constexpr double kSmallTurn = 0.25;
 SAFENAV_ALWAYS_INLINE long particles_step(int N, double* __restrict x, double* __restrict y, double* __restrict v,
@@ -134,20 +134,21 @@ SAFENAV_ALWAYS_INLINE long particles_step(int N, double* __restrict x, double* _
                                           const StepParams* a) {
   constexpr double two_pi = 2.0 * kPi;
   const double vdes = a->vdes, heading_step = a->heading_step, up_step = a->up_step, down_step = a->down_step,
-               vmax = a->vmax, k = a->k, sv = a->sv, st = a->st, sp = a->sp;
+               vmin = a->vmin, vmax = a->vmax, k = a->k, sv = a->sv, st = a->st, sp = a->sp;
   long n_big = 0;  // turns with |δ| > kSmallTurn (64-bit, like the doubles, so that the loop vectorises)
   for (int i = 0; i < N; ++i) {
-    // eq. 3 (Bmm::next_speed) + ε_v, clamped to [0, v_max]
+    // eq. 3 (Bmm::next_speed) + ε_v, clamped to [v_min, v_max] (v_min = 0, or
+    // −v_max with BmmParams::unicycle, whose steps of 2·v_max never bind)
     const double vi = v[i];
     double up = vi + up_step;
     up = up < vdes ? up : vdes;
     up = up < vmax ? up : vmax;
     double down = vi - down_step;
     down = down > vdes ? down : vdes;
-    down = down > 0.0 ? down : 0.0;
+    down = down > vmin ? down : vmin;
     down = down < vmax ? down : vmax;
     double v1 = (vdes > vi ? up : down) + sv * ev[i];
-    v1 = v1 > 0.0 ? v1 : 0.0;
+    v1 = v1 > vmin ? v1 : vmin;
     v1 = v1 < vmax ? v1 : vmax;
     v[i] = v1;
     // eq. 4 + ε_θ: θ moves by δ; rotate (cos θ, sin θ) by δ.
