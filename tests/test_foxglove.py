@@ -147,8 +147,8 @@ def test_a_run_view_holds_the_world_the_plan_and_the_recorded_trial(runs, record
     assert len(landmarks.data) == len(sc.world.landmarks) * landmarks.point_stride
     risks = [float(dict((kv.key, kv.value) for kv in e.metadata)["risk"]) for e in hazards.entities]
     assert risks == [h.risk for h in sc.world.hazards]
-    alpha = {r: e.lines[0].color.g for r, e in zip(risks, hazards.entities)}   # riskier: redder (less green)
-    assert [alpha[r] for r in sorted(alpha)] == sorted(alpha.values(), reverse=True)
+    green = {r: e.lines[0].color.g for r, e in zip(risks, hazards.entities)}   # riskier: redder (less green)
+    assert [green[r] for r in sorted(green)] == sorted(green.values(), reverse=True)
 
 
 def test_trial_messages_are_the_recorded_states_at_simulation_time(runs, recorded):
