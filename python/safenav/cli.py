@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__, console
+from . import __version__, console, foxglove
 from .results import RunFolder, verify_run, write_json
 from .validation import integer
 
@@ -155,6 +155,7 @@ def _navigation(args, *, demo: bool) -> int:
     from . import navigation as nv
     from . import runner
     from .experiments import navigation_figures, navigation_table, percent_error_table
+    from .experiments.figures import recorded_trials
     from .metrics import path_length
     from .results import write_table
 
@@ -205,7 +206,9 @@ def _navigation(args, *, demo: bool) -> int:
                   + ", ".join(f"{k} {v}" for k, v in failures["outcome"].value_counts().items()))
         # Figs. 4 and 5: one recorded trial (trial 0) per method and path type.
         with console.task("Figs. 4-5 (trial 0 of each path type, recorded)"):
-            navigation_figures(scenario, safe, sweep, out)
+            recorded = recorded_trials(scenario, safe, sweep)
+            navigation_figures(scenario, safe, sweep, out, recorded)
+        foxglove.navigation_view(args.view, scenario, safe, recorded, command=args.command, seed=sweep.seed)
         console.info(f"planning {t_plan:.1f} s, {len(raw)} trials {t_run:.1f} s, "
                      f"total {time.perf_counter() - t0:.1f} s")
         _wrote(run)
@@ -247,6 +250,7 @@ def _plan(args) -> int:
                 bar.update()
         write_json(out / "safe_paths.json", result)
         plot_navigation(scenario, trials, out / "safe_paths.png", title=f"{scenario.name}: safe paths (RAw-RRT*)")
+        foxglove.plan_view(args.view, scenario, trials)
         _wrote(run)
     return 0
 
@@ -316,7 +320,7 @@ def _replay(args) -> int:
         if np.isnan(h):
             raise ValueError(f"--prior-from-truth: the first truth row of {args.log} has no heading")
         prior = (t0, np.array([x, y, 0.0, h]), np.diag([0.1, 0.1, 0.5, 0.02]) ** 2)
-    result = rp.replay(log, settings, prior=prior)
+    result = rp.replay(log, settings, prior=prior, innovations=args.view is not None)
     out = Path(args.out)
     with _run_folder(args, out, seed=args.seed) as run:
         write_trajectory(out, result, log)   # trajectory.csv, .tum, .mcap; truth.tum
@@ -327,6 +331,7 @@ def _replay(args) -> int:
                    "t_start": result.t_start if result.estimated else None, "counts": result.counts, "metrics": result.metrics,
                    "reason": result.reason}
         write_json(out / "replay.json", summary)
+        foxglove.replay_view(args.view, log, result, source=str(args.log))
         c = result.counts
         started = (f"started from the {result.started_from} at t = {result.t_start:.2f} s" if result.estimated
                    else "never started")
@@ -422,6 +427,7 @@ def _navigation_options(s, *, demo: bool) -> None:
     s.add_argument("--seed", type=_at_least(0), default=None,
                    help="trial seed (default: the scenario's seeds.trials)")
     s.add_argument("--out", default="out/demo" if demo else "out/run", help="output folder")
+    foxglove.add_view_argument(s)
     s.set_defaults(func=lambda a: _navigation(a, demo=demo))
 
 
@@ -443,6 +449,7 @@ def _add_experiment_commands(sub, common, scenario) -> None:
     s.add_argument("--iterations", type=_at_least(1), default=None,
                    help="RAw-RRT* iterations (default: the scenario's)")
     s.add_argument("--out", default="out/plan")
+    foxglove.add_view_argument(s)
     s.set_defaults(func=_plan)
 
     s = sub.add_parser("synthetic", parents=[common],
@@ -532,6 +539,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="start from the first truth pose instead of from the data (for comparison only)")
     s.add_argument("--seed", type=_at_least(0), default=0, help="particle filter seed")
     s.add_argument("--out", default="out/replay", help="output folder (default out/replay)")
+    foxglove.add_view_argument(s)
     s.set_defaults(func=_replay)
     from . import bags
     bags.add_bag_arguments(s)

@@ -62,18 +62,22 @@ def _draw_world(ax, world, *, hazard_label=None, obstacle_label=None) -> None:
         ax.add_patch(patch)
 
 
-def _draw_corridor(ax, corridor, *, color="tab:green", label=None) -> None:
-    """The safe buffer of a ``_core.Corridor``: its edges (bold) and zone borders (thin)."""
+def corridor_lines(corridor, samples: int = 400) -> list[tuple[float, np.ndarray]]:
+    """The safe buffer of a ``_core.Corridor`` as lines: ``(offset, (samples, 2) points)``
+    for each zone border and the two edges (offset ±half-width), the central path left out."""
     W = corridor.half_width
     off = np.linspace(-W, W, 2 * corridor.zone_count + 1)
-    pts = np.asarray(corridor.points_at(np.linspace(0, corridor.length, 400)))
+    pts = np.asarray(corridor.points_at(np.linspace(0, corridor.length, samples)))
     tang = np.gradient(pts, axis=0)
     tang /= np.maximum(np.linalg.norm(tang, axis=1, keepdims=True), 1e-12)
     normal = np.c_[-tang[:, 1], tang[:, 0]]
-    for o in off:
-        if o == 0:
-            continue
-        edge = pts + o * normal
+    return [(float(o), pts + o * normal) for o in off if o != 0]
+
+
+def _draw_corridor(ax, corridor, *, color="tab:green", label=None) -> None:
+    """The safe buffer of a ``_core.Corridor``: its edges (bold) and zone borders (thin)."""
+    W = corridor.half_width
+    for o, edge in corridor_lines(corridor):
         ax.plot(edge[:, 0], edge[:, 1], "-", color=color, lw=0.9 if abs(o) == W else 0.4,
                 alpha=0.8 if abs(o) == W else 0.4, label=label if o == W else None)
 
@@ -225,19 +229,29 @@ def plot_navigation(scenario, trials: dict, path: str | Path, *, title: str | No
     return _save(fig, path)
 
 
-def navigation_figures(scenario, safe: dict, sweep, folder: Path) -> list:
-    """[SafeNav-ext Figs. 4–5] (CHull, Centroid): trial 0 of each path type, recorded,
-    with the sweep's first filter and source (the measurement-level LanBLoc
-    stands in for the camera loop)."""
-    figs = []
+def recorded_trials(scenario, safe: dict, sweep) -> dict:
+    """Trial 0 of each method and path type of ``sweep``, recorded (trajectories
+    kept), with the sweep's first filter and source (the measurement-level
+    LanBLoc stands in for the camera loop): ``{(method, path type): (navigator,
+    trial result)}``.  What Figs. 4–5 draw and ``--view`` writes."""
+    out = {}
     source = sweep.sources[0] if sweep.sources[0] in nav.SOURCES else "lanbloc"
     for method in sweep.methods:
-        trials = {}
         for name in sweep.path_types:
             navigator = nav.make_navigator(scenario, safe[name], method=method, filter=sweep.filters[0],
                                            source=source, n_particles=sweep.n_particles)
             seed = runner.trial_seeds(sweep.seed, sweep.path_index(name), 1)[0]
-            trials[name] = (navigator, navigator.run(int(seed)))
+            out[(method, name)] = (navigator, navigator.run(int(seed)))
+    return out
+
+
+def navigation_figures(scenario, safe: dict, sweep, folder: Path, recorded: dict | None = None) -> list:
+    """[SafeNav-ext Figs. 4–5] (CHull, Centroid): trial 0 of each path type,
+    recorded (:func:`recorded_trials`, or ``recorded`` when given)."""
+    figs = []
+    recorded = recorded if recorded is not None else recorded_trials(scenario, safe, sweep)
+    for method in sweep.methods:
+        trials = {name: recorded[(method, name)] for name in sweep.path_types}
         fig_name = {"chull": "fig4_chull", "centroid": "fig5_centroid"}.get(method, f"fig_{method}")
         figs.append(plot_navigation(scenario, trials, Path(folder) / f"{fig_name}.png",
                                     title=f"{METHOD_LABELS.get(method, method)} with RAw-RRT*, "
