@@ -206,7 +206,7 @@ def _navigation(args, *, demo: bool) -> int:
                   + ", ".join(f"{k} {v}" for k, v in failures["outcome"].value_counts().items()))
         # Figs. 4 and 5: one recorded trial (trial 0) per method and path type.
         with console.task("Figs. 4-5 (trial 0 of each path type, recorded)"):
-            recorded = recorded_trials(scenario, safe, sweep)
+            recorded = recorded_trials(scenario, safe, sweep, paper=args.loop == "paper")
             navigation_figures(scenario, safe, sweep, out, recorded)
         foxglove.navigation_view(args.view, scenario, safe, recorded, command=args.command, seed=sweep.seed)
         console.info(f"planning {t_plan:.1f} s, {len(raw)} trials {t_run:.1f} s, "

@@ -229,17 +229,18 @@ def plot_navigation(scenario, trials: dict, path: str | Path, *, title: str | No
     return _save(fig, path)
 
 
-def recorded_trials(scenario, safe: dict, sweep) -> dict:
+def recorded_trials(scenario, safe: dict, sweep, *, paper: bool = False) -> dict:
     """Trial 0 of each method and path type of ``sweep``, recorded (trajectories
     kept), with the sweep's first filter and source (the measurement-level
-    LanBLoc stands in for the camera loop): ``{(method, path type): (navigator,
-    trial result)}``.  What Figs. 4–5 draw and ``--view`` writes."""
+    LanBLoc stands in for the camera loop) and the sweep's loop (``paper``:
+    the papers' loop, as :func:`safenav.runner.run_sweep`): ``{(method, path
+    type): (navigator, trial result)}``.  What Figs. 4–5 draw and ``--view`` writes."""
     out = {}
     source = sweep.sources[0] if sweep.sources[0] in nav.SOURCES else "lanbloc"
     for method in sweep.methods:
         for name in sweep.path_types:
             navigator = nav.make_navigator(scenario, safe[name], method=method, filter=sweep.filters[0],
-                                           source=source, n_particles=sweep.n_particles)
+                                           source=source, n_particles=sweep.n_particles, paper=paper)
             seed = runner.trial_seeds(sweep.seed, sweep.path_index(name), 1)[0]
             out[(method, name)] = (navigator, navigator.run(int(seed)))
     return out
