@@ -16,8 +16,11 @@ rejected by its χ² gate, late, buffered before initialization — and the NIS)
   landmark, gated on its own (on by default: ``LocalizerSettings().filter.gate_probability`` = 0.99);
 * ``fix(t, x, y, R)`` — a LanBLoc position fix; ``speed_heading(t, v, θ, σ_v, σ_θ)`` — the IMU.
 
-A measurement older than the filter's time is *late* and is not applied;
-one ahead of it is applied after predicting to its time with the last motion
+A measurement older than the filter's time by at most
+``LocalizerSettings.max_delay`` (0.5 s) is applied at its own time (the
+inputs since are applied again after it: the estimate equals that of the
+inputs in time order); an older one is *late* and is not applied.  One ahead
+of the filter is applied after predicting to its time with the last motion
 input.  Without :meth:`Localizer.initialize` the localizer starts from the
 data (ranges to ≥ 3 landmarks and the motion of the first metres).
 

@@ -82,6 +82,15 @@ class Filter {
   const State& x() const;
   const StateCov& P() const;
   /// The full state (x, y, v, θ, [k], [β], [b_j]), or empty without augmented states.
+  /// A copy in new storage: the estimate, particles and generator state (a
+  /// copy goes on exactly as the original would).  The Localizer's history of
+  /// checkpoints for late measurements holds these.
+  std::unique_ptr<Filter> clone() const;
+  /// Become a copy of `other`, a filter of the same implementation (clone()),
+  /// in this filter's storage: no allocation for the same sizes.  Throws
+  /// std::logic_error for another implementation or inside a Transaction.
+  void assign(const Filter& other);
+
   virtual Eigen::VectorXd augmented_state() const { return Eigen::VectorXd(); }
   /// The augmented EKF behind this filter, or null.
   virtual const AugmentedEkf* augmented_ekf() const { return nullptr; }
@@ -118,6 +127,10 @@ class Filter {
   virtual void check_state(const char* step) const = 0;
   virtual void save() = 0;
   virtual void restore() = 0;
+  virtual std::unique_ptr<Filter> do_clone() const = 0;
+  virtual void do_assign(const Filter& other) = 0;
+  Filter(const Filter&) = default;
+  Filter& operator=(const Filter&) = default;
 
  private:
   template <class F>

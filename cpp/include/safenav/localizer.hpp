@@ -18,8 +18,14 @@
 // predictions did not already add ("catch-up": on Plaza1 this beats scaling
 // the input by the remaining fraction by 0.03 m RMSE, because the extrapolated
 // rates are not what the odometry reported).  A measurement at t < t_f is
-// *late*: it is not applied (status Late) and never applied at the wrong time.
-// Equal times are applied in call order.
+// *late*.  One at most settings.max_delay older is applied at its own time:
+// the localizer keeps the inputs of the last max_delay seconds and, before
+// each motion input, a copy of its filter; it goes back to the newest copy at
+// or before the measurement's time and applies the logged inputs again with
+// the late one in its place, which gives exactly the estimate of the same
+// inputs given in time order (localizer_history.cpp).  An older measurement,
+// and any late motion input, is not applied (status Late) and never applied
+// at the wrong time.  Equal times are applied in call order.
 //
 // Initialization.  initialize() takes a prior.  Without one the localizer
 // starts from the data.  It dead-reckons the motion inputs in their own frame
@@ -163,6 +169,10 @@ struct LocalizerSettings {
   /// P_xy ← R, the position's cross-covariances 0; augmented states restart
   /// from 0, a particle filter redraws its particles.  0 = never.
   int reset_after_rejections = 10;
+  /// [s] A measurement at most this much older than the filter's time is
+  /// applied at its own time (the inputs since are applied again after it);
+  /// an older one is Late.  0 = every measurement older than the filter is Late.
+  double max_delay = 0.5;
   void validate() const;
 };
 

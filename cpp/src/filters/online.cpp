@@ -10,6 +10,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <typeinfo>
 
 #include "checks.hpp"
 #include "../errors.hpp"
@@ -64,6 +65,20 @@ Filter::Filter(FilterType type, bool augmented, const State& x0, const StateCov&
   x_[kTheta] = wrap_angle(x_[kTheta]);  // until the first input the estimate is the prior itself
 }
 Filter::~Filter() = default;
+
+std::unique_ptr<Filter> Filter::clone() const {
+  if (depth_ != 0) throw std::logic_error("Filter::clone inside a transaction");
+  return do_clone();
+}
+
+void Filter::assign(const Filter& other) {
+  if (typeid(*this) != typeid(other)) throw std::logic_error("Filter::assign: another filter implementation");
+  if (depth_ != 0 || other.depth_ != 0) throw std::logic_error("Filter::assign inside a transaction");
+  x_ = other.x_;
+  P_ = other.P_;
+  dirty_ = other.dirty_;
+  do_assign(other);
+}
 
 Filter::Transaction::Transaction(Filter& f) : f_(f), outer_(f.depth_ == 0) {
   if (outer_) {
@@ -231,6 +246,8 @@ class EkfFilter final : public Filter {
   void check_state(const char*) const override {}
   void save() override { spare_ = f_; }
   void restore() override { f_ = spare_; }
+  std::unique_ptr<Filter> do_clone() const override { return std::make_unique<EkfFilter>(*this); }
+  void do_assign(const Filter& o) override { f_ = static_cast<const EkfFilter&>(o).f_; }
 
   Ekf f_, spare_;
 };
@@ -276,6 +293,8 @@ class PfFilter final : public Filter {
   void check_state(const char*) const override {}
   void save() override { spare_ = f_; }
   void restore() override { f_ = spare_; }
+  std::unique_ptr<Filter> do_clone() const override { return std::make_unique<PfFilter>(*this); }
+  void do_assign(const Filter& o) override { f_ = static_cast<const PfFilter&>(o).f_; }
 
   ParticleFilter f_, spare_;
   std::optional<MeasurementModel> fix_, imu_;
@@ -317,6 +336,7 @@ class AugmentedFilter : public Filter {
   void do_set_gate(double p) override { f_.set_gate(p); }
   void save() override { spare_ = f_; }
   void restore() override { f_ = spare_; }
+  void do_assign(const Filter& o) override { f_ = static_cast<const AugmentedFilter&>(o).f_; }
 };
 
 class AugmentedEkfFilter final : public AugmentedFilter<AugmentedEkf> {
@@ -326,6 +346,7 @@ class AugmentedEkfFilter final : public AugmentedFilter<AugmentedEkf> {
   const AugmentedEkf* augmented_ekf() const override { return &f_; }
 
  private:
+  std::unique_ptr<Filter> do_clone() const override { return std::make_unique<AugmentedEkfFilter>(*this); }
   void estimate(State& x, StateCov& P) const override {
     x = f_.x();
     P = f_.P();
@@ -348,6 +369,7 @@ class AugmentedPfFilter final : public AugmentedFilter<AugmentedParticleFilter> 
                         AugmentedParticleFilter(p, a, K, x0, P0, n, seed, thr, bandwidth_scale)) {}
 
  private:
+  std::unique_ptr<Filter> do_clone() const override { return std::make_unique<AugmentedPfFilter>(*this); }
   void estimate(State& x, StateCov& P) const override {
     x = f_.mean();
     P = f_.covariance();

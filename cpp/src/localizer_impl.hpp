@@ -1,0 +1,270 @@
+// Private: the online Localizer's state (safenav/localizer.hpp), shared by
+// localizer.cpp (the inputs), localizer_start.cpp (starting from the data)
+// and localizer_history.cpp (late measurements applied at their own time).
+#pragma once
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <optional>
+#include <string>
+#include <unordered_map>
+#include <utility>
+#include <vector>
+
+#include "errors.hpp"
+#include "localizer_fit.hpp"
+#include "safenav/filter.hpp"
+#include "safenav/localizer.hpp"
+#include "safenav/seed.hpp"
+
+namespace safenav {
+
+namespace localizer_detail {
+
+inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+/// Timestamps this close are the same instant [s].
+inline constexpr double kSameTime = 1e-9;
+/// Starting from ranges: σ added to the fit's position [m] and heading [rad]
+/// (the fit's own covariance ignores the odometry's drift within the window).
+inline constexpr std::size_t kMaxBufferedRanges = 100000;
+inline constexpr double kInitPositionFloor = 0.05, kInitHeadingFloor = 0.01;
+
+using detail::bad;
+
+inline std::string num(double v) { return detail::num(v, 12); }
+
+inline void check_time(double t, const char* what) {
+  if (!std::isfinite(t)) bad(std::string(what) + ": time t = " + num(t) + " is not finite");
+}
+
+using detail::BufferedHeading;
+using detail::BufferedObs;
+
+/// A position known before the heading (trilateration or a fix), with the
+/// motion-integrated pose at that time.
+struct Anchor {
+  double t;
+  Eigen::Vector2d p;
+  Eigen::Matrix2d cov;
+  Eigen::Vector3d odo;  // (x, y, θ) of the motion integral in its own frame
+};
+
+
+/// An input once the localizer has started, as it was given (odometry as
+/// distance and heading change), kept max_delay seconds for late measurements.
+struct LoggedInput {
+  enum class Kind { Motion, Odometry, Observation, Fix, SpeedHeading };
+  Kind kind = Kind::Motion;
+  double t = 0.0;
+  Eigen::Vector2d a = Eigen::Vector2d::Zero();  // (speed, Δθ), (distance, Δθ), fix z or (v, θ)
+  Eigen::Matrix2d R = Eigen::Matrix2d::Zero();  // fix and speed_heading
+  LandmarkObservation obs;                      // observation
+  bool measurement() const { return kind != Kind::Motion && kind != Kind::Odometry; }
+};
+
+}  // namespace localizer_detail
+
+using namespace localizer_detail;  // NOLINT: private header, included by the localizer's .cpp files only
+
+struct Localizer::Impl {
+  LocalizerSettings settings;
+  Landmarks landmarks;
+  std::vector<int> ids;
+  std::unordered_map<int, int> row_of;
+  Bmm bmm;
+  std::unique_ptr<Filter> filter;  // the EKF or the PF, plain or augmented (safenav/filter.hpp); null until started
+
+  double t_f = kNaN;       // filter time
+  double t_motion = kNaN;  // time of the last motion input
+  double rate_speed = kNaN, rate_turn = 0.0;  // last motion input: speed, heading change per second
+  // Distance and heading change that measurements' predictions (at the last
+  // rates) already added since the last motion input: the next one applies
+  // only what its own Δd, Δθ still owe ("catch-up").
+  double owed_distance = 0.0, owed_heading = 0.0;
+  bool from_odometry = false;  // the motion input being applied is wheel odometry
+  LocalizerCounts counts;
+  int fix_rejections = 0;  // consecutive position fixes rejected by the gate
+  State x_none = State::Constant(kNaN);  // the estimate until initialized
+  StateCov P_none = StateCov::Constant(kNaN);
+
+  // Initialization from data.
+  std::vector<BufferedObs> ranges;  // observations within init_window of the newest motion input
+  std::vector<BufferedHeading> headings;  // IMU headings within init_window
+  bool fresh = false;  // an observation or heading with a bearing or heading arrived since the last fit
+  std::string why = "waiting: no motion input yet";  // Localizer::reason()
+  detail::StartWindow::Most most;  // the most distinct landmarks in any window so far
+  std::vector<Eigen::Vector4d> track;  // (t, x, y, θ): the motion integral at each motion input
+  std::optional<Anchor> anchor;
+  Eigen::Vector3d odo = Eigen::Vector3d::Zero();  // motion integral (x, y, θ) in its own frame
+  double imu_heading = kNaN, imu_heading_var = kNaN, imu_speed = kNaN, t_imu = kNaN;
+
+  Impl(LocalizerSettings s, Landmarks lm, std::vector<int> id)
+      : settings(std::move(s)), landmarks(std::move(lm)), ids(std::move(id)), bmm((settings.validate(), settings.bmm)) {
+    if (!landmarks.allFinite()) bad("localizer landmarks: every landmark position must be finite");
+    if (ids.empty()) {
+      ids.resize(static_cast<std::size_t>(landmarks.rows()));
+      for (std::size_t i = 0; i < ids.size(); ++i) ids[i] = static_cast<int>(i);
+    }
+    if (static_cast<Eigen::Index>(ids.size()) != landmarks.rows())
+      bad("localizer ids: " + std::to_string(ids.size()) + " ids for " + std::to_string(landmarks.rows()) +
+          " landmarks");
+    for (std::size_t i = 0; i < ids.size(); ++i)
+      if (!row_of.emplace(ids[i], static_cast<int>(i)).second)
+        bad("localizer ids: landmark id " + std::to_string(ids[i]) + " appears twice");
+    ranges.reserve(256);
+    track.reserve(256);
+  }
+
+  /// The first motion input ever covers one nominal step before its time.
+  void start_clock(double t) {
+    if (std::isfinite(t_motion)) return;
+    t_motion = t - bmm.params().dt;
+    if (!initialized()) push_pose(t_motion);
+  }
+
+  bool initialized() const { return filter != nullptr; }
+
+  void start(double t, const State& x0, const StateCov& P0) { start(t, x0, P0, settings.filter.seed); }
+
+  /// Starts the filter at (x0, P0); a particle filter draws with `seed`.  When
+  /// the prior is refused the localizer stays as it was.
+  void start(double t, const State& x0, const StateCov& P0, std::uint64_t seed) {
+    filter = make_filter(settings.filter, settings.bmm, settings.augment, static_cast<int>(landmarks.rows()), x0, P0,
+                         seed);
+    fix_rejections = 0;
+    t_f = t;
+    why = "started at t = " + num(t);
+    if (!(t_motion <= t)) t_motion = t;
+    owed_distance = owed_heading = 0.0;
+    ranges.clear();
+    headings.clear();
+    track.clear();
+    anchor.reset();
+  }
+
+  void predict(const Control& u, double dt) { filter->predict(u, dt); }
+  /// The motion input u over (t − interval, t] once initialized (Localizer::motion).
+  InputResult move(double t, const Control& u, double interval);
+
+  /// The filter's clock and the motion input's rates and debts.
+  struct Clock {
+    double t_f, t_motion, rate_speed, rate_turn, owed_distance, owed_heading;
+  };
+  Clock clock() const { return {t_f, t_motion, rate_speed, rate_turn, owed_distance, owed_heading}; }
+  void set_clock(const Clock& c) {
+    t_f = c.t_f;
+    t_motion = c.t_motion;
+    rate_speed = c.rate_speed;
+    rate_turn = c.rate_turn;
+    owed_distance = c.owed_distance;
+    owed_heading = c.owed_heading;
+  }
+
+  /// Runs `f` (a prediction to t, then an update) as one step: when it
+  /// throws, the localizer and its filter are left as they were, and the
+  /// error names the input (`what` at t).
+  template <class F>
+  InputResult atomic(const char* what, double t, F&& f) {
+    const Clock saved = clock();
+    const LocalizerCounts saved_counts = counts;
+    Filter::Transaction tx(*filter);
+    try {
+      const InputResult r = f();
+      tx.commit("filter result");
+      return r;
+    } catch (const std::invalid_argument& e) {
+      set_clock(saved);
+      counts = saved_counts;
+      bad(std::string(what) + " at t = " + num(t) + ": " + e.what());
+    } catch (...) {
+      set_clock(saved);
+      counts = saved_counts;
+      throw;
+    }
+  }
+
+  /// Bring the filter to time t for a measurement; false when t is late.
+  bool advance(double t) {
+    if (t < t_f - kSameTime) return false;
+    if (t > t_f + kSameTime) {
+      const double dt = t - t_f;
+      const Control u = std::isfinite(rate_speed) ? Control(rate_speed, rate_turn * dt) : Control(filter->x()[kV], 0.0);
+      predict(u, dt);
+      owed_distance += u[0] * dt;
+      owed_heading += u[1];
+      t_f = t;
+    }
+    return true;
+  }
+
+  InputResult counted(const UpdateResult& r) {
+    InputResult out;
+    out.nis = r.nis;
+    out.dim = r.dim;
+    out.log_det_s = r.log_det_s;
+    out.status = r.accepted ? InputStatus::Applied : InputStatus::Rejected;
+    ++(r.accepted ? counts.applied : counts.rejected);
+    return out;
+  }
+
+  InputResult status(InputStatus s) {
+    if (s == InputStatus::Late) ++counts.late;
+    if (s == InputStatus::Buffered) ++counts.buffered;
+    if (s == InputStatus::Ignored) ++counts.ignored;
+    InputResult out;
+    out.status = s;
+    return out;
+  }
+
+  // -- the inputs, once started (localizer.cpp) -------------------------------
+
+  /// Applies an input now (the filter at its time, or Late).
+  InputResult apply(const LoggedInput& in);
+  InputResult apply_motion(double t, const Control& u);
+  InputResult apply_observation(double t, const LandmarkObservation& o);
+  InputResult apply_fix(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R);
+
+  // -- late measurements (localizer_history.cpp) ------------------------------
+
+  /// The filter, clock and counts before a motion input (`input`: its
+  /// sequence number in the input log).
+  struct Checkpoint {
+    Clock clock;
+    LocalizerCounts counts;
+    int fix_rejections = 0;
+    std::unique_ptr<Filter> filter;
+    std::uint64_t input = 0;
+  };
+  std::vector<LoggedInput> inputs;      // every input from the oldest checkpoint's motion input on
+  std::uint64_t first_input = 0;        // sequence number of inputs[0]
+  std::vector<Checkpoint> checkpoints;  // oldest first, one before each motion input
+  std::vector<std::unique_ptr<Filter>> spare_filters;  // recycled checkpoint storage
+  std::vector<LoggedInput> redo;        // scratch of a late measurement's replay
+  bool replaying = false;               // inside take_late: prune() waits
+
+  /// An input once started: applied now and logged (settings.max_delay > 0),
+  /// or, for a measurement older than the filter's time by at most
+  /// max_delay, applied at its own time (take_late).
+  InputResult take(const LoggedInput& in);
+  InputResult take_now(const LoggedInput& in);
+  InputResult take_late(const LoggedInput& in);
+  Checkpoint capture();
+  void restore(const Checkpoint& c);
+  void recycle(Checkpoint& c);
+  void prune();
+  void clear_history();
+
+  // -- starting from the data (localizer_start.cpp) ---------------------------
+
+  void position_known(double t, const Eigen::Vector2d& p, const Eigen::Matrix2d& cov);
+  void push_pose(double t);
+  bool rules_hold(const detail::StartWindow& w);
+  void try_fit(double t_now);
+  void accept_fit(double t_now, const detail::FitResult& fit);
+};
+
+}  // namespace safenav
