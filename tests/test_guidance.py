@@ -109,15 +109,17 @@ def test_a_step_of_any_length_is_the_bmm_with_that_step(dt, speed, turn):
 # --------------------------------------------------------------------------- time
 
 def test_a_late_measurement_is_not_applied():
+    """Older than max_delay (tests/test_late.py has those within it), or a late motion input."""
     loc = localizer()
     loc.motion(0.1, 1.0, 0.0)
+    loc.motion(0.7, 1.0, 0.0)
     x, P = loc.x.copy(), loc.P.copy()
     for res in (loc.observe(0.05, 11, range=20.0), loc.fix(0.09, 0.0, 0.0, np.eye(2)),
-                loc.speed_heading(0.0, 1.0, 0.1, 0.1, 0.1), loc.motion(0.08, 1.0, 0.0)):
+                loc.speed_heading(0.0, 1.0, 0.1, 0.1, 0.1), loc.motion(0.68, 1.0, 0.0)):
         assert res.status == gd.InputStatus.LATE
     np.testing.assert_array_equal(loc.x, x)
     np.testing.assert_array_equal(loc.P, P)
-    assert loc.counts.late == 4 and loc.time == 0.1
+    assert loc.counts.late == 4 and loc.time == 0.7
 
 
 def test_a_measurement_ahead_predicts_to_its_time_and_the_motion_input_catches_up():

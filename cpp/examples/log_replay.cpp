@@ -231,7 +231,11 @@ safenav::Localizer make_localizer(const Log& log) {
     landmarks.row(static_cast<Eigen::Index>(ids.size())) = p.transpose();
     ids.push_back(id);
   }
-  return safenav::Localizer(safenav::LocalizerSettings(), landmarks, ids);
+  // As `safenav replay`'s default preset: the online defaults, with the log's
+  // motion rows read as the speed the vehicle reported (signed, at once).
+  safenav::LocalizerSettings settings;
+  settings.bmm.unicycle = true;
+  return safenav::Localizer(settings, landmarks, ids);
 }
 
 }  // namespace
