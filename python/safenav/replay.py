@@ -38,6 +38,7 @@ import pandas as pd
 from . import _core
 from .guidance import Localizer, LocalizerSettings, localizer_settings
 from .logs import Log, load_plaza, read_log
+from .validation import as_array
 
 __all__ = ["ReplayResult", "replay", "INNOVATION_COLUMNS", "causal_index", "load", "score", "PRESETS",
            "preset_settings"]
@@ -117,12 +118,16 @@ def load(path, *, range_std: float = 1.0) -> Log:
 
 
 def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None,
-           innovations: bool = False) -> ReplayResult:
+           innovations: bool = False, delays=None) -> ReplayResult:
     """Run ``log`` through a :class:`Localizer` with ``settings`` (default:
     the ``default`` preset, :func:`preset_settings`).  ``prior`` = ``(t, x0, P0)``
     starts it from a prior; by default it starts from the data.
     ``innovations`` records each measurement input's NIS and log det S
-    (:attr:`ReplayResult.innovations`; the module doc)."""
+    (:attr:`ReplayResult.innovations`; the module doc).  ``delays`` (one
+    per event row, seconds ≥ 0) delivers each row at its time plus its delay,
+    as a vehicle receives late measurements (in the order of arrival; the
+    rows keep their own times): the trajectory is still the estimate each
+    motion input had when it arrived (causal)."""
     ids = sorted(log.landmarks)
     landmarks = np.array([log.landmarks[i] for i in ids], dtype=float).reshape(-1, 2)
     loc = Localizer(settings or preset_settings("default"), landmarks, ids)
@@ -136,6 +141,13 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None,
     cols = {c: ev[c].to_numpy(float) for c in ("x", "y", "speed", "distance", "heading_change", "range", "bearing",
                                                 "range_std", "bearing_std", "std_x", "std_y")}
     rows, inno = [], []
+    order = range(len(ev))
+    if delays is not None:
+        d = as_array("delays", delays, (len(ev),))
+        if not (np.isfinite(d).all() and (d >= 0).all()):
+            bad = int(np.flatnonzero(~(np.isfinite(d) & (d >= 0)))[0])
+            raise ValueError(f"delays[{bad}] = {float(d[bad])!r}: each delay must be finite and >= 0")
+        order = np.argsort(t + d, kind="stable")
 
     def record():
         x, P = loc.x, loc.P
@@ -145,7 +157,7 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None,
     if loc.initialized:
         t_start = loc.time
         record()
-    for i in range(len(ev)):
+    for i in order:
         k = kinds[i]
         if k == "odometry" or k == "motion":
             if k == "odometry":
