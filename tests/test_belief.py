@@ -77,6 +77,8 @@ def reference_covariances(prof, bmm, se, P0, bearing_std=0.0, checker=None):
         for i in seen:
             d = lms[i] - p
             q = d @ d
+            if q < 1e-18:  # a landmark at the vehicle: no Jacobian, no update (measurement.hpp)
+                continue
             if ranges and len(seen) >= max(3, se.min_landmarks):
                 kf.update(np.zeros((1, 1)), R=np.array([[se.range_std ** 2 / n]]),
                           H=np.array([[-d[0] / np.sqrt(q), -d[1] / np.sqrt(q), 0.0, 0.0]]))

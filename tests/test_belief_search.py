@@ -7,15 +7,17 @@ import pytest
 
 from safenav import _core
 from safenav import planning as P
+from safenav.belief import start_covariance
 
 from test_belief import corridor_world
 
 START, GOAL = (5.0, 20.0), (55.0, 20.0)
 RADIUS, MARGIN = 0.5, 0.25
+P0 = np.diag([1e-4, 1e-4, 2.5e-3, 4e-4])  # a start with a fix (the default heading toward the goal sees none)
 
 
 def plan(m, bmm, se, **kw):
-    args = dict(sensors=se, bmm=bmm, vehicle_radius=RADIUS, margin=MARGIN, seed=3)
+    args = dict(sensors=se, bmm=bmm, vehicle_radius=RADIUS, margin=MARGIN, seed=3, start_cov=P0)
     args.update(kw)
     return P.plan_belief(m, START, GOAL, **args)
 
@@ -48,7 +50,7 @@ def test_belief_planner_takes_the_lane_with_landmarks_where_raw_rrt_star_takes_t
     rrt = P.plan(P.PlanningProblem(map=mc, start=START, goal=GOAL), beta=0.0, max_iterations=3000, seed=1)
     assert rrt.success and through_corridor(rrt.path)
     blind = P.propagate_belief(rrt.path, sensors=se, map=m, bmm=bmm, vehicle_radius=RADIUS, margin=MARGIN,
-                               step=0.25)
+                               step=0.25, start_cov=P0)
     assert blind.sigma.max() > 1.5 * res.sigma.max()
     assert blind.collision_probability > 0.05 > res.collision_probability
     assert np.asarray(blind.landmarks)[np.asarray(blind.positions)[:, 0] > 16].max() == 0
@@ -119,6 +121,17 @@ def test_bad_settings_name_the_value(kwargs, err, match):
     m, bmm, se = corridor_world()
     with pytest.raises(err, match=match):
         plan(m, bmm, se, **kwargs)
+
+
+def test_the_default_start_covariance_is_the_navigation_loops_prior():
+    m, bmm, se = corridor_world()
+    no_fix = start_covariance(se, m, np.array(START), 0.0)  # heading +x: no landmark in the field of view
+    fix = start_covariance(se, m, np.array(START), np.pi / 2)  # heading +y: the landmarks along the top
+    assert np.allclose(np.diag(no_fix)[:2], 1.0)
+    np.testing.assert_allclose(fix[:2, :2], se.position.reported_cov())
+    assert np.allclose(np.diag(fix)[2:], [se.imu_speed_std ** 2, se.imu_heading_std ** 2])
+    res = P.plan_belief(m, START, GOAL, sensors=se, bmm=bmm, vehicle_radius=RADIUS, margin=MARGIN, seed=3)
+    assert res.success and np.isclose(res.sigma[0], 1.0)
 
 
 def test_bad_problem_names_the_value():

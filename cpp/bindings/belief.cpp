@@ -90,7 +90,8 @@ void bind_results(py::module_& m) {
 void pybind_belief(py::module_& m) {
   bind_settings(m);
   bind_results(m);
-  m.def("start_covariance", &start_covariance, py::arg("sensors"));
+  m.def("start_covariance", &start_covariance, py::arg("sensors"), py::arg("map"), py::arg("start"),
+        py::arg("heading"));
   m.def("propagate_belief", &propagate_belief, py::arg("path"), py::arg("bmm"), py::arg("sensors"), py::arg("map"),
         py::arg("start_cov"), py::arg("settings") = BeliefSettings{}, release_gil());
   m.def("plan_belief", &plan_belief, py::arg("problem"), py::arg("settings") = BeliefPlannerSettings{},

@@ -35,11 +35,23 @@ void BeliefPlannerSettings::validate() const {
   param_set<BeliefPlannerSettings>().check(*this, "BeliefPlannerSettings");
 }
 
-StateCov start_covariance(const SensorSettings& sensors) {
-  // As the navigation loop's prior when the first fix is there: the fix's R,
-  // the IMU's variances (Trial::initialize, navigation.cpp).
+StateCov start_covariance(const SensorSettings& sensors, const PlanningMap& map, const Eigen::Vector2d& start,
+                          double heading) {
+  sensors.validate();
+  map.validate();
+  if (!start.allFinite() || !std::isfinite(heading))
+    bad("start_covariance: start (" + num(start.x()) + ", " + num(start.y()) + ") and heading " + num(heading) +
+        " must be finite");
+  const ObstacleChecker checker(map);
+  const State x0(start.x(), start.y(), 0.0, heading);
+  const bool fix = !sensors.position.needs_landmarks || sensors.landmarks_in_view(x0, &checker) >= sensors.min_landmarks;
   StateCov P0 = StateCov::Zero();
-  P0.topLeftCorner<2, 2>() = sensors.position.reported_cov();
+  if (fix) {
+    P0.topLeftCorner<2, 2>() = sensors.position.reported_cov();
+  } else {
+    const double s0 = std::max(1.0, sensors.position.std.maxCoeff());
+    P0.topLeftCorner<2, 2>() = s0 * s0 * Eigen::Matrix2d::Identity();
+  }
   P0(kV, kV) = sensors.imu_speed_std * sensors.imu_speed_std;
   P0(kTheta, kTheta) = sensors.imu_heading_std * sensors.imu_heading_std;
   return P0;

@@ -77,9 +77,12 @@ def _planner_settings(kwargs: dict, settings=None) -> BeliefPlannerSettings:
     return s
 
 
-def _start_cov(start_cov, sensors) -> np.ndarray:
+def _start_cov(start_cov, sensors, map, start, toward) -> np.ndarray:
+    """The given start covariance, or the navigation loop's prior at ``start``
+    heading toward ``toward`` (:func:`start_covariance`)."""
     if start_cov is None:
-        return start_covariance(sensors)
+        d = np.asarray(toward, dtype=float) - start
+        return start_covariance(sensors, map, start, float(np.arctan2(d[1], d[0])))
     return as_array("start_cov", start_cov, (4, 4))
 
 
@@ -92,13 +95,16 @@ def propagate_belief(path, *, sensors, map, bmm=None, start_cov=None, settings: 
 
     ``sensors``: a ``SensorSettings``; ``map``: a ``PlanningMap`` (obstacles
     occlude and are what the vehicle may hit); ``bmm``: ``BmmParams``
-    (default: the core's); ``start_cov``: 4x4 (default: the simulator's prior,
-    :func:`start_covariance`).  Keywords: ``speed``, ``step`` (belief step
-    [s], 0 = the BMM's dt), ``bearing_std``, ``vehicle_radius``, ``margin``."""
+    (default: the core's); ``start_cov``: 4x4 (default: the navigation loop's
+    prior at the start, heading along the first leg: :func:`start_covariance`).
+    Keywords: ``speed``, ``step`` (belief step [s], 0 = the BMM's dt),
+    ``bearing_std``, ``vehicle_radius``, ``margin``."""
     p = as_array("path", path, (None, 2))
     bmm = bmm if bmm is not None else _core.BmmParams()
     s = _belief_settings(kwargs, settings)
-    return _core.propagate_belief(p, bmm, sensors, map, _start_cov(start_cov, sensors), s)
+    k = int(np.argmax(np.any(p[1:] != p[0], axis=1))) + 1 if len(p) > 1 else 0
+    P0 = _start_cov(start_cov, sensors, map, p[0], p[min(k, len(p) - 1)])
+    return _core.propagate_belief(p, bmm, sensors, map, P0, s)
 
 
 @dataclass(frozen=True)
@@ -124,7 +130,9 @@ def plan_belief(map, start, goal, *, sensors, bmm=None, start_cov=None, guide_pa
     ``guide_spacing``, ``seed``, ``max_beliefs``, ``dominance_tolerance``,
     ``max_expansions``, and the belief's ``speed``, ``step``, ``bearing_std``,
     ``vehicle_radius``, ``margin``.  ``guide_paths``: polylines whose vertices
-    and edges join the roadmap (a RAw-RRT* path, say).  An infeasible problem
+    and edges join the roadmap (a RAw-RRT* path, say).  ``start_cov``
+    defaults to the navigation loop's prior heading toward the goal
+    (:func:`start_covariance`).  An infeasible problem
     returns ``success = False`` with the status (INFEASIBLE, NO_PATH, BUDGET)
     and why in ``detail``."""
     pb = BeliefProblem()
@@ -133,7 +141,7 @@ def plan_belief(map, start, goal, *, sensors, bmm=None, start_cov=None, guide_pa
     pb.goal = as_array("goal", goal, (2,))
     pb.bmm = bmm if bmm is not None else _core.BmmParams()
     pb.sensors = sensors
-    pb.start_cov = _start_cov(start_cov, sensors)
+    pb.start_cov = _start_cov(start_cov, sensors, map, pb.start, pb.goal)
     pb.guide_paths = [as_array(f"guide_paths[{i}]", g, (None, 2)) for i, g in enumerate(guide_paths)]
     res = _core.plan_belief(pb, _planner_settings(kwargs, settings))
     prof = res.profile if res.success else None
@@ -143,12 +151,17 @@ def plan_belief(map, start, goal, *, sensors, bmm=None, start_cov=None, guide_pa
                       profile=prof, result=res)
 
 
-def scenario_inputs(scenario, path_type: str | None = None, *, source: str = "lanbloc"):
-    """The planning map, the BMM and the sensors of a scenario's navigation
-    loop (as :func:`safenav.navigation.make_navigator` builds them), for
-    :func:`plan_belief` and :func:`propagate_belief`."""
+def scenario_inputs(scenario, path_type: str | None = None, *, source: str = "lanbloc") -> dict:
+    """Keyword arguments for :func:`plan_belief` and :func:`propagate_belief`
+    from a scenario: its planning ``map`` (hazards of risk >= the planner's
+    ``forbidden_risk`` are keep-out areas), ``bmm``, the ``sensors`` of its
+    navigation loop (as :func:`safenav.navigation.make_navigator` builds
+    them), the cruise ``speed`` and the ``vehicle_radius`` and ``margin``."""
     from .navigation import make_navigator
     from .planning import map_from_world
     name = path_type if path_type is not None else scenario.path_types[0].name
     nav = make_navigator(scenario, scenario.path_polyline(name), source=source, record=False)
-    return map_from_world(scenario.world), scenario.bmm_params(), nav.sensors
+    n = scenario.navigation
+    return {"map": map_from_world(scenario.world, forbidden_risk=scenario.planner.forbidden_risk),
+            "bmm": scenario.bmm_params(), "sensors": nav.sensors, "speed": float(n.cruise_speed),
+            "vehicle_radius": float(n.vehicle_radius), "margin": float(n.clearance_margin)}

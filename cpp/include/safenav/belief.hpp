@@ -83,9 +83,14 @@ struct BeliefProfile {
   double length = 0.0;                 ///< path length [m]
 };
 
-/// The prior the simulator starts from when a fix is available: the fix's
-/// reported covariance, the IMU's speed and heading variances.
-StateCov start_covariance(const SensorSettings& sensors);
+/// The prior the navigation loop starts from (its Trial::initialize, in
+/// navigation.cpp) for a vehicle at `start` heading `heading` [rad]: the
+/// fix's reported covariance when a fix is expected there (at least
+/// min_landmarks in view, or a source that needs none), else a start known
+/// to σ = max(1 m, the source's largest σ) in x and y; the IMU's speed and
+/// heading variances.
+StateCov start_covariance(const SensorSettings& sensors, const PlanningMap& map, const Eigen::Vector2d& start,
+                          double heading);
 
 /// The belief and collision probability along `path` (N×2, N ≥ 2, start
 /// first) from the start covariance P0, in `map` (obstacles, forbidden
