@@ -5,7 +5,9 @@ For each path type it prints:
   * the RAw-RRT* safe path (the paper's planner, as the experiments plan it):
     its predicted sigma profile (sqrt(lambda_max(P_xy)): max, mean, final),
     the share of stages with a LanBLoc fix in view, the predicted path
-    collision probability (Patil et al.) and the union bound;
+    collision probability (Patil et al.) of the vehicle's disc and the union
+    bound, and that of a point (the simulator counts a collision when the
+    point vehicle enters an obstacle);
   * the belief-aware plan (k = 3, the RAw-RRT* path as a guide path in the
     roadmap): planning time (target <= 2 s per path on one core), length,
     sigma profile, collision probability;
@@ -27,9 +29,22 @@ import time
 import numpy as np
 
 import safenav
-from safenav import belief
 from safenav import navigation as nav
 from safenav import planning as P
+
+
+def scenario_inputs(scenario, path_type: str | None = None, *, source: str = "lanbloc") -> dict:
+    """Keyword arguments for ``plan_belief`` and ``propagate_belief``
+    from a scenario: its planning ``map`` (hazards of risk >= the planner's
+    ``forbidden_risk`` are keep-out areas), ``bmm``, the ``sensors`` of its
+    navigation loop (as ``safenav.navigation.make_navigator`` builds
+    them), the cruise ``speed`` and the ``vehicle_radius`` and ``margin``."""
+    name = path_type if path_type is not None else scenario.path_types[0].name
+    navigator = nav.make_navigator(scenario, scenario.path_polyline(name), source=source, record=False)
+    n = scenario.navigation
+    return {"map": P.map_from_world(scenario.world, forbidden_risk=scenario.planner.forbidden_risk),
+            "bmm": scenario.bmm_params(), "sensors": navigator.sensors, "speed": float(n.cruise_speed),
+            "vehicle_radius": float(n.vehicle_radius), "margin": float(n.clearance_margin)}
 
 
 def arc_length(path: np.ndarray) -> np.ndarray:
@@ -98,7 +113,7 @@ def main() -> None:
     print(f"scenario {sc.name}: {len(sc.world.landmarks)} landmarks, k = {args.k}, "
           f"{args.samples} roadmap samples, {args.trials} Monte Carlo trials per path\n")
     for pt in sc.path_types:
-        inputs = belief.scenario_inputs(sc, pt.name)
+        inputs = scenario_inputs(sc, pt.name)
         min_lm = inputs["sensors"].min_landmarks
         t0 = time.perf_counter()
         raw = nav.plan_safe_path(sc, pt.name)
@@ -110,6 +125,8 @@ def main() -> None:
         print(f"{pt.name}  RAw-RRT*: {t_raw:.2f} s, length {raw.cost.length:.1f} m; belief {t_prop * 1e3:.1f} ms "
               f"({len(prof.sigma)} steps of {inputs['bmm'].dt} s)")
         print(f"    {summary(prof, min_lm)}")
+        point = P.propagate_belief(path, **{**inputs, "vehicle_radius": 0.0})
+        print(f"    a point vehicle (the simulator's collision test): P(collision) {point.collision_probability:.2e}")
         res = P.plan_belief(start=path[0], goal=path[-1], guide_paths=[path], k_sigma=args.k, samples=args.samples,
                             **inputs)
         r = res.result

@@ -42,8 +42,7 @@ BeliefPlanResult = _core.BeliefPlanResult
 start_covariance = _core.start_covariance
 
 __all__ = ["BeliefSettings", "BeliefPlannerSettings", "BeliefProblem", "BeliefProfile", "BeliefPlanStatus",
-           "BeliefPlanResult", "BeliefPlan", "start_covariance", "propagate_belief", "plan_belief",
-           "scenario_inputs"]
+           "BeliefPlanResult", "BeliefPlan", "start_covariance", "propagate_belief", "plan_belief"]
 
 # Keyword names of plan_belief / propagate_belief -> declared parameter names.
 _BELIEF_KEYS = {"speed": "speed", "step": "step", "bearing_std": "bearing_std",
@@ -150,18 +149,3 @@ def plan_belief(map, start, goal, *, sensors, bmm=None, start_cov=None, guide_pa
                       collision_probability=float(prof.collision_probability) if prof else float("nan"),
                       profile=prof, result=res)
 
-
-def scenario_inputs(scenario, path_type: str | None = None, *, source: str = "lanbloc") -> dict:
-    """Keyword arguments for :func:`plan_belief` and :func:`propagate_belief`
-    from a scenario: its planning ``map`` (hazards of risk >= the planner's
-    ``forbidden_risk`` are keep-out areas), ``bmm``, the ``sensors`` of its
-    navigation loop (as :func:`safenav.navigation.make_navigator` builds
-    them), the cruise ``speed`` and the ``vehicle_radius`` and ``margin``."""
-    from .navigation import make_navigator
-    from .planning import map_from_world
-    name = path_type if path_type is not None else scenario.path_types[0].name
-    nav = make_navigator(scenario, scenario.path_polyline(name), source=source, record=False)
-    n = scenario.navigation
-    return {"map": map_from_world(scenario.world, forbidden_risk=scenario.planner.forbidden_risk),
-            "bmm": scenario.bmm_params(), "sensors": nav.sensors, "speed": float(n.cruise_speed),
-            "vehicle_radius": float(n.vehicle_radius), "margin": float(n.clearance_margin)}
