@@ -7,7 +7,8 @@ For each path type it prints:
     the share of stages with a LanBLoc fix in view, the predicted path
     collision probability (Patil et al.) of the vehicle's disc and the union
     bound, and that of a point (the simulator counts a collision when the
-    point vehicle enters an obstacle);
+    point vehicle enters an obstacle), each beside a Monte Carlo of the
+    same linear error model (the reference Patil's estimate approximates);
   * the belief-aware plan (k = 3, the RAw-RRT* path as a guide path in the
     roadmap): planning time (target <= 2 s per path on one core), length,
     sigma profile, collision probability;
@@ -126,7 +127,9 @@ def main() -> None:
               f"({len(prof.sigma)} steps of {inputs['bmm'].dt} s)")
         print(f"    {summary(prof, min_lm)}")
         point = P.propagate_belief(path, **{**inputs, "vehicle_radius": 0.0})
-        print(f"    a point vehicle (the simulator's collision test): P(collision) {point.collision_probability:.2e}")
+        print(f"    Monte Carlo of the same linear error model: {P.collision_monte_carlo(prof, 10000):.2e}; "
+              f"a point vehicle (the simulator's collision test): {point.collision_probability:.2e}, "
+              f"Monte Carlo {P.collision_monte_carlo(point, 10000):.2e}")
         res = P.plan_belief(start=path[0], goal=path[-1], guide_paths=[path], k_sigma=args.k, samples=args.samples,
                             **inputs)
         r = res.result

@@ -232,6 +232,23 @@ def test_collision_probability_bounds_and_monte_carlo(radius):
     assert ub > 1.5 * pc or ub == 1.0, "the conditioned estimate is well inside the union bound"
 
 
+@pytest.mark.parametrize("radius", [0.0, 0.5])
+def test_core_monte_carlo_agrees_with_the_numpy_one(radius):
+    m, bmm, se = corridor_world()
+    prof = P.propagate_belief([[5.0, 20.2], [55.0, 20.2]], sensors=se, map=m, bmm=bmm, vehicle_radius=radius,
+                              margin=0.0, step=0.25)
+    assert prof.vehicle_radius == radius
+    n = 40000
+    core = P.collision_monte_carlo(prof, samples=n, seed=5)
+    ref = monte_carlo(prof, radius, n=n, seed=7)
+    se_ = np.sqrt(2 * ref * (1 - ref) / n)
+    assert abs(core - ref) < 4 * se_ + 1e-3, (core, ref)
+    assert core <= prof.collision_probability * 1.1
+    assert P.collision_monte_carlo(prof, samples=1000, seed=5) == P.collision_monte_carlo(prof, samples=1000, seed=5)
+    with pytest.raises(ValueError, match="samples"):
+        P.collision_monte_carlo(prof, samples=0)
+
+
 def test_single_stage_probability_is_the_gaussian_tail():
     # A path with one short step next to a wall: stage 0 is the exact Gaussian tail.
     m, bmm, se = corridor_world()

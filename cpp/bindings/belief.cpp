@@ -62,7 +62,8 @@ void bind_results(py::module_& m) {
       .def_readonly("marginal_probability", &P::marginal_probability)
       .def_readonly("collision_probability", &P::collision_probability)
       .def_readonly("union_bound", &P::union_bound)
-      .def_readonly("length", &P::length);
+      .def_readonly("length", &P::length)
+      .def_readonly("vehicle_radius", &P::vehicle_radius);
 
   py::enum_<BeliefPlanStatus>(m, "BeliefPlanStatus")
       .value("EXACT", BeliefPlanStatus::Exact)
@@ -94,6 +95,8 @@ void pybind_belief(py::module_& m) {
         py::arg("heading"));
   m.def("propagate_belief", &propagate_belief, py::arg("path"), py::arg("bmm"), py::arg("sensors"), py::arg("map"),
         py::arg("start_cov"), py::arg("settings") = BeliefSettings{}, release_gil());
+  m.def("collision_monte_carlo", &collision_monte_carlo, py::arg("profile"), py::arg("samples") = 10000,
+        py::arg("seed") = 0, release_gil());
   m.def("plan_belief", &plan_belief, py::arg("problem"), py::arg("settings") = BeliefPlannerSettings{},
         release_gil());
 }

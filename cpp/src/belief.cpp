@@ -12,6 +12,7 @@
 #include "declare.hpp"
 #include "errors.hpp"
 #include "filters/checks.hpp"
+#include "rng.hpp"
 #include "safenav/localizer.hpp"
 
 namespace safenav {
@@ -204,8 +205,53 @@ BeliefProfile propagate_belief(const Eigen::Ref<const Points2>& path, const BmmP
     out.clearance[k] = s.clearance;
   }
   out.length = length;
+  out.vehicle_radius = settings.inflation.vehicle_radius;
   collision_probability(model, steps, P, A, out);
   return out;
+}
+
+namespace {
+/// The rows of `m` (N×16) as 4×4 matrices, row-major.
+StateCov at(const RowMatrixX16& m, Eigen::Index k) {
+  StateCov out;
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) out(r, c) = m(k, 4 * r + c);
+  return out;
+}
+/// A square root L (L Lᵀ = S) of a positive semi-definite S, its negative rounding clamped.
+StateCov psd_sqrt(const StateCov& S) {
+  Eigen::SelfAdjointEigenSolver<StateCov> es(0.5 * (S + S.transpose()));
+  return es.eigenvectors() * es.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal();
+}
+}  // namespace
+
+double collision_monte_carlo(const BeliefProfile& prof, int samples, std::uint64_t seed) {
+  if (samples < 1) bad("collision_monte_carlo: samples = " + std::to_string(samples) + ": must be >= 1");
+  const Eigen::Index n = prof.covariance.rows();
+  if (n < 1 || prof.transition.rows() != n || prof.direction.rows() != n || prof.clearance.size() != n)
+    bad("collision_monte_carlo: the profile's arrays differ in length (or are empty)");
+  std::vector<StateCov> A(static_cast<std::size_t>(n)), L(static_cast<std::size_t>(n));
+  L[0] = psd_sqrt(at(prof.covariance, 0));
+  for (Eigen::Index k = 1; k < n; ++k) {
+    A[static_cast<std::size_t>(k - 1)] = at(prof.transition, k - 1);
+    const StateCov& Ak = A[static_cast<std::size_t>(k - 1)];
+    L[static_cast<std::size_t>(k)] = psd_sqrt(at(prof.covariance, k) - Ak * at(prof.covariance, k - 1) * Ak.transpose());
+  }
+  detail::Rng rng(seed);
+  auto draw = [&rng] { return Eigen::Vector4d(rng.normal(), rng.normal(), rng.normal(), rng.normal()); };
+  std::int64_t hits = 0;
+  for (int i = 0; i < samples; ++i) {
+    Eigen::Vector4d e = L[0] * draw();
+    for (Eigen::Index k = 0; k < n; ++k) {
+      if (k > 0) e = A[static_cast<std::size_t>(k - 1)] * e + L[static_cast<std::size_t>(k)] * draw();
+      if (!std::isfinite(prof.clearance[k])) continue;
+      if (prof.direction.row(k).dot(e.head<2>()) > prof.clearance[k] - prof.vehicle_radius) {
+        ++hits;
+        break;
+      }
+    }
+  }
+  return static_cast<double>(hits) / samples;
 }
 
 // ---------------------------------------------------------------------------

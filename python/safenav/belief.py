@@ -40,9 +40,12 @@ BeliefProfile = _core.BeliefProfile
 BeliefPlanStatus = _core.BeliefPlanStatus
 BeliefPlanResult = _core.BeliefPlanResult
 start_covariance = _core.start_covariance
+#: Monte Carlo of the profile's linear error model and half-planes (the reference of Patil's estimate).
+collision_monte_carlo = _core.collision_monte_carlo
 
 __all__ = ["BeliefSettings", "BeliefPlannerSettings", "BeliefProblem", "BeliefProfile", "BeliefPlanStatus",
-           "BeliefPlanResult", "BeliefPlan", "start_covariance", "propagate_belief", "plan_belief"]
+           "BeliefPlanResult", "BeliefPlan", "start_covariance", "collision_monte_carlo", "propagate_belief",
+           "plan_belief"]
 
 # Keyword names of plan_belief / propagate_belief -> declared parameter names.
 _BELIEF_KEYS = {"speed": "speed", "step": "step", "bearing_std": "bearing_std",

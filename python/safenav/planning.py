@@ -156,4 +156,4 @@ def path_safety(path, map: PlanningMap) -> PathSafety:
 
 
 # Belief-aware planning (ours), beside RAw-RRT*: see safenav.belief.
-from .belief import BeliefPlan, BeliefPlanStatus, plan_belief, propagate_belief  # noqa: E402,F401
+from .belief import BeliefPlan, BeliefPlanStatus, collision_monte_carlo, plan_belief, propagate_belief  # noqa: E402,F401

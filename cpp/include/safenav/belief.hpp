@@ -81,6 +81,7 @@ struct BeliefProfile {
   double collision_probability = 0.0;  ///< 1 − Π (1 − p_k)
   double union_bound = 0.0;            ///< min(1, Σ marginal_probability)
   double length = 0.0;                 ///< path length [m]
+  double vehicle_radius = 0.0;         ///< the radius the probabilities were computed for [m]
 };
 
 /// The prior the navigation loop starts from (its Trial::initialize, in
@@ -99,6 +100,13 @@ StateCov start_covariance(const SensorSettings& sensors, const PlanningMap& map,
 BeliefProfile propagate_belief(const Eigen::Ref<const Points2>& path, const BmmParams& bmm,
                                const SensorSettings& sensors, const PlanningMap& map, const StateCov& P0,
                                const BeliefSettings& settings = {});
+
+/// The collision probability of `profile` by Monte Carlo of the same linear
+/// error model (e_0 ~ N(0, P_0), e_{k+1} = A_k e_k + w_k) and the same
+/// half-planes aₖᵀe_k > clearance_k − vehicle_radius: the reference that
+/// Patil et al.'s estimate approximates.  `samples` ≥ 1 trajectories from the
+/// core's generator seeded with `seed`.
+double collision_monte_carlo(const BeliefProfile& profile, int samples, std::uint64_t seed = 0);
 
 // ---------------------------------------------------------------------------
 // The belief planner
