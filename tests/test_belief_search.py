@@ -146,6 +146,18 @@ def test_bad_problem_names_the_value():
         P.plan_belief(m, START, GOAL, sensors=se, guide_paths=[[[0.0, 1.0, 2.0]]])
 
 
+@pytest.mark.parametrize("core_type", [_core.BeliefSettings, _core.BeliefPlannerSettings], ids=lambda t: t.__name__)
+def test_every_declaration_is_complete_and_its_default_in_range(core_type):
+    specs = core_type.params()
+    assert specs and len({s.name for s in specs}) == len(specs)
+    obj = core_type()
+    obj.check_params()  # the member initialisers lie in the declared ranges
+    for s in specs:
+        v = obj.get_param(s.name)
+        assert s.doc and s.hi >= s.lo, s.name
+        assert (s.lo < v if s.lo_open else s.lo <= v) and v <= s.hi, s.name
+
+
 def test_settings_declare_their_parameters():
     names = {p.name for p in _core.BeliefPlannerSettings.params()}
     assert {"k_sigma", "belief.speed", "belief.inflation.vehicle_radius", "max_beliefs"} <= names
