@@ -24,7 +24,9 @@ def plan(m, bmm, se, **kw):
 
 def through_corridor(path):
     """The path runs through the narrow corridor (15 < x < 45 at y < 21.5)."""
-    p = np.asarray(path)
+    v = np.asarray(path)
+    t = np.linspace(0.0, 1.0, 50)[:, None]
+    p = np.concatenate([a + t * (b - a) for a, b in zip(v[:-1], v[1:])])
     mid = (p[:, 0] > 16) & (p[:, 0] < 44)
     return bool(mid.any()) and p[mid, 1].max() < 21.5
 
@@ -61,6 +63,20 @@ def test_a_looser_constraint_takes_the_short_corridor():
     res = plan(m, bmm, se, k_sigma=0.5, guide_paths=[np.array([START, GOAL])])
     assert res.success and through_corridor(res.path)
     assert res.profile.length < 60
+
+
+def test_shortcuts_shorten_and_keep_the_constraint():
+    m, bmm, se = corridor_world()
+    raw = plan(m, bmm, se, shortcut=False)
+    cut = plan(m, bmm, se, shortcut=True)
+    assert raw.success and cut.success
+    assert cut.profile.length < raw.profile.length and len(cut.path) < len(raw.path)
+    assert not through_corridor(cut.path)
+    need = np.asarray(cut.profile.clearance) - RADIUS - MARGIN
+    assert np.all(3.0 * np.asarray(cut.profile.sigma_toward) <= need + 1e-9)
+    # Every shortcut edge is free of the grown obstacles.
+    grown = P.make_map(upper=(60, 40), polygons=[np.asarray(p) for p in m.polygons], clearance=RADIUS + MARGIN)
+    assert P.path_is_free(grown, cut.path)
 
 
 def test_the_cost_is_length_plus_the_sigma_integral():

@@ -285,6 +285,7 @@ const ParamSet<BeliefPlannerSettings>& param_set<BeliefPlannerSettings>() {
           .integer("max_beliefs", SN_REF(S, max_beliefs), closed(1, 1e6), "non-dominated beliefs kept per vertex")
           .real("dominance_tolerance", SN_REF(S, dominance_tolerance), "", closed(0, 1), "relative epsilon of the belief partial order (Bry & Roy)")
           .integer64("max_expansions", SN_REF(S, max_expansions), closed(1, 1e9), "belief expansions before giving up")
+          .flag("shortcut", SN_REF(S, shortcut), "shorten the found path where the chance constraint allows")
           .set;
   return s;
 }

@@ -132,6 +132,55 @@ Roadmap build_roadmap(const BeliefProblem& pb, const BeliefPlannerSettings& st, 
   return g;
 }
 
+/// The chance constraint at one stage: clearance − vehicle_radius − margin ≥
+/// k·σ, with σ = √λ_max first and, only where that fails, σ toward the
+/// nearest obstacle (CC-RRT*'s tightening along the constraint's normal).
+bool feasible(const belief::Model& model, const BeliefPlannerSettings& st, belief::Step& s, const StateCov& P,
+              double sigma) {
+  const double need = s.clearance - st.belief.inflation.clearance();
+  if (!std::isfinite(s.clearance) || st.k_sigma * sigma <= need) return true;
+  return st.k_sigma * model.sigma_toward(s, P) <= need;
+}
+
+/// Steps P along the polyline pts[from..] (each leg's steps built anew);
+/// false at the first stage that breaks the chance constraint.
+bool feasible_along(const belief::Model& model, const BeliefPlannerSettings& st, const std::vector<Vec2>& pts,
+                    std::size_t from, StateCov P) {
+  std::vector<belief::Step> steps;
+  for (std::size_t i = from; i + 1 < pts.size(); ++i) {
+    steps.clear();
+    model.leg(pts[i], pts[i + 1], steps);
+    for (belief::Step& s : steps) {
+      model.step(s, P);
+      if (!feasible(model, st, s, P, position_std(P))) return false;
+    }
+  }
+  return true;
+}
+
+/// Greedy shortcuts of a feasible path: from each vertex in turn, the
+/// farthest later vertex joined by a free segment such that the belief along
+/// it and along the rest of the path still meets the chance constraint.
+std::vector<Vec2> shortcut(std::vector<Vec2> pts, const StateCov& P0, const belief::Model& model,
+                           const ObstacleChecker& free, const BeliefPlannerSettings& st) {
+  StateCov P = P0;  // the belief at pts[i]
+  std::vector<belief::Step> steps;
+  for (std::size_t i = 0; i + 2 < pts.size(); ++i) {
+    for (std::size_t j = pts.size() - 1; j >= i + 2; --j) {
+      if (!free.segment_free(pts[i], pts[j])) continue;
+      std::vector<Vec2> trial{pts[i]};
+      trial.insert(trial.end(), pts.begin() + static_cast<std::ptrdiff_t>(j), pts.end());
+      if (!feasible_along(model, st, trial, 0, P)) continue;
+      pts.erase(pts.begin() + static_cast<std::ptrdiff_t>(i + 1), pts.begin() + static_cast<std::ptrdiff_t>(j));
+      break;
+    }
+    steps.clear();
+    model.leg(pts[i], pts[i + 1], steps);
+    for (belief::Step& s : steps) model.step(s, P);
+  }
+  return pts;
+}
+
 struct Belief {
   int vertex;
   int parent;
@@ -160,11 +209,6 @@ class Search {
   const std::vector<Belief>& beliefs() const { return nodes_; }
 
  private:
-  bool feasible(belief::Step& s, const StateCov& P, double sigma) const {
-    const double need = s.clearance - st_.belief.inflation.clearance();
-    if (!std::isfinite(s.clearance) || st_.k_sigma * sigma <= need) return true;
-    return st_.k_sigma * model_.sigma_toward(s, P) <= need;
-  }
   std::vector<belief::Step>& edge_steps(int e, int from, int to) {
     auto& s = steps_[static_cast<std::size_t>(e)];
     if (!ready_[static_cast<std::size_t>(e)]) {
@@ -230,7 +274,7 @@ int Search::run(BeliefPlanResult& res) {
         model_.step(s, next.P);
         const double sigma = position_std(next.P);
         next.cost += (st_.alpha + st_.sigma_weight * sigma) * s.length;
-        if (!feasible(s, next.P, sigma)) {
+        if (!feasible(model_, st_, s, next.P, sigma)) {
           ok = false;
           break;
         }
@@ -281,15 +325,20 @@ BeliefPlanResult plan_belief(const BeliefProblem& problem, const BeliefPlannerSe
     return done(BeliefPlanStatus::Infeasible, "no roadmap path keeps clearance >= " + num(settings.k_sigma) +
                                                   "*sigma + " + num(settings.belief.inflation.clearance()) + " m");
   }
-  std::vector<int> chain;
-  for (int i = found; i >= 0; i = search.beliefs()[static_cast<std::size_t>(i)].parent) chain.push_back(i);
-  res.path.resize(static_cast<Eigen::Index>(chain.size()), 2);
-  for (std::size_t i = 0; i < chain.size(); ++i)
-    res.path.row(static_cast<Eigen::Index>(i)) =
-        g.v[static_cast<std::size_t>(search.beliefs()[chain[chain.size() - 1 - i]].vertex)].transpose();
-  res.cost = search.beliefs()[static_cast<std::size_t>(found)].cost;
+  std::vector<Vec2> pts;
+  for (int i = found; i >= 0; i = search.beliefs()[static_cast<std::size_t>(i)].parent)
+    pts.push_back(g.v[static_cast<std::size_t>(search.beliefs()[static_cast<std::size_t>(i)].vertex)]);
+  std::reverse(pts.begin(), pts.end());
+  if (settings.shortcut) pts = shortcut(std::move(pts), problem.start_cov, model, free, settings);
+  res.path.resize(static_cast<Eigen::Index>(pts.size()), 2);
+  for (std::size_t i = 0; i < pts.size(); ++i) res.path.row(static_cast<Eigen::Index>(i)) = pts[i].transpose();
   res.profile = propagate_belief(res.path, problem.bmm, problem.sensors, problem.map, problem.start_cov,
                                  settings.belief);
+  // The cost of the returned path, as the search sums it: (α + w_σ·σ_k)·(stage length).
+  res.cost = settings.alpha * res.profile.length;
+  for (Eigen::Index k = 1; k < res.profile.positions.rows(); ++k)
+    res.cost += settings.sigma_weight * res.profile.sigma[k] *
+                (res.profile.positions.row(k) - res.profile.positions.row(k - 1)).norm();
   return done(BeliefPlanStatus::Exact, "found");
 }
 

@@ -130,6 +130,10 @@ struct BeliefPlannerSettings {
   int max_beliefs = 24;        ///< non-dominated beliefs kept per vertex, ≥ 1
   double dominance_tolerance = 1e-3;  ///< relative ε of the partial order (Bry & Roy's ε), ≥ 0
   std::int64_t max_expansions = 200000;  ///< belief expansions before giving up, ≥ 1
+  /// Shorten the found path greedily: from each vertex, the farthest later
+  /// vertex joined by a free segment along which (and after which) the chance
+  /// constraint still holds.
+  bool shortcut = true;
   void validate() const;
 };
 
@@ -161,7 +165,7 @@ struct BeliefPlanResult {
   bool success = false;      ///< status == Exact
   std::string detail;        ///< why, in words
   Points2 path;              ///< N×2, start first (0 rows unless Exact)
-  double cost = 0.0;         ///< α·length + w_σ·∫σ ds
+  double cost = 0.0;         ///< α·length + w_σ·∫σ ds of `path` (after shortcuts)
   BeliefProfile profile;     ///< of `path` (collision probability included)
   int vertices = 0;          ///< roadmap vertices
   int edges = 0;             ///< roadmap edges (undirected)
