@@ -15,6 +15,7 @@ void pybind_geometry(py::module_& m);
 void pybind_corridor(py::module_& m);
 void pybind_world(py::module_& m);
 void pybind_planning(py::module_& m);
+void pybind_belief(py::module_& m);
 void pybind_trilateration(py::module_& m);
 void pybind_stereo(py::module_& m);
 void pybind_placement(py::module_& m);

@@ -21,4 +21,5 @@ PYBIND11_MODULE(_core, m) {
   pybind_placement(m);
   pybind_navigation(m);
   pybind_guidance(m);
+  pybind_belief(m);  // after navigation: it takes SensorSettings
 }

@@ -153,3 +153,7 @@ def path_safety(path, map: PlanningMap) -> PathSafety:
     """Minimum clearance to obstacles (not grown by the clearance), exact length
     inside each hazard and exposure ``sum(risk * length)`` of a polyline."""
     return _core.path_safety(as_array("path", path, (None, 2)), map)
+
+
+# Belief-aware planning (ours), beside RAw-RRT*: see safenav.belief.
+from .belief import BeliefPlan, BeliefPlanStatus, collision_monte_carlo, plan_belief, propagate_belief  # noqa: E402,F401

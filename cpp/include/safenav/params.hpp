@@ -91,6 +91,7 @@ class ParamSet {
 ///   RiskZones, SegmentOptions          cpp/src/corridor.cpp
 ///   PlanningMap, Inflation             cpp/src/world.cpp
 ///   PlannerSettings                    cpp/src/planning.cpp
+///   BeliefSettings, BeliefPlannerSettings  cpp/src/belief.cpp
 ///   GuardSettings                      cpp/src/guard.cpp
 ///   NavigationSettings                 cpp/src/navigation_settings.cpp
 ///   SensorSettings                     cpp/src/navigation.cpp

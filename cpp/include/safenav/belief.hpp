@@ -1,0 +1,187 @@
+// safenav/belief.hpp — belief-aware planning: the localization covariance a
+// path will have, its collision probability, and a planner that keeps the
+// k·σ ellipse clear (ours; the SafeNav papers plan blind to localization).
+//
+// Belief along a path (LQG-MP, van den Berg, Abbeel & Goldberg 2011, §IV–V):
+// the vehicle runs the path at a constant speed; the a-priori covariance is
+// stepped with the filter's own models, each step
+//   predict  P⁻ = F P Fᵀ + G Σ_ε Gᵀ        [SafeNav eq. 11] (Bmm::linearize, Bmm::noise_cov)
+//   update   P  = (I−KH) P⁻ (I−KH)ᵀ + K R Kᵀ [SafeNav eqs. 12–14] (the filters' Joseph-form update)
+// with every measurement the sensors are expected to make at the step's end
+// (the maximum-likelihood observation assumption: the residual is taken as
+// 0, so the covariances do not depend on the unknown measurements).  What is
+// measured follows SensorSettings, as the simulator does: a LanBLoc fix
+// (FixModel::Profile, H = [I₂ 0], R = PositionNoise::reported_cov()) when
+// at least min_landmarks are in view, or one range per landmark in view
+// (FixModel::Ranges, predict_range's Jacobian, σ = range_std) when at least
+// max(3, min_landmarks) are; optionally a bearing per landmark
+// (predict_bearing's Jacobian, σ = bearing_std); the IMU's speed and heading
+// each step.  "In view" is SensorSettings::landmarks_in_view (range, field of
+// view, occlusion by ObstacleChecker::line_of_sight), the simulator's rule.
+// A belief step longer than the BMM's Δt covers n = step/Δt filter steps:
+// Bmm::with_step(step) scales the process noise, and each measurement's R is
+// divided by the number of times it would have been made in the step
+// (n/position_every fixes, n IMU readings; scaled up by 1/(1 − dropout)),
+// which keeps the information rate.  With step = Δt and position_every = 1
+// the recursion is the EKF's, step for step.
+//
+// Collision probability (Patil, van den Berg & Alterovitz, ICRA 2012): the
+// estimation error e_k evolves as e_{k+1} = A_k e_k + w_k with
+// A_k = (I − K H) F = P_{k+1} (P⁻_{k+1})⁻¹ F_k and Cov w_k = P_{k+1} − A_k P_k A_kᵀ.
+// At each stage k the vehicle collides when its error toward the nearest
+// keep-out area exceeds the clearance there less the vehicle's radius:
+// aₖᵀ e_k > b_k, a_k the unit direction of the nearest obstacle,
+// b_k = d_k − vehicle_radius.  p_k is that probability given no collision
+// before (the distribution of e_k truncated at each earlier stage and
+// re-approximated by a Gaussian), and P(collision) = 1 − Π (1 − p_k).  The
+// union bound Σ P(aₖᵀ e_k > b_k) is reported beside it.
+//
+// Belief planner (RRBT, Bry & Roy 2011, on a fixed roadmap): see
+// plan_belief() and docs/belief_planning.md.
+//
+// Only Eigen and std types appear here.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "safenav/motion.hpp"
+#include "safenav/navigation.hpp"
+#include "safenav/world.hpp"
+
+namespace safenav {
+
+/// How the belief is stepped along a path.
+struct BeliefSettings {
+  double speed = 2.0;        ///< speed along the path [m/s] (NavigationSettings::cruise_speed), > 0
+  double step = 0.0;         ///< belief step [s]; 0 = the BMM's Δt (then exact EKF steps)
+  double bearing_std = 0.0;  ///< σ of a bearing to each landmark in view [rad]; 0 = no bearings (the simulator measures none)
+  Inflation inflation;       ///< vehicle radius (collision) and margin (kept beyond it by the planner)
+  void validate() const;     ///< throws std::invalid_argument naming the bad value
+};
+
+/// The belief along a path: one row per stage, row 0 the start.
+struct BeliefProfile {
+  Points2 positions;              ///< nominal positions [m]
+  Eigen::VectorXd headings;       ///< heading of the leg each stage lies on [rad]
+  Eigen::VectorXd time;           ///< [s] since the start
+  RowMatrixX16 covariance;        ///< the a-posteriori P (4×4, row-major) at each stage
+  RowMatrixX4 cov_xy;             ///< its position block (P_xx, P_xy, P_yx, P_yy) [m²]
+  Eigen::VectorXd sigma;          ///< √λ_max of the position block [m]
+  Eigen::VectorXi landmarks;      ///< landmarks in view at each stage
+  RowMatrixX16 transition;        ///< A_k: e_{k+1} = A_k e_k + w_k (row k; the last row is 0)
+  Eigen::VectorXd clearance;      ///< distance to the nearest keep-out area (obstacle, forbidden hazard) [m]; +inf with none
+  Points2 direction;              ///< unit vector toward it (the σ-largest axis where the direction is undefined)
+  Eigen::VectorXd sigma_toward;   ///< √(aᵀ P_xy a) in that direction [m]
+  Eigen::VectorXd stage_probability;  ///< p_k: collision at stage k given none before
+  Eigen::VectorXd marginal_probability;  ///< P(aₖᵀ e_k > b_k), unconditioned
+  double collision_probability = 0.0;  ///< 1 − Π (1 − p_k)
+  double union_bound = 0.0;            ///< min(1, Σ marginal_probability)
+  double length = 0.0;                 ///< path length [m]
+  double vehicle_radius = 0.0;         ///< the radius the probabilities were computed for [m]
+};
+
+/// The prior the navigation loop starts from (its Trial::initialize, in
+/// navigation.cpp) for a vehicle at `start` heading `heading` [rad]: the
+/// fix's reported covariance when a fix is expected there (at least
+/// min_landmarks in view, or a source that needs none), else a start known
+/// to σ = max(1 m, the source's largest σ) in x and y; the IMU's speed and
+/// heading variances.
+StateCov start_covariance(const SensorSettings& sensors, const PlanningMap& map, const Eigen::Vector2d& start,
+                          double heading);
+
+/// The belief and collision probability along `path` (N×2, N ≥ 2, start
+/// first) from the start covariance P0, in `map` (obstacles, forbidden
+/// hazards; the map's clearance plays no part here).  Throws
+/// std::invalid_argument naming a bad input.
+BeliefProfile propagate_belief(const Eigen::Ref<const Points2>& path, const BmmParams& bmm,
+                               const SensorSettings& sensors, const PlanningMap& map, const StateCov& P0,
+                               const BeliefSettings& settings = {});
+
+/// The collision probability of `profile` by Monte Carlo of the same linear
+/// error model (e_0 ~ N(0, P_0), e_{k+1} = A_k e_k + w_k) and the same
+/// half-planes aₖᵀe_k > clearance_k − vehicle_radius: the reference that
+/// Patil et al.'s estimate approximates.  `samples` ≥ 1 trajectories from the
+/// core's generator seeded with `seed`.
+double collision_monte_carlo(const BeliefProfile& profile, int samples, std::uint64_t seed = 0);
+
+// ---------------------------------------------------------------------------
+// The belief planner
+
+/// Belief-aware planner settings.
+struct BeliefPlannerSettings {
+  /// Belief steps of 0.25 s (coarser than the filter's; see the header comment).
+  BeliefSettings belief = [] {
+    BeliefSettings b;
+    b.step = 0.25;
+    return b;
+  }();
+  double k_sigma = 3.0;        ///< k: clearance ≥ k·σ + vehicle_radius + margin at every stage, ≥ 0
+  double alpha = 1.0;          ///< α, weight of the length [1/m], ≥ 0 (as RAw-RRT*'s, eq. 16)
+  double sigma_weight = 0.0;   ///< w_σ: cost += w_σ·∫ σ ds [1/m²], ≥ 0
+  int samples = 600;           ///< roadmap vertices drawn (besides start, goal and guide points), ≥ 0
+  int neighbours = 10;         ///< each vertex is joined to this many nearest ones, ≥ 1
+  double max_edge = 30.0;      ///< longest roadmap edge [m], > 0
+  double guide_spacing = 5.0;  ///< guide paths are cut into pieces of at most this [m], > 0
+  std::uint64_t seed = 0;      ///< roadmap samples
+  int max_beliefs = 24;        ///< non-dominated beliefs kept per vertex, ≥ 1
+  double dominance_tolerance = 1e-3;  ///< relative ε of the partial order (Bry & Roy's ε), ≥ 0
+  std::int64_t max_expansions = 200000;  ///< belief expansions before giving up, ≥ 1
+  /// Shorten the found path greedily: from each vertex, the farthest later
+  /// vertex joined by a free segment along which (and after which) the chance
+  /// constraint still holds.
+  bool shortcut = true;
+  void validate() const;
+};
+
+/// What to plan: the map (obstacles grown by belief.inflation's clearance for
+/// the roadmap's edges), start, goal, the motion model, the sensors, the
+/// start covariance, and optional guide paths (their vertices join the
+/// roadmap with their edges, e.g. a RAw-RRT* path).
+struct BeliefProblem {
+  PlanningMap map;
+  Eigen::Vector2d start = Eigen::Vector2d::Zero();
+  Eigen::Vector2d goal = Eigen::Vector2d::Zero();
+  BmmParams bmm;
+  SensorSettings sensors;
+  StateCov start_cov = StateCov::Identity() * 1e-4;
+  std::vector<Points2> guide_paths;
+  void validate() const;
+};
+
+enum class BeliefPlanStatus {
+  Exact,       ///< a path that meets the chance constraint
+  Infeasible,  ///< the roadmap joins start and goal, but no path meets the chance constraint
+  NoPath,      ///< the roadmap does not join start and goal (or one of them is not free)
+  Budget,      ///< max_expansions ran out
+};
+std::string to_string(BeliefPlanStatus status);
+
+struct BeliefPlanResult {
+  BeliefPlanStatus status = BeliefPlanStatus::NoPath;
+  bool success = false;      ///< status == Exact
+  std::string detail;        ///< why, in words
+  Points2 path;              ///< N×2, start first (0 rows unless Exact)
+  double cost = 0.0;         ///< α·length + w_σ·∫σ ds of `path` (after shortcuts)
+  BeliefProfile profile;     ///< of `path` (collision probability included)
+  int vertices = 0;          ///< roadmap vertices
+  int edges = 0;             ///< roadmap edges (undirected)
+  std::int64_t expansions = 0;  ///< beliefs expanded
+  std::int64_t beliefs = 0;     ///< beliefs created (kept at some time)
+  std::int64_t capped = 0;      ///< beliefs dropped because a vertex held max_beliefs
+  double planning_time = 0.0;   ///< [s]
+};
+
+/// RRBT-style search (Bry & Roy 2011) on a probabilistic roadmap: each
+/// vertex keeps the beliefs (cost, covariance) that no other belief there
+/// dominates (c ≤ c' and P ⪯ P'); edges propagate the covariance as
+/// propagate_belief does; a belief whose stage breaks the chance constraint
+/// clearance − vehicle_radius − margin ≥ k·σ (σ toward the nearest obstacle,
+/// CC-RRT*'s per-constraint tightening) is dropped.  Best-first on cost +
+/// α·‖v − goal‖.
+BeliefPlanResult plan_belief(const BeliefProblem& problem, const BeliefPlannerSettings& settings = {});
+
+}  // namespace safenav

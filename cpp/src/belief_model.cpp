@@ -1,0 +1,162 @@
+// The belief step (safenav/belief.hpp): legs cut into steps, the landmarks
+// expected in view, and the covariance recursion of LQG-MP with the EKF's own
+// predict [SafeNav eq. 11] and Joseph-form update [SafeNav eqs. 12–14].
+#include "belief_model.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "errors.hpp"
+#include "filters/kalman_update.hpp"
+#include "safenav/localizer.hpp"
+
+namespace safenav::belief {
+
+using detail::bad;
+using detail::num;
+
+namespace {
+/// The maximum-likelihood update of P by an M-row measurement with
+/// Jacobian H and noise R: the residual is 0, so only the covariance moves
+/// (the filters' own update, kalman_update.hpp, gate off).
+template <int M>
+void ml_update(StateCov& P, const Eigen::Matrix<double, M, 4>& H, const Eigen::Matrix<double, M, M>& R,
+               MeasurementKind kind) {
+  const State x = State::Zero();
+  const Eigen::Matrix<double, M, 1> y = Eigen::Matrix<double, M, 1>::Zero();
+  Eigen::Matrix<double, 4, M> PHt, unused;
+  StateCov P1;
+  State x1;
+  kalman_update<M>("belief", kind, x, P, y, H, R, [](double, int) { return false; },
+                   KalmanWork{PHt, unused, unused, unused, P1, x1});
+  P = P1;
+}
+
+/// The Jacobian of a measurement model that does not depend on the state
+/// (position, speed and heading), from the model itself.
+Eigen::Matrix<double, 2, 4> constant_jacobian(const MeasurementModel& model) {
+  return model.jacobian(State::Zero());
+}
+}  // namespace
+
+Model::Model(const BmmParams& bmm, const SensorSettings& sensors, const PlanningMap& map,
+             const BeliefSettings& settings)
+    : bmm_(bmm), sensors_(sensors), single_(sensors), checker_(map), settings_(settings) {
+  settings.validate();
+  sensors.validate();
+  map.validate();
+  step_ = settings.step > 0.0 ? settings.step : bmm.dt;
+  single_.landmarks = Landmarks::Zero(1, 2);
+  H_fix_ = constant_jacobian(MeasurementModel::position(Eigen::Matrix2d::Identity()));
+  H_imu_ = constant_jacobian(MeasurementModel::speed_heading(Eigen::Matrix2d::Identity()));
+  R_fix_ = sensors.position.reported_cov();
+  R_imu_ = Eigen::Vector2d(sensors.imu_speed_std * sensors.imu_speed_std,
+                           sensors.imu_heading_std * sensors.imu_heading_std)
+               .asDiagonal();
+}
+
+void Model::observe(Step& s) const {
+  State at = s.x;
+  at.head<2>() = s.end;
+  s.in_view = sensors_.landmarks_in_view(at, &checker_);
+  const bool ranges = sensors_.fix_model == FixModel::Ranges;
+  s.fix = !ranges && (!sensors_.position.needs_landmarks || s.in_view >= sensors_.min_landmarks);
+  s.seen.clear();
+  s.ranges = false;
+  const bool range_fix = ranges && s.in_view >= std::max(3, sensors_.min_landmarks);
+  if (s.in_view == 0 || !(range_fix || settings_.bearing_std > 0.0)) return;
+  // The rows in view, each asked of the one visibility rule in turn.
+  s.ranges = range_fix;
+  SensorSettings& one = single_;
+  for (Eigen::Index i = 0; i < sensors_.landmarks.rows(); ++i) {
+    one.landmarks.row(0) = sensors_.landmarks.row(i);
+    if (one.landmarks_in_view(at, &checker_) == 1) s.seen.push_back(static_cast<int>(i));
+  }
+}
+
+void Model::leg(const Eigen::Vector2d& a, const Eigen::Vector2d& b, std::vector<Step>& out) const {
+  const double L = (b - a).norm();
+  if (!(L > 0.0)) return;
+  const double per_step = settings_.speed * step_;
+  const long n = std::max(1L, static_cast<long>(std::ceil(L / per_step - 1e-9)));
+  if (n > 10'000'000) bad("belief leg of " + num(L) + " m: more than 1e7 steps of " + num(per_step) + " m");
+  const double heading = std::atan2(b.y() - a.y(), b.x() - a.x());
+  for (long j = 0; j < n; ++j) {
+    Step s;
+    const Eigen::Vector2d p = a + (b - a) * (static_cast<double>(j) / static_cast<double>(n));
+    s.x << p.x(), p.y(), settings_.speed, heading;
+    s.end = a + (b - a) * (static_cast<double>(j + 1) / static_cast<double>(n));
+    s.length = L / static_cast<double>(n);
+    s.dt = s.length / settings_.speed;
+    observe(s);
+    s.clearance = clearance_at(s.end);
+    out.push_back(std::move(s));
+  }
+}
+
+void Model::step(const Step& s, StateCov& P, StateCov* Pm, Eigen::Matrix4d* Fout) const {
+  // Eq. 11 about the nominal: P⁻ = F P Fᵀ + G Σ_ε Gᵀ (the BMM over the step's dt).
+  const Bmm bmm = bmm_.with_step(s.dt);
+  const Control u(settings_.speed, 0.0);
+  Eigen::Matrix4d F, G;
+  bmm.linearize(s.x, u, &F, &G);
+  P = F * P * F.transpose() + G * bmm.noise_cov() * G.transpose();
+  P = 0.5 * (P + P.transpose());
+  if (Pm) *Pm = P;
+  if (Fout) *Fout = F;
+  // How many filter steps this belief step stands for: each measurement's
+  // information is that many times one's (R divided by the count).
+  const double n = s.dt / bmm_.params().dt;
+  if (s.fix) {
+    const double fixes = n / sensors_.position_every * (1.0 - sensors_.position.dropout_probability);
+    if (fixes > 0.0) ml_update<2>(P, H_fix_, R_fix_ / fixes, MeasurementKind::Position);
+  }
+  if (!s.seen.empty()) {
+    State at = s.x;
+    at.head<2>() = s.end;
+    const double fixes = n / sensors_.position_every * (1.0 - sensors_.faults.dropout_probability);
+    for (int row : s.seen) {
+      const LandmarkGeometry g = landmark_geometry(at[kX], at[kY], sensors_.landmarks(row, 0), sensors_.landmarks(row, 1));
+      if (!g.defined() || !(fixes > 0.0)) continue;
+      LandmarkJacobian J;
+      Eigen::Matrix<double, 1, 4> H;
+      if (s.ranges) {  // FixModel::Ranges: a range to each landmark in view (eq. 10)
+        predict_range(g, 0.0, 0.0, &J);
+        H << J.x, J.y, 0.0, J.theta;
+        const Eigen::Matrix<double, 1, 1> R(sensors_.range_std * sensors_.range_std / fixes);
+        ml_update<1>(P, H, R, MeasurementKind::Range);
+      }
+      if (settings_.bearing_std > 0.0) {  // a bearing to each landmark in view [Placement §III-A]
+        predict_bearing(g, at[kTheta], &J);
+        H << J.x, J.y, 0.0, J.theta;
+        const Eigen::Matrix<double, 1, 1> R(settings_.bearing_std * settings_.bearing_std / n);
+        ml_update<1>(P, H, R, MeasurementKind::Bearing);
+      }
+    }
+  }
+  if (sensors_.imu) ml_update<2>(P, H_imu_, R_imu_ / n, MeasurementKind::SpeedHeading);
+}
+
+void Model::direction(Step& s) const {
+  if (!std::isnan(s.toward.x())) return;
+  s.toward.setZero();
+  if (!std::isfinite(s.clearance) || s.clearance <= 0.0) return;
+  // The keep-out distance is 1-Lipschitz: its gradient, where defined, is
+  // the unit vector away from the nearest point.  Equidistant walls (a
+  // corridor's middle) give a short difference vector: undefined there.
+  const double h = 1e-4 * std::max(1.0, s.clearance);
+  const Eigen::Vector2d ex(h, 0.0), ey(0.0, h);
+  const Eigen::Vector2d grad((clearance_at(s.end + ex) - clearance_at(s.end - ex)) / (2 * h),
+                             (clearance_at(s.end + ey) - clearance_at(s.end - ey)) / (2 * h));
+  const double g = grad.norm();
+  if (g > 0.5) s.toward = -grad / g;
+}
+
+double Model::sigma_toward(Step& s, const StateCov& P) const {
+  direction(s);
+  if (s.toward.squaredNorm() == 0.0) return position_std(P);
+  const Eigen::Vector2d& a = s.toward;
+  return std::sqrt(std::max(0.0, a.dot(P.topLeftCorner<2, 2>() * a)));
+}
+
+}  // namespace safenav::belief

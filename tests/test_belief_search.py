@@ -1,0 +1,183 @@
+"""The belief-aware roadmap planner (safenav.planning.plan_belief; RRBT-style
+search with a k-sigma chance constraint) beside the paper's RAw-RRT*."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from safenav import _core
+from safenav import planning as P
+from safenav.belief import start_covariance
+
+from test_belief import corridor_world
+
+START, GOAL = (5.0, 20.0), (55.0, 20.0)
+RADIUS, MARGIN = 0.5, 0.25
+P0 = np.diag([1e-4, 1e-4, 2.5e-3, 4e-4])  # a start with a fix (the default heading toward the goal sees none)
+
+
+def plan(m, bmm, se, **kw):
+    args = dict(sensors=se, bmm=bmm, vehicle_radius=RADIUS, margin=MARGIN, seed=3, start_cov=P0)
+    args.update(kw)
+    return P.plan_belief(m, START, GOAL, **args)
+
+
+def through_corridor(path):
+    """The path runs through the narrow corridor (15 < x < 45 at y < 21.5)."""
+    v = np.asarray(path)
+    t = np.linspace(0.0, 1.0, 50)[:, None]
+    p = np.concatenate([a + t * (b - a) for a, b in zip(v[:-1], v[1:])])
+    mid = (p[:, 0] > 16) & (p[:, 0] < 44)
+    return bool(mid.any()) and p[mid, 1].max() < 21.5
+
+
+def test_belief_planner_takes_the_lane_with_landmarks_where_raw_rrt_star_takes_the_blind_corridor():
+    m, bmm, se = corridor_world()
+    # The straight line through the corridor is in the roadmap (a guide path):
+    # the constraint, not the sampling, must turn it down.
+    res = plan(m, bmm, se, k_sigma=3.0, guide_paths=[np.array([START, GOAL])])
+    assert res.success and res.status == P.BeliefPlanStatus.EXACT, res.detail
+    assert not through_corridor(res.path) and np.asarray(res.path)[:, 1].max() > 32
+    assert res.result.planning_time < 2.0
+    prof = res.profile
+    # The chance constraint holds at every stage of the returned path.
+    need = np.asarray(prof.clearance) - RADIUS - MARGIN
+    assert np.all(3.0 * np.asarray(prof.sigma_toward) <= need + 1e-9)
+    assert res.collision_probability < 1e-6
+    np.testing.assert_array_equal(res.sigma, prof.sigma)
+    assert np.isclose(res.result.cost, prof.length)  # alpha = 1, sigma_weight = 0
+
+    # RAw-RRT* (the paper's planner, plain RRT* here: no central path) goes straight through.
+    mc = P.make_map(upper=(60, 40), polygons=[np.asarray(p) for p in m.polygons], clearance=RADIUS + MARGIN)
+    rrt = P.plan(P.PlanningProblem(map=mc, start=START, goal=GOAL), beta=0.0, max_iterations=3000, seed=1)
+    assert rrt.success and through_corridor(rrt.path)
+    blind = P.propagate_belief(rrt.path, sensors=se, map=m, bmm=bmm, vehicle_radius=RADIUS, margin=MARGIN,
+                               step=0.25, start_cov=P0)
+    assert blind.sigma.max() > 1.5 * res.sigma.max()
+    assert blind.collision_probability > 0.05 > res.collision_probability
+    assert np.asarray(blind.landmarks)[np.asarray(blind.positions)[:, 0] > 16].max() == 0
+
+
+def test_a_looser_constraint_takes_the_short_corridor():
+    m, bmm, se = corridor_world()
+    res = plan(m, bmm, se, k_sigma=0.5, guide_paths=[np.array([START, GOAL])])
+    assert res.success and through_corridor(res.path)
+    assert res.profile.length < 60
+
+
+def test_shortcuts_shorten_and_keep_the_constraint():
+    m, bmm, se = corridor_world()
+    raw = plan(m, bmm, se, shortcut=False)
+    cut = plan(m, bmm, se, shortcut=True)
+    assert raw.success and cut.success
+    assert cut.profile.length < raw.profile.length and len(cut.path) < len(raw.path)
+    assert not through_corridor(cut.path)
+    need = np.asarray(cut.profile.clearance) - RADIUS - MARGIN
+    assert np.all(3.0 * np.asarray(cut.profile.sigma_toward) <= need + 1e-9)
+    # Every shortcut edge is free of the grown obstacles.
+    grown = P.make_map(upper=(60, 40), polygons=[np.asarray(p) for p in m.polygons], clearance=RADIUS + MARGIN)
+    assert P.path_is_free(grown, cut.path)
+
+
+def test_the_cost_is_length_plus_the_sigma_integral():
+    m, bmm, se = corridor_world()
+    res = plan(m, bmm, se, k_sigma=3.0, sigma_weight=2.0, alpha=1.5)
+    prof = res.profile
+    seg = np.linalg.norm(np.diff(np.asarray(prof.positions), axis=0), axis=1)
+    expect = 1.5 * prof.length + 2.0 * np.sum(np.asarray(prof.sigma)[1:] * seg)
+    assert np.isclose(res.result.cost, expect, rtol=1e-9)
+
+
+def test_same_seed_same_path_and_guides_join_the_roadmap():
+    m, bmm, se = corridor_world()
+    a, b = plan(m, bmm, se), plan(m, bmm, se)
+    np.testing.assert_array_equal(a.path, b.path)
+    # No samples: the roadmap is start, goal and the guide paths only.
+    lane = np.array([START, (10.0, 36.0), (50.0, 36.0), GOAL])
+    straight = np.array([START, GOAL])
+    res = plan(m, bmm, se, samples=0, guide_paths=[straight, lane])
+    assert res.success, res.detail
+    assert not through_corridor(res.path)
+    res = plan(m, bmm, se, samples=0, guide_paths=[straight])
+    assert res.status == P.BeliefPlanStatus.INFEASIBLE and "3*sigma" in res.detail
+    assert plan(m, bmm, se, samples=0, guide_paths=[straight], k_sigma=0.5).success
+
+
+def test_infeasible_and_unreachable_problems_say_why():
+    m, bmm, se = corridor_world()
+    # The lane closed: only the blind corridor is left.
+    shut = P.make_map(upper=(60, 40), polygons=list(m.polygons) + [np.array([[15.0, 32], [45, 32], [45, 40], [15, 40]])])
+    res = plan(shut, bmm, se)
+    assert not res.success and res.status == P.BeliefPlanStatus.INFEASIBLE
+    assert res.path.shape == (0, 2) and np.isnan(res.collision_probability) and res.profile is None
+    # A start covariance that breaks the constraint at once.
+    res = plan(m, bmm, se, start_cov=np.diag([16.0, 16.0, 0.01, 0.01]))
+    assert res.status == P.BeliefPlanStatus.INFEASIBLE and "start" in res.detail
+    # A goal inside an obstacle; a goal walled in.
+    res = P.plan_belief(m, START, (30.0, 10.0), sensors=se, bmm=bmm)
+    assert res.status == P.BeliefPlanStatus.NO_PATH and "goal" in res.detail
+    box = [np.array([[50.0, 15], [58, 15], [58, 16], [50, 16]]), np.array([[50.0, 24], [58, 24], [58, 25], [50, 25]]),
+           np.array([[50.0, 15], [51, 15], [51, 25], [50, 25]]), np.array([[57.0, 15], [58, 15], [58, 25], [57, 25]])]
+    walled = P.make_map(upper=(60, 40), polygons=list(m.polygons) + box)
+    res = P.plan_belief(walled, START, GOAL, sensors=se, bmm=bmm, vehicle_radius=RADIUS, margin=MARGIN)
+    assert res.status == P.BeliefPlanStatus.NO_PATH and "does not join" in res.detail
+    res = plan(m, bmm, se, max_expansions=3)
+    assert res.status == P.BeliefPlanStatus.BUDGET
+
+
+@pytest.mark.parametrize("kwargs, err, match", [
+    ({"k_sigma": -1.0}, ValueError, "k_sigma"),
+    ({"samples": -5}, ValueError, "samples"),
+    ({"speed": 0.0}, ValueError, "speed"),
+    ({"seed": -1}, ValueError, "seed"),
+    ({"max_beliefs": 0}, ValueError, "max_beliefs"),
+    ({"frobnicate": 1}, TypeError, "frobnicate"),
+])
+def test_bad_settings_name_the_value(kwargs, err, match):
+    m, bmm, se = corridor_world()
+    with pytest.raises(err, match=match):
+        plan(m, bmm, se, **kwargs)
+
+
+def test_the_default_start_covariance_is_the_navigation_loops_prior():
+    m, bmm, se = corridor_world()
+    no_fix = start_covariance(se, m, np.array(START), 0.0)  # heading +x: no landmark in the field of view
+    fix = start_covariance(se, m, np.array(START), np.pi / 2)  # heading +y: the landmarks along the top
+    assert np.allclose(np.diag(no_fix)[:2], 1.0)
+    np.testing.assert_allclose(fix[:2, :2], se.position.reported_cov())
+    assert np.allclose(np.diag(fix)[2:], [se.imu_speed_std ** 2, se.imu_heading_std ** 2])
+    res = P.plan_belief(m, START, GOAL, sensors=se, bmm=bmm, vehicle_radius=RADIUS, margin=MARGIN, seed=3)
+    assert res.success and np.isclose(res.sigma[0], 1.0)
+
+
+def test_bad_problem_names_the_value():
+    m, bmm, se = corridor_world()
+    with pytest.raises(ValueError, match="start"):
+        P.plan_belief(m, (np.nan, 1.0), GOAL, sensors=se)
+    with pytest.raises(ValueError, match="goal"):
+        P.plan_belief(m, START, START, sensors=se)
+    with pytest.raises(ValueError, match="start_cov"):
+        P.plan_belief(m, START, GOAL, sensors=se, start_cov=np.zeros((4, 4)))
+    with pytest.raises(ValueError, match=r"guide_paths\[0\]"):
+        P.plan_belief(m, START, GOAL, sensors=se, guide_paths=[[[0.0, 1.0, 2.0]]])
+
+
+@pytest.mark.parametrize("core_type", [_core.BeliefSettings, _core.BeliefPlannerSettings], ids=lambda t: t.__name__)
+def test_every_declaration_is_complete_and_its_default_in_range(core_type):
+    specs = core_type.params()
+    assert specs and len({s.name for s in specs}) == len(specs)
+    obj = core_type()
+    obj.check_params()  # the member initialisers lie in the declared ranges
+    for s in specs:
+        v = obj.get_param(s.name)
+        assert s.doc and s.hi >= s.lo, s.name
+        assert (s.lo < v if s.lo_open else s.lo <= v) and v <= s.hi, s.name
+
+
+def test_settings_declare_their_parameters():
+    names = {p.name for p in _core.BeliefPlannerSettings.params()}
+    assert {"k_sigma", "belief.speed", "belief.inflation.vehicle_radius", "max_beliefs"} <= names
+    s = _core.BeliefPlannerSettings()
+    assert s.k_sigma == 3.0 and s.belief.step == 0.25
+    with pytest.raises(ValueError, match="k_sigma"):
+        s.set_param("k_sigma", -2.0)
