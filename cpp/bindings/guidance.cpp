@@ -112,6 +112,11 @@ void bind_navigation_settings(py::module_& m) {
       .def_readwrite("planner", &NavigationSettings::planner)
       .def_readwrite("corridor_margin", &NavigationSettings::corridor_margin)
       .def_readwrite("lost_position_std", &NavigationSettings::lost_position_std)
+      .def_readwrite("collision_probability", &NavigationSettings::collision_probability,
+                     "Acceptable probability of a collision per mission; the guard's k follows from it when guard.k = 0.")
+      .def_readwrite("input_timeout", &NavigationSettings::input_timeout,
+                     "A command stops the vehicle while the latest motion input or measurement is older than this [s]; "
+                     "0 = off.")
       .def_readwrite("filter", &NavigationSettings::filter)
       .def_readwrite("guard", &NavigationSettings::guard)
       .def_readwrite("record", &NavigationSettings::record)

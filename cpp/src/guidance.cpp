@@ -287,17 +287,23 @@ struct Guidance::Impl {
   void measured(double t, const InputResult& r) {
     if (r.status != InputStatus::Late && !(t <= t_measured)) t_measured = t;
   }
-  /// The time the motion input (or measurement) stream was last heard from:
-  /// the forwarded input's, else the filter's.
-  double heard(double t_input) const { return std::isfinite(t_input) ? t_input : localizer.time(); }
+  /// A stream not yet heard from counts from the localizer's start: the
+  /// filter's time when guidance first finds it initialized (at an input or a command).
+  void heard_at_start() {
+    if (std::isfinite(t_motion) && std::isfinite(t_measured)) return;
+    if (!localizer.initialized()) return;
+    if (!std::isfinite(t_motion)) t_motion = localizer.time();
+    if (!std::isfinite(t_measured)) t_measured = localizer.time();
+  }
 
   /// The watchdog: true (with c's status StaleInput, control 0) when an input
   /// stream is older than input_timeout at t.
   bool stale(double t, Command& c) {
-    const double motion_age = t - heard(t_motion), measurement_age = t - heard(t_measured);
+    heard_at_start();
+    const double motion_age = t - t_motion, measurement_age = t - t_measured;
     c.input_age = std::max(motion_age, measurement_age);
     const double limit = settings.input_timeout;
-    if (limit == 0.0 || !std::isfinite(limit) || !(c.input_age > limit)) return false;
+    if (limit == 0.0 || !(c.input_age > limit)) return false;
     c.status = GuidanceStatus::StaleInput;
     c.events = kStaleInput;
     c.control = Control(0.0, 0.0);
@@ -403,6 +409,7 @@ Guidance::~Guidance() = default;
 
 InputResult Guidance::motion(double t, const Control& u) {
   Impl& im = *impl_;
+  im.heard_at_start();
   const double t_prev = std::isfinite(im.t_motion) ? im.t_motion : im.localizer.time();
   const InputResult r = im.localizer.motion(t, u);
   im.moved(t, t_prev, u, r);
@@ -411,6 +418,7 @@ InputResult Guidance::motion(double t, const Control& u) {
 
 InputResult Guidance::odometry(double t, double distance, double heading_change) {
   Impl& im = *impl_;
+  im.heard_at_start();
   const double t_prev = std::isfinite(im.t_motion) ? im.t_motion : im.localizer.time();
   const InputResult r = im.localizer.odometry(t, distance, heading_change);
   // The localizer's own reading of odometry: the motion input (Δd / interval, Δθ).
@@ -419,18 +427,21 @@ InputResult Guidance::odometry(double t, double distance, double heading_change)
 }
 
 InputResult Guidance::observe(double t, const LandmarkObservation& obs) {
+  impl_->heard_at_start();
   const InputResult r = impl_->localizer.observe(t, obs);
   impl_->measured(t, r);
   return r;
 }
 
 InputResult Guidance::fix(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R) {
+  impl_->heard_at_start();
   const InputResult r = impl_->localizer.fix(t, z, R);
   impl_->measured(t, r);
   return r;
 }
 
 InputResult Guidance::speed_heading(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R) {
+  impl_->heard_at_start();
   const InputResult r = impl_->localizer.speed_heading(t, z, R);
   impl_->measured(t, r);
   return r;

@@ -193,15 +193,14 @@ class Range:
 
 
 def real(name: str, value, *, lo: float, hi: float, lo_open: bool = False) -> float:
-    """``value`` as a finite float (ints accepted, bools and strings not) in ``[lo, hi]`` (``(lo, hi]``);
-    +inf only where hi is +inf."""
+    """``value`` as a finite float (ints accepted, bools and strings not) in ``[lo, hi]`` (``(lo, hi]``)."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
         fail(name, value, "must be a number")
     try:
         v = float(value)
     except OverflowError:                       # an integer too large for a float
         v = math.inf if value > 0 else -math.inf
-    if not math.isfinite(v) and not v == hi == math.inf:   # an infinite hi admits +inf ("none"), as the core does
+    if not math.isfinite(v):
         fail(name, value, "must be finite")
     if not (lo < v <= hi if lo_open else lo <= v <= hi):
         fail(name, value, f"must be in {interval(lo, hi, lo_open)}")

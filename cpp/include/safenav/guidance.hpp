@@ -146,9 +146,9 @@ class Guidance {
   const Localizer& localizer() const;
   /// The localizer's inputs (see safenav/localizer.hpp).  Guidance notes the
   /// time of each that is not late, for the watchdog (input_timeout), and the
-  /// motion input's rates, for the prediction to a command's time.  Inputs
-  /// given to localizer() directly are not told apart: the watchdog then goes
-  /// by the filter's time.
+  /// motion input's rates, for the prediction to a command's time.  The
+  /// watchdog hears only these: inputs given to localizer() directly do not
+  /// count (a stream never heard from counts from the localizer's start).
   InputResult motion(double t, const Control& u);
   InputResult odometry(double t, double distance, double heading_change);
   InputResult observe(double t, const LandmarkObservation& obs);

@@ -70,7 +70,7 @@ struct NavigationSettings {
   /// The stale-input watchdog (ours; as Nav2's collision monitor's
   /// source_timeout): a command at t stops the vehicle (control 0, the BMM
   /// brakes) when the latest motion input or the latest measurement is older
-  /// than this [s].  0 or +inf: off.
+  /// than this [s].  0: off (scenario files refuse inf in every field).
   double input_timeout = 1.0;
   /// EKF or PF (seed ignored: derived from the trial seed).  The χ² gate is
   /// on (0.99): the papers' loop has none (gate_probability = 0).
