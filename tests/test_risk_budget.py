@@ -68,32 +68,39 @@ def test_bad_exposures_are_refused(n):
 CIRCLES = [(20.0, 6.0, 1.0), (45.0, -4.0, 2.0), (70.0, 30.0, 3.0)]
 
 
-def _brute_exposures(path_end, reach, step):
+def _brute_near_steps(path_end, reach, step):
     s = np.arange(0.0, path_end + 1e-12, step)
     pts = np.c_[s, np.zeros_like(s)]
     d = np.min([np.hypot(pts[:, 0] - cx, pts[:, 1] - cy) - r for cx, cy, r in CIRCLES], axis=0)
-    return max(1, int(np.count_nonzero(d <= reach)))
+    return int(np.count_nonzero(d <= reach))
 
 
 @pytest.mark.parametrize("reach, step", [(8.25, 0.1), (3.0, 0.1), (5.0, 0.37), (2.5, 0.1)])
 def test_exposures_count_the_steps_near_an_obstacle(reach, step):
     corridor = _core.Corridor(np.array([(0.0, 0.0), (100.0, 0.0)]), _core.RiskZones())
     checker = _core.ObstacleChecker(P.make_map(lower=(-20, -40), upper=(120, 40), circles=CIRCLES))
-    n = _core.path_exposures(corridor, checker, reach, step)
-    # The walk skips open ground in whole steps; the arc length accumulates in
-    # floating point, so a sample may fall on the other side of the reach.
-    assert abs(n - _brute_exposures(100.0, reach, step)) <= 1
-    assert n > 1
+    near = _brute_near_steps(100.0, reach, step)
+    assert near > 1
+    # One exposure per step: the steps near an obstacle.  The walk skips open ground in
+    # whole steps; the arc length accumulates in floating point, so a sample may fall on
+    # the other side of the reach.
+    assert abs(_core.path_exposures(corridor, checker, reach, step, step) - near) <= 1
+    # One exposure per exposure_length: that near arc length over it, rounded up.
+    for length in (2.0, 7.5):
+        n = _core.path_exposures(corridor, checker, reach, length, step)
+        assert math.ceil((near - 1) * step / length - 1e-9) <= n <= math.ceil((near + 1) * step / length)
 
 
 def test_a_path_far_from_everything_has_one_exposure():
     corridor = _core.Corridor(np.array([(0.0, 0.0), (100.0, 0.0)]), _core.RiskZones())
     checker = _core.ObstacleChecker(P.make_map(lower=(-20, -40), upper=(120, 40), circles=[(50.0, 35.0, 1.0)]))
-    assert _core.path_exposures(corridor, checker, 8.25, 0.1) == 1.0
-    with pytest.raises(ValueError, match="step_length"):
-        _core.path_exposures(corridor, checker, 8.25, 0.0)
+    assert _core.path_exposures(corridor, checker, 8.25, 2.0, 0.1) == 1.0
+    with pytest.raises(ValueError, match="step"):
+        _core.path_exposures(corridor, checker, 8.25, 2.0, 0.0)
+    with pytest.raises(ValueError, match="exposure_length"):
+        _core.path_exposures(corridor, checker, 8.25, 0.05, 0.1)
     with pytest.raises(ValueError, match="reach"):
-        _core.path_exposures(corridor, checker, math.nan, 0.1)
+        _core.path_exposures(corridor, checker, math.nan, 2.0, 0.1)
 
 
 def _guidance(k=0.0, eps=1e-4):
@@ -110,10 +117,12 @@ def _guidance(k=0.0, eps=1e-4):
 
 def test_guidance_takes_k_from_the_budget_and_the_path_unless_k_is_given():
     g, p, s = _guidance()
-    # N: steps of v·Δt at cruise speed where an obstacle lies within the corridor limit plus the buffer.
+    # N: the arc length within the corridor limit plus the buffer of an obstacle, in steps of v·Δt,
+    # per guard horizon at cruise speed (2 m/s · 1 s).
     reach = p.zones.half_width + s.corridor_margin + s.guard.buffer
     assert g.guard_exposures == _core.path_exposures(_core.Corridor(p.path, p.zones),
-                                                     _core.ObstacleChecker(p.map), reach, 2.0 * 0.05)
+                                                     _core.ObstacleChecker(p.map), reach, 2.0 * 1.0, 2.0 * 0.05)
+    assert g.guard_exposures == math.ceil(_brute_near_steps(100.0, reach, 0.1) * 0.1 / 2.0 - 1e-9)
     assert g.guard_k == pytest.approx(norm.isf(1e-4 / g.guard_exposures), rel=1e-12)
     assert g.settings.guard.k == g.guard_k                       # the settings carry the k in use
     assert g.fresh(3).guard_k == g.guard_k
@@ -140,7 +149,7 @@ def test_the_scenario_budget_reaches_the_guidance():
     safe = nv.plan_safe_path(sc, "P3").path
     g = gd.make_guidance(sc, safe)
     assert g.guard_k == pytest.approx(norm.isf(1e-4 / g.guard_exposures), rel=1e-12)
-    assert 1 < g.guard_exposures and 3.72 < g.guard_k < 6.0
+    assert 1 < g.guard_exposures and 3.72 < g.guard_k < 5.5
     loose = gd.make_guidance(replace(sc, navigation=replace(sc.navigation, collision_probability=1e-2)), safe)
     assert loose.guard_exposures == g.guard_exposures and loose.guard_k < g.guard_k
     fixed = gd.make_guidance(replace(sc, navigation=replace(sc.navigation, guard_k=3.0)), safe)

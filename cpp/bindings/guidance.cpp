@@ -163,9 +163,9 @@ void pybind_guidance_settings(py::module_& m) {
         "The guard's k for a mission's collision-risk budget eps over N exposures: k = Phi^-1(1 - eps/N) "
         "(a union bound of N one-sided Gaussian tails; docs/safety.md).");
   m.def("path_exposures", &path_exposures, py::arg("path"), py::arg("obstacles"), py::arg("reach"),
-        py::arg("step_length"),
-        "N: the steps of step_length metres along the path (a Corridor) where an obstacle of `obstacles` lies "
-        "within `reach`, at least 1 (docs/safety.md).");
+        py::arg("exposure_length"), py::arg("step"),
+        "N: the arc length of the path (a Corridor) within `reach` of an obstacle of `obstacles`, measured in "
+        "steps of `step` metres, per `exposure_length` metres, rounded up, at least 1 (docs/safety.md).");
   bind_navigation_settings(m);
   bind_method_controls(m);
 }

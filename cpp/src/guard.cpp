@@ -46,26 +46,29 @@ double guard_k_for_risk(double collision_probability, double exposures) {
   return boost::math::quantile(boost::math::complement(boost::math::normal_distribution<double>(), eps / exposures));
 }
 
-double path_exposures(const Corridor& path, const ObstacleChecker& obstacles, double reach, double step_length) {
-  if (!(step_length > 0.0) || !std::isfinite(step_length))
-    detail::bad("step_length = " + detail::num(step_length) + ": must be finite and > 0");
+double path_exposures(const Corridor& path, const ObstacleChecker& obstacles, double reach, double exposure_length,
+                      double step) {
+  if (!(step > 0.0) || !std::isfinite(step)) detail::bad("step = " + detail::num(step) + ": must be finite and > 0");
+  if (!(exposure_length >= step) || !std::isfinite(exposure_length))
+    detail::bad("exposure_length = " + detail::num(exposure_length) + ": must be finite and >= step = " +
+                detail::num(step));
   if (!(reach >= 0.0) || !std::isfinite(reach)) detail::bad("reach = " + detail::num(reach) + ": must be finite and >= 0");
-  // Walk the path in steps of step_length; a point at keep-out distance d > reach
-  // lets the walk skip d − reach metres of arc (every point within them is
-  // still farther than reach), so open ground costs few queries.
+  // Walk the path in steps; a point at keep-out distance d > reach lets the
+  // walk skip d − reach metres of arc (every point within them is still
+  // farther than reach), so open ground costs few queries.
   const double length = path.length();
-  double n = 0.0;  // the steps near an obstacle
+  double near = 0.0;  // the steps within reach of an obstacle
   for (double s = 0.0; s <= length;) {
     const Eigen::Vector2d p = path.point_at(s);
     const double d = obstacles.keep_out_distance(p, p);
     if (d <= reach) {
-      n += 1.0;
-      s += step_length;
+      near += 1.0;
+      s += step;
     } else {
-      s += std::max(step_length, std::floor((d - reach) / step_length) * step_length);
+      s += std::max(step, std::floor((d - reach) / step) * step);
     }
   }
-  return std::max(1.0, n);
+  return std::max(1.0, std::ceil(near * step / exposure_length - 1e-9));
 }
 
 /// Clearance of the segment a–b (a = the estimate) to obstacles and

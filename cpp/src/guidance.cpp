@@ -158,13 +158,16 @@ struct GuidanceShared {
   }
 
   /// The guard's k from the risk budget (docs/safety.md): N exposures of the
-  /// safe path — control steps at cruise speed (v·Δt/(1+τ) metres each) where
-  /// an obstacle lies within the corridor limit plus the buffer — and, unless
-  /// a k > 0 was given, k = Φ⁻¹(1 − ε/N).
+  /// safe path — the arc length where an obstacle lies within the corridor
+  /// limit plus the buffer, per guard horizon travelled at cruise speed
+  /// (measured in control steps of v·Δt/(1+τ) metres) — and, unless a k > 0
+  /// was given, k = Φ⁻¹(1 − ε/N).
   void resolve_guard_k() {
     const double reach = problem.zones.half_width + settings.corridor_margin + settings.guard.buffer;
     const double step = settings.cruise_speed * bmm.params().dt * bmm.params().terrain_factor();
-    exposures = path_exposures(safe->corridor(), collisions, reach, step);
+    const double exposure_length = std::max(step, settings.cruise_speed * settings.guard.horizon *
+                                                      bmm.params().terrain_factor());
+    exposures = path_exposures(safe->corridor(), collisions, reach, exposure_length, step);
     if (settings.guard.k == 0.0) settings.guard.k = guard_k_for_risk(settings.collision_probability, exposures);
   }
 

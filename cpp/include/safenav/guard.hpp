@@ -86,15 +86,17 @@ struct GuardSettings {
 /// and N ≥ 1 (finite).  Negative for ε/N > 0.5.
 double guard_k_for_risk(double collision_probability, double exposures);
 
-/// The exposures N of a mission along `path` (docs/safety.md): the control
-/// steps, each of `step_length` metres (the cruise speed's distance per BMM
-/// step), that the path spends where an obstacle or forbidden hazard of
+/// The exposures N of a mission along `path` (docs/safety.md, "The guard's
+/// k"): the arc length of the path where an obstacle or forbidden hazard of
 /// `obstacles` lies within `reach` of it (the vehicle's largest deviation
-/// from the path plus the guard's buffer), at least 1.  Each step is one
-/// exposure: the union bound needs no independence between them, so the
-/// count is conservative for any correlation of the estimate's error.
-/// Throws std::invalid_argument unless step_length > 0 and reach ≥ 0 (finite).
-double path_exposures(const Corridor& path, const ObstacleChecker& obstacles, double reach, double step_length);
+/// from the path plus the guard's buffer), measured in steps of `step`
+/// metres (the distance of one control step), divided by `exposure_length`
+/// (the distance over which the estimate's error is taken to decorrelate:
+/// the guard's horizon at cruise speed), rounded up, at least 1.
+/// Throws std::invalid_argument unless 0 < step ≤ exposure_length and
+/// reach ≥ 0 (all finite).
+double path_exposures(const Corridor& path, const ObstacleChecker& obstacles, double reach, double exposure_length,
+                      double step);
 
 /// What the guard did with a control.
 enum class GuardAction {
