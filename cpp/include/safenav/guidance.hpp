@@ -15,7 +15,8 @@
 //
 // Built once: the path's corridor, segment hulls and centroids, the obstacle
 // checker and the localizer.  A command allocates nothing unless it plans a
-// detour.  Only Eigen and std types appear here.
+// detour or predicts past the localizer's time (the EKF copy checks the
+// covariance it is given).  Only Eigen and std types appear here.
 #pragma once
 
 #include <cstdint>
