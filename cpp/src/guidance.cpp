@@ -410,6 +410,11 @@ Guidance Guidance::planned(const PlanningProblem& planning, const PlannerSetting
 
 Guidance::~Guidance() = default;
 
+Guidance::Guidance(Guidance&&) noexcept = default;
+Guidance& Guidance::operator=(Guidance&&) noexcept = default;
+
+// The inputs, forwarded to the localizer and noted for the watchdog and the prediction.
+
 InputResult Guidance::motion(double t, const Control& u) {
   Impl& im = *impl_;
   im.heard_at_start();
@@ -449,8 +454,6 @@ InputResult Guidance::speed_heading(double t, const Eigen::Vector2d& z, const Ei
   impl_->measured(t, r);
   return r;
 }
-Guidance::Guidance(Guidance&&) noexcept = default;
-Guidance& Guidance::operator=(Guidance&&) noexcept = default;
 
 Localizer& Guidance::localizer() { return impl_->localizer; }
 const Localizer& Guidance::localizer() const { return impl_->localizer; }
