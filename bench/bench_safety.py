@@ -151,6 +151,8 @@ def run_cell(c: Cell) -> dict:
         faults=float(np.mean(np.asarray(d["outliers"]) + np.asarray(d["misassociated"]))),
         faults_through=float(np.mean(d["faults_through"])),
         resets=float(np.mean(d["resets"])),
+        guard_k=float(navigator.settings.guard.k) if navigator.settings.guard.enabled else np.nan,
+        stale_input=float(np.mean(d["stale_input"])),
         time_ms=wall * 1e3,
         time_per_step_us=float(np.median(us_step)) if us_step.size else np.nan,
     )
@@ -171,7 +173,9 @@ def cell_table(rows: pd.DataFrame) -> str:
         "NEES": rows.nees.map("{:.3g}".format), "out3s": rows.outside_3sigma.map("{:.3f}".format),
         "guard/tr": rows.guard_events.map("{:.1f}".format), "rej/tr": rows.rejected.map("{:.1f}".format),
         "faults/tr": rows.faults.map("{:.1f}".format), "through/tr": rows.faults_through.map("{:.2f}".format),
-        "resets/tr": rows.resets.map("{:.2f}".format), "wall_s": (rows.time_ms / 1e3).map("{:.1f}".format),
+        "resets/tr": rows.resets.map("{:.2f}".format),
+        "k": rows.guard_k.map(lambda v: "-" if np.isnan(v) else f"{v:.2f}"),
+        "stale/tr": rows.stale_input.map("{:.2f}".format), "wall_s": (rows.time_ms / 1e3).map("{:.1f}".format),
         "us/step": rows.time_per_step_us.map("{:.1f}".format),
     })
     return show.to_string(index=False)
@@ -189,11 +193,20 @@ def main() -> None:
     ap.add_argument("--weights", type=float, nargs="+", default=[5.0, 10.0, 20.0], help="hazard weights beta_h")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", type=Path, default=None, help="write the per-cell and planning tables (CSV) here")
+    ap.add_argument("--guard-k", type=float, default=None,
+                    help="our loop's guard k (default: the scenario's, 0 = from navigation.collision_probability)")
+    ap.add_argument("--collision-probability", type=float, default=None,
+                    help="our loop's risk budget per mission (default: the scenario's, 1e-4)")
     args = ap.parse_args()
     trials = args.trials or (100 if args.quick else 1000)
     t_all = time.perf_counter()
 
     scenarios = worlds(args.quick, args.worlds)
+    budget = {k: v for k, v in (("guard_k", args.guard_k), ("collision_probability", args.collision_probability))
+              if v is not None}
+    if budget:
+        scenarios = {w: dataclasses.replace(sc, navigation=dataclasses.replace(sc.navigation, **budget))
+                     for w, sc in scenarios.items()}
     print(f"worlds: {', '.join(scenarios)}; {trials} trials per cell; methods {', '.join(METHODS)}; "
           f"loops paper (guard off, gate off) / ours (guard on, gate {default_scenario().navigation.gate_probability}); "
           f"faulty = {FAULTS}; {args.workers} workers")

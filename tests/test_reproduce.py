@@ -125,9 +125,14 @@ def test_camera_variant_runs_the_vision_pipeline_on_the_same_trials(run_all):
     assert set(raw["source"]) == {"lanbloc", "lanbloc-camera"}
     meas, cam = raw[raw["source"] == "lanbloc"], raw[raw["source"] == "lanbloc-camera"]
     assert list(meas["seed"]) == list(cam["seed"])          # paired: the same trials
-    # the camera made fixes; with occlusion and a frame only every 30 steps, one trial may see no
-    # three whole markers at once in any of its frames
-    assert cam["position_fixes"].sum() > 0 and (cam["position_fixes"] > 0).sum() >= len(cam) - 1
+    # the camera made fixes; with occlusion and a frame only every 30 steps, a trial may see no three
+    # whole markers at once in any of its frames.  P1 starts out of sight of every landmark with
+    # sigma = 1 m: the guard (k = 4.6 from the risk budget) holds there, turning toward landmarks that
+    # the camera may never show whole; such a trial ends at the step limit, never in a collision.
+    blind = cam[cam["position_fixes"] == 0]
+    assert cam["position_fixes"].sum() > 0
+    assert (blind["path_type"] == "P1").sum() >= len(blind) - 1
+    assert not (blind["outcome"] == "collision").any()
     # the camera's fixes are not the measurement-level ones
     assert not np.allclose(meas["truth_ade"].to_numpy(), cam["truth_ade"].to_numpy())
 

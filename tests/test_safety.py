@@ -105,7 +105,9 @@ def _guidance(obstacle, *, sigma):
     p.bmm = BmmParams()
     s = _core.NavigationSettings()
     s.replan = False
+    s.guard.k = 3.0                                 # explicit: the numbers below are for k = 3
     g = gd.Guidance(p, s, gd.localizer_settings(), GAP_LANDMARKS, list(range(len(GAP_LANDMARKS))), 0)
+    assert g.guard_k == 3.0
     g.localizer.initialize(0.0, np.array([20.0, 0.0, 2.0, 0.0]), np.diag([sigma ** 2, sigma ** 2, 0.01, 0.001]))
     return g
 
@@ -137,6 +139,7 @@ def test_the_guard_holds_and_looks_at_landmarks_when_no_way_is_clear():
     p.bmm = BmmParams()
     s = _core.NavigationSettings()
     s.replan = False
+    s.guard.k = 3.0
     marks = np.array([(20.0, 25.0), (22.0, 26.0), (18.0, 27.0)])   # to the left, in look range
     g = gd.Guidance(p, s, gd.localizer_settings(), marks, [0, 1, 2], 0)
     g.localizer.initialize(0.0, np.array([20.0, 0.0, 0.0, 0.0]), np.diag([1.0, 1.0, 0.01, 0.001]))
@@ -148,9 +151,9 @@ def test_the_guard_holds_and_looks_at_landmarks_when_no_way_is_clear():
 def test_bad_guard_settings_name_the_value():
     s = _core.NavigationSettings()
     s.guard.k = -1.0
-    with pytest.raises(ValueError, match=r"settings.guard_k = -1: must be in \(0, 100\]"):   # the scenario's name
+    with pytest.raises(ValueError, match=r"settings.guard_k = -1: must be in \[0, 100\]"):   # the scenario's name
         s.validate()
-    with pytest.raises(ValueError, match=r"settings.guard.k = -1: must be in \(0, 100\]"):
+    with pytest.raises(ValueError, match=r"settings.guard.k = -1: must be in \[0, 100\]"):
         s.guard.validate()
     s = _core.NavigationSettings()
     s.guard.min_speed_fraction = 0.0

@@ -112,6 +112,11 @@ void bind_navigation_settings(py::module_& m) {
       .def_readwrite("planner", &NavigationSettings::planner)
       .def_readwrite("corridor_margin", &NavigationSettings::corridor_margin)
       .def_readwrite("lost_position_std", &NavigationSettings::lost_position_std)
+      .def_readwrite("collision_probability", &NavigationSettings::collision_probability,
+                     "Acceptable probability of a collision per mission; the guard's k follows from it when guard.k = 0.")
+      .def_readwrite("input_timeout", &NavigationSettings::input_timeout,
+                     "A command stops the vehicle while the latest motion input or measurement is older than this [s]; "
+                     "0 = off.")
       .def_readwrite("filter", &NavigationSettings::filter)
       .def_readwrite("guard", &NavigationSettings::guard)
       .def_readwrite("record", &NavigationSettings::record)
@@ -154,6 +159,13 @@ void pybind_guidance_settings(py::module_& m) {
       .def("validate", &NavigationProblem::validate);
 
   bind_guard_settings(m);
+  m.def("guard_k_for_risk", &guard_k_for_risk, py::arg("collision_probability"), py::arg("exposures"),
+        "The guard's k for a mission's collision-risk budget eps over N exposures: k = Phi^-1(1 - eps/N) "
+        "(a union bound of N one-sided Gaussian tails; docs/safety.md).");
+  m.def("path_exposures", &path_exposures, py::arg("path"), py::arg("obstacles"), py::arg("reach"),
+        py::arg("exposure_length"), py::arg("step"),
+        "N: the arc length of the path (a Corridor) within `reach` of an obstacle of `obstacles`, measured in "
+        "steps of `step` metres, per `exposure_length` metres, rounded up, at least 1 (docs/safety.md).");
   bind_navigation_settings(m);
   bind_method_controls(m);
 }
@@ -198,7 +210,8 @@ void bind_guidance(py::module_& m) {
       .value("GUIDING", GuidanceStatus::Guiding)
       .value("ARRIVED", GuidanceStatus::Arrived)
       .value("NO_PATH", GuidanceStatus::NoPath)
-      .value("LOST_LOCALIZATION", GuidanceStatus::LostLocalization);
+      .value("LOST_LOCALIZATION", GuidanceStatus::LostLocalization)
+      .value("STALE_INPUT", GuidanceStatus::StaleInput);
   m.attr("EVENT_DETOUR_PLANNED") = static_cast<unsigned>(kDetourPlanned);
   m.attr("EVENT_PATH_SPLICED") = static_cast<unsigned>(kPathSpliced);
   m.attr("EVENT_NO_PATH") = static_cast<unsigned>(kNoPath);
@@ -207,6 +220,7 @@ void bind_guidance(py::module_& m) {
   m.attr("EVENT_GUARD_SLOW") = static_cast<unsigned>(kGuardSlow);
   m.attr("EVENT_GUARD_STEER") = static_cast<unsigned>(kGuardSteer);
   m.attr("EVENT_GUARD_HOLD") = static_cast<unsigned>(kGuardHold);
+  m.attr("EVENT_STALE_INPUT") = static_cast<unsigned>(kStaleInput);
 
   py::class_<Command>(m, "Command")
       .def_property_readonly("speed", [](const Command& c) { return c.control[0]; })
@@ -220,6 +234,8 @@ void bind_guidance(py::module_& m) {
       .def_readonly("predicted", &Command::predicted)
       .def_readonly("clearance", &Command::clearance)
       .def_readonly("guard_margin", &Command::guard_margin)
+      .def_readonly("input_age", &Command::input_age,
+                    "t minus the older of the latest motion input's and measurement's times [s] (the watchdog's).")
       .def("__repr__", [](const Command& c) {
         return "Command(speed=" + std::to_string(c.control[0]) + ", heading_change=" + std::to_string(c.control[1]) +
                ", status=" + to_string(c.status) + ", events=" + std::to_string(c.events) +
@@ -248,7 +264,11 @@ void bind_guidance(py::module_& m) {
       .def_property_readonly("commands", &Guidance::commands)
       .def_property_readonly("detail", &Guidance::detail)
       .def_property_readonly("problem", &Guidance::problem)
-      .def_property_readonly("settings", &Guidance::settings);
+      .def_property_readonly("settings", &Guidance::settings)
+      .def_property_readonly("guard_k", &Guidance::guard_k,
+                             "The guard's k in use: the one given, or the risk budget's (guard_k_for_risk).")
+      .def_property_readonly("guard_exposures", &Guidance::guard_exposures,
+                             "N, the exposures of the safe path (path_exposures) behind the risk budget's k.");
   def_inputs<Guidance>(g);
 }
 

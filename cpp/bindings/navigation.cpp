@@ -49,6 +49,7 @@ constexpr CountField kCounts[] = {
     {"guard_slow", &TrialResult::guard_slow},
     {"guard_steer", &TrialResult::guard_steer},
     {"guard_hold", &TrialResult::guard_hold},
+    {"stale_input", &TrialResult::stale_input},
 };
 
 py::dict metrics_dict(const TrialMetrics& m) {
@@ -142,6 +143,7 @@ void bind_trial_result(py::module_& m) {
       .def_readonly("guard_slow", &TrialResult::guard_slow)
       .def_readonly("guard_steer", &TrialResult::guard_steer)
       .def_readonly("guard_hold", &TrialResult::guard_hold)
+      .def_readonly("stale_input", &TrialResult::stale_input)
       .def_readonly("wall_time", &TrialResult::wall_time)
       .def_property_readonly("metrics", [](const TrialResult& r) { return metrics_dict(r.metrics); })
       .def_readonly("truth", &TrialResult::truth)

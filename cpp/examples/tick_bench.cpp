@@ -198,19 +198,20 @@ int main(int argc, char** argv) {
     auto t1 = Clock::now();
     gui_allocs += g_allocs.load() - a0;
     gui_ns.push_back(std::chrono::duration<double, std::nano>(t1 - t0).count() / static_cast<double>(ticks));
-    // command() alone, on a fixed estimate.
-    for (long j = 0; j < warm; ++j) g2.command(j * w.dt());
+    // command() alone, on a fixed estimate, at its time (later, guidance would
+    // predict the estimate to the command's time, and after input_timeout stop).
+    for (long j = 0; j < warm; ++j) g2.command(0.0);
     a0 = g_allocs.load();
     t0 = Clock::now();
-    for (long j = 0; j < ticks; ++j) events |= g2.command(j * w.dt()).events;
+    for (long j = 0; j < ticks; ++j) events |= g2.command(0.0).events;
     t1 = Clock::now();
     cmd_allocs += g_allocs.load() - a0;
     cmd_ns.push_back(std::chrono::duration<double, std::nano>(t1 - t0).count() / static_cast<double>(ticks));
     // command() with the obstacle check on.
-    for (long j = 0; j < warm; ++j) g3.command(j * w.dt());
+    for (long j = 0; j < warm; ++j) g3.command(0.0);
     a0 = g_allocs.load();
     t0 = Clock::now();
-    for (long j = 0; j < ticks; ++j) events |= g3.command(j * w.dt()).events;
+    for (long j = 0; j < ticks; ++j) events |= g3.command(0.0).events;
     t1 = Clock::now();
     chk_allocs += g_allocs.load() - a0;
     chk_ns.push_back(std::chrono::duration<double, std::nano>(t1 - t0).count() / static_cast<double>(ticks));

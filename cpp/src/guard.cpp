@@ -5,7 +5,10 @@
 #include <cmath>
 #include <string>
 
+#include <boost/math/distributions/normal.hpp>
+
 #include "declare.hpp"
+#include "errors.hpp"
 
 namespace safenav {
 
@@ -24,7 +27,49 @@ void GuardSettings::validate() const { param_set<GuardSettings>().check(*this, "
 
 Guard::Guard(const GuardSettings& settings, const Bmm& bmm, const ObstacleChecker& obstacles,
              const Points2& landmarks, double corridor_limit)
-    : settings_(settings), bmm_(bmm), obstacles_(obstacles), landmarks_(landmarks), corridor_limit_(corridor_limit) {}
+    : settings_(settings), bmm_(bmm), obstacles_(obstacles), landmarks_(landmarks), corridor_limit_(corridor_limit) {
+  if (!(settings.k > 0.0))
+    detail::bad("Guard: settings.guard.k = " + detail::num(settings.k) +
+                ": must be > 0 (k = 0 is resolved from collision_probability by Guidance: guard_k_for_risk)");
+}
+
+// ---------------------------------------------------------------------------
+// The risk budget (docs/safety.md, "The guard's k")
+
+double guard_k_for_risk(double collision_probability, double exposures) {
+  const double eps = collision_probability;
+  if (!(eps > 0.0 && eps < 1.0))
+    detail::bad("collision_probability = " + detail::num(eps) + ": must be in (0, 1)");
+  if (!(exposures >= 1.0) || !std::isfinite(exposures))
+    detail::bad("exposures = " + detail::num(exposures) + ": must be finite and >= 1");
+  // k = Q⁻¹(ε/N) = Φ⁻¹(1 − ε/N), from the complement: exact for tiny ε/N.
+  return boost::math::quantile(boost::math::complement(boost::math::normal_distribution<double>(), eps / exposures));
+}
+
+double path_exposures(const Corridor& path, const ObstacleChecker& obstacles, double reach, double exposure_length,
+                      double step) {
+  if (!(step > 0.0) || !std::isfinite(step)) detail::bad("step = " + detail::num(step) + ": must be finite and > 0");
+  if (!(exposure_length >= step) || !std::isfinite(exposure_length))
+    detail::bad("exposure_length = " + detail::num(exposure_length) + ": must be finite and >= step = " +
+                detail::num(step));
+  if (!(reach >= 0.0) || !std::isfinite(reach)) detail::bad("reach = " + detail::num(reach) + ": must be finite and >= 0");
+  // Walk the path in steps; a point at keep-out distance d > reach lets the
+  // walk skip d − reach metres of arc (every point within them is still
+  // farther than reach), so open ground costs few queries.
+  const double length = path.length();
+  double near = 0.0;  // the steps within reach of an obstacle
+  for (double s = 0.0; s <= length;) {
+    const Eigen::Vector2d p = path.point_at(s);
+    const double d = obstacles.keep_out_distance(p, p);
+    if (d <= reach) {
+      near += 1.0;
+      s += step;
+    } else {
+      s += std::max(step, std::floor((d - reach) / step) * step);
+    }
+  }
+  return std::max(1.0, std::ceil(near * step / exposure_length - 1e-9));
+}
 
 /// Clearance of the segment a–b (a = the estimate) to obstacles and
 /// forbidden hazards: exact when it could matter (bound − keep < slow_distance,
@@ -231,7 +276,7 @@ const ParamSet<GuardSettings>& param_set<GuardSettings>() {
   // NavigationSettings nests these as guard_<name> (the scenario's navigation.guard_k, …).
   static const ParamSet<G> s =
       Declare<G>{}
-          .real("k", SN_REF(G, k), "", above(0, 100), "the guard keeps k x position sigma clear of obstacles and forbidden hazards (ours)")
+          .real("k", SN_REF(G, k), "", closed(0, 100), "the guard keeps k x position sigma clear of obstacles and forbidden hazards (ours); 0 = from collision_probability and the path")
           .real("buffer", SN_REF(G, buffer), "m", closed(0, 1e4), "the guard keeps this much beyond k sigma")
           .real("slow_distance", SN_REF(G, slow_distance), "m", closed(0, 1e4), "the guard slows down when its margin falls below this")
           .real("horizon", SN_REF(G, horizon), "s", above(0, 1e3), "the guard looks at the control held this long, then braking")

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 #include <utility>
@@ -22,6 +23,8 @@ using detail::bad;
 using detail::num;
 using detail::require_finite_nonneg;
 using detail::require_finite_positive;
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 /// The event of each GuardAction (Keep has none).
 constexpr unsigned kGuardEvent[] = {0u, kGuardSlow, kGuardSteer, kGuardHold};
@@ -44,6 +47,7 @@ std::string to_string(GuidanceStatus status) {
     case GuidanceStatus::Arrived: return "arrived";
     case GuidanceStatus::NoPath: return "no_path";
     case GuidanceStatus::LostLocalization: return "lost_localization";
+    case GuidanceStatus::StaleInput: return "stale_input";
   }
   return "unknown";
 }
@@ -132,6 +136,7 @@ struct GuidanceShared {
   ObstacleChecker obstacles;                 // obstacles with the planning clearance (CHull's look-ahead)
   ObstacleChecker collisions;                // obstacles, no clearance (the way ahead)
   Bmm bmm;
+  double exposures = 1.0;                    // N of the safe path (path_exposures)
 
   static PlanningMap no_clearance(PlanningMap m) {
     m.clearance = 0.0;
@@ -149,6 +154,21 @@ struct GuidanceShared {
         bmm(problem.bmm) {
     localizer.bmm = problem.bmm;
     safe = std::make_shared<const PathSegments>(Corridor(problem.path, problem.zones), settings.segments);
+    resolve_guard_k();
+  }
+
+  /// The guard's k from the risk budget (docs/safety.md): N exposures of the
+  /// safe path — the arc length where an obstacle lies within the corridor
+  /// limit plus the buffer, per guard horizon travelled at cruise speed
+  /// (measured in control steps of v·Δt/(1+τ) metres) — and, unless a k > 0
+  /// was given, k = Φ⁻¹(1 − ε/N).
+  void resolve_guard_k() {
+    const double reach = problem.zones.half_width + settings.corridor_margin + settings.guard.buffer;
+    const double step = settings.cruise_speed * bmm.params().dt * bmm.params().terrain_factor();
+    const double exposure_length = std::max(step, settings.cruise_speed * settings.guard.horizon *
+                                                      bmm.params().terrain_factor());
+    exposures = path_exposures(safe->corridor(), collisions, reach, exposure_length, step);
+    if (settings.guard.k == 0.0) settings.guard.k = guard_k_for_risk(settings.collision_probability, exposures);
   }
 
   /// [SafeNav-ext Alg. 4 l. 8] (= conf Alg. 3 l. 6): whether the way ahead of a vehicle at p (arc length
@@ -236,6 +256,11 @@ struct Guidance::Impl {
   int commands = 0;
   std::string detail;
   Guard guard;  // the uncertainty-aware guard (guard.hpp)
+  // The watchdog: the latest forwarded motion input's and measurement's times
+  // (NaN: none yet), and the motion input's rates (speed, heading change per second).
+  double t_motion = kNaN, t_measured = kNaN;
+  double rate_speed = kNaN, rate_turn = 0.0;
+  Ekf ahead;  // the estimate predicted to a command's time (a copy; eq. 11)
 
   static LocalizerSettings seeded(LocalizerSettings s, std::uint64_t seed) {
     s.filter.seed = derive_seed(seed, 2);
@@ -250,7 +275,58 @@ struct Guidance::Impl {
         localizer(seeded(shared->localizer, sd), shared->landmarks, shared->ids),
         seed(sd),
         guard(settings.guard, shared->bmm, shared->collisions, shared->landmarks,
-              problem.zones.half_width + settings.corridor_margin) {}
+              problem.zones.half_width + settings.corridor_margin),
+        ahead(shared->localizer.bmm, State::Zero(), StateCov::Identity()) {}
+
+  /// Notes a motion input at t over (t_prev, t] that was not late: its time
+  /// and its rates (the localizer's own: speed, heading change / interval).
+  void moved(double t, double t_prev, const Control& u, const InputResult& r) {
+    if (r.status == InputStatus::Late) return;
+    const double interval = std::isfinite(t_prev) && t > t_prev ? t - t_prev : shared->bmm.params().dt;
+    rate_speed = u[0];
+    rate_turn = u[1] / interval;
+    t_motion = t;
+  }
+  void measured(double t, const InputResult& r) {
+    if (r.status != InputStatus::Late && !(t <= t_measured)) t_measured = t;
+  }
+  /// A stream not yet heard from counts from the localizer's start: the
+  /// filter's time when guidance first finds it initialized (at an input or a command).
+  void heard_at_start() {
+    if (std::isfinite(t_motion) && std::isfinite(t_measured)) return;
+    if (!localizer.initialized()) return;
+    if (!std::isfinite(t_motion)) t_motion = localizer.time();
+    if (!std::isfinite(t_measured)) t_measured = localizer.time();
+  }
+
+  /// The watchdog: true (with c's status StaleInput, control 0) when an input
+  /// stream is older than input_timeout at t.
+  bool stale(double t, Command& c) {
+    heard_at_start();
+    const double motion_age = t - t_motion, measurement_age = t - t_measured;
+    c.input_age = std::max(motion_age, measurement_age);
+    const double limit = settings.input_timeout;
+    if (limit == 0.0 || !(c.input_age > limit)) return false;
+    c.status = GuidanceStatus::StaleInput;
+    c.events = kStaleInput;
+    c.control = Control(0.0, 0.0);
+    detail = (motion_age >= measurement_age ? "motion input " + num(motion_age) : "measurement " + num(measurement_age)) +
+             " s old > input_timeout " + num(limit) + " s: stopped";
+    return true;
+  }
+
+  /// The estimate at t: the localizer's, predicted past its time by eq. 11 at
+  /// the last motion input's rates (as the localizer itself predicts to a
+  /// measurement's time; at the estimated speed, no turn, before any), on the
+  /// copy `ahead`: the localizer is left as it is.
+  const Ekf* predicted(double t) {
+    const double dt = t - localizer.time();
+    if (!(dt > 1e-9)) return nullptr;
+    const Control u = std::isfinite(rate_speed) ? Control(rate_speed, rate_turn * dt) : Control(localizer.x()[kV], 0.0);
+    ahead.set_state(localizer.x(), localizer.P());
+    ahead.predict(u, dt);
+    return &ahead;
+  }
 
   Eigen::Vector2d destination() const { return shared->safe->corridor().path().bottomRows<1>().transpose(); }
 
@@ -333,8 +409,51 @@ Guidance Guidance::planned(const PlanningProblem& planning, const PlannerSetting
 }
 
 Guidance::~Guidance() = default;
+
 Guidance::Guidance(Guidance&&) noexcept = default;
 Guidance& Guidance::operator=(Guidance&&) noexcept = default;
+
+// The inputs, forwarded to the localizer and noted for the watchdog and the prediction.
+
+InputResult Guidance::motion(double t, const Control& u) {
+  Impl& im = *impl_;
+  im.heard_at_start();
+  const double t_prev = std::isfinite(im.t_motion) ? im.t_motion : im.localizer.time();
+  const InputResult r = im.localizer.motion(t, u);
+  im.moved(t, t_prev, u, r);
+  return r;
+}
+
+InputResult Guidance::odometry(double t, double distance, double heading_change) {
+  Impl& im = *impl_;
+  im.heard_at_start();
+  const double t_prev = std::isfinite(im.t_motion) ? im.t_motion : im.localizer.time();
+  const InputResult r = im.localizer.odometry(t, distance, heading_change);
+  // The localizer's own reading of odometry: the motion input (Δd / interval, Δθ).
+  if (t > t_prev) im.moved(t, t_prev, Control(distance / (t - t_prev), heading_change), r);
+  return r;
+}
+
+InputResult Guidance::observe(double t, const LandmarkObservation& obs) {
+  impl_->heard_at_start();
+  const InputResult r = impl_->localizer.observe(t, obs);
+  impl_->measured(t, r);
+  return r;
+}
+
+InputResult Guidance::fix(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R) {
+  impl_->heard_at_start();
+  const InputResult r = impl_->localizer.fix(t, z, R);
+  impl_->measured(t, r);
+  return r;
+}
+
+InputResult Guidance::speed_heading(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R) {
+  impl_->heard_at_start();
+  const InputResult r = impl_->localizer.speed_heading(t, z, R);
+  impl_->measured(t, r);
+  return r;
+}
 
 Localizer& Guidance::localizer() { return impl_->localizer; }
 const Localizer& Guidance::localizer() const { return impl_->localizer; }
@@ -345,6 +464,8 @@ const PathSegments& Guidance::path() const { return *impl_->active; }
 int Guidance::replans() const { return impl_->replans; }
 int Guidance::commands() const { return impl_->commands; }
 const std::string& Guidance::detail() const { return impl_->detail; }
+double Guidance::guard_k() const { return impl_->settings.guard.k; }
+double Guidance::guard_exposures() const { return impl_->shared->exposures; }
 GuidanceStatus Guidance::status() const { return impl_->status(); }
 
 Command Guidance::command(double t) {
@@ -365,7 +486,10 @@ Command Guidance::command(double t) {
     im.detail = "arrived";
     return c;
   }
-  const State& xe = im.localizer.x();
+  if (im.stale(t, c)) return c;
+  const Ekf* ahead = im.predicted(t);
+  const State& xe = ahead ? ahead->x() : im.localizer.x();
+  if (ahead) c.position_std = safenav::position_std(ahead->P());
   if (st.replan && im.commands % st.obstacle_check_every == 0 && !im.check_ahead(xe, c)) return c;
   ++im.commands;
   im.method_control(xe, c);

@@ -340,6 +340,7 @@ bool Trial::command(int step, Command& cmd) {
   res_.guard_slow += (cmd.events & kGuardSlow) != 0;
   res_.guard_steer += (cmd.events & kGuardSteer) != 0;
   res_.guard_hold += (cmd.events & kGuardHold) != 0;
+  res_.stale_input += (cmd.events & kStaleInput) != 0;
   if (cmd.status == GuidanceStatus::NoPath) {
     outcome_ = TrialOutcome::NoPath;
     reason_ = guidance_.detail();

@@ -65,6 +65,8 @@ const ParamSet<NavigationSettings>& param_set<NavigationSettings>() {
           .real("corridor_bias", SN_REF(N, planner.corridor_bias), "", closed(0, 1), "share of RAw-RRT* samples drawn inside the corridor")
           .real("corridor_margin", SN_REF(N, corridor_margin), "m", closed(0, 1e5), "left the corridor: deviation beyond half_width + this")
           .real("lost_position_std", SN_REF(N, lost_position_std), "m", above(0, 1e4), "lost localization above this position sigma")
+          .real("collision_probability", SN_REF(N, collision_probability), "", above(0, 0.1), "acceptable probability of a collision per mission; the guard's k follows from it when guard_k = 0 (ours)")
+          .real("input_timeout", SN_REF(N, input_timeout), "s", closed(0, 1e6), "stop when the latest motion input or measurement is older than this; 0 = off (ours)")
           .integer("max_steps", SN_REF(N, max_steps), closed(0, N::kMaxSteps), "step budget; 0 = 3 x path length / (speed x dt) + 200")
           .nested("filter_", param_set<FilterOptions>(), SN_REF(N, filter), {{"gate_probability", "gate_probability"}})
           .nested("guard_", param_set<GuardSettings>(), SN_REF(N, guard))

@@ -58,6 +58,7 @@ Command = _core.Command
 InputResult = _core.InputResult
 InputStatus = _core.InputStatus
 GuidanceStatus = _core.GuidanceStatus
+guard_k_for_risk = _core.guard_k_for_risk
 
 #: Event flags of :attr:`Command.events`, by name.
 EVENTS = {
@@ -69,11 +70,12 @@ EVENTS = {
     "guard_slow": _core.EVENT_GUARD_SLOW,
     "guard_steer": _core.EVENT_GUARD_STEER,
     "guard_hold": _core.EVENT_GUARD_HOLD,
+    "stale_input": _core.EVENT_STALE_INPUT,
 }
 
 __all__ = ["Localizer", "LocalizerSettings", "Guidance", "Command", "InputResult", "InputStatus", "GuidanceStatus",
            "NavigationMethod", "NavigationProblem", "NavigationSettings", "GuardSettings", "METHODS", "FILTERS",
-           "EVENTS", "AUGMENTED", "event_names", "localizer_settings", "navigation_setup", "make_guidance"]
+           "EVENTS", "AUGMENTED", "event_names", "guard_k_for_risk", "localizer_settings", "navigation_setup", "make_guidance"]
 
 METHODS = {"chull": NavigationMethod.CHULL, "centroid": NavigationMethod.CENTROID}
 FILTERS = {"ekf": _core.FilterType.EKF, "pf": _core.FilterType.PF}

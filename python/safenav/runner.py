@@ -62,7 +62,7 @@ SAFETY = ("min_clearance", "hazard_time", "hazard_length", "exposure", "nees", "
 #: Per-trial counts: steps, updates, landmark observations and faults, guard events.
 COUNTS = ("steps", "replans", "position_fixes", "dropouts", "rejected", "resets", "observations", "dropped",
           "outliers", "misassociated", "ranges_rejected", "faults_through", "guard_slow", "guard_steer",
-          "guard_hold")
+          "guard_hold", "stale_input")
 
 
 @dataclass(frozen=True)
@@ -378,6 +378,7 @@ def safety_summary(g: pd.DataFrame) -> dict:
         "guard_events": float(guard.mean()),
         "guard_share": float((guard / steps).mean()),
         "guard_hold": float(g["guard_hold"].mean()),
+        "stale_input": float(g["stale_input"].mean()),
         "rejected": float(g["rejected"].mean()),
         "resets": float(g["resets"].mean()),
         "dropped": float(g["dropped"].mean()),

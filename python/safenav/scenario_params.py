@@ -268,16 +268,21 @@ NavigationParams = _core_section(
 
     Safety (ours, on by default): each update passes a chi-square gate at
     ``gate_probability``, and the guard (``guard``, ``guard_k``, ...; see
-    :class:`safenav.GuardSettings`) keeps ``guard_k`` position sigmas clear of
-    obstacles and forbidden hazards.  The papers' loop: ``guard = 'off'`` and
+    :class:`safenav.GuardSettings`) keeps k position sigmas clear of
+    obstacles and forbidden hazards.  k follows from the mission's risk
+    budget ``collision_probability`` and its path (docs/safety.md) unless
+    ``guard_k`` > 0 sets it (0, the default: from the budget).  A command
+    stops the vehicle while an input is older than ``input_timeout`` (0 or
+    inf: off).  The papers' loop: ``guard = 'off'`` and
     ``gate_probability = 0``.""",
     [(_NAV, "cruise_speed"), (_NAV, "arrival_radius"), (_NAV, "segment_length"), (_NAV, "sub_segments"),
      (_NAV, "lookahead"), (_NAV, "step_back_speed"), (_NAV, "sensing_range"), (_NAV, "replan_lookahead"),
      ("vehicle_radius", _core.Inflation, "vehicle_radius"), ("clearance_margin", _core.Inflation, "margin"),
      ("plan_iterations", _core.PlannerSettings, "max_iterations"),
      (_NAV, "replan_iterations"), (_NAV, "corridor_bias"), (_NAV, "lost_position_std"), (_NAV, "max_steps"),
-     (_NAV, "gate_probability"), (_NAV, "guard_k"), (_NAV, "guard_buffer"), (_NAV, "guard_slow_distance"),
-     (_NAV, "guard_min_speed_fraction"), (_NAV, "guard_horizon")],
+     (_NAV, "gate_probability"), (_NAV, "collision_probability"), (_NAV, "guard_k"), (_NAV, "guard_buffer"),
+     (_NAV, "guard_slow_distance"), (_NAV, "guard_min_speed_fraction"), (_NAV, "guard_horizon"),
+     (_NAV, "input_timeout")],
     own=[("guard", str, field(default="on", metadata={
         "doc": "the uncertainty-aware guard: 'on', or 'off' (the papers' loop; with gate_probability = 0)"})),("clearance", object, field(default=None, metadata={
         "doc": "planning clearance; overrides vehicle_radius + clearance_margin when set (old scenario files)",

@@ -48,7 +48,11 @@ namespace safenav {
 /// Off, the loop is the papers'.
 struct GuardSettings {
   bool enabled = true;
-  double k = 3.0;                    ///< k of the k-σ radius (the scenario's navigation.guard_k)
+  /// k of the k-σ radius (the scenario's navigation.guard_k).  0 (default):
+  /// Guidance sets it from the mission's collision_probability ε and the
+  /// exposures N of its path, k = Φ⁻¹(1 − ε/N) (guard_k_for_risk); a k > 0
+  /// set explicitly wins.
+  double k = 0.0;
   double buffer = 0.25;              ///< kept beyond the k-σ radius (the vehicle's next step, the truth's process noise) [m]
   bool look_first = true;            ///< before steering round an uncertain way ahead, turn to look at landmarks
   double look_timeout = 6.0;         ///< the longest look [s]
@@ -71,6 +75,28 @@ struct GuardSettings {
   void look_with_camera(double camera_field_of_view, double max_range, int min_landmarks, bool camera_occlusion);
   void validate() const;
 };
+
+/// The guard's k for a collision-risk budget ε spread over N exposures:
+/// k = Φ⁻¹(1 − ε/N) = Q⁻¹(ε/N), Q(k) = 1 − Φ(k) the Gaussian tail.  One
+/// exposure: the nearest obstacle lies beyond a line at least k·√λ_max(P_xy)
+/// from the estimate, so the truth, Gaussian about it, crosses that line with
+/// probability Q(d/√(nᵀPn)) ≤ Q(k) (nᵀPn ≤ λ_max); a union bound over the N
+/// exposures keeps the mission's probability ≤ N·Q(k) = ε (docs/safety.md).
+/// Throws std::invalid_argument unless 0 < ε < 1 (named collision_probability)
+/// and N ≥ 1 (finite).  Negative for ε/N > 0.5.
+double guard_k_for_risk(double collision_probability, double exposures);
+
+/// The exposures N of a mission along `path` (docs/safety.md, "The guard's
+/// k"): the arc length of the path where an obstacle or forbidden hazard of
+/// `obstacles` lies within `reach` of it (the vehicle's largest deviation
+/// from the path plus the guard's buffer), measured in steps of `step`
+/// metres (the distance of one control step), divided by `exposure_length`
+/// (the distance over which the estimate's error is taken to decorrelate:
+/// the guard's horizon at cruise speed), rounded up, at least 1.
+/// Throws std::invalid_argument unless 0 < step ≤ exposure_length and
+/// reach ≥ 0 (all finite).
+double path_exposures(const Corridor& path, const ObstacleChecker& obstacles, double reach, double exposure_length,
+                      double step);
 
 /// What the guard did with a control.
 enum class GuardAction {
@@ -97,7 +123,9 @@ class Guard {
  public:
   /// `obstacles`: the true obstacles and forbidden hazards, no clearance;
   /// `landmarks`: the map (K×2); `corridor_limit`: the largest deviation
-  /// from the path allowed (half-width + corridor margin) [m].
+  /// from the path allowed (half-width + corridor margin) [m].  Throws
+  /// std::invalid_argument when settings.k is not > 0 (0 is resolved by
+  /// Guidance: guard_k_for_risk).
   Guard(const GuardSettings& settings, const Bmm& bmm, const ObstacleChecker& obstacles, const Points2& landmarks,
         double corridor_limit);
 

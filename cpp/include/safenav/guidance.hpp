@@ -15,7 +15,8 @@
 //
 // Built once: the path's corridor, segment hulls and centroids, the obstacle
 // checker and the localizer.  A command allocates nothing unless it plans a
-// detour.  Only Eigen and std types appear here.
+// detour or predicts past the localizer's time (the EKF copy checks the
+// covariance it is given).  Only Eigen and std types appear here.
 #pragma once
 
 #include <cstdint>
@@ -78,6 +79,9 @@ enum class GuidanceStatus {
   Arrived,           ///< the estimate is within arrival_radius of the destination (control = 0)
   NoPath,            ///< the way ahead is blocked and no detour was found (control = 0)
   LostLocalization,  ///< the position σ exceeds lost_position_std (control = 0)
+  /// The latest motion input or measurement is older than input_timeout
+  /// (control 0: the BMM brakes).  Only a command reports it: status() has no time.
+  StaleInput,
 };
 std::string to_string(GuidanceStatus status);
 
@@ -91,6 +95,7 @@ enum GuidanceEvent : unsigned {
   kGuardSlow = 1u << 5,         ///< the guard slowed down: the k-σ radius nears the clearance ahead
   kGuardSteer = 1u << 6,        ///< the guard steered away from the method's heading to keep clearance
   kGuardHold = 1u << 7,         ///< the guard stopped to hold for a fix, turning toward landmarks
+  kStaleInput = 1u << 8,        ///< an input is older than input_timeout: stopped (the watchdog)
 };
 
 /// The answer to a command request.
@@ -99,7 +104,12 @@ struct Command {
   GuidanceStatus status = GuidanceStatus::Initializing;
   unsigned events = 0;        ///< GuidanceEvent flags of this request
   int segment = 0;            ///< segment k of the path followed: CHull's current one, Centroid's target's
-  double position_std = std::numeric_limits<double>::quiet_NaN();  ///< √λ_max(P_xy) [m]
+  /// √λ_max(P_xy) [m] of the estimate predicted to the command's time t
+  /// (the localizer's own when t is not past its time).
+  double position_std = std::numeric_limits<double>::quiet_NaN();
+  /// t minus the older of the latest motion input's and the latest
+  /// measurement's times [s] (what the watchdog compares with input_timeout).
+  double input_age = std::numeric_limits<double>::quiet_NaN();
   ChullAction action = ChullAction::Keep;  ///< what SafeNav-CHull did (CHull only)
   /// The guard's clearance d of the way ahead [m]: exact where d < k·σ + buffer + slow_distance,
   /// a lower bound beyond (enough to know the control is kept); +inf when not computed.
@@ -135,20 +145,24 @@ class Guidance {
 
   Localizer& localizer();
   const Localizer& localizer() const;
-  // The localizer's inputs (see safenav/localizer.hpp).
-  InputResult motion(double t, const Control& u) { return localizer().motion(t, u); }
-  InputResult odometry(double t, double distance, double heading_change) {
-    return localizer().odometry(t, distance, heading_change);
-  }
-  InputResult observe(double t, const LandmarkObservation& obs) { return localizer().observe(t, obs); }
-  InputResult fix(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R) { return localizer().fix(t, z, R); }
-  InputResult speed_heading(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R) {
-    return localizer().speed_heading(t, z, R);
-  }
+  /// The localizer's inputs (see safenav/localizer.hpp).  Guidance notes the
+  /// time of each that is not late, for the watchdog (input_timeout), and the
+  /// motion input's rates, for the prediction to a command's time.  The
+  /// watchdog hears only these: inputs given to localizer() directly do not
+  /// count (a stream never heard from counts from the localizer's start).
+  InputResult motion(double t, const Control& u);
+  InputResult odometry(double t, double distance, double heading_change);
+  InputResult observe(double t, const LandmarkObservation& obs);
+  InputResult fix(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R);
+  InputResult speed_heading(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R);
 
   /// The control for the next step from the latest estimate.  In order:
-  /// lost localization and arrival end guidance (control 0); every
-  /// obstacle_check_every-th request checks the way ahead for obstacles
+  /// lost localization and arrival end guidance (control 0); the watchdog
+  /// stops the vehicle while the latest motion input or measurement is older
+  /// than input_timeout (StaleInput, control 0); past the localizer's time
+  /// the estimate and its covariance are predicted to t (the EKF's eq. 11 at
+  /// the last motion input's rates, on a copy: the localizer is unchanged);
+  /// every obstacle_check_every-th request checks the way ahead for obstacles
   /// ([SafeNav-ext Alg. 4 ll. 7–9]) and splices a RAw-RRT* detour into the
   /// path when it is blocked; then CHull or Centroid chooses the control;
   /// then, when settings.guard.enabled, the guard may slow, steer or hold
@@ -159,7 +173,14 @@ class Guidance {
   GuidanceStatus status() const;
 
   const NavigationProblem& problem() const;
+  /// The settings, with guard.k resolved (k = 0 given: from collision_probability).
   const NavigationSettings& settings() const;
+  /// The guard's k in use: the one given, or Φ⁻¹(1 − ε/N) for ε =
+  /// collision_probability and N = guard_exposures() (guard_k_for_risk).
+  double guard_k() const;
+  /// N, the exposures of the safe path (path_exposures, guard.hpp): computed
+  /// once, for the safe path; detours keep the k of the safe path.
+  double guard_exposures() const;
   /// The safe path's segments, and those of the path now followed (detours spliced in).
   const PathSegments& safe_path() const;
   const PathSegments& path() const;

@@ -147,6 +147,7 @@ struct TrialResult {
   int guard_slow = 0;            ///< slowed down
   int guard_steer = 0;           ///< steered away from the way the method chose
   int guard_hold = 0;            ///< stopped and held for a fix (turning toward landmarks)
+  int stale_input = 0;           ///< stopped by the watchdog: an input older than input_timeout (kStaleInput)
   int chull_default = 0;         ///< Algorithm 1: steps that kept the default command
   int chull_corrective = 0;      ///< Algorithm 1: corrective controls
   int chull_step_back = 0;       ///< Algorithm 1: step-back controls

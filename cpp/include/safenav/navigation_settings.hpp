@@ -63,6 +63,15 @@ struct NavigationSettings {
   // Failure thresholds.
   double corridor_margin = 0.0;    ///< left the corridor: deviation > half_width + margin
   double lost_position_std = 10.0; ///< lost localization: √λ_max(P_xy) above this [m]
+  /// ε, the acceptable probability of a collision over the whole mission
+  /// (ours).  The guard's k follows from it and the path when guard.k = 0
+  /// (guard_k_for_risk, guard.hpp; docs/safety.md).  In (0, 0.1].
+  double collision_probability = 1e-4;
+  /// The stale-input watchdog (ours; as Nav2's collision monitor's
+  /// source_timeout): a command at t stops the vehicle (control 0, the BMM
+  /// brakes) when the latest motion input or the latest measurement is older
+  /// than this [s].  0: off (scenario files refuse inf in every field).
+  double input_timeout = 1.0;
   /// EKF or PF (seed ignored: derived from the trial seed).  The χ² gate is
   /// on (0.99): the papers' loop has none (gate_probability = 0).
   FilterOptions filter = [] {
@@ -70,7 +79,9 @@ struct NavigationSettings {
     f.gate_probability = 0.99;
     return f;
   }();
-  GuardSettings guard;             ///< the uncertainty-aware guard (guard.hpp; on; enabled = false: the papers' loop)
+  /// The uncertainty-aware guard (guard.hpp; on; enabled = false: the papers'
+  /// loop).  Its k = 0 (default): from collision_probability and the path.
+  GuardSettings guard;
   bool record = true;              ///< keep the trajectories in the result
   void validate() const;
 };
