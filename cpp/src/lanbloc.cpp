@@ -57,6 +57,7 @@ const ParamSet<LanBLocSettings>& param_set<LanBLocSettings>() {
           .real("max_border_error_rate", SN_REF(S, max_border_error_rate), "", closed(0, 1), "ArUco maxErroneousBitsInBorderRate")
           .flag("subpixel", SN_REF(S, subpixel), "refine the marker corners to sub-pixel accuracy (CORNER_REFINE_SUBPIX)")
           .integer("corner_refinement_win_size", SN_REF(S, corner_refinement_win_size), closed(1, 100), "ArUco cornerRefinementWinSize [px]")
+          .real("relative_corner_refinement_win_size", SN_REF(S, relative_corner_refinement_win_size), "", closed(0, 10), "OpenCV >= 4.8's relativeCornerRefinmentWinSize (window = min(round(this * cell px), corner_refinement_win_size)); 0 = the linked ArUco's fixed window")
           .real("corner_sigma_d", SN_REF(S, corner_sigma_d), "px", above(0, 100), "sigma of the marker centre's disparity from its corners; sigma_Z = Z^2 sigma / (f B)")
           .real("max_row_error_px", SN_REF(S, max_row_error_px), "px", above(0, 1e4), "largest row difference of a corner between the left and the right image")
           .real("bearing_sigma_px", SN_REF(S, bearing_sigma_px), "px", above(0, 1e4), "sigma of the marker centre; bearing sigma = sigma_px / f")
@@ -89,6 +90,7 @@ struct LanBLocFrontEnd::Impl {
   std::map<int, Eigen::Vector3d> anchor;  // id → map position
   cv::Ptr<cv::aruco::Dictionary> dict;
   cv::Ptr<cv::aruco::DetectorParameters> params;
+  lanbloc_detail::CornerRefinement refine;  // relative_win_size 0: ArUco refines (or nothing does)
   StereoMatcher matcher;  // the depth model Z = f·B/(d + doffs)
 
   Impl(const LanBLocRig& r, std::vector<LanBLocLandmark> lms, const LanBLocSettings& s)
@@ -123,7 +125,15 @@ LanBLocFrontEnd::LanBLocFrontEnd(const LanBLocRig& rig, std::vector<LanBLocLandm
   p->minMarkerPerimeterRate = settings.min_perimeter_rate;
   p->errorCorrectionRate = settings.error_correction_rate;
   p->maxErroneousBitsInBorderRate = settings.max_border_error_rate;
-  if (settings.subpixel) {
+  auto& r = impl_->refine;
+  r.relative_win_size = 0.0;
+  if (settings.subpixel && settings.relative_corner_refinement_win_size > 0.0) {
+    // Refined here, with the window rule of OpenCV >= 4.8 (pip's cv2), not by OpenCV 4.6's ArUco.
+    r.relative_win_size = settings.relative_corner_refinement_win_size;
+    r.max_win_size = settings.corner_refinement_win_size;
+    r.max_iterations = p->cornerRefinementMaxIterations;
+    r.min_accuracy = p->cornerRefinementMinAccuracy;
+  } else if (settings.subpixel) {
     p->cornerRefinementMethod = cv::aruco::CORNER_REFINE_SUBPIX;
     p->cornerRefinementWinSize = settings.corner_refinement_win_size;
   }
@@ -188,7 +198,7 @@ std::vector<Marker> LanBLocFrontEnd::Impl::detect(const ImageView& img, const st
     if (boxes.empty()) return {};
     boxes = lanbloc_detail::merge_boxes(std::move(boxes));
   }
-  std::vector<Marker> found = lanbloc_detail::detect_markers(m, boxes, dict, params, settings.min_perimeter_rate);
+  std::vector<Marker> found = lanbloc_detail::detect_markers(m, boxes, dict, params, settings.min_perimeter_rate, refine);
   return found;
 }
 

@@ -8,6 +8,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "errors.hpp"
 #include "lanbloc_internal.hpp"
@@ -107,6 +108,19 @@ bool window_of(const LanBLocRig& rig, const LanBLocSettings& s, const LanBLocLan
   return true;
 }
 
+/// OpenCV >= 4.8's CORNER_REFINE_SUBPIX (the one pip's cv2 runs): cornerSubPix in a window of
+/// min(max(1, round(relative·m)), max_win) px, m the marker's average module (cell) size in px.
+void refine_corners(const cv::Mat& grey, std::vector<cv::Point2f>& c, int marker_bits, int border_bits,
+                    const CornerRefinement& r) {
+  double perimeter = 0.0;
+  for (int k = 0; k < 4; ++k) perimeter += cv::norm(c[k] - c[(k + 1) % 4]);
+  const double module = perimeter / (4.0 * (marker_bits + 2 * border_bits));
+  const int win = std::min(std::max(1, cvRound(r.relative_win_size * module)), r.max_win_size);
+  cv::cornerSubPix(grey, c, cv::Size(win, win), cv::Size(-1, -1),
+                   cv::TermCriteria(cv::TermCriteria::MAX_ITER | cv::TermCriteria::EPS, r.max_iterations,
+                                    r.min_accuracy));
+}
+
 }  // namespace
 
 cv::Ptr<cv::aruco::Dictionary> dictionary(const std::string& name) {
@@ -133,7 +147,7 @@ Eigen::Matrix3d camera_rotation(double theta, double pitch) {
 std::vector<Marker> detect_markers(const cv::Mat& image, const std::vector<Box>& boxes,
                                    const cv::Ptr<cv::aruco::Dictionary>& dict,
                                    const cv::Ptr<cv::aruco::DetectorParameters>& params,
-                                   double min_perimeter_rate) {
+                                   double min_perimeter_rate, const CornerRefinement& refine) {
   std::vector<Box> search = boxes;
   if (search.empty()) search.push_back({0.0, 0.0, double(image.cols), double(image.rows)});
   const double full_side = std::max(image.cols, image.rows);
@@ -146,6 +160,8 @@ std::vector<Marker> detect_markers(const cv::Mat& image, const std::vector<Box>&
     std::vector<std::vector<cv::Point2f>> corners;
     std::vector<int> ids;
     cv::aruco::detectMarkers(image(roi), dict, corners, ids, params);
+    if (refine.relative_win_size > 0.0)
+      for (auto& c : corners) refine_corners(image(roi), c, dict->markerSize, params->markerBorderBits, refine);
     for (std::size_t i = 0; i < ids.size(); ++i) {
       Marker m;
       m.id = ids[i];

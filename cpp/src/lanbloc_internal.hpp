@@ -29,6 +29,15 @@ struct Marker {
   MarkerCorners corners;
 };
 
+/// Sub-pixel corner refinement as OpenCV >= 4.8 does it (relative_win_size > 0), run after a
+/// detection without refinement; relative_win_size = 0 leaves it to the linked ArUco (fixed window).
+struct CornerRefinement {
+  double relative_win_size = 0.3;  ///< OpenCV's relativeCornerRefinmentWinSize
+  int max_win_size = 3;            ///< cornerRefinementWinSize
+  int max_iterations = 30;         ///< cornerRefinementMaxIterations
+  double min_accuracy = 0.1;       ///< cornerRefinementMinAccuracy [px]
+};
+
 /// ArUco detection (FiducialDetector's parameters) in the boxes of `image`
 /// (the whole image when `boxes` is empty), corners in full-image pixels,
 /// sorted by id, the first of each id kept.  The perimeter threshold is
@@ -36,7 +45,7 @@ struct Marker {
 std::vector<Marker> detect_markers(const cv::Mat& image, const std::vector<Box>& boxes,
                                    const cv::Ptr<cv::aruco::Dictionary>& dict,
                                    const cv::Ptr<cv::aruco::DetectorParameters>& params,
-                                   double min_perimeter_rate);
+                                   double min_perimeter_rate, const CornerRefinement& refine);
 
 /// Boxes that overlap merged into their bounding box, until none overlap.
 std::vector<Box> merge_boxes(std::vector<Box> boxes);

@@ -75,7 +75,12 @@ struct LanBLocSettings {
   double error_correction_rate = 0.3;   ///< ArUco errorCorrectionRate
   double max_border_error_rate = 0.1;   ///< ArUco maxErroneousBitsInBorderRate
   bool subpixel = true;                 ///< CORNER_REFINE_SUBPIX
-  int corner_refinement_win_size = 3;   ///< [px] cornerRefinementWinSize
+  int corner_refinement_win_size = 3;   ///< [px] cornerRefinementWinSize (the largest window)
+  /// OpenCV >= 4.8's relativeCornerRefinmentWinSize: the window is
+  /// min(round(this · cell size), corner_refinement_win_size) px, as pip's cv2
+  /// (which the Python pipeline runs) refines; 0 = the linked ArUco's own
+  /// refinement (OpenCV 4.6: always corner_refinement_win_size).
+  double relative_corner_refinement_win_size = 0.3;
   // --- ranging (LandmarkRanging.observe_corners / sighting)
   double corner_sigma_d = 0.035;        ///< [px] σ_c of the centre's disparity from the corners
   double max_row_error_px = 1.0;        ///< [px] largest left/right row difference of a corner
