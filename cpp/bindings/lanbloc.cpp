@@ -28,6 +28,12 @@ ImageView gray_view(const U8Array& a, const char* what) {
 
 py::tuple box_tuple(const Box& b) { return py::make_tuple(b.x_min, b.y_min, b.x_max, b.y_max); }
 
+py::list boxes(const std::vector<Box>& bs) {
+  py::list out;
+  for (const Box& b : bs) out.append(box_tuple(b));
+  return out;
+}
+
 void bind_types(py::module_& m) {
   py::class_<LanBLocRig>(m, "LanBLocRig")
       .def(py::init<>())
@@ -108,6 +114,10 @@ void bind_types(py::module_& m) {
       .def_readonly("search_reason", &LanBLocFix::search_reason)
       .def_readonly("windows", &LanBLocFix::windows)
       .def_readonly("unmapped", &LanBLocFix::unmapped)
+      .def_property_readonly("left_regions", [](const LanBLocFix& f) { return boxes(f.left_regions); },
+                             "the left image's searched regions (x_min, y_min, x_max, y_max) [px] (windows mode)")
+      .def_property_readonly("right_regions", [](const LanBLocFix& f) { return boxes(f.right_regions); },
+                             "the right image's searched regions (windows mode)")
       .def_property_readonly("ok", &LanBLocFix::ok)
       .def_property_readonly("n_ranges", &LanBLocFix::n_ranges);
 }

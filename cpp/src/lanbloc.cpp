@@ -97,7 +97,7 @@ struct LanBLocFrontEnd::Impl {
       : rig(r), settings(s), landmarks(std::move(lms)), matcher(r.camera) {}
 
   std::vector<Marker> detect(const ImageView& img, const std::vector<SearchWindow>& windows, bool right,
-                             bool whole) const;
+                             bool whole, std::vector<Box>& regions) const;
   LandmarkObservation observe(const Marker& left, const Marker* right, const std::string& why) const;
   void sighting(LandmarkObservation& o, double depth, double sigma_z) const;
   void solve(LanBLocFix& fix) const;
@@ -189,17 +189,16 @@ cv::Mat as_gray_mat(const ImageView& v, const RectifiedCamera& cam, const char* 
 }  // namespace
 
 std::vector<Marker> LanBLocFrontEnd::Impl::detect(const ImageView& img, const std::vector<SearchWindow>& windows,
-                                                  bool right, bool whole) const {
+                                                  bool right, bool whole, std::vector<Box>& regions) const {
   const cv::Mat m = as_gray_mat(img, rig.camera, right ? "right" : "left");
-  std::vector<Box> boxes;
+  regions.clear();
   if (!whole) {
     for (const SearchWindow& w : windows)
-      if (w.right == right) boxes.push_back(w.box);
-    if (boxes.empty()) return {};
-    boxes = lanbloc_detail::merge_boxes(std::move(boxes));
+      if (w.right == right) regions.push_back(w.box);
+    if (regions.empty()) return {};
+    regions = lanbloc_detail::merge_boxes(std::move(regions));
   }
-  std::vector<Marker> found = lanbloc_detail::detect_markers(m, boxes, dict, params, settings.min_perimeter_rate, refine);
-  return found;
+  return lanbloc_detail::detect_markers(m, regions, dict, params, settings.min_perimeter_rate, refine);
 }
 
 LanBLocFix LanBLocFrontEnd::localize(const ImageView& left, const ImageView& right,
@@ -212,7 +211,7 @@ LanBLocFix LanBLocFrontEnd::localize(const ImageView& left, const ImageView& rig
   const bool whole = fix.search == SearchMode::WholeFrame;
   if (whole) fix.windows.clear();
   (void)as_gray_mat(right, I.rig.camera, "right");  // bad input fails before any work
-  std::vector<Marker> found = I.detect(left, fix.windows, false, whole);
+  std::vector<Marker> found = I.detect(left, fix.windows, false, whole, fix.left_regions);
   std::vector<Marker> dets;
   for (const Marker& m : found) {
     if (I.anchor.count(m.id))
@@ -226,7 +225,7 @@ LanBLocFix LanBLocFrontEnd::localize(const ImageView& left, const ImageView& rig
     return fix;
   }
   std::map<int, Marker> in_right;
-  for (const Marker& m : I.detect(right, fix.windows, true, whole)) in_right.emplace(m.id, m);
+  for (const Marker& m : I.detect(right, fix.windows, true, whole, fix.right_regions)) in_right.emplace(m.id, m);
   for (const Marker& d : dets) {
     auto it = in_right.find(d.id);
     fix.observations.push_back(I.observe(d, it == in_right.end() ? nullptr : &it->second, ""));

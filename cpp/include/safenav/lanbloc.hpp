@@ -156,6 +156,10 @@ struct LanBLocFix {
   SearchMode search = SearchMode::WholeFrame;
   std::string search_reason;  ///< why this mode
   std::vector<SearchWindow> windows;  ///< when search == Windows
+  /// The regions searched when search == Windows: each image's windows, those
+  /// that overlap merged into their bounding box (a marker is found when it
+  /// lies whole inside one).
+  std::vector<Box> left_regions, right_regions;
   std::vector<int> unmapped;          ///< marker ids detected in the left image but not in the map
 
   bool ok() const { return status == LanBLocStatus::Ok; }
