@@ -98,10 +98,10 @@ struct LanBLocFrontEnd::Impl {
 
   std::vector<Marker> detect(const ImageView& img, const std::vector<SearchWindow>& windows, bool right,
                              bool whole, std::vector<Box>& regions) const;
-  LandmarkObservation observe(const Marker& left, const Marker* right, const std::string& why) const;
-  void sighting(LandmarkObservation& o, double depth, double sigma_z) const;
+  LandmarkSighting observe(const Marker& left, const Marker* right, const std::string& why) const;
+  void sighting(LandmarkSighting& o, double depth, double sigma_z) const;
   void solve(LanBLocFix& fix) const;
-  bool bearings_agree(const LocalizationResult& loc, const std::vector<const LandmarkObservation*>& obs) const;
+  bool bearings_agree(const LocalizationResult& loc, const std::vector<const LandmarkSighting*>& obs) const;
 };
 
 LanBLocFrontEnd::LanBLocFrontEnd(const LanBLocRig& rig, std::vector<LanBLocLandmark> landmarks,
@@ -234,12 +234,12 @@ LanBLocFix LanBLocFrontEnd::localize(const ImageView& left, const ImageView& rig
   return fix;
 }
 
-LandmarkObservation LanBLocFrontEnd::Impl::observe(const Marker& left, const Marker* right,
+LandmarkSighting LanBLocFrontEnd::Impl::observe(const Marker& left, const Marker* right,
                                                    const std::string& why) const {
   // LandmarkRanging.observe_corners: the centre is the diagonals' intersection (the image of the
   // marker's centre under the homography); the disparity plane d = a·u + b·v + c (least squares
   // through the four corners; the marker is a plane) evaluated there.
-  LandmarkObservation o;
+  LandmarkSighting o;
   o.landmark_id = left.id;
   o.anchor = anchor.at(left.id);
   o.corners_left = left.corners;
@@ -292,7 +292,7 @@ LandmarkObservation LanBLocFrontEnd::Impl::observe(const Marker& left, const Mar
 }
 
 
-void LanBLocFrontEnd::Impl::sighting(LandmarkObservation& o, double depth, double sigma_z) const {
+void LanBLocFrontEnd::Impl::sighting(LandmarkSighting& o, double depth, double sigma_z) const {
   // LandmarkRanging.sighting: the centre's ray in the world at heading 0, ray = R₀ᵀ·((u − cx)/f,
   // (v − cy)/f, 1), bearing = atan2(ray_y, ray_x) (counter-clockwise from the heading).
   const RectifiedCamera& cam = rig.camera;
@@ -321,7 +321,7 @@ void LanBLocFrontEnd::Impl::sighting(LandmarkObservation& o, double depth, doubl
 }
 
 bool LanBLocFrontEnd::Impl::bearings_agree(const LocalizationResult& loc,
-                                           const std::vector<const LandmarkObservation*>& obs) const {
+                                           const std::vector<const LandmarkSighting*>& obs) const {
   // LandmarkRanging.bearings_agree: residuals β_i − b_i of the absolute bearings from the fix about
   // their circular mean (the heading), each with σ² = σ_b² + nᵀPn/ρ², χ² against its 99.9 % quantile.
   const std::size_t n = obs.size();
@@ -350,15 +350,15 @@ bool LanBLocFrontEnd::Impl::bearings_agree(const LocalizationResult& loc,
 void LanBLocFrontEnd::Impl::solve(LanBLocFix& fix) const {
   // LandmarkRanging.solve: trilateration of the usable ranges [SafeNav §IV-A], the mirror
   // ambiguity settled by the bearings.
-  std::vector<const LandmarkObservation*> ok;
-  for (const LandmarkObservation& o : fix.observations)
+  std::vector<const LandmarkSighting*> ok;
+  for (const LandmarkSighting& o : fix.observations)
     if (o.ok) ok.push_back(&o);
   if (static_cast<int>(ok.size()) < settings.min_landmarks) {
     fix.status = LanBLocStatus::TooFewRanges;
     std::ostringstream os;
     os << ok.size() << " usable range(s), " << settings.min_landmarks << " needed";
     std::string why;
-    for (const LandmarkObservation& o : fix.observations)
+    for (const LandmarkSighting& o : fix.observations)
       if (!o.ok) why += (why.empty() ? "" : "; ") + ("landmark " + std::to_string(o.landmark_id) + ": " + o.reason);
     if (!why.empty()) os << " (" << why << ")";
     fix.reason = os.str();

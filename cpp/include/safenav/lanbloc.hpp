@@ -9,8 +9,9 @@
 // those of the Python whole-frame pipeline with corner ranging
 // (safenav.vision.full_frame with ranging="corners"):
 //
-//  1. fiducial detection (OpenCV ArUco, corners refined to sub-pixel
-//     accuracy) in the left image, and in the right image for the same ids;
+//  1. fiducial detection (OpenCV ArUco) in the left image, and in the right
+//     image for the same ids; corners refined by cv::cornerSubPix with
+//     OpenCV >= 4.8's window rule (as pip's cv2 refines for the Python side);
 //  2. per marker found in both: its centre (the diagonals' intersection of
 //     the left corners), the least-squares disparity plane d = a·u + b·v + c
 //     through the four corner disparities evaluated there, Z = f·B/(d + doffs)
@@ -124,8 +125,10 @@ struct SearchWindow {
 
 using MarkerCorners = Eigen::Matrix<double, 4, 2, Eigen::RowMajor>;  ///< TL, TR, BR, BL (u, v) [px]
 
-/// One mapped landmark detected in the left image.
-struct LandmarkObservation {
+/// One mapped landmark detected in the left image: what stereo made of it
+/// (safenav.vision.sighting.LandmarkSighting; not the Localizer's timestamped
+/// LandmarkObservation, localizer.hpp).
+struct LandmarkSighting {
   int landmark_id = 0;
   bool ok = false;  ///< whether range and σ are valid
   static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
@@ -152,7 +155,7 @@ struct LanBLocFix {
   Eigen::Matrix2d covariance = Eigen::Matrix2d::Constant(std::numeric_limits<double>::quiet_NaN());
   double gdop = std::numeric_limits<double>::quiet_NaN();
   LocalizationResult localization;  ///< the trilateration's (empty when it did not run)
-  std::vector<LandmarkObservation> observations;
+  std::vector<LandmarkSighting> observations;
   SearchMode search = SearchMode::WholeFrame;
   std::string search_reason;  ///< why this mode
   std::vector<SearchWindow> windows;  ///< when search == Windows
