@@ -332,3 +332,28 @@ def test_example_reports_bad_input(example_exe, tmp_path):
     proc = subprocess.run([exe, str(tmp_path / "c.txt"), str(tmp_path / "away.pgm"), str(tmp_path / "away.pgm")],
                           capture_output=True, text=True)
     assert proc.returncode == 1 and "status=no_landmarks" in proc.stdout
+
+
+def test_a_pitched_rig_ranges_and_predicts_windows_as_python():
+    """Pitch enters the bearing (the centre's ray at heading 0), the slant range and the windows'
+    projection; with the camera looking up 0.08 rad, both pipelines and the windows still agree."""
+    rig = StereoRig(pitch_rad=0.08)
+    pose, placements = SCENES[0]
+    world = _scene(pose, placements)
+    left, right = StereoRenderer(world, rig, noise_std=1.0, seed=5).render(pose)
+    py = LanBLoc(world, rig, ranging="corners").localize(left, right)
+    fe = _front_end(world, rig)
+    cc = fe.localize(left, right)
+    assert str(cc.status) == py.status == "ok"
+    assert [o.landmark_id for o in cc.observations] == [o.landmark_id for o in py.observations]
+    for q, o in zip(cc.observations, py.observations):
+        bound = o.depth ** 2 * VERSION_PX / rig.fB * (o.slant_range / o.depth) * (o.slant_range / o.range)
+        assert abs(q.range - o.range) <= bound + 1e-5 and abs(q.bearing - o.bearing) <= VERSION_PX / rig.focal_length_px
+    res = fe.localize(left, right, np.array(pose), np.diag([0.3 ** 2, 0.3 ** 2, math.radians(2.0) ** 2]))
+    assert res.search == _core.SearchMode.WINDOWS
+    assert [o.landmark_id for o in res.observations] == [o.landmark_id for o in cc.observations]
+    renderer = StereoRenderer(world, rig)
+    for w in res.windows:
+        lm = next(lm for lm in world.landmarks if lm.id == w.landmark_id)
+        uv, _ = renderer.project(pose, [[*lm.position[:2], lm.height]], "right" if w.right else "left")
+        np.testing.assert_allclose(w.predicted_centre, uv[0], atol=1e-9)
