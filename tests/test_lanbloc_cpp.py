@@ -357,3 +357,26 @@ def test_a_pitched_rig_ranges_and_predicts_windows_as_python():
         lm = next(lm for lm in world.landmarks if lm.id == w.landmark_id)
         uv, _ = renderer.project(pose, [[*lm.position[:2], lm.height]], "right" if w.right else "left")
         np.testing.assert_allclose(w.predicted_centre, uv[0], atol=1e-9)
+
+
+def test_one_front_end_serves_several_threads():
+    """localize releases the GIL and writes no shared state: threads on one front end get the
+    single-threaded results."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    frames = []
+    for pose, placements in SCENES:
+        world = _scene(pose, placements)
+        frames.append((world, pose, *_pair(world, pose)))
+    world = World(landmarks=tuple(lm for f in frames for lm in f[0].landmarks))
+    fe = _front_end(world)
+    P = np.diag([0.3 ** 2, 0.3 ** 2, math.radians(2.0) ** 2])
+    jobs = [(left, right, np.array(pose) if k % 2 else None, P if k % 2 else None)
+            for k, (_, pose, left, right) in enumerate(frames * 4)]
+    serial = [fe.localize(*j) for j in jobs]
+    with ThreadPoolExecutor(4) as pool:
+        parallel = list(pool.map(lambda j: fe.localize(*j), jobs))
+    for a, b in zip(serial, parallel):
+        assert str(a.status) == str(b.status) and a.search == b.search
+        np.testing.assert_array_equal(a.position, b.position)
+        assert [o.range for o in a.observations] == [o.range for o in b.observations]

@@ -155,13 +155,15 @@ std::vector<Marker> detect_markers(const cv::Mat& image, const std::vector<Box>&
   for (const Box& b : search) {
     const cv::Rect roi(int(b.x_min), int(b.y_min), int(b.x_max - b.x_min), int(b.y_max - b.y_min));
     if (roi.width < 8 || roi.height < 8) continue;
-    // The same smallest perimeter in pixels as on the whole image (a rate of the searched side).
-    params->minMarkerPerimeterRate = std::min(min_perimeter_rate * full_side / std::max(roi.width, roi.height), 3.9);
+    // The same smallest perimeter in pixels as on the whole image (a rate of the searched side);
+    // a copy of the parameters, so that concurrent calls share nothing they write.
+    const cv::Ptr<cv::aruco::DetectorParameters> p = cv::makePtr<cv::aruco::DetectorParameters>(*params);
+    p->minMarkerPerimeterRate = std::min(min_perimeter_rate * full_side / std::max(roi.width, roi.height), 3.9);
     std::vector<std::vector<cv::Point2f>> corners;
     std::vector<int> ids;
-    cv::aruco::detectMarkers(image(roi), dict, corners, ids, params);
+    cv::aruco::detectMarkers(image(roi), dict, corners, ids, p);
     if (refine.relative_win_size > 0.0)
-      for (auto& c : corners) refine_corners(image(roi), c, dict->markerSize, params->markerBorderBits, refine);
+      for (auto& c : corners) refine_corners(image(roi), c, dict->markerSize, p->markerBorderBits, refine);
     for (std::size_t i = 0; i < ids.size(); ++i) {
       Marker m;
       m.id = ids[i];

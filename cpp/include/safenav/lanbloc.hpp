@@ -169,8 +169,9 @@ struct LanBLocFix {
   int n_ranges() const;
 };
 
-/// LanBLoc's front end for one rig, landmark map and settings.  Not
-/// thread-safe; use one per thread.
+/// LanBLoc's front end for one rig, landmark map and settings.  localize()
+/// and search_windows() are const and write no shared state: one front end
+/// may serve several threads.
 class LanBLocFrontEnd {
  public:
   /// Throws std::invalid_argument on a bad rig or settings, an unknown
