@@ -1,6 +1,7 @@
 #include "common.hpp"
 
 void pybind_geometry_simple_polygon(py::module_& m);  // appended to bindings/geometry.cpp
+void pybind_lanbloc(py::module_& m);                   // bindings/lanbloc.cpp
 
 PYBIND11_MODULE(_core, m) {
   m.doc() = "safenav C++ core (use the safenav package, not this module directly)";
@@ -18,6 +19,7 @@ PYBIND11_MODULE(_core, m) {
   pybind_planning(m);
   pybind_trilateration(m);
   pybind_stereo(m);
+  pybind_lanbloc(m);
   pybind_placement(m);
   pybind_navigation(m);
   pybind_guidance(m);

@@ -1,0 +1,170 @@
+// Python bindings of LanBLoc's C++ front end (safenav/lanbloc.hpp).
+#include "common.hpp"
+#include "params.hpp"
+#include "safenav/lanbloc.hpp"
+
+#include <map>
+#include <optional>
+
+#include <pybind11/numpy.h>
+
+using namespace safenav;
+
+namespace {
+using U8Array = py::array_t<std::uint8_t, py::array::c_style | py::array::forcecast>;
+
+ImageView gray_view(const U8Array& a, const char* what) {
+  if (a.ndim() != 2)
+    throw std::invalid_argument(std::string(what) + " image must be (H, W) 8-bit grey, got " +
+                                std::to_string(a.ndim()) + " dimensions");
+  ImageView v;
+  v.data = a.data();
+  v.rows = static_cast<int>(a.shape(0));
+  v.cols = static_cast<int>(a.shape(1));
+  v.channels = 1;
+  v.row_stride = static_cast<std::ptrdiff_t>(a.strides(0));
+  return v;
+}
+
+py::tuple box_tuple(const Box& b) { return py::make_tuple(b.x_min, b.y_min, b.x_max, b.y_max); }
+
+py::list boxes(const std::vector<Box>& bs) {
+  py::list out;
+  for (const Box& b : bs) out.append(box_tuple(b));
+  return out;
+}
+
+void bind_types(py::module_& m) {
+  py::class_<LanBLocRig>(m, "LanBLocRig")
+      .def(py::init<>())
+      .def(py::init([](const RectifiedCamera& c, double h, double pitch) { return LanBLocRig{c, h, pitch}; }),
+           py::arg("camera"), py::arg("camera_height_m") = 1.5, py::arg("pitch_rad") = 0.0)
+      .def_readwrite("camera", &LanBLocRig::camera)
+      .def_readwrite("camera_height_m", &LanBLocRig::camera_height_m)
+      .def_readwrite("pitch_rad", &LanBLocRig::pitch_rad)
+      .def("validate", &LanBLocRig::validate);
+
+  def_params<LanBLocSettings>(py::class_<LanBLocSettings>(m, "LanBLocSettings"))
+      .def(py::init<>())
+      .def_readwrite("dictionary", &LanBLocSettings::dictionary)
+      .def_readwrite("min_perimeter_rate", &LanBLocSettings::min_perimeter_rate)
+      .def_readwrite("error_correction_rate", &LanBLocSettings::error_correction_rate)
+      .def_readwrite("max_border_error_rate", &LanBLocSettings::max_border_error_rate)
+      .def_readwrite("subpixel", &LanBLocSettings::subpixel)
+      .def_readwrite("corner_refinement_win_size", &LanBLocSettings::corner_refinement_win_size)
+      .def_readwrite("relative_corner_refinement_win_size", &LanBLocSettings::relative_corner_refinement_win_size)
+      .def_readwrite("corner_sigma_d", &LanBLocSettings::corner_sigma_d)
+      .def_readwrite("max_row_error_px", &LanBLocSettings::max_row_error_px)
+      .def_readwrite("bearing_sigma_px", &LanBLocSettings::bearing_sigma_px)
+      .def_readwrite("max_range_m", &LanBLocSettings::max_range_m)
+      .def_readwrite("min_landmarks", &LanBLocSettings::min_landmarks)
+      .def_readwrite("resolve_ambiguity", &LanBLocSettings::resolve_ambiguity)
+      .def_readwrite("trilateration", &LanBLocSettings::trilateration)
+      .def_readwrite("marker_size_m", &LanBLocSettings::marker_size_m)
+      .def_readwrite("window_sigmas", &LanBLocSettings::window_sigmas)
+      .def_readwrite("window_margin_px", &LanBLocSettings::window_margin_px)
+      .def_readwrite("max_window_fraction", &LanBLocSettings::max_window_fraction)
+      .def("validate", &LanBLocSettings::validate);
+
+  py::enum_<LanBLocStatus>(m, "LanBLocStatus")
+      .value("OK", LanBLocStatus::Ok)
+      .value("NO_LANDMARKS", LanBLocStatus::NoLandmarks)
+      .value("TOO_FEW_RANGES", LanBLocStatus::TooFewRanges)
+      .value("DEGENERATE", LanBLocStatus::Degenerate)
+      .value("DID_NOT_CONVERGE", LanBLocStatus::DidNotConverge)
+      .def("__str__", [](LanBLocStatus s) { return std::string(to_string(s)); });
+  py::enum_<SearchMode>(m, "SearchMode")
+      .value("WHOLE_FRAME", SearchMode::WholeFrame)
+      .value("WINDOWS", SearchMode::Windows)
+      .def("__str__", [](SearchMode s) { return std::string(to_string(s)); });
+
+  py::class_<SearchWindow>(m, "SearchWindow")
+      .def_readonly("landmark_id", &SearchWindow::landmark_id)
+      .def_readonly("right", &SearchWindow::right)
+      .def_property_readonly("box", [](const SearchWindow& w) { return box_tuple(w.box); },
+                             "(x_min, y_min, x_max, y_max) [px], x_max and y_max exclusive")
+      .def_readonly("predicted_centre", &SearchWindow::predicted_centre)
+      .def_readonly("sigma_px", &SearchWindow::sigma_px);
+
+  py::class_<LandmarkSighting>(m, "LandmarkSighting")
+      .def_readonly("landmark_id", &LandmarkSighting::landmark_id)
+      .def_readonly("ok", &LandmarkSighting::ok)
+      .def_readonly("range", &LandmarkSighting::range)
+      .def_readonly("sigma", &LandmarkSighting::sigma)
+      .def_readonly("bearing", &LandmarkSighting::bearing)
+      .def_readonly("bearing_sigma", &LandmarkSighting::bearing_sigma)
+      .def_readonly("slant_range", &LandmarkSighting::slant_range)
+      .def_readonly("depth", &LandmarkSighting::depth)
+      .def_readonly("disparity", &LandmarkSighting::disparity)
+      .def_readonly("centre", &LandmarkSighting::centre)
+      .def_readonly("anchor", &LandmarkSighting::anchor)
+      .def_readonly("corners_left", &LandmarkSighting::corners_left)
+      .def_readonly("corners_right", &LandmarkSighting::corners_right)
+      .def_readonly("reason", &LandmarkSighting::reason);
+
+  py::class_<LanBLocFix>(m, "LanBLocFix")
+      .def_readonly("status", &LanBLocFix::status)
+      .def_readonly("reason", &LanBLocFix::reason)
+      .def_readonly("position", &LanBLocFix::position)
+      .def_readonly("covariance", &LanBLocFix::covariance)
+      .def_readonly("gdop", &LanBLocFix::gdop)
+      .def_readonly("localization", &LanBLocFix::localization)
+      .def_readonly("observations", &LanBLocFix::observations)
+      .def_readonly("search", &LanBLocFix::search)
+      .def_readonly("search_reason", &LanBLocFix::search_reason)
+      .def_readonly("windows", &LanBLocFix::windows)
+      .def_readonly("unmapped", &LanBLocFix::unmapped)
+      .def_property_readonly("left_regions", [](const LanBLocFix& f) { return boxes(f.left_regions); },
+                             "the left image's searched regions (x_min, y_min, x_max, y_max) [px] (windows mode)")
+      .def_property_readonly("right_regions", [](const LanBLocFix& f) { return boxes(f.right_regions); },
+                             "the right image's searched regions (windows mode)")
+      .def_property_readonly("ok", &LanBLocFix::ok)
+      .def_property_readonly("n_ranges", &LanBLocFix::n_ranges);
+}
+
+std::optional<PosePrediction> prediction_of(const std::optional<Eigen::Vector3d>& pose,
+                                            const std::optional<Eigen::Matrix3d>& covariance) {
+  if (pose.has_value() != covariance.has_value())
+    throw std::invalid_argument("predicted_pose and predicted_covariance must be given together (or neither)");
+  if (!pose) return std::nullopt;
+  return PosePrediction{*pose, *covariance};
+}
+}  // namespace
+
+void pybind_lanbloc(py::module_& m) {
+  bind_types(m);
+  py::class_<LanBLocFrontEnd>(m, "LanBLocFrontEnd")
+      .def(py::init([](const LanBLocRig& rig, const std::map<int, Eigen::Vector3d>& landmarks,
+                       const LanBLocSettings& settings) {
+             std::vector<LanBLocLandmark> lms;
+             for (const auto& [id, p] : landmarks) lms.push_back({id, p});
+             return LanBLocFrontEnd(rig, std::move(lms), settings);
+           }),
+           py::arg("rig"), py::arg("landmarks"), py::arg("settings") = LanBLocSettings(),
+           "landmarks: {id: (x, y, z)}, the marker centres' map positions [m]")
+      .def_property_readonly("rig", &LanBLocFrontEnd::rig)
+      .def_property_readonly("settings", &LanBLocFrontEnd::settings)
+      .def(
+          "localize",
+          [](const LanBLocFrontEnd& f, const U8Array& left, const U8Array& right,
+             const std::optional<Eigen::Vector3d>& pose, const std::optional<Eigen::Matrix3d>& covariance) {
+            const ImageView l = gray_view(left, "left"), r = gray_view(right, "right");
+            const std::optional<PosePrediction> p = prediction_of(pose, covariance);
+            py::gil_scoped_release nogil;
+            return f.localize(l, r, p);
+          },
+          py::arg("left"), py::arg("right"), py::arg("predicted_pose") = py::none(),
+          py::arg("predicted_covariance") = py::none(),
+          "Observations and fix of one rectified grey pair; with a predicted pose (x, y, theta) and its 3x3 "
+          "covariance the search is in windows around the landmarks' predicted projections.")
+      .def(
+          "search_windows",
+          [](const LanBLocFrontEnd& f, const Eigen::Vector3d& pose, const Eigen::Matrix3d& covariance) {
+            SearchMode mode;
+            std::string reason;
+            std::vector<SearchWindow> w = f.search_windows(PosePrediction{pose, covariance}, mode, reason);
+            return py::make_tuple(w, mode, reason);
+          },
+          py::arg("predicted_pose"), py::arg("predicted_covariance"),
+          "(windows, mode, reason) for a predicted pose and covariance.");
+}

@@ -1,0 +1,212 @@
+// safenav/lanbloc.hpp — LanBLoc's stereo front end in the core
+// ([SafeNav §IV-A]: landmarks recognised in the left image, their distances
+// from stereo, trilateration with the landmarks as anchors).
+//
+// One rectified 8-bit grey stereo pair in (plain buffers: ImageView), the
+// landmark map, the rig's calibration and optionally a predicted pose with its
+// covariance; per-landmark observations (id, range, bearing, σ, status with a
+// reason) and the trilaterated fix with its covariance out.  The steps are
+// those of the Python whole-frame pipeline with corner ranging
+// (safenav.vision.full_frame with ranging="corners"):
+//
+//  1. fiducial detection (OpenCV ArUco) in the left image, and in the right
+//     image for the same ids; corners refined by cv::cornerSubPix with
+//     OpenCV >= 4.8's window rule (as pip's cv2 refines for the Python side);
+//  2. per marker found in both: its centre (the diagonals' intersection of
+//     the left corners), the least-squares disparity plane d = a·u + b·v + c
+//     through the four corner disparities evaluated there, Z = f·B/(d + doffs)
+//     (StereoMatcher::depth) with σ_Z = Z²·σ_c/(f·B);
+//  3. slant range s = ‖P‖ of the centre's 3D point, horizontal range
+//     ρ = sqrt(s² − (z_ℓ − h)²) with σ_ρ = σ_s·s/ρ, and the bearing of the
+//     centre relative to the heading (counter-clockwise);
+//  4. trilateration (safenav::trilaterate) and the mirror ambiguity settled
+//     by the bearings (a χ² test, 99.9 %).
+//
+// Where to search (ours): with a predicted pose, each mapped landmark's board
+// is projected from the prediction into both images and its box grown by the
+// projection's 3σ (the pose covariance propagated to pixels through the
+// projection's Jacobian); detection runs in those windows only.  Without a
+// prediction, or when the windows would cover too large a share of the frame,
+// the whole frame is searched.  The result says which.
+//
+// OpenCV stays inside cpp/src: only Eigen and std types cross this header.
+#pragma once
+
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+#include <Eigen/Core>
+
+#include "safenav/stereo.hpp"
+#include "safenav/trilateration.hpp"
+
+namespace safenav {
+
+/// A mapped landmark: its id (= its marker id in the dictionary) and the
+/// position of its marker's centre (x, y east/north, z height above the
+/// ground) [m].
+struct LanBLocLandmark {
+  int id = 0;
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+};
+
+/// The rectified rig (safenav.vision.rig.StereoRig): the camera (f, cx, cy,
+/// baseline B, doffs, image size; Z = f·B/(d + doffs)), the camera centres'
+/// height h above the ground and the pitch (positive looks up).  The vehicle's
+/// position is the left camera's centre.
+struct LanBLocRig {
+  RectifiedCamera camera;
+  double camera_height_m = 1.5;
+  double pitch_rad = 0.0;
+
+  void validate() const;  ///< std::invalid_argument naming the field at fault
+};
+
+/// The front end's settings; the defaults are the Python pipeline's
+/// (LanBLoc(..., ranging="corners") with FiducialDetector's defaults).
+struct LanBLocSettings {
+  /// OpenCV ArUco dictionary name ("DICT_4X4_100", "DICT_6X6_250",
+  /// "APRILTAG_36h11", …).
+  std::string dictionary = "DICT_4X4_100";
+  // --- detection (FiducialDetector)
+  double min_perimeter_rate = 0.02;     ///< ArUco minMarkerPerimeterRate (of the larger side of the searched image)
+  double error_correction_rate = 0.3;   ///< ArUco errorCorrectionRate
+  double max_border_error_rate = 0.1;   ///< ArUco maxErroneousBitsInBorderRate
+  bool subpixel = true;                 ///< CORNER_REFINE_SUBPIX
+  int corner_refinement_win_size = 3;   ///< [px] cornerRefinementWinSize (the largest window)
+  /// OpenCV >= 4.8's relativeCornerRefinmentWinSize: the window is
+  /// min(round(this · cell size), corner_refinement_win_size) px, as pip's cv2
+  /// (which the Python pipeline runs) refines; 0 = the linked ArUco's own
+  /// refinement (OpenCV 4.6: always corner_refinement_win_size).
+  double relative_corner_refinement_win_size = 0.3;
+  // --- ranging (LandmarkRanging.observe_corners / sighting)
+  double corner_sigma_d = 0.035;        ///< [px] σ_c of the centre's disparity from the corners
+  double max_row_error_px = 1.0;        ///< [px] largest left/right row difference of a corner
+  double bearing_sigma_px = 1.0;        ///< [px] σ of the centre, bearing σ = σ_px / f
+  double max_range_m = std::numeric_limits<double>::infinity();  ///< [m] depths beyond: no range
+  // --- trilateration (LandmarkRanging.solve)
+  int min_landmarks = 3;                ///< ranges needed to trilaterate (the paper: at least 3)
+  bool resolve_ambiguity = true;        ///< settle a mirror ambiguity by the bearings
+  LocalizationOptions trilateration;    ///< safenav::trilaterate's options
+  // --- search windows from the prediction (ours)
+  double marker_size_m = 1.5;           ///< [m] side of the black-framed marker (the board adds one cell per side)
+  double window_sigmas = 3.0;           ///< windows grow by this many projected σ
+  double window_margin_px = 12.0;       ///< [px] quiet background around a board's box for the detector
+  double max_window_fraction = 0.5;     ///< windows covering more of the frame than this: whole frame
+
+  void validate() const;  ///< std::invalid_argument naming the field at fault
+};
+
+/// A predicted pose (x, y, θ) and its 3×3 covariance, e.g. the filter's
+/// prediction for the frame's time.
+struct PosePrediction {
+  Eigen::Vector3d pose = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+};
+
+enum class LanBLocStatus { Ok, NoLandmarks, TooFewRanges, Degenerate, DidNotConverge };
+const char* to_string(LanBLocStatus status);  ///< "ok", "no_landmarks", …, as safenav.vision's STATUSES
+
+enum class SearchMode { WholeFrame, Windows };
+const char* to_string(SearchMode mode);  ///< "whole_frame", "windows"
+
+/// A search window of one landmark in one image: [x_min, x_max) × [y_min, y_max)
+/// in pixels, clipped to the image.
+struct SearchWindow {
+  int landmark_id = 0;
+  bool right = false;  ///< in the right image
+  Box box;
+  Eigen::Vector2d predicted_centre = Eigen::Vector2d::Zero();  ///< projected marker centre [px]
+  Eigen::Vector2d sigma_px = Eigen::Vector2d::Zero();          ///< its projected σ (u, v) [px]
+};
+
+using MarkerCorners = Eigen::Matrix<double, 4, 2, Eigen::RowMajor>;  ///< TL, TR, BR, BL (u, v) [px]
+
+/// One mapped landmark detected in the left image: what stereo made of it
+/// (safenav.vision.sighting.LandmarkSighting; not the Localizer's timestamped
+/// LandmarkObservation, localizer.hpp).
+struct LandmarkSighting {
+  int landmark_id = 0;
+  bool ok = false;  ///< whether range and σ are valid
+  static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+  double range = kNaN;          ///< horizontal range ρ [m]
+  double sigma = kNaN;          ///< σ_ρ [m]
+  double bearing = kNaN;        ///< relative to the heading, counter-clockwise [rad]
+  double bearing_sigma = kNaN;  ///< [rad]
+  double slant_range = kNaN;    ///< s [m]
+  double depth = kNaN;          ///< Z [m]
+  double disparity = kNaN;      ///< d at the centre [px]
+  Eigen::Vector2d centre = Eigen::Vector2d::Constant(kNaN);  ///< left image [px]
+  Eigen::Vector3d anchor = Eigen::Vector3d::Constant(kNaN);  ///< the landmark's map position
+  MarkerCorners corners_left = MarkerCorners::Constant(kNaN);
+  MarkerCorners corners_right = MarkerCorners::Constant(kNaN);  ///< NaN when not found
+  std::string reason;  ///< why there is no range (empty when ok)
+};
+
+/// A frame's result: status and reason, the fix (NaN unless ok), every
+/// detected landmark's observation (by id), the search mode and windows.
+struct LanBLocFix {
+  LanBLocStatus status = LanBLocStatus::NoLandmarks;
+  std::string reason;
+  Eigen::Vector2d position = Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
+  Eigen::Matrix2d covariance = Eigen::Matrix2d::Constant(std::numeric_limits<double>::quiet_NaN());
+  double gdop = std::numeric_limits<double>::quiet_NaN();
+  LocalizationResult localization;  ///< the trilateration's (empty when it did not run)
+  std::vector<LandmarkSighting> observations;
+  SearchMode search = SearchMode::WholeFrame;
+  std::string search_reason;  ///< why this mode
+  std::vector<SearchWindow> windows;  ///< when search == Windows
+  /// The regions searched when search == Windows: each image's windows, those
+  /// that overlap merged into their bounding box (a marker is found when it
+  /// lies whole inside one).
+  std::vector<Box> left_regions, right_regions;
+  std::vector<int> unmapped;          ///< marker ids detected in the left image but not in the map
+
+  bool ok() const { return status == LanBLocStatus::Ok; }
+  int n_ranges() const;
+};
+
+/// LanBLoc's front end for one rig, landmark map and settings.  localize()
+/// and search_windows() are const and write no shared state: one front end
+/// may serve several threads.
+class LanBLocFrontEnd {
+ public:
+  /// Throws std::invalid_argument on a bad rig or settings, an unknown
+  /// dictionary, duplicate or out-of-dictionary landmark ids, non-finite
+  /// positions.
+  LanBLocFrontEnd(const LanBLocRig& rig, std::vector<LanBLocLandmark> landmarks,
+                  const LanBLocSettings& settings = LanBLocSettings());
+  ~LanBLocFrontEnd();
+  LanBLocFrontEnd(LanBLocFrontEnd&&) noexcept;
+  LanBLocFrontEnd& operator=(LanBLocFrontEnd&&) noexcept;
+
+  const LanBLocRig& rig() const;
+  const LanBLocSettings& settings() const;
+  const std::vector<LanBLocLandmark>& landmarks() const;
+
+  /// One rectified grey pair (1 channel, the rig's size) → observations and
+  /// fix.  With a prediction the search is in windows around the landmarks'
+  /// predicted projections (see search_windows).  Throws
+  /// std::invalid_argument on images of the wrong size or channels, or a
+  /// non-finite or non-symmetric-PSD prediction.
+  LanBLocFix localize(const ImageView& left, const ImageView& right,
+                      const std::optional<PosePrediction>& prediction = std::nullopt) const;
+
+  /// The windows for `prediction`: per mapped landmark whose board projects
+  /// in front of both cameras within max_range_m and into the image, the
+  /// board's box in each image grown by window_sigmas·σ (Jacobian of the
+  /// centre's projection with respect to (x, y, θ) times the covariance) plus
+  /// window_margin_px.  Empty `mode_reason` and mode Windows, or mode
+  /// WholeFrame with the reason (too uncertain).
+  std::vector<SearchWindow> search_windows(const PosePrediction& prediction, SearchMode& mode,
+                                           std::string& mode_reason) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace safenav

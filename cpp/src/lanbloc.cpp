@@ -1,0 +1,401 @@
+// LanBLoc front end: settings, ranging from refined corners, trilateration
+// (safenav/lanbloc.hpp; the steps of safenav.vision.full_frame with
+// ranging="corners" and safenav.vision.ranging.LandmarkRanging).
+#include "safenav/lanbloc.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <iomanip>
+#include <map>
+#include <sstream>
+
+#include <Eigen/QR>
+#include <boost/math/distributions/chi_squared.hpp>
+#include <opencv2/core.hpp>
+
+#include "declare.hpp"
+#include "errors.hpp"
+#include "lanbloc_internal.hpp"
+#include "safenav/types.hpp"
+
+namespace safenav {
+
+using lanbloc_detail::Marker;
+
+const char* to_string(LanBLocStatus s) {
+  switch (s) {
+    case LanBLocStatus::Ok: return "ok";
+    case LanBLocStatus::NoLandmarks: return "no_landmarks";
+    case LanBLocStatus::TooFewRanges: return "too_few_ranges";
+    case LanBLocStatus::Degenerate: return "degenerate";
+    case LanBLocStatus::DidNotConverge: return "did_not_converge";
+  }
+  return "?";
+}
+
+const char* to_string(SearchMode m) { return m == SearchMode::Windows ? "windows" : "whole_frame"; }
+
+int LanBLocFix::n_ranges() const {
+  return static_cast<int>(std::count_if(observations.begin(), observations.end(), [](const auto& o) { return o.ok; }));
+}
+
+void LanBLocRig::validate() const {
+  camera.validate();
+  detail::require_finite_nonneg(camera_height_m, "rig.camera_height_m");
+  if (!(std::abs(pitch_rad) < 0.5))
+    detail::bad("rig.pitch_rad = " + detail::num(pitch_rad) + ": must be a finite angle with |pitch| < 0.5 rad");
+}
+
+template <>
+const ParamSet<LanBLocSettings>& param_set<LanBLocSettings>() {
+  using S = LanBLocSettings;
+  constexpr double kNone = std::numeric_limits<double>::infinity();
+  static const ParamSet<S> s =
+      Declare<S>{}
+          .real("min_perimeter_rate", SN_REF(S, min_perimeter_rate), "", above(0, 4), "ArUco minMarkerPerimeterRate: smallest marker perimeter as a share of the image's larger side")
+          .real("error_correction_rate", SN_REF(S, error_correction_rate), "", closed(0, 1), "ArUco errorCorrectionRate")
+          .real("max_border_error_rate", SN_REF(S, max_border_error_rate), "", closed(0, 1), "ArUco maxErroneousBitsInBorderRate")
+          .flag("subpixel", SN_REF(S, subpixel), "refine the marker corners to sub-pixel accuracy (CORNER_REFINE_SUBPIX)")
+          .integer("corner_refinement_win_size", SN_REF(S, corner_refinement_win_size), closed(1, 100), "ArUco cornerRefinementWinSize [px]")
+          .real("relative_corner_refinement_win_size", SN_REF(S, relative_corner_refinement_win_size), "", closed(0, 10), "OpenCV >= 4.8's relativeCornerRefinmentWinSize (window = min(round(this * cell px), corner_refinement_win_size)); 0 = the linked ArUco's fixed window")
+          .real("corner_sigma_d", SN_REF(S, corner_sigma_d), "px", above(0, 100), "sigma of the marker centre's disparity from its corners; sigma_Z = Z^2 sigma / (f B)")
+          .real("max_row_error_px", SN_REF(S, max_row_error_px), "px", above(0, 1e4), "largest row difference of a corner between the left and the right image")
+          .real("bearing_sigma_px", SN_REF(S, bearing_sigma_px), "px", above(0, 1e4), "sigma of the marker centre; bearing sigma = sigma_px / f")
+          .real("max_range_m", SN_REF(S, max_range_m), "m", above(0, kNone), "depths beyond this: no range; inf = none")
+          .integer("min_landmarks", SN_REF(S, min_landmarks), closed(3, 1e6), "ranges needed to trilaterate [SafeNav IV-A: at least 3]")
+          .flag("resolve_ambiguity", SN_REF(S, resolve_ambiguity), "settle a mirror ambiguity of the fix by the bearings")
+          .nested("trilateration.", param_set<LocalizationOptions>(), [](S& t) -> auto& { return t.trilateration; })
+          .real("marker_size_m", SN_REF(S, marker_size_m), "m", above(0, 1e3), "side of the black-framed marker (search windows)")
+          .real("window_sigmas", SN_REF(S, window_sigmas), "", closed(0, 100), "search windows grow by this many projected sigma")
+          .real("window_margin_px", SN_REF(S, window_margin_px), "px", closed(0, 1e4), "background around a board's box in its search window")
+          .real("max_window_fraction", SN_REF(S, max_window_fraction), "", closed(0, 1), "windows covering more of the frame than this: search the whole frame")
+          .set;
+  return s;
+}
+
+template class ParamSet<LanBLocSettings>;
+
+void LanBLocSettings::validate() const {
+  param_set<LanBLocSettings>().check(*this);
+  trilateration.validate();
+  (void)lanbloc_detail::dictionary(dictionary);
+}
+
+// ---------------------------------------------------------------------------
+
+struct LanBLocFrontEnd::Impl {
+  LanBLocRig rig;
+  LanBLocSettings settings;
+  std::vector<LanBLocLandmark> landmarks;
+  std::map<int, Eigen::Vector3d> anchor;  // id → map position
+  cv::Ptr<cv::aruco::Dictionary> dict;
+  cv::Ptr<cv::aruco::DetectorParameters> params;
+  lanbloc_detail::CornerRefinement refine;  // relative_win_size 0: ArUco refines (or nothing does)
+  StereoMatcher matcher;  // the depth model Z = f·B/(d + doffs)
+
+  Impl(const LanBLocRig& r, std::vector<LanBLocLandmark> lms, const LanBLocSettings& s)
+      : rig(r), settings(s), landmarks(std::move(lms)), matcher(r.camera) {}
+
+  std::vector<Marker> detect(const ImageView& img, const std::vector<SearchWindow>& windows, bool right,
+                             bool whole, std::vector<Box>& regions) const;
+  LandmarkSighting observe(const Marker& left, const Marker* right, const std::string& why) const;
+  void sighting(LandmarkSighting& o, double depth, double sigma_z) const;
+  void solve(LanBLocFix& fix) const;
+  bool bearings_agree(const LocalizationResult& loc, const std::vector<const LandmarkSighting*>& obs) const;
+};
+
+LanBLocFrontEnd::LanBLocFrontEnd(const LanBLocRig& rig, std::vector<LanBLocLandmark> landmarks,
+                                 const LanBLocSettings& settings) {
+  rig.validate();
+  settings.validate();
+  impl_ = std::make_unique<Impl>(rig, std::move(landmarks), settings);
+  impl_->dict = lanbloc_detail::dictionary(settings.dictionary);
+  const int n_ids = impl_->dict->bytesList.rows;
+  for (const LanBLocLandmark& lm : impl_->landmarks) {
+    if (lm.id < 0 || lm.id >= n_ids)
+      detail::bad("landmark id " + std::to_string(lm.id) + " is not in dictionary " + settings.dictionary +
+                  " (ids 0.." + std::to_string(n_ids - 1) + ")");
+    if (!lm.position.allFinite()) detail::bad("landmark " + std::to_string(lm.id) + " has a non-finite position");
+    if (!impl_->anchor.emplace(lm.id, lm.position).second)
+      detail::bad("landmark id " + std::to_string(lm.id) + " appears twice in the map");
+  }
+  // FiducialDetector's parameters (safenav.vision.detect).
+  auto& p = impl_->params;
+  p = cv::aruco::DetectorParameters::create();
+  p->minMarkerPerimeterRate = settings.min_perimeter_rate;
+  p->errorCorrectionRate = settings.error_correction_rate;
+  p->maxErroneousBitsInBorderRate = settings.max_border_error_rate;
+  auto& r = impl_->refine;
+  r.relative_win_size = 0.0;
+  if (settings.subpixel && settings.relative_corner_refinement_win_size > 0.0) {
+    // Refined here, with the window rule of OpenCV >= 4.8 (pip's cv2), not by OpenCV 4.6's ArUco.
+    r.relative_win_size = settings.relative_corner_refinement_win_size;
+    r.max_win_size = settings.corner_refinement_win_size;
+    r.max_iterations = p->cornerRefinementMaxIterations;
+    r.min_accuracy = p->cornerRefinementMinAccuracy;
+  } else if (settings.subpixel) {
+    p->cornerRefinementMethod = cv::aruco::CORNER_REFINE_SUBPIX;
+    p->cornerRefinementWinSize = settings.corner_refinement_win_size;
+  }
+}
+
+LanBLocFrontEnd::~LanBLocFrontEnd() = default;
+LanBLocFrontEnd::LanBLocFrontEnd(LanBLocFrontEnd&&) noexcept = default;
+LanBLocFrontEnd& LanBLocFrontEnd::operator=(LanBLocFrontEnd&&) noexcept = default;
+const LanBLocRig& LanBLocFrontEnd::rig() const { return impl_->rig; }
+const LanBLocSettings& LanBLocFrontEnd::settings() const { return impl_->settings; }
+const std::vector<LanBLocLandmark>& LanBLocFrontEnd::landmarks() const { return impl_->landmarks; }
+
+std::vector<SearchWindow> LanBLocFrontEnd::search_windows(const PosePrediction& prediction, SearchMode& mode,
+                                                          std::string& mode_reason) const {
+  const LanBLocRig& r = impl_->rig;
+  std::vector<SearchWindow> w = lanbloc_detail::predicted_windows(r, impl_->settings, impl_->landmarks,
+                                                                  impl_->dict->markerSize, prediction);
+  std::vector<Box> left;
+  for (const SearchWindow& s : w)
+    if (!s.right) left.push_back(s.box);
+  const double share = lanbloc_detail::covered_fraction(left, r.camera.width, r.camera.height);
+  mode = SearchMode::Windows;
+  mode_reason.clear();
+  if (share > impl_->settings.max_window_fraction) {
+    mode = SearchMode::WholeFrame;
+    std::ostringstream os;
+    os << std::setprecision(3) << "prediction too uncertain: windows cover " << share
+       << " of the frame > max_window_fraction = " << impl_->settings.max_window_fraction;
+    mode_reason = os.str();
+  } else if (left.empty()) {
+    mode_reason = "no mapped landmark predicted in view";
+  }
+  return w;
+}
+
+namespace {
+
+cv::Mat as_gray_mat(const ImageView& v, const RectifiedCamera& cam, const char* name) {
+  if (v.data == nullptr || v.rows <= 0 || v.cols <= 0)
+    detail::bad(std::string(name) + " image is empty (" + std::to_string(v.cols) + "x" + std::to_string(v.rows) + ")");
+  if (v.channels != 1)
+    detail::bad(std::string(name) + " image has " + std::to_string(v.channels) + " channels, expected 1 (8-bit grey)");
+  if (v.cols != cam.width || v.rows != cam.height)
+    detail::bad(std::string(name) + " image is " + std::to_string(v.cols) + "x" + std::to_string(v.rows) +
+                " px but the rig is " + std::to_string(cam.width) + "x" + std::to_string(cam.height) + " px");
+  const std::ptrdiff_t stride = v.row_stride ? v.row_stride : v.cols;
+  if (stride < v.cols)
+    detail::bad(std::string(name) + " image row_stride = " + std::to_string(stride) + " is below its width " +
+                std::to_string(v.cols));
+  return cv::Mat(v.rows, v.cols, CV_8UC1, const_cast<std::uint8_t*>(v.data), static_cast<std::size_t>(stride));
+}
+
+}  // namespace
+
+std::vector<Marker> LanBLocFrontEnd::Impl::detect(const ImageView& img, const std::vector<SearchWindow>& windows,
+                                                  bool right, bool whole, std::vector<Box>& regions) const {
+  const cv::Mat m = as_gray_mat(img, rig.camera, right ? "right" : "left");
+  regions.clear();
+  if (!whole) {
+    for (const SearchWindow& w : windows)
+      if (w.right == right) regions.push_back(w.box);
+    if (regions.empty()) return {};
+    regions = lanbloc_detail::merge_boxes(std::move(regions));
+  }
+  return lanbloc_detail::detect_markers(m, regions, dict, params, settings.min_perimeter_rate, refine);
+}
+
+LanBLocFix LanBLocFrontEnd::localize(const ImageView& left, const ImageView& right,
+                                     const std::optional<PosePrediction>& prediction) const {
+  const Impl& I = *impl_;
+  LanBLocFix fix;
+  fix.search = SearchMode::WholeFrame;
+  fix.search_reason = "no prediction given";
+  if (prediction) fix.windows = search_windows(*prediction, fix.search, fix.search_reason);
+  const bool whole = fix.search == SearchMode::WholeFrame;
+  if (whole) fix.windows.clear();
+  (void)as_gray_mat(right, I.rig.camera, "right");  // bad input fails before any work
+  std::vector<Marker> found = I.detect(left, fix.windows, false, whole, fix.left_regions);
+  std::vector<Marker> dets;
+  for (const Marker& m : found) {
+    if (I.anchor.count(m.id))
+      dets.push_back(m);
+    else
+      fix.unmapped.push_back(m.id);  // not a landmark (FiducialDetector.last_unmapped)
+  }
+  if (dets.empty()) {
+    fix.status = LanBLocStatus::NoLandmarks;
+    fix.reason = "no landmark recognised in the left image";
+    return fix;
+  }
+  std::map<int, Marker> in_right;
+  for (const Marker& m : I.detect(right, fix.windows, true, whole, fix.right_regions)) in_right.emplace(m.id, m);
+  for (const Marker& d : dets) {
+    auto it = in_right.find(d.id);
+    fix.observations.push_back(I.observe(d, it == in_right.end() ? nullptr : &it->second, ""));
+  }
+  I.solve(fix);
+  return fix;
+}
+
+LandmarkSighting LanBLocFrontEnd::Impl::observe(const Marker& left, const Marker* right,
+                                                   const std::string& why) const {
+  // LandmarkRanging.observe_corners: the centre is the diagonals' intersection (the image of the
+  // marker's centre under the homography); the disparity plane d = a·u + b·v + c (least squares
+  // through the four corners; the marker is a plane) evaluated there.
+  LandmarkSighting o;
+  o.landmark_id = left.id;
+  o.anchor = anchor.at(left.id);
+  o.corners_left = left.corners;
+  const MarkerCorners& cl = left.corners;
+  const Eigen::Vector2d p = cl.row(0), r = cl.row(2) - cl.row(0), q = cl.row(1), s = cl.row(3) - cl.row(1);
+  const double den = r.x() * s.y() - r.y() * s.x();
+  o.centre = std::abs(den) > 1e-12 ? Eigen::Vector2d(p + r * (((q - p).x() * s.y() - (q - p).y() * s.x()) / den))
+                                   : Eigen::Vector2d(cl.colwise().mean().transpose());
+  const RectifiedCamera& cam = rig.camera;
+  o.bearing_sigma = settings.bearing_sigma_px / cam.f;
+  sighting(o, std::numeric_limits<double>::quiet_NaN(), 0.0);  // the bearing
+  if (right == nullptr) {
+    o.reason = why.empty() ? "not found in the right image" : why;
+    return o;
+  }
+  o.corners_right = right->corners;
+  const double dv = (cl.col(1) - right->corners.col(1)).cwiseAbs().maxCoeff();
+  std::ostringstream os;
+  os << std::fixed << std::setprecision(2);
+  if (dv > settings.max_row_error_px) {
+    os << "corners " << dv << " px off their epipolar lines (max_row_error_px = "
+       << detail::num(settings.max_row_error_px) << ")";
+    o.reason = os.str();
+    return o;
+  }
+  Eigen::Matrix<double, 4, 3> A;
+  A << cl, Eigen::Vector4d::Ones();
+  const Eigen::Vector4d disp = cl.col(0) - right->corners.col(0);
+  const Eigen::Vector3d coef = A.colPivHouseholderQr().solve(disp);
+  o.disparity = coef.x() * o.centre.x() + coef.y() * o.centre.y() + coef.z();
+  const double w = o.disparity + cam.doffs;
+  if (!(w >= 1.0)) {
+    os << "beyond resolvable range (disparity " << w << " px < 1 px)";
+    o.reason = os.str();
+    return o;
+  }
+  // The core's depth model Z = f·B/(d + doffs) (StereoMatcher::depth; float disparities, so Z
+  // carries a relative rounding of ~1e-7).
+  DisparityMap d1(1, 1);
+  d1(0, 0) = static_cast<float>(o.disparity);
+  const double Z = matcher.depth(d1)(0, 0);
+  if (Z > settings.max_range_m) {
+    os << std::setprecision(1) << "beyond resolvable range (" << Z << " m > max_range_m = "
+       << detail::num(settings.max_range_m) << " m)";
+    o.reason = os.str();
+    return o;
+  }
+  sighting(o, Z, Z * Z * settings.corner_sigma_d / (cam.f * cam.baseline));  // σ_Z = Z²·σ_c/(f·B)
+  return o;
+}
+
+
+void LanBLocFrontEnd::Impl::sighting(LandmarkSighting& o, double depth, double sigma_z) const {
+  // LandmarkRanging.sighting: the centre's ray in the world at heading 0, ray = R₀ᵀ·((u − cx)/f,
+  // (v − cy)/f, 1), bearing = atan2(ray_y, ray_x) (counter-clockwise from the heading).
+  const RectifiedCamera& cam = rig.camera;
+  const Eigen::Vector3d xn((o.centre.x() - cam.cx) / cam.f, (o.centre.y() - cam.cy) / cam.f, 1.0);
+  const Eigen::Vector3d ray = lanbloc_detail::camera_rotation(0.0, rig.pitch_rad).transpose() * xn;
+  o.bearing = std::atan2(ray.y(), ray.x());
+  if (!std::isfinite(depth)) return;
+  // Slant range s = ‖P‖ of the centre's point P = Z·xn, σ_s = σ_Z·s/Z; horizontal range
+  // ρ = sqrt(s² − (z_ℓ − h)²), σ_ρ = σ_s·s/ρ (safenav.vision.localization.horizontal_range).
+  const double s = depth * xn.norm();
+  const double sigma_s = sigma_z * s / depth;
+  const double dh = o.anchor.z() - rig.camera_height_m;
+  const double rho = std::sqrt(std::max(s * s - dh * dh, 0.0));
+  o.slant_range = s;
+  o.depth = depth;
+  if (!(rho > 0.0)) {
+    std::ostringstream os;
+    os << std::fixed << std::setprecision(3) << "slant range " << s << " m is shorter than the height difference "
+       << dh << " m";
+    o.reason = os.str();
+    return;
+  }
+  o.ok = true;
+  o.range = rho;
+  o.sigma = sigma_s * s / rho;
+}
+
+bool LanBLocFrontEnd::Impl::bearings_agree(const LocalizationResult& loc,
+                                           const std::vector<const LandmarkSighting*>& obs) const {
+  // LandmarkRanging.bearings_agree: residuals β_i − b_i of the absolute bearings from the fix about
+  // their circular mean (the heading), each with σ² = σ_b² + nᵀPn/ρ², χ² against its 99.9 % quantile.
+  const std::size_t n = obs.size();
+  Eigen::VectorXd res(n), var(n);
+  double sn = 0.0, cs = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector2d d = obs[i]->anchor.head<2>() - loc.position;
+    const double rho = d.norm();
+    if (rho < 1e-6) return false;
+    const Eigen::Vector2d nrm = Eigen::Vector2d(-d.y(), d.x()) / rho;
+    res[i] = std::atan2(d.y(), d.x()) - obs[i]->bearing;
+    var[i] = obs[i]->bearing_sigma * obs[i]->bearing_sigma + nrm.dot(loc.covariance * nrm) / (rho * rho);
+    sn += std::sin(res[i]);
+    cs += std::cos(res[i]);
+  }
+  const double theta = std::atan2(sn / double(n), cs / double(n));
+  double chi2 = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double r = wrap_angle(res[i] - theta);
+    chi2 += r * r / var[i];
+  }
+  const double dof = std::max<double>(double(n) - 1.0, 1.0);
+  return chi2 <= boost::math::quantile(boost::math::chi_squared(dof), 0.999);
+}
+
+void LanBLocFrontEnd::Impl::solve(LanBLocFix& fix) const {
+  // LandmarkRanging.solve: trilateration of the usable ranges [SafeNav §IV-A], the mirror
+  // ambiguity settled by the bearings.
+  std::vector<const LandmarkSighting*> ok;
+  for (const LandmarkSighting& o : fix.observations)
+    if (o.ok) ok.push_back(&o);
+  if (static_cast<int>(ok.size()) < settings.min_landmarks) {
+    fix.status = LanBLocStatus::TooFewRanges;
+    std::ostringstream os;
+    os << ok.size() << " usable range(s), " << settings.min_landmarks << " needed";
+    std::string why;
+    for (const LandmarkSighting& o : fix.observations)
+      if (!o.ok) why += (why.empty() ? "" : "; ") + ("landmark " + std::to_string(o.landmark_id) + ": " + o.reason);
+    if (!why.empty()) os << " (" << why << ")";
+    fix.reason = os.str();
+    return;
+  }
+  Anchors a(ok.size(), 2);
+  Eigen::VectorXd r(ok.size()), s(ok.size());
+  for (std::size_t i = 0; i < ok.size(); ++i) {
+    a.row(i) = ok[i]->anchor.head<2>().transpose();
+    r[i] = ok[i]->range;
+    s[i] = ok[i]->sigma;
+  }
+  LocalizationResult loc = trilaterate(a, r, s, settings.trilateration);
+  if (loc.status == LocalizationStatus::Degenerate && settings.resolve_ambiguity) {
+    // A forward camera sees every landmark on one side: the mirror image of the fix across them may
+    // fit the ranges too; the bearings' left-to-right order tells the two apart.
+    LocalizationOptions any = settings.trilateration;
+    any.ambiguity_margin = 0.0;
+    LocalizationResult best = trilaterate(a, r, s, any);
+    if (best.ok() && bearings_agree(best, ok)) {
+      loc = std::move(best);
+      loc.reason = "mirror ambiguity resolved by the bearings";
+    }
+  }
+  fix.reason = loc.reason;
+  fix.gdop = loc.gdop;
+  switch (loc.status) {
+    case LocalizationStatus::Ok: fix.status = LanBLocStatus::Ok; break;
+    case LocalizationStatus::TooFew: fix.status = LanBLocStatus::TooFewRanges; break;
+    case LocalizationStatus::Degenerate: fix.status = LanBLocStatus::Degenerate; break;
+    case LocalizationStatus::DidNotConverge: fix.status = LanBLocStatus::DidNotConverge; break;
+  }
+  if (fix.ok()) {
+    fix.position = loc.position;
+    fix.covariance = loc.covariance;
+  }
+  fix.localization = std::move(loc);
+}
+
+}  // namespace safenav

@@ -1,0 +1,61 @@
+// Private parts of the LanBLoc front end (safenav/lanbloc.hpp), shared by
+// lanbloc.cpp (ranging, trilateration) and lanbloc_detect.cpp (ArUco
+// detection, search windows).  OpenCV appears only here and in those files.
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <opencv2/aruco.hpp>
+
+#include "safenav/lanbloc.hpp"
+
+namespace safenav::lanbloc_detail {
+
+/// The predefined dictionary named `name` (case-insensitive, "DICT_" optional);
+/// std::invalid_argument listing the known names otherwise.
+cv::Ptr<cv::aruco::Dictionary> dictionary(const std::string& name);
+
+/// World → camera rotation, rows: camera x = right, y = down, z = forward,
+/// for heading θ (counter-clockwise from +x) and pitch (positive up)
+/// (safenav.vision.rig.camera_rotation).
+Eigen::Matrix3d camera_rotation(double theta, double pitch);
+
+/// A detected marker: its id and four corners (TL, TR, BR, BL) in pixels.
+struct Marker {
+  int id = 0;
+  MarkerCorners corners;
+};
+
+/// Sub-pixel corner refinement as OpenCV >= 4.8 does it (relative_win_size > 0), run after a
+/// detection without refinement; relative_win_size = 0 leaves it to the linked ArUco (fixed window).
+struct CornerRefinement {
+  double relative_win_size = 0.3;  ///< OpenCV's relativeCornerRefinmentWinSize
+  int max_win_size = 3;            ///< cornerRefinementWinSize
+  int max_iterations = 30;         ///< cornerRefinementMaxIterations
+  double min_accuracy = 0.1;       ///< cornerRefinementMinAccuracy [px]
+};
+
+/// ArUco detection (FiducialDetector's parameters) in the boxes of `image`
+/// (the whole image when `boxes` is empty), corners in full-image pixels,
+/// sorted by id, the first of each id kept.  The perimeter threshold is
+/// scaled per box so that it stays the whole image's in pixels.
+std::vector<Marker> detect_markers(const cv::Mat& image, const std::vector<Box>& boxes,
+                                   const cv::Ptr<cv::aruco::Dictionary>& dict,
+                                   const cv::Ptr<cv::aruco::DetectorParameters>& params,
+                                   double min_perimeter_rate, const CornerRefinement& refine);
+
+/// Boxes that overlap merged into their bounding box, until none overlap.
+std::vector<Box> merge_boxes(std::vector<Box> boxes);
+
+/// Share of a width×height frame that the union of `boxes` covers.
+double covered_fraction(const std::vector<Box>& boxes, int width, int height);
+
+/// Windows of every mapped landmark for `prediction` (LanBLocFrontEnd::search_windows).
+std::vector<SearchWindow> predicted_windows(const LanBLocRig& rig, const LanBLocSettings& settings,
+                                            const std::vector<LanBLocLandmark>& landmarks, int marker_bits,
+                                            const PosePrediction& prediction);
+
+}  // namespace safenav::lanbloc_detail
