@@ -62,7 +62,7 @@ const ParamSet<LanBLocSettings>& param_set<LanBLocSettings>() {
           .real("max_row_error_px", SN_REF(S, max_row_error_px), "px", above(0, 1e4), "largest row difference of a corner between the left and the right image")
           .real("bearing_sigma_px", SN_REF(S, bearing_sigma_px), "px", above(0, 1e4), "sigma of the marker centre; bearing sigma = sigma_px / f")
           .real("max_range_m", SN_REF(S, max_range_m), "m", above(0, kNone), "depths beyond this: no range; inf = none")
-          .integer("min_landmarks", SN_REF(S, min_landmarks), closed(3, 1e6), "ranges needed to trilaterate [SafeNav IV-A: at least 3]")
+          .integer("min_landmarks", SN_REF(S, min_landmarks), closed(3, 1e6), "ranges needed to trilaterate (at least 3) [SafeNav-ext §IV-A]")
           .flag("resolve_ambiguity", SN_REF(S, resolve_ambiguity), "settle a mirror ambiguity of the fix by the bearings")
           .nested("trilateration.", param_set<LocalizationOptions>(), [](S& t) -> auto& { return t.trilateration; })
           .real("marker_size_m", SN_REF(S, marker_size_m), "m", above(0, 1e3), "side of the black-framed marker (search windows)")

@@ -3,7 +3,7 @@
 :func:`propagate_belief` predicts how the localization covariance will evolve
 along a path, with the filter's own models (LQG-MP, van den Berg et al. 2011):
 each step the EKF's predict ``P = F P F^T + G Sigma_eps G^T`` [SafeNav eq. 11]
-and its Joseph-form update [SafeNav eqs. 12-14] with every measurement the
+and its Joseph-form update [SafeNav eqs. 12–14] with every measurement the
 sensors are expected to make (maximum-likelihood observations): a LanBLoc fix
 when ``min_landmarks`` are in view (``FixModel.PROFILE``), or a range to each
 landmark in view (``FixModel.RANGES``), and the IMU.  "In view" is
