@@ -185,6 +185,21 @@ void bind_localizer(py::module_& m) {
       .def_property_readonly("x", &Localizer::x)
       .def_property_readonly("P", &Localizer::P)
       .def_property_readonly("position_std", &Localizer::position_std)
+      .def(
+          "predict_to",
+          [](const Localizer& l, double t) -> py::object {
+            State x;
+            StateCov P;
+            if (!l.predict_to(t, x, P)) return py::none();
+            return py::make_tuple(x, P);
+          },
+          py::arg("t"),
+          "(x, P) predicted to t > time as a measurement at t would be, on a copy of the filter; None before "
+          "the start or when t <= time")
+      .def_property_readonly("last_motion_time", &Localizer::last_motion_time,
+                             "time of the newest motion input that was not late (NaN: none)")
+      .def_property_readonly("last_measurement_time", &Localizer::last_measurement_time,
+                             "time of the newest measurement that was not late (NaN: none)")
       .def_property_readonly(
           "augmented",
           [](const Localizer& l) -> py::object {

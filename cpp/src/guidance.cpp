@@ -256,11 +256,9 @@ struct Guidance::Impl {
   int commands = 0;
   std::string detail;
   Guard guard;  // the uncertainty-aware guard (guard.hpp)
-  // The watchdog: the latest forwarded motion input's and measurement's times
-  // (NaN: none yet), and the motion input's rates (speed, heading change per second).
-  double t_motion = kNaN, t_measured = kNaN;
-  double rate_speed = kNaN, rate_turn = 0.0;
-  Ekf ahead;  // the estimate predicted to a command's time (a copy; eq. 11)
+  // The estimate predicted to a command's time (Localizer::predict_to; eq. 11).
+  State x_ahead;
+  StateCov P_ahead;
 
   static LocalizerSettings seeded(LocalizerSettings s, std::uint64_t seed) {
     s.filter.seed = derive_seed(seed, 2);
@@ -275,35 +273,14 @@ struct Guidance::Impl {
         localizer(seeded(shared->localizer, sd), shared->landmarks, shared->ids),
         seed(sd),
         guard(settings.guard, shared->bmm, shared->collisions, shared->landmarks,
-              problem.zones.half_width + settings.corridor_margin),
-        ahead(shared->localizer.bmm, State::Zero(), StateCov::Identity()) {}
-
-  /// Notes a motion input at t over (t_prev, t] that was not late: its time
-  /// and its rates (the localizer's own: speed, heading change / interval).
-  void moved(double t, double t_prev, const Control& u, const InputResult& r) {
-    if (r.status == InputStatus::Late) return;
-    const double interval = std::isfinite(t_prev) && t > t_prev ? t - t_prev : shared->bmm.params().dt;
-    rate_speed = u[0];
-    rate_turn = u[1] / interval;
-    t_motion = t;
-  }
-  void measured(double t, const InputResult& r) {
-    if (r.status != InputStatus::Late && !(t <= t_measured)) t_measured = t;
-  }
-  /// A stream not yet heard from counts from the localizer's start: the
-  /// filter's time when guidance first finds it initialized (at an input or a command).
-  void heard_at_start() {
-    if (std::isfinite(t_motion) && std::isfinite(t_measured)) return;
-    if (!localizer.initialized()) return;
-    if (!std::isfinite(t_motion)) t_motion = localizer.time();
-    if (!std::isfinite(t_measured)) t_measured = localizer.time();
-  }
+              problem.zones.half_width + settings.corridor_margin) {}
 
   /// The watchdog: true (with c's status StaleInput, control 0) when an input
   /// stream is older than input_timeout at t.
   bool stale(double t, Command& c) {
-    heard_at_start();
-    const double motion_age = t - t_motion, measurement_age = t - t_measured;
+    if (!localizer.initialized()) return false;
+    const double motion_age = t - localizer.last_motion_time();
+    const double measurement_age = t - localizer.last_measurement_time();
     c.input_age = std::max(motion_age, measurement_age);
     const double limit = settings.input_timeout;
     if (limit == 0.0 || !(c.input_age > limit)) return false;
@@ -315,18 +292,10 @@ struct Guidance::Impl {
     return true;
   }
 
-  /// The estimate at t: the localizer's, predicted past its time by eq. 11 at
-  /// the last motion input's rates (as the localizer itself predicts to a
-  /// measurement's time; at the estimated speed, no turn, before any), on the
-  /// copy `ahead`: the localizer is left as it is.
-  const Ekf* predicted(double t) {
-    const double dt = t - localizer.time();
-    if (!(dt > 1e-9)) return nullptr;
-    const Control u = std::isfinite(rate_speed) ? Control(rate_speed, rate_turn * dt) : Control(localizer.x()[kV], 0.0);
-    ahead.set_state(localizer.x(), localizer.P());
-    ahead.predict(u, dt);
-    return &ahead;
-  }
+  /// The estimate at t: the localizer's, predicted past its time as a
+  /// measurement at t would be (Localizer::predict_to); false when t is not
+  /// past the localizer's time.  The localizer is left as it is.
+  bool predicted(double t) { return localizer.predict_to(t, x_ahead, P_ahead); }
 
   Eigen::Vector2d destination() const { return shared->safe->corridor().path().bottomRows<1>().transpose(); }
 
@@ -413,48 +382,6 @@ Guidance::~Guidance() = default;
 Guidance::Guidance(Guidance&&) noexcept = default;
 Guidance& Guidance::operator=(Guidance&&) noexcept = default;
 
-// The inputs, forwarded to the localizer and noted for the watchdog and the prediction.
-
-InputResult Guidance::motion(double t, const Control& u) {
-  Impl& im = *impl_;
-  im.heard_at_start();
-  const double t_prev = std::isfinite(im.t_motion) ? im.t_motion : im.localizer.time();
-  const InputResult r = im.localizer.motion(t, u);
-  im.moved(t, t_prev, u, r);
-  return r;
-}
-
-InputResult Guidance::odometry(double t, double distance, double heading_change) {
-  Impl& im = *impl_;
-  im.heard_at_start();
-  const double t_prev = std::isfinite(im.t_motion) ? im.t_motion : im.localizer.time();
-  const InputResult r = im.localizer.odometry(t, distance, heading_change);
-  // The localizer's own reading of odometry: the motion input (Δd / interval, Δθ).
-  if (t > t_prev) im.moved(t, t_prev, Control(distance / (t - t_prev), heading_change), r);
-  return r;
-}
-
-InputResult Guidance::observe(double t, const LandmarkObservation& obs) {
-  impl_->heard_at_start();
-  const InputResult r = impl_->localizer.observe(t, obs);
-  impl_->measured(t, r);
-  return r;
-}
-
-InputResult Guidance::fix(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R) {
-  impl_->heard_at_start();
-  const InputResult r = impl_->localizer.fix(t, z, R);
-  impl_->measured(t, r);
-  return r;
-}
-
-InputResult Guidance::speed_heading(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R) {
-  impl_->heard_at_start();
-  const InputResult r = impl_->localizer.speed_heading(t, z, R);
-  impl_->measured(t, r);
-  return r;
-}
-
 Localizer& Guidance::localizer() { return impl_->localizer; }
 const Localizer& Guidance::localizer() const { return impl_->localizer; }
 const NavigationProblem& Guidance::problem() const { return impl_->problem; }
@@ -487,9 +414,9 @@ Command Guidance::command(double t) {
     return c;
   }
   if (im.stale(t, c)) return c;
-  const Ekf* ahead = im.predicted(t);
-  const State& xe = ahead ? ahead->x() : im.localizer.x();
-  if (ahead) c.position_std = safenav::position_std(ahead->P());
+  const bool ahead = im.predicted(t);
+  const State& xe = ahead ? im.x_ahead : im.localizer.x();
+  if (ahead) c.position_std = safenav::position_std(im.P_ahead);
   if (st.replan && im.commands % st.obstacle_check_every == 0 && !im.check_ahead(xe, c)) return c;
   ++im.commands;
   im.method_control(xe, c);

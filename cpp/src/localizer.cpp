@@ -45,7 +45,7 @@ void Localizer::initialize(double t, const State& x0, const StateCov& P0) {
 bool Localizer::initialized() const { return impl_->initialized(); }
 double Localizer::time() const { return impl_->t_f; }
 
-InputResult Localizer::motion(double t, const Control& u) {
+InputResult Localizer::motion_input(double t, const Control& u) {
   check_time(t, "motion");
   if (!u.allFinite())
     bad("motion at t = " + num(t) + ": (speed, heading change) = (" + num(u[0]) + ", " + num(u[1]) +
@@ -142,7 +142,7 @@ InputResult Localizer::Impl::move(double t, const Control& u, double interval) {
   return InputResult{};
 }
 
-InputResult Localizer::odometry(double t, double distance, double heading_change) {
+InputResult Localizer::odometry_input(double t, double distance, double heading_change) {
   check_time(t, "odometry");
   if (!std::isfinite(distance) || !std::isfinite(heading_change))
     bad("odometry at t = " + num(t) + ": (distance, heading change) = (" + num(distance) + ", " +
@@ -151,7 +151,7 @@ InputResult Localizer::odometry(double t, double distance, double heading_change
   I.start_clock(t);
   const double interval = t - I.t_motion;
   if (interval <= kSameTime) return I.status(InputStatus::Late);
-  if (!I.initialized()) return motion(t, Control(distance / interval, heading_change));
+  if (!I.initialized()) return motion_input(t, Control(distance / interval, heading_change));
   LoggedInput in;
   in.kind = LoggedInput::Kind::Odometry;
   in.t = t;
@@ -159,7 +159,7 @@ InputResult Localizer::odometry(double t, double distance, double heading_change
   return I.take(in);
 }
 
-InputResult Localizer::observe(double t, const LandmarkObservation& o) {
+InputResult Localizer::observe_input(double t, const LandmarkObservation& o) {
   check_time(t, "observation");
   Impl& I = *impl_;
   const auto it = I.row_of.find(o.id);
@@ -209,7 +209,7 @@ InputResult Localizer::Impl::apply_observation(double t, const LandmarkObservati
   });
 }
 
-InputResult Localizer::fix(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R) {
+InputResult Localizer::fix_input(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R) {
   check_time(t, "fix");
   Impl& I = *impl_;
   if (!z.allFinite()) bad("fix at t = " + num(t) + ": z = (" + num(z[0]) + ", " + num(z[1]) + ") is not finite");
@@ -258,7 +258,7 @@ InputResult Localizer::Impl::apply_fix(double t, const Eigen::Vector2d& z, const
   return r;
 }
 
-InputResult Localizer::speed_heading(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R) {
+InputResult Localizer::speed_heading_input(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R) {
   check_time(t, "speed_heading");
   Impl& I = *impl_;
   if (!z.allFinite()) bad("speed_heading at t = " + num(t) + ": z = (" + num(z[0]) + ", " + num(z[1]) + ") is not finite");
@@ -280,6 +280,36 @@ InputResult Localizer::speed_heading(double t, const Eigen::Vector2d& z, const E
   in.R = R;
   return I.take(in);
 }
+
+// The public inputs: each noted for the watchdog's input times (not when late).
+
+InputResult Localizer::motion(double t, const Control& u) { return impl_->heard(t, true, motion_input(t, u)); }
+InputResult Localizer::odometry(double t, double distance, double heading_change) {
+  return impl_->heard(t, true, odometry_input(t, distance, heading_change));
+}
+InputResult Localizer::observe(double t, const LandmarkObservation& obs) {
+  return impl_->heard(t, false, observe_input(t, obs));
+}
+InputResult Localizer::fix(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R) {
+  return impl_->heard(t, false, fix_input(t, z, R));
+}
+InputResult Localizer::speed_heading(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R) {
+  return impl_->heard(t, false, speed_heading_input(t, z, R));
+}
+
+bool Localizer::predict_to(double t, State& x, StateCov& P) const {
+  Impl& I = *impl_;
+  if (!I.initialized() || !(t > I.t_f + kSameTime)) return false;
+  if (!I.ahead) I.ahead = I.filter->clone();
+  else I.ahead->assign(*I.filter);
+  const double dt = t - I.t_f;
+  I.ahead->predict(I.rates_control(dt), dt);
+  x = I.ahead->x();
+  P = I.ahead->P();
+  return true;
+}
+double Localizer::last_motion_time() const { return impl_->t_heard_motion; }
+double Localizer::last_measurement_time() const { return impl_->t_heard_measurement; }
 
 const State& Localizer::x() const { return impl_->filter ? impl_->filter->x() : impl_->x_none; }
 const StateCov& Localizer::P() const { return impl_->filter ? impl_->filter->P() : impl_->P_none; }

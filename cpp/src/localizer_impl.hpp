@@ -137,6 +137,9 @@ struct Localizer::Impl {
                          seed);
     fix_rejections = 0;
     t_f = t;
+    // A stream not heard from before the start counts from it (the watchdog's clock).
+    if (std::isnan(t_heard_motion)) t_heard_motion = t;
+    if (std::isnan(t_heard_measurement)) t_heard_measurement = t;
     why = "started at t = " + num(t);
     if (!(t_motion <= t)) t_motion = t;
     owed_distance = owed_heading = 0.0;
@@ -187,12 +190,30 @@ struct Localizer::Impl {
     }
   }
 
+  /// The control that carries the filter dt seconds past its time for a
+  /// measurement: the last motion input's rates (speed, heading change per
+  /// second), or the estimated speed and no turn before any.
+  Control rates_control(double dt) const {
+    return std::isfinite(rate_speed) ? Control(rate_speed, rate_turn * dt) : Control(filter->x()[kV], 0.0);
+  }
+
+  /// Newest input times that were not late (Localizer::last_motion_time …) and
+  /// the copy that Localizer::predict_to predicts on.
+  double t_heard_motion = kNaN, t_heard_measurement = kNaN;
+  std::unique_ptr<Filter> ahead;
+  InputResult heard(double t, bool motion, const InputResult& r) {
+    if (r.status == InputStatus::Late) return r;
+    double& last = motion ? t_heard_motion : t_heard_measurement;
+    if (!(t <= last)) last = t;
+    return r;
+  }
+
   /// Bring the filter to time t for a measurement; false when t is late.
   bool advance(double t) {
     if (t < t_f - kSameTime) return false;
     if (t > t_f + kSameTime) {
       const double dt = t - t_f;
-      const Control u = std::isfinite(rate_speed) ? Control(rate_speed, rate_turn * dt) : Control(filter->x()[kV], 0.0);
+      const Control u = rates_control(dt);
       predict(u, dt);
       owed_distance += u[0] * dt;
       owed_heading += u[1];

@@ -15,8 +15,8 @@
 //
 // Built once: the path's corridor, segment hulls and centroids, the obstacle
 // checker and the localizer.  A command allocates nothing unless it plans a
-// detour or predicts past the localizer's time (the EKF copy checks the
-// covariance it is given).  Only Eigen and std types appear here.
+// detour, or predicts past the localizer's time for the first time
+// (Localizer::predict_to makes its copy of the filter once).  Only Eigen and std types appear here.
 #pragma once
 
 #include <cstdint>
@@ -145,16 +145,20 @@ class Guidance {
 
   Localizer& localizer();
   const Localizer& localizer() const;
-  /// The localizer's inputs (see safenav/localizer.hpp).  Guidance notes the
-  /// time of each that is not late, for the watchdog (input_timeout), and the
-  /// motion input's rates, for the prediction to a command's time.  The
-  /// watchdog hears only these: inputs given to localizer() directly do not
-  /// count (a stream never heard from counts from the localizer's start).
-  InputResult motion(double t, const Control& u);
-  InputResult odometry(double t, double distance, double heading_change);
-  InputResult observe(double t, const LandmarkObservation& obs);
-  InputResult fix(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R);
-  InputResult speed_heading(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R);
+  // The localizer's inputs (see safenav/localizer.hpp).  The watchdog
+  // (input_timeout) reads the localizer's own input times
+  // (Localizer::last_motion_time, last_measurement_time), so inputs given to
+  // localizer() directly count too; a stream never heard from counts from
+  // the localizer's start.
+  InputResult motion(double t, const Control& u) { return localizer().motion(t, u); }
+  InputResult odometry(double t, double distance, double heading_change) {
+    return localizer().odometry(t, distance, heading_change);
+  }
+  InputResult observe(double t, const LandmarkObservation& obs) { return localizer().observe(t, obs); }
+  InputResult fix(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R) { return localizer().fix(t, z, R); }
+  InputResult speed_heading(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R) {
+    return localizer().speed_heading(t, z, R);
+  }
 
   /// The control for the next step from the latest estimate.  In order:
   /// lost localization and arrival end guidance (control 0); the watchdog

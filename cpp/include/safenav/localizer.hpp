@@ -214,6 +214,18 @@ class Localizer {
   /// IMU speed and heading z = (v, θ) with covariance R.
   InputResult speed_heading(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R);
 
+  /// The estimate predicted to t > time() as a measurement at t would be
+  /// predicted to (eq. 11 at the last motion input's rates), on a copy of the
+  /// filter: the localizer is left as it is.  False (x, P untouched) before
+  /// the start or when t ≤ time().  The first call allocates the copy.
+  bool predict_to(double t, State& x, StateCov& P) const;
+  /// The time of the newest motion input (motion, odometry) and of the newest
+  /// measurement (observe, fix, speed_heading) that was not late, buffered
+  /// ones included; a stream not heard from before the start counts from the
+  /// start (NaN: neither yet).  The stale-input watchdog's clock.
+  double last_motion_time() const;
+  double last_measurement_time() const;
+
   /// The estimate at time(), and √λ_max of its position covariance [m].
   const State& x() const;
   const StateCov& P() const;
@@ -236,6 +248,11 @@ class Localizer {
   Eigen::VectorXd augmented_state() const;
 
  private:
+  InputResult motion_input(double t, const Control& u);
+  InputResult odometry_input(double t, double distance, double heading_change);
+  InputResult observe_input(double t, const LandmarkObservation& obs);
+  InputResult fix_input(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R);
+  InputResult speed_heading_input(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R);
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
