@@ -231,7 +231,7 @@ def test_scenario_clearance_from_radius_and_margin():
     assert old.planning_clearance == 3.0 and old.to_dict()["clearance"] == 3.0
     assert "clearance" not in nav.to_dict()
     p = default_scenario().planner
-    assert (p.hazard_weight, p.forbidden_risk) == (0.0, 2.0)
+    assert (p.hazard_weight, p.forbidden_risk) == (5.0, 2.0)   # ours: hazard-aware by default
 
 
 # ---------------------------------------------------------------- defaults unchanged

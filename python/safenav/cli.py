@@ -119,25 +119,6 @@ def _synthetic(args) -> int:
     return 0
 
 
-def _safety_line(raw, loop: str) -> str:
-    """One paragraph: collisions, clearance, exposure, consistency and the guard, for the whole sweep."""
-    from .runner import safety_summary
-
-    s = safety_summary(raw)
-    n_coll = int((raw["outcome"] == "collision").sum())
-    where = ", ".join(f"{m} {p}: {len(g)}" for (m, p), g in raw[raw["outcome"] == "collision"]
-                      .groupby(["method", "path_type"], sort=False))
-    name = "ours (guard and gate on)" if loop == "ours" else "the papers' loop (no guard, no gate)"
-    return (f"Safety, {name}: {n_coll} of {len(raw)} trials collided" + (f" ({where})" if where else "")
-            + f"; true-track clearance min {s['min_clearance_min']:.2f} m, 5th percentile "
-              f"{s['min_clearance_p5']:.2f} m; hazard time {s['hazard_time']:.1f} s and exposure "
-              f"{s['exposure']:.1f} m per trial; mean NEES {s['nees']:.2f} (4 if consistent), "
-              f"{s['outside_3sigma']:.1%} of steps outside 3σ; guard events {s['guard_events']:.0f} per trial "
-              f"({s['guard_share']:.1%} of steps); updates rejected {s['rejected']:.0f}, position resets "
-              f"{s['resets']:.2f} per trial; landmark faults injected {s['faults_injected']}, through "
-              f"{s['faults_through']}.")
-
-
 def _synthetic_figure(args, path: Path) -> Path:
     """Figure of trial 0 (same seeds as the Monte Carlo's first trial)."""
     from .experiments import synthetic_trial
@@ -172,7 +153,7 @@ def _navigation(args, *, demo: bool) -> int:
     with runner.connect(args.scheduler) as client, _run_folder(args, out, seed=sweep.seed) as run:
         console.info(f"safenav {'demo' if demo else 'run'}: scenario {scenario.name!r}, path types "
                      f"{list(sweep.path_types)}, {sweep.trials} trials per cell, seed {sweep.seed}")
-        safe = runner.plan_safe_paths(scenario, sweep.path_types, progress=True)
+        safe = runner.plan_safe_paths(scenario, sweep.path_types, progress=True, paper=args.loop == "paper")
         t_plan = time.perf_counter() - t0
         for name, path in safe.items():
             console.detail(f"  safe path {name}: RAw-RRT*, {len(path)} waypoints, {path_length(path):.1f} m")
@@ -199,7 +180,7 @@ def _navigation(args, *, demo: bool) -> int:
             tag = f"{filt}_{source}"
             for name, df in ((f"table_percent_error_{tag}", pe), (f"table_navigation_{tag}", nt)):
                 write_table(df, out / name, parquet=False, markdown="")
-        print("\n" + _safety_line(raw, args.loop))
+        print("\n" + runner.safety_line(raw, args.loop, scenario))
         failures = raw[~raw["success"]]
         if len(failures):
             print(f"\n{len(failures)} of {len(raw)} trials did not arrive: "

@@ -95,12 +95,15 @@ def with_faults(scenario, dropout: float = 0.0, outlier: float = 0.0, misassocia
                                            misassociation_probability=float(misassociation)))
 
 
-def plan_safe_path(scenario, path_type: str, *, seed: int | None = None, iterations: int | None = None):
+def plan_safe_path(scenario, path_type: str, *, seed: int | None = None, iterations: int | None = None,
+                   paper: bool = False):
     """Plan the safe path of a path type with RAw-RRT* [SafeNav-ext Alg. 3]: from the
     start cluster's centroid to the destination's, around the obstacles (kept
     ``navigation.planning_clearance`` away; hazards of risk >= ``planner.forbidden_risk``
     are obstacles too), with the ground-truth polyline through the
-    clusters as the central path of the risk term.  Returns the
+    clusters as the central path of the risk term, and (ours) the hazard term
+    ``planner.hazard_weight`` (5 by default).  ``paper``: the papers' path,
+    whose cost has no hazard term (hazard_weight 0).  Returns the
     :class:`~safenav.planning.PlanResult`; raises ``RuntimeError`` when no path
     is found within the budget."""
     nav = scenario.navigation
@@ -111,6 +114,8 @@ def plan_safe_path(scenario, path_type: str, *, seed: int | None = None, iterati
     settings = scenario.planner.apply(PlannerSettings(
         max_iterations=int(iterations or nav.plan_iterations), corridor_bias=nav.corridor_bias, smooth=True,
         seed=int(scenario.seeds.planner if seed is None else seed)))
+    if paper:
+        settings.hazard_weight = 0.0
     result = plan(problem, settings)
     if not result.success:
         raise RuntimeError(f"path type {path_type}: RAw-RRT* found no safe path ({result.status}, "

@@ -55,7 +55,7 @@ Inflation = _core.Inflation
 
 __all__ = [
     "CircleObstacle", "ObstacleChecker", "PlanningMap", "PlanningProblem", "PlannerSettings", "PlanStatus", "PlanResult", "PathCost",
-    "HazardZone", "PathSafety", "Inflation", "path_safety",
+    "HazardZone", "PathSafety", "Inflation", "path_safety", "unavoidable_exposure",
     "make_map", "plan", "replan", "point_ahead", "point_is_free", "segment_is_free", "path_is_free", "path_cost",
 ]
 
@@ -153,6 +153,42 @@ def path_safety(path, map: PlanningMap) -> PathSafety:
     """Minimum clearance to obstacles (not grown by the clearance), exact length
     inside each hazard and exposure ``sum(risk * length)`` of a polyline."""
     return _core.path_safety(as_array("path", path, (None, 2)), map)
+
+
+def _depth(p: np.ndarray, hazard) -> float:
+    """How far ``p`` lies inside ``hazard``: the distance to its boundary, 0 outside (or on it)."""
+    poly = np.asarray(hazard.polygon, dtype=float)
+    if not len(poly):
+        d = hazard.disc
+        return max(0.0, d.radius - float(np.hypot(*(p - np.asarray(d.center, dtype=float)))))
+    a, b = poly, np.roll(poly, -1, axis=0)
+    # even-odd rule: edges that straddle the horizontal through p, crossed to its right
+    straddle = (a[:, 1] > p[1]) != (b[:, 1] > p[1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x_cross = a[:, 0] + (p[1] - a[:, 1]) * (b[:, 0] - a[:, 0]) / (b[:, 1] - a[:, 1])
+    if int(np.count_nonzero(straddle & (x_cross > p[0]))) % 2 == 0:
+        return 0.0
+    ab = b - a
+    t = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300), 0.0, 1.0)
+    return float(np.min(np.hypot(*(a + t[:, None] * ab - p).T)))
+
+
+def unavoidable_exposure(start, goal, map: PlanningMap) -> float:
+    """A lower bound of the exposure ``sum(risk * length)`` of *any* path from
+    ``start`` to ``goal``: a hazard that holds the start (or the goal) is
+    crossed for at least the start's depth in it, the distance to its
+    boundary (or the goal's); one that holds both, for at least
+    min(|goal − start|, the two depths' sum).  What a planner cannot avoid;
+    the rest of a path's exposure is avoidable."""
+    s, g = as_array("start", start, (2,)), as_array("goal", goal, (2,))
+    total = 0.0
+    for h in map.hazards:
+        ds, dg = _depth(s, h), _depth(g, h)
+        if ds > 0 and dg > 0:
+            total += h.risk * min(float(np.hypot(*(g - s))), ds + dg)
+        else:
+            total += h.risk * (ds + dg)
+    return total
 
 
 # Belief-aware planning (ours), beside RAw-RRT*: see safenav.belief.

@@ -46,7 +46,7 @@ from . import _core, console
 from . import navigation as nav
 from .scenario import Scenario
 
-__all__ = ["Sweep", "trial_seeds", "sub_seed", "SEED_RULE", "plan_safe_paths", "run_sweep", "run_trials",
+__all__ = ["safety_line", "Sweep", "trial_seeds", "sub_seed", "SEED_RULE", "plan_safe_paths", "run_sweep", "run_trials",
            "map_ordered", "summarize", "safety_summary", "METRICS", "SAFETY", "COUNTS"]
 
 #: The seed rule in one line (for ``parameters.json`` and the report).
@@ -124,13 +124,15 @@ def sub_seed(trial_seed, k: int) -> int:
     return int(_core.derive_seed(int(trial_seed), int(k)))
 
 
-def plan_safe_paths(scenario: Scenario, path_types=None, *, progress: bool = False) -> dict[str, np.ndarray]:
-    """RAw-RRT* safe path of each path type (deterministic: the scenario's planner seed)."""
+def plan_safe_paths(scenario: Scenario, path_types=None, *, progress: bool = False,
+                    paper: bool = False) -> dict[str, np.ndarray]:
+    """RAw-RRT* safe path of each path type (deterministic: the scenario's planner seed); ``paper``: the
+    papers' paths (no hazard term, :func:`safenav.navigation.plan_safe_path`)."""
     names = list(path_types or [p.name for p in scenario.path_types])
     out = {}
     with console.progress(len(names), "planning", unit="path", enabled=progress) as bar:
         for name in names:
-            out[name] = np.asarray(nav.plan_safe_path(scenario, name).path)
+            out[name] = np.asarray(nav.plan_safe_path(scenario, name, paper=paper).path)
             bar.update()
     return out
 
@@ -225,7 +227,7 @@ def run_sweep(sweep: Sweep, *, workers: int | None = None, scheduler=None, safe_
     that cluster.  ``safe_paths``: precomputed {path type: path}; planned here
     otherwise.  ``navigator_options`` go to :func:`safenav.navigation.make_navigator`."""
     if safe_paths is None:
-        safe_paths = plan_safe_paths(sweep.scenario, sweep.path_types)
+        safe_paths = plan_safe_paths(sweep.scenario, sweep.path_types, paper=bool(navigator_options.get("paper")))
     missing = [p for p in sweep.path_types if p not in safe_paths]
     if missing:
         raise ValueError(f"safe_paths: no path for {missing}")
@@ -413,3 +415,28 @@ def summarize(raw: pd.DataFrame) -> pd.DataFrame:
         row.update(safety_summary(g))
         rows.append(row)
     return pd.DataFrame(rows)
+
+
+def safety_line(raw: pd.DataFrame, loop: str, scenario: Scenario) -> str:
+    """One paragraph: collisions, clearance, exposure (its unavoidable part apart), consistency and the guard,
+    for the whole sweep."""
+    from .planning import map_from_world, unavoidable_exposure
+
+    s = safety_summary(raw)
+    hazards = map_from_world(scenario.world)
+    floor = {p: unavoidable_exposure(scenario.path_polyline(p)[0], scenario.path_polyline(p)[-1], hazards)
+             for p in raw["path_type"].unique()}
+    unavoidable = float(raw["path_type"].map(floor).mean())
+    n_coll = int((raw["outcome"] == "collision").sum())
+    where = ", ".join(f"{m} {p}: {len(g)}" for (m, p), g in raw[raw["outcome"] == "collision"]
+                      .groupby(["method", "path_type"], sort=False))
+    name = "ours (guard and gate on)" if loop == "ours" else "the papers' loop (no guard, no gate)"
+    return (f"Safety, {name}: {n_coll} of {len(raw)} trials collided" + (f" ({where})" if where else "")
+            + f"; true-track clearance min {s['min_clearance_min']:.2f} m, 5th percentile "
+              f"{s['min_clearance_p5']:.2f} m; hazard time {s['hazard_time']:.1f} s and exposure "
+              f"{s['exposure']:.1f} m per trial ({unavoidable:.1f} m unavoidable: a start or destination inside "
+              f"a hazard); mean NEES {s['nees']:.2f} (4 if consistent), "
+              f"{s['outside_3sigma']:.1%} of steps outside 3σ; guard events {s['guard_events']:.0f} per trial "
+              f"({s['guard_share']:.1%} of steps); updates rejected {s['rejected']:.0f}, position resets "
+              f"{s['resets']:.2f} per trial; landmark faults injected {s['faults_injected']}, through "
+              f"{s['faults_through']}.")

@@ -200,10 +200,12 @@ NoiseParams = _core_section(
 
 PlannerParams = _core_section(
     "PlannerParams", "RAw-RRT* weights: cost = alpha*length + beta*sum(WRS) (eqs. 16, 19); beta = 0 is plain RRT*.\n\n"
-    "Hazards (ours): ``hazard_weight`` (beta_h) adds beta_h * integral of risk ds over the hazards (0 = the paper); "
-    "hazards with risk >= ``forbidden_risk`` are obstacles (above 1 = none, the paper).",
+    "Hazards (ours): ``hazard_weight`` (beta_h) adds beta_h * integral of risk ds over the hazards; 5 by default "
+    "in a scenario, so that our loop plans round hazards; the papers' configuration (``--loop paper``, "
+    "``safenav experiment``) plans with 0, the paper's cost.  Hazards with risk >= ``forbidden_risk`` are "
+    "obstacles (above 1 = none, the paper).",
     [(_core.PlannerSettings, "alpha"), (_core.PlannerSettings, "beta"), (_core.PlannerSettings, "hazard_weight"),
-     (_core.PlanningMap, "forbidden_risk")])
+     (_core.PlanningMap, "forbidden_risk")], defaults={"hazard_weight": 5.0})
 
 
 def _check_weights(self):
