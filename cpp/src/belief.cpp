@@ -46,16 +46,8 @@ StateCov start_covariance(const SensorSettings& sensors, const PlanningMap& map,
   const ObstacleChecker checker(map);
   const State x0(start.x(), start.y(), 0.0, heading);
   const bool fix = !sensors.position.needs_landmarks || sensors.landmarks_in_view(x0, &checker) >= sensors.min_landmarks;
-  StateCov P0 = StateCov::Zero();
-  if (fix) {
-    P0.topLeftCorner<2, 2>() = sensors.position.reported_cov();
-  } else {
-    const double s0 = std::max(1.0, sensors.position.std.maxCoeff());
-    P0.topLeftCorner<2, 2>() = s0 * s0 * Eigen::Matrix2d::Identity();
-  }
-  P0(kV, kV) = sensors.imu_speed_std * sensors.imu_speed_std;
-  P0(kTheta, kTheta) = sensors.imu_heading_std * sensors.imu_heading_std;
-  return P0;
+  const Eigen::Matrix2d R = sensors.position.reported_cov();
+  return sensors.start_covariance(fix ? &R : nullptr);  // the simulator's rule (navigation.cpp's Trial)
 }
 
 namespace {

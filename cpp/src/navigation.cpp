@@ -278,23 +278,18 @@ bool Trial::fix(const State& x, int step, Eigen::Vector2d& z, Eigen::Matrix2d& R
 /// The initial estimate (the localizer's prior): a LanBLoc fix, if one is available, and the IMU.
 void Trial::initialize() {
   State x0 = truth_;
-  StateCov P0 = StateCov::Zero();
   Eigen::Vector2d z;
   Eigen::Matrix2d R;
-  if (fix(truth_, 0, z, R)) {
+  const bool fixed = fix(truth_, 0, z, R);
+  if (fixed) {
     x0.head<2>() = z;
-    P0.topLeftCorner<2, 2>() = R;
   } else {
     // No fix at the start: the start point is known only roughly.
-    const double s0 = std::max(1.0, se_.position.std.maxCoeff());
-    x0.head<2>() += s0 * Eigen::Vector2d(sensor_rng_.normal(), sensor_rng_.normal());
-    P0.topLeftCorner<2, 2>() = s0 * s0 * Eigen::Matrix2d::Identity();
+    x0.head<2>() += se_.unfixed_start_std() * Eigen::Vector2d(sensor_rng_.normal(), sensor_rng_.normal());
   }
   x0[kV] = std::max(0.0, truth_[kV] + se_.imu_speed_std * sensor_rng_.normal());
   x0[kTheta] = wrap_angle(truth_[kTheta] + se_.imu_heading_std * sensor_rng_.normal());
-  P0(2, 2) = se_.imu_speed_std * se_.imu_speed_std;
-  P0(3, 3) = se_.imu_heading_std * se_.imu_heading_std;
-  guidance_.localizer().initialize(0.0, x0, P0);
+  guidance_.localizer().initialize(0.0, x0, se_.start_covariance(fixed ? &R : nullptr));
 }
 
 void Trial::start_recording() {

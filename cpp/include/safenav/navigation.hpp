@@ -27,6 +27,7 @@
 // Only Eigen and std types appear here.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -117,6 +118,20 @@ struct SensorSettings {
   /// are given (true obstacles, no clearance), not hidden by one
   /// (ObstacleChecker::line_of_sight).  Without `obstacles` nothing is hidden.
   int landmarks_in_view(const State& x, const ObstacleChecker* obstacles = nullptr) const;
+  /// The σ of a start position known without a fix: max(1, position σ) in each axis [m].
+  double unfixed_start_std() const { return std::max(1.0, position.std.maxCoeff()); }
+  /// The covariance a trial's localizer starts from (the simulator's one
+  /// rule, which the belief planner predicts with): the start fix's R when
+  /// there is one (`fix_R`), else unfixed_start_std() in each axis; the
+  /// IMU's speed and heading variances.
+  StateCov start_covariance(const Eigen::Matrix2d* fix_R) const {
+    StateCov P0 = StateCov::Zero();
+    const double s0 = unfixed_start_std();
+    P0.topLeftCorner<2, 2>() = fix_R ? *fix_R : Eigen::Matrix2d(s0 * s0 * Eigen::Matrix2d::Identity());
+    P0(2, 2) = imu_speed_std * imu_speed_std;
+    P0(3, 3) = imu_heading_std * imu_heading_std;
+    return P0;
+  }
   /// f(row, distance) for each landmark in view of a vehicle at x (as
   /// landmarks_in_view), in map order.  The line of sight is asked only for
   /// landmarks in range and inside the field of view.
