@@ -74,7 +74,7 @@ PAPER_P1_CHULL = [(15793235383387715774, 2000, 0.203085), (12390638538380655177,
 
 def test_the_papers_loop_reproduces_the_trials_from_before_the_guard():
     sc = safenav.default_scenario()
-    n = nv.make_navigator(sc, nv.plan_safe_path(sc, "P1").path, method="chull", paper=True, record=False)
+    n = nv.make_navigator(sc, nv.plan_safe_path(sc, "P1", paper=True).path, method="chull", paper=True, record=False)
     d = n.run_many([s for s, _, _ in PAPER_P1_CHULL])
     assert list(d["steps"]) == [k for _, k, _ in PAPER_P1_CHULL]
     np.testing.assert_allclose(d["truth_ade"], [a for _, _, a in PAPER_P1_CHULL], rtol=0, atol=5e-7)
