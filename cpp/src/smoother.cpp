@@ -72,12 +72,12 @@ void FixedLagSmoother::predicted(double t1, const Eigen::Ref<const Eigen::Vector
   n.output_next = output;
   // RTS gain C = P Fᵀ (P⁻)⁻¹, i.e. Cᵀ = (P⁻)⁻¹ F P (P, P⁻ symmetric).
   T_.noalias() = F * n.P;
-  Eigen::LLT<Eigen::MatrixXd> llt(n.Pp);
-  if (llt.info() != Eigen::Success) {
+  llt_.compute(n.Pp);
+  if (llt_.info() != Eigen::Success) {
     n.Pp.resize(0, 0);  // not positive definite: no smoothing across this step
     return;
   }
-  llt.solveInPlace(T_);
+  llt_.solveInPlace(T_);
   n.C = T_.transpose();
 }
 

@@ -24,6 +24,7 @@
 // cut() (the filter was restarted) ends the chain: no smoothing across it.
 #pragma once
 
+#include <Eigen/Cholesky>
 #include <Eigen/Core>
 #include <cstddef>
 #include <vector>
@@ -85,6 +86,7 @@ class FixedLagSmoother {
   std::vector<SmoothedEstimate> out_;
   Eigen::VectorXd xs_, d_;
   Eigen::MatrixXd Ps_, T_, CT_;
+  Eigen::LLT<Eigen::MatrixXd> llt_;  // of P⁻, for the gain
 };
 
 }  // namespace safenav
