@@ -55,7 +55,8 @@ def main():
         for lag in args.lags:
             r, t = timed(log, settings, lag, args.repeats)
             m = r.smoothed_metrics
-            verdict = f" (target <= {target} m: {'met' if m['truth_rmse'] <= target else 'MISSED'})" if lag == 2.0 else ""
+            met = "met" if m["truth_rmse"] <= target else "MISSED"
+            verdict = f" (target <= {target} m: {met})" if lag == 2.0 else ""
             print(f"  {m['label']:>14}: RMSE {m['truth_rmse']:.4f} m{verdict}, ADE {m['truth_ade']:.4f} m, "
                   f"NEES {m['nees']:.2f}; smoother {(t - t_causal) * 1e6 / n:+.2f} us/input "
                   f"(target <= 20)")

@@ -331,7 +331,8 @@ def _replay(args) -> int:
                                  if getattr(settings.augment, n)],
                    "started_from": result.started_from,
                    "t_start": result.t_start if result.estimated else None, "counts": result.counts, "metrics": result.metrics,
-                   "reason": result.reason, "lag": args.lag, "smoothed_metrics": result.smoothed_metrics}
+                   "reason": result.reason,
+                   "lag": args.lag, "smoothed_metrics": result.smoothed_metrics}
         write_json(out / "replay.json", summary)
         foxglove.replay_view(args.view, log, result, source=str(args.log))
         c = result.counts
