@@ -34,6 +34,14 @@ void pybind_augmented(py::module_& m) {
       .def(py::init<const BmmParams&, const AugmentedStates&, int, const State&, const StateCov&>(), py::arg("params"),
            py::arg("augment"), py::arg("n_landmarks"), py::arg("x0"), py::arg("P0"))
       .def_property_readonly("x", &AugmentedEkf::x, "(x, y, v, theta)")
+      .def(
+          "last_transition",
+          [](const AugmentedEkf& f) {
+            Eigen::MatrixXd F, Q;
+            f.last_transition(F, Q);
+            return py::make_tuple(F, Q);
+          },
+          "(F, Q) of the last predict, full size (P' = F P F^T + Q); identity and zero before any")
       .def_property_readonly("P", &AugmentedEkf::P, "4x4 covariance of x")
       .def_property_readonly("augmented", &AugmentedEkf::augmented, "The full state (size entries).")
       .def_property_readonly("augmented_cov", &AugmentedEkf::augmented_cov, "The full covariance.")

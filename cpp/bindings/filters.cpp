@@ -33,7 +33,14 @@ void bind_step_filters(py::module_& m) {
       .def_property_readonly("x", &Ekf::x)
       .def_property_readonly("P", &Ekf::P)
       .def("set_state", &Ekf::set_state, py::arg("x"), py::arg("P"))
-      .def_property("gate", &Ekf::gate, &Ekf::set_gate);
+      .def_property("gate", &Ekf::gate, &Ekf::set_gate)
+      .def(
+          "last_transition",
+          [](const Ekf& f) {
+            const EkfTransition t = f.last_transition();
+            return py::make_tuple(t.F, t.Q);
+          },
+          "(F, Q) of the last predict (eq. 11: P' = F P F^T + Q); identity and zero before any");
   common_filter_api(ekf);
 
   py::class_<ParticleFilter> pf(

@@ -196,6 +196,27 @@ void bind_localizer(py::module_& m) {
           py::arg("t"),
           "(x, P) predicted to t > time as a measurement at t would be, on a copy of the filter; None before "
           "the start or when t <= time")
+      .def("set_lag", &Localizer::set_lag, py::arg("lag"),
+           "fixed-lag RTS smoothing beside the causal estimate (safenav/smoother.hpp); lag [s] >= 0, EKF only")
+      .def_property_readonly("lag", &Localizer::lag, "the smoother's lag [s], NaN when off")
+      .def(
+          "take_smoothed",
+          [](Localizer& l) {
+            const std::vector<SmoothedEstimate> s = l.take_smoothed();
+            const auto n = static_cast<Eigen::Index>(s.size());
+            Eigen::VectorXd t(n);
+            Eigen::MatrixXd x(n, 4), P(n, 16);
+            for (Eigen::Index i = 0; i < n; ++i) {
+              const SmoothedEstimate& e = s[static_cast<std::size_t>(i)];
+              t[i] = e.t;
+              x.row(i) = e.x.transpose();
+              for (int r = 0; r < 4; ++r) P.block<1, 4>(i, 4 * r) = e.P.row(r);
+            }
+            return py::make_tuple(t, x, P);
+          },
+          "(t (n,), x (n, 4), P (n, 16) row-major): the smoothed estimates final since the last call")
+      .def("finish_smoothing", &Localizer::finish_smoothing,
+           "end of data: smooth every estimate not yet final with all the data")
       .def_property_readonly("last_motion_time", &Localizer::last_motion_time,
                              "time of the newest motion input that was not late (NaN: none)")
       .def_property_readonly("last_measurement_time", &Localizer::last_measurement_time,

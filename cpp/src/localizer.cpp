@@ -125,7 +125,7 @@ InputResult Localizer::Impl::move(double t, const Control& u, double interval) {
                            // Catch-up: a measurement inside the interval was predicted to at the last
                            // rates; apply what this input's distance and heading change still owe.
                            : Control((u[0] * interval - owed_d) / dt, u[1] - owed_h);
-  I.predict(step, dt);
+  I.predict(step, dt, true);
   const AugmentedEkf* aekf = I.filter->augmented_ekf();
   if (I.from_odometry && aekf) {
     // Odometry measured its distance and heading change: what the BMM's limits

@@ -135,6 +135,7 @@ struct Localizer::Impl {
   void start(double t, const State& x0, const StateCov& P0, std::uint64_t seed) {
     filter = make_filter(settings.filter, settings.bmm, settings.augment, static_cast<int>(landmarks.rows()), x0, P0,
                          seed);
+    if (smoother) smoother->cut();  // no smoothing across a restart
     fix_rejections = 0;
     t_f = t;
     // A stream not heard from before the start counts from it (the watchdog's clock).
@@ -149,7 +150,19 @@ struct Localizer::Impl {
     anchor.reset();
   }
 
-  void predict(const Control& u, double dt) { filter->predict(u, dt); }
+  /// Eq. 11 over dt; `motion`: a motion input's step (its end is a smoothed
+  /// output time).  With a lag set, each prediction feeds the smoother
+  /// (smoother.cpp); without one this is the filter's predict alone.
+  void predict(const Control& u, double dt, bool motion = false) {
+    if (!smoother) return filter->predict(u, dt);
+    smoother_filtered();
+    filter->predict(u, dt);
+    smoother_predicted(t_f + dt, motion);
+  }
+  std::unique_ptr<FixedLagSmoother> smoother;  // null unless Localizer::set_lag
+  Eigen::MatrixXd smooth_F, smooth_Q;          // the augmented EKF's last transition (scratch)
+  void smoother_filtered();
+  void smoother_predicted(double t1, bool output);
   /// The motion input u over (t − interval, t] once initialized (Localizer::motion).
   InputResult move(double t, const Control& u, double interval);
 

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__, console, foxglove
-from .results import RunFolder, verify_run, write_json
+from .results import RunFolder, verify_run, write_json, write_table
 from .validation import integer
 
 #: The paper's navigation tables, in the one numbering safenav uses (the conference version's).
@@ -301,16 +301,19 @@ def _replay(args) -> int:
         if np.isnan(h):
             raise ValueError(f"--prior-from-truth: the first truth row of {args.log} has no heading")
         prior = (t0, np.array([x, y, 0.0, h]), np.diag([0.1, 0.1, 0.5, 0.02]) ** 2)
-    result = rp.replay(log, settings, prior=prior, innovations=args.view is not None)
+    result = rp.replay(log, settings, prior=prior, innovations=args.view is not None, lag=args.lag)
     out = Path(args.out)
     with _run_folder(args, out, seed=args.seed) as run:
         write_trajectory(out, result, log)   # trajectory.csv, .tum, .mcap; truth.tum
+        if result.smoothed is not None:      # the fixed-lag smoother's, beside the causal one
+            write_table(result.smoothed, out / "trajectory_lag.csv", parquet=False)
         summary = {"log": str(args.log), "preset": preset, "filter": args.filter,
                    "augmented": [n for n in ("range_scale", "heading_rate_bias", "range_bias")
                                  if getattr(settings.augment, n)],
                    "started_from": result.started_from,
                    "t_start": result.t_start if result.estimated else None, "counts": result.counts, "metrics": result.metrics,
-                   "reason": result.reason}
+                   "reason": result.reason,
+                   "lag": args.lag, "smoothed_metrics": result.smoothed_metrics}
         write_json(out / "replay.json", summary)
         foxglove.replay_view(args.view, log, result, source=str(args.log))
         c = result.counts
@@ -322,11 +325,11 @@ def _replay(args) -> int:
         if result.reason:
             print(f"{'safenav: error: ' if not result.estimated else ''}{result.reason}",
                   file=sys.stderr if not result.estimated else sys.stdout)
-        if result.metrics:
-            m = result.metrics
-            print(f"against the truth ({m['label']}, {m['n_scored']} poses, {m['n_before_start']} before the start): "
-                  f"RMSE {m['truth_rmse']:.3f} m, ADE {m['truth_ade']:.3f} m, FDE {m['truth_fde']:.3f} m, "
-                  f"NEES {m['nees']:.2f} (2 if consistent)")
+        for m in (result.metrics, result.smoothed_metrics):
+            if m:
+                print(f"against the truth ({m['label']}, {m['n_scored']} poses, {m['n_before_start']} before the "
+                      f"start): RMSE {m['truth_rmse']:.3f} m, ADE {m['truth_ade']:.3f} m, FDE {m['truth_fde']:.3f} m, "
+                      f"NEES {m['nees']:.2f} (2 if consistent)")
         _wrote(run)
     return 0 if result.estimated else 3   # 3: nothing was estimated (the files say why)
 
@@ -519,6 +522,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--prior-from-truth", action="store_true",
                    help="start from the first truth pose instead of from the data (for comparison only)")
     s.add_argument("--seed", type=_at_least(0), default=0, help="particle filter seed")
+    s.add_argument("--lag", type=float, default=None, metavar="SECONDS", help="also run the fixed-lag smoother "
+                   "(EKF; docs/replay.md): trajectory_lag.csv, scored as 'fixed-lag SECONDS s' (not causal)")
     s.add_argument("--out", default="out/replay", help="output folder (default out/replay)")
     foxglove.add_view_argument(s)
     s.set_defaults(func=_replay)

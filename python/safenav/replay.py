@@ -40,7 +40,7 @@ from .guidance import Localizer, LocalizerSettings, localizer_settings
 from .logs import Log, load_plaza, read_log
 from .validation import as_array
 
-__all__ = ["ReplayResult", "replay", "INNOVATION_COLUMNS", "causal_index", "load", "score", "PRESETS",
+__all__ = ["ReplayResult", "replay", "INNOVATION_COLUMNS", "causal_index", "lag_label", "load", "score", "PRESETS",
            "preset_settings"]
 
 #: Named localizer set-ups for replay.  Both take a log's motion rows as the
@@ -99,6 +99,12 @@ class ReplayResult:
     #: with ``replay(..., innovations=True)``: one row per measurement input
     #: (INNOVATION_COLUMNS); NaN NIS and log det S before the start
     innovations: pd.DataFrame | None = None
+    #: with ``replay(..., lag=L)``: the fixed-lag smoothed trajectory (TRAJECTORY_COLUMNS), one row
+    #: at the start and at each motion input, each with the data up to its time + L (docs/replay.md,
+    #: "Fixed-lag smoothing"); not causal
+    smoothed: pd.DataFrame | None = None
+    #: its scores (as :attr:`metrics`, label "fixed-lag L s")
+    smoothed_metrics: dict = field(default_factory=dict)
 
     @property
     def estimated(self) -> bool:
@@ -118,7 +124,7 @@ def load(path, *, range_std: float = 1.0) -> Log:
 
 
 def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None,
-           innovations: bool = False, delays=None) -> ReplayResult:
+           innovations: bool = False, delays=None, lag: float | None = None) -> ReplayResult:
     """Run ``log`` through a :class:`Localizer` with ``settings`` (default:
     the ``default`` preset, :func:`preset_settings`).  ``prior`` = ``(t, x0, P0)``
     starts it from a prior; by default it starts from the data.
@@ -127,10 +133,15 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None,
     per event row, seconds ≥ 0) delivers each row at its time plus its delay,
     as a vehicle receives late measurements (in the order of arrival; the
     rows keep their own times): the trajectory is still the estimate each
-    motion input had when it arrived (causal)."""
+    motion input had when it arrived (causal).  ``lag`` (seconds, finite and
+    ≥ 0; EKF only) also runs the fixed-lag smoother beside the causal filter
+    (:attr:`ReplayResult.smoothed`, :attr:`ReplayResult.smoothed_metrics`);
+    the causal trajectory and its scores stay as they are."""
     ids = sorted(log.landmarks)
     landmarks = np.array([log.landmarks[i] for i in ids], dtype=float).reshape(-1, 2)
     loc = Localizer(settings or preset_settings("default"), landmarks, ids)
+    if lag is not None:
+        loc.set_lag(float(lag))  # ValueError naming lag: negative, NaN, or not the EKF
     if prior is not None:
         t0, x0, P0 = prior
         loc.initialize(float(t0), np.asarray(x0, dtype=float), np.asarray(P0, dtype=float))
@@ -188,6 +199,10 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None,
         result.innovations = pd.DataFrame(inno, columns=list(INNOVATION_COLUMNS))
     if log.truth is not None and len(traj):
         result.metrics = score(traj, log.truth)
+    if lag is not None:
+        result.smoothed = _smoothed(loc)
+        if log.truth is not None and len(result.smoothed):
+            result.smoothed_metrics = score(result.smoothed, log.truth, label=lag_label(lag))
     if not len(traj):
         result.reason = f"never started: {loc.reason()}"
     elif result.metrics and result.metrics["n_before_start"] > 0:
@@ -196,14 +211,29 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None,
     return result
 
 
+def lag_label(lag: float) -> str:
+    """The label of a fixed-lag smoothed result (``"fixed-lag 2 s"``)."""
+    return f"fixed-lag {float(lag):g} s"
+
+
+def _smoothed(loc) -> pd.DataFrame:
+    """Every smoothed estimate of ``loc`` (the rest smoothed with all the data) as TRAJECTORY_COLUMNS."""
+    loc.finish_smoothing()
+    t, x, P = loc.take_smoothed()
+    return pd.DataFrame({"t": t, "x": x[:, 0], "y": x[:, 1], "speed": x[:, 2], "heading": x[:, 3],
+                         "var_x": P[:, 0], "var_y": P[:, 5], "cov_xy": P[:, 1], "var_speed": P[:, 10],
+                         "var_heading": P[:, 15]}, columns=list(TRAJECTORY_COLUMNS))
+
+
 def causal_index(t_estimates: np.ndarray, t_truth: np.ndarray):
     """(j, ok): the row of the latest estimate at or before each truth time, and where there is one."""
     j = np.searchsorted(t_estimates, t_truth + 1e-9, side="right") - 1
     return j, j >= 0
 
 
-def score(trajectory: pd.DataFrame, truth: pd.DataFrame) -> dict:
-    """Causal scores of ``trajectory`` against ``truth`` (see the module doc)."""
+def score(trajectory: pd.DataFrame, truth: pd.DataFrame, label: str = "causal") -> dict:
+    """Scores of ``trajectory`` against ``truth`` (see the module doc), each truth pose with the latest
+    estimate at or before it; ``label`` says what the estimate is ("causal", or :func:`lag_label`'s)."""
     gt = truth[["t", "x", "y"]].to_numpy(float)
     j, ok = causal_index(trajectory["t"].to_numpy(float), gt[:, 0])
     j = j[ok]
@@ -212,6 +242,6 @@ def score(trajectory: pd.DataFrame, truth: pd.DataFrame) -> dict:
     acc = _core.TrajectoryScore(len(j))
     acc.add_rows(np.ascontiguousarray(trajectory[["x", "y"]].to_numpy(float)[j]), covariances,
                  np.ascontiguousarray(gt[ok, 1:3]))
-    return {"label": "causal", "truth_rmse": acc.truth_rmse, "truth_ade": acc.truth_ade, "truth_fde": acc.truth_fde,
+    return {"label": label, "truth_rmse": acc.truth_rmse, "truth_ade": acc.truth_ade, "truth_fde": acc.truth_fde,
             "nees": acc.position_nees, "nees_dof": 2, "outside_3sigma": acc.outside_3sigma,
             "n_scored": int(acc.size), "n_before_start": int((~ok).sum())}

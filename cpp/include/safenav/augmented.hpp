@@ -89,6 +89,11 @@ class AugmentedEkf {
 
   /// Eq. 11 over dt seconds with the bias-corrected heading change.
   void predict(const Control& u, double dt);
+  /// The last predict's full transition F = [F₄ Fβ 0; 0 I] and process
+  /// noise Q = diag(G Σ_ε Gᵀ, σ_walk²·dt) (size() × size(); identity and zero
+  /// before any predict), as predict applied them: P' = F P Fᵀ + Q.  For a
+  /// Rauch–Tung–Striebel smoother (safenav/smoother.hpp).  Resizes F and Q.
+  void last_transition(Eigen::MatrixXd& F, Eigen::MatrixXd& Q) const;
   /// r = (1+k)·‖p − a‖ + b_row, with variance σ_r² (eqs. 12–14).
   UpdateResult update_range(int landmark_row, const Eigen::Vector2d& landmark, double r, double variance);
   /// Relative bearing atan2(a − p) − θ (counter-clockwise, wrapped); not affected by k, b.
@@ -112,6 +117,8 @@ class AugmentedEkf {
   UpdateResult apply(const Eigen::Matrix<double, M, 1>& y, const Eigen::Matrix<double, M, M>& R,
                      MeasurementKind kind);
   void sync4();
+  /// Adds the augmented states' random walks over dt to P's diagonal (eq. 11's Q, augmented part).
+  void add_walks(Eigen::MatrixXd& P, double dt) const;
 
   Bmm bmm_;
   AugmentedStates augment_;
@@ -130,6 +137,11 @@ class AugmentedEkf {
   Eigen::Matrix<double, Eigen::Dynamic, 2> PHt_, K_, KR_, AHt_;
   Eigen::MatrixXd P1_;
   Eigen::VectorXd x1_;
+  // The last predict's F₄, Fβ, G, Σ_ε and dt (last_transition()).
+  Eigen::Vector4d last_Fb_ = Eigen::Vector4d::Zero();
+  Eigen::Matrix4d last_F4_ = Eigen::Matrix4d::Identity(), last_G_ = Eigen::Matrix4d::Zero(),
+                  last_noise_ = Eigen::Matrix4d::Zero();
+  double last_dt_ = 0.0;
 };
 
 /// Particle filter over the same augmented state (the PF counterpart of

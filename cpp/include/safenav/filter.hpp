@@ -42,6 +42,7 @@ namespace safenav {
 
 struct AugmentedStates;
 class AugmentedEkf;
+class Ekf;
 
 /// One landmark observation as the filters take it: the landmark's row in
 /// the map and its position; a range, a bearing or both (NaN = not measured)
@@ -94,6 +95,8 @@ class Filter {
   virtual Eigen::VectorXd augmented_state() const { return Eigen::VectorXd(); }
   /// The augmented EKF behind this filter, or null.
   virtual const AugmentedEkf* augmented_ekf() const { return nullptr; }
+  /// The plain 4-state EKF behind this filter, or null.
+  virtual const Ekf* ekf() const { return nullptr; }
 
   /// Calls inside a Transaction either all stand or, when one throws, the
   /// filter returns to its state at the Transaction's start.  Nested

@@ -34,6 +34,15 @@ void check_covariance(const Eigen::MatrixXd& P, const char* what);
 /// Chi-square quantile, used to turn a gate probability into an NIS threshold.
 double chi2_quantile(double probability, int dof);
 
+/// The last prediction's linearisation (eq. 11): x' ≈ f(x̂, u) + F (x − x̂),
+/// P' = F P Fᵀ + Q with Q = G Σ_ε Gᵀ.  A Rauch–Tung–Striebel smoother
+/// (safenav/smoother.hpp) reads F from here instead of linearising again.
+struct EkfTransition {
+  Eigen::Matrix4d F = Eigen::Matrix4d::Identity();
+  Eigen::Matrix4d Q = Eigen::Matrix4d::Zero();
+  double dt = 0.0;  ///< [s]; 0 before the first predict
+};
+
 /// Extended Kalman filter on the BMM.
 ///  predict: x̂ = f(x̂, u), P = F P Fᵀ + Q                      [SafeNav eq. 11]
 ///  update:  y = z ⊖ h(x̂), S = H P Hᵀ + R                      [SafeNav eq. 12]
@@ -57,6 +66,8 @@ class Ekf {
   /// Eq. 11 over a step of dt seconds (timestamped inputs): the BMM of
   /// Bmm::with_step(dt).  predict(u, model().params().dt) equals predict(u).
   void predict(const Control& u, double dt);
+  /// F and Q of the last predict that stood (identity and zero before any).
+  EkfTransition last_transition() const;
   UpdateResult update(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z);
   /// A position fix z with its own covariance R (eqs. 12–14 with H = [I₂ 0]).
   UpdateResult update_position(const Eigen::Vector2d& z, const Eigen::Matrix2d& R);
@@ -83,6 +94,10 @@ class Ekf {
   Bmm bmm_;
   State x_;
   StateCov P_;
+  // The last predict's F, G, diag Σ_ε and step (last_transition()).
+  Eigen::Matrix4d last_F_ = Eigen::Matrix4d::Identity(), last_G_ = Eigen::Matrix4d::Zero();
+  Eigen::Vector4d last_sigma2_ = Eigen::Vector4d::Zero();
+  double last_dt_ = 0.0;
   double gate_probability_ = 0.0;
   std::vector<double> gate_thresholds_;  // chi-square quantile per measurement dimension
 };

@@ -102,6 +102,7 @@
 #include "safenav/filters.hpp"
 #include "safenav/measurement.hpp"
 #include "safenav/motion.hpp"
+#include "safenav/smoother.hpp"
 
 namespace safenav {
 
@@ -246,6 +247,22 @@ class Localizer {
   /// The full augmented state (x, y, v, θ, [k], [β], [b_j]) — the EKF's mean
   /// or the particles' weighted mean — or empty without augmented states.
   Eigen::VectorXd augmented_state() const;
+
+  /// Fixed-lag smoothing beside the causal estimate (safenav/smoother.hpp):
+  /// from now on every prediction feeds a Rauch–Tung–Striebel smoother, and
+  /// the estimate at each motion input's time (and the start) becomes final,
+  /// with the data up to that time + lag, once the filter passes it.  lag [s]
+  /// finite and ≥ 0; the EKF only (plain or augmented: std::invalid_argument
+  /// for the particle or information filter).  The causal estimate (x(), P())
+  /// is unchanged; without set_lag nothing is recorded.
+  void set_lag(double lag);
+  /// The smoother's lag [s], NaN when off.
+  double lag() const;
+  /// The smoothed estimates that became final since the last call, oldest first.
+  std::vector<SmoothedEstimate> take_smoothed();
+  /// End of the data: every smoothed estimate not yet final is smoothed with
+  /// all the data there is (take_smoothed() then returns them).
+  void finish_smoothing();
 
  private:
   InputResult motion_input(double t, const Control& u);

@@ -150,13 +150,32 @@ void AugmentedEkf::predict(const Control& u, double dt) {
     P_.bottomLeftCorner(na, 4) = JP_.rightCols(na).transpose();
   }
   P_.topLeftCorner<4, 4>() = TL;
-  if (ik_ >= 0) P_(ik_, ik_) += augment_.scale_walk * augment_.scale_walk * dt;
-  if (ig_ >= 0) P_(ig_, ig_) += augment_.heading_rate_bias_walk * augment_.heading_rate_bias_walk * dt;
-  if (ib0_ >= 0)
-    for (int j = 0; j < n_landmarks_; ++j)
-      P_(ib0_ + j, ib0_ + j) += augment_.range_bias_walk * augment_.range_bias_walk * dt;
+  add_walks(P_, dt);
   x_.head<4>() = x1;
   sync4();
+  last_F4_ = F4;
+  last_Fb_ = Fb;
+  last_G_ = G;
+  last_noise_ = step.noise_cov();
+  last_dt_ = dt;
+}
+
+void AugmentedEkf::add_walks(Eigen::MatrixXd& P, double dt) const {
+  if (ik_ >= 0) P(ik_, ik_) += augment_.scale_walk * augment_.scale_walk * dt;
+  if (ig_ >= 0) P(ig_, ig_) += augment_.heading_rate_bias_walk * augment_.heading_rate_bias_walk * dt;
+  if (ib0_ >= 0)
+    for (int j = 0; j < n_landmarks_; ++j)
+      P(ib0_ + j, ib0_ + j) += augment_.range_bias_walk * augment_.range_bias_walk * dt;
+}
+
+void AugmentedEkf::last_transition(Eigen::MatrixXd& F, Eigen::MatrixXd& Q) const {
+  // predict's F = [F₄ Fβ 0; 0 I] and Q = diag(G Σ_ε Gᵀ, walks).
+  F.setIdentity(n_, n_);
+  F.topLeftCorner<4, 4>() = last_F4_;
+  if (ig_ >= 0) F.block<4, 1>(0, ig_) = last_Fb_;
+  Q.setZero(n_, n_);
+  Q.topLeftCorner<4, 4>() = last_G_ * last_noise_ * last_G_.transpose();
+  if (last_dt_ > 0.0) add_walks(Q, last_dt_);
 }
 
 LandmarkGeometry AugmentedEkf::geometry(const Eigen::Vector2d& a, const char* what) const {

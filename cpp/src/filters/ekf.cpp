@@ -64,6 +64,18 @@ void Ekf::predict_with(const Bmm& bmm, const Control& u) {
   Eigen::Matrix4d P1 = F * P_ * F.transpose() + G * sigma2.asDiagonal() * G.transpose();
   P1 = 0.5 * (P1 + P1.transpose());
   commit(x1, P1, "EKF predict");
+  last_F_ = F;
+  last_G_ = G;
+  last_sigma2_ = sigma2;
+  last_dt_ = bmm.params().dt;
+}
+
+EkfTransition Ekf::last_transition() const {
+  EkfTransition t;
+  t.F = last_F_;
+  t.Q = last_G_ * last_sigma2_.asDiagonal() * last_G_.transpose();  // eq. 11's G Σ_ε Gᵀ
+  t.dt = last_dt_;
+  return t;
 }
 
 void Ekf::commit(const State& x, const StateCov& P, const char* step) {

@@ -198,6 +198,7 @@ class EkfFilter final : public Filter {
  public:
   EkfFilter(const BmmParams& p, const State& x0, const StateCov& P0)
       : Filter(FilterType::Ekf, false, x0, P0), f_(p, x0, P0), spare_(f_) {}
+  const Ekf* ekf() const override { return &f_; }
 
  private:
   void do_predict(const Control& u, double dt) override { f_.predict(u, dt); }

@@ -1,0 +1,66 @@
+"""Benchmark: the fixed-lag RTS smoother beside the causal filter on Plaza1
+and Plaza2 (gtsam's copies; ``plaza`` preset, started from the data).
+
+For each file and lag it prints the causal RMSE, the smoothed RMSE (label
+"fixed-lag L s") against the targets (a GTSAM fixed-lag smoother with a 2 s
+lag: 0.30 m on Plaza1, 0.27 m on Plaza2; ours: ≤ 0.25 m on Plaza1, ≤ 0.27 m on
+Plaza2 with lag 2 s) and the smoother's cost per input: the replay time with
+the lag minus the replay time without it (median of ``--repeats``; the Python
+loop's cost is the same in both and cancels), over the log's inputs.  Plaza1
+was used to tune the ``plaza`` preset; Plaza2 is held out.
+
+    python bench/bench_smoother.py [--lags 0 1 2 4] [--repeats 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+from pathlib import Path
+
+from safenav import replay as rp
+
+TARGETS = {"Plaza1_.mat": 0.25, "Plaza2_.mat": 0.27}   # RMSE with a 2 s lag [m]
+
+
+def timed(log, settings, lag, repeats):
+    times, res = [], None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        res = rp.replay(log, settings, lag=lag)
+        times.append(time.perf_counter() - t0)
+    return res, statistics.median(times)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--lags", type=float, nargs="+", default=[0.0, 1.0, 2.0, 4.0])
+    ap.add_argument("--repeats", type=int, default=5)
+    args = ap.parse_args()
+    import gtsam
+
+    data = Path(gtsam.__file__).parent / "Data"
+    for name, target in TARGETS.items():
+        path = data / name
+        if not path.exists():
+            print(f"{name}: not in this gtsam wheel")
+            continue
+        log = rp.load(path, range_std=rp.PLAZA_RANGE_STD)
+        settings = rp.preset_settings("plaza")
+        n = len(log.events)
+        causal, t_causal = timed(log, settings, None, args.repeats)
+        print(f"{name}: {n} inputs; causal RMSE {causal.metrics['truth_rmse']:.4f} m "
+              f"({causal.metrics['n_scored']} poses), replay {t_causal * 1e6 / n:.2f} us/input")
+        for lag in args.lags:
+            r, t = timed(log, settings, lag, args.repeats)
+            m = r.smoothed_metrics
+            met = "met" if m["truth_rmse"] <= target else "MISSED"
+            verdict = f" (target <= {target} m: {met})" if lag == 2.0 else ""
+            print(f"  {m['label']:>14}: RMSE {m['truth_rmse']:.4f} m{verdict}, ADE {m['truth_ade']:.4f} m, "
+                  f"NEES {m['nees']:.2f}; smoother {(t - t_causal) * 1e6 / n:+.2f} us/input "
+                  f"(target <= 20)")
+
+
+if __name__ == "__main__":
+    main()

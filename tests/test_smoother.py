@@ -1,0 +1,187 @@
+"""The fixed-lag Rauch–Tung–Striebel smoother beside the causal EKF
+(safenav/smoother.hpp, ``Localizer.set_lag``, ``replay(..., lag=)``).
+
+Checked against a full RTS smoother written here in numpy (Rauch, Tung and
+Striebel 1965) on the same F, Q (the EKF's own ``last_transition``), H and R,
+against the causal filter (lag 0), and on Plaza1 against the truth."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from safenav import _core
+from safenav import replay as rp
+from safenav.guidance import Localizer, localizer_settings
+
+
+def _bmm():
+    # Nominal step dt = 0.05 s; limits that a slow, straight run never reaches.
+    return _core.BmmParams(acceleration=100.0, deceleration=100.0, max_speed=100.0, max_heading_rate=100.0,
+                           dt=0.05, terrain_effect=0.0, speed_noise=0.05, heading_noise=0.01,
+                           position_noise=0.02, unicycle=True)
+
+
+def _linear_case(n=60, seed=3):
+    """Straight-line motion with a tiny turn, a position fix at every step."""
+    rng = np.random.default_rng(seed)
+    x0 = np.array([1.0, -2.0, 1.0, 0.3])
+    P0 = np.diag([0.5, 0.5, 0.1, 0.05])
+    u = np.column_stack([np.full(n, 1.0), np.full(n, 1e-4)])
+    z = np.column_stack([1.0 + np.arange(1, n + 1) * 0.05 * math.cos(0.3), -2.0 + np.arange(1, n + 1) * 0.05
+                         * math.sin(0.3)]) + rng.normal(0.0, 0.3, (n, 2))
+    R = np.diag([0.09, 0.16])
+    return x0, P0, u, z, R
+
+
+def _numpy_rts(x0, P0, u, z, R):
+    """Filtered and full-RTS-smoothed means and covariances at the prior and each step, computed here:
+    the EKF's prediction (its f, F and Q: Ekf.last_transition) and the Kalman update with H = [I 0]."""
+    ekf = _core.Ekf(_bmm(), x0, P0)
+    H = np.hstack([np.eye(2), np.zeros((2, 2))])
+    xs, Ps, xps, Pps, Fs = [x0.copy()], [P0.copy()], [], [], []
+    x, P = x0.copy(), P0.copy()
+    for k in range(len(u)):
+        ekf.predict(u[k])
+        F, Q = ekf.last_transition()
+        xp = np.array(ekf.x)
+        Pp = F @ P @ F.T + Q                      # eq. 11
+        S = H @ Pp @ H.T + R                      # eq. 12
+        K = Pp @ H.T @ np.linalg.inv(S)           # eq. 13
+        x = xp + K @ (z[k] - H @ xp)              # eq. 14
+        A = np.eye(4) - K @ H
+        P = A @ Pp @ A.T + K @ R @ K.T            # eq. 14, Joseph form
+        ekf.set_state(x, P)
+        xs.append(x), Ps.append(P), xps.append(xp), Pps.append(Pp), Fs.append(F)
+    sx, sP = [xs[-1]], [Ps[-1]]
+    for k in range(len(u) - 1, -1, -1):         # RTS backward pass
+        C = Ps[k] @ Fs[k].T @ np.linalg.inv(Pps[k])
+        sx.insert(0, xs[k] + C @ (sx[0] - xps[k]))
+        sP.insert(0, Ps[k] + C @ (sP[0] - Pps[k]) @ C.T)
+    return np.array(xs), np.array(Ps), np.array(sx), np.array(sP)
+
+
+def _localizer_run(x0, P0, u, z, R, lag):
+    s = localizer_settings(filter="ekf", bmm=_bmm(), gate=0.0)
+    loc = Localizer(s, np.zeros((0, 2)), [])
+    loc.set_lag(lag)
+    loc.initialize(0.0, x0, P0)
+    causal = [(0.0, np.array(loc.x), np.array(loc.P))]
+    for k in range(len(u)):
+        t = (k + 1) * 0.05
+        loc.motion(t, u[k, 0], u[k, 1])
+        loc.fix(t, z[k, 0], z[k, 1], R)
+        causal.append((t, np.array(loc.x), np.array(loc.P)))
+    early = loc.take_smoothed()
+    loc.finish_smoothing()
+    t, x, P = loc.take_smoothed()
+    t, x, P = (np.concatenate([a, b]) for a, b in zip(early, (t, x, P)))
+    return causal, t, x, P.reshape(-1, 4, 4)
+
+
+def test_long_lag_equals_full_rts_smoother():
+    x0, P0, u, z, R = _linear_case()
+    xf, Pf, sx, sP = _numpy_rts(x0, P0, u, z, R)
+    causal, t, x, P = _localizer_run(x0, P0, u, z, R, lag=100.0)
+    assert np.allclose(t, np.arange(len(u) + 1) * 0.05, atol=1e-12)
+    # The causal filter is the numpy EKF (the reference's filtered pass is right) ...
+    assert np.abs(np.array([c[1] for c in causal]) - xf).max() < 1e-9
+    # ... and the smoother with a lag beyond the log is the full RTS smoother.
+    assert np.abs(x - sx).max() < 1e-9
+    assert np.abs(P - sP).max() < 1e-9
+    # Smoothing helps: the smoothed position variance is below the filtered one except at the end.
+    assert (P[:-1, 0, 0] < Pf[:-1, 0, 0]).all()
+
+
+def test_fixed_lag_is_rts_over_the_window():
+    # With lag L, the estimate at t_i is the full RTS of the data up to t_i + L.
+    x0, P0, u, z, R = _linear_case(n=40)
+    lag = 0.5  # 10 steps
+    _, t, x, P = _localizer_run(x0, P0, u, z, R, lag=lag)
+    for i in (0, 5, 17, 29, 35):
+        m = min(len(u), i + 10)
+        _, _, sx, sP = _numpy_rts(x0, P0, u[:m], z[:m], R)
+        assert abs(t[i] - i * 0.05) < 1e-12
+        assert np.abs(x[i] - sx[i]).max() < 1e-9
+        assert np.abs(P[i] - sP[i]).max() < 1e-9
+
+
+def test_lag_zero_is_the_causal_filter():
+    x0, P0, u, z, R = _linear_case(n=30)
+    causal, t, x, P = _localizer_run(x0, P0, u, z, R, lag=0.0)
+    assert np.allclose(t, [c[0] for c in causal], atol=1e-12)
+    assert np.abs(x - np.array([c[1] for c in causal])).max() < 1e-12
+    assert np.abs(P - np.array([c[2] for c in causal])).max() < 1e-12
+
+
+@pytest.mark.parametrize("lag", [-1.0, math.nan, math.inf])
+def test_bad_lag_raises_naming_lag(lag):
+    loc = Localizer(localizer_settings(filter="ekf"), np.zeros((0, 2)), [])
+    with pytest.raises(ValueError, match="lag"):
+        loc.set_lag(lag)
+
+
+def test_particle_filter_refused():
+    loc = Localizer(localizer_settings(filter="pf"), np.zeros((0, 2)), [])
+    with pytest.raises(ValueError, match="lag.*particle"):
+        loc.set_lag(2.0)
+
+
+def test_causal_path_unchanged_by_the_smoother():
+    x0, P0, u, z, R = _linear_case(n=30)
+    with_lag, *_ = _localizer_run(x0, P0, u, z, R, lag=1.0)
+    s = localizer_settings(filter="ekf", bmm=_bmm(), gate=0.0)
+    loc = Localizer(s, np.zeros((0, 2)), [])
+    loc.initialize(0.0, x0, P0)
+    assert math.isnan(loc.lag)
+    for k in range(len(u)):
+        loc.motion((k + 1) * 0.05, u[k, 0], u[k, 1])
+        loc.fix((k + 1) * 0.05, z[k, 0], z[k, 1], R)
+    assert np.array_equal(np.array(loc.x), with_lag[-1][1])
+
+
+def test_augmented_transition_matches_its_predict():
+    # P' = F P Fᵀ + Q with the full augmented F and Q of last_transition.
+    a = _core.AugmentedStates()
+    a.range_scale = a.heading_rate_bias = a.range_bias = True
+    f = _core.AugmentedEkf(_bmm(), a, 2, np.array([0.0, 0.0, 1.0, 0.2]), np.diag([0.3, 0.3, 0.1, 0.05]))
+    f.predict(np.array([1.0, 0.01]), 0.07)
+    P = np.array(f.augmented_cov)
+    f.predict(np.array([1.2, -0.02]), 0.11)
+    F, Q = f.last_transition()
+    assert F.shape == (f.size, f.size)
+    assert np.abs(F @ P @ F.T + Q - np.array(f.augmented_cov)).max() < 1e-12
+
+
+def _plaza1():
+    gtsam = pytest.importorskip("gtsam")
+    path = Path(gtsam.__file__).parent / "Data" / "Plaza1_.mat"
+    if not path.exists():
+        pytest.skip(f"{path} is not in this gtsam wheel")
+    return rp.load(path, range_std=rp.PLAZA_RANGE_STD)
+
+
+def test_plaza1_smoothed_beats_causal():
+    r = rp.replay(_plaza1(), rp.preset_settings("plaza"), lag=2.0)
+    m, s = r.metrics, r.smoothed_metrics
+    assert m["label"] == "causal" and s["label"] == "fixed-lag 2 s"
+    assert s["n_scored"] == m["n_scored"]
+    assert np.allclose(r.smoothed["t"], r.trajectory["t"])
+    assert s["truth_rmse"] < m["truth_rmse"] - 0.02
+    assert m["truth_rmse"] == pytest.approx(0.2813, abs=5e-4)  # the causal result stays as it was
+
+
+def test_plaza1_late_ranges_replayed_into_the_window():
+    # Ranges 0-300 ms late (max_delay 0.5 s): the localizer re-runs its history, the smoother records those
+    # steps again; one output per causal row, in time order, and the smoothed RMSE as in time order.
+    log = _plaza1()
+    ev = log.events
+    d = np.where(ev["kind"].to_numpy() == "range", np.random.default_rng(0).uniform(0.0, 0.3, len(ev)), 0.0)
+    r = rp.replay(log, rp.preset_settings("plaza"), lag=2.0, delays=d)
+    in_order = rp.replay(log, rp.preset_settings("plaza"), lag=2.0)
+    assert np.array_equal(r.smoothed["t"], r.trajectory["t"])
+    assert (np.diff(r.smoothed["t"]) > 0).all()
+    assert r.smoothed_metrics["truth_rmse"] == pytest.approx(in_order.smoothed_metrics["truth_rmse"], abs=0.005)
