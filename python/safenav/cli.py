@@ -216,6 +216,7 @@ def _navigation(args, *, demo: bool) -> int:
 
 
 def _plan(args) -> int:
+    from . import certify
     from . import navigation as nv
     from .metrics import path_length
     from .experiments.figures import plot_navigation
@@ -228,11 +229,11 @@ def _plan(args) -> int:
             raise ValueError(f"--path-types: {n!r} is not a path type of the scenario (have: {have})")
     out = Path(args.out)
     with _run_folder(args, out, seed=scenario.seeds.planner) as run:
-        result, trials = {}, {}
+        result, trials, paths = {}, {}, {}
         with console.progress(len(names), "planning", unit="path") as bar:
             for name in names:
                 r = nv.plan_safe_path(scenario, name, iterations=args.iterations)
-                path = np.asarray(r.path)
+                path = paths[name] = np.asarray(r.path)
                 sf = r.safety
                 hz = np.asarray(sf.hazard_length)
                 inside = {str(k): round(float(hz[k]), 6) for k in np.flatnonzero(hz > 0)}
@@ -251,6 +252,7 @@ def _plan(args) -> int:
         write_json(out / "safe_paths.json", result)
         plot_navigation(scenario, trials, out / "safe_paths.png", title=f"{scenario.name}: safe paths (RAw-RRT*)")
         foxglove.plan_view(args.view, scenario, trials)
+        certify.plan_certificates(args, scenario, paths, out)
         _wrote(run)
     return 0
 
@@ -443,13 +445,16 @@ def _add_experiment_commands(sub, common, scenario) -> None:
     s.add_argument("scenario_file", nargs="?", default=None, help=argparse.SUPPRESS)   # the old positional form
     _navigation_options(s, demo=False)
 
-    s = sub.add_parser("plan", parents=[scenario], help="plan and draw the safe paths of a scenario (RAw-RRT*)")
+    s = sub.add_parser("plan", parents=[scenario], help="plan and draw the safe paths of a scenario (RAw-RRT*) and certify them "
+                            "against the risk budget, proposing landmarks where needed")
     s.add_argument("scenario_file", nargs="?", default=None, help=argparse.SUPPRESS)   # the old positional form
     s.add_argument("--path-types", nargs="+", default=None)
     s.add_argument("--iterations", type=_at_least(1), default=None,
                    help="RAw-RRT* iterations (default: the scenario's)")
     s.add_argument("--out", default="out/plan")
     foxglove.add_view_argument(s)
+    from .certify import add_arguments as add_certify_arguments
+    add_certify_arguments(s)
     s.set_defaults(func=_plan)
 
     s = sub.add_parser("synthetic", parents=[common],
