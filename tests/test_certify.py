@@ -157,3 +157,23 @@ def test_plan_command_writes_the_certificate(tmp_path, capsys):
     assert len(proposed.world.landmarks) == len(sc.world.landmarks) + 3
     assert cli.main(["verify", str(out)]) == 0
     assert cli.main(["plan", "--scenario", str(f), "--out", str(out), "--landmark-spacing", "0"]) == 2
+
+
+def test_belief_planner_path_or_fallback(gap):
+    sc, path = gap
+    # the only way is the blind gap: no path meets k there, so the RAw-RRT* path gets the landmarks
+    (c,), proposed = C.certify_paths(sc, {"A": path}, planner="belief")
+    assert c.planner == "RAw-RRT*" and "belief planner: INFEASIBLE" in c.reason
+    assert c.status == C.NEEDS_LANDMARKS and proposed is not None
+    # a wide gap: the belief planner's own path, certified as given
+    wide = gap_world(half=8.0)
+    (w,), none = C.certify_paths(wide, {"A": np.asarray(nv.plan_safe_path(wide, "A").path)}, planner="belief")
+    assert w.planner == "belief (RRBT)" and w.status == C.CERTIFIED and none is None
+
+
+def test_bad_settings_are_refused(gap):
+    sc, path = gap
+    with pytest.raises(ValueError, match="spacing = 0"):
+        C.certify_path(sc, "A", path, spacing=0)
+    with pytest.raises(ValueError, match="rounds = -1"):
+        C.certify_path(sc, "A", path, rounds=-1)

@@ -274,8 +274,9 @@ def _hopeless(c: Check, k: float, needs: int) -> int | None:
 def _why(c: Check, k: float, epsilon: float, needs: int, rounds: int, j: int | None = None) -> str:
     """Why a check fails, in words (at stage ``j``, default the one with the least room)."""
     if not c.failing.any():
-        return (f"predicted collision probability {c.collision_probability:.3g} > ε = {epsilon:g} although "
-                f"every failing stretch has a fix in view")
+        return (f"predicted collision probability {c.collision_probability:.3g} > ε = {epsilon:g}" +
+                (f" after {rounds} round(s) of placement" if rounds > 0 else
+                 "; landmark proposals are off" if rounds < 0 else "; no stretch without a fix to cover"))
     prof = c.profile
     j = int(np.argmin(c.room)) if j is None else j
     pos, s = np.asarray(prof.positions), _arc(np.asarray(prof.positions))
@@ -307,7 +308,13 @@ def certify_path(scenario, name: str, path, *, planner: str = "RAw-RRT*", propos
     """Certify ``path`` (the planned path of path type ``name``) in
     ``scenario``; where it fails, propose landmarks (up to ``rounds``
     rounds of :func:`propose_landmarks`, re-propagating after each)."""
-    path = np.asarray(path, dtype=float)
+    from .validation import as_array
+
+    path = as_array("path", path, (None, 2))
+    if isinstance(rounds, bool) or not isinstance(rounds, (int, np.integer)) or rounds < 0:
+        raise ValueError(f"rounds = {rounds!r}: must be an integer >= 0")
+    if not (isinstance(spacing, (int, float, np.floating)) and np.isfinite(spacing) and spacing > 0):
+        raise ValueError(f"spacing = {spacing!r}: must be a finite number of metres > 0")
     eps = float(scenario.navigation.collision_probability)
     k, n_exp = risk_k(scenario, path)
     cert = PathCertificate(name=name, status=CERTIFIED, reason="", planner=planner, path=path, k=k,
@@ -428,6 +435,28 @@ def _markdown(certs: list, proposed_file: str | None) -> str:
 
 # --------------------------------------------------------------------------- command line
 
+def _positive(text: str) -> float:
+    """An argparse type: a finite number > 0."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (np.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"must be a number > 0, got {text}")
+    return v
+
+
+def _rounds(text: str) -> int:
+    """An argparse type: an integer >= 1."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {v}")
+    return v
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """``safenav plan``'s certificate options."""
     parser.add_argument("--planner", choices=["raw", "belief"], default="raw",
@@ -435,9 +464,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "k(ε), with the RAw-RRT* path as a guide")
     parser.add_argument("--no-landmarks", action="store_true",
                         help="certify only; propose no landmarks for the paths that fail")
-    parser.add_argument("--landmark-spacing", type=float, default=2.0,
+    parser.add_argument("--landmark-spacing", type=_positive, default=2.0,
                         help="candidate grid spacing for proposed landmarks [m] (default 2)")
-    parser.add_argument("--landmark-rounds", type=int, default=3,
+    parser.add_argument("--landmark-rounds", type=_rounds, default=3,
                         help="placement rounds at most per path (default 3)")
 
 
@@ -451,10 +480,6 @@ def plan_certificates(args, scenario, raw_paths: dict, out) -> list:
     from .results import write_json, write_text
     from .scenario import save_scenario
 
-    if not (args.landmark_spacing > 0 and np.isfinite(args.landmark_spacing)):
-        raise ValueError(f"--landmark-spacing = {args.landmark_spacing}: must be a number > 0")
-    if args.landmark_rounds < 1:
-        raise ValueError(f"--landmark-rounds = {args.landmark_rounds}: must be an integer >= 1")
     out = Path(out)
     with console.task(f"certifying {len(raw_paths)} path(s) against ε = "
                       f"{scenario.navigation.collision_probability:g}"):
