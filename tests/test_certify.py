@@ -156,6 +156,10 @@ def test_plan_command_writes_the_certificate(tmp_path, capsys):
     proposed = load_scenario(out / "proposed_scenario.toml")
     assert len(proposed.world.landmarks) == len(sc.world.landmarks) + 3
     assert cli.main(["verify", str(out)]) == 0
+    # safenav run accepts the proposed scenario (a one-trial sweep)
+    assert cli.main(["run", "--scenario", str(out / "proposed_scenario.toml"), "--trials", "1", "--methods",
+                     "centroid", "--filters", "ekf", "--out", str(tmp_path / "run"), "--quiet"]) == 0
+    assert "0 of 1 trials collided" in capsys.readouterr().out
     assert cli.main(["plan", "--scenario", str(f), "--out", str(out), "--landmark-spacing", "0"]) == 2
 
 
