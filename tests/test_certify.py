@@ -115,10 +115,14 @@ def test_start_inside_an_obstacles_k_sigma_zone_cannot_be_certified():
     assert not cert.given.failing[1:].any() or cert.given.room[0] <= cert.given.room.min() + 1e-12
 
 
-def test_no_path_is_reported():
-    sc = gap_world()
-    certs, proposed = C.certify_paths(sc, {"A": None})
-    assert certs[0].status == C.CANNOT and "no path" in certs[0].reason and proposed is None
+def test_no_path_is_reported(tmp_path, capsys):
+    # a gap narrower than vehicle radius + margin on each side: RAw-RRT* finds no path
+    f = save_scenario(gap_world(half=1.5), tmp_path / "narrow.toml")
+    out = tmp_path / "plan"
+    assert cli.main(["plan", "--scenario", str(f), "--out", str(out), "--iterations", "300"]) == 0
+    assert "A: CANNOT BE CERTIFIED" in capsys.readouterr().out
+    (c,) = json.loads((out / "certificate.json").read_text())["paths"]
+    assert c["status"] == C.CANNOT and c["reason"].startswith("no path") and c["k"] is None
 
 
 def test_cover_count_is_the_brute_force_minimum():

@@ -36,7 +36,7 @@ from . import console
 
 __all__ = ["PathCertificate", "Check", "mission_inputs", "risk_k", "check_profile", "blind_stretches",
            "placement_camera", "cover_stretch", "propose_landmarks", "certify_path", "certify_paths", "with_landmarks",
-           "add_arguments", "plan_certificates"]
+           "plan_or_none", "plan_belief_path", "add_arguments", "plan_certificates"]
 
 #: Statuses of a path's certificate.
 CERTIFIED, NEEDS_LANDMARKS, CANNOT = "certified", "needs landmarks", "cannot be certified"
@@ -238,9 +238,10 @@ class PathCertificate:
         return int(len(self.added))
 
     def to_dict(self) -> dict:
+        nan = lambda v: None if not np.isfinite(v) else v  # noqa: E731  (JSON has no NaN)
         return {"path_type": self.name, "status": self.status, "reason": self.reason, "planner": self.planner,
                 "length_m": float(_arc(self.path)[-1]) if len(self.path) else 0.0,
-                "epsilon": self.epsilon, "k": self.k, "exposures": self.exposures,
+                "epsilon": self.epsilon, "k": nan(self.k), "exposures": nan(self.exposures),
                 "as_given": self.given.summary() if self.given else None,
                 "with_landmarks": self.final.summary() if self.final else None,
                 "landmarks_added": self.n_added, "landmarks": self.added.round(4).tolist(), "rounds": self.rounds,
@@ -348,6 +349,19 @@ def certify_path(scenario, name: str, path, *, planner: str = "RAw-RRT*", propos
     return cert
 
 
+def plan_or_none(scenario, name: str, iterations: int | None = None):
+    """The RAw-RRT* plan of path type ``name``
+    (:func:`safenav.navigation.plan_safe_path`), or None when it finds no path
+    (reported, on standard error, and then in the certificate)."""
+    from . import navigation as nv
+
+    try:
+        return nv.plan_safe_path(scenario, name, iterations=iterations)
+    except RuntimeError as exc:
+        console.info(str(exc))
+        return None
+
+
 def plan_belief_path(scenario, raw_path, k: float):
     """The belief-aware plan (:func:`safenav.belief.plan_belief`, RRBT) from
     the RAw-RRT* path's start to its goal at k, with that path as a guide path
@@ -401,8 +415,9 @@ def report_lines(certs: list) -> list[str]:
         head = f"{c.name}: {c.status.upper()}"
         if c.status == NEEDS_LANDMARKS:
             head += f" ({c.n_added} landmark(s))"
-        lines.append(f"{head}; {c.planner} path, {_arc(c.path)[-1] if len(c.path) else 0:.1f} m, "
-                     f"ε = {c.epsilon:g}, k = {c.k:.3g} (N = {c.exposures:g})")
+        lines.append(f"{head}; ε = {c.epsilon:g}" if not len(c.path) else
+                     f"{head}; {c.planner} path, {_arc(c.path)[-1]:.1f} m, ε = {c.epsilon:g}, k = {c.k:.3g} "
+                     f"(N = {c.exposures:g})")
         for label, ch in (("as given", c.given), (f"with {c.n_added} added", c.final)):
             if ch is not None:
                 lines.append(f"  {label}: σ max {ch.sigma_max:.3g} m at s = {ch.sigma_max_s:.1f} m "

@@ -232,7 +232,11 @@ def _plan(args) -> int:
         result, trials, paths = {}, {}, {}
         with console.progress(len(names), "planning", unit="path") as bar:
             for name in names:
-                r = nv.plan_safe_path(scenario, name, iterations=args.iterations)
+                r = certify.plan_or_none(scenario, name, args.iterations)
+                if r is None:                   # no path: the certificate says so
+                    paths[name] = None
+                    bar.update()
+                    continue
                 path = paths[name] = np.asarray(r.path)
                 sf = r.safety
                 hz = np.asarray(sf.hazard_length)
@@ -250,7 +254,8 @@ def _plan(args) -> int:
                 trials[name] = (navigator, navigator.run(0))
                 bar.update()
         write_json(out / "safe_paths.json", result)
-        plot_navigation(scenario, trials, out / "safe_paths.png", title=f"{scenario.name}: safe paths (RAw-RRT*)")
+        if trials:
+            plot_navigation(scenario, trials, out / "safe_paths.png", title=f"{scenario.name}: safe paths (RAw-RRT*)")
         foxglove.plan_view(args.view, scenario, trials)
         certify.plan_certificates(args, scenario, paths, out)
         _wrote(run)
