@@ -112,7 +112,9 @@ def test_start_inside_an_obstacles_k_sigma_zone_cannot_be_certified():
     cert = C.certify_path(sc, "A", path)
     assert cert.status == C.CANNOT and cert.n_added == 0
     assert "at the start" in cert.reason and "k-σ zone" in cert.reason
-    assert not cert.given.failing[1:].any() or cert.given.room[0] <= cert.given.room.min() + 1e-12
+    assert cert.given.failing[0]
+    prof = cert.given.profile            # 0.02 m beyond r + margin, less than k times a fix's sigma there
+    assert 0 < prof.clearance[0] - 2.0 < cert.k * prof.sigma_toward[0]
 
 
 def test_no_path_is_reported(tmp_path, capsys):
