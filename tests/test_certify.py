@@ -70,6 +70,9 @@ def test_blind_gap_is_not_certified_as_given_and_landmarks_certify_it(gap):
     assert (np.asarray(prof.landmarks)[room <= 0] < sc.detection.min_landmarks).all()   # blind there
     # proposed: a fix's worth of landmarks, and the path passes
     assert cert.status == C.NEEDS_LANDMARKS and cert.n_added == sc.detection.min_landmarks
+    # landmarks keep the planning clearance p from the whole path (not only from the stretch)
+    from safenav import _core
+    assert (_core.distance_to_route(path, cert.added) > sc.navigation.planning_clearance).all()
     placed = C.with_landmarks(sc, cert.added)
     prof2, room2 = _recheck(placed, path, cert.k)
     assert (room2 > 0).all() and prof2.collision_probability <= eps

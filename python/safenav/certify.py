@@ -171,20 +171,28 @@ def placement_camera(scenario):
                           clearance=scenario.navigation.planning_clearance)
 
 
-def cover_stretch(scenario, route, needs: int, *, spacing: float = 2.0):
+def cover_stretch(scenario, route, needs: int, *, spacing: float = 2.0, path=None):
     """The fewest landmarks that keep ``needs`` in view along ``route`` (a
     polyline): the placement paper's cover as an integer program
     (:func:`safenav.placement.place_along_path`, ``method = 'optimal'``,
     exact over the candidates), with :func:`placement_camera`; the world's
     obstacles hide landmarks and no candidate lies inside one.  Candidates on
-    a grid of ``spacing`` within the camera's range.  Returns the
-    ``PlacementResult`` (best effort where no candidate covers a piece)."""
+    a grid of ``spacing`` within the camera's range of ``route``, and farther
+    than the camera's clearance p from ``path`` (the whole path ``route`` is
+    part of; default ``route``), so that no landmark stands on the path
+    beyond the stretch.  Returns the ``PlacementResult`` (best effort where
+    no candidate covers a piece)."""
+    from . import _core
     from . import placement as P
 
-    world = scenario.world
-    return P.place_along_path(np.asarray(route, dtype=float), placement_camera(scenario), world=world,
-                              spacing=spacing, k=needs, method="optimal", allow_uncovered=True,
-                              occlusion=bool(world.obstacles))
+    world, cam = scenario.world, placement_camera(scenario)
+    route = np.asarray(route, dtype=float)
+    whole = route if path is None else np.asarray(path, dtype=float)
+    cand = P.candidate_grid(route.min(axis=0), route.max(axis=0), spacing, margin=cam.range)
+    cand = cand[(_core.distance_to_route(route, cand) <= cam.range)
+                & (_core.distance_to_route(whole, cand) > cam.clearance)]
+    return P.place_along_path(route, cam, world=world, candidates=cand, k=needs, method="optimal",
+                              allow_uncovered=True, occlusion=bool(world.obstacles))
 
 
 def propose_landmarks(scenario, path, stretches, needs: int, *, spacing: float = 2.0) -> np.ndarray:
@@ -193,7 +201,7 @@ def propose_landmarks(scenario, path, stretches, needs: int, *, spacing: float =
     found: list = []
     for s0, s1 in stretches:
         found.extend(cover_stretch(scenario, _cut(np.asarray(path, dtype=float), s0, s1), needs,
-                                   spacing=spacing).landmarks.tolist())
+                                   spacing=spacing, path=path).landmarks.tolist())
     have = {tuple(np.round(lm.xy, 6)) for lm in scenario.world.landmarks}
     out, seen = [], set()
     for xy in found:
