@@ -190,3 +190,10 @@ def test_bad_settings_are_refused(gap):
         C.certify_path(sc, "A", path, spacing=0)
     with pytest.raises(ValueError, match="rounds = -1"):
         C.certify_path(sc, "A", path, rounds=-1)
+
+
+def test_cover_stretch_takes_a_route_with_repeated_points():
+    sc = gap_world(half=8.0, max_range_m=10.0, min_landmarks=1)
+    route = np.array([[30.0, 20.0], [34.0, 20.0], [34.0, 20.0], [38.0, 20.0]])   # as planners may return
+    res = C.cover_stretch(sc, route, 1, spacing=2.0)
+    assert res.covered and res.count == C.cover_stretch(sc, route[[0, 3]], 1, spacing=2.0).count

@@ -147,6 +147,12 @@ def blind_stretches(prof, risky: np.ndarray, needs: int) -> list[tuple[float, fl
     return [(a, b) for a, b in out]
 
 
+def _distinct(points: np.ndarray) -> np.ndarray:
+    """The polyline without points that repeat the one before (within 1e-9 m)."""
+    keep = np.r_[True, np.hypot(*np.diff(points, axis=0).T) > 1e-9]
+    return points[keep]
+
+
 def _cut(path: np.ndarray, s0: float, s1: float, min_length: float = 1.0) -> np.ndarray:
     """The piece of the polyline ``path`` between arc lengths s0 and s1
     (widened to ``min_length`` within the path)."""
@@ -186,8 +192,8 @@ def cover_stretch(scenario, route, needs: int, *, spacing: float = 2.0, path=Non
     from . import placement as P
 
     world, cam = scenario.world, placement_camera(scenario)
-    route = np.asarray(route, dtype=float)
-    whole = route if path is None else np.asarray(path, dtype=float)
+    route = _distinct(np.asarray(route, dtype=float))
+    whole = route if path is None else _distinct(np.asarray(path, dtype=float))
     cand = P.candidate_grid(route.min(axis=0), route.max(axis=0), spacing, margin=cam.range)
     cand = cand[(_core.distance_to_route(route, cand) <= cam.range)
                 & (_core.distance_to_route(whole, cand) > cam.clearance)]
