@@ -441,7 +441,8 @@ def report_lines(certs: list) -> list[str]:
         lines.append(f"  {c.reason}")
     n = {s: sum(c.status == s for c in certs) for s in (CERTIFIED, NEEDS_LANDMARKS, CANNOT)}
     lines.append(f"certificate: {n[CERTIFIED]} certified as given, {n[NEEDS_LANDMARKS]} need landmarks "
-                 f"({sum(c.n_added for c in certs if c.status == NEEDS_LANDMARKS)} landmarks in all), {n[CANNOT]} cannot be certified")
+                 f"({sum(c.n_added for c in certs if c.status == NEEDS_LANDMARKS)} landmarks in all), "
+                 f"{n[CANNOT]} cannot be certified")
     return lines
 
 

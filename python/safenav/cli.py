@@ -450,8 +450,8 @@ def _add_experiment_commands(sub, common, scenario) -> None:
     s.add_argument("scenario_file", nargs="?", default=None, help=argparse.SUPPRESS)   # the old positional form
     _navigation_options(s, demo=False)
 
-    s = sub.add_parser("plan", parents=[scenario], help="plan and draw the safe paths of a scenario (RAw-RRT*) and certify them "
-                            "against the risk budget, proposing landmarks where needed")
+    s = sub.add_parser("plan", parents=[scenario], help="plan and draw the safe paths of a scenario (RAw-RRT*), "
+                       "certify them against the risk budget and propose landmarks where needed")
     s.add_argument("scenario_file", nargs="?", default=None, help=argparse.SUPPRESS)   # the old positional form
     s.add_argument("--path-types", nargs="+", default=None)
     s.add_argument("--iterations", type=_at_least(1), default=None,
