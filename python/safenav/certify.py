@@ -99,9 +99,14 @@ class Check:
         return {"certified": self.certified, "collision_probability": self.collision_probability,
                 "union_bound": self.union_bound, "sigma_max_m": self.sigma_max,
                 "sigma_max_at": {"s_m": self.sigma_max_s, "x": x, "y": y},
-                "min_room_m": self.min_room, "min_room_at": {"s_m": self.min_room_s, "x": self.min_room_xy[0],
+                "min_room_m": _finite(self.min_room), "min_room_at": {"s_m": self.min_room_s, "x": self.min_room_xy[0],
                                                               "y": self.min_room_xy[1]},
                 "failing_stages": int(self.failing.sum()), "stages": int(len(self.failing))}
+
+
+def _finite(v: float) -> float | None:
+    """``v``, or None where it is not finite (JSON has no inf or NaN)."""
+    return float(v) if np.isfinite(v) else None
 
 
 def _arc(points: np.ndarray) -> np.ndarray:
@@ -252,10 +257,9 @@ class PathCertificate:
         return int(len(self.added))
 
     def to_dict(self) -> dict:
-        nan = lambda v: None if not np.isfinite(v) else v  # noqa: E731  (JSON has no NaN)
         return {"path_type": self.name, "status": self.status, "reason": self.reason, "planner": self.planner,
                 "length_m": float(_arc(self.path)[-1]) if len(self.path) else 0.0,
-                "epsilon": self.epsilon, "k": nan(self.k), "exposures": nan(self.exposures),
+                "epsilon": self.epsilon, "k": _finite(self.k), "exposures": _finite(self.exposures),
                 "as_given": self.given.summary() if self.given else None,
                 "with_landmarks": self.final.summary() if self.final else None,
                 "landmarks_added": self.n_added, "landmarks": self.added.round(4).tolist(), "rounds": self.rounds,
