@@ -197,6 +197,7 @@ def _navigation(args, *, demo: bool) -> int:
 
 
 def _plan(args) -> int:
+    from . import certify
     from . import navigation as nv
     from .metrics import path_length
     from .experiments.figures import plot_navigation
@@ -209,11 +210,15 @@ def _plan(args) -> int:
             raise ValueError(f"--path-types: {n!r} is not a path type of the scenario (have: {have})")
     out = Path(args.out)
     with _run_folder(args, out, seed=scenario.seeds.planner) as run:
-        result, trials = {}, {}
+        result, trials, paths = {}, {}, {}
         with console.progress(len(names), "planning", unit="path") as bar:
             for name in names:
-                r = nv.plan_safe_path(scenario, name, iterations=args.iterations)
-                path = np.asarray(r.path)
+                r = certify.plan_or_none(scenario, name, args.iterations)
+                if r is None:                   # no path: the certificate says so
+                    paths[name] = None
+                    bar.update()
+                    continue
+                path = paths[name] = np.asarray(r.path)
                 sf = r.safety
                 hz = np.asarray(sf.hazard_length)
                 inside = {str(k): round(float(hz[k]), 6) for k in np.flatnonzero(hz > 0)}
@@ -230,8 +235,10 @@ def _plan(args) -> int:
                 trials[name] = (navigator, navigator.run(0))
                 bar.update()
         write_json(out / "safe_paths.json", result)
-        plot_navigation(scenario, trials, out / "safe_paths.png", title=f"{scenario.name}: safe paths (RAw-RRT*)")
+        if trials:
+            plot_navigation(scenario, trials, out / "safe_paths.png", title=f"{scenario.name}: safe paths (RAw-RRT*)")
         foxglove.plan_view(args.view, scenario, trials)
+        certify.plan_certificates(args, scenario, paths, out)
         _wrote(run)
     return 0
 
@@ -427,13 +434,16 @@ def _add_experiment_commands(sub, common, scenario) -> None:
     s.add_argument("scenario_file", nargs="?", default=None, help=argparse.SUPPRESS)   # the old positional form
     _navigation_options(s, demo=False)
 
-    s = sub.add_parser("plan", parents=[scenario], help="plan and draw the safe paths of a scenario (RAw-RRT*)")
+    s = sub.add_parser("plan", parents=[scenario], help="plan and draw the safe paths of a scenario (RAw-RRT*), "
+                       "certify them against the risk budget and propose landmarks where needed")
     s.add_argument("scenario_file", nargs="?", default=None, help=argparse.SUPPRESS)   # the old positional form
     s.add_argument("--path-types", nargs="+", default=None)
     s.add_argument("--iterations", type=_at_least(1), default=None,
                    help="RAw-RRT* iterations (default: the scenario's)")
     s.add_argument("--out", default="out/plan")
     foxglove.add_view_argument(s)
+    from .certify import add_arguments as add_certify_arguments
+    add_certify_arguments(s)
     s.set_defaults(func=_plan)
 
     s = sub.add_parser("synthetic", parents=[common],

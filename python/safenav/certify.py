@@ -1,0 +1,533 @@
+"""Certified missions: check each planned path against the mission's risk
+budget, and propose the fewest landmarks that make an uncertified one pass.
+
+A path is **certified** when, with the belief the navigation loop is
+predicted to have along it (:func:`safenav.belief.propagate_belief`: the
+EKF's predict [SafeNav eq. 11] and update [SafeNav eqs. 12–14] with the
+fixes the sensors will make, LQG-MP), both hold:
+
+* the path-level collision probability (Patil, van den Berg & Alterovitz
+  2012, ``BeliefProfile.collision_probability``) is at most
+  ε = ``navigation.collision_probability``;
+* at every stage, clearance − vehicle_radius − margin > k·σ_a, with σ_a the
+  position σ toward the nearest obstacle (``BeliefProfile.sigma_toward``,
+  the direction of the half-plane bound in docs/safety.md) and
+  k = Φ⁻¹(1 − ε/N) (``guard_k_for_risk``), N the path's exposures
+  (``path_exposures``, as the guard counts them).
+
+Where a path fails, landmarks are proposed along the stretches where it
+fails: each run of failing stages (or of stages that carry more than ε/n of
+the collision probability) without a fix in view throughout.  On each stretch the
+placement paper's cover (:func:`safenav.placement.place_along_path`, the
+integer program, with occlusion) keeps a fix's worth of landmarks in view.
+The landmarks are added, the belief re-propagated and the path re-checked, a
+few rounds at most.  The path itself is kept.  See docs/belief_planning.md,
+"Certified missions".
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from . import console
+
+__all__ = ["PathCertificate", "Check", "mission_inputs", "risk_k", "check_profile", "blind_stretches",
+           "placement_camera", "cover_stretch", "propose_landmarks", "certify_path", "certify_paths", "with_landmarks",
+           "plan_or_none", "plan_belief_path", "add_arguments", "plan_certificates"]
+
+#: Statuses of a path's certificate.
+CERTIFIED, NEEDS_LANDMARKS, CANNOT = "certified", "needs landmarks", "cannot be certified"
+
+
+def mission_inputs(scenario, path) -> dict:
+    """The keyword arguments of ``propagate_belief`` for ``path`` in
+    ``scenario``: its planning ``map`` (hazards of risk ≥ the planner's
+    ``forbidden_risk`` are keep-out areas), ``bmm``, the ``sensors`` of its
+    navigation loop (as :func:`safenav.navigation.make_navigator` builds
+    them), the cruise ``speed``, ``vehicle_radius`` and ``margin``."""
+    from . import navigation as nv
+    from . import planning as P
+
+    n = scenario.navigation
+    navigator = nv.make_navigator(scenario, np.asarray(path, dtype=float), record=False)
+    return {"map": P.map_from_world(scenario.world, forbidden_risk=scenario.planner.forbidden_risk),
+            "bmm": scenario.bmm_params(), "sensors": navigator.sensors, "speed": float(n.cruise_speed),
+            "vehicle_radius": float(n.vehicle_radius), "margin": float(n.clearance_margin)}
+
+
+def risk_k(scenario, path) -> tuple[float, float]:
+    """(k, N): k = Φ⁻¹(1 − ε/N) of the budget ε = ``navigation.collision_probability``
+    and the exposures N of ``path``, counted as the guard counts them
+    (docs/safety.md, "The guard's k")."""
+    from .guidance import guard_k_for_risk, make_guidance
+
+    n_exp = float(make_guidance(scenario, np.asarray(path, dtype=float)).guard_exposures)
+    return float(guard_k_for_risk(scenario.navigation.collision_probability, n_exp)), n_exp
+
+
+def fix_needs(sensors) -> int:
+    """Landmarks in view that give a fix: ``min_landmarks``, at least 3 for
+    ``FixModel.RANGES`` (as ``propagate_belief`` counts them)."""
+    from . import _core
+
+    m = int(sensors.min_landmarks)
+    return max(3, m) if sensors.fix_model == _core.FixModel.RANGES else m
+
+
+@dataclass
+class Check:
+    """One path's belief against the certificate's two conditions."""
+    certified: bool
+    collision_probability: float      #: Patil et al.
+    union_bound: float
+    sigma_max: float                  #: max √λ_max(P_xy) [m]
+    sigma_max_s: float                #: where [m of arc length]
+    sigma_max_xy: tuple
+    min_room: float                   #: min over stages of clearance − r − margin − k·σ_a [m]
+    min_room_s: float
+    min_room_xy: tuple
+    room: np.ndarray                  #: per stage: clearance − r − margin − k·σ_a [m]
+    failing: np.ndarray               #: stages where clearance − r − margin ≤ k·σ_a
+    risky: np.ndarray                 #: failing, or p_k > ε / stages
+    profile: object = None
+
+    def summary(self) -> dict:
+        x, y = self.sigma_max_xy
+        return {"certified": self.certified, "collision_probability": self.collision_probability,
+                "union_bound": self.union_bound, "sigma_max_m": self.sigma_max,
+                "sigma_max_at": {"s_m": self.sigma_max_s, "x": x, "y": y},
+                "min_room_m": _finite(self.min_room), "min_room_at": {"s_m": self.min_room_s, "x": self.min_room_xy[0],
+                                                              "y": self.min_room_xy[1]},
+                "failing_stages": int(self.failing.sum()), "stages": int(len(self.failing))}
+
+
+def _finite(v: float) -> float | None:
+    """``v``, or None where it is not finite (JSON has no inf or NaN)."""
+    return float(v) if np.isfinite(v) else None
+
+
+def _arc(points: np.ndarray) -> np.ndarray:
+    return np.r_[0.0, np.cumsum(np.hypot(*np.diff(points, axis=0).T))]
+
+
+def check_profile(prof, k: float, epsilon: float, vehicle_radius: float, margin: float) -> Check:
+    """The certificate's two conditions on a ``BeliefProfile``: P(collision) ≤ ε,
+    and clearance − vehicle_radius − margin > k·σ_a at every stage."""
+    pos = np.asarray(prof.positions)
+    s = _arc(pos)
+    sigma = np.asarray(prof.sigma)
+    room = np.asarray(prof.clearance) - vehicle_radius - margin - k * np.asarray(prof.sigma_toward)
+    room = np.where(np.isfinite(room), room, np.inf)
+    failing = room <= 0.0
+    risky = failing | (np.asarray(prof.stage_probability) > epsilon / len(sigma))
+    i, j = int(np.argmax(sigma)), int(np.argmin(room))
+    pc = float(prof.collision_probability)
+    return Check(certified=bool(pc <= epsilon and not failing.any()), collision_probability=pc,
+                 union_bound=float(prof.union_bound), sigma_max=float(sigma[i]), sigma_max_s=float(s[i]),
+                 sigma_max_xy=(float(pos[i, 0]), float(pos[i, 1])), min_room=float(room[j]),
+                 min_room_s=float(s[j]), min_room_xy=(float(pos[j, 0]), float(pos[j, 1])), room=room, failing=failing,
+                 risky=risky, profile=prof)
+
+
+def blind_stretches(prof, risky: np.ndarray, needs: int) -> list[tuple[float, float]]:
+    """Arc-length stretches [s0, s1] to cover with landmarks: each run of
+    ``risky`` stages that has a stage without a fix in view (fewer than
+    ``needs`` landmarks), overlapping ones merged.  A run with a fix in view
+    throughout gives none: more landmarks would not add a fix there."""
+    s = _arc(np.asarray(prof.positions))
+    seen = np.asarray(prof.landmarks) >= needs
+    out: list[list[float]] = []
+    idx = np.flatnonzero(risky)
+    for run in (np.split(idx, np.flatnonzero(np.diff(idx) > 1) + 1) if len(idx) else []):
+        i0, i1 = int(run[0]), int(run[-1])
+        if seen[i0:i1 + 1].all():
+            continue
+        if out and s[i0] <= out[-1][1]:
+            out[-1][1] = max(out[-1][1], float(s[i1]))
+        else:
+            out.append([float(s[i0]), float(s[i1])])
+    return [(a, b) for a, b in out]
+
+
+def _distinct(points: np.ndarray) -> np.ndarray:
+    """The polyline without points that repeat the one before (within 1e-9 m)."""
+    keep = np.r_[True, np.hypot(*np.diff(points, axis=0).T) > 1e-9]
+    return points[keep]
+
+
+def _cut(path: np.ndarray, s0: float, s1: float, min_length: float = 1.0) -> np.ndarray:
+    """The piece of the polyline ``path`` between arc lengths s0 and s1
+    (widened to ``min_length`` within the path)."""
+    s = _arc(path)
+    if s1 - s0 < min_length:
+        mid = 0.5 * (s0 + s1)
+        s0, s1 = max(0.0, mid - 0.5 * min_length), min(s[-1], mid + 0.5 * min_length)
+    at = lambda t: np.array([np.interp(t, s, path[:, 0]), np.interp(t, s, path[:, 1])])  # noqa: E731
+    inner = path[(s > s0) & (s < s1)]
+    return np.vstack([at(s0), *inner, at(s1)])
+
+
+def placement_camera(scenario):
+    """The camera the placement covers with: the vehicle's, narrowed by 25°
+    and shortened to 90 % of the detection range, for heading and cross-track
+    deviations (as :func:`safenav.experiments.run.placed_scenario`);
+    landmarks keep the planning clearance from the path."""
+    from . import placement as P
+
+    return P.CameraParams(range=0.9 * scenario.detection.max_range_m,
+                          angle_deg=max(10.0, scenario.camera.field_of_view_deg - 25.0),
+                          clearance=scenario.navigation.planning_clearance)
+
+
+def cover_stretch(scenario, route, needs: int, *, spacing: float = 2.0, path=None):
+    """The fewest landmarks that keep ``needs`` in view along ``route`` (a
+    polyline): the placement paper's cover as an integer program
+    (:func:`safenav.placement.place_along_path`, ``method = 'optimal'``,
+    exact over the candidates), with :func:`placement_camera`; the world's
+    obstacles hide landmarks and no candidate lies inside one.  Candidates on
+    a grid of ``spacing`` within the camera's range of ``route``, and farther
+    than the camera's clearance p from ``path`` (the whole path ``route`` is
+    part of; default ``route``), so that no landmark stands on the path
+    beyond the stretch.  Returns the ``PlacementResult`` (best effort where
+    no candidate covers a piece)."""
+    from . import _core
+    from . import placement as P
+
+    world, cam = scenario.world, placement_camera(scenario)
+    route = _distinct(np.asarray(route, dtype=float))
+    whole = route if path is None else _distinct(np.asarray(path, dtype=float))
+    cand = P.candidate_grid(route.min(axis=0), route.max(axis=0), spacing, margin=cam.range)
+    cand = cand[(_core.distance_to_route(route, cand) <= cam.range)
+                & (_core.distance_to_route(whole, cand) > cam.clearance)]
+    return P.place_along_path(route, cam, world=world, candidates=cand, k=needs, method="optimal",
+                              allow_uncovered=True, occlusion=bool(world.obstacles))
+
+
+def propose_landmarks(scenario, path, stretches, needs: int, *, spacing: float = 2.0) -> np.ndarray:
+    """(L, 2) new landmark positions: :func:`cover_stretch` on each stretch
+    (s0, s1) of ``path``, without repeats or landmarks the scenario has."""
+    found: list = []
+    for s0, s1 in stretches:
+        found.extend(cover_stretch(scenario, _cut(np.asarray(path, dtype=float), s0, s1), needs,
+                                   spacing=spacing, path=path).landmarks.tolist())
+    have = {tuple(np.round(lm.xy, 6)) for lm in scenario.world.landmarks}
+    out, seen = [], set()
+    for xy in found:
+        key = tuple(np.round(xy, 6))
+        if key not in have and key not in seen:
+            seen.add(key)
+            out.append(xy)
+    return np.asarray(out, dtype=float).reshape(-1, 2)
+
+
+def with_landmarks(scenario, positions, *, name: str | None = None):
+    """``scenario`` with landmarks at ``positions`` ((L, 2)) added: class
+    ``placed``, one new cluster, ids after the largest one."""
+    from .world import Landmark
+
+    w = scenario.world
+    next_id = max((lm.id for lm in w.landmarks), default=-1) + 1
+    cluster = max(w.cluster_ids, default=-1) + 1
+    added = tuple(Landmark(next_id + i, (float(x), float(y)), "placed", cluster)
+                  for i, (x, y) in enumerate(np.asarray(positions, dtype=float).reshape(-1, 2)))
+    return replace(scenario, world=replace(w, landmarks=w.landmarks + added), name=name or scenario.name)
+
+
+@dataclass
+class PathCertificate:
+    """The certificate of one path type."""
+    name: str
+    status: str                       #: CERTIFIED, NEEDS_LANDMARKS or CANNOT
+    reason: str
+    planner: str
+    path: np.ndarray
+    k: float
+    exposures: float
+    epsilon: float
+    given: Check | None = None        #: with the scenario's landmarks
+    final: Check | None = None        #: with the proposed landmarks added (NEEDS_LANDMARKS)
+    added: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    rounds: int = 0
+
+    @property
+    def n_added(self) -> int:
+        return int(len(self.added))
+
+    def to_dict(self) -> dict:
+        return {"path_type": self.name, "status": self.status, "reason": self.reason, "planner": self.planner,
+                "length_m": float(_arc(self.path)[-1]) if len(self.path) else 0.0,
+                "epsilon": self.epsilon, "k": _finite(self.k), "exposures": _finite(self.exposures),
+                "as_given": self.given.summary() if self.given else None,
+                "with_landmarks": self.final.summary() if self.final else None,
+                "landmarks_added": self.n_added, "landmarks": self.added.round(4).tolist(), "rounds": self.rounds,
+                "path": np.asarray(self.path).round(4).tolist()}
+
+
+def _evaluate(scenario, path, k: float, step: float) -> Check:
+    from .belief import propagate_belief
+
+    kw = mission_inputs(scenario, path)
+    prof = propagate_belief(path, step=step, **kw)
+    return check_profile(prof, k, scenario.navigation.collision_probability, kw["vehicle_radius"], kw["margin"])
+
+
+def _floor(c: Check, needs: int) -> float:
+    """The least σ toward the nearest obstacle at a stage with a fix in view
+    on this path (what fixes give here), or 0 when no stage has one."""
+    fix = np.asarray(c.profile.landmarks) >= needs
+    return float(np.asarray(c.profile.sigma_toward)[fix].min()) if fix.any() else 0.0
+
+
+def _hopeless(c: Check, k: float, needs: int) -> int | None:
+    """A failing stage that landmarks cannot fix: its room beyond vehicle radius
+    + margin is below k times what fixes give on this path (:func:`_floor`).
+    The worst such stage, or None."""
+    free = c.room + k * np.asarray(c.profile.sigma_toward)
+    bad = c.failing & (free <= k * _floor(c, needs))
+    return int(np.flatnonzero(bad)[np.argmin(c.room[bad])]) if bad.any() else None
+
+
+def _why(c: Check, k: float, epsilon: float, needs: int, rounds: int, j: int | None = None) -> str:
+    """Why a check fails, in words (at stage ``j``, default the one with the least room)."""
+    if not c.failing.any():
+        return (f"predicted collision probability {c.collision_probability:.3g} > ε = {epsilon:g}" +
+                (f" after {rounds} round(s) of placement" if rounds > 0 else
+                 "; landmark proposals are off" if rounds < 0 else "; no stretch without a fix to cover"))
+    prof = c.profile
+    j = int(np.argmin(c.room)) if j is None else j
+    pos, s = np.asarray(prof.positions), _arc(np.asarray(prof.positions))
+    cl, sig = float(np.asarray(prof.clearance)[j]), float(np.asarray(prof.sigma_toward)[j])
+    free = float(c.room[j]) + k * sig                    # clearance − vehicle radius − margin
+    lms = int(np.asarray(prof.landmarks)[j])
+    where = "the start" if j == 0 else f"s = {s[j]:.1f} m"
+    head = f"at {where} ({pos[j, 0]:.2f}, {pos[j, 1]:.2f}): "
+    if free <= 0:
+        return head + (f"the clearance {cl:.3g} m is within vehicle radius + margin of an obstacle "
+                       f"(the path passes a gap narrower than the vehicle needs)")
+    need = f"the clearance {cl:.3g} m leaves room for σ ≤ {free / k:.3g} m (k = {k:.3g} for ε = {epsilon:g})"
+    floor = _floor(c, needs)
+    if floor > 0 and free <= k * floor:
+        what = ("the start lies inside an obstacle's k-σ zone: σ at the start is too large even with a fix"
+                if j == 0 else "the path runs too close to an obstacle for the σ that fixes give "
+                "(a path that keeps farther is needed: --planner belief plans for it)")
+        return head + f"{need}, but fixes give σ ≥ {floor:.3g} m on this path; {what}"
+    if lms >= needs:
+        return head + (f"{need}, but σ = {sig:.3g} m with a fix in view: the fixes since the last blind stretch "
+                       f"have not brought σ down that far")
+    return head + (f"{need}, but σ = {sig:.3g} m with {lms} landmark(s) in view; " +
+                   (f"{rounds} round(s) of placement did not give a fix there" if rounds > 0 else
+                    "no candidate landmark location covers it" if rounds == 0 else "landmark proposals are off"))
+
+
+def certify_path(scenario, name: str, path, *, planner: str = "RAw-RRT*", propose: bool = True,
+                 rounds: int = 3, spacing: float = 2.0, step: float = 0.0) -> PathCertificate:
+    """Certify ``path`` (the planned path of path type ``name``) in
+    ``scenario``; where it fails, propose landmarks (up to ``rounds``
+    rounds of :func:`propose_landmarks`, re-propagating after each)."""
+    from .validation import as_array
+
+    path = as_array("path", path, (None, 2))
+    if isinstance(rounds, bool) or not isinstance(rounds, (int, np.integer)) or rounds < 0:
+        raise ValueError(f"rounds = {rounds!r}: must be an integer >= 0")
+    if not (isinstance(spacing, (int, float, np.floating)) and np.isfinite(spacing) and spacing > 0):
+        raise ValueError(f"spacing = {spacing!r}: must be a finite number of metres > 0")
+    eps = float(scenario.navigation.collision_probability)
+    k, n_exp = risk_k(scenario, path)
+    cert = PathCertificate(name=name, status=CERTIFIED, reason="", planner=planner, path=path, k=k,
+                           exposures=n_exp, epsilon=eps)
+    cert.given = c = _evaluate(scenario, path, k, step)
+    if c.certified:
+        cert.reason = "certified with the scenario's landmarks"
+        return cert
+    needs = fix_needs(mission_inputs(scenario, path)["sensors"])
+    current, added = scenario, np.zeros((0, 2))
+    for _ in range(rounds if propose else 0):
+        j = _hopeless(c, k, needs)
+        if j is not None:
+            cert.status, cert.final, cert.added = CANNOT, (c if cert.rounds else None), added
+            cert.reason = _why(c, k, eps, needs, cert.rounds, j)
+            return cert
+        stretches = blind_stretches(c.profile, c.risky, needs)
+        new = propose_landmarks(current, path, stretches, needs, spacing=spacing) if stretches else np.zeros((0, 2))
+        if not len(new):
+            break
+        cert.rounds += 1
+        added = np.vstack([added, new])
+        current = with_landmarks(current, new)
+        c = _evaluate(current, path, k, step)
+        if c.certified:
+            cert.status, cert.final, cert.added = NEEDS_LANDMARKS, c, added
+            cert.reason = f"certified with {len(added)} landmark(s) added in {cert.rounds} round(s)"
+            return cert
+    cert.status, cert.final, cert.added = CANNOT, (c if cert.rounds else None), added
+    cert.reason = _why(c, k, eps, needs, cert.rounds if propose else -1)
+    return cert
+
+
+def plan_or_none(scenario, name: str, iterations: int | None = None):
+    """The RAw-RRT* plan of path type ``name``
+    (:func:`safenav.navigation.plan_safe_path`), or None when it finds no path
+    (reported, on standard error, and then in the certificate)."""
+    from . import navigation as nv
+
+    try:
+        return nv.plan_safe_path(scenario, name, iterations=iterations)
+    except RuntimeError as exc:
+        console.info(str(exc))
+        return None
+
+
+def plan_belief_path(scenario, raw_path, k: float):
+    """The belief-aware plan (:func:`safenav.belief.plan_belief`, RRBT) from
+    the RAw-RRT* path's start to its goal at k, with that path as a guide path
+    in the roadmap.  Returns the ``BeliefPlan``."""
+    from .belief import plan_belief
+
+    raw_path = np.asarray(raw_path, dtype=float)
+    kw = mission_inputs(scenario, raw_path)
+    return plan_belief(kw.pop("map"), raw_path[0], raw_path[-1], guide_paths=[raw_path], k_sigma=max(k, 0.0),
+                       seed=int(scenario.seeds.planner), **kw)
+
+
+def certify_paths(scenario, raw_paths: dict, *, planner: str = "raw", **kwargs) -> tuple[list, object]:
+    """Certify each path type of ``raw_paths`` ({name: RAw-RRT* path, or None
+    when it found none}).  ``planner``: ``"raw"`` certifies those paths;
+    ``"belief"`` plans each with :func:`plan_belief_path` first and falls
+    back to the RAw-RRT* path (for landmarks) when the belief planner finds
+    no path that meets k.  Returns (certificates, the proposed scenario with
+    every path's landmarks added, or None when none were needed)."""
+    certs, added = [], []
+    for name, raw in raw_paths.items():
+        if raw is None:
+            certs.append(PathCertificate(name=name, status=CANNOT, reason="no path: RAw-RRT* found none",
+                                         planner="RAw-RRT*", path=np.zeros((0, 2)), k=float("nan"),
+                                         exposures=float("nan"),
+                                         epsilon=float(scenario.navigation.collision_probability)))
+            continue
+        path, label, note = np.asarray(raw, dtype=float), "RAw-RRT*", ""
+        if planner == "belief":
+            k, _ = risk_k(scenario, path)
+            bp = plan_belief_path(scenario, path, k)
+            if bp.success:
+                path, label = np.asarray(bp.path), "belief (RRBT)"
+            else:
+                note = f"belief planner: {bp.status.name} ({bp.detail}); the RAw-RRT* path instead. "
+        cert = certify_path(scenario, name, path, planner=label, **kwargs)
+        cert.reason = note + cert.reason
+        certs.append(cert)
+        if cert.status == NEEDS_LANDMARKS:
+            added.extend(cert.added.tolist())
+    if not added:
+        return certs, None
+    uniq = np.unique(np.round(np.asarray(added), 6), axis=0)
+    return certs, with_landmarks(scenario, uniq, name=f"{scenario.name}+landmarks")
+
+
+def report_lines(certs: list) -> list[str]:
+    """One paragraph per path and a total line."""
+    lines = []
+    for c in certs:
+        head = f"{c.name}: {c.status.upper()}"
+        if c.status == NEEDS_LANDMARKS:
+            head += f" ({c.n_added} landmark(s))"
+        lines.append(f"{head}; ε = {c.epsilon:g}" if not len(c.path) else
+                     f"{head}; {c.planner} path, {_arc(c.path)[-1]:.1f} m, ε = {c.epsilon:g}, k = {c.k:.3g} "
+                     f"(N = {c.exposures:g})")
+        for label, ch in (("as given", c.given), (f"with {c.n_added} added", c.final)):
+            if ch is not None:
+                lines.append(f"  {label}: σ max {ch.sigma_max:.3g} m at s = {ch.sigma_max_s:.1f} m "
+                             f"({ch.sigma_max_xy[0]:.1f}, {ch.sigma_max_xy[1]:.1f}), P(collision) "
+                             f"{ch.collision_probability:.3g} (union bound {ch.union_bound:.3g}), min room "
+                             f"{ch.min_room:.3g} m at s = {ch.min_room_s:.1f} m")
+        lines.append(f"  {c.reason}")
+    n = {s: sum(c.status == s for c in certs) for s in (CERTIFIED, NEEDS_LANDMARKS, CANNOT)}
+    lines.append(f"certificate: {n[CERTIFIED]} certified as given, {n[NEEDS_LANDMARKS]} need landmarks "
+                 f"({sum(c.n_added for c in certs if c.status == NEEDS_LANDMARKS)} landmarks in all), "
+                 f"{n[CANNOT]} cannot be certified")
+    return lines
+
+
+def _markdown(certs: list, proposed_file: str | None) -> str:
+    rows = ["| path | status | planner | landmarks added | σ max [m] (at s) | P(collision) | min room [m] | reason |",
+            "|---|---|---|---|---|---|---|---|"]
+    for c in certs:
+        ch = c.final or c.given
+        cells = ("–", "–", "–") if ch is None else (
+            f"{ch.sigma_max:.3g} ({ch.sigma_max_s:.1f} m)", f"{ch.collision_probability:.3g}", f"{ch.min_room:.3g}")
+        given = "" if c.given is None or c.final is None else \
+            f" (as given: σ max {c.given.sigma_max:.3g} m, P {c.given.collision_probability:.3g})"
+        rows.append(f"| {c.name} | {c.status} | {c.planner} | {c.n_added} | {cells[0]} | {cells[1]} | {cells[2]} | "
+                    f"{c.reason}{given} |")
+    text = "# Mission certificate\n\n" + "\n".join(rows) + "\n"
+    if proposed_file:
+        text += f"\nThe scenario with the proposed landmarks: `{proposed_file}`.\n"
+    return text
+
+
+# --------------------------------------------------------------------------- command line
+
+def _positive(text: str) -> float:
+    """An argparse type: a finite number > 0."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (np.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"must be a number > 0, got {text}")
+    return v
+
+
+def _rounds(text: str) -> int:
+    """An argparse type: an integer >= 1."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {v}")
+    return v
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """``safenav plan``'s certificate options."""
+    parser.add_argument("--planner", choices=["raw", "belief"], default="raw",
+                        help="raw: the paper's RAw-RRT* (default); belief: the belief-aware RRBT planner at "
+                             "k(ε), with the RAw-RRT* path as a guide")
+    parser.add_argument("--no-landmarks", action="store_true",
+                        help="certify only; propose no landmarks for the paths that fail")
+    parser.add_argument("--landmark-spacing", type=_positive, default=2.0,
+                        help="candidate grid spacing for proposed landmarks [m] (default 2)")
+    parser.add_argument("--landmark-rounds", type=_rounds, default=3,
+                        help="placement rounds at most per path (default 3)")
+
+
+def plan_certificates(args, scenario, raw_paths: dict, out) -> list:
+    """``safenav plan``: certify the paths, print the report, write
+    ``certificate.json``, ``certificate.md`` and, when landmarks were
+    proposed, ``proposed_scenario.toml`` in ``out`` (through
+    :mod:`safenav.results`' atomic writers)."""
+    from pathlib import Path
+
+    from .results import write_json, write_text
+    from .scenario import save_scenario
+
+    out = Path(out)
+    with console.task(f"certifying {len(raw_paths)} path(s) against ε = "
+                      f"{scenario.navigation.collision_probability:g}"):
+        certs, proposed = certify_paths(scenario, raw_paths, planner=args.planner, propose=not args.no_landmarks,
+                                        rounds=args.landmark_rounds, spacing=args.landmark_spacing)
+    file = None
+    if proposed is not None:
+        file = "proposed_scenario.toml"
+        save_scenario(proposed, out / file)
+    print("\n".join(report_lines(certs)))
+    if file:
+        print(f"proposed scenario: {out / file} (safenav run --scenario {out / file})")
+    write_json(out / "certificate.json", {"scenario": scenario.name,
+                                          "epsilon": scenario.navigation.collision_probability,
+                                          "proposed_scenario": file, "paths": [c.to_dict() for c in certs]})
+    write_text(out / "certificate.md", _markdown(certs, file))
+    return certs
