@@ -393,7 +393,7 @@ def read_bag(path, landmarks=None, *, topics: dict | None = None, odom_twist: bo
 
 def add_bag_arguments(parser: argparse.ArgumentParser) -> None:
     """``safenav replay``'s bag flags: one per topic role, ``--odom-twist`` and ``--map``."""
-    g = parser.add_argument_group("ROS bags (rosbag2 folder, .mcap or ROS 1 .bag; docs/replay.md)")
+    g = parser.add_argument_group("ROS bags (rosbag2 folder, .mcap or ROS 1 .bag; docs/bags.md)")
     for role, default in TOPICS.items():
         types = " or ".join(t.replace("/msg/", "/") for t in MESSAGE_TYPES[role])
         used = "" if role == "odom" else ", read when present; none: off"
@@ -426,7 +426,7 @@ def add_convert_command(sub, parents, run_folder, wrote) -> None:
     """``safenav convert LOG OUT``: any log ``safenav replay`` reads, as a ROS 2 bag (MCAP) with landmarks.csv."""
     s = sub.add_parser("convert", parents=parents,
                        help="write a log (.csv, .parquet, Plaza .mat or a bag) as a ROS 2 bag (rosbag2 folder, MCAP "
-                            "storage) with landmarks.csv (docs/replay.md)")
+                            "storage) with landmarks.csv (docs/bags.md)")
     s.add_argument("log", help="a log file, a Plaza .mat file or a ROS bag")
     s.add_argument("out", help="the rosbag2 folder to write")
     s.add_argument("--range-std", type=float, default=None,

@@ -482,7 +482,7 @@ def _toml_value(v) -> str:
 def save_preset(path, settings: LocalizerSettings, noise: NoiseOverrides | None = None, *, base: str = "default",
                 comment: str = "") -> Path:
     """Write ``settings`` and ``noise`` as a preset file (TOML; the format is in
-    ``docs/replay.md``) through the one atomic writer
+    ``docs/tuning.md``) through the one atomic writer
     (:func:`safenav.results.write_text`).  ``comment`` lines head the file."""
     from .results import write_text
 
