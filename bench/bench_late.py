@@ -26,11 +26,12 @@ from safenav import replay as rp
 from safenav.logs import plaza1_path
 
 
-def timed(log, settings, delays, repeats):
+def timed_replay(log, settings, repeats, **options):
+    """(result, median wall time [s]) of ``repeats`` replays with ``options`` (delays=, lag=)."""
     times, res = [], None
     for _ in range(repeats):
         t0 = time.perf_counter()
-        res = rp.replay(log, settings, delays=delays)
+        res = rp.replay(log, settings, **options)
         times.append(time.perf_counter() - t0)
     return res, statistics.median(times)
 
@@ -46,7 +47,7 @@ def main():
     off = rp.preset_settings("plaza")
     off.max_delay = 0.0
     ranges = log.events["kind"].isin(["range", "bearing", "range_bearing"]).to_numpy()
-    ref, t_ref = timed(log, on, None, args.repeats)
+    ref, t_ref = timed_replay(log, on, args.repeats)
     print(f"Plaza1, causal, started from the data; in time order: RMSE {ref.metrics['truth_rmse']:.3f} m, "
           f"{ref.counts['applied']} applied, replay {t_ref * 1e3:.0f} ms")
     print(f"ranges delayed uniformly by 0-{args.max_delay_ms:g} ms:")
@@ -54,7 +55,7 @@ def main():
     for seed in args.seeds:
         d = np.where(ranges, np.random.default_rng(seed).uniform(0, args.max_delay_ms / 1e3, len(ranges)), 0.0)
         for label, s in (("0.5 s", on), ("0", off)):
-            res, t = timed(log, s, d, args.repeats)
+            res, t = timed_replay(log, s, args.repeats, delays=d)
             print(f"{seed:>4} {label:>9} {res.metrics['truth_rmse']:6.3f} m {res.counts['applied']:>7} "
                   f"{res.counts['late']:>5} {t * 1e3:9.0f} {t / t_ref:9.2f}x")
 

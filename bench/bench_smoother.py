@@ -15,22 +15,17 @@ was used to tune the ``plaza`` preset; Plaza2 is held out.
 from __future__ import annotations
 
 import argparse
-import statistics
-import time
+import sys
 from pathlib import Path
 
-from safenav import replay as rp
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_late import timed_replay  # noqa: E402  (the one timing loop of the replay benchmarks)
+
+from safenav import replay as rp  # noqa: E402
 
 TARGETS = {"Plaza1_.mat": 0.25, "Plaza2_.mat": 0.27}   # RMSE with a 2 s lag [m]
 
 
-def timed(log, settings, lag, repeats):
-    times, res = [], None
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        res = rp.replay(log, settings, lag=lag)
-        times.append(time.perf_counter() - t0)
-    return res, statistics.median(times)
 
 
 def main():
@@ -49,11 +44,11 @@ def main():
         log = rp.load(path, range_std=rp.PLAZA_RANGE_STD)
         settings = rp.preset_settings("plaza")
         n = len(log.events)
-        causal, t_causal = timed(log, settings, None, args.repeats)
+        causal, t_causal = timed_replay(log, settings, args.repeats)
         print(f"{name}: {n} inputs; causal RMSE {causal.metrics['truth_rmse']:.4f} m "
               f"({causal.metrics['n_scored']} poses), replay {t_causal * 1e6 / n:.2f} us/input")
         for lag in args.lags:
-            r, t = timed(log, settings, lag, args.repeats)
+            r, t = timed_replay(log, settings, args.repeats, lag=lag)
             m = r.smoothed_metrics
             met = "met" if m["truth_rmse"] <= target else "MISSED"
             verdict = f" (target <= {target} m: {met})" if lag == 2.0 else ""

@@ -108,7 +108,7 @@ InputResult Localizer::Impl::apply(const LoggedInput& in) {
         return counted(filter->update_speed_heading(in.a, in.R));
       });
   }
-  return status(InputStatus::Ignored);
+  throw std::logic_error("Localizer: an input of unknown kind");
 }
 
 InputResult Localizer::Impl::move(double t, const Control& u, double interval) {
