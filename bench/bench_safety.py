@@ -67,6 +67,7 @@ class Cell:
     loop: str
     measurement: str
     trials: int
+    filter: str = "ekf"        # "ekf" or "pf" (bench_certified.py drives both)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -111,8 +112,10 @@ def plan_one(job: PlanJob) -> dict:
 
 
 def run_cell(c: Cell) -> dict:
-    """run_many over the cell's trials; the cell's statistics and the per-trial arrays the summary needs."""
-    navigator = nav.make_navigator(c.scenario, c.path, method=c.method, record=False, paper=c.loop == "paper")
+    """run_many over the cell's trials; the cell's statistics, the per-trial arrays the summary needs, and
+    run_many's dict (``trials``) with the ``seeds``."""
+    navigator = nav.make_navigator(c.scenario, c.path, method=c.method, filter=c.filter, record=False,
+                                   paper=c.loop == "paper")
     seeds = [int(s) for s in runner.trial_seeds(c.scenario.seeds.trials, c.stream, c.trials)]
     t = time.perf_counter()
     d = navigator.run_many(seeds)
@@ -159,7 +162,7 @@ def run_cell(c: Cell) -> dict:
     reasons = d.get("reason")
     crashes = [(int(i), seeds[i], float(d["min_clearance"][i]), str(reasons[i]) if reasons is not None else "")
                for i in coll]
-    return dict(row=row, steps=steps, outcome=o, crashes=crashes)
+    return dict(row=row, steps=steps, outcome=o, crashes=crashes, trials=d, seeds=seeds)
 
 
 def cell_table(rows: pd.DataFrame) -> str:

@@ -175,8 +175,9 @@ def test_plan_command_writes_the_certificate(tmp_path, capsys):
 def test_belief_planner_path_or_fallback(gap):
     sc, path = gap
     # the only way is the blind gap: no path meets k there, so the RAw-RRT* path gets the landmarks
+    # (and is then replanned with them: test_replanning_after_proposed_landmarks)
     (c,), proposed = C.certify_paths(sc, {"A": path}, planner="belief")
-    assert c.planner == "RAw-RRT*" and "belief planner: INFEASIBLE" in c.reason
+    assert "belief planner: INFEASIBLE" in c.reason and np.array_equal(c.proposed_for, path)
     assert c.status == C.NEEDS_LANDMARKS and proposed is not None
     # a wide gap: the belief planner's own path, certified as given
     wide = gap_world(half=8.0)
@@ -197,3 +198,50 @@ def test_cover_stretch_takes_a_route_with_repeated_points():
     route = np.array([[30.0, 20.0], [34.0, 20.0], [34.0, 20.0], [38.0, 20.0]])   # as planners may return
     res = C.cover_stretch(sc, route, 1, spacing=2.0)
     assert res.covered and res.count == C.cover_stretch(sc, route[[0, 3]], 1, spacing=2.0).count
+
+
+def test_replanning_after_proposed_landmarks(gap, tmp_path, capsys):
+    sc, path = gap
+    eps = sc.navigation.collision_probability
+    (c,), proposed = C.certify_paths(sc, {"A": path}, planner="belief")
+    # the landmarks were proposed for the RAw-RRT* path (the belief planner found none as given) ...
+    assert c.status == C.NEEDS_LANDMARKS and c.n_added == sc.detection.min_landmarks
+    assert np.array_equal(c.proposed_for, path) and not c.given.certified
+    # ... and the belief planner replanned on the scenario with them: a path of its own, certified there
+    assert c.planner == "belief (RRBT), replanned" and "the replanned path certified" in c.reason
+    assert not np.array_equal(c.path, path)
+    assert np.allclose(c.path[0], path[0]) and np.allclose(c.path[-1], path[-1])
+    assert len(proposed.world.landmarks) == len(sc.world.landmarks) + c.n_added
+    prof, room = _recheck(C.with_landmarks(sc, c.added), c.path, c.k)     # recomputed from the belief
+    assert (room > 0).all() and prof.collision_probability <= eps
+    assert c.final.collision_probability == pytest.approx(prof.collision_probability, abs=1e-15)
+    from scipy.stats import norm                                         # k of the replanned path's exposures
+    assert c.k == pytest.approx(norm.ppf(1 - eps / c.exposures), rel=1e-9)
+    d = c.to_dict()
+    assert d["replanned"] and np.allclose(d["proposed_for_path"], path.round(4))
+    assert "the landmarks were proposed for" in "\n".join(C.report_lines([c]))
+
+
+def test_replanning_that_fails_keeps_the_path(gap, monkeypatch):
+    sc, path = gap
+    first = C.certify_path(sc, "A", path)
+    assert first.status == C.NEEDS_LANDMARKS
+    # the belief planner on the scenario without the landmarks: it truly finds no path through the blind gap
+    real = C.plan_belief_path
+    monkeypatch.setattr(C, "plan_belief_path", lambda placed, raw, k, guides=(): real(sc, raw, k, guides=guides))
+    kept = C.replan_with_landmarks(sc, first, path)
+    assert kept is first and kept.proposed_for is None and np.array_equal(kept.path, path)
+    assert "replanning with them: INFEASIBLE" in kept.reason and "the path kept" in kept.reason
+
+
+def test_plan_command_replans_with_the_belief_planner(tmp_path, capsys):
+    f = save_scenario(gap_world(), tmp_path / "gap.toml")
+    out = tmp_path / "plan"
+    assert cli.main(["plan", "--scenario", str(f), "--out", str(out), "--iterations", "1500",
+                     "--planner", "belief"]) == 0
+    assert "A: NEEDS LANDMARKS (3 landmark(s)); belief (RRBT), replanned path" in capsys.readouterr().out
+    (c,) = json.loads((out / "certificate.json").read_text())["paths"]
+    assert c["replanned"] and c["with_landmarks"]["certified"] and c["proposed_for_path"] != c["path"]
+    proposed = load_scenario(out / "proposed_scenario.toml")
+    again = C.certify_path(proposed, "A", np.asarray(c["path"]), propose=False)
+    assert again.status == C.CERTIFIED

@@ -45,7 +45,7 @@ collision_monte_carlo = _core.collision_monte_carlo
 
 __all__ = ["BeliefSettings", "BeliefPlannerSettings", "BeliefProblem", "BeliefProfile", "BeliefPlanStatus",
            "BeliefPlanResult", "BeliefPlan", "start_covariance", "collision_monte_carlo", "propagate_belief",
-           "plan_belief"]
+           "plan_belief", "arc_position", "SigmaCalibration", "sigma_calibration", "clopper_pearson"]
 
 # Keyword names of plan_belief / propagate_belief -> declared parameter names.
 _BELIEF_KEYS = {"speed": "speed", "step": "step", "bearing_std": "bearing_std",
@@ -152,3 +152,95 @@ def plan_belief(map, start, goal, *, sensors, bmm=None, start_cov=None, guide_pa
                       collision_probability=float(prof.collision_probability) if prof else float("nan"),
                       profile=prof, result=res)
 
+
+
+# --------------------------------------------------------------------------- calibration against Monte Carlo
+
+def arc_position(path, points) -> np.ndarray:
+    """The arc length along the polyline ``path`` ((N, 2)) of the nearest
+    point of ``path`` to each of ``points`` ((M, 2)); ties go to the earlier
+    leg."""
+    p = as_array("path", path, (None, 2))
+    q = as_array("points", points, (None, 2))
+    a, d = p[:-1], np.diff(p, axis=0)                                    # legs: a + t·d, t in [0, 1]
+    s0 = np.r_[0.0, np.cumsum(np.hypot(*d.T))]
+    if len(d) == 0:
+        return np.zeros(len(q))
+    dd = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
+    t = np.clip(np.einsum("mij,ij->mi", q[:, None, :] - a[None], d) / dd, 0.0, 1.0)   # (M, legs)
+    gap = q[:, None, :] - (a[None] + t[..., None] * d[None])
+    leg = np.argmin(np.einsum("mij,mij->mi", gap, gap), axis=1)
+    rows = np.arange(len(q))
+    return s0[leg] + t[rows, leg] * np.sqrt(dd[leg])
+
+
+@dataclass(frozen=True)
+class SigmaCalibration:
+    """The predicted position error along a path against Monte Carlo, per
+    arc-length bin [``edges[i]``, ``edges[i + 1]``): ``predicted`` =
+    sqrt(mean over the bin's stages of trace P_xy) (the RMS position error
+    the belief predicts), ``observed`` = sqrt(mean over the bin's recorded
+    steps of |x̂_xy − x_xy|²) (NaN where none), ``samples`` (steps) and
+    ``trials`` (trials with a step in the bin)."""
+    edges: np.ndarray
+    predicted: np.ndarray
+    observed: np.ndarray
+    samples: np.ndarray
+    trials: np.ndarray
+
+    @property
+    def ratio(self) -> np.ndarray:
+        """observed / predicted per bin (NaN where a bin has no sample or no prediction)."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(self.predicted > 0, self.observed / self.predicted, np.nan)
+
+
+def sigma_calibration(profile, truths, estimates, *, bin_m: float = 10.0) -> SigmaCalibration:
+    """Bin a ``BeliefProfile`` (the prediction) and recorded trials (``truths``
+    and ``estimates``: one (T_i, >= 2) array per trial, x and y first) by arc
+    length along the profile's path: each stage and each true position goes
+    to the bin of its :func:`arc_position` (the estimate is paired with the
+    truth of its step).  See :class:`SigmaCalibration`."""
+    if not (np.isfinite(bin_m) and bin_m > 0):
+        raise ValueError(f"bin_m = {bin_m!r}: must be a finite number of metres > 0")
+    if len(truths) != len(estimates):
+        raise ValueError(f"truths has {len(truths)} trials but estimates has {len(estimates)}")
+    path = np.asarray(profile.positions, dtype=float)
+    length = float(np.sum(np.hypot(*np.diff(path, axis=0).T)))
+    edges = np.arange(0.0, length + bin_m, bin_m)
+    n_bins = len(edges) - 1
+    cov = np.asarray(profile.cov_xy, dtype=float)
+    stage_bin = np.clip(np.searchsorted(edges, arc_position(path, path), side="right") - 1, 0, n_bins - 1)
+    tr = np.bincount(stage_bin, cov[:, 0] + cov[:, 3], n_bins)
+    n_stage = np.bincount(stage_bin, minlength=n_bins)
+    sq, n, hit = np.zeros(n_bins), np.zeros(n_bins, dtype=int), np.zeros(n_bins, dtype=int)
+    for i, (x, xh) in enumerate(zip(truths, estimates)):
+        x, xh = np.asarray(x, dtype=float)[:, :2], np.asarray(xh, dtype=float)[:, :2]
+        if x.shape != xh.shape:
+            raise ValueError(f"trial {i}: truth {x.shape} and estimate {xh.shape} differ in shape")
+        b = np.clip(np.searchsorted(edges, arc_position(path, x), side="right") - 1, 0, n_bins - 1)
+        sq += np.bincount(b, np.sum((xh - x) ** 2, axis=1), n_bins)
+        n += np.bincount(b, minlength=n_bins)
+        hit += np.bincount(np.unique(b), minlength=n_bins)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        pred = np.where(n_stage > 0, np.sqrt(tr / n_stage), np.nan)
+        obs = np.where(n > 0, np.sqrt(sq / n), np.nan)
+    return SigmaCalibration(edges=edges, predicted=pred, observed=obs, samples=n, trials=hit)
+
+
+def clopper_pearson(k: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
+    """One-sided Clopper–Pearson bounds (lower, upper) on a binomial rate
+    from ``k`` events in ``n`` trials: each holds at ``confidence``
+    (Clopper & Pearson 1934; the exact binomial bound through the beta
+    quantile: upper = B⁻¹(c; k + 1, n − k), lower = B⁻¹(1 − c; k, n − k + 1))."""
+    from scipy import stats
+
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+        raise ValueError(f"n = {n!r}: must be an integer >= 1")
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 0 <= k <= n:
+        raise ValueError(f"k = {k!r}: must be an integer in [0, n = {n}]")
+    if not 0 < confidence < 1:
+        raise ValueError(f"confidence = {confidence!r}: must lie in (0, 1)")
+    upper = 1.0 if k == n else float(stats.beta.ppf(confidence, k + 1, n - k))
+    lower = 0.0 if k == 0 else float(stats.beta.ppf(1 - confidence, k, n - k + 1))
+    return lower, upper

@@ -21,8 +21,10 @@ the collision probability) without a fix in view throughout.  On each stretch th
 placement paper's cover (:func:`safenav.placement.place_along_path`, the
 integer program, with occlusion) keeps a fix's worth of landmarks in view.
 The landmarks are added, the belief re-propagated and the path re-checked, a
-few rounds at most.  The path itself is kept.  See docs/belief_planning.md,
-"Certified missions".
+few rounds at most.  With the belief planner the path is then replanned on
+the scenario with the landmarks and the replanned path certified
+(:func:`replan_with_landmarks`); where that fails the path is kept.  See
+docs/belief_planning.md, "Certified missions".
 """
 
 from __future__ import annotations
@@ -36,7 +38,8 @@ from . import console
 
 __all__ = ["PathCertificate", "Check", "mission_inputs", "risk_k", "check_profile", "blind_stretches",
            "placement_camera", "cover_stretch", "propose_landmarks", "certify_path", "certify_paths", "with_landmarks",
-           "plan_or_none", "plan_belief_path", "add_arguments", "plan_certificates"]
+           "plan_or_none", "plan_belief_path", "replan_with_landmarks", "proposed_scenario",
+           "add_arguments", "plan_certificates"]
 
 #: Statuses of a path's certificate.
 CERTIFIED, NEEDS_LANDMARKS, CANNOT = "certified", "needs landmarks", "cannot be certified"
@@ -251,6 +254,8 @@ class PathCertificate:
     final: Check | None = None        #: with the proposed landmarks added (NEEDS_LANDMARKS)
     added: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     rounds: int = 0
+    #: the path the landmarks were proposed for, when ``path`` was replanned with them (else None)
+    proposed_for: np.ndarray | None = None
 
     @property
     def n_added(self) -> int:
@@ -263,7 +268,9 @@ class PathCertificate:
                 "as_given": self.given.summary() if self.given else None,
                 "with_landmarks": self.final.summary() if self.final else None,
                 "landmarks_added": self.n_added, "landmarks": self.added.round(4).tolist(), "rounds": self.rounds,
-                "path": np.asarray(self.path).round(4).tolist()}
+                "path": np.asarray(self.path).round(4).tolist(), "replanned": self.proposed_for is not None,
+                "proposed_for_path": (None if self.proposed_for is None else
+                                      np.asarray(self.proposed_for).round(4).tolist())}
 
 
 def _evaluate(scenario, path, k: float, step: float) -> Check:
@@ -380,16 +387,42 @@ def plan_or_none(scenario, name: str, iterations: int | None = None):
         return None
 
 
-def plan_belief_path(scenario, raw_path, k: float):
+def plan_belief_path(scenario, raw_path, k: float, *, guides=()):
     """The belief-aware plan (:func:`safenav.belief.plan_belief`, RRBT) from
-    the RAw-RRT* path's start to its goal at k, with that path as a guide path
-    in the roadmap.  Returns the ``BeliefPlan``."""
+    the RAw-RRT* path's start to its goal at k, with that path (and the
+    polylines ``guides``) as guide paths in the roadmap.  Returns the
+    ``BeliefPlan``."""
     from .belief import plan_belief
 
     raw_path = np.asarray(raw_path, dtype=float)
     kw = mission_inputs(scenario, raw_path)
-    return plan_belief(kw.pop("map"), raw_path[0], raw_path[-1], guide_paths=[raw_path], k_sigma=max(k, 0.0),
+    return plan_belief(kw.pop("map"), raw_path[0], raw_path[-1],
+                       guide_paths=[raw_path, *(np.asarray(g, dtype=float) for g in guides)], k_sigma=max(k, 0.0),
                        seed=int(scenario.seeds.planner), **kw)
+
+
+def replan_with_landmarks(scenario, cert: PathCertificate, raw_path, *, step: float = 0.0) -> PathCertificate:
+    """Replanning after landmarks are proposed: the belief planner
+    (:func:`plan_belief_path`, at the k of ``raw_path``) on ``scenario`` with
+    ``cert.added``, guided by ``raw_path`` and the path the landmarks were
+    proposed for (so the roadmap holds that path), and the replanned path
+    certified with them (no further landmarks).  Returns the certificate of
+    the replanned path (``proposed_for`` = the old path, ``given`` = the old
+    path's check as given) when it is certified, else ``cert`` with the
+    reason extended: the old path is kept."""
+    placed = with_landmarks(scenario, cert.added)
+    k, _ = risk_k(scenario, raw_path)
+    bp = plan_belief_path(placed, raw_path, k, guides=[cert.path])
+    if not bp.success:
+        cert.reason += f"; replanning with them: {bp.status.name} ({bp.detail}), the path kept"
+        return cert
+    again = certify_path(placed, cert.name, bp.path, planner="belief (RRBT), replanned", propose=False, step=step)
+    if again.status != CERTIFIED:
+        cert.reason += f"; the path replanned with them is not certified ({again.reason}), the path kept"
+        return cert
+    return replace(again, status=NEEDS_LANDMARKS, given=cert.given, final=again.given, added=cert.added,
+                   rounds=cert.rounds, proposed_for=cert.path,
+                   reason=f"{cert.reason}; replanned with them (belief planner), the replanned path certified")
 
 
 def certify_paths(scenario, raw_paths: dict, *, planner: str = "raw", **kwargs) -> tuple[list, object]:
@@ -397,9 +430,10 @@ def certify_paths(scenario, raw_paths: dict, *, planner: str = "raw", **kwargs) 
     when it found none}).  ``planner``: ``"raw"`` certifies those paths;
     ``"belief"`` plans each with :func:`plan_belief_path` first and falls
     back to the RAw-RRT* path (for landmarks) when the belief planner finds
-    no path that meets k.  Returns (certificates, the proposed scenario with
+    no path that meets k; where landmarks are proposed, it replans with them
+    (:func:`replan_with_landmarks`).  Returns (certificates, the proposed scenario with
     every path's landmarks added, or None when none were needed)."""
-    certs, added = [], []
+    certs = []
     for name, raw in raw_paths.items():
         if raw is None:
             certs.append(PathCertificate(name=name, status=CANNOT, reason="no path: RAw-RRT* found none",
@@ -417,13 +451,20 @@ def certify_paths(scenario, raw_paths: dict, *, planner: str = "raw", **kwargs) 
                 note = f"belief planner: {bp.status.name} ({bp.detail}); the RAw-RRT* path instead. "
         cert = certify_path(scenario, name, path, planner=label, **kwargs)
         cert.reason = note + cert.reason
+        if planner == "belief" and cert.status == NEEDS_LANDMARKS:
+            cert = replan_with_landmarks(scenario, cert, np.asarray(raw, dtype=float), step=kwargs.get("step", 0.0))
         certs.append(cert)
-        if cert.status == NEEDS_LANDMARKS:
-            added.extend(cert.added.tolist())
+    return certs, proposed_scenario(scenario, certs)
+
+
+def proposed_scenario(scenario, certs: list):
+    """``scenario`` with the landmarks of every certificate that needs them
+    added (once each), named ``<name>+landmarks``; None when none needs any."""
+    added = [xy for c in certs if c.status == NEEDS_LANDMARKS for xy in c.added.tolist()]
     if not added:
-        return certs, None
+        return None
     uniq = np.unique(np.round(np.asarray(added), 6), axis=0)
-    return certs, with_landmarks(scenario, uniq, name=f"{scenario.name}+landmarks")
+    return with_landmarks(scenario, uniq, name=f"{scenario.name}+landmarks")
 
 
 def report_lines(certs: list) -> list[str]:
@@ -436,7 +477,9 @@ def report_lines(certs: list) -> list[str]:
         lines.append(f"{head}; ε = {c.epsilon:g}" if not len(c.path) else
                      f"{head}; {c.planner} path, {_arc(c.path)[-1]:.1f} m, ε = {c.epsilon:g}, k = {c.k:.3g} "
                      f"(N = {c.exposures:g})")
-        for label, ch in (("as given", c.given), (f"with {c.n_added} added", c.final)):
+        given = "as given" if c.proposed_for is None else \
+            f"as given (the {_arc(c.proposed_for)[-1]:.1f} m path the landmarks were proposed for)"
+        for label, ch in ((given, c.given), (f"with {c.n_added} added", c.final)):
             if ch is not None:
                 lines.append(f"  {label}: σ max {ch.sigma_max:.3g} m at s = {ch.sigma_max_s:.1f} m "
                              f"({ch.sigma_max_xy[0]:.1f}, {ch.sigma_max_xy[1]:.1f}), P(collision) "

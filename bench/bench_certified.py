@@ -1,0 +1,338 @@
+"""Certified-missions benchmark ("Safe by design"): plan, certify, drive, calibrate.
+
+1. Certification: each path type of each world is planned with RAw-RRT*,
+   then with the belief planner and certified (``certify_paths(...,
+   planner="belief")``); where landmarks are proposed they are added and the
+   path replanned with them.  Per path: status, planner, landmarks added,
+   predicted P(collision), planning times.  Missions that cannot be
+   certified are reported apart and not driven.
+2. Driving: each certified mission (the world with every proposed landmark,
+   as ``safenav plan`` writes it) × method (CHull, Centroid) × measurements
+   (clean; faulty: bench_safety's FAULTS) × filter (EKF, PF), our loop (guard
+   and gate on), ``--trials`` per cell through bench_safety's ``run_cell``.
+   Per cell: collisions, arrivals, other outcomes, guard holds, step-limit
+   trials and how many of them end where the belief predicts no fix (a blind
+   gap), NEES.  Targets: 0 collisions, arrival >= 99.9 %.
+3. Calibration: (a) the predicted RMS position error sqrt(trace P_xy) of the
+   belief along the driven path against the Monte Carlo RMS error of the
+   first ``--record`` trials per cell, per arc-length bin (target: ratio
+   within ±25 %); (b) the predicted path collision probability against the
+   observed collision rate with its one-sided 95 % Clopper–Pearson bounds
+   (target: observed not significantly above predicted).
+4. Timing: per trial per filter, and the estimated wall time of a run of
+   ``--full`` trials in all on ``--workers`` workers.
+
+Fixed seeds: the planner seed of each scenario, and per cell the trial seeds
+``runner.trial_seeds(sc.seeds.trials, path index, trials)`` (the same for
+every method, measurement and filter); results do not depend on --workers.
+Generated worlds 13 and 17 are used by no test or other benchmark (those use
+0–5, 7 and 11).
+
+    python bench/bench_certified.py [--trials 50] [--worlds 13 17] [--no-gap] [--filters ekf pf]
+                                    [--record 20] [--bin-m 10] [--workers 2] [--full 100000] [--out DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_safety import SHORT, Cell, faulty, run_cell, verdict  # noqa: E402  (the grid's cell code)
+
+from safenav import certify as C  # noqa: E402
+from safenav import navigation as nav  # noqa: E402
+from safenav import results, runner  # noqa: E402
+from safenav.belief import clopper_pearson, propagate_belief, sigma_calibration  # noqa: E402
+from safenav.generate import DEFAULT_SEED, generate_scenario  # noqa: E402
+from safenav.scenario import Scenario, default_scenario  # noqa: E402
+
+METHODS = ("chull", "centroid")
+MEASUREMENTS = ("clean", "faulty")
+TARGET_ARRIVAL = 0.999
+TARGET_RATIO = 0.25
+#: A bin's ratio counts when at least this share of the recorded trials reached it.
+MIN_BIN_TRIALS = 0.5
+
+
+def blind_gap_world() -> Scenario:
+    """A 150 x 40 m field with one narrow gap (half-width 3 m at y = 20, x in
+    [85, 95]) and no landmark in view from x = 20 past the gap: the belief
+    planner finds no path that meets k as given, so landmarks are proposed
+    and the path replanned with them."""
+    lms = [((2, 18), 0), ((2, 22), 0), ((11, 20), 0), ((125, 17), 1), ((125, 23), 1), ((140, 20), 1),
+           ((16, 16), 2), ((16, 24), 2), ((19, 20), 2)]
+    block = lambda y0, y1: {"type": "polygon", "vertices": [[85.0, y0], [95.0, y0], [95.0, y1], [85.0, y1]]}  # noqa
+    return Scenario.from_dict({
+        "name": "blind gap",
+        "world": {"field": {"x_min": 0.0, "y_min": 0.0, "x_max": 150.0, "y_max": 40.0},
+                  "obstacles": [block(0.0, 17.0), block(23.0, 40.0)],
+                  "landmarks": [{"id": i, "position": [float(x), float(y)], "class": "tower", "cluster": c}
+                                for i, ((x, y), c) in enumerate(lms)]},
+        "path_types": [{"name": "G", "clusters": [0, 1]}],
+        "navigation": {"plan_iterations": 1500}})
+
+
+def worlds(seeds: list[int], gap: bool) -> dict[str, Scenario]:
+    out = {f"default({DEFAULT_SEED})": default_scenario()}
+    out.update({f"seed {s}": generate_scenario(s) for s in seeds})
+    if gap:
+        out["blind gap"] = blind_gap_world()
+    return out
+
+
+@dataclasses.dataclass(frozen=True)
+class Mission:
+    """One path type's certificate in one world, with its planning times."""
+    world: str
+    scenario: Scenario         # the world as given
+    stream: int                # the path type's index: keys its trial seeds
+    cert: C.PathCertificate
+    raw_s: float               # RAw-RRT* [s]
+    certify_s: float           # belief planning + certification (+ landmarks, replanning) [s]
+
+
+def certify_one(job: tuple) -> Mission:
+    """RAw-RRT*, then ``certify_paths(..., planner="belief")`` on one path type, timed."""
+    world, sc, stream, name = job
+    t = time.perf_counter()
+    res = C.plan_or_none(sc, name)
+    raw = None if res is None else np.asarray(res.path)
+    t_raw = time.perf_counter() - t
+    t = time.perf_counter()
+    (cert,), _ = C.certify_paths(sc, {name: raw}, planner="belief")
+    return Mission(world, sc, stream, cert, t_raw, time.perf_counter() - t)
+
+
+def print_certificates(missions: list[Mission]) -> dict[str, Scenario]:
+    """Section 1's table; returns each world's driven scenario (with every proposed landmark)."""
+    print(f"   {'world':12} {'path':4} {'status':20} {'planner':27} {'len m':>6} {'added':>5} {'P(coll)':>9} "
+          f"{'sigma max':>9} {'RRT* s':>7} {'belief+cert s':>13}")
+    driven = {}
+    for m in missions:
+        c = m.cert
+        ch = c.final or c.given
+        print(f"   {m.world:12} {c.name:4} {c.status:20} {c.planner:27} "
+              f"{(C._arc(c.path)[-1] if len(c.path) else 0):6.1f} {c.n_added:5d} "
+              f"{(ch.collision_probability if ch else np.nan):9.2g} {(ch.sigma_max if ch else np.nan):9.3f} "
+              f"{m.raw_s:7.2f} {m.certify_s:13.2f}")
+    for w in dict.fromkeys(m.world for m in missions):
+        ms = [m for m in missions if m.world == w]
+        proposed = C.proposed_scenario(ms[0].scenario, [m.cert for m in ms])
+        driven[w] = proposed or ms[0].scenario
+        n = len(driven[w].world.landmarks) - len(ms[0].scenario.world.landmarks)
+        replanned = sum(m.cert.proposed_for is not None for m in ms)
+        print(f"   {w}: {n} landmark(s) added; {replanned} path(s) replanned with them and certified")
+    bad = [m for m in missions if m.cert.status == C.CANNOT]
+    print(f"   not certified (not driven): {len(bad)}" + "".join(f"\n     {m.world} {m.cert.name}: {m.cert.reason}"
+                                                            for m in bad))
+    t_raw = [m.raw_s for m in missions]
+    t_cert = [m.certify_s for m in missions]
+    print(f"   planning time per path: RAw-RRT* median {np.median(t_raw):.2f} s (max {max(t_raw):.2f}); belief "
+          f"planning + certification median {np.median(t_cert):.2f} s (max {max(t_cert):.2f})")
+    return driven
+
+
+@dataclasses.dataclass(frozen=True)
+class DriveJob:
+    cell: Cell
+    record: int                # trials recorded for the calibration (the cell's first ones)
+    bin_m: float
+
+
+def _profile(sc, path):
+    """The belief the certificate predicts along ``path`` with ``sc``'s sensors."""
+    return propagate_belief(path, **C.mission_inputs(sc, path))
+
+
+def _blind_step_limits(c: Cell, navigator_rec, prof, seeds, outcome) -> tuple[int, int]:
+    """(step-limit trials, those of them whose true final position is at a
+    stage where the belief predicts no fix in view: a blind gap)."""
+    from safenav.belief import arc_position
+
+    sl = np.flatnonzero(outcome == nav.OUTCOMES.index("step_limit"))
+    needs = C.fix_needs(navigator_rec.sensors)
+    pos = np.asarray(prof.positions)
+    s_stage = arc_position(pos, pos)
+    blind = 0
+    for i in sl:
+        end = np.asarray(navigator_rec.run(seeds[i]).truth)[-1:, :2]
+        j = int(np.argmin(np.abs(s_stage - arc_position(pos, end)[0])))
+        blind += int(np.asarray(prof.landmarks)[j] < needs)
+    return len(sl), blind
+
+
+def drive(job: DriveJob) -> dict:
+    """run_cell, then the calibration trials (record=True) and the step-limit analysis."""
+    c = job.cell
+    out = run_cell(c)
+    prof = _profile(c.scenario, c.path)
+    rec = nav.make_navigator(c.scenario, c.path, method=c.method, filter=c.filter, record=True)
+    truths, estimates = [], []
+    for seed in out["seeds"][:job.record]:
+        r = rec.run(seed)
+        truths.append(np.asarray(r.truth))
+        estimates.append(np.asarray(r.estimate))
+    cal = sigma_calibration(prof, truths, estimates, bin_m=job.bin_m)
+    d = out["trials"]
+    n_sl, n_blind = _blind_step_limits(c, rec, prof, out["seeds"], out["outcome"])
+    row = dict(out["row"], filt=c.filter, predicted_pc=float(prof.collision_probability),
+               holds=float(np.mean(d["guard_hold"])), held_trials=int(np.sum(np.asarray(d["guard_hold"]) > 0)),
+               step_limit=n_sl, step_limit_blind=n_blind)
+    return dict(row=row, calibration=cal, crashes=out["crashes"])
+
+
+def cell_table(df: pd.DataFrame) -> str:
+    show = pd.DataFrame({
+        "world": df.world, "path": df.path_type, "method": df.method, "meas": df.measurement, "filter": df.filt,
+        "trials": df.trials, "coll": df.collisions, "arrive": df.arrival.map("{:.4f}".format), "other": df.other,
+        "sl(blind)": [f"{a}({b})" for a, b in zip(df.step_limit, df.step_limit_blind)],
+        "held": df.held_trials, "holds/tr": df.holds.map("{:.2f}".format),
+        "NEES": df.nees.map("{:.3g}".format), "out3s": df.outside_3sigma.map("{:.3f}".format),
+        "clr_min": df.min_clearance_min.map("{:.2f}".format), "ratio min/med/max": df.ratios,
+        "P pred": df.predicted_pc.map("{:.2g}".format), "wall_s": (df.time_ms / 1e3).map("{:.1f}".format),
+    })
+    return show.to_string(index=False)
+
+
+def _ratio_bins(cal, record: int) -> np.ndarray:
+    """The cell's bin ratios observed / predicted where enough recorded trials reached the bin."""
+    keep = (cal.trials >= max(1, math.ceil(MIN_BIN_TRIALS * record))) & np.isfinite(cal.ratio)
+    return cal.ratio[keep]
+
+
+def print_targets(df: pd.DataFrame) -> None:
+    n = int(df.trials.sum())
+    coll = int(df.collisions.sum())
+    arr = float((df.arrival * df.trials).sum() / n)
+    print(f"   total: {n} trials in {len(df)} cells")
+    print(f"   collisions: {coll} in {n} trials (target 0): {verdict(coll == 0)}")
+    worst = df.loc[df.arrival.idxmin()]
+    print(f"   arrival: {arr:.4%} (target >= {TARGET_ARRIVAL:.1%}): {verdict(arr >= TARGET_ARRIVAL)}; worst cell "
+          f"{worst.arrival:.2%} ({worst.world} {worst.path_type} {worst.method} {worst.measurement} {worst.filt})")
+    print(f"   step-limit trials: {int(df.step_limit.sum())}, of which in a blind gap {int(df.step_limit_blind.sum())}; "
+          f"trials with a guard hold: {int(df.held_trials.sum())}")
+    for (m, f), g in df.groupby(["measurement", "filt"], sort=False):
+        nees = float((g.nees * g.nees_steps).sum() / g.nees_steps.sum())
+        a = float((g.arrival * g.trials).sum() / g.trials.sum())
+        print(f"   {m:6} {f:3}: collisions {int(g.collisions.sum())} / {int(g.trials.sum())}, arrival {a:.4%}, "
+              f"mean NEES {nees:.3g} (4 for a consistent filter)")
+
+
+def print_calibration(df: pd.DataFrame, cals: list, record: int) -> None:
+    print(f"   (a) RMS position error, Monte Carlo / predicted sqrt(trace P_xy), per arc-length bin reached by "
+          f">= {MIN_BIN_TRIALS:.0%} of the {record} recorded trials (target within ±{TARGET_RATIO:.0%})")
+    groups = {}
+    for (_, r), cal in zip(df.iterrows(), cals):
+        groups.setdefault((r.measurement, r.filt), []).append(_ratio_bins(cal, record))
+    everything = []
+    for (m, f), lst in groups.items():
+        v = np.concatenate(lst) if lst else np.zeros(0)
+        everything.append(v)
+        inside = float(np.mean(np.abs(v - 1) <= TARGET_RATIO)) if v.size else np.nan
+        print(f"     {m:6} {f:3}: {v.size:4d} bins, ratio min {np.min(v):.2f} median {np.median(v):.2f} max "
+              f"{np.max(v):.2f}; {inside:.0%} of bins within ±{TARGET_RATIO:.0%}: "
+              f"{verdict(v.size > 0 and inside == 1.0)}" if v.size else f"     {m:6} {f:3}: no bins")
+    print("   (b) predicted path collision probability (belief with the cell's sensors) vs observed rate; "
+          "one-sided 95 % Clopper-Pearson bounds")
+    for (m, f), g in [(("all", "all"), df), *df.groupby(["measurement", "filt"], sort=False)]:
+        n, k = int(g.trials.sum()), int(g.collisions.sum())
+        pred = float((g.predicted_pc * g.trials).sum() / n)
+        lo, hi = clopper_pearson(k, n)
+        print(f"     {m:6} {f:3}: predicted {pred:.3g} (expected collisions {pred * n:.3g}); observed {k}/{n} = "
+              f"{k / n:.3g}, 95 % upper {hi:.3g}, lower {lo:.3g}; observed not significantly above predicted: "
+              f"{verdict(lo <= pred)}")
+
+
+def print_timing(df: pd.DataFrame, wall: float, workers: int, full: int) -> None:
+    per = {f: g.time_ms.sum() / 1e3 / g.trials.sum() for f, g in df.groupby("filt", sort=False)}
+    cells = len(df)
+    per_cell = math.ceil(full / cells)
+    est = sum(per_cell * per[r.filt] for _, r in df.iterrows()) / workers
+    print(f"   driving: {wall:.1f} s wall on {workers} workers; run_many time per trial " +
+          ", ".join(f"{f} {v * 1e3:.1f} ms" for f, v in per.items()))
+    print(f"   a run of {full} trials ({cells} cells x --trials {per_cell} = {cells * per_cell}) would take about "
+          f"{est / 3600:.2f} h on {workers} workers (run_many only, from the times above)")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--trials", type=int, default=50, help="trials per cell (default 50)")
+    ap.add_argument("--worlds", type=int, nargs="*", default=[13, 17], help="seeds of the generated worlds")
+    ap.add_argument("--no-gap", action="store_true", help="leave out the blind-gap world")
+    ap.add_argument("--filters", nargs="+", choices=["ekf", "pf"], default=["ekf", "pf"])
+    ap.add_argument("--record", type=int, default=20, help="trials per cell recorded for the calibration")
+    ap.add_argument("--bin-m", type=float, default=10.0, help="arc-length bin of the calibration [m]")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--full", type=int, default=100_000, help="total trials of the run to estimate the time of")
+    ap.add_argument("--out", type=Path, default=None, help="write the per-cell table (CSV) here")
+    args = ap.parse_args()
+    for name in ("trials", "record", "workers", "full"):
+        if getattr(args, name) < (0 if name == "record" else 1):
+            ap.error(f"--{name} = {getattr(args, name)}: too small")
+    t_all = time.perf_counter()
+    scenarios = worlds(args.worlds, not args.no_gap)
+    print(f"worlds: {', '.join(scenarios)}; {args.trials} trials per cell; methods {', '.join(METHODS)}; "
+          f"measurements clean / faulty; filters {', '.join(args.filters)}; our loop; {args.workers} workers")
+
+    jobs = [(w, sc, i, p.name) for w, sc in scenarios.items() for i, p in enumerate(sc.path_types)]
+    t = time.perf_counter()
+    missions = runner.map_ordered(certify_one, jobs, workers=args.workers)
+    print(f"\n1. certified missions ({len(missions)} paths, {time.perf_counter() - t:.1f} s wall)")
+    driven = print_certificates(missions)
+
+    cells = [Cell(m.world, meas, m.cert.name, m.stream, np.asarray(m.cert.path), method, "ours", name,
+                  args.trials, filt)
+             for m in missions if m.cert.status != C.CANNOT
+             for method in METHODS
+             for name, meas in (("clean", driven[m.world]), ("faulty", faulty(driven[m.world])))
+             for filt in args.filters]
+    t = time.perf_counter()
+    done = []
+
+    def run_and_report(job: DriveJob) -> dict:
+        o = drive(job)
+        r = o["row"]
+        done.append(job)
+        print(f"   [{len(done):3d}/{len(cells)}] {r['world']:12} {r['path_type']:4} {r['method']:9} "
+              f"{r['measurement']:6} {r['filt']:3} collisions {r['collisions']} arrival {r['arrival']:.3f} "
+              f"wall {r['time_ms'] / 1e3:.1f} s", flush=True)
+        return o
+
+    print(f"\n2. driving {len(cells)} cells x {args.trials} trials", flush=True)
+    out = runner.map_ordered(run_and_report, [DriveJob(c, args.record, args.bin_m) for c in cells],
+                             workers=args.workers)
+    wall = time.perf_counter() - t
+    df = pd.DataFrame([o["row"] for o in out])
+    cals = [o["calibration"] for o in out]
+    df["ratios"] = [("{:.2f}/{:.2f}/{:.2f}".format(v.min(), np.median(v), v.max()) if v.size else "-")
+                    for v in (_ratio_bins(c, args.record) for c in cals)]
+    print("   other: " + ", ".join(f"{v} {k}" for k, v in SHORT.items()) + "; sl(blind) = step-limit trials (in a "
+          "blind gap); held = trials with a guard hold; ratio = Monte Carlo / predicted RMS error per bin")
+    print(cell_table(df))
+    for o in out:
+        for i, seed, clr, reason in o["crashes"]:
+            r = o["row"]
+            print(f"   collision: {r['world']} {r['path_type']} {r['method']} {r['measurement']} {r['filt']} "
+                  f"trial {i} seed {seed} clearance {clr:.3f} m: {reason}")
+    print("\n   targets")
+    print_targets(df)
+    print(f"\n3. calibration")
+    print_calibration(df, cals, args.record)
+    print("\n4. timing")
+    print_timing(df, wall, args.workers, args.full)
+    if args.out is not None:
+        print("\nwrote " + ", ".join(str(p) for p in results.write_table(df, args.out / "certified_cells",
+                                                                         parquet=False)))
+    print(f"\ntotal {time.perf_counter() - t_all:.1f} s")
+
+
+if __name__ == "__main__":
+    main()

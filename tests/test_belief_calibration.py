@@ -1,0 +1,107 @@
+"""Calibration statistics of the belief against Monte Carlo (safenav.belief:
+arc_position, sigma_calibration, clopper_pearson; bench/bench_certified.py).
+
+References: the arc position against a brute-force nearest point on a dense
+sampling of the polyline; the per-bin RMS errors against a direct loop over
+samples and stages; the Clopper–Pearson bounds against their definition
+through the binomial tail and scipy's exact one-sided interval."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from safenav import _core
+from safenav import planning as P
+from safenav.belief import arc_position, clopper_pearson, propagate_belief, sigma_calibration
+
+PATH = np.array([[5.0, 5.0], [30.0, 5.0], [30.0, 25.0], [10.0, 35.0]])
+
+
+def test_arc_position_is_the_nearest_point_of_a_dense_sampling():
+    rng = np.random.default_rng(3)
+    pts = rng.uniform([0.0, 0.0], [40.0, 40.0], (300, 2))
+    legs = np.diff(PATH, axis=0)
+    s0 = np.r_[0.0, np.cumsum(np.hypot(*legs.T))]
+    t = np.linspace(0.0, 1.0, 4001)
+    dense = np.vstack([PATH[i] + t[:, None] * legs[i] for i in range(len(legs))])
+    dense_s = np.concatenate([s0[i] + t * np.hypot(*legs[i]) for i in range(len(legs))])
+    got = arc_position(PATH, pts)
+    for p, s in zip(pts, got):
+        d = np.hypot(*(dense - p).T)
+        near = dense_s[d <= d.min() + 1e-9]
+        assert np.min(np.abs(near - s)) < 0.02          # the dense grid's spacing is below 0.01 m
+    assert arc_position(PATH, PATH) == pytest.approx(s0)
+
+
+def test_sigma_calibration_matches_a_direct_computation():
+    se = _core.SensorSettings()
+    se.landmarks = np.array([[20.0, 0.0], [25.0, 0.0], [22.0, 10.0]])
+    se.field_of_view = 2 * np.pi
+    prof = propagate_belief(PATH, sensors=se, map=P.make_map(upper=(40.0, 40.0)), speed=2.0)
+    rng = np.random.default_rng(5)
+    pos = np.asarray(prof.positions)
+    truths, estimates = [], []
+    for n in (400, 700, 900):                         # trials of different lengths, off the path by up to 1 m
+        x = pos[np.sort(rng.integers(0, len(pos), n))] + rng.normal(0, 0.5, (n, 2))
+        truths.append(np.c_[x, np.zeros((n, 2))])
+        estimates.append(np.c_[x + rng.normal(0, 0.3, (n, 2)), np.zeros((n, 2))])
+    cal = sigma_calibration(prof, truths, estimates, bin_m=7.0)
+    cov = np.asarray(prof.cov_xy)
+    stage_s = arc_position(PATH, pos)
+    nb = len(cal.edges) - 1
+    assert cal.edges[0] == 0.0 and cal.edges[-1] >= prof.length and np.allclose(np.diff(cal.edges), 7.0)
+
+    def bin_of(s):
+        return min(int(s // 7.0), nb - 1)
+
+    tr, ns = np.zeros(nb), np.zeros(nb)
+    for s, c in zip(stage_s, cov):
+        tr[bin_of(s)] += c[0] + c[3]
+        ns[bin_of(s)] += 1
+    sq, n, hit = np.zeros(nb), np.zeros(nb), np.zeros(nb)
+    for x, xh in zip(truths, estimates):
+        seen = set()
+        for a, b in zip(x, xh):
+            j = bin_of(arc_position(PATH, a[None, :2])[0])
+            sq[j] += np.sum((b[:2] - a[:2]) ** 2)
+            n[j] += 1
+            seen.add(j)
+        for j in seen:
+            hit[j] += 1
+    assert np.array_equal(cal.samples, n) and np.array_equal(cal.trials, hit)
+    assert np.allclose(cal.predicted, np.sqrt(tr / ns), equal_nan=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        assert np.allclose(cal.observed, np.sqrt(sq / n), equal_nan=True)
+        assert np.allclose(cal.ratio, np.sqrt(sq / n) / np.sqrt(tr / ns), equal_nan=True)
+    with pytest.raises(ValueError, match="bin_m = 0"):
+        sigma_calibration(prof, truths, estimates, bin_m=0)
+    with pytest.raises(ValueError, match="trial 0"):
+        sigma_calibration(prof, truths[:1], [estimates[0][:-1]])
+
+
+@pytest.mark.parametrize("k, n", [(0, 10), (0, 100000), (3, 50), (7, 7), (1, 2)])
+def test_clopper_pearson_bounds_are_the_binomial_tail_quantiles(k, n):
+    lo, hi = clopper_pearson(k, n)
+    # definition: the upper bound is the rate at which k or fewer events have probability 5 %,
+    # the lower bound the rate at which k or more have probability 5 %
+    if k < n:
+        assert stats.binom.cdf(k, n, hi) == pytest.approx(0.05, rel=1e-6)
+    else:
+        assert hi == 1.0
+    if k > 0:
+        assert stats.binom.sf(k - 1, n, lo) == pytest.approx(0.05, rel=1e-6)
+    else:
+        assert lo == 0.0
+    ci = stats.binomtest(k, n, alternative="less").proportion_ci(0.95, method="exact")
+    assert hi == pytest.approx(ci.high, rel=1e-9)
+    ci = stats.binomtest(k, n, alternative="greater").proportion_ci(0.95, method="exact")
+    assert lo == pytest.approx(ci.low, rel=1e-9, abs=1e-15)
+    if k == 0:                                       # the "rule of three": about 3/n for large n
+        assert hi == pytest.approx(-np.log(0.05) / n, rel=0.15 if n < 100 else 1e-3)
+
+
+@pytest.mark.parametrize("k, n, match", [(-1, 5, "k = -1"), (6, 5, "k = 6"), (0, 0, "n = 0"), (1.5, 5, "k = 1.5")])
+def test_clopper_pearson_refuses_bad_counts(k, n, match):
+    with pytest.raises(ValueError, match=match):
+        clopper_pearson(k, n)
