@@ -29,7 +29,8 @@ Generated worlds 13 and 17 are used by no test or other benchmark (those use
 0–5, 7 and 11).
 
     python bench/bench_certified.py [--trials 50] [--worlds 13 17] [--no-gap] [--filters ekf pf]
-                                    [--record 20] [--bin-m 10] [--workers 2] [--full 100000] [--out DIR]
+                                    [--record 20] [--bin-m 10] [--blind-check 10] [--workers 2]
+                                    [--full 100000] [--out DIR]
 """
 
 from __future__ import annotations
@@ -145,6 +146,7 @@ class DriveJob:
     cell: Cell
     record: int                # trials recorded for the calibration (the cell's first ones)
     bin_m: float
+    blind_check: int           # step-limit trials rerun with a record to see where they ended
 
 
 def _profile(sc, path):
@@ -152,12 +154,14 @@ def _profile(sc, path):
     return propagate_belief(path, **C.mission_inputs(sc, path))
 
 
-def _blind_step_limits(c: Cell, navigator_rec, prof, seeds, outcome) -> tuple[int, int]:
-    """(step-limit trials, those of them whose true final position is at a
-    stage where the belief predicts no fix in view: a blind gap)."""
+def _blind_step_limits(navigator_rec, prof, seeds, outcome, check: int) -> tuple[int, int, int]:
+    """(step-limit trials, how many of them were rerun with a record (the
+    first ``check``), how many of those end at a stage where the belief
+    predicts no fix in view: a blind gap)."""
     from safenav.belief import arc_position
 
     sl = np.flatnonzero(outcome == nav.OUTCOMES.index("step_limit"))
+    n_sl, sl = len(sl), sl[:check]
     needs = C.fix_needs(navigator_rec.sensors)
     pos = np.asarray(prof.positions)
     s_stage = arc_position(pos, pos)
@@ -166,7 +170,7 @@ def _blind_step_limits(c: Cell, navigator_rec, prof, seeds, outcome) -> tuple[in
         end = np.asarray(navigator_rec.run(seeds[i]).truth)[-1:, :2]
         j = int(np.argmin(np.abs(s_stage - arc_position(pos, end)[0])))
         blind += int(np.asarray(prof.landmarks)[j] < needs)
-    return len(sl), blind
+    return n_sl, len(sl), blind
 
 
 def drive(job: DriveJob) -> dict:
@@ -182,10 +186,10 @@ def drive(job: DriveJob) -> dict:
         estimates.append(np.asarray(r.estimate))
     cal = sigma_calibration(prof, truths, estimates, bin_m=job.bin_m)
     d = out["trials"]
-    n_sl, n_blind = _blind_step_limits(c, rec, prof, out["seeds"], out["outcome"])
+    n_sl, n_checked, n_blind = _blind_step_limits(rec, prof, out["seeds"], out["outcome"], job.blind_check)
     row = dict(out["row"], filt=c.filter, predicted_pc=float(prof.collision_probability),
                holds=float(np.mean(d["guard_hold"])), held_trials=int(np.sum(np.asarray(d["guard_hold"]) > 0)),
-               step_limit=n_sl, step_limit_blind=n_blind)
+               step_limit=n_sl, step_limit_checked=n_checked, step_limit_blind=n_blind)
     return dict(row=row, calibration=cal, crashes=out["crashes"])
 
 
@@ -193,7 +197,8 @@ def cell_table(df: pd.DataFrame) -> str:
     show = pd.DataFrame({
         "world": df.world, "path": df.path_type, "method": df.method, "meas": df.measurement, "filter": df.filt,
         "trials": df.trials, "coll": df.collisions, "arrive": df.arrival.map("{:.4f}".format), "other": df.other,
-        "sl(blind)": [f"{a}({b})" for a, b in zip(df.step_limit, df.step_limit_blind)],
+        "sl(blind/chk)": [f"{a}({b}/{c})" for a, b, c in zip(df.step_limit, df.step_limit_blind,
+                                                                 df.step_limit_checked)],
         "held": df.held_trials, "holds/tr": df.holds.map("{:.2f}".format),
         "NEES": df.nees.map("{:.3g}".format), "out3s": df.outside_3sigma.map("{:.3f}".format),
         "clr_min": df.min_clearance_min.map("{:.2f}".format), "ratio min/med/max": df.ratios,
@@ -217,8 +222,9 @@ def print_targets(df: pd.DataFrame) -> None:
     worst = df.loc[df.arrival.idxmin()]
     print(f"   arrival: {arr:.4%} (target >= {TARGET_ARRIVAL:.1%}): {verdict(arr >= TARGET_ARRIVAL)}; worst cell "
           f"{worst.arrival:.2%} ({worst.world} {worst.path_type} {worst.method} {worst.measurement} {worst.filt})")
-    print(f"   step-limit trials: {int(df.step_limit.sum())}, of which in a blind gap {int(df.step_limit_blind.sum())}; "
-          f"trials with a guard hold: {int(df.held_trials.sum())}")
+    print(f"   step-limit trials: {int(df.step_limit.sum())}; of {int(df.step_limit_checked.sum())} rerun to see where "
+          f"they ended, {int(df.step_limit_blind.sum())} in a blind gap; trials with a guard hold: "
+          f"{int(df.held_trials.sum())}")
     for (m, f), g in df.groupby(["measurement", "filt"], sort=False):
         nees = float((g.nees * g.nees_steps).sum() / g.nees_steps.sum())
         a = float((g.arrival * g.trials).sum() / g.trials.sum())
@@ -247,8 +253,8 @@ def print_calibration(df: pd.DataFrame, cals: list, record: int) -> None:
         pred = float((g.predicted_pc * g.trials).sum() / n)
         lo, hi = clopper_pearson(k, n)
         print(f"     {m:6} {f:3}: predicted {pred:.3g} (expected collisions {pred * n:.3g}); observed {k}/{n} = "
-              f"{k / n:.3g}, 95 % upper {hi:.3g}, lower {lo:.3g}; observed not significantly above predicted: "
-              f"{verdict(lo <= pred)}")
+              f"{k / n:.3g}, 95 % upper {hi:.3g}, lower {lo:.3g}; observed not significantly above "
+              f"predicted: {verdict(lo <= pred)}")
 
 
 def print_timing(df: pd.DataFrame, wall: float, workers: int, full: int) -> None:
@@ -270,12 +276,14 @@ def main() -> None:
     ap.add_argument("--filters", nargs="+", choices=["ekf", "pf"], default=["ekf", "pf"])
     ap.add_argument("--record", type=int, default=20, help="trials per cell recorded for the calibration")
     ap.add_argument("--bin-m", type=float, default=10.0, help="arc-length bin of the calibration [m]")
+    ap.add_argument("--blind-check", type=int, default=10,
+                    help="step-limit trials per cell rerun with a record to see whether they ended in a blind gap")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--full", type=int, default=100_000, help="total trials of the run to estimate the time of")
     ap.add_argument("--out", type=Path, default=None, help="write the per-cell table (CSV) here")
     args = ap.parse_args()
-    for name in ("trials", "record", "workers", "full"):
-        if getattr(args, name) < (0 if name == "record" else 1):
+    for name in ("trials", "record", "blind_check", "workers", "full"):
+        if getattr(args, name) < (0 if name in ("record", "blind_check") else 1):
             ap.error(f"--{name} = {getattr(args, name)}: too small")
     t_all = time.perf_counter()
     scenarios = worlds(args.worlds, not args.no_gap)
@@ -307,15 +315,16 @@ def main() -> None:
         return o
 
     print(f"\n2. driving {len(cells)} cells x {args.trials} trials", flush=True)
-    out = runner.map_ordered(run_and_report, [DriveJob(c, args.record, args.bin_m) for c in cells],
-                             workers=args.workers)
+    drive_jobs = [DriveJob(c, args.record, args.bin_m, args.blind_check) for c in cells]
+    out = runner.map_ordered(run_and_report, drive_jobs, workers=args.workers)
     wall = time.perf_counter() - t
     df = pd.DataFrame([o["row"] for o in out])
     cals = [o["calibration"] for o in out]
     df["ratios"] = [("{:.2f}/{:.2f}/{:.2f}".format(v.min(), np.median(v), v.max()) if v.size else "-")
                     for v in (_ratio_bins(c, args.record) for c in cals)]
-    print("   other: " + ", ".join(f"{v} {k}" for k, v in SHORT.items()) + "; sl(blind) = step-limit trials (in a "
-          "blind gap); held = trials with a guard hold; ratio = Monte Carlo / predicted RMS error per bin")
+    print("   other: " + ", ".join(f"{v} {k}" for k, v in SHORT.items()) + "; sl(blind/chk) = step-limit trials "
+          "(in a blind gap / of those rerun);\n   held = trials with a guard hold; ratio = Monte Carlo / predicted RMS "
+          "error per bin")
     print(cell_table(df))
     for o in out:
         for i, seed, clr, reason in o["crashes"]:
@@ -324,7 +333,7 @@ def main() -> None:
                   f"trial {i} seed {seed} clearance {clr:.3f} m: {reason}")
     print("\n   targets")
     print_targets(df)
-    print(f"\n3. calibration")
+    print("\n3. calibration")
     print_calibration(df, cals, args.record)
     print("\n4. timing")
     print_timing(df, wall, args.workers, args.full)
