@@ -176,7 +176,9 @@ def _blind_step_limits(navigator_rec, prof, seeds, outcome, check: int) -> tuple
 def drive(job: DriveJob) -> dict:
     """run_cell, then the calibration trials (record=True) and the step-limit analysis."""
     c = job.cell
+    cpu = time.thread_time()              # run_many runs on this thread: its CPU time, whatever else runs
     out = run_cell(c)
+    cpu_trials = time.thread_time() - cpu
     prof = _profile(c.scenario, c.path)
     rec = nav.make_navigator(c.scenario, c.path, method=c.method, filter=c.filter, record=True)
     truths, estimates = [], []
@@ -187,9 +189,11 @@ def drive(job: DriveJob) -> dict:
     cal = sigma_calibration(prof, truths, estimates, bin_m=job.bin_m)
     d = out["trials"]
     n_sl, n_checked, n_blind = _blind_step_limits(rec, prof, out["seeds"], out["outcome"], job.blind_check)
+    cpu_extra = time.thread_time() - cpu - cpu_trials
     row = dict(out["row"], filt=c.filter, predicted_pc=float(prof.collision_probability),
                holds=float(np.mean(d["guard_hold"])), held_trials=int(np.sum(np.asarray(d["guard_hold"]) > 0)),
-               step_limit=n_sl, step_limit_checked=n_checked, step_limit_blind=n_blind)
+               step_limit=n_sl, step_limit_checked=n_checked, step_limit_blind=n_blind, cpu_s=cpu_trials,
+               extra_cpu_s=cpu_extra)
     return dict(row=row, calibration=cal, crashes=out["crashes"])
 
 
@@ -258,14 +262,17 @@ def print_calibration(df: pd.DataFrame, cals: list, record: int) -> None:
 
 
 def print_timing(df: pd.DataFrame, wall: float, workers: int, full: int) -> None:
-    per = {f: g.time_ms.sum() / 1e3 / g.trials.sum() for f, g in df.groupby("filt", sort=False)}
-    cells = len(df)
-    per_cell = math.ceil(full / cells)
-    est = sum(per_cell * per[r.filt] for _, r in df.iterrows()) / workers
-    print(f"   driving: {wall:.1f} s wall on {workers} workers; run_many time per trial " +
-          ", ".join(f"{f} {v * 1e3:.1f} ms" for f, v in per.items()))
-    print(f"   a run of {full} trials ({cells} cells x --trials {per_cell} = {cells * per_cell}) would take about "
-          f"{est / 3600:.2f} h on {workers} workers (run_many only, from the times above)")
+    """Time per trial (wall inside run_many, and CPU of the cell's thread: the CPU time does not grow when
+    other work shares the cores), and the run of ``full`` trials estimated from each cell's CPU time per trial
+    plus its fixed work (recorded and rerun trials)."""
+    per = {f: (g.time_ms.sum() / 1e3 / g.trials.sum(), g.cpu_s.sum() / g.trials.sum())
+           for f, g in df.groupby("filt", sort=False)}
+    per_cell = math.ceil(full / len(df))
+    est = float((per_cell * df.cpu_s / df.trials + df.extra_cpu_s).sum()) / workers
+    print(f"   driving: {wall:.1f} s wall on {workers} workers; per trial (wall in run_many / CPU) " +
+          ", ".join(f"{f} {w * 1e3:.1f} / {c * 1e3:.1f} ms" for f, (w, c) in per.items()))
+    print(f"   a run of {full} trials ({len(df)} cells x --trials {per_cell} = {len(df) * per_cell}) needs about "
+          f"{est * workers / 3600:.2f} CPU hours: {est / 3600:.2f} h on {workers} otherwise idle cores")
 
 
 def main() -> None:
