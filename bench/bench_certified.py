@@ -121,7 +121,7 @@ def print_certificates(missions: list[Mission]) -> dict[str, Scenario]:
         c = m.cert
         ch = c.final or c.given
         print(f"   {m.world:12} {c.name:4} {c.status:20} {c.planner:27} "
-              f"{(C._arc(c.path)[-1] if len(c.path) else 0):6.1f} {c.n_added:5d} "
+              f"{np.sum(np.hypot(*np.diff(c.path, axis=0).T)) if len(c.path) else 0.0:6.1f} {c.n_added:5d} "
               f"{(ch.collision_probability if ch else np.nan):9.2g} {(ch.sigma_max if ch else np.nan):9.3f} "
               f"{m.raw_s:7.2f} {m.certify_s:13.2f}")
     for w in dict.fromkeys(m.world for m in missions):
