@@ -53,6 +53,18 @@ def np_jacobians(v, theta, dt, tau=0.0):
     return F, G
 
 
+def belief_camera(se, settings=None):
+    """The camera the belief sees with, by its specification
+    (BeliefSettings.sight_fov_margin, sight_range_fraction): (field of view,
+    range) = the vehicle's field of view less the margin, at least 10°,
+    unless all round; its range scaled."""
+    s = settings if settings is not None else _core.BeliefSettings()
+    fov = se.field_of_view
+    if fov < 2 * np.pi:
+        fov = max(np.deg2rad(10.0), fov - s.sight_fov_margin)
+    return fov, se.max_range * s.sight_range_fraction
+
+
 def reference_covariances(prof, bmm, se, P0, bearing_std=0.0, checker=None):
     """FilterPy's KalmanFilter over the profile's stages (ML observations: z = H x)."""
     kf = kalman.KalmanFilter(dim_x=4, dim_z=1)
@@ -94,8 +106,8 @@ def reference_covariances(prof, bmm, se, P0, bearing_std=0.0, checker=None):
 
 def _visible(se, landmark, p, theta, checker):
     one = _core.SensorSettings()
-    for name in ("max_range", "field_of_view", "occlusion"):
-        setattr(one, name, getattr(se, name))
+    one.field_of_view, one.max_range = belief_camera(se)
+    one.occlusion = se.occlusion
     one.landmarks = np.asarray(landmark, dtype=float).reshape(1, 2)
     return one.landmarks_in_view(np.r_[p, SPEED, theta], checker) == 1
 
@@ -284,3 +296,23 @@ def test_bad_input_names_the_value(kwargs, match):
     args.update(kwargs)
     with pytest.raises(ValueError, match=match):
         P.propagate_belief(**args)
+
+
+def test_the_belief_sees_with_a_narrower_camera_than_the_vehicle():
+    """BeliefSettings.sight_fov_margin / sight_range_fraction: a landmark at
+    the edge of the vehicle's view (inside its 85° and 30 m) is not counted by
+    the default belief, and is with margins 0 and 1."""
+    # Heading +x; one landmark 35° off the heading at 20 m (inside 42.5°, outside 30°),
+    # one straight ahead at 28 m (inside 30 m, outside 27 m).
+    lms = np.array([[20 * np.cos(np.deg2rad(35)), 20 * np.sin(np.deg2rad(35))], [28.0, 0.0]]) + 10.0
+    se = sensors(lms, fov=np.deg2rad(85), occlusion=False)
+    m = open_map(upper=(100, 100))
+    path = np.array([[10.0, 10.0], [10.2, 10.0]])
+    own = P.propagate_belief(path, sensors=se, map=m, speed=SPEED, sight_fov_margin=0.0, sight_range_fraction=1.0)
+    narrow = P.propagate_belief(path, sensors=se, map=m, speed=SPEED)
+    assert np.asarray(own.landmarks)[1] == 2
+    assert np.asarray(narrow.landmarks)[1] == 0
+    s = _core.BeliefSettings()
+    assert s.sight_fov_margin == pytest.approx(np.deg2rad(25.0)) and s.sight_range_fraction == 0.9
+    with pytest.raises(ValueError, match="sight_range_fraction"):
+        P.propagate_belief(path, sensors=se, map=m, sight_range_fraction=0.0)

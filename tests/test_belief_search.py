@@ -53,7 +53,9 @@ def test_belief_planner_takes_the_lane_with_landmarks_where_raw_rrt_star_takes_t
     assert rrt.success and through_corridor(rrt.path)
     blind = P.propagate_belief(rrt.path, sensors=se, map=m, bmm=bmm, vehicle_radius=RADIUS, margin=MARGIN,
                                step=0.25, start_cov=P0)
-    assert blind.sigma.max() > 1.5 * res.sigma.max()
+    # The lane sees its landmarks through the belief's narrowed camera
+    # (BeliefSettings.sight_*), so its σ grows too, but less than blind.
+    assert blind.sigma.max() > 1.3 * res.sigma.max()
     assert blind.collision_probability > 0.05 > res.collision_probability
     assert np.asarray(blind.landmarks)[np.asarray(blind.positions)[:, 0] > 16].max() == 0
 

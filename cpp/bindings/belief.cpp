@@ -12,6 +12,8 @@ void bind_settings(py::module_& m) {
       .def_readwrite("speed", &BeliefSettings::speed)
       .def_readwrite("step", &BeliefSettings::step)
       .def_readwrite("bearing_std", &BeliefSettings::bearing_std)
+      .def_readwrite("sight_fov_margin", &BeliefSettings::sight_fov_margin)
+      .def_readwrite("sight_range_fraction", &BeliefSettings::sight_range_fraction)
       .def_readwrite("inflation", &BeliefSettings::inflation)
       .def("validate", &BeliefSettings::validate);
 

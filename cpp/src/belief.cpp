@@ -256,6 +256,10 @@ const ParamSet<BeliefSettings>& param_set<BeliefSettings>() {
           .real("speed", SN_REF(BeliefSettings, speed), "m/s", above(0, 1000), "speed along the path (the navigation's cruise speed)")
           .real("step", SN_REF(BeliefSettings, step), "s", closed(0, 1000), "belief step; 0 = the BMM's dt (exact EKF steps)")
           .real("bearing_std", SN_REF(BeliefSettings, bearing_std), "rad", closed(0, 10), "sigma of a bearing to each landmark in view; 0 = none")
+          .real("sight_fov_margin", SN_REF(BeliefSettings, sight_fov_margin), "rad", closed(0, 2 * kPi),
+                "the belief sees landmarks only inside the field of view less this (at least 10 deg)")
+          .real("sight_range_fraction", SN_REF(BeliefSettings, sight_range_fraction), "", above(0, 1),
+                "the belief sees landmarks only within this share of the detection range")
           .nested("inflation.", param_set<Inflation>(), SN_REF(BeliefSettings, inflation))
           .set;
   return s;

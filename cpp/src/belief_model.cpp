@@ -37,13 +37,22 @@ void ml_update(StateCov& P, const Eigen::Matrix<double, M, 4>& H, const Eigen::M
 Eigen::Matrix<double, 2, 4> constant_jacobian(const MeasurementModel& model) {
   return model.jacobian(State::Zero());
 }
+
+/// The camera the belief sees with (BeliefSettings::sight_fov_margin,
+/// sight_range_fraction): the vehicle's, narrowed; an all-round one stays so.
+SensorSettings sight(SensorSettings s, const BeliefSettings& settings) {
+  settings.validate();
+  s.validate();
+  if (s.field_of_view < 2.0 * kPi)
+    s.field_of_view = std::max(10.0 * kPi / 180.0, s.field_of_view - settings.sight_fov_margin);
+  s.max_range *= settings.sight_range_fraction;
+  return s;
+}
 }  // namespace
 
 Model::Model(const BmmParams& bmm, const SensorSettings& sensors, const PlanningMap& map,
              const BeliefSettings& settings)
-    : bmm_(bmm), sensors_(sensors), single_(sensors), checker_(map), settings_(settings) {
-  settings.validate();
-  sensors.validate();
+    : bmm_(bmm), sensors_(sight(sensors, settings)), single_(sensors_), checker_(map), settings_(settings) {
   map.validate();
   step_ = settings.step > 0.0 ? settings.step : bmm.dt;
   single_.landmarks = Landmarks::Zero(1, 2);

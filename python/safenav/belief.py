@@ -49,6 +49,7 @@ __all__ = ["BeliefSettings", "BeliefPlannerSettings", "BeliefProblem", "BeliefPr
 
 # Keyword names of plan_belief / propagate_belief -> declared parameter names.
 _BELIEF_KEYS = {"speed": "speed", "step": "step", "bearing_std": "bearing_std",
+                "sight_fov_margin": "sight_fov_margin", "sight_range_fraction": "sight_range_fraction",
                 "vehicle_radius": "inflation.vehicle_radius", "margin": "inflation.margin"}
 
 

@@ -173,15 +173,21 @@ def _cut(path: np.ndarray, s0: float, s1: float, min_length: float = 1.0) -> np.
     return np.vstack([at(s0), *inner, at(s1)])
 
 
-def placement_camera(scenario):
-    """The camera the placement covers with: the vehicle's, narrowed by 25°
-    and shortened to 90 % of the detection range, for heading and cross-track
-    deviations (as :func:`safenav.experiments.run.placed_scenario`);
-    landmarks keep the planning clearance from the path."""
-    from . import placement as P
+def placement_camera(scenario, settings=None):
+    """The camera the placement covers with and the belief sees with: the
+    vehicle's, narrowed by ``BeliefSettings.sight_fov_margin`` (25°, at
+    least 10° left) and shortened to ``sight_range_fraction`` (90 %) of the
+    detection range, for heading and cross-track deviations (also
+    :func:`safenav.experiments.run.placed_scenario`); landmarks keep the
+    planning clearance from the path."""
+    import math
 
-    return P.CameraParams(range=0.9 * scenario.detection.max_range_m,
-                          angle_deg=max(10.0, scenario.camera.field_of_view_deg - 25.0),
+    from . import placement as P
+    from .belief import BeliefSettings
+
+    s = settings if settings is not None else BeliefSettings()
+    return P.CameraParams(range=s.sight_range_fraction * scenario.detection.max_range_m,
+                          angle_deg=max(10.0, scenario.camera.field_of_view_deg - math.degrees(s.sight_fov_margin)),
                           clearance=scenario.navigation.planning_clearance)
 
 

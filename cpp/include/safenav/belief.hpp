@@ -59,6 +59,15 @@ struct BeliefSettings {
   double speed = 2.0;        ///< speed along the path [m/s] (NavigationSettings::cruise_speed), > 0
   double step = 0.0;         ///< belief step [s]; 0 = the BMM's Δt (then exact EKF steps)
   double bearing_std = 0.0;  ///< σ of a bearing to each landmark in view [rad]; 0 = no bearings (the simulator measures none)
+  /// The belief counts a landmark as seen only inside a narrower camera than
+  /// the vehicle's: the field of view less `sight_fov_margin` (at least
+  /// 10°) and `sight_range_fraction` of its range.  The controllers follow
+  /// the path only within the corridor and turn ahead of corners, so a
+  /// landmark at the edge of the nominal view may never be seen; the
+  /// placement paper's cover keeps the same margins (safenav.certify's
+  /// placement_camera).  0 and 1 give the vehicle's own camera.
+  double sight_fov_margin = 25.0 * kPi / 180.0;  ///< [rad]
+  double sight_range_fraction = 0.9;             ///< of SensorSettings::max_range, in (0, 1]
   Inflation inflation;       ///< vehicle radius (collision) and margin (kept beyond it by the planner)
   void validate() const;     ///< throws std::invalid_argument naming the bad value
 };

@@ -299,12 +299,11 @@ def placed_scenario(scenario: Scenario, safe: dict, *, k: int | None = None, met
     from dataclasses import replace
 
     from .. import placement as P
+    from ..certify import placement_camera
     from ..world import Landmark
 
     k = k or scenario.detection.min_landmarks
-    cam = P.CameraParams(range=0.9 * scenario.detection.max_range_m,
-                         angle_deg=max(10.0, scenario.camera.field_of_view_deg - 25.0),
-                         clearance=scenario.navigation.planning_clearance)
+    cam = placement_camera(scenario)
     placed, added = {}, []
     next_id = max((lm.id for lm in scenario.world.landmarks), default=-1) + 1
     cluster = max(scenario.world.cluster_ids, default=-1) + 1
