@@ -1,0 +1,102 @@
+// Private to the planner (cpp/src/planning*.cpp): the central path of the
+// risk term, the RAw-RRT* objective [SafeNav eqs. 15–19] and the path cost.
+// OMPL types appear here, so this header never leaves cpp/src.
+#pragma once
+
+#include <optional>
+#include <vector>
+
+#include <Eigen/Core>
+#include <ompl/base/OptimizationObjective.h>
+#include <ompl/base/SpaceInformation.h>
+#include <ompl/base/objectives/StateCostIntegralObjective.h>
+#include <ompl/base/spaces/RealVectorStateSpace.h>
+
+#include "safenav/corridor.hpp"
+#include "safenav/planning.hpp"
+#include "safenav/world.hpp"
+
+namespace safenav::planning_detail {
+
+namespace ob = ompl::base;
+using Vec2 = Eigen::Vector2d;
+
+inline const double* xy(const ob::State* s) { return s->as<ob::RealVectorStateSpace::StateType>()->values; }
+
+/// Sub-step count of an edge: OMPL's validSegmentCount() for a space whose
+/// longest valid segment is `step`.
+unsigned int segment_count(double distance, double step);
+
+/// The central path of the risk term: a Corridor (deviation, eq. 17; WRS,
+/// eq. 18), or, when the path has a single distinct point, that point.
+///
+/// deviation() is Corridor::project(p).distance bit for bit: the same
+/// per-edge arithmetic with the edge vectors computed once, and without the
+/// side test (CGAL orientation), arc length and per-call overflow scan that
+/// project() also does.  Coordinates at or beyond 2^500 (where project()
+/// rescales) and non-finite points go to project() itself.
+class CentralPath {
+ public:
+  CentralPath(const Points2& path, const RiskZones& zones);
+  bool empty() const { return empty_; }
+  double deviation(const Vec2& p) const;
+  /// WRS of eq. 18 at p (safenav::wrs of the deviation); 0 without a path.
+  double risk(const Vec2& p) const { return empty_ ? 0.0 : wrs(deviation(p), zones_); }
+  double arc_length(const Vec2& p) const { return corridor_ ? corridor_->project(p).arc_length : 0.0; }
+  Vec2 point_at(double s) const { return corridor_ ? corridor_->point_at(s) : point_; }
+  Vec2 tangent_at(double s) const { return corridor_ ? corridor_->tangent_at(s) : Vec2(1.0, 0.0); }
+  double length() const { return corridor_ ? corridor_->length() : 0.0; }
+
+ private:
+  struct Edge {
+    Vec2 a, ab;   ///< first vertex, and the edge vector (second − first)
+    double ab2;   ///< ‖ab‖²
+  };
+  RiskZones zones_;
+  bool empty_ = true;
+  bool scaled_ = false;  ///< the path reaches 2^500: project() rescales every query
+  Vec2 point_{0, 0};
+  std::optional<Corridor> corridor_;
+  std::vector<Edge> edges_;
+};
+
+/// β-term of eq. 19: ∫ WRS ds along every motion, the trapezoid rule on
+/// OMPL's valid-segment sub-steps (StateCostIntegralObjective with motion-cost
+/// interpolation).  motionCost() repeats the base class's arithmetic step for
+/// step, on two stack points instead of two heap-allocated states.
+class WrsObjective : public ob::StateCostIntegralObjective {
+ public:
+  WrsObjective(const ob::SpaceInformationPtr& si, const CentralPath& risk);
+  ob::Cost stateCost(const ob::State* s) const override;
+  ob::Cost motionCost(const ob::State* s1, const ob::State* s2) const override;
+
+ private:
+  const CentralPath& risk_;
+};
+
+/// α·length + β·∫WRS (+ β_h·∫risk over the hazards): OMPL's sum of weighted
+/// objectives, with the admissible heuristics that OMPL's informed sampling,
+/// pruning and new-state rejection need.  Every term is ≥ 0 and the length
+/// term is α·‖s1 − s2‖ exactly, so α·‖s1 − s2‖ never exceeds a motion's cost
+/// and α·(distance to the goal region) never exceeds the cost to go.
+class RawObjective : public ob::MultiOptimizationObjective {
+ public:
+  RawObjective(const ob::SpaceInformationPtr& si, double alpha);
+  ob::Cost motionCostHeuristic(const ob::State* s1, const ob::State* s2) const override;
+  double alpha() const { return alpha_; }
+
+ private:
+  double alpha_;
+};
+
+/// The planner's objective for these settings (eqs. 16, 19, plus the hazard
+/// term when β_h > 0); its cost threshold is −∞ (never "good enough").
+ob::OptimizationObjectivePtr make_objective(const ob::SpaceInformationPtr& si, const PlanningProblem& problem,
+                                            const PlannerSettings& settings, const ObstacleChecker& obstacles,
+                                            const CentralPath& risk, bool has_risk);
+
+/// path_cost() with the central path already built.
+PathCost cost_of(const Eigen::Ref<const Points2>& path, const CentralPath& risk, const ObstacleChecker& hazards,
+                 const PlanningProblem& problem, const PlannerSettings& settings);
+
+}  // namespace safenav::planning_detail
