@@ -55,6 +55,7 @@ using detail::fmt;
 using planning_detail::CentralPath;
 using planning_detail::cost_of;
 using planning_detail::make_objective;
+using planning_detail::SeededSampler;
 using planning_detail::segment_count;
 using planning_detail::xy;
 
@@ -124,35 +125,6 @@ class MotionChecker : public ob::MotionValidator {
   const ObstacleChecker& obstacles_;
   const CentralPath* corridor_;
   double half_width_, step_;
-};
-
-class SeededSampler : public ob::RealVectorStateSampler {
- public:
-  /// Uniform over the field, or — with probability `corridor_bias` — uniform
-  /// in arc length and offset within the corridor around the central path.
-  SeededSampler(const ob::StateSpace* space, std::uint_fast32_t seed, const CentralPath* central = nullptr,
-                double corridor_bias = 0.0, double half_width = 0.0)
-      : ob::RealVectorStateSampler(space), central_(central), bias_(corridor_bias), half_width_(half_width) {
-    rng_.setLocalSeed(seed);
-  }
-  void sampleUniform(ob::State* state) override {
-    if (bias_ > 0.0 && central_ && central_->length() > 0.0 && rng_.uniform01() < bias_) {
-      const double s = rng_.uniformReal(0.0, central_->length());
-      const double offset = rng_.uniformReal(-half_width_, half_width_);
-      const Vec2 t = central_->tangent_at(s);
-      const Vec2 p = central_->point_at(s) + offset * Vec2(-t.y(), t.x());
-      auto* v = state->as<ob::RealVectorStateSpace::StateType>()->values;
-      v[0] = p.x();
-      v[1] = p.y();
-      space_->enforceBounds(state);
-      return;
-    }
-    ob::RealVectorStateSampler::sampleUniform(state);
-  }
-
- private:
-  const CentralPath* central_;
-  double bias_, half_width_;
 };
 
 // RRTstar with its own seed and, in place of GNAT, the exact grid
@@ -240,6 +212,7 @@ void PlannerSettings::validate() const {
   if (!(corridor_bias >= 0.0 && corridor_bias <= 1.0))
     bad("corridor_bias must be in [0, 1], got " + std::to_string(corridor_bias));
   finite_nonneg(hazard_weight, "hazard_weight");
+  if (informed_sampling && alpha == 0.0) bad("informed_sampling needs alpha > 0 (alpha * length bounds the cost), got alpha = 0");
   param_set<PlannerSettings>().check(*this);
 }
 
@@ -312,6 +285,7 @@ ob::PlannerStatus solve(const ob::SpaceInformationPtr& si, const ob::ProblemDefi
   // Radius neighbourhoods (r ≤ range) instead of k-nearest: no long edges, each
   // costing a full WRS integral, while the tree is sparse.
   planner->setKNearest(false);
+  if (settings.informed_sampling) planner->setInformedSampling(true);
   planner->setProblemDefinition(pdef);
   planner->setup();
 

@@ -143,13 +143,24 @@ ob::Cost RawObjective::motionCostHeuristic(const ob::State* s1, const ob::State*
   return ob::Cost(alpha_ * si_->distance(s1, s2));
 }
 
+void RawObjective::set_informed_set(const Vec2& start, const Vec2& goal, double goal_tolerance) {
+  start_ = start;
+  goal_ = goal;
+  tolerance_ = goal_tolerance;
+}
+
+ob::InformedSamplerPtr RawObjective::allocInformedStateSampler(const ob::ProblemDefinitionPtr& pdef,
+                                                               unsigned int attempts) const {
+  return std::make_shared<EllipseInformedSampler>(pdef, attempts, alpha_, start_, goal_, tolerance_);
+}
+
 ob::OptimizationObjectivePtr make_objective(const ob::SpaceInformationPtr& si, const PlanningProblem& problem,
                                             const PlannerSettings& settings, const ObstacleChecker& obstacles,
                                             const CentralPath& risk, bool has_risk) {
   const bool wrs_term = settings.beta != 0.0 && has_risk;
   const bool hazard_term = settings.hazard_weight > 0.0 && !problem.map.hazards.empty();
   ob::OptimizationObjectivePtr objective;
-  if (!wrs_term && !hazard_term && settings.alpha == 1.0) {
+  if (!wrs_term && !hazard_term && settings.alpha == 1.0 && !settings.informed_sampling) {
     objective = std::make_shared<ob::PathLengthOptimizationObjective>(si);  // plain RRT*
   } else {
     // Components in the order OMPL's operators built them: α·length (absent
@@ -160,6 +171,7 @@ ob::OptimizationObjectivePtr make_objective(const ob::SpaceInformationPtr& si, c
     if (wrs_term) sum->addObjective(std::make_shared<WrsObjective>(si, risk), settings.beta);
     if (hazard_term) sum->addObjective(std::make_shared<HazardObjective>(si, obstacles), settings.hazard_weight);
     sum->lock();
+    sum->set_informed_set(problem.start, problem.goal, settings.goal_tolerance);
     objective = sum;
   }
   // Never "good enough": optimise until the budget is spent.

@@ -3,6 +3,8 @@
 // OMPL types appear here, so this header never leaves cpp/src.
 #pragma once
 
+#include <cstdint>
+#include <memory>
 #include <optional>
 #include <vector>
 
@@ -10,6 +12,7 @@
 #include <ompl/base/OptimizationObjective.h>
 #include <ompl/base/SpaceInformation.h>
 #include <ompl/base/objectives/StateCostIntegralObjective.h>
+#include <ompl/base/samplers/InformedStateSampler.h>
 #include <ompl/base/spaces/RealVectorStateSpace.h>
 
 #include "safenav/corridor.hpp"
@@ -60,6 +63,49 @@ class CentralPath {
   std::vector<Edge> edges_;
 };
 
+/// The planner's state sampler, with its own seed: uniform over the field,
+/// or — with probability `corridor_bias` — uniform in arc length and offset
+/// within the corridor around the central path (ours; 0 = the paper's
+/// uniform sampling).
+class SeededSampler : public ob::RealVectorStateSampler {
+ public:
+  SeededSampler(const ob::StateSpace* space, std::uint_fast32_t seed, const CentralPath* central = nullptr,
+                double corridor_bias = 0.0, double half_width = 0.0);
+  void sampleUniform(ob::State* state) override;
+  /// Informed sampling (Gammell et al. 2014, in the plane): a state of the
+  /// same mixture restricted to the ellipse {x : ‖x − f1‖ + ‖x − f2‖ ≤ D}
+  /// (drawn directly in the ellipse when that is smaller than the field, by
+  /// rejection otherwise).  D = ∞: sampleUniform().  False after `attempts`
+  /// rejected draws, or when the ellipse is empty (D < ‖f2 − f1‖).
+  bool sample_within(ob::State* state, const Vec2& f1, const Vec2& f2, double D, unsigned int attempts);
+
+ private:
+  bool corridor_sample(Vec2& p);  ///< draws the bias coin; false: no corridor sample this time
+  Vec2 ellipse_sample(const Vec2& f1, const Vec2& f2, double D);
+  const CentralPath* central_;
+  double bias_, half_width_;
+};
+
+/// OMPL's informed-sampler interface over SeededSampler::sample_within: the
+/// admissible informed set of RawObjective is the ellipse with foci start and
+/// goal and D = (best cost)/α + goal tolerance, since α·‖·‖ bounds every
+/// motion's cost from below and the goal region has that radius.
+class EllipseInformedSampler : public ob::InformedSampler {
+ public:
+  EllipseInformedSampler(const ob::ProblemDefinitionPtr& pdef, unsigned int attempts, double alpha,
+                         const Vec2& start, const Vec2& goal, double goal_tolerance);
+  bool sampleUniform(ob::State* state, const ob::Cost& max_cost) override;
+  bool sampleUniform(ob::State* state, const ob::Cost& min_cost, const ob::Cost& max_cost) override;
+  bool hasInformedMeasure() const override { return true; }
+  double getInformedMeasure(const ob::Cost& current_cost) const override;
+
+ private:
+  double diameter(const ob::Cost& cost) const;
+  std::shared_ptr<SeededSampler> sampler_;
+  double alpha_, tolerance_;
+  Vec2 start_, goal_;
+};
+
 /// β-term of eq. 19: ∫ WRS ds along every motion, the trapezoid rule on
 /// OMPL's valid-segment sub-steps (StateCostIntegralObjective with motion-cost
 /// interpolation).  motionCost() repeats the base class's arithmetic step for
@@ -83,10 +129,16 @@ class RawObjective : public ob::MultiOptimizationObjective {
  public:
   RawObjective(const ob::SpaceInformationPtr& si, double alpha);
   ob::Cost motionCostHeuristic(const ob::State* s1, const ob::State* s2) const override;
+  /// Informed sampling (PlannerSettings::informed_sampling): the ellipse sampler above.
+  void set_informed_set(const Vec2& start, const Vec2& goal, double goal_tolerance);
+  ob::InformedSamplerPtr allocInformedStateSampler(const ob::ProblemDefinitionPtr& pdef,
+                                                   unsigned int attempts) const override;
   double alpha() const { return alpha_; }
 
  private:
   double alpha_;
+  Vec2 start_{0, 0}, goal_{0, 0};
+  double tolerance_ = 0.0;
 };
 
 /// The planner's objective for these settings (eqs. 16, 19, plus the hazard

@@ -70,6 +70,13 @@ struct PlannerSettings {
   double corridor_bias = 0.0;
   /// β_h, weight of the hazard term β_h·∫ risk ds [1/m · cost], ≥ 0; 0 = the paper's cost.
   double hazard_weight = 0.0;
+  /// Informed sampling (ours, after Gammell et al. 2014; OMPL's RRTstar
+  /// setInformedSampling): once a path of cost c exists, samples are drawn
+  /// only where a path could be cheaper, the ellipse ‖x − start‖ + ‖x − goal‖
+  /// ≤ c/α + goal_tolerance (α·length is an admissible bound on the cost:
+  /// WRS and hazard risk are ≥ 0), mixed with the corridor samples as above.
+  /// Needs α > 0.  false = the paper's sampling (every plan bit for bit).
+  bool informed_sampling = false;
   void validate() const;
 };
 
