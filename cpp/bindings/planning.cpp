@@ -94,6 +94,8 @@ void bind_planner(py::module_& m) {
   m.def("point_ahead", &point_ahead, py::arg("path"), py::arg("position"), py::arg("distance"), release_gil());
   m.def("path_cost", &path_cost, py::arg("path"), py::arg("problem"), py::arg("settings") = PlannerSettings{},
         release_gil());
+  m.def("cost_lower_bound", &cost_lower_bound, py::arg("points"), py::arg("problem"),
+        py::arg("settings") = PlannerSettings{}, release_gil());
 }
 }  // namespace
 

@@ -243,6 +243,20 @@ PathCost path_cost(const Eigen::Ref<const Points2>& path, const PlanningProblem&
                  settings);
 }
 
+Eigen::VectorXd cost_lower_bound(const Eigen::Ref<const Points2>& points, const PlanningProblem& problem,
+                                 const PlannerSettings& settings) {
+  problem.validate();
+  settings.validate();
+  if (!points.allFinite()) bad("points has a non-finite point");
+  const CentralPath risk(problem.central_path, problem.zones);
+  const bool wrs_term = settings.beta != 0.0 && problem.central_path.rows() > 0;
+  const planning_detail::CostBound bound(settings.alpha, wrs_term ? settings.beta : 0.0, wrs_term ? &risk : nullptr,
+                                         problem.start, problem.goal, settings.goal_tolerance);
+  Eigen::VectorXd out(points.rows());
+  for (Eigen::Index i = 0; i < points.rows(); ++i) out[i] = bound(Vec2(points(i, 0), points(i, 1)));
+  return out;
+}
+
 // ---------------------------------------------------------------- planning
 namespace {
 

@@ -143,15 +143,10 @@ ob::Cost RawObjective::motionCostHeuristic(const ob::State* s1, const ob::State*
   return ob::Cost(alpha_ * si_->distance(s1, s2));
 }
 
-void RawObjective::set_informed_set(const Vec2& start, const Vec2& goal, double goal_tolerance) {
-  start_ = start;
-  goal_ = goal;
-  tolerance_ = goal_tolerance;
-}
-
 ob::InformedSamplerPtr RawObjective::allocInformedStateSampler(const ob::ProblemDefinitionPtr& pdef,
                                                                unsigned int attempts) const {
-  return std::make_shared<EllipseInformedSampler>(pdef, attempts, alpha_, start_, goal_, tolerance_);
+  return bound_ ? std::make_shared<EllipseInformedSampler>(pdef, attempts, *bound_)
+                : ob::OptimizationObjective::allocInformedStateSampler(pdef, attempts);
 }
 
 ob::OptimizationObjectivePtr make_objective(const ob::SpaceInformationPtr& si, const PlanningProblem& problem,
@@ -171,7 +166,8 @@ ob::OptimizationObjectivePtr make_objective(const ob::SpaceInformationPtr& si, c
     if (wrs_term) sum->addObjective(std::make_shared<WrsObjective>(si, risk), settings.beta);
     if (hazard_term) sum->addObjective(std::make_shared<HazardObjective>(si, obstacles), settings.hazard_weight);
     sum->lock();
-    sum->set_informed_set(problem.start, problem.goal, settings.goal_tolerance);
+    sum->set_informed_set(CostBound(settings.alpha, wrs_term ? settings.beta : 0.0, wrs_term ? &risk : nullptr,
+                                    problem.start, problem.goal, settings.goal_tolerance));
     objective = sum;
   }
   // Never "good enough": optimise until the budget is spent.

@@ -3,6 +3,7 @@
 // OMPL types appear here, so this header never leaves cpp/src.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -49,6 +50,7 @@ class CentralPath {
   Vec2 point_at(double s) const { return corridor_ ? corridor_->point_at(s) : point_; }
   Vec2 tangent_at(double s) const { return corridor_ ? corridor_->tangent_at(s) : Vec2(1.0, 0.0); }
   double length() const { return corridor_ ? corridor_->length() : 0.0; }
+  const RiskZones& zones() const { return zones_; }
 
  private:
   struct Edge {
@@ -75,25 +77,75 @@ class SeededSampler : public ob::RealVectorStateSampler {
   /// Informed sampling (Gammell et al. 2014, in the plane): a state of the
   /// same mixture restricted to the ellipse {x : ‖x − f1‖ + ‖x − f2‖ ≤ D}
   /// (drawn directly in the ellipse when that is smaller than the field, by
-  /// rejection otherwise).  D = ∞: sampleUniform().  False after `attempts`
-  /// rejected draws, or when the ellipse is empty (D < ‖f2 − f1‖).
-  bool sample_within(ob::State* state, const Vec2& f1, const Vec2& f2, double D, unsigned int attempts);
+  /// rejection otherwise) and accepted by `accept`.  D = ∞: sampleUniform().
+  /// False after `attempts` rejected draws, or when the ellipse is empty.
+  template <class Accept>
+  bool sample_within(ob::State* state, const Vec2& f1, const Vec2& f2, double D, unsigned int attempts,
+                     const Accept& accept) {
+    if (!std::isfinite(D)) {
+      sampleUniform(state);
+      return true;
+    }
+    for (unsigned int i = 0; i < attempts; ++i) {
+      Vec2 p;
+      if (propose(state, f1, f2, D, p) && accept(p)) return true;
+    }
+    return false;
+  }
 
  private:
   bool corridor_sample(Vec2& p);  ///< draws the bias coin; false: no corridor sample this time
   Vec2 ellipse_sample(const Vec2& f1, const Vec2& f2, double D);
+  /// One draw of the mixture inside the field and the ellipse, written to `state` and `p`.
+  bool propose(ob::State* state, const Vec2& f1, const Vec2& f2, double D, Vec2& p);
   const CentralPath* central_;
   double bias_, half_width_;
 };
 
-/// OMPL's informed-sampler interface over SeededSampler::sample_within: the
-/// admissible informed set of RawObjective is the ellipse with foci start and
-/// goal and D = (best cost)/α + goal tolerance, since α·‖·‖ bounds every
-/// motion's cost from below and the goal region has that radius.
+/// W(d) = ∫₀^d WRS(u) du from below (eq. 18's WRS, safenav::wrs): the left
+/// Riemann sum on cells aligned with the zone borders, where WRS only grows
+/// within a cell; beyond d_max WRS is constant.  Since the deviation from the
+/// central path changes by at most one metre per metre travelled, any path
+/// between deviations d0 and d1 collects at least |W(d1) − W(d0)| of ∫WRS ds.
+class WrsPrimitive {
+ public:
+  explicit WrsPrimitive(const RiskZones& zones);
+  double operator()(double d) const;
+
+ private:
+  double h_ = 1.0, dmax_ = 0.0, tail_ = 0.0;
+  std::vector<double> table_, left_;  ///< W at each cell's left end, WRS there
+};
+
+/// The informed set's test: a state x can lie on a path cheaper than c only if
+///   h(x) = α(‖x − start‖ + ‖x − goal‖ − tol) + β(|W(d_x) − W(d_start)| + |W(d_x) − W(d_goal)|) ≤ c,
+/// a lower bound on the cost of every path from start through x to the goal
+/// region (length ≥ the two straight lines, minus the goal region's radius
+/// tol; WrsPrimitive for the risk; the hazard term is ≥ 0).
+class CostBound {
+ public:
+  CostBound(double alpha, double beta, const CentralPath* risk, const Vec2& start, const Vec2& goal,
+            double goal_tolerance);
+  double operator()(const Vec2& x) const;
+  double alpha() const { return alpha_; }
+  double tolerance() const { return tolerance_; }
+  const Vec2& start() const { return start_; }
+  const Vec2& goal() const { return goal_; }
+
+ private:
+  double alpha_, beta_, tolerance_;
+  const CentralPath* risk_;
+  WrsPrimitive primitive_;
+  Vec2 start_, goal_;
+  double w_start_ = 0.0, w_goal_ = 0.0;
+};
+
+/// OMPL's informed-sampler interface for RawObjective: proposals come from
+/// the ellipse that CostBound's length part allows, D = c/α + tol, and a
+/// proposal is kept when h(x) ≤ c.
 class EllipseInformedSampler : public ob::InformedSampler {
  public:
-  EllipseInformedSampler(const ob::ProblemDefinitionPtr& pdef, unsigned int attempts, double alpha,
-                         const Vec2& start, const Vec2& goal, double goal_tolerance);
+  EllipseInformedSampler(const ob::ProblemDefinitionPtr& pdef, unsigned int attempts, const CostBound& bound);
   bool sampleUniform(ob::State* state, const ob::Cost& max_cost) override;
   bool sampleUniform(ob::State* state, const ob::Cost& min_cost, const ob::Cost& max_cost) override;
   bool hasInformedMeasure() const override { return true; }
@@ -102,8 +154,7 @@ class EllipseInformedSampler : public ob::InformedSampler {
  private:
   double diameter(const ob::Cost& cost) const;
   std::shared_ptr<SeededSampler> sampler_;
-  double alpha_, tolerance_;
-  Vec2 start_, goal_;
+  CostBound bound_;
 };
 
 /// β-term of eq. 19: ∫ WRS ds along every motion, the trapezoid rule on
@@ -130,15 +181,14 @@ class RawObjective : public ob::MultiOptimizationObjective {
   RawObjective(const ob::SpaceInformationPtr& si, double alpha);
   ob::Cost motionCostHeuristic(const ob::State* s1, const ob::State* s2) const override;
   /// Informed sampling (PlannerSettings::informed_sampling): the ellipse sampler above.
-  void set_informed_set(const Vec2& start, const Vec2& goal, double goal_tolerance);
+  void set_informed_set(const CostBound& bound) { bound_.emplace(bound); }
   ob::InformedSamplerPtr allocInformedStateSampler(const ob::ProblemDefinitionPtr& pdef,
                                                    unsigned int attempts) const override;
   double alpha() const { return alpha_; }
 
  private:
   double alpha_;
-  Vec2 start_{0, 0}, goal_{0, 0};
-  double tolerance_ = 0.0;
+  std::optional<CostBound> bound_;
 };
 
 /// The planner's objective for these settings (eqs. 16, 19, plus the hazard

@@ -56,58 +56,99 @@ Vec2 SeededSampler::ellipse_sample(const Vec2& f1, const Vec2& f2, double D) {
   return 0.5 * (f1 + f2) + x * u + y * Vec2(-u.y(), u.x());
 }
 
-bool SeededSampler::sample_within(ob::State* state, const Vec2& f1, const Vec2& f2, double D,
-                                  unsigned int attempts) {
-  if (!std::isfinite(D)) {
-    sampleUniform(state);
-    return true;
-  }
+bool SeededSampler::propose(ob::State* state, const Vec2& f1, const Vec2& f2, double D, Vec2& p) {
   const double c = (f2 - f1).norm();
   if (!(D >= c)) return false;
   const auto* space = space_->as<ob::RealVectorStateSpace>();
   const auto& bounds = space->getBounds();
-  // Direct draws when the ellipse's area is below the field's, else rejection.
-  const double ellipse_area = boost::math::double_constants::pi * 0.25 * D * std::sqrt(D * D - c * c);
-  const bool direct = ellipse_area < space->getMeasure();
+  // Direct draws when the ellipse's area is below the field's, else uniform draws.
+  const bool direct = boost::math::double_constants::pi * 0.25 * D * std::sqrt(D * D - c * c) < space->getMeasure();
   double* v = values(state);
-  for (unsigned int i = 0; i < attempts; ++i) {
-    Vec2 p;
-    if (!corridor_sample(p)) {
-      if (direct) {
-        p = ellipse_sample(f1, f2, D);
-      } else {
-        ob::RealVectorStateSampler::sampleUniform(state);
-        p = Vec2(v[0], v[1]);
-      }
-    }
-    const bool in_field = p.x() >= bounds.low[0] && p.x() <= bounds.high[0] && p.y() >= bounds.low[1] &&
-                          p.y() <= bounds.high[1];
-    if (in_field && (p - f1).norm() + (p - f2).norm() <= D) {
-      v[0] = p.x();
-      v[1] = p.y();
-      return true;
+  if (!corridor_sample(p)) {
+    if (direct) {
+      p = ellipse_sample(f1, f2, D);
+    } else {
+      ob::RealVectorStateSampler::sampleUniform(state);
+      p = Vec2(v[0], v[1]);
     }
   }
-  return false;
+  const bool in_field =
+      p.x() >= bounds.low[0] && p.x() <= bounds.high[0] && p.y() >= bounds.low[1] && p.y() <= bounds.high[1];
+  if (!in_field || (p - f1).norm() + (p - f2).norm() > D) return false;
+  v[0] = p.x();
+  v[1] = p.y();
+  return true;
+}
+
+// ---------------------------------------------------------------- risk bound
+WrsPrimitive::WrsPrimitive(const RiskZones& zones) : dmax_(zones.half_width) {
+  constexpr int kCellsPerZone = 16;
+  const int n = static_cast<int>(zones.weights.size());
+  h_ = dmax_ / (n * kCellsPerZone);
+  double w = 0.0;
+  for (int k = 0; k < n * kCellsPerZone; ++k) {
+    const double u = k * h_;
+    // The smallest WRS in the cell is at its left end; the next double guards
+    // a border that rounds into the zone before it.
+    const double low = std::min(wrs(u, zones), wrs(std::nextafter(u, dmax_), zones));
+    table_.push_back(w);
+    left_.push_back(low);
+    w += h_ * low;
+  }
+  table_.push_back(w);
+  tail_ = wrs(dmax_, zones);
+}
+
+double WrsPrimitive::operator()(double d) const {
+  if (!(d > 0.0)) return 0.0;
+  if (d >= dmax_) return table_.back() + (d - dmax_) * tail_;
+  const auto k = std::min(static_cast<std::size_t>(d / h_), left_.size() - 1);
+  return table_[k] + (d - static_cast<double>(k) * h_) * left_[k];
 }
 
 // ---------------------------------------------------------------- informed sampler
+CostBound::CostBound(double alpha, double beta, const CentralPath* risk, const Vec2& start, const Vec2& goal,
+                     double goal_tolerance)
+    : alpha_(alpha),
+      beta_(risk && !risk->empty() ? beta : 0.0),
+      tolerance_(goal_tolerance),
+      risk_(risk),
+      primitive_(risk ? risk->zones() : RiskZones{}),
+      start_(start),
+      goal_(goal) {
+  if (beta_ > 0.0) {
+    w_start_ = primitive_(risk_->deviation(start_));
+    w_goal_ = primitive_(risk_->deviation(goal_));
+  }
+}
+
+double CostBound::operator()(const Vec2& x) const {
+  double h = alpha_ * std::max((x - start_).norm() + (x - goal_).norm() - tolerance_, 0.0);
+  if (beta_ > 0.0) {
+    const double w = primitive_(risk_->deviation(x));
+    h += beta_ * (std::abs(w - w_start_) + std::abs(w - w_goal_));
+  }
+  return h;
+}
+
 EllipseInformedSampler::EllipseInformedSampler(const ob::ProblemDefinitionPtr& pdef, unsigned int attempts,
-                                               double alpha, const Vec2& start, const Vec2& goal,
-                                               double goal_tolerance)
-    : ob::InformedSampler(pdef, attempts), alpha_(alpha), tolerance_(goal_tolerance), start_(start), goal_(goal) {
+                                               const CostBound& bound)
+    : ob::InformedSampler(pdef, attempts), bound_(bound) {
   // The space's sampler allocator gives the planner's seeded sampler (same seed, same stream).
   sampler_ = std::dynamic_pointer_cast<SeededSampler>(pdef->getSpaceInformation()->allocStateSampler());
   if (!sampler_) throw std::logic_error("informed sampling needs the planner's seeded sampler");
 }
 
 double EllipseInformedSampler::diameter(const ob::Cost& cost) const {
-  if (!std::isfinite(cost.value()) || !(alpha_ > 0.0)) return std::numeric_limits<double>::infinity();
-  return cost.value() / alpha_ + tolerance_;
+  const double alpha = bound_.alpha();
+  if (!std::isfinite(cost.value()) || !(alpha > 0.0)) return std::numeric_limits<double>::infinity();
+  return cost.value() / alpha + bound_.tolerance();
 }
 
 bool EllipseInformedSampler::sampleUniform(ob::State* state, const ob::Cost& max_cost) {
-  return sampler_->sample_within(state, start_, goal_, diameter(max_cost), numIters_);
+  const double c = max_cost.value();
+  return sampler_->sample_within(state, bound_.start(), bound_.goal(), diameter(max_cost), numIters_,
+                                 [this, c](const Vec2& x) { return bound_(x) <= c; });
 }
 
 bool EllipseInformedSampler::sampleUniform(ob::State* state, const ob::Cost&, const ob::Cost& max_cost) {
@@ -115,7 +156,8 @@ bool EllipseInformedSampler::sampleUniform(ob::State* state, const ob::Cost&, co
 }
 
 double EllipseInformedSampler::getInformedMeasure(const ob::Cost& current_cost) const {
-  const double field = space_->getMeasure(), D = diameter(current_cost), c = (goal_ - start_).norm();
+  const double field = space_->getMeasure(), D = diameter(current_cost);
+  const double c = (bound_.goal() - bound_.start()).norm();
   if (!std::isfinite(D)) return field;
   if (!(D >= c)) return 0.0;
   return std::min(field, boost::math::double_constants::pi * 0.25 * D * std::sqrt(D * D - c * c));

@@ -133,4 +133,13 @@ Eigen::Vector2d point_ahead(const Eigen::Ref<const Points2>& path, const Eigen::
 PathCost path_cost(const Eigen::Ref<const Points2>& path, const PlanningProblem& problem,
                    const PlannerSettings& settings = {});
 
+/// The admissible lower bound that informed sampling uses (see
+/// PlannerSettings::informed_sampling), at each point x: no path from
+/// problem.start through x to the goal costs less than
+///   α(‖x − start‖ + ‖x − goal‖ − goal_tolerance) + β(|W(d_x) − W(d_start)| + |W(d_x) − W(d_goal)|),
+/// with d the deviation from the central path (eq. 17) and W(d) a lower bound
+/// on ∫₀^d WRS(u) du (eq. 18; the deviation changes by at most 1 m per metre).
+Eigen::VectorXd cost_lower_bound(const Eigen::Ref<const Points2>& points, const PlanningProblem& problem,
+                                 const PlannerSettings& settings = {});
+
 }  // namespace safenav
