@@ -43,15 +43,16 @@ class GridNearestNeighbors : public ompl::NearestNeighbors<T> {
   std::size_t size() const override { return size_; }
 
   void add(const T& data) override {
-    cells_[cell_of(data)].push_back(data);
+    const double* p = coords(data);
+    cells_[cell_of(p)].push_back({p[0], p[1], data});
     ++size_;
     if (size_ > 2 * cells_.size() && cells_.size() < kMaxCells) rebuild(2 * side_);
   }
   using ompl::NearestNeighbors<T>::add;
 
   bool remove(const T& data) override {
-    auto& bucket = cells_[cell_of(data)];
-    const auto it = std::find(bucket.begin(), bucket.end(), data);
+    auto& bucket = cells_[cell_of(coords(data))];
+    const auto it = std::find_if(bucket.begin(), bucket.end(), [&](const Entry& e) { return e.data == data; });
     if (it == bucket.end()) return false;
     bucket.erase(it);
     --size_;
@@ -73,7 +74,7 @@ class GridNearestNeighbors : public ompl::NearestNeighbors<T> {
     // Ring ρ holds the cells at Chebyshev distance ρ from the query's cell;
     // every point of ring ρ + 1 is at least ρ·cell away from the query.
     for (int ring = 0; ring <= side_; ++ring) {
-      for_ring(cx, cy, ring, [&](const std::vector<T>& bucket) { collect(data, bucket, kInf); });
+      for_ring(cx, cy, ring, [&](const Bucket& bucket) { collect(coords(data), bucket, kInf); });
       if (found_.size() >= k) {
         std::nth_element(found_.begin(), found_.begin() + static_cast<std::ptrdiff_t>(k - 1), found_.end(), less);
         if (found_[k - 1].first <= ring * std::min(wx_, wy_)) break;
@@ -90,20 +91,26 @@ class GridNearestNeighbors : public ompl::NearestNeighbors<T> {
     found_.clear();
     candidates_.clear();
     for (int r = r0; r <= r1; ++r)
-      for (int c = c0; c <= c1; ++c) collect(data, cells_[static_cast<std::size_t>(r) * side_ + c], radius);
+      for (int c = c0; c <= c1; ++c) collect(q, cells_[static_cast<std::size_t>(r) * side_ + c], radius);
     finish(found_.size(), nbh);
   }
 
   void list(std::vector<T>& data) const override {
     data.clear();
     data.reserve(size_);
-    for (const auto& bucket : cells_) data.insert(data.end(), bucket.begin(), bucket.end());
+    for (const auto& bucket : cells_)
+      for (const Entry& e : bucket) data.push_back(e.data);
   }
 
  private:
   static constexpr std::size_t kMaxCells = std::size_t(1) << 20;
   static constexpr double kInf = std::numeric_limits<double>::infinity();
   using Found = std::pair<double, std::size_t>;  // distance, order of discovery
+  struct Entry {
+    double x, y;  ///< the state's coordinates, kept beside it (no pointer chase per distance)
+    T data;
+  };
+  using Bucket = std::vector<Entry>;
 
   static const double* coords(const T& data) {
     return data->state->template as<ompl::base::RealVectorStateSpace::StateType>()->values;
@@ -125,21 +132,23 @@ class GridNearestNeighbors : public ompl::NearestNeighbors<T> {
   }
   int col(double x) const { return clamp_index((x - x0_) / wx_); }
   int row(double y) const { return clamp_index((y - y0_) / wy_); }
-  std::size_t cell_of(const T& data) const {
-    const double* p = coords(data);
+  std::size_t cell_of(const double* p) const {
     return static_cast<std::size_t>(row(p[1])) * side_ + col(p[0]);
   }
 
   void rebuild(int side) {
-    std::vector<T> all;
-    list(all);
+    std::vector<Entry> all;
+    for (const auto& bucket : cells_) all.insert(all.end(), bucket.begin(), bucket.end());
     side_ = side;
     wx_ = (x1_ - x0_) / side_;
     wy_ = (y1_ - y0_) / side_;
     if (!(wx_ > 0.0) || !std::isfinite(wx_)) wx_ = 1.0;
     if (!(wy_ > 0.0) || !std::isfinite(wy_)) wy_ = 1.0;
     cells_.assign(static_cast<std::size_t>(side_) * side_, {});
-    for (const T& d : all) cells_[cell_of(d)].push_back(d);
+    for (const Entry& e : all) {
+      const double p[2] = {e.x, e.y};
+      cells_[cell_of(p)].push_back(e);
+    }
   }
 
   template <class F>
@@ -153,19 +162,22 @@ class GridNearestNeighbors : public ompl::NearestNeighbors<T> {
     }
   }
 
-  void collect(const T& data, const std::vector<T>& bucket, double radius) const {
-    const double* q = coords(data);
-    for (const T& d : bucket) {
-      const double dist = distance(q, coords(d));
+  void collect(const double* q, const Bucket& bucket, double radius) const {
+    for (const Entry& e : bucket) {
+      const double p[2] = {e.x, e.y};
+      const double dist = distance(q, p);
       if (dist <= radius) {
         found_.emplace_back(dist, candidates_.size());
-        candidates_.push_back(d);
+        candidates_.push_back(e.data);
       }
     }
   }
 
   void finish(std::size_t k, std::vector<T>& nbh) const {
-    std::partial_sort(found_.begin(), found_.begin() + static_cast<std::ptrdiff_t>(k), found_.end(), less);
+    if (k == found_.size())
+      std::sort(found_.begin(), found_.end(), less);
+    else
+      std::partial_sort(found_.begin(), found_.begin() + static_cast<std::ptrdiff_t>(k), found_.end(), less);
     nbh.resize(k);
     for (std::size_t i = 0; i < k; ++i) nbh[i] = candidates_[found_[i].second];
     found_.clear();
@@ -176,7 +188,7 @@ class GridNearestNeighbors : public ompl::NearestNeighbors<T> {
   int side_ = 1;
   double wx_ = 1.0, wy_ = 1.0;
   std::size_t size_ = 0;
-  std::vector<std::vector<T>> cells_;
+  std::vector<Bucket> cells_;
   mutable std::vector<Found> found_;
   mutable std::vector<T> candidates_;
   mutable std::vector<T> one_;
