@@ -19,6 +19,14 @@ obstacles, length inside each hazard, exposure ``sum(risk * length)``.
 Same ``seed`` and ``max_iterations`` give the same path (the budget counts
 iterations, not seconds).
 
+Sampling (ours; the defaults are the paper's uniform sampling):
+``corridor_bias`` draws that share of the samples inside the corridor;
+``informed_sampling=True`` samples, once a path of cost c exists, only where
+:func:`cost_lower_bound` is at most c (OMPL's informed RRT*, with a bound
+that includes the least risk a path through the point must collect).  On the
+default scenario either reaches 5 % of the grid optimum 5-20x sooner than
+uniform sampling (docs/planning.md).
+
 Example::
 
     from safenav import planning

@@ -20,8 +20,9 @@
 // cost, and the planner then builds exactly the paper's objective.
 //
 // The map and its collision checker are world.hpp's.  Built on OMPL's
-// RRTstar; OMPL stays inside cpp/src/planning.cpp: this header exposes only
-// Eigen and std types.
+// RRTstar; OMPL stays inside cpp/src/planning*.cpp: this header exposes only
+// Eigen and std types.  docs/planning.md: the speed-ups (same plans bit for
+// bit) and informed sampling.
 #pragma once
 
 #include <cstdint>
