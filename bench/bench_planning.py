@@ -149,43 +149,65 @@ def median(x):
     return float(np.median(x)) if x else float("nan")
 
 
+PLANNERS = (  # name, beta, extra settings; RRT* is the peer every ratio is taken against
+    ("RRT*", 0.0, {}),
+    ("RAw-RRT*", 1.0, {}),
+    ("RAw+bias", 1.0, {"corridor_bias": 0.5}),
+    ("RAw+informed", 1.0, {"informed_sampling": True}),
+    ("RAw+inf+bias", 1.0, {"informed_sampling": True, "corridor_bias": 0.5}),
+)
+
+
+def time_to_5(prob, beta, ref, seeds, iterations, budget, extra):
+    """Per seed: (time [s] of the first solution within 5 % of ``ref``, or None;
+    first-solution time; final cost / ref; length; risk; planning time)."""
+    rows = []
+    for s in range(seeds):
+        r = P.plan(prob, alpha=1.0, beta=beta, seed=s, max_iterations=iterations, max_time=budget, range=RANGE,
+                   resolution=RES, **extra)
+        if not r.success:
+            rows.append((None, None, None, None, None, r.planning_time))
+            continue
+        h = r.cost_history
+        within = np.flatnonzero(h[:, 2] <= 1.05 * ref)
+        rows.append((h[within[0], 1] if len(within) else None, r.first_solution_time, r.cost.total / ref,
+                     r.cost.length, r.cost.risk, r.planning_time))
+    return rows
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--iterations", type=int, default=30000)
-    ap.add_argument("--seeds", type=int, default=3)
-    ap.add_argument("--python-iterations", type=int, default=500)
+    ap.add_argument("--budget", type=float, default=2.0, help="wall-clock budget per plan [s]")
+    ap.add_argument("--seeds", type=int, default=5)
+    ap.add_argument("--python-iterations", type=int, default=500, help="0 skips the pure-Python comparison")
     args = ap.parse_args()
     _, named = default_problems()
     probs = list(named.values())
     m = probs[0].map
     print(f"default scenario: field 200x200 m, {len(m.circles)} discs + {len(m.polygons)} polygons, paths "
           f"{', '.join(named)}, corridor half-width "
-          f"{ZONES.half_width} m, resolution {RES} m, range {RANGE} m, {args.iterations} iterations, "
-          f"{args.seeds} seeds (medians)\n")
-    hdr = (f"{'path':4} {'planner':9} {'t_first[s]':>10} {'t_5%[s]':>8} {'cost/grid':>9} {'length':>8} "
-           f"{'risk':>8} {'plan[s]':>8}")
+          f"{ZONES.half_width} m, resolution {RES} m, range {RANGE} m, at most {args.iterations} iterations "
+          f"or {args.budget} s, {args.seeds} seeds (medians)\n")
+    print("t_5%: time to a path within 5 % of the grid optimum (same cost); ratio: to plain RRT*'s t_5%\n")
+    hdr = (f"{'path':4} {'planner':12} {'t_5%[s]':>8} {'ratio':>6} {'reached':>7} {'t_first[s]':>10} "
+           f"{'cost/grid':>9} {'length':>8} {'risk':>8} {'plan[s]':>8}")
     print(hdr)
     for pi, prob in enumerate(probs, 1):
-        refs = {}
-        for name, beta, bias in (("RRT*", 0.0, 0.0), ("RAw-RRT*", 1.0, 0.0), ("RAw+bias", 1.0, 0.5)):
+        refs, peer = {}, None
+        for name, beta, extra in PLANNERS:
             ref = refs[beta] = refs[beta] if beta in refs else grid_optimum(prob, 1.0, beta)
-            tf, t5, ratio, L, R, T = [], [], [], [], [], []
-            for s in range(args.seeds):
-                r = P.plan(prob, alpha=1.0, beta=beta, seed=s, max_iterations=args.iterations, range=RANGE,
-                           resolution=RES, corridor_bias=bias)
-                if not r.success:
-                    continue
-                h = r.cost_history
-                tf.append(r.first_solution_time)
-                within = np.flatnonzero(h[:, 2] <= 1.05 * ref)
-                t5.append(h[within[0], 1] if len(within) else None)
-                ratio.append(r.cost.total / ref)
-                L.append(r.cost.length)
-                R.append(r.cost.risk)
-                T.append(r.planning_time)
-            print(f"P{pi:<3} {name:9} {median(tf):10.3f} {median(t5):8.3f} {median(ratio):9.3f} {median(L):8.1f} "
-                  f"{median(R):8.1f} {median(T):8.2f}   (grid optimum {ref:.1f}, reached 5%: "
-                  f"{sum(v is not None for v in t5)}/{len(t5)})")
+            rows = time_to_5(prob, beta, ref, args.seeds, args.iterations, args.budget, extra)
+            t5 = [r[0] for r in rows]
+            reached = sum(v is not None for v in t5)
+            # the median over all seeds; a seed that never reached 5 % counts as +inf
+            med = float(np.median([v if v is not None else math.inf for v in t5]))
+            peer = med if peer is None else peer
+            col = [median([r[k] for r in rows]) for k in range(1, 6)]
+            print(f"P{pi:<3} {name:12} {med:8.3f} {med / peer:6.1f} {reached:>4}/{len(t5):<2} {col[0]:10.3f} "
+                  f"{col[1]:9.3f} {col[2]:8.1f} {col[3]:8.1f} {col[4]:8.2f}   (grid optimum {ref:.1f})")
+    if args.python_iterations <= 0:
+        return
     print(f"\nspeed vs pure-Python RRT* ({args.python_iterations} iterations, beta = 1, same cost):")
     ratios = []
     for pi, prob in enumerate(probs, 1):

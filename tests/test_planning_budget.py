@@ -30,14 +30,15 @@ def _timed(call):
     return result, time.perf_counter() - t
 
 
+@pytest.mark.parametrize("informed", [False, True])
 @pytest.mark.parametrize("scale", [1e-3, 1.0, 1e7, 1e12])
-def test_plan_and_replan_stop_at_max_time_at_any_scale(scale):
+def test_plan_and_replan_stop_at_max_time_at_any_scale(scale, informed):
     central = np.array([(2.0, 10.0), (32.0, 10.0)]) * scale
     prob = P.PlanningProblem(map=_walled(scale), start=central[0], goal=central[1], central_path=central)
     # The step settings have physical limits (range <= 1e6 m, resolution <= 1e3 m): at 1e7 m and up
     # a motion is checked in up to 10^10 steps, which the budget must still stop.
     kw = dict(max_iterations=10**6, max_time=BUDGET, range=min(4.0 * scale, 1e6), resolution=min(0.5 * scale, 1e3),
-              beta=1.0)
+              beta=1.0, informed_sampling=informed)
     r, dt = _timed(lambda: P.plan(prob, **kw))
     assert r.status == P.PlanStatus.NO_PATH and dt < BUDGET + SLACK, (scale, dt)
     r, dt = _timed(lambda: P.replan(prob, central[0], goal=central[1], corridor_bias=0.5, **kw))

@@ -27,10 +27,11 @@ void bind_problem(py::module_& m) {
   def_params<PlannerSettings>(py::class_<PlannerSettings>(m, "PlannerSettings", "RAw-RRT* settings (alpha, beta of SafeNav eq. 16)."))
       .def(py::init([](double alpha, double beta, double range, double goal_bias, std::int64_t max_iterations,
                        double max_time, std::uint64_t seed, double resolution, double goal_tolerance, bool smooth,
-                       bool stay_in_corridor, bool allow_approximate, double corridor_bias, double hazard_weight) {
+                       bool stay_in_corridor, bool allow_approximate, double corridor_bias, double hazard_weight,
+                       bool informed_sampling) {
              PlannerSettings s{alpha,         beta,   range,           goal_bias,         max_iterations,
                                max_time,      seed,   resolution,      goal_tolerance,    smooth,
-                               stay_in_corridor, allow_approximate, corridor_bias, hazard_weight};
+                               stay_in_corridor, allow_approximate, corridor_bias, hazard_weight, informed_sampling};
              s.validate();
              return s;
            }),
@@ -39,7 +40,8 @@ void bind_problem(py::module_& m) {
            py::arg("max_time") = ds.max_time, py::arg("seed") = ds.seed, py::arg("resolution") = ds.resolution,
            py::arg("goal_tolerance") = ds.goal_tolerance, py::arg("smooth") = ds.smooth,
            py::arg("stay_in_corridor") = ds.stay_in_corridor, py::arg("allow_approximate") = ds.allow_approximate,
-           py::arg("corridor_bias") = ds.corridor_bias, py::arg("hazard_weight") = ds.hazard_weight)
+           py::arg("corridor_bias") = ds.corridor_bias, py::arg("hazard_weight") = ds.hazard_weight,
+           py::arg("informed_sampling") = ds.informed_sampling)
       .def_readwrite("alpha", &PlannerSettings::alpha)
       .def_readwrite("beta", &PlannerSettings::beta)
       .def_readwrite("range", &PlannerSettings::range)
@@ -54,6 +56,7 @@ void bind_problem(py::module_& m) {
       .def_readwrite("allow_approximate", &PlannerSettings::allow_approximate)
       .def_readwrite("corridor_bias", &PlannerSettings::corridor_bias)
       .def_readwrite("hazard_weight", &PlannerSettings::hazard_weight)
+      .def_readwrite("informed_sampling", &PlannerSettings::informed_sampling)
       .def("validate", &PlannerSettings::validate);
 
 }
@@ -91,6 +94,8 @@ void bind_planner(py::module_& m) {
   m.def("point_ahead", &point_ahead, py::arg("path"), py::arg("position"), py::arg("distance"), release_gil());
   m.def("path_cost", &path_cost, py::arg("path"), py::arg("problem"), py::arg("settings") = PlannerSettings{},
         release_gil());
+  m.def("cost_lower_bound", &cost_lower_bound, py::arg("points"), py::arg("problem"),
+        py::arg("settings") = PlannerSettings{}, release_gil());
 }
 }  // namespace
 

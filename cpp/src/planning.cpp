@@ -35,6 +35,8 @@
 
 #include "safenav/corridor.hpp"
 #include "declare.hpp"
+#include "planning_internal.hpp"
+#include "planning_nn.hpp"
 #include "safenav/seed.hpp"
 #include "errors.hpp"
 
@@ -50,48 +52,14 @@ using Vec2 = Eigen::Vector2d;
 
 using detail::bad;
 using detail::fmt;
-
-// The central path of the risk term: a Corridor (deviation, eq. 17; WRS,
-// eq. 18), or, when the path has a single distinct point, that point.
-class CentralPath {
- public:
-  CentralPath(const Points2& path, const RiskZones& zones) : zones_(zones) {
-    if (path.rows() == 0) return;
-    empty_ = false;
-    point_ = Vec2(path(0, 0), path(0, 1));
-    for (Eigen::Index i = 1; i < path.rows(); ++i)
-      if (path.row(i) != path.row(0)) {
-        corridor_.emplace(path, zones);
-        break;
-      }
-  }
-  bool empty() const { return empty_; }
-  double deviation(const Vec2& p) const { return corridor_ ? corridor_->project(p).distance : (p - point_).norm(); }
-  double risk(const Vec2& p) const {
-    if (empty_) return 0.0;
-    return corridor_ ? corridor_->wrs(p) : wrs((p - point_).norm(), zones_);
-  }
-  double arc_length(const Vec2& p) const { return corridor_ ? corridor_->project(p).arc_length : 0.0; }
-  Vec2 point_at(double s) const { return corridor_ ? corridor_->point_at(s) : point_; }
-  Vec2 tangent_at(double s) const { return corridor_ ? corridor_->tangent_at(s) : Vec2(1.0, 0.0); }
-  double length() const { return corridor_ ? corridor_->length() : 0.0; }
-
- private:
-  RiskZones zones_;
-  bool empty_ = true;
-  Vec2 point_{0, 0};
-  std::optional<Corridor> corridor_;
-};
-
-// Sub-step count of an edge: OMPL's validSegmentCount() for a space whose
-// longest valid segment is `step`.
-unsigned int segment_count(double distance, double step) {
-  return static_cast<unsigned int>(std::ceil(distance / step));
-}
+using planning_detail::CentralPath;
+using planning_detail::cost_of;
+using planning_detail::make_objective;
+using planning_detail::SeededSampler;
+using planning_detail::segment_count;
+using planning_detail::xy;
 
 // ---------------------------------------------------------------- OMPL glue
-const double* xy(const ob::State* s) { return s->as<ob::RealVectorStateSpace::StateType>()->values; }
-
 class Checker : public ob::StateValidityChecker {
  public:
   Checker(const ob::SpaceInformationPtr& si, const ObstacleChecker& obstacles, const CentralPath* corridor,
@@ -159,73 +127,15 @@ class MotionChecker : public ob::MotionValidator {
   double half_width_, step_;
 };
 
-// β-term of eq. 19: ∫ WRS ds, integrated along every motion (trapezoid rule,
-// enableMotionCostInterpolation = true).
-class WrsObjective : public ob::StateCostIntegralObjective {
- public:
-  WrsObjective(const ob::SpaceInformationPtr& si, const CentralPath& risk)
-      : ob::StateCostIntegralObjective(si, true), risk_(risk) {
-    description_ = "weighted risk score (SafeNav eq. 18) integrated along the path";
-  }
-  ob::Cost stateCost(const ob::State* s) const override {
-    const double* v = xy(s);
-    return ob::Cost(risk_.risk(Vec2(v[0], v[1])));
-  }
-
- private:
-  const CentralPath& risk_;
-};
-
-// β_h-term (ours): ∫ risk ds over the hazards, exact per motion.
-class HazardObjective : public ob::OptimizationObjective {
- public:
-  HazardObjective(const ob::SpaceInformationPtr& si, const ObstacleChecker& map)
-      : ob::OptimizationObjective(si), map_(map) {
-    description_ = "hazard risk integrated along the path (exact)";
-  }
-  ob::Cost stateCost(const ob::State*) const override { return identityCost(); }
-  ob::Cost motionCost(const ob::State* s1, const ob::State* s2) const override {
-    const double *a = xy(s1), *b = xy(s2);
-    return ob::Cost(map_.hazard_integral(Vec2(a[0], a[1]), Vec2(b[0], b[1])));
-  }
-
- private:
-  const ObstacleChecker& map_;
-};
-
-class SeededSampler : public ob::RealVectorStateSampler {
- public:
-  /// Uniform over the field, or — with probability `corridor_bias` — uniform
-  /// in arc length and offset within the corridor around the central path.
-  SeededSampler(const ob::StateSpace* space, std::uint_fast32_t seed, const CentralPath* central = nullptr,
-                double corridor_bias = 0.0, double half_width = 0.0)
-      : ob::RealVectorStateSampler(space), central_(central), bias_(corridor_bias), half_width_(half_width) {
-    rng_.setLocalSeed(seed);
-  }
-  void sampleUniform(ob::State* state) override {
-    if (bias_ > 0.0 && central_ && central_->length() > 0.0 && rng_.uniform01() < bias_) {
-      const double s = rng_.uniformReal(0.0, central_->length());
-      const double offset = rng_.uniformReal(-half_width_, half_width_);
-      const Vec2 t = central_->tangent_at(s);
-      const Vec2 p = central_->point_at(s) + offset * Vec2(-t.y(), t.x());
-      auto* v = state->as<ob::RealVectorStateSpace::StateType>()->values;
-      v[0] = p.x();
-      v[1] = p.y();
-      space_->enforceBounds(state);
-      return;
-    }
-    ob::RealVectorStateSampler::sampleUniform(state);
-  }
-
- private:
-  const CentralPath* central_;
-  double bias_, half_width_;
-};
-
+// RRTstar with its own seed and, in place of GNAT, the exact grid
+// neighbour structure of planning_nn.hpp (same neighbours, same plans).
 class SeededRRTstar : public og::RRTstar {
  public:
   SeededRRTstar(const ob::SpaceInformationPtr& si, std::uint_fast32_t seed) : og::RRTstar(si) {
     rng_.setLocalSeed(seed);
+    const auto& b = si->getStateSpace()->as<ob::RealVectorStateSpace>()->getBounds();
+    nn_ = std::make_shared<planning_detail::GridNearestNeighbors<Motion*>>(b.low[0], b.low[1], b.high[0],
+                                                                             b.high[1]);
   }
 };
 
@@ -275,35 +185,6 @@ void check_point(const PlanningProblem& problem, const PlannerSettings& settings
   }
 }
 
-// path_cost() with the central path already built.
-PathCost cost_of(const Eigen::Ref<const Points2>& path, const CentralPath& risk, const ObstacleChecker& hazards,
-                 const PlanningProblem& problem, const PlannerSettings& settings) {
-  // The same step as OMPL's longest valid segment (extent · fraction).
-  const double extent = (problem.map.upper - problem.map.lower).norm();
-  const double step = extent * (settings.resolution / extent);
-  PathCost c;
-  for (Eigen::Index i = 0; i + 1 < path.rows(); ++i) {
-    const Vec2 a(path(i, 0), path(i, 1)), b(path(i + 1, 0), path(i + 1, 1));
-    const double len = (b - a).norm();
-    c.length += len;
-    c.hazard += hazards.hazard_integral(a, b);
-    if (risk.empty()) continue;
-    const unsigned int n = std::max(1u, segment_count(len, step));
-    Vec2 prev = a;
-    double r_prev = risk.risk(a);
-    for (unsigned int j = 1; j <= n; ++j) {
-      const Vec2 q = j == n ? b : Vec2(a + (static_cast<double>(j) / n) * (b - a));
-      const double r = risk.risk(q);
-      c.risk += 0.5 * (r_prev + r) * (q - prev).norm();
-      prev = q;
-      r_prev = r;
-    }
-  }
-  c.total = settings.alpha * c.length + settings.beta * c.risk;
-  if (settings.hazard_weight > 0.0) c.total += settings.hazard_weight * c.hazard;
-  return c;
-}
-
 }  // namespace
 
 // ---------------------------------------------------------------- validation
@@ -331,6 +212,7 @@ void PlannerSettings::validate() const {
   if (!(corridor_bias >= 0.0 && corridor_bias <= 1.0))
     bad("corridor_bias must be in [0, 1], got " + std::to_string(corridor_bias));
   finite_nonneg(hazard_weight, "hazard_weight");
+  if (informed_sampling && alpha == 0.0) bad("informed_sampling needs alpha > 0 (alpha * length bounds the cost), got alpha = 0");
   param_set<PlannerSettings>().check(*this);
 }
 
@@ -359,6 +241,20 @@ PathCost path_cost(const Eigen::Ref<const Points2>& path, const PlanningProblem&
   if (!path.allFinite()) bad("path has a non-finite point");
   return cost_of(path, CentralPath(problem.central_path, problem.zones), ObstacleChecker(problem.map), problem,
                  settings);
+}
+
+Eigen::VectorXd cost_lower_bound(const Eigen::Ref<const Points2>& points, const PlanningProblem& problem,
+                                 const PlannerSettings& settings) {
+  problem.validate();
+  settings.validate();
+  if (!points.allFinite()) bad("points has a non-finite point");
+  const CentralPath risk(problem.central_path, problem.zones);
+  const bool wrs_term = settings.beta != 0.0 && problem.central_path.rows() > 0;
+  const planning_detail::CostBound bound(settings.alpha, wrs_term ? settings.beta : 0.0, wrs_term ? &risk : nullptr,
+                                         problem.start, problem.goal, settings.goal_tolerance);
+  Eigen::VectorXd out(points.rows());
+  for (Eigen::Index i = 0; i < points.rows(); ++i) out[i] = bound(Vec2(points(i, 0), points(i, 1)));
+  return out;
 }
 
 // ---------------------------------------------------------------- planning
@@ -393,28 +289,6 @@ ob::SpaceInformationPtr make_space_information(const PlanningProblem& problem, c
   return si;
 }
 
-/// α·length + β·∫WRS (eqs. 16, 19) as a sum of OMPL objectives, plus
-/// β_h·∫ risk ds (ours; with β_h = 0 the objective is the paper's, unchanged).
-ob::OptimizationObjectivePtr make_objective(const ob::SpaceInformationPtr& si, const PlanningProblem& problem,
-                                            const PlannerSettings& settings, const ObstacleChecker& obstacles,
-                                            const CentralPath& risk, bool has_risk) {
-  ob::OptimizationObjectivePtr length = std::make_shared<ob::PathLengthOptimizationObjective>(si);
-  ob::OptimizationObjectivePtr objective;
-  if (settings.beta == 0.0 || !has_risk) {
-    objective = settings.alpha == 1.0 ? length : settings.alpha * length;
-  } else {
-    ob::OptimizationObjectivePtr wrs_term = std::make_shared<WrsObjective>(si, risk);
-    objective = settings.alpha == 0.0 ? settings.beta * wrs_term : settings.alpha * length + settings.beta * wrs_term;
-  }
-  if (settings.hazard_weight > 0.0 && !problem.map.hazards.empty()) {
-    ob::OptimizationObjectivePtr hazard_term = std::make_shared<HazardObjective>(si, obstacles);
-    objective = objective + settings.hazard_weight * hazard_term;
-  }
-  // Never "good enough": optimise until the budget is spent.
-  objective->setCostThreshold(ob::Cost(-std::numeric_limits<double>::infinity()));
-  return objective;
-}
-
 /// Runs the seeded RRT* on `pdef` until the iteration or time budget is
 /// spent; fills the result's timing, iteration count and cost history.
 ob::PlannerStatus solve(const ob::SpaceInformationPtr& si, const ob::ProblemDefinitionPtr& pdef,
@@ -425,6 +299,7 @@ ob::PlannerStatus solve(const ob::SpaceInformationPtr& si, const ob::ProblemDefi
   // Radius neighbourhoods (r ≤ range) instead of k-nearest: no long edges, each
   // costing a full WRS integral, while the tree is sparse.
   planner->setKNearest(false);
+  if (settings.informed_sampling) planner->setInformedSampling(true);
   planner->setProblemDefinition(pdef);
   planner->setup();
 

@@ -19,6 +19,14 @@ obstacles, length inside each hazard, exposure ``sum(risk * length)``.
 Same ``seed`` and ``max_iterations`` give the same path (the budget counts
 iterations, not seconds).
 
+Sampling (ours; the defaults are the paper's uniform sampling):
+``corridor_bias`` draws that share of the samples inside the corridor;
+``informed_sampling=True`` samples, once a path of cost c exists, only where
+:func:`cost_lower_bound` is at most c (OMPL's informed RRT*, with a bound
+that includes the least risk a path through the point must collect).  On the
+default scenario either reaches 5 % of the grid optimum 5-20x sooner than
+uniform sampling (docs/planning.md).
+
 Example::
 
     from safenav import planning
@@ -57,6 +65,7 @@ __all__ = [
     "CircleObstacle", "ObstacleChecker", "PlanningMap", "PlanningProblem", "PlannerSettings", "PlanStatus", "PlanResult", "PathCost",
     "HazardZone", "PathSafety", "Inflation", "path_safety", "unavoidable_exposure",
     "make_map", "plan", "replan", "point_ahead", "point_is_free", "segment_is_free", "path_is_free", "path_cost",
+    "cost_lower_bound",
 ]
 
 
@@ -147,6 +156,16 @@ def path_is_free(map: PlanningMap, path) -> bool:
 def path_cost(path, problem: PlanningProblem, settings: PlannerSettings | None = None, **kwargs) -> PathCost:
     """Length, risk and ``alpha * length + beta * risk`` of ``path`` (eq. 19)."""
     return _core.path_cost(as_array("path", path, (None, 2)), problem, _settings(settings, kwargs))
+
+
+def cost_lower_bound(points, problem: PlanningProblem, settings: PlannerSettings | None = None,
+                     **kwargs) -> np.ndarray:
+    """At each point x, a cost no path from ``problem.start`` through x to the
+    goal can beat (the admissible bound of ``informed_sampling``):
+    ``alpha * (|x - start| + |x - goal| - goal_tolerance)`` plus ``beta`` times
+    the least integral of WRS (eq. 18) that the change of deviation (eq. 17)
+    between the end points and x forces, at most 1 m of deviation per metre."""
+    return _core.cost_lower_bound(as_array("points", points, (None, 2)), problem, _settings(settings, kwargs))
 
 
 def path_safety(path, map: PlanningMap) -> PathSafety:

@@ -20,8 +20,9 @@
 // cost, and the planner then builds exactly the paper's objective.
 //
 // The map and its collision checker are world.hpp's.  Built on OMPL's
-// RRTstar; OMPL stays inside cpp/src/planning.cpp: this header exposes only
-// Eigen and std types.
+// RRTstar; OMPL stays inside cpp/src/planning*.cpp: this header exposes only
+// Eigen and std types.  docs/planning.md: the speed-ups (same plans bit for
+// bit) and informed sampling.
 #pragma once
 
 #include <cstdint>
@@ -70,6 +71,13 @@ struct PlannerSettings {
   double corridor_bias = 0.0;
   /// β_h, weight of the hazard term β_h·∫ risk ds [1/m · cost], ≥ 0; 0 = the paper's cost.
   double hazard_weight = 0.0;
+  /// Informed sampling (ours, after Gammell et al. 2014; OMPL's RRTstar
+  /// setInformedSampling): once a path of cost c exists, samples are drawn
+  /// only where a path could be cheaper, the ellipse ‖x − start‖ + ‖x − goal‖
+  /// ≤ c/α + goal_tolerance (α·length is an admissible bound on the cost:
+  /// WRS and hazard risk are ≥ 0), mixed with the corridor samples as above.
+  /// Needs α > 0.  false = the paper's sampling (every plan bit for bit).
+  bool informed_sampling = false;
   void validate() const;
 };
 
@@ -125,5 +133,14 @@ Eigen::Vector2d point_ahead(const Eigen::Ref<const Points2>& path, const Eigen::
 /// Cost of a path under eq. 19 with the settings' α, β, β_h and resolution.
 PathCost path_cost(const Eigen::Ref<const Points2>& path, const PlanningProblem& problem,
                    const PlannerSettings& settings = {});
+
+/// The admissible lower bound that informed sampling uses (see
+/// PlannerSettings::informed_sampling), at each point x: no path from
+/// problem.start through x to the goal costs less than
+///   α(‖x − start‖ + ‖x − goal‖ − goal_tolerance) + β(|W(d_x) − W(d_start)| + |W(d_x) − W(d_goal)|),
+/// with d the deviation from the central path (eq. 17) and W(d) a lower bound
+/// on ∫₀^d WRS(u) du (eq. 18; the deviation changes by at most 1 m per metre).
+Eigen::VectorXd cost_lower_bound(const Eigen::Ref<const Points2>& points, const PlanningProblem& problem,
+                                 const PlannerSettings& settings = {});
 
 }  // namespace safenav
