@@ -111,10 +111,12 @@ void FixedLagSmoother::forward(std::size_t i, std::size_t j) {
     n.Ppp = w.Q;
     n.Ppp.noalias() += w.FP * w.F.transpose();
     // RTS gain G = P Fᵀ (P⁻)⁻¹, i.e. Gᵀ = (P⁻)⁻¹ F P.
+    // A P⁻ that is not positive definite: no smoothing across this step (as the RTS kind), G = 0.
     w.llt.compute(n.Ppp);
-    if (w.llt.info() != Eigen::Success)
-      throw std::runtime_error("iterated smoother: the predicted covariance at t = " + detail::num(n.t1, 12) +
-                               " is not positive definite");
+    if (w.llt.info() != Eigen::Success) {
+      n.G.setZero(w.x.size(), w.x.size());
+      continue;
+    }
     w.llt.solveInPlace(w.FP);
     n.G = w.FP.transpose();
   }
@@ -169,8 +171,7 @@ void FixedLagSmoother::update(Eigen::VectorXd& x, Eigen::MatrixXd& P, const Meas
   } else {
     const LandmarkMeasurement& m = meas.m;
     const LandmarkGeometry g = landmark_geometry(xbar[kX], xbar[kY], m.landmark.x(), m.landmark.y());
-    if (!g.finite() || !g.defined())
-      throw std::domain_error("iterated smoother: the landmark is at the linearisation point");
+    if (!g.finite() || !g.defined()) return;  // h undefined at x̄ (at the landmark): left out of this pass
     const int ik = model_->scale_index(), ib = model_->range_bias_index(m.row);
     Eigen::Vector2d y, sd;
     int rows = 0;
