@@ -1,5 +1,6 @@
-"""Benchmark: the fixed-lag RTS smoother beside the causal filter on Plaza1
-and Plaza2 (gtsam's copies; ``plaza`` preset, started from the data).
+"""Benchmark: the fixed-lag smoothers (RTS and iterated) beside the causal
+filter on Plaza1 and Plaza2 (gtsam's copies; ``plaza`` preset, started from
+the data).
 
 For each file and lag it prints the causal RMSE, the smoothed RMSE (label
 "fixed-lag L s") against the targets (a GTSAM fixed-lag smoother with a 2 s
@@ -9,7 +10,7 @@ the lag minus the replay time without it (median of ``--repeats``; the Python
 loop's cost is the same in both and cancels), over the log's inputs.  Plaza1
 was used to tune the ``plaza`` preset; Plaza2 is held out.
 
-    python bench/bench_smoother.py [--lags 0 1 2 4] [--repeats 5]
+    python bench/bench_smoother.py [--lags 0 1 2 4] [--smoothers rts iterated] [--iterations 1] [--repeats 5]
 """
 
 from __future__ import annotations
@@ -31,6 +32,9 @@ TARGETS = {"Plaza1_.mat": 0.25, "Plaza2_.mat": 0.27}   # RMSE with a 2 s lag [m]
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--lags", type=float, nargs="+", default=[0.0, 1.0, 2.0, 4.0])
+    ap.add_argument("--smoothers", nargs="+", choices=["rts", "iterated"], default=["rts", "iterated"])
+    ap.add_argument("--iterations", type=int, nargs="+", default=[1],
+                    help="Gauss-Newton passes per output of the iterated smoother (each a row)")
     ap.add_argument("--repeats", type=int, default=5)
     args = ap.parse_args()
     import gtsam
@@ -47,15 +51,17 @@ def main():
         causal, t_causal = timed_replay(log, settings, args.repeats)
         print(f"{name}: {n} inputs; causal RMSE {causal.metrics['truth_rmse']:.4f} m "
               f"({causal.metrics['n_scored']} poses), replay {t_causal * 1e6 / n:.2f} us/input")
-        for lag in args.lags:
-            r, t = timed_replay(log, settings, args.repeats, lag=lag)
-            m = r.smoothed_metrics
-            met = "met" if m["truth_rmse"] <= target else "MISSED"
-            verdict = f" (target <= {target} m: {met})" if lag == 2.0 else ""
-            print(f"  {m['label']:>14}: RMSE {m['truth_rmse']:.4f} m{verdict}, ADE {m['truth_ade']:.4f} m, "
-                  f"NEES {m['nees']:.2f}; smoother {(t - t_causal) * 1e6 / n:+.2f} us/input "
-                  f"(target <= 20)")
-
+        variants = [(k, it) for k in args.smoothers for it in (args.iterations if k == "iterated" else [1])]
+        for smoother, iterations in variants:
+            name = smoother if smoother == "rts" else f"iterated x{iterations}"
+            for lag in args.lags:
+                r, t = timed_replay(log, settings, args.repeats, lag=lag, smoother=smoother, iterations=iterations)
+                m = r.smoothed_metrics
+                met = "met" if m["truth_rmse"] <= target else "MISSED"
+                verdict = f" (target <= {target} m: {met})" if lag == 2.0 else ""
+                print(f"  {name:>12} {m['label']:>14}: RMSE {m['truth_rmse']:.4f} m{verdict}, "
+                      f"ADE {m['truth_ade']:.4f} m, NEES {m['nees']:.2f}; smoother "
+                      f"{(t - t_causal) * 1e6 / n:+.2f} us/input (target <= 20)")
 
 if __name__ == "__main__":
     main()

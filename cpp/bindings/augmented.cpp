@@ -42,6 +42,17 @@ void pybind_augmented(py::module_& m) {
             return py::make_tuple(F, Q);
           },
           "(F, Q) of the last predict, full size (P' = F P F^T + Q); identity and zero before any")
+      .def(
+          "transition",
+          [](const AugmentedEkf& f, const Eigen::VectorXd& x, const Control& u, double dt) {
+            const Eigen::Index n = f.size();
+            Eigen::VectorXd x1(n);
+            Eigen::MatrixXd F(n, n), Q(n, n);
+            f.transition(x, u, dt, x1, F, Q);
+            return py::make_tuple(x1, F, Q);
+          },
+          py::arg("x"), py::arg("u"), py::arg("dt"),
+          "(x1, F, Q): predict's f(x, u) over dt, its F and Q at the full state x (not the estimate)")
       .def_property_readonly("P", &AugmentedEkf::P, "4x4 covariance of x")
       .def_property_readonly("augmented", &AugmentedEkf::augmented, "The full state (size entries).")
       .def_property_readonly("augmented_cov", &AugmentedEkf::augmented_cov, "The full covariance.")

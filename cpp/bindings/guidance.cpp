@@ -196,8 +196,18 @@ void bind_localizer(py::module_& m) {
           py::arg("t"),
           "(x, P) predicted to t > time as a measurement at t would be, on a copy of the filter; None before "
           "the start or when t <= time")
-      .def("set_lag", &Localizer::set_lag, py::arg("lag"),
-           "fixed-lag RTS smoothing beside the causal estimate (safenav/smoother.hpp); lag [s] >= 0, EKF only")
+      .def(
+          "set_lag",
+          [](Localizer& l, double lag, const std::string& smoother, int iterations) {
+            l.set_lag(lag, smoother_kind(smoother), iterations);
+          },
+          py::arg("lag"), py::arg("smoother") = "rts", py::arg("iterations") = 1,
+          "fixed-lag smoothing beside the causal estimate (safenav/smoother.hpp); lag [s] >= 0, EKF only; "
+          "smoother 'rts' (a Rauch-Tung-Striebel pass over the filter's linearisation) or 'iterated' (the "
+          "window re-linearised: `iterations` Gauss-Newton passes per output, in [1, 100])")
+      .def_property_readonly(
+          "smoother", [](const Localizer& l) { return std::string(to_string(l.smoother())); },
+          "the fixed-lag smoother's kind: 'rts' or 'iterated' ('rts' when off)")
       .def_property_readonly("lag", &Localizer::lag, "the smoother's lag [s], NaN when off")
       .def(
           "take_smoothed",

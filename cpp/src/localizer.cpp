@@ -84,7 +84,7 @@ InputResult Localizer::Impl::apply_motion(double t, const Control& u) {
   return atomic("motion", t, [&] { return move(t, u, interval); });
 }
 
-InputResult Localizer::Impl::apply(const LoggedInput& in) {
+InputResult Localizer::Impl::apply_input(const LoggedInput& in) {
   switch (in.kind) {
     case LoggedInput::Kind::Motion:
       return apply_motion(in.t, in.a);

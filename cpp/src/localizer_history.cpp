@@ -93,6 +93,7 @@ Localizer::Impl::Checkpoint Localizer::Impl::capture() {
   c.clock = clock();
   c.counts = counts;
   c.fix_rejections = fix_rejections;
+  if (smoother) c.smoother_mark = smoother->mark();
   if (spare_filters.empty()) {
     c.filter = filter->clone();
   } else {
@@ -108,6 +109,7 @@ void Localizer::Impl::restore(const Checkpoint& c) {
   set_clock(c.clock);
   counts = c.counts;
   fix_rejections = c.fix_rejections;
+  if (smoother) smoother->rewind(c.smoother_mark);  // the inputs after it are recorded again
 }
 
 void Localizer::Impl::recycle(Checkpoint& c) {

@@ -157,12 +157,14 @@ struct Localizer::Impl {
     if (!smoother) return filter->predict(u, dt);
     smoother_filtered();
     filter->predict(u, dt);
-    smoother_predicted(t_f + dt, motion);
+    smoother_predicted(t_f + dt, u, dt, motion);
   }
   std::unique_ptr<FixedLagSmoother> smoother;  // null unless Localizer::set_lag
   Eigen::MatrixXd smooth_F, smooth_Q;          // the augmented EKF's last transition (scratch)
   void smoother_filtered();
-  void smoother_predicted(double t1, bool output);
+  void smoother_predicted(double t1, const Control& u, double dt, bool output);
+  /// A measurement input the filter applied (the iterated smoother re-linearises it).
+  void smoother_measured(const LoggedInput& in);
   /// The motion input u over (t − interval, t] once initialized (Localizer::motion).
   InputResult move(double t, const Control& u, double interval);
 
@@ -256,8 +258,14 @@ struct Localizer::Impl {
 
   // -- the inputs, once started (localizer.cpp) -------------------------------
 
-  /// Applies an input now (the filter at its time, or Late).
-  InputResult apply(const LoggedInput& in);
+  /// Applies an input now (the filter at its time, or Late); an applied
+  /// measurement also goes to the smoother.
+  InputResult apply(const LoggedInput& in) {
+    const InputResult r = apply_input(in);
+    if (smoother && in.measurement() && r.status == InputStatus::Applied) smoother_measured(in);
+    return r;
+  }
+  InputResult apply_input(const LoggedInput& in);
   InputResult apply_motion(double t, const Control& u);
   InputResult apply_observation(double t, const LandmarkObservation& o);
   InputResult apply_fix(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R);
@@ -272,6 +280,7 @@ struct Localizer::Impl {
     int fix_rejections = 0;
     std::unique_ptr<Filter> filter;
     std::uint64_t input = 0;
+    std::size_t smoother_mark = 0;  // FixedLagSmoother::mark() at the checkpoint
   };
   std::vector<LoggedInput> inputs;      // every input from the oldest checkpoint's motion input on
   std::uint64_t first_input = 0;        // sequence number of inputs[0]

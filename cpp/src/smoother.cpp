@@ -3,6 +3,7 @@
 #include "safenav/smoother.hpp"
 
 #include <Eigen/Cholesky>
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -33,6 +34,14 @@ FixedLagSmoother::Node& FixedLagSmoother::push() {
   return nodes_.back();
 }
 
+const char* to_string(SmootherKind kind) { return kind == SmootherKind::Iterated ? "iterated" : "rts"; }
+
+SmootherKind smoother_kind(const std::string& name) {
+  if (name == "rts") return SmootherKind::Rts;
+  if (name == "iterated") return SmootherKind::Iterated;
+  detail::bad("smoother = '" + name + "': the fixed-lag smoother is 'rts' or 'iterated'");
+}
+
 void FixedLagSmoother::filtered(double t, const Eigen::Ref<const Eigen::VectorXd>& x,
                                 const Eigen::Ref<const Eigen::MatrixXd>& P) {
   // A re-run from an older time (late measurement, or an input that failed
@@ -48,7 +57,7 @@ void FixedLagSmoother::filtered(double t, const Eigen::Ref<const Eigen::VectorXd
     chained = prev->linked;
   }
   const bool output = chained ? prev->output_next : true;  // a chain's first node is an output (the start)
-  Node& n = push();
+  Node& n = push();  // (prev may move)
   n.t = n.t1 = t;
   n.x = x;
   n.P = P;
@@ -57,8 +66,19 @@ void FixedLagSmoother::filtered(double t, const Eigen::Ref<const Eigen::VectorXd
   n.linked = n.output_next = false;
   n.output = output;
   n.done = !output || t <= emitted_until_ + kEps;
+  if (model_) init_node(n, chained ? &nodes_[nodes_.size() - 2] : nullptr);
   cut_ = false;
   emit(t, false);
+}
+
+void FixedLagSmoother::predicted(double t1, const Eigen::Ref<const Eigen::VectorXd>& x,
+                                 const Eigen::Ref<const Eigen::MatrixXd>& P,
+                                 const Eigen::Ref<const Eigen::MatrixXd>& F, const Control& u, double dt,
+                                 bool output) {
+  if (window() == 0) return;
+  nodes_.back().u = u;
+  nodes_.back().dt = dt;
+  predicted(t1, x, P, F, output);
 }
 
 void FixedLagSmoother::predicted(double t1, const Eigen::Ref<const Eigen::VectorXd>& x,
@@ -70,6 +90,7 @@ void FixedLagSmoother::predicted(double t1, const Eigen::Ref<const Eigen::Vector
   n.xp = x;
   n.Pp = P;
   n.output_next = output;
+  if (model_) return;  // the iterated solve computes its own gains
   // RTS gain C = P Fᵀ (P⁻)⁻¹, i.e. Cᵀ = (P⁻)⁻¹ F P (P, P⁻ symmetric).
   T_.noalias() = F * n.P;
   llt_.compute(n.Pp);
@@ -96,7 +117,8 @@ void FixedLagSmoother::emit(double t_closed, bool all) {
     std::size_t j = i;
     while (j + 1 < nodes_.size() && nodes_[j].linked && nodes_[j + 1].t <= n.t + lag_ + kEps) ++j;
     SmoothedEstimate e;
-    smooth(i, j, e);
+    if (model_ && lag_ > 0.0) solve(i, j, e);  // lag 0: the causal filter (no look-ahead to iterate on)
+    else smooth(i, j, e);
     out_.push_back(e);
     emitted_until_ = n.t;
     n.done = true;
@@ -133,6 +155,12 @@ void FixedLagSmoother::prune() {
     for (std::size_t k = 0; k < head_; ++k) spare_.push_back(std::move(nodes_[k]));
     nodes_.erase(nodes_.begin(), nodes_.begin() + static_cast<std::ptrdiff_t>(head_));
     head_ = 0;
+    // Measurements before the first live node's are no longer needed.
+    const std::size_t keep = std::max(nodes_.front().m0, meas_base_);
+    if (model_ && keep > meas_base_ && keep - meas_base_ <= meas_.size()) {
+      meas_.erase(meas_.begin(), meas_.begin() + static_cast<std::ptrdiff_t>(keep - meas_base_));
+      meas_base_ = keep;
+    }
   }
 }
 
@@ -143,16 +171,35 @@ void Localizer::Impl::smoother_filtered() {
   else smoother->filtered(t_f, filter->x(), filter->P());
 }
 
-void Localizer::Impl::smoother_predicted(double t1, bool output) {
+void Localizer::Impl::smoother_predicted(double t1, const Control& u, double dt, bool output) {
   if (const AugmentedEkf* a = filter->augmented_ekf()) {
     a->last_transition(smooth_F, smooth_Q);
-    smoother->predicted(t1, a->augmented(), a->augmented_cov(), smooth_F, output);
+    smoother->predicted(t1, a->augmented(), a->augmented_cov(), smooth_F, u, dt, output);
   } else {
-    smoother->predicted(t1, filter->x(), filter->P(), filter->ekf()->last_transition().F, output);
+    smoother->predicted(t1, filter->x(), filter->P(), filter->ekf()->last_transition().F, u, dt, output);
   }
 }
 
-void Localizer::set_lag(double lag) {
+void Localizer::Impl::smoother_measured(const LoggedInput& in) {
+  switch (in.kind) {
+    case LoggedInput::Kind::Observation: {
+      const LandmarkObservation& o = in.obs;
+      LandmarkMeasurement m;  // as apply_observation gives it to the filter
+      m.row = row_of.at(o.id);
+      m.landmark = landmarks.row(m.row).transpose();
+      m.range = o.range;
+      m.bearing = o.bearing;
+      m.range_std = o.range_std;
+      m.bearing_std = o.bearing_std;
+      return smoother->measured(m);
+    }
+    case LoggedInput::Kind::Fix: return smoother->measured_position(in.a, in.R);
+    case LoggedInput::Kind::SpeedHeading: return smoother->measured_speed_heading(in.a, in.R);
+    default: return;
+  }
+}
+
+void Localizer::set_lag(double lag, SmootherKind kind, int iterations) {
   Impl& I = *impl_;
   if (std::isnan(lag) || !(lag >= 0.0) || !std::isfinite(lag))
     bad("lag = " + num(lag) + " s: the fixed-lag smoother's lag must be finite and >= 0");
@@ -160,7 +207,19 @@ void Localizer::set_lag(double lag) {
     bad("lag = " + num(lag) +
         " s: fixed-lag smoothing needs the EKF (plain or augmented); the particle and information filters "
         "have no Rauch-Tung-Striebel pass here");
-  I.smoother = std::make_unique<FixedLagSmoother>(lag);
+  if (kind == SmootherKind::Rts) {
+    I.smoother = std::make_unique<FixedLagSmoother>(lag);
+    return;
+  }
+  // The filter's own model: the augmented EKF's, or with no augmented states the plain EKF's f, F, Q.
+  const AugmentedStates none;
+  const AugmentedEkf model(I.settings.bmm, I.settings.augment.any() ? I.settings.augment : none,
+                           static_cast<int>(I.landmarks.rows()), State::Zero(), StateCov::Identity());
+  I.smoother = std::make_unique<FixedLagSmoother>(lag, model, iterations);
+}
+
+SmootherKind Localizer::smoother() const {
+  return impl_->smoother ? impl_->smoother->kind() : SmootherKind::Rts;
 }
 
 double Localizer::lag() const { return impl_->smoother ? impl_->smoother->lag() : kNaN; }

@@ -308,7 +308,8 @@ def _replay(args) -> int:
         if np.isnan(h):
             raise ValueError(f"--prior-from-truth: the first truth row of {args.log} has no heading")
         prior = (t0, np.array([x, y, 0.0, h]), np.diag([0.1, 0.1, 0.5, 0.02]) ** 2)
-    result = rp.replay(log, settings, prior=prior, innovations=args.view is not None, lag=args.lag)
+    result = rp.replay(log, settings, prior=prior, innovations=args.view is not None, lag=args.lag,
+                       smoother=args.smoother)
     out = Path(args.out)
     with _run_folder(args, out, seed=args.seed) as run:
         write_trajectory(out, result, log)   # trajectory.csv, .tum, .mcap; truth.tum
@@ -320,7 +321,8 @@ def _replay(args) -> int:
                    "started_from": result.started_from,
                    "t_start": result.t_start if result.estimated else None, "counts": result.counts, "metrics": result.metrics,
                    "reason": result.reason,
-                   "lag": args.lag, "smoothed_metrics": result.smoothed_metrics}
+                   "lag": args.lag, "smoother": args.smoother if args.lag is not None else None,
+                   "smoothed_metrics": result.smoothed_metrics}
         write_json(out / "replay.json", summary)
         foxglove.replay_view(args.view, log, result, source=str(args.log))
         c = result.counts
@@ -534,6 +536,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--seed", type=_at_least(0), default=0, help="particle filter seed")
     s.add_argument("--lag", type=float, default=None, metavar="SECONDS", help="also run the fixed-lag smoother "
                    "(EKF; docs/replay.md): trajectory_lag.csv, scored as 'fixed-lag SECONDS s' (not causal)")
+    s.add_argument("--smoother", choices=["rts", "iterated"], default="rts",
+                   help="the fixed-lag smoother with --lag: an RTS pass over the filter's linearisation, or the "
+                        "iterated window solve (docs/replay.md, 'Fixed-lag smoothing'; default rts)")
     s.add_argument("--out", default="out/replay", help="output folder (default out/replay)")
     foxglove.add_view_argument(s)
     s.set_defaults(func=_replay)

@@ -124,7 +124,8 @@ def load(path, *, range_std: float = 1.0) -> Log:
 
 
 def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None,
-           innovations: bool = False, delays=None, lag: float | None = None) -> ReplayResult:
+           innovations: bool = False, delays=None, lag: float | None = None, smoother: str = "rts",
+           iterations: int = 1) -> ReplayResult:
     """Run ``log`` through a :class:`Localizer` with ``settings`` (default:
     the ``default`` preset, :func:`preset_settings`).  ``prior`` = ``(t, x0, P0)``
     starts it from a prior; by default it starts from the data.
@@ -136,12 +137,14 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None,
     motion input had when it arrived (causal).  ``lag`` (seconds, finite and
     ≥ 0; EKF only) also runs the fixed-lag smoother beside the causal filter
     (:attr:`ReplayResult.smoothed`, :attr:`ReplayResult.smoothed_metrics`);
-    the causal trajectory and its scores stay as they are."""
+    ``smoother`` is its kind, ``"rts"`` or ``"iterated"`` (``iterations``
+    Gauss–Newton passes per output; docs/replay.md, "Fixed-lag smoothing").
+    The causal trajectory and its scores stay as they are."""
     ids = sorted(log.landmarks)
     landmarks = np.array([log.landmarks[i] for i in ids], dtype=float).reshape(-1, 2)
     loc = Localizer(settings or preset_settings("default"), landmarks, ids)
     if lag is not None:
-        loc.set_lag(float(lag))  # ValueError naming lag: negative, NaN, or not the EKF
+        loc.set_lag(float(lag), smoother, int(iterations))  # ValueError naming lag (negative, NaN, not the EKF) or smoother
     if prior is not None:
         t0, x0, P0 = prior
         loc.initialize(float(t0), np.asarray(x0, dtype=float), np.asarray(P0, dtype=float))
@@ -203,6 +206,7 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None,
         result.smoothed = _smoothed(loc)
         if log.truth is not None and len(result.smoothed):
             result.smoothed_metrics = score(result.smoothed, log.truth, label=lag_label(lag))
+            result.smoothed_metrics["smoother"] = smoother
     if not len(traj):
         result.reason = f"never started: {loc.reason()}"
     elif result.metrics and result.metrics["n_before_start"] > 0:

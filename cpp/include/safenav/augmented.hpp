@@ -94,6 +94,12 @@ class AugmentedEkf {
   /// before any predict), as predict applied them: P' = F P Fᵀ + Q.  For a
   /// Rauch–Tung–Striebel smoother (safenav/smoother.hpp).  Resizes F and Q.
   void last_transition(Eigen::MatrixXd& F, Eigen::MatrixXd& Q) const;
+  /// predict's model at the full state x instead of the estimate: x1 = f(x, u)
+  /// over dt, its F and Q (as last_transition's), for an iterated smoother that
+  /// re-linearises about its own trajectory (safenav/smoother.hpp).  x, x1 of
+  /// size() entries, F and Q size() × size() (std::invalid_argument otherwise).
+  void transition(const Eigen::Ref<const Eigen::VectorXd>& x, const Control& u, double dt,
+                  Eigen::Ref<Eigen::VectorXd> x1, Eigen::Ref<Eigen::MatrixXd> F, Eigen::Ref<Eigen::MatrixXd> Q) const;
   /// r = (1+k)·‖p − a‖ + b_row, with variance σ_r² (eqs. 12–14).
   UpdateResult update_range(int landmark_row, const Eigen::Vector2d& landmark, double r, double variance);
   /// Relative bearing atan2(a − p) − θ (counter-clockwise, wrapped); not affected by k, b.
@@ -118,7 +124,10 @@ class AugmentedEkf {
                      MeasurementKind kind);
   void sync4();
   /// Adds the augmented states' random walks over dt to P's diagonal (eq. 11's Q, augmented part).
-  void add_walks(Eigen::MatrixXd& P, double dt) const;
+  void add_walks(Eigen::Ref<Eigen::MatrixXd> P, double dt) const;
+  /// Eq. 11's f at (x4, β) over dt with its F₄, G, ∂f/∂β and Σ_ε (the one motion model of predict and transition).
+  State step(const State& x4, double beta, const Control& u, double dt, Eigen::Matrix4d& F4, Eigen::Matrix4d& G,
+             Eigen::Vector4d& Fb, Eigen::Matrix4d& noise) const;
 
   Bmm bmm_;
   AugmentedStates augment_;

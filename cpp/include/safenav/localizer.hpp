@@ -254,8 +254,12 @@ class Localizer {
   /// with the data up to that time + lag, once the filter passes it.  lag [s]
   /// finite and ≥ 0; the EKF only (plain or augmented: std::invalid_argument
   /// for the particle or information filter).  The causal estimate (x(), P())
-  /// is unchanged; without set_lag nothing is recorded.
-  void set_lag(double lag);
+  /// is unchanged; without set_lag nothing is recorded.  `kind`: the RTS
+  /// pass over the filter's linearisation, or the iterated window solve with
+  /// `iterations` Gauss–Newton passes per output (safenav/smoother.hpp).
+  void set_lag(double lag, SmootherKind kind = SmootherKind::Rts, int iterations = 1);
+  /// The smoother's kind (Rts when off).
+  SmootherKind smoother() const;
   /// The smoother's lag [s], NaN when off.
   double lag() const;
   /// The smoothed estimates that became final since the last call, oldest first.

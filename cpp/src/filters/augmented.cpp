@@ -119,25 +119,34 @@ void AugmentedEkf::set_gate(double probability) {
   }
 }
 
-void AugmentedEkf::predict(const Control& u, double dt) {
-  // Eq. 11.  The BMM (eqs. 3–9) of Bmm::with_step(dt) evaluated at θ − β·dt
-  // gives θ' = θ + clip(Δθ) − β·dt and p' moving along that θ' (eq. 7), with
+State AugmentedEkf::step(const State& x4, double beta, const Control& u, double dt, Eigen::Matrix4d& F4,
+                          Eigen::Matrix4d& G, Eigen::Vector4d& Fb, Eigen::Matrix4d& noise) const {
+  // The BMM (eqs. 3–9) of Bmm::with_step(dt) evaluated at θ − β·dt gives
+  // θ' = θ + clip(Δθ) − β·dt and p' moving along that θ' (eq. 7), with
   // F₄ = ∂f/∂(x, y, v, θ) and G = ∂f/∂ε; then ∂f/∂β = −dt·∂f/∂θ.
   if (!(std::isfinite(dt) && dt > 0.0))
     throw std::invalid_argument("AugmentedEkf predict: dt = " + num(dt) + " s must be finite and > 0");
   const Bmm step = bmm_.is_nominal_step(dt) ? bmm_ : bmm_.with_step(dt);
-  const double beta = ig_ >= 0 ? x_[ig_] : 0.0;
-  State xs = x4_;
-  xs[kTheta] = x4_[kTheta] - beta * dt;
-  Eigen::Matrix4d F4, G;
+  State xs = x4;
+  xs[kTheta] = x4[kTheta] - beta * dt;
   const State x1 = step.linearize(xs, u, &F4, &G);
-  const Eigen::Vector4d Fb = -dt * F4.col(kTheta);  // ∂f/∂β
+  Fb = -dt * F4.col(kTheta);  // ∂f/∂β
+  noise = step.noise_cov();
+  return x1;
+}
+
+void AugmentedEkf::predict(const Control& u, double dt) {
+  // Eq. 11 over dt with the bias-corrected heading change (step()).
+  const double beta = ig_ >= 0 ? x_[ig_] : 0.0;
+  Eigen::Matrix4d F4, G, noise;
+  Eigen::Vector4d Fb;
+  const State x1 = step(x4_, beta, u, dt, F4, G, Fb, noise);
   // F = [F₄ Fβ 0; 0 I]: only rows 0..3 change.  JP = rows 0..3 of F P.
   JP_.noalias() = F4 * P_.topRows<4>();
   if (ig_ >= 0) JP_.noalias() += Fb * P_.row(ig_);
   Eigen::Matrix4d TL = JP_.leftCols<4>() * F4.transpose();
   if (ig_ >= 0) TL.noalias() += JP_.col(ig_) * Fb.transpose();
-  TL.noalias() += G * step.noise_cov() * G.transpose();
+  TL.noalias() += G * noise * G.transpose();
   TL = 0.5 * (TL + TL.transpose()).eval();
   if (!(TL.allFinite() && JP_.allFinite() && x1.allFinite()))
     throw std::invalid_argument("AugmentedEkf predict: the predicted state or covariance is not finite (dt = " +
@@ -156,11 +165,31 @@ void AugmentedEkf::predict(const Control& u, double dt) {
   last_F4_ = F4;
   last_Fb_ = Fb;
   last_G_ = G;
-  last_noise_ = step.noise_cov();
+  last_noise_ = noise;
   last_dt_ = dt;
 }
 
-void AugmentedEkf::add_walks(Eigen::MatrixXd& P, double dt) const {
+void AugmentedEkf::transition(const Eigen::Ref<const Eigen::VectorXd>& x, const Control& u, double dt,
+                              Eigen::Ref<Eigen::VectorXd> x1, Eigen::Ref<Eigen::MatrixXd> F,
+                              Eigen::Ref<Eigen::MatrixXd> Q) const {
+  // predict's f, F and Q (step(), add_walks) at x instead of the estimate.
+  if (x.size() != n_ || x1.size() != n_ || F.rows() != n_ || F.cols() != n_ || Q.rows() != n_ || Q.cols() != n_)
+    throw std::invalid_argument("AugmentedEkf.transition: x, x1 must have " + std::to_string(n_) +
+                                " entries and F, Q be " + std::to_string(n_) + "x" + std::to_string(n_));
+  Eigen::Matrix4d F4, G, noise;
+  Eigen::Vector4d Fb;
+  const State x4 = x.head<4>();
+  x1 = x;
+  x1.head<4>() = step(x4, ig_ >= 0 ? x[ig_] : 0.0, u, dt, F4, G, Fb, noise);
+  F.setIdentity();
+  F.topLeftCorner<4, 4>() = F4;
+  if (ig_ >= 0) F.block<4, 1>(0, ig_) = Fb;
+  Q.setZero();
+  Q.topLeftCorner<4, 4>() = G * noise * G.transpose();
+  add_walks(Q, dt);
+}
+
+void AugmentedEkf::add_walks(Eigen::Ref<Eigen::MatrixXd> P, double dt) const {
   if (ik_ >= 0) P(ik_, ik_) += augment_.scale_walk * augment_.scale_walk * dt;
   if (ig_ >= 0) P(ig_, ig_) += augment_.heading_rate_bias_walk * augment_.heading_rate_bias_walk * dt;
   if (ib0_ >= 0)
