@@ -238,7 +238,8 @@ bool Guard::slow_to_clear(const State& x, const Control& u0, double keep, GuardD
 /// not grow since the previous request was shrunk by a measurement.
 void Guard::track(const State& x, double position_std) {
   const double sd = position_std;
-  if (std::isfinite(sigma_prev_) && sd <= sigma_prev_) sigma_min_ = std::min(sigma_min_, sd);
+  fixing_ = std::isfinite(sigma_prev_) && sd <= sigma_prev_;
+  if (fixing_) sigma_min_ = std::min(sigma_min_, sd);
   sigma_prev_ = sd;
   if (recovering_ == 1) return;  // backing up consumes the track
   const Eigen::Vector2d p = x.head<2>();
@@ -345,7 +346,12 @@ GuardDecision Guard::decide(double t, const State& x, double position_std, const
   hold_start_ = -std::numeric_limits<double>::infinity();
   if (out.margin >= 0.0 && looking_ < 0) looking_ = 0;  // clear again: a later conflict may look again
   if (out.margin >= g.slow_distance && looking_ == 0) return out;
-  if (out.margin >= 0.0 && looking_ == 0) {  // slow down
+  // Slow down, so that more fixes arrive per metre; without fixes (σ grew
+  // since the last request: dead reckoning) slowing buys nothing — σ grows
+  // per step, not per metre — and the clear way ahead (m ≥ 0) is the whole
+  // promise, so the method's control is kept.
+  if (out.margin >= 0.0 && looking_ == 0) {
+    if (!fixing_) return out;
     const double f = std::max(g.min_speed_fraction, g.slow_distance > 0 ? out.margin / g.slow_distance : 1.0);
     if (f < 1.0) {
       const Control u(f * u0[0], u0[1]);

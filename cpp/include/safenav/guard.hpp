@@ -29,8 +29,11 @@ namespace safenav {
 /// braking to a stop (a dynamic-window rollout).  With margin
 /// m = d − ρ − buffer for the method's control:
 ///   * m ≥ slow_distance: the method's control is kept;
-///   * 0 ≤ m < slow_distance: it slows down, to a speed fraction m/slow_distance
-///     (at least min_speed_fraction);
+///   * 0 ≤ m < slow_distance, with fixes arriving (σ did not grow since the
+///     previous request): it slows down, to a speed fraction m/slow_distance
+///     (at least min_speed_fraction), so more fixes arrive per metre; without
+///     fixes it keeps the control (σ grows per step, not per metre: slowing
+///     would only lose time);
 ///   * m < 0, but the method's turn at half or at the slowest speed has a
 ///     clear way ahead (m ≥ 0: a shorter way ahead, the obstacle is ahead,
 ///     not beside): it slows to the fastest of those (a graded speed law; no
@@ -198,6 +201,7 @@ class Guard {
   // fix quality (≤ 2 × the least), one point per metre, oldest first.
   double sigma_min_ = std::numeric_limits<double>::infinity();
   double sigma_prev_ = std::numeric_limits<double>::infinity();
+  bool fixing_ = false;  // σ did not grow since the previous request: fixes arrive
   std::vector<Eigen::Vector2d> track_;
   // The hold in progress: its start time (−inf: none) and σ then.
   double hold_start_ = -std::numeric_limits<double>::infinity();
