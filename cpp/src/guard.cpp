@@ -252,8 +252,8 @@ void Guard::track(const State& x, double position_std) {
 
 /// A recovery step (Nav2's recoveries): back up along the track, or spin in
 /// place.  False when it is over — σ has halved since it began (a fix), the
-/// track is used up, the spin has turned once round, or the back-up's own
-/// way ahead is not clear — and the guard decides afresh.
+/// track is used up, the spin has turned once round, or the step's own way
+/// ahead is neither clear nor as safe as holding — and the guard decides afresh.
 bool Guard::recover(double t, const State& x, double position_std, double keep, GuardDecision& out) {
   const BmmParams& p = bmm_.params();
   if (position_std <= 0.5 * recover_sigma_) recovering_ = 0;
@@ -272,8 +272,12 @@ bool Guard::recover(double t, const State& x, double position_std, double keep, 
     u = Control(0.0, p.max_heading_rate * p.dt);
   }
   if (recovering_ == 0) return false;
+  // Clear (m ≥ 0), or, like the hold it replaces (outside the risk bound
+  // too), touching nothing and no nearer the obstacles than holding here:
+  // a spin in place always is, a back-up along the way in usually.
   const double d = way_ahead(x, u, keep).clearance;
-  if (d - keep < 0.0) {
+  const bool as_hold = d > settings_.buffer && d >= way_ahead(x, Control(0.0, 0.0), keep).clearance - 1e-9;
+  if (d - keep < 0.0 && !as_hold) {
     recovering_ = 0;
     return false;
   }
