@@ -197,7 +197,8 @@ def test_trial_truth_metrics_are_the_trajectory_score_of_its_recorded_poses():
 
 
 def test_outcome_names_are_the_cores():
-    assert nv.OUTCOMES == ("arrived", "collision", "left_corridor", "step_limit", "lost_localization", "no_path")
+    assert nv.OUTCOMES == ("arrived", "collision", "left_corridor", "step_limit", "lost_localization", "no_path",
+                           "blocked")
     for code, name in enumerate(nv.OUTCOMES):
         assert _core.outcome_name(nv.TrialOutcome(code)) == name
 

@@ -119,11 +119,20 @@ def test_the_guard_acts_only_when_its_k_sigma_radius_reaches_the_clearance():
     # Far from everything the clearance is the cached lower bound, which suffices.
     assert 1.0 + 3 * 0.05 + 0.25 <= sure.clearance <= 2.7 + 1e-9
     assert sure.guard_margin == pytest.approx(sure.clearance - 3 * sure.position_std - 0.25)   # less the buffer
-    # σ = 0.6: ρ + buffer = 2.05 m, within the 1 m slowing band of the 2.7+ m clearance: slower, same heading.
-    closer = _guidance(obstacle, sigma=0.6).command(0.0)
+    # σ = 0.6: ρ + buffer = 2.05 m, within the 1 m slowing band of the 2.7+ m clearance: slower, same heading,
+    # once fixes arrive (a second request with σ not grown); dead reckoning, slowing would buy nothing.
+    g = _guidance(obstacle, sigma=0.6)
+    assert gd.event_names(g.command(0.0).events) == []
+    closer = g.command(0.0)
     assert gd.event_names(closer.events) == ["guard_slow"] and 0.5 <= closer.speed < 2.0
     assert closer.heading_change == sure.heading_change
-    unsure = _guidance(obstacle, sigma=1.0).command(0.0)
+    # σ = 1: the way ahead at cruise speed reaches within 3.25 m of the boulder, at half speed it does not:
+    # the graded speed law slows on the method's heading rather than steering off the path.
+    ahead = _guidance(obstacle, sigma=1.0).command(0.0)
+    assert gd.event_names(ahead.events) == ["guard_slow"] and ahead.speed == 1.0
+    assert ahead.heading_change == sure.heading_change and ahead.guard_margin >= 0
+    # σ = 1.3: no speed on that heading keeps 4.15 m clear: it steers.
+    unsure = _guidance(obstacle, sigma=1.3).command(0.0)
     assert "guard_steer" in gd.event_names(unsure.events)
     assert unsure.heading_change < 0                # away from the boulder on the left
     assert unsure.guard_margin >= 0

@@ -81,6 +81,9 @@ void bind_guard_settings(py::module_& m) {
       .def_readwrite("slow_distance", &GuardSettings::slow_distance)
       .def_readwrite("min_speed_fraction", &GuardSettings::min_speed_fraction)
       .def_readwrite("horizon", &GuardSettings::horizon)
+      .def_readwrite("hold_timeout", &GuardSettings::hold_timeout)
+      .def_readwrite("max_recoveries", &GuardSettings::max_recoveries)
+      .def_readwrite("recovery_speed", &GuardSettings::recovery_speed)
       .def_readwrite("look_range", &GuardSettings::look_range)
       .def_readwrite("look_min_landmarks", &GuardSettings::look_min_landmarks)
       .def_readwrite("field_of_view", &GuardSettings::field_of_view)
@@ -257,7 +260,8 @@ void bind_guidance(py::module_& m) {
       .value("ARRIVED", GuidanceStatus::Arrived)
       .value("NO_PATH", GuidanceStatus::NoPath)
       .value("LOST_LOCALIZATION", GuidanceStatus::LostLocalization)
-      .value("STALE_INPUT", GuidanceStatus::StaleInput);
+      .value("STALE_INPUT", GuidanceStatus::StaleInput)
+      .value("BLOCKED", GuidanceStatus::Blocked);
   m.attr("EVENT_DETOUR_PLANNED") = static_cast<unsigned>(kDetourPlanned);
   m.attr("EVENT_PATH_SPLICED") = static_cast<unsigned>(kPathSpliced);
   m.attr("EVENT_NO_PATH") = static_cast<unsigned>(kNoPath);
@@ -267,6 +271,8 @@ void bind_guidance(py::module_& m) {
   m.attr("EVENT_GUARD_STEER") = static_cast<unsigned>(kGuardSteer);
   m.attr("EVENT_GUARD_HOLD") = static_cast<unsigned>(kGuardHold);
   m.attr("EVENT_STALE_INPUT") = static_cast<unsigned>(kStaleInput);
+  m.attr("EVENT_GUARD_RECOVER") = static_cast<unsigned>(kGuardRecover);
+  m.attr("EVENT_BLOCKED") = static_cast<unsigned>(kBlocked);
 
   py::class_<Command>(m, "Command")
       .def_property_readonly("speed", [](const Command& c) { return c.control[0]; })

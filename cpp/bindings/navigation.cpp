@@ -49,6 +49,7 @@ constexpr CountField kCounts[] = {
     {"guard_slow", &TrialResult::guard_slow},
     {"guard_steer", &TrialResult::guard_steer},
     {"guard_hold", &TrialResult::guard_hold},
+    {"guard_recover", &TrialResult::guard_recover},
     {"stale_input", &TrialResult::stale_input},
 };
 
@@ -143,6 +144,7 @@ void bind_trial_result(py::module_& m) {
       .def_readonly("guard_slow", &TrialResult::guard_slow)
       .def_readonly("guard_steer", &TrialResult::guard_steer)
       .def_readonly("guard_hold", &TrialResult::guard_hold)
+      .def_readonly("guard_recover", &TrialResult::guard_recover)
       .def_readonly("stale_input", &TrialResult::stale_input)
       .def_readonly("wall_time", &TrialResult::wall_time)
       .def_property_readonly("metrics", [](const TrialResult& r) { return metrics_dict(r.metrics); })
@@ -238,7 +240,8 @@ void pybind_navigation(py::module_& m) {
       .value("LEFT_CORRIDOR", TrialOutcome::LeftCorridor)
       .value("STEP_LIMIT", TrialOutcome::StepLimit)
       .value("LOST_LOCALIZATION", TrialOutcome::LostLocalization)
-      .value("NO_PATH", TrialOutcome::NoPath);
+      .value("NO_PATH", TrialOutcome::NoPath)
+      .value("BLOCKED", TrialOutcome::Blocked);
   m.def("outcome_name", [](TrialOutcome o) { return to_string(o); });
 
   py::enum_<FixModel>(m, "FixModel", "Where the simulator's position fixes come from.")

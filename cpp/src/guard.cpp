@@ -210,13 +210,132 @@ bool Guard::steer(const State& x, const Control& u0, double rho, double keep, co
   return true;
 }
 
+/// The graded speed law: when the method's control conflicts (m < 0), the
+/// fastest of half and the slowest speed, on the method's own turn, whose
+/// way ahead is clear (m ≥ 0).  A slower control's way ahead is shorter, so
+/// an obstacle ahead (a bend of the path round it) drops out of it; one
+/// beside the path does not, and this fails.  The control kept is clear, so
+/// the one-exposure bound of the risk budget holds for it as for any other.
+bool Guard::slow_to_clear(const State& x, const Control& u0, double keep, GuardDecision& out) {
+  for (double f : {0.5, settings_.min_speed_fraction}) {
+    if (f >= 1.0 || !(u0[0] > 0.0)) continue;
+    const Control u(f * u0[0], u0[1]);
+    const double d = way_ahead(x, u, keep).clearance;
+    if (d - keep >= 0.0) {
+      out.control = u;
+      out.action = GuardAction::Slow;
+      out.clearance = d;
+      out.margin = d - keep;
+      return true;
+    }
+  }
+  return false;
+}
+
+/// The run's history from the estimate alone: the least σ of a fix, and the
+/// track driven since σ was last of fix quality (≤ 2 × that σ), one point
+/// per metre.  The BMM's process noise grows σ every step, so a σ that did
+/// not grow since the previous request was shrunk by a measurement.
+void Guard::track(const State& x, double position_std) {
+  const double sd = position_std;
+  fixing_ = std::isfinite(sigma_prev_) && sd <= sigma_prev_;
+  if (fixing_) sigma_min_ = std::min(sigma_min_, sd);
+  sigma_prev_ = sd;
+  if (recovering_ == 1) return;  // backing up consumes the track
+  const Eigen::Vector2d p = x.head<2>();
+  if (!std::isfinite(sigma_min_) || sd <= 2.0 * sigma_min_) {
+    track_.assign(1, p);
+  } else if (track_.empty() || (p - track_.back()).norm() >= 1.0) {
+    track_.push_back(p);
+  }
+}
+
+/// A recovery step (Nav2's recoveries): back up along the track, or spin in
+/// place.  False when it is over — σ has halved since it began (a fix), the
+/// track is used up, the spin has turned once round, or the step's own way
+/// ahead is neither clear nor as safe as holding — and the guard decides afresh.
+bool Guard::recover(double t, const State& x, double position_std, double keep, GuardDecision& out) {
+  const BmmParams& p = bmm_.params();
+  if (position_std <= 0.5 * recover_sigma_) recovering_ = 0;
+  Control u(0.0, 0.0);
+  if (recovering_ == 1) {
+    while (!track_.empty() && (track_.back() - x.head<2>()).norm() < 1.0) track_.pop_back();
+    if (track_.empty()) {
+      recovering_ = 0;
+      return false;
+    }
+    const double turn = wrap_angle(std::atan2(track_.back().y() - x[kY], track_.back().x() - x[kX]) - x[kTheta]);
+    // Turn in place first when the track lies behind, then drive along it.
+    u = Control(std::abs(turn) > 0.5 * kPi ? 0.0 : settings_.recovery_speed, turn);
+  } else if (recovering_ == 2) {
+    if (t - recover_start_ > 2.0 * kPi / p.max_heading_rate) recovering_ = 0;
+    u = Control(0.0, p.max_heading_rate * p.dt);
+  }
+  if (recovering_ == 0) return false;
+  // Clear (m ≥ 0), or, like the hold it replaces (outside the risk bound
+  // too), touching nothing and no nearer the obstacles than holding here:
+  // a spin in place always is, a back-up along the way in usually.
+  const double d = way_ahead(x, u, keep).clearance;
+  const bool as_hold = d > settings_.buffer && d >= way_ahead(x, Control(0.0, 0.0), keep).clearance - 1e-9;
+  if (d - keep < 0.0 && !as_hold) {
+    recovering_ = 0;
+    return false;
+  }
+  out.control = u;
+  out.action = GuardAction::Recover;
+  out.clearance = d;
+  out.margin = d - keep;
+  return true;
+}
+
+/// Hold for a fix, turning toward `look`.  A hold that has not halved σ
+/// within hold_timeout is stuck: a recovery, or after max_recoveries, Blocked.
+GuardDecision Guard::hold(double t, const State& x, double position_std, double keep, double look, int could_see) {
+  const GuardSettings& g = settings_;
+  if (!std::isfinite(hold_start_) || position_std <= 0.5 * hold_sigma_) {  // a new hold, or progress: restart
+    hold_start_ = t;
+    hold_sigma_ = position_std;
+  }
+  GuardDecision out;
+  if (t - hold_start_ > g.hold_timeout) {
+    hold_start_ = -std::numeric_limits<double>::infinity();
+    if (recoveries_ < g.max_recoveries) {
+      ++recoveries_;
+      recovering_ = track_.size() > 1 ? 1 : 2;
+      recover_start_ = t;
+      recover_sigma_ = position_std;
+      if (recover(t, x, position_std, keep, out)) return out;
+    } else {
+      const double d = way_ahead(x, Control(0.0, 0.0), keep).clearance;
+      out.control = Control(0.0, 0.0);
+      out.action = GuardAction::Blocked;
+      out.clearance = d;
+      out.margin = d - keep;
+      out.reason = "blocked at (" + detail::num(x[kX]) + ", " + detail::num(x[kY]) + "): held " +
+                   detail::num(g.hold_timeout) + " s without sigma halving (sigma = " + detail::num(position_std) +
+                   " m, k*sigma + buffer = " + detail::num(keep) + " m), " +
+                   (could_see >= g.look_min_landmarks ? "sigma is as small as fixes make it here"
+                                                      : "no landmark can be seen from here") +
+                   "; " + std::to_string(recoveries_) + " recoveries did not help";
+      return out;
+    }
+  }
+  out.control = Control(0.0, look);
+  out.action = GuardAction::Hold;
+  out.clearance = way_ahead(x, out.control, keep).clearance;
+  out.margin = out.clearance - keep;
+  return out;
+}
+
 GuardDecision Guard::decide(double t, const State& x, double position_std, const Control& proposed,
                             const Corridor& path) {
   const GuardSettings& g = settings_;
   const double rho = g.k * position_std;
   const double keep = rho + g.buffer;  // the clearance the way ahead must keep
   const Control u0 = proposed;
+  track(x, position_std);
   GuardDecision out;
+  if (recovering_ && recover(t, x, position_std, keep, out)) return out;
   auto set = [&](const Control& u, GuardAction action, double d) {
     out.control = u;
     out.action = action;
@@ -226,9 +345,17 @@ GuardDecision Guard::decide(double t, const State& x, double position_std, const
   };
   const double d0 = way_ahead(x, u0, keep).clearance;
   set(u0, GuardAction::Keep, d0);
+  // Any answer but the hold below ends a hold in progress; the hold keeps its clock.
+  const double held_since = hold_start_;
+  hold_start_ = -std::numeric_limits<double>::infinity();
   if (out.margin >= 0.0 && looking_ < 0) looking_ = 0;  // clear again: a later conflict may look again
   if (out.margin >= g.slow_distance && looking_ == 0) return out;
-  if (out.margin >= 0.0 && looking_ == 0) {  // slow down
+  // Slow down, so that more fixes arrive per metre; without fixes (σ grew
+  // since the last request: dead reckoning) slowing buys nothing — σ grows
+  // per step, not per metre — and the clear way ahead (m ≥ 0) is the whole
+  // promise, so the method's control is kept.
+  if (out.margin >= 0.0 && looking_ == 0) {
+    if (!fixing_) return out;
     const double f = std::max(g.min_speed_fraction, g.slow_distance > 0 ? out.margin / g.slow_distance : 1.0);
     if (f < 1.0) {
       const Control u(f * u0[0], u0[1]);
@@ -236,23 +363,30 @@ GuardDecision Guard::decide(double t, const State& x, double position_std, const
     }
     return out;
   }
+  if (looking_ == 0 && slow_to_clear(x, u0, keep, out)) return out;
   int could_see = 0;
   const std::vector<double> bearings = bearings_in_range(x.head<2>());
   const double look = look_turn(x, bearings, &could_see);
   // Look first: the way ahead is clear of the obstacles themselves (d0 > buffer), so the
   // conflict is the uncertainty; landmarks that would give a fix are in range
-  // but out of view: stop and turn toward them, until they are in view and
-  // a fix has halved σ, or for at most look_timeout.
+  // but out of view; σ is at least twice a fix's (or no fix yet): stop and
+  // turn toward them, until they are in view and a fix has halved σ or σ
+  // stops shrinking, or for at most look_timeout.
   const bool in_view = landmarks_seen(bearings, x[kTheta]) >= g.look_min_landmarks;
-  if (g.look_first && looking_ == 0 && d0 > g.buffer && could_see >= g.look_min_landmarks && !in_view) {
+  const bool can_shrink = !std::isfinite(sigma_min_) || position_std >= 2.0 * sigma_min_;
+  if (g.look_first && looking_ == 0 && d0 > g.buffer && could_see >= g.look_min_landmarks && !in_view &&
+      can_shrink) {
     looking_ = 1;
     look_sigma_ = position_std;
     look_start_ = t;
+    look_prev_ = position_std;
   }
   if (looking_ > 0) {
     // A look runs to its end even if the margin clears meanwhile: stopped, the
     // way ahead looks shorter, and ending there would start and stop the vehicle in turn.
-    const bool done = position_std <= 0.5 * look_sigma_ || t - look_start_ > g.look_timeout;
+    const bool converged = in_view && looking_ > 2 && position_std > 0.95 * look_prev_;
+    const bool done = position_std <= 0.5 * look_sigma_ || converged || t - look_start_ > g.look_timeout;
+    look_prev_ = position_std;
     if (!done) {
       ++looking_;
       const Control u(0.0, in_view ? 0.0 : look);
@@ -262,10 +396,9 @@ GuardDecision Guard::decide(double t, const State& x, double position_std, const
   }
   if (steer(x, u0, rho, keep, path, out)) return out;
   // Hold for a fix: stop, turning toward where landmarks can be seen.
-  const Control u(0.0, look);
-  return set(u, GuardAction::Hold, way_ahead(x, u, keep).clearance);
+  hold_start_ = held_since;
+  return hold(t, x, position_std, keep, look, could_see);
 }
-
 
 // ---------------------------------------------------------------------------
 // Parameter declarations (safenav/params.hpp)
@@ -281,6 +414,9 @@ const ParamSet<GuardSettings>& param_set<GuardSettings>() {
           .real("slow_distance", SN_REF(G, slow_distance), "m", closed(0, 1e4), "the guard slows down when its margin falls below this")
           .real("horizon", SN_REF(G, horizon), "s", above(0, 1e3), "the guard looks at the control held this long, then braking")
           .real("min_speed_fraction", SN_REF(G, min_speed_fraction), "", above(0, 1), "slowest fraction of the commanded speed while the guard slows")
+          .real("hold_timeout", SN_REF(G, hold_timeout), "s", above(0, 1e4), "a hold that has not halved sigma in this long is stuck: the guard recovers")
+          .integer("max_recoveries", SN_REF(G, max_recoveries), closed(0, 1000), "recoveries (back up along the track, spin) per run before a stuck hold gives up: blocked")
+          .real("recovery_speed", SN_REF(G, recovery_speed), "m/s", above(0, 100), "speed of the guard's back-up along the track driven")
           .flag("enabled", SN_REF(G, enabled), "the guard is on (off: the papers' loop)")
           .flag("look_first", SN_REF(G, look_first), "before steering round an uncertain way ahead, turn to look at landmarks")
           .real("look_timeout", SN_REF(G, look_timeout), "s", closed(0, 1e4), "the longest look")

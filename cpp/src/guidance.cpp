@@ -27,7 +27,7 @@ using detail::require_finite_positive;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 /// The event of each GuardAction (Keep has none).
-constexpr unsigned kGuardEvent[] = {0u, kGuardSlow, kGuardSteer, kGuardHold};
+constexpr unsigned kGuardEvent[] = {0u, kGuardSlow, kGuardSteer, kGuardHold, kGuardRecover, kBlocked};
 
 double heading_to(const State& x, const Eigen::Vector2d& target) {
   const Eigen::Vector2d d = target - x.head<2>();
@@ -48,6 +48,7 @@ std::string to_string(GuidanceStatus status) {
     case GuidanceStatus::NoPath: return "no_path";
     case GuidanceStatus::LostLocalization: return "lost_localization";
     case GuidanceStatus::StaleInput: return "stale_input";
+    case GuidanceStatus::Blocked: return "blocked";
   }
   return "unknown";
 }
@@ -256,6 +257,7 @@ struct Guidance::Impl {
   int commands = 0;
   std::string detail;
   Guard guard;  // the uncertainty-aware guard (guard.hpp)
+  bool blocked = false;  // the guard gave up (GuidanceStatus::Blocked)
   // The estimate predicted to a command's time (Localizer::predict_to; eq. 11).
   State x_ahead;
   StateCov P_ahead;
@@ -301,6 +303,7 @@ struct Guidance::Impl {
 
   GuidanceStatus status() const {
     if (!localizer.initialized()) return GuidanceStatus::Initializing;
+    if (blocked) return GuidanceStatus::Blocked;
     const double pstd = localizer.position_std();
     if (!(pstd <= settings.lost_position_std)) return GuidanceStatus::LostLocalization;
     if ((localizer.x().head<2>() - destination()).norm() <= settings.arrival_radius) return GuidanceStatus::Arrived;
@@ -408,6 +411,10 @@ Command Guidance::command(double t) {
     im.detail = "position std " + num(c.position_std) + " m > " + num(st.lost_position_std) + " m";
     return c;
   }
+  if (c.status == GuidanceStatus::Blocked) {
+    c.events = kBlocked;
+    return c;
+  }
   if (c.status == GuidanceStatus::Arrived) {
     c.events = kArrived;
     im.detail = "arrived";
@@ -428,6 +435,11 @@ Command Guidance::command(double t) {
     if (g.action != GuardAction::Keep) {
       c.events |= kGuardEvent[static_cast<int>(g.action)];
       c.predicted = im.shared->bmm.predict(xe, c.control).head<2>();
+    }
+    if (g.action == GuardAction::Blocked) {
+      im.blocked = true;
+      im.detail = g.reason;
+      c.status = GuidanceStatus::Blocked;
     }
   }
   return c;

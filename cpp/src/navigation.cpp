@@ -46,6 +46,7 @@ std::string to_string(TrialOutcome outcome) {
     case TrialOutcome::StepLimit: return "step_limit";
     case TrialOutcome::LostLocalization: return "lost_localization";
     case TrialOutcome::NoPath: return "no_path";
+    case TrialOutcome::Blocked: return "blocked";
   }
   return "unknown";
 }
@@ -335,10 +336,12 @@ bool Trial::command(int step, Command& cmd) {
   res_.guard_slow += (cmd.events & kGuardSlow) != 0;
   res_.guard_steer += (cmd.events & kGuardSteer) != 0;
   res_.guard_hold += (cmd.events & kGuardHold) != 0;
+  res_.guard_recover += (cmd.events & kGuardRecover) != 0;
   res_.stale_input += (cmd.events & kStaleInput) != 0;
-  if (cmd.status == GuidanceStatus::NoPath) {
-    outcome_ = TrialOutcome::NoPath;
+  if (cmd.status == GuidanceStatus::NoPath || cmd.status == GuidanceStatus::Blocked) {
+    outcome_ = cmd.status == GuidanceStatus::NoPath ? TrialOutcome::NoPath : TrialOutcome::Blocked;
     reason_ = guidance_.detail();
+    if (cmd.status == GuidanceStatus::Blocked) reason_ += " (step " + std::to_string(step) + ")";
     return false;
   }
   if (st_.method == NavigationMethod::CHull) {

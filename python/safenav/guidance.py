@@ -71,6 +71,8 @@ EVENTS = {
     "guard_steer": _core.EVENT_GUARD_STEER,
     "guard_hold": _core.EVENT_GUARD_HOLD,
     "stale_input": _core.EVENT_STALE_INPUT,
+    "guard_recover": _core.EVENT_GUARD_RECOVER,
+    "blocked": _core.EVENT_BLOCKED,
 }
 
 __all__ = ["Localizer", "LocalizerSettings", "Guidance", "Command", "InputResult", "InputStatus", "GuidanceStatus",

@@ -11,7 +11,9 @@ simulator moves the true vehicle
 least ``min_landmarks`` landmarks are within range and the camera's field of
 view, plus IMU speed and heading) and updates the EKF or PF.  A trial ends at
 the destination or with an explicit outcome: ``collision``,
-``left_corridor``, ``step_limit``, ``lost_localization`` or ``no_path``.
+``left_corridor``, ``step_limit``, ``lost_localization``, ``no_path`` or
+``blocked`` (the guard gave up on a hold it could not end, after backing up
+along its track or spinning; the reason says why).
 
 Metrics [SafeNav-ext eqs. 20–23] compare the *estimated* trajectory with the safe
 path it was told to follow, the paper's "ground truth trajectory".  That path

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <limits>
+#include <string>
 #include <vector>
 
 #include <Eigen/Core>
@@ -28,21 +29,39 @@ namespace safenav {
 /// braking to a stop (a dynamic-window rollout).  With margin
 /// m = d − ρ − buffer for the method's control:
 ///   * m ≥ slow_distance: the method's control is kept;
-///   * 0 ≤ m < slow_distance: it slows down, to a speed fraction m/slow_distance
-///     (at least min_speed_fraction);
+///   * 0 ≤ m < slow_distance, with fixes arriving (σ did not grow since the
+///     previous request): it slows down, to a speed fraction m/slow_distance
+///     (at least min_speed_fraction), so more fixes arrive per metre; without
+///     fixes it keeps the control (σ grows per step, not per metre: slowing
+///     would only lose time);
+///   * m < 0, but the method's turn at half or at the slowest speed has a
+///     clear way ahead (m ≥ 0: a shorter way ahead, the obstacle is ahead,
+///     not beside): it slows to the fastest of those (a graded speed law; no
+///     look, no turn away from the path);
 ///   * m < 0, the way ahead clear of the obstacles themselves (the conflict
-///     is the uncertainty), and look_min_landmarks mapped landmarks within
-///     look_range that could be brought into view but are not in it: it
+///     is the uncertainty), look_min_landmarks mapped landmarks within
+///     look_range that could be brought into view but are not in it, and σ
+///     at least twice the least σ of this run (a fix can still shrink it): it
 ///     stops and turns toward them ("look first": a fix shrinks ρ); the look
-///     lasts until σ halves or look_timeout passes, and the next look waits
-///     until the margin has been met again;
+///     lasts until σ halves, σ stops shrinking with the landmarks in view, or
+///     look_timeout passes, and the next look waits until the margin has
+///     been met again;
 ///   * m < 0 otherwise: it steers — among arcs of a fan of turn rates within the BMM's
 ///     limit at the commanded, half and slowest speeds, the fastest speed with
 ///     a clear arc (m ≥ 0) that keeps the k-σ disc in the corridor, with the
 ///     turn closest to the method's; if none is clear, the slowest arc that
 ///     ends farthest from the obstacles (if farther than the vehicle is now);
 ///   * otherwise it stops and holds for a fix, turning toward the bearing that
-///     puts the most mapped landmarks within look_range inside field_of_view.
+///     puts the most mapped landmarks within look_range inside field_of_view;
+///   * a hold that has not halved σ within hold_timeout cannot end by waiting
+///     (blind: no landmark can be seen from here, and σ only grows; or σ is
+///     as small as fixes make it and the gap is still too narrow).  Then it
+///     recovers, as Nav2's recoveries do: it backs up along the track it
+///     drove since the estimate last had a fix-quality σ, at
+///     recovery_speed, each control's way ahead kept clear as above; with no
+///     such track it spins once in place, looking all round.  After
+///     max_recoveries recoveries, the next stuck hold gives up: Blocked,
+///     with the reason (Guidance ends with GuidanceStatus::Blocked).
 /// With `occlusion`, a landmark hidden by an obstacle from the estimated
 /// position counts for none of these looks.
 /// Off, the loop is the papers'.
@@ -59,6 +78,9 @@ struct GuardSettings {
   double slow_distance = 1.0;        ///< margin below which it slows down [m]
   double min_speed_fraction = 0.25;  ///< slowest fraction of the commanded speed while slowing
   double horizon = 1.0;              ///< the way ahead: a control held this long, then braking [s]
+  double hold_timeout = 3.0;         ///< a hold that has not halved σ in this long is stuck: recover [s]
+  int max_recoveries = 2;            ///< recoveries (back-ups, spins) per run before a stuck hold gives up
+  double recovery_speed = 0.5;       ///< speed of a back-up along the track driven [m/s]
   // What the guard looks with: set all four with look_with_camera.
   double look_range = 30.0;          ///< landmarks within this can be looked at while holding [m]
   int look_min_landmarks = 3;        ///< a fix needs this many landmarks in view
@@ -104,6 +126,12 @@ enum class GuardAction {
   Slow,   ///< slowed down: the k-σ radius nears the clearance ahead
   Steer,  ///< steered away from the method's heading to keep clearance
   Hold,   ///< stopped to hold for a fix, turning toward landmarks
+  /// Recovering from a stuck hold: backing up along the track driven to
+  /// where the estimate last had a fix-quality σ, or spinning in place.
+  Recover,
+  /// A stuck hold after max_recoveries recoveries: the guard gives up
+  /// (control 0; GuardDecision::reason says why).
+  Blocked,
 };
 
 /// The guard's answer for one control.
@@ -114,6 +142,7 @@ struct GuardDecision {
   /// d < k·σ + buffer + slow_distance, a lower bound beyond.
   double clearance = std::numeric_limits<double>::infinity();
   double margin = std::numeric_limits<double>::infinity();  ///< d − k·σ − buffer [m]
+  std::string reason;  ///< why, when Blocked
 };
 
 /// The guard of one vehicle (GuardSettings).  It keeps the state of its looks
@@ -147,6 +176,10 @@ class Guard {
   int landmarks_seen(const std::vector<double>& bearings, double heading) const;
   double look_turn(const State& x, const std::vector<double>& bearings, int* seen) const;
   bool steer(const State& x, const Control& u0, double rho, double keep, const Corridor& path, GuardDecision& out);
+  bool slow_to_clear(const State& x, const Control& u0, double keep, GuardDecision& out);
+  void track(const State& x, double position_std);
+  GuardDecision hold(double t, const State& x, double position_std, double keep, double look, int could_see);
+  bool recover(double t, const State& x, double position_std, double keep, GuardDecision& out);
 
   const GuardSettings& settings_;
   const Bmm& bmm_;
@@ -162,6 +195,23 @@ class Guard {
   int looking_ = 0;
   double look_sigma_ = 0.0;  // σ when the look began
   double look_start_ = 0.0;  // and its time [s]
+  double look_prev_ = 0.0;   // σ at the previous step of the look
+  // The run's history (the vehicle's own estimate only): the least σ seen,
+  // σ at the previous request, and the track driven since σ was last of
+  // fix quality (≤ 2 × the least), one point per metre, oldest first.
+  double sigma_min_ = std::numeric_limits<double>::infinity();
+  double sigma_prev_ = std::numeric_limits<double>::infinity();
+  bool fixing_ = false;  // σ did not grow since the previous request: fixes arrive
+  std::vector<Eigen::Vector2d> track_;
+  // The hold in progress: its start time (−inf: none) and σ then.
+  double hold_start_ = -std::numeric_limits<double>::infinity();
+  double hold_sigma_ = 0.0;
+  // The recovery in progress: 0 none, 1 backing up, 2 spinning; its start
+  // time and σ; and the recoveries so far.
+  int recovering_ = 0;
+  double recover_start_ = 0.0;
+  double recover_sigma_ = 0.0;
+  int recoveries_ = 0;
 };
 
 }  // namespace safenav

@@ -82,6 +82,9 @@ enum class GuidanceStatus {
   /// The latest motion input or measurement is older than input_timeout
   /// (control 0: the BMM brakes).  Only a command reports it: status() has no time.
   StaleInput,
+  /// The guard gave up: a hold it could not end, after its recoveries
+  /// (GuardAction::Blocked; detail() says why).  Control 0 from then on.
+  Blocked,
 };
 std::string to_string(GuidanceStatus status);
 
@@ -96,6 +99,8 @@ enum GuidanceEvent : unsigned {
   kGuardSteer = 1u << 6,        ///< the guard steered away from the method's heading to keep clearance
   kGuardHold = 1u << 7,         ///< the guard stopped to hold for a fix, turning toward landmarks
   kStaleInput = 1u << 8,        ///< an input is older than input_timeout: stopped (the watchdog)
+  kGuardRecover = 1u << 9,      ///< the guard recovers from a stuck hold: backs up along its track or spins
+  kBlocked = 1u << 10,          ///< the guard gave up after its recoveries (GuidanceStatus::Blocked)
 };
 
 /// The answer to a command request.
@@ -191,7 +196,7 @@ class Guidance {
   int replans() const;
   /// Command requests that reached the control step (guiding).
   int commands() const;
-  /// Why the last NoPath, LostLocalization or Arrived happened.
+  /// Why the last NoPath, LostLocalization, Blocked or Arrived happened.
   const std::string& detail() const;
 
  private:

@@ -57,6 +57,9 @@ enum class TrialOutcome {
   StepLimit,         ///< max_steps ran out
   LostLocalization,  ///< the position standard deviation exceeded lost_position_std
   NoPath,            ///< the path ahead was blocked and RAw-RRT* found no way round
+  /// The guard gave up: a hold that could not end (σ could not halve), after
+  /// its recoveries (GuidanceStatus::Blocked; the reason says why).
+  Blocked,
 };
 std::string to_string(TrialOutcome outcome);
 
@@ -162,6 +165,7 @@ struct TrialResult {
   int guard_slow = 0;            ///< slowed down
   int guard_steer = 0;           ///< steered away from the way the method chose
   int guard_hold = 0;            ///< stopped and held for a fix (turning toward landmarks)
+  int guard_recover = 0;         ///< recovering from a stuck hold (backing up along the track, spinning)
   int stale_input = 0;           ///< stopped by the watchdog: an input older than input_timeout (kStaleInput)
   int chull_default = 0;         ///< Algorithm 1: steps that kept the default command
   int chull_corrective = 0;      ///< Algorithm 1: corrective controls
