@@ -44,10 +44,10 @@ MEASUREMENTS = ("clean", "faulty")
 FAULTS = dict(fix_model="ranges", dropout_probability=0.2, outlier_probability=0.05,
               misassociation_probability=0.01)
 MAX_PATH_TYPES = 3
-SHORT = {"left_corridor": "lc", "step_limit": "sl", "lost_localization": "lost", "no_path": "np"}
+SHORT = {"left_corridor": "lc", "step_limit": "sl", "lost_localization": "lost", "no_path": "np", "blocked": "bl"}
 #: Targets of issue 15.
 TARGET_ARRIVAL = 0.99
-TARGET_PENALTY = 0.15
+TARGET_PENALTY = 0.10
 TARGET_EXPOSURE_RATIO = 10.0
 TARGET_LENGTH_RATIO = 0.10
 #: The 95 % band of one step's 4-state NEES (chi-square, 4 dof): [0.48, 11.1].
