@@ -98,9 +98,10 @@ class CameraFrames:
         self.stats = {"frames": 0, "windows": 0, "whole_frame": 0, "early_out": 0, "render_s": 0.0}
         self.comparison = {k: 0 for k in ("frames", "fixes_windows", "fixes_whole", "markers_windows",
                                           "markers_whole", "missed", "false_windows", "false_whole")}
-        #: per compared frame: the windows' fix error [m] and NEES against the truth (fixes only), the
-        #: front end's seconds in the windows and on the whole frame
-        self.samples = {k: [] for k in ("error", "nees", "range", "s_windows", "s_whole")}
+        #: per compared frame: the windows' fix error [m], NEES and farthest range [m] against the truth
+        #: (fixes only), the front end's seconds in the windows and on the whole frame, and the
+        #: comparison's own seconds
+        self.samples = {k: [] for k in ("error", "nees", "range", "s_windows", "s_whole", "s_compare")}
 
     @classmethod
     def from_scenario(cls, scenario, width: int | None = None, height: int | None = None, *,
@@ -138,7 +139,9 @@ class CameraFrames:
             left, right = self.renderer.render_regions(pose, plan.left_regions, plan.right_regions, seed)
         self.stats["render_s"] += time.perf_counter() - t0
         if self.compare_whole_frame and not whole:
+            t1 = time.perf_counter()
             self._compare(pose, seed, plan, left, right)
+            self.samples["s_compare"].append(time.perf_counter() - t1)
         return left, right
 
     def _compare(self, pose, seed: int, plan, left, right) -> None:
