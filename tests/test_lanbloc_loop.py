@@ -166,3 +166,31 @@ def test_camera_frames_run_the_loop_deterministically():
     assert sa["frames"] == 1 + a.steps // 40
     # each later frame gave a fix (applied, or rejected by the gate) or a dropout; rejected counts the IMU's too
     assert a.position_fixes + a.dropouts <= a.steps // 40 <= a.position_fixes + a.dropouts + a.rejected
+
+
+@pytest.mark.parametrize("k", range(len(SCENES)))
+def test_lanbloc_core_backend_is_the_front_end_under_the_python_api(k):
+    from safenav.vision.lanbloc import LanBLoc
+
+    pose, placements = SCENES[k]
+    world = _scene(pose, placements)
+    left, right = _pair(world, pose)
+    core = LanBLoc(world, RIG, ranging="corners", backend="core").localize(left, right)
+    py = LanBLoc(world, RIG, ranging="corners").localize(left, right)
+    fe = front_end(world, RIG).localize(left, right)
+    assert core.status == str(fe.status) == py.status == "ok"
+    # the same sightings as the front end's, solved by the shared last step: the front end's fix
+    assert [o.landmark_id for o in core.observations] == [o.landmark_id for o in fe.observations]
+    assert [o.range for o in core.observations] == [o.range for o in fe.observations]
+    np.testing.assert_allclose(core.position, fe.position, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(core.covariance, fe.covariance, rtol=1e-9, atol=1e-15)
+    # the Python pipeline's landmarks, and its fix within the two OpenCV versions' corner difference
+    assert [o.landmark_id for o in core.observations] == [o.landmark_id for o in py.observations]
+    assert np.linalg.norm(core.position - py.position) < 0.05
+    # landmark faults act on the core's ranges as on the Python pipeline's
+    faults = _core.LandmarkFaults(1.0, 0.0, 1.0, 0.0)
+    dropped = LanBLoc(world, RIG, ranging="corners", backend="core").localize(left, right, faults=faults,
+                                                                              position=np.array(pose[:2]))
+    assert dropped.status == "too_few_ranges" and dropped.dropped == len(fe.observations)
+    with pytest.raises(ValueError, match="backend = 'core' needs ranging = 'corners'"):
+        LanBLoc(world, RIG, backend="core")
