@@ -159,7 +159,7 @@ class CameraFrames:
             self.samples["error"].append(float(np.hypot(*e)))
             self.samples["nees"].append(float(e @ np.linalg.solve(fw.covariance, e)))
             self.samples["range"].append(max(o.range for o in fw.observations if o.ok))
-        drawn = set(self.renderer.frame(pose).footprints("left"))
+        drawn = set(self.renderer.frame(pose, seed).footprints("left"))   # geometry only: no pixels drawn
         c = self.comparison
         c["frames"] += 1
         c["fixes_windows"] += fw.ok
