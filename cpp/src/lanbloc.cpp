@@ -96,8 +96,7 @@ struct LanBLocFrontEnd::Impl {
   Impl(const LanBLocRig& r, std::vector<LanBLocLandmark> lms, const LanBLocSettings& s)
       : rig(r), settings(s), landmarks(std::move(lms)), matcher(r.camera) {}
 
-  std::vector<Marker> detect(const ImageView& img, const std::vector<SearchWindow>& windows, bool right,
-                             bool whole, std::vector<Box>& regions) const;
+  std::vector<Marker> detect(const ImageView& img, const std::vector<Box>& regions, bool right, bool whole) const;
   LandmarkSighting observe(const Marker& left, const Marker* right, const std::string& why) const;
   void sighting(LandmarkSighting& o, double depth, double sigma_z) const;
   void solve(LanBLocFix& fix) const;
@@ -188,32 +187,55 @@ cv::Mat as_gray_mat(const ImageView& v, const RectifiedCamera& cam, const char* 
 
 }  // namespace
 
-std::vector<Marker> LanBLocFrontEnd::Impl::detect(const ImageView& img, const std::vector<SearchWindow>& windows,
-                                                  bool right, bool whole, std::vector<Box>& regions) const {
+std::vector<Marker> LanBLocFrontEnd::Impl::detect(const ImageView& img, const std::vector<Box>& regions, bool right,
+                                                  bool whole) const {
   const cv::Mat m = as_gray_mat(img, rig.camera, right ? "right" : "left");
-  regions.clear();
-  if (!whole) {
-    for (const SearchWindow& w : windows)
-      if (w.right == right) regions.push_back(w.box);
-    if (regions.empty()) return {};
-    regions = lanbloc_detail::merge_boxes(std::move(regions));
+  if (!whole && regions.empty()) return {};
+  return lanbloc_detail::detect_markers(m, whole ? std::vector<Box>{} : regions, dict, params,
+                                        settings.min_perimeter_rate, refine);
+}
+
+SearchPlan LanBLocFrontEnd::plan(const std::optional<PosePrediction>& prediction) const {
+  SearchPlan p;
+  if (!prediction) return p;
+  p.prediction = prediction;
+  p.windows = search_windows(*prediction, p.mode, p.reason);
+  if (p.mode == SearchMode::WholeFrame) {
+    p.windows.clear();
+    return p;
   }
-  return lanbloc_detail::detect_markers(m, regions, dict, params, settings.min_perimeter_rate, refine);
+  for (const SearchWindow& w : p.windows) (w.right ? p.right_regions : p.left_regions).push_back(w.box);
+  p.left_regions = lanbloc_detail::merge_boxes(std::move(p.left_regions));
+  p.right_regions = lanbloc_detail::merge_boxes(std::move(p.right_regions));
+  return p;
 }
 
 LanBLocFix LanBLocFrontEnd::localize(const ImageView& left, const ImageView& right,
                                      const std::optional<PosePrediction>& prediction) const {
+  return localize(left, right, plan(prediction));
+}
+
+LanBLocFix LanBLocFrontEnd::localize(const ImageView& left, const ImageView& right, const SearchPlan& plan) const {
   const Impl& I = *impl_;
   LanBLocFix fix;
-  fix.search = SearchMode::WholeFrame;
-  fix.search_reason = "no prediction given";
-  if (prediction) fix.windows = search_windows(*prediction, fix.search, fix.search_reason);
-  const bool whole = fix.search == SearchMode::WholeFrame;
-  if (whole) fix.windows.clear();
+  fix.search = plan.mode;
+  fix.search_reason = plan.reason;
+  const bool whole = plan.mode == SearchMode::WholeFrame;
+  if (!whole) {
+    fix.windows = plan.windows;
+    fix.left_regions = plan.left_regions;
+    fix.right_regions = plan.right_regions;
+  }
   (void)as_gray_mat(right, I.rig.camera, "right");  // bad input fails before any work
-  std::vector<Marker> found = I.detect(left, fix.windows, false, whole, fix.left_regions);
+  for (const auto* regions : {&plan.left_regions, &plan.right_regions})
+    for (const Box& b : *regions)
+      if (!(b.x_min >= 0 && b.y_min >= 0 && b.x_max <= I.rig.camera.width && b.y_max <= I.rig.camera.height &&
+            b.x_min <= b.x_max && b.y_min <= b.y_max))
+        detail::bad("plan region (" + detail::num(b.x_min) + ", " + detail::num(b.y_min) + ", " +
+                    detail::num(b.x_max) + ", " + detail::num(b.y_max) + ") is not inside the " +
+                    std::to_string(I.rig.camera.width) + "x" + std::to_string(I.rig.camera.height) + " image");
   std::vector<Marker> dets;
-  for (const Marker& m : found) {
+  for (const Marker& m : I.detect(left, plan.left_regions, false, whole)) {
     if (I.anchor.count(m.id))
       dets.push_back(m);
     else
@@ -225,7 +247,7 @@ LanBLocFix LanBLocFrontEnd::localize(const ImageView& left, const ImageView& rig
     return fix;
   }
   std::map<int, Marker> in_right;
-  for (const Marker& m : I.detect(right, fix.windows, true, whole, fix.right_regions)) in_right.emplace(m.id, m);
+  for (const Marker& m : I.detect(right, plan.right_regions, true, whole)) in_right.emplace(m.id, m);
   for (const Marker& d : dets) {
     auto it = in_right.find(d.id);
     fix.observations.push_back(I.observe(d, it == in_right.end() ? nullptr : &it->second, ""));

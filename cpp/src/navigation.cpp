@@ -22,7 +22,7 @@
 namespace safenav {
 
 template <>
-const ParamSet<SensorSettings>& param_set<SensorSettings>();  // defined below
+const ParamSet<SensorSettings>& param_set<SensorSettings>();  // navigation_settings.cpp
 
 namespace {
 
@@ -30,8 +30,6 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 using detail::bad;
 using detail::num;
-using detail::require_finite_nonneg;
-using detail::require_finite_positive;
 
 }  // namespace
 
@@ -52,23 +50,6 @@ std::string to_string(TrialOutcome outcome) {
 }
 
 std::string to_string(FixModel model) { return model == FixModel::Profile ? "profile" : "ranges"; }
-
-void SensorSettings::validate() const {
-  position.validate();
-  require_finite_positive(range_std, "sensors.range_std");
-  faults.validate();
-  if (faults.any() && fix_model != FixModel::Ranges)
-    bad("sensors.faults: landmark faults need sensors.fix_model = ranges (fixes from single landmark ranges); "
-        "the profile model has no landmark observations to corrupt");
-  if (!landmarks.allFinite()) bad("sensors.landmarks: every landmark position must be finite");
-  require_finite_positive(max_range, "sensors.max_range");
-  require_finite_positive(field_of_view, "sensors.field_of_view");
-  if (min_landmarks < 0) bad("sensors.min_landmarks = " + std::to_string(min_landmarks) + ": must be >= 0");
-  if (position_every < 1) bad("sensors.position_every = " + std::to_string(position_every) + ": must be >= 1");
-  require_finite_positive(imu_speed_std, "sensors.imu_speed_std");
-  require_finite_positive(imu_heading_std, "sensors.imu_heading_std");
-  param_set<SensorSettings>().check(*this, "sensors.");
-}
 
 FaultedObservations apply_faults(const LandmarkFaults& faults, const std::vector<int>& rows,
                                  const std::vector<double>& ranges, const Landmarks& landmarks,
@@ -137,7 +118,8 @@ namespace {
 class Trial {
  public:
   Trial(const Guidance& prototype, const SensorSettings& sensors, const ObstacleChecker& collisions,
-        const Eigen::Matrix2d& imu_R, int max_steps, std::uint64_t seed, const PositionCallback& position, bool rec)
+        const Eigen::Matrix2d& imu_R, int max_steps, std::uint64_t seed, const PositionCallback& position, bool rec,
+        const FrameCallback* frames, std::shared_ptr<const LanBLocFrontEnd> front_end)
       : t0_(std::chrono::steady_clock::now()),
         se_(sensors),
         bp_(prototype.problem().bmm),
@@ -145,6 +127,7 @@ class Trial {
         collisions_(collisions),
         imu_R_(imu_R),
         position_cb_(position),
+        frames_(frames),
         rec_(rec),
         N_(max_steps),
         bmm_(bp_),
@@ -164,6 +147,7 @@ class Trial {
     truth_ << safe_.path()(0, 0), safe_.path()(0, 1), 0.0, std::atan2(t.y(), t.x());
     obs_.reserve(static_cast<std::size_t>(se_.landmarks.rows()));
     trilateration_.seed = derive_seed(seed, 3);
+    if (frames_) guidance_.localizer().set_front_end(std::move(front_end));
   }
 
   TrialResult run();
@@ -171,6 +155,8 @@ class Trial {
  private:
   bool range_fix(const State& x, Eigen::Vector2d& z, Eigen::Matrix2d& R);
   bool fix(const State& x, int step, Eigen::Vector2d& z, Eigen::Matrix2d& R);
+  bool first_frame(Eigen::Vector2d& z, Eigen::Matrix2d& R);
+  bool frame(int step, double t, Eigen::Vector2d& z);
   void initialize();
   void start_recording();
   void record(int row, const Eigen::Vector2d& predicted, const Eigen::Vector2d* measured);
@@ -192,6 +178,7 @@ class Trial {
   const ObstacleChecker& collisions_;  // the true obstacles, no clearance
   const Eigen::Matrix2d& imu_R_;
   const PositionCallback& position_cb_;
+  const FrameCallback* frames_;  // the camera loop (run_frames), or null
   const bool rec_;
   const int N_;
   const Bmm bmm_;
@@ -276,12 +263,47 @@ bool Trial::fix(const State& x, int step, Eigen::Vector2d& z, Eigen::Matrix2d& R
   return true;
 }
 
+/// The camera loop's first frame: no estimate yet, so the front end searches the whole frame.
+bool Trial::first_frame(Eigen::Vector2d& z, Eigen::Matrix2d& R) {
+  const LanBLocFrontEnd& fe = *guidance_.localizer().front_end();
+  const SearchPlan plan = fe.plan(std::nullopt);
+  ImageView left, right;
+  if (!(*frames_)(truth_, 0, plan, left, right)) return false;
+  const LanBLocFix f = fe.localize(left, right, plan);
+  res_.observations += f.n_ranges();
+  if (!f.ok()) return false;
+  z = f.position;
+  R = f.covariance;
+  return true;
+}
+
+/// A camera frame at a fix step: rendered where the localizer's front end will search (its plan from
+/// the filter's prediction), then localized and applied by the localizer (observe_frame, gated).
+bool Trial::frame(int step, double t, Eigen::Vector2d& z) {
+  Localizer& loc = guidance_.localizer();
+  ImageView left, right;
+  if (!(*frames_)(truth_, step, loc.frame_plan(t), left, right)) {
+    ++res_.dropouts;
+    return false;
+  }
+  const FrameResult r = loc.observe_frame(t, left, right);
+  res_.observations += r.fix.n_ranges();
+  if (!r.fix.ok()) {
+    ++res_.dropouts;
+    return false;
+  }
+  z = r.fix.position;
+  if (r.update.applied()) ++res_.position_fixes;
+  else ++res_.rejected;
+  return true;
+}
+
 /// The initial estimate (the localizer's prior): a LanBLoc fix, if one is available, and the IMU.
 void Trial::initialize() {
   State x0 = truth_;
   Eigen::Vector2d z;
   Eigen::Matrix2d R;
-  const bool fixed = fix(truth_, 0, z, R);
+  const bool fixed = frames_ ? first_frame(z, R) : fix(truth_, 0, z, R);
   if (fixed) {
     x0.head<2>() = z;
   } else {
@@ -359,7 +381,9 @@ bool Trial::command(int step, Command& cmd) {
 bool Trial::measure(int step, double t, Eigen::Vector2d& z) {
   Eigen::Matrix2d R;
   bool have_fix = false;
-  if (step % se_.position_every == 0) {
+  if (step % se_.position_every == 0 && frames_) {
+    have_fix = frame(step, t, z);
+  } else if (step % se_.position_every == 0) {
     have_fix = fix(truth_, step, z, R);
     if (have_fix) {
       if (guidance_.fix(t, z, R).applied()) {
@@ -547,37 +571,20 @@ std::vector<TrialResult> Navigator::run_many(const std::vector<std::uint64_t>& s
   return out;
 }
 
-TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& position_cb, bool rec) const {
+TrialResult Navigator::run_frames(std::uint64_t seed, std::shared_ptr<const LanBLocFrontEnd> front_end,
+                                  const FrameCallback& frames) const {
+  if (!front_end) bad("run_frames: front_end is null");
+  if (!frames) bad("run_frames: frames is empty");
+  return run_trial(seed, nullptr, impl_->guidance.settings().record, &frames, std::move(front_end));
+}
+
+TrialResult Navigator::run_trial(std::uint64_t seed, const PositionCallback& position_cb, bool rec,
+                                 const FrameCallback* frames, std::shared_ptr<const LanBLocFrontEnd> front_end) const {
   const Impl& im = *impl_;
-  Trial trial(im.guidance, im.sensors, im.collisions, im.imu_R, im.max_steps, seed, position_cb, rec);
+  Trial trial(im.guidance, im.sensors, im.collisions, im.imu_R, im.max_steps, seed, position_cb, rec, frames,
+              std::move(front_end));
   return trial.run();
 }
 
-
-// ---------------------------------------------------------------------------
-// Parameter declarations (safenav/params.hpp)
-
-template <>
-const ParamSet<SensorSettings>& param_set<SensorSettings>() {
-  using S = SensorSettings;
-  static const ParamSet<S> s =
-      Declare<S>{}
-          .real("max_range", SN_REF(S, max_range), "m", above(0, 1e4), "landmarks farther than this are not detected")
-          .real("field_of_view", SN_REF(S, field_of_view), "rad", above(0, 2 * kPi), "full horizontal field of view, centred on the heading; 2 pi = all round")
-          .integer("min_landmarks", SN_REF(S, min_landmarks), closed(1, 1000), "a position fix needs this many landmarks in view [SafeNav-ext §V-A3(ii)]: clusters of >= 3")
-          .flag("occlusion", SN_REF(S, occlusion), "obstacles hide landmarks from the simulated camera (ours; off in the papers' loop)")
-          .integer("position_every", SN_REF(S, position_every), closed(1, 1e6), "a position fix every n steps")
-          .real("imu_speed_std", SN_REF(S, imu_speed_std), "m/s", closed(1e-6, 10), "sigma of the IMU's speed")
-          .real("imu_heading_std", SN_REF(S, imu_heading_std), "rad", closed(1e-6, kPi), "sigma of the IMU's heading")
-          .real("range_std", SN_REF(S, range_std), "m", closed(1e-6, 100), "sigma of one landmark range (fixes from ranges)")
-          .real("dropout_probability", SN_REF(S, faults.dropout_probability), "", closed(0, 1), "a landmark observation is missed with this probability (ours)")
-          .real("outlier_probability", SN_REF(S, faults.outlier_probability), "", closed(0, 1), "a landmark range is an outlier with this probability (ours)")
-          .real("outlier_magnitude", SN_REF(S, faults.outlier_magnitude), "m", above(0, 1e4), "an outlier range is off by this much, either sign")
-          .real("misassociation_probability", SN_REF(S, faults.misassociation_probability), "", closed(0, 1), "a landmark observation carries another landmark's id with this probability (ours)")
-          .set;
-  return s;
-}
-
-template class ParamSet<SensorSettings>;
 
 }  // namespace safenav

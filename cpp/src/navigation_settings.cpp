@@ -1,6 +1,8 @@
-// NavigationProblem, NavigationSettings (safenav/navigation_settings.hpp):
+// NavigationProblem, NavigationSettings (safenav/navigation_settings.hpp) and
+// SensorSettings (safenav/navigation.hpp):
 // validation and the parameter declarations of the navigation settings.
 #include "safenav/navigation_settings.hpp"
+#include "safenav/navigation.hpp"
 
 #include <string>
 
@@ -12,8 +14,11 @@ namespace safenav {
 
 template <>
 const ParamSet<NavigationSettings>& param_set<NavigationSettings>();  // defined below
+template <>
+const ParamSet<SensorSettings>& param_set<SensorSettings>();  // defined below
 
 using detail::bad;
+using detail::require_finite_positive;
 
 std::string to_string(NavigationMethod method) {
   return method == NavigationMethod::CHull ? "chull" : "centroid";
@@ -75,5 +80,48 @@ const ParamSet<NavigationSettings>& param_set<NavigationSettings>() {
 }
 
 template class ParamSet<NavigationSettings>;
+
+// ---------------------------------------------------------------------------
+// SensorSettings' parameter declarations (safenav/navigation.hpp, safenav/params.hpp)
+
+void SensorSettings::validate() const {
+  position.validate();
+  require_finite_positive(range_std, "sensors.range_std");
+  faults.validate();
+  if (faults.any() && fix_model != FixModel::Ranges)
+    bad("sensors.faults: landmark faults need sensors.fix_model = ranges (fixes from single landmark ranges); "
+        "the profile model has no landmark observations to corrupt");
+  if (!landmarks.allFinite()) bad("sensors.landmarks: every landmark position must be finite");
+  require_finite_positive(max_range, "sensors.max_range");
+  require_finite_positive(field_of_view, "sensors.field_of_view");
+  if (min_landmarks < 0) bad("sensors.min_landmarks = " + std::to_string(min_landmarks) + ": must be >= 0");
+  if (position_every < 1) bad("sensors.position_every = " + std::to_string(position_every) + ": must be >= 1");
+  require_finite_positive(imu_speed_std, "sensors.imu_speed_std");
+  require_finite_positive(imu_heading_std, "sensors.imu_heading_std");
+  param_set<SensorSettings>().check(*this, "sensors.");
+}
+
+template <>
+const ParamSet<SensorSettings>& param_set<SensorSettings>() {
+  using S = SensorSettings;
+  static const ParamSet<S> s =
+      Declare<S>{}
+          .real("max_range", SN_REF(S, max_range), "m", above(0, 1e4), "landmarks farther than this are not detected")
+          .real("field_of_view", SN_REF(S, field_of_view), "rad", above(0, 2 * kPi), "full horizontal field of view, centred on the heading; 2 pi = all round")
+          .integer("min_landmarks", SN_REF(S, min_landmarks), closed(1, 1000), "a position fix needs this many landmarks in view [SafeNav-ext §V-A3(ii)]: clusters of >= 3")
+          .flag("occlusion", SN_REF(S, occlusion), "obstacles hide landmarks from the simulated camera (ours; off in the papers' loop)")
+          .integer("position_every", SN_REF(S, position_every), closed(1, 1e6), "a position fix every n steps")
+          .real("imu_speed_std", SN_REF(S, imu_speed_std), "m/s", closed(1e-6, 10), "sigma of the IMU's speed")
+          .real("imu_heading_std", SN_REF(S, imu_heading_std), "rad", closed(1e-6, kPi), "sigma of the IMU's heading")
+          .real("range_std", SN_REF(S, range_std), "m", closed(1e-6, 100), "sigma of one landmark range (fixes from ranges)")
+          .real("dropout_probability", SN_REF(S, faults.dropout_probability), "", closed(0, 1), "a landmark observation is missed with this probability (ours)")
+          .real("outlier_probability", SN_REF(S, faults.outlier_probability), "", closed(0, 1), "a landmark range is an outlier with this probability (ours)")
+          .real("outlier_magnitude", SN_REF(S, faults.outlier_magnitude), "m", above(0, 1e4), "an outlier range is off by this much, either sign")
+          .real("misassociation_probability", SN_REF(S, faults.misassociation_probability), "", closed(0, 1), "a landmark observation carries another landmark's id with this probability (ours)")
+          .set;
+  return s;
+}
+
+template class ParamSet<SensorSettings>;
 
 }  // namespace safenav

@@ -152,37 +152,40 @@ class _Cell:
     extra: dict = field(default_factory=dict)
 
 
-#: Counts that a camera-loop source keeps itself (its ``fault_stats``).
-_CAMERA_COUNTS = ("observations", "dropped", "outliers", "misassociated", "ranges_rejected", "faults_through")
-
 #: Position sources that run the vision pipeline instead of a noise profile.
 CAMERA_SOURCES = ("lanbloc-camera",)
 
 
 def _camera_trials(navigator, c: _Cell, seeds) -> dict:
-    """Trials with LanBLoc through the camera loop as the position callback
-    (:class:`~safenav.vision.CameraLoopSource` from the scenario: its camera at
-    its own resolution, rendered and detected by region, fiducial corners
-    triangulated, trilaterated): Python per fix, so slower, and run in
-    processes.  The scenario's landmark faults act on the camera's
-    observations too."""
+    """Trials with LanBLoc through the camera loop (its camera at its own resolution, from the
+    scenario): each fix step the vehicle's localizer plans where the core's front end searches
+    (windows from its own prediction), :class:`~safenav.vision.camera_loop.CameraFrames` renders
+    those regions at the true pose, and the localizer detects, triangulates the markers' corners,
+    trilaterates and updates (``Navigator.run_frames``).  Python renders each frame, so the
+    trials are slower and run in processes.  With the scenario's landmark faults on, the faults
+    act on the ranges of the Python region pipeline (:class:`~safenav.vision.CameraLoopSource`,
+    a position callback), which the front end does not model yet."""
     from .vision import CameraLoopSource
+    from .vision.camera_loop import CameraFrames
 
     d = {k: [] for k in ("outcome", "reason", "time_s", *COUNTS, *METRICS, *SAFETY)}
     faults = c.scenario.noise.faults()
     for s in seeds:
-        source = CameraLoopSource.from_scenario(c.scenario, seed=int(s) % 2**32,
-                                                faults=faults if faults.any() else None)
-        r = navigator.run(int(s), position=source)
+        if faults.any():
+            source = CameraLoopSource.from_scenario(c.scenario, seed=int(s) % 2**32, faults=faults)
+            r = navigator.run(int(s), position=source)
+            # The camera's landmark observations and faults are counted by the source,
+            # not the loop; "through" is what its trilateration kept, before the filter's
+            # gate (the simulator counts after it), and the camera has no fit χ² test.
+            fs = dict(source.fault_stats, faults_through=source.fault_stats["faults_in_fix"])
+        else:
+            r = CameraFrames.from_scenario(c.scenario, seed=int(s) % 2**32).run(navigator, int(s))
+            fs = {}
         d["outcome"].append(int(r.outcome))
         d["reason"].append(r.reason)
         d["time_s"].append(r.wall_time)
-        # The camera's landmark observations and faults are counted by the source,
-        # not the loop; "through" is what its trilateration kept, before the filter's
-        # gate (the simulator counts after it), and the camera has no fit χ² test.
-        fs = dict(source.fault_stats, faults_through=source.fault_stats["faults_in_fix"])
         for k in COUNTS:
-            d[k].append(fs[k] if k in _CAMERA_COUNTS else getattr(r, k))
+            d[k].append(fs[k] if k in fs else getattr(r, k))
         for k in (*METRICS, *SAFETY):
             d[k].append(r.metrics[k])
     return d

@@ -125,6 +125,20 @@ struct SearchWindow {
 
 using MarkerCorners = Eigen::Matrix<double, 4, 2, Eigen::RowMajor>;  ///< TL, TR, BR, BL (u, v) [px]
 
+/// Where a frame is searched: the mode and its reason, the prediction the
+/// windows came from (none: whole frame), each landmark's windows, and the
+/// regions of each image that detection runs in (the windows, those that
+/// overlap merged into their bounding box; empty in WholeFrame mode).  A
+/// renderer that draws only part of the image draws these regions
+/// (LanBLocFrontEnd::plan).
+struct SearchPlan {
+  SearchMode mode = SearchMode::WholeFrame;
+  std::string reason = "no prediction given";
+  std::optional<PosePrediction> prediction;
+  std::vector<SearchWindow> windows;  ///< when mode == Windows
+  std::vector<Box> left_regions, right_regions;
+};
+
 /// One mapped landmark detected in the left image: what stereo made of it
 /// (safenav.vision.sighting.LandmarkSighting; not the Localizer's timestamped
 /// LandmarkObservation, localizer.hpp).
@@ -194,6 +208,15 @@ class LanBLocFrontEnd {
   /// non-finite or non-symmetric-PSD prediction.
   LanBLocFix localize(const ImageView& left, const ImageView& right,
                       const std::optional<PosePrediction>& prediction = std::nullopt) const;
+  /// The same with the search planned beforehand (plan(prediction)): a
+  /// camera loop asks for the plan, renders or reads the regions it names,
+  /// then localizes in exactly those regions.
+  LanBLocFix localize(const ImageView& left, const ImageView& right, const SearchPlan& plan) const;
+
+  /// Where localize(…, prediction) searches: search_windows for a prediction
+  /// (WholeFrame with the reason when too uncertain), merged into each
+  /// image's regions; WholeFrame ("no prediction given") without one.
+  SearchPlan plan(const std::optional<PosePrediction>& prediction) const;
 
   /// The windows for `prediction`: per mapped landmark whose board projects
   /// in front of both cameras within max_range_m and into the image, the

@@ -100,6 +100,7 @@
 
 #include "safenav/augmented.hpp"
 #include "safenav/filters.hpp"
+#include "safenav/lanbloc.hpp"
 #include "safenav/measurement.hpp"
 #include "safenav/motion.hpp"
 #include "safenav/smoother.hpp"
@@ -177,6 +178,27 @@ struct LocalizerSettings {
   void validate() const;
 };
 
+/// How a camera frame's result enters the filter (Localizer::observe_frame).
+enum class FrameUpdate {
+  Fix,        ///< the trilaterated fix with its covariance, through fix() (one χ² gate)
+  Landmarks,  ///< each ranged landmark's range and bearing, through observe() (a gate each)
+};
+
+/// What became of one camera frame: where the front end searched (windows
+/// from the filter's prediction, or the whole frame and why), what it found,
+/// and how the filter took it.
+struct FrameResult {
+  SearchPlan plan;
+  LanBLocFix fix;
+  /// FrameUpdate::Fix: the fix's update (status Ignored without a fix).
+  /// FrameUpdate::Landmarks: Applied when any landmark was applied, else the
+  /// first landmark's status (Ignored without a range).
+  InputResult update;
+  /// Per fix.observations entry: its landmark update (Landmarks), or the fix's
+  /// (Fix) for a ranged landmark; Ignored for one without a range.
+  std::vector<InputResult> landmarks;
+};
+
 /// Counts of inputs by outcome.
 struct LocalizerCounts {
   int motion = 0;    ///< motion inputs predicted
@@ -214,6 +236,28 @@ class Localizer {
   InputResult fix(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R);
   /// IMU speed and heading z = (v, θ) with covariance R.
   InputResult speed_heading(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R);
+
+  /// Camera frames (ours).  The front end that observe_frame runs (one
+  /// rectified grey pair per call); null turns frames off.  Its fixes come
+  /// from its own map; FrameUpdate::Landmarks needs its ids to be this
+  /// localizer's map ids.
+  void set_front_end(std::shared_ptr<const LanBLocFrontEnd> front_end);
+  const LanBLocFrontEnd* front_end() const { return front_end_.get(); }
+  /// Where the frame at time t is searched: windows from the filter's own
+  /// prediction to t (predict_to, or the estimate itself at t = time()), each
+  /// landmark's projection grown by its projected σ (LanBLocFrontEnd::plan);
+  /// the whole frame before the start, for a frame older than the filter, or
+  /// when the prediction is too uncertain.  A renderer draws these regions.
+  /// std::invalid_argument without a front end or for a non-finite t.
+  SearchPlan frame_plan(double t) const;
+  /// One rectified grey pair taken at time t: the front end searches where
+  /// frame_plan(t) says, and its result enters the filter through the normal
+  /// measurement path (fix() or observe(), each gated; a late frame as any
+  /// late measurement).  std::invalid_argument as frame_plan, for images
+  /// that do not fit the front end's rig, and (Landmarks) for a sighted id
+  /// not in the map.
+  FrameResult observe_frame(double t, const ImageView& left, const ImageView& right,
+                            FrameUpdate how = FrameUpdate::Fix);
 
   /// The estimate predicted to t > time() as a measurement at t would be
   /// predicted to (eq. 11 at the last motion input's rates), on a copy of the
@@ -276,6 +320,7 @@ class Localizer {
   InputResult speed_heading_input(double t, const Eigen::Vector2d& z, const Eigen::Matrix2d& R);
   struct Impl;
   std::unique_ptr<Impl> impl_;
+  std::shared_ptr<const LanBLocFrontEnd> front_end_;  // camera frames (localizer_frame.cpp)
 };
 
 /// √ of the largest eigenvalue of P's 2×2 position block [m].

@@ -68,6 +68,14 @@ std::string to_string(TrialOutcome outcome);
 /// and return true, or return false when localization failed (a dropout).
 using PositionCallback = std::function<bool(const State& truth, int step, Eigen::Vector2d& z, Eigen::Matrix2d& R)>;
 
+/// Camera frames for the camera loop (ours): given the true state, the step
+/// and the plan of where the vehicle's front end will search (windows from
+/// its own prediction, or the whole frame), render the rectified grey pair —
+/// at least the plan's regions — into left and right, and return true; false
+/// when there is no frame.  The views must stay valid until the next call.
+using FrameCallback =
+    std::function<bool(const State& truth, int step, const SearchPlan& plan, ImageView& left, ImageView& right)>;
+
 /// Where the simulator's position fixes come from.
 enum class FixModel {
   /// The measurement-level error profile `position` (the paper's): a fix is
@@ -202,12 +210,22 @@ class Navigator {
   /// measurement-level position source.
   TrialResult run(std::uint64_t seed, const PositionCallback& position = nullptr) const;
 
+  /// One trial with the camera in the loop: each fix step the vehicle's
+  /// localizer plans where its front end searches (Localizer::frame_plan),
+  /// `frames` renders the pair, and Localizer::observe_frame localizes and
+  /// updates (the first frame, before any estimate, searches the whole frame
+  /// and gives the prior).  Replaces the measurement-level position source.
+  TrialResult run_frames(std::uint64_t seed, std::shared_ptr<const LanBLocFrontEnd> front_end,
+                         const FrameCallback& frames) const;
+
   /// Trials for each seed with the measurement-level source, metrics only
   /// (no trajectories), in order.  Results equal run(seed) one by one.
   std::vector<TrialResult> run_many(const std::vector<std::uint64_t>& seeds) const;
 
  private:
-  TrialResult run_trial(std::uint64_t seed, const PositionCallback& position, bool record) const;
+  TrialResult run_trial(std::uint64_t seed, const PositionCallback& position, bool record,
+                        const FrameCallback* frames = nullptr,
+                        std::shared_ptr<const LanBLocFrontEnd> front_end = nullptr) const;
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

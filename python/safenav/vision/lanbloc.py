@@ -149,6 +149,11 @@ class LanBLoc:
     min_range_m:
         The nearest landmark of interest [m] (at the image's edge, for a
         rectified camera): the top of the disparity search.
+    backend:
+        ``"python"`` (default) or ``"core"``: whole pairs with
+        ``ranging="corners"`` through the C++ front end
+        (:class:`~safenav.vision.core_pipeline.CorePipeline`: detection,
+        refinement and corner ranging in the core, then the shared last step).
     trilateration:
         Keyword arguments for :func:`~safenav.vision.localization.trilaterate`.
     ranging:
@@ -180,7 +185,7 @@ class LanBLoc:
                  unknown_landmark: str = "error", resolve_ambiguity: bool = True, sgbm: Mapping | None = None,
                  trilateration: Mapping | None = None, ranging: str = "sgbm", corner_sigma_d: float = 0.035,
                  max_row_error_px: float = 1.0, detect_side_px: float = 48.0, region_margin_px: int = 8,
-                 min_range_m: float = 2.5, min_correlation: float = 0.8):
+                 min_range_m: float = 2.5, min_correlation: float = 0.8, backend: str = "python"):
         self.ranger = LandmarkRanging(
             landmarks, camera, camera_height_m=camera_height_m, pitch_rad=pitch_rad, sigma_d=sigma_d,
             min_landmarks=min_landmarks, max_range_m=max_range_m, box_shrink=box_shrink,
@@ -196,6 +201,14 @@ class LanBLoc:
             "regions": RegionPipeline(self.ranger, detector, ranging=ranging, band_margin_px=band_margin_px,
                                       detect_side_px=detect_side_px, region_margin_px=region_margin_px,
                                       min_correlation=min_correlation)}
+        if backend not in ("python", "core"):
+            raise ValueError(f"backend = {backend!r}: must be 'python' or 'core'")
+        if backend == "core":
+            if ranging != "corners":
+                raise ValueError(f"backend = 'core' needs ranging = 'corners', got {ranging!r}")
+            from .core_pipeline import CorePipeline
+            self.pipelines["core"] = CorePipeline(self.ranger, detector, self.pipelines["full"].check_pair)
+        self.backend = backend
 
     #: The settings read through from the parts, by part.
     _SETTINGS = {
@@ -250,7 +263,8 @@ class LanBLoc:
             if right is not None:
                 raise ValueError("right must be None when left is a StereoFrame")
             return self.localize_frame(left, faults=faults, position=position, seed=seed)
-        return self.pipelines["full"].localize(left, right, faults=faults, position=position, seed=seed)
+        return self.pipelines["core" if self.backend == "core" else "full"].localize(
+            left, right, faults=faults, position=position, seed=seed)
 
     def localize_frame(self, frame: StereoFrame, *, faults=None, position=None, seed: int = 0) -> LanBLocResult:
         """The pipeline on a :class:`~safenav.vision.frame.StereoFrame`, region by region (ours):

@@ -334,12 +334,35 @@ class StereoRenderer:
         hidden = self.hidden(pose)
         out = []
         for cam, C in zip(("left", "right"), centers):
-            img = self._background_and_ground(th, R, C)
-            self._draw_markers(img, R, C, [b for b in boards if b[0] not in hidden[cam]])
-            if self.noise_std > 0:
-                noise = self._rng.standard_normal(img.shape, dtype=np.float32) * self.noise_std
-                img = np.clip(img + noise, 0, 255).astype(np.uint8)
+            img = self._draw_box(th, R, C, [b for b in boards if b[0] not in hidden[cam]],
+                                 (0, 0, self.rig.width, self.rig.height), self._rng)
             out.append(img if not self.color else cv2.cvtColor(img, cv2.COLOR_GRAY2BGR))
+        return out[0], out[1]
+
+    def render_regions(self, pose, left_regions, right_regions, noise_seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """The grey rectified pair at ``pose`` drawn only in the given regions of each image (boxes
+        ``(x0, y0, x1, y1)``, ends exclusive; the rest stays 0): in each, what :meth:`render` draws
+        there (ground and background textures, markers, poles) and pixel noise from the stream
+        ``noise_seed``.  A detector that searches only these regions sees the whole image's pixels
+        there, false detections in the textures included."""
+        x, y, th = as_pose(pose)
+        pose = (x, y, th)
+        R = camera_rotation(th, self.rig.pitch_rad)
+        rng = np.random.default_rng(noise_seed)
+        idx = self.culled(pose)
+        boards = [self._board(i, pose) for i in idx]
+        hidden = self.hidden(pose) if len(idx) else {"left": set(), "right": set()}
+        w, h = self.rig.width, self.rig.height
+        out = []
+        for cam, C, regions in zip(("left", "right"), self.rig.camera_centers(pose), (left_regions, right_regions)):
+            img = np.zeros((h, w), np.uint8)
+            for box in regions:
+                x0, y0, x1, y1 = (int(round(float(v))) for v in box)
+                if not (0 <= x0 < x1 <= w and 0 <= y0 < y1 <= h):
+                    raise ValueError(f"region {tuple(box)}: must lie inside the {w}x{h} image with x0 < x1, y0 < y1")
+                img[y0:y1, x0:x1] = self._draw_box(th, R, C, [b for b in boards if b[0] not in hidden[cam]],
+                                                   (x0, y0, x1, y1), rng)
+            out.append(img)
         return out[0], out[1]
 
     def centres_in_view(self, pose, camera: str = "left") -> int:
@@ -424,29 +447,48 @@ class StereoRenderer:
     def _pyramid(self, lid: int, grey: bool = False) -> list[np.ndarray]:
         return _marker_pyramid(self.dictionary_name, self._marker_id[lid])[1 if grey else 0]
 
-    def _background_and_ground(self, th: float, R: np.ndarray, C: np.ndarray) -> np.ndarray:
-        r = self.rig
-        img = np.empty((r.height, r.width), np.uint8)
+    def _draw_box(self, th: float, R: np.ndarray, C: np.ndarray, boards, box, rng) -> np.ndarray:
+        """The pixels of ``box`` (x0, y0, x1, y1) of the camera at centre ``C``: ground and background,
+        the ``boards`` (markers and poles), pixel noise from ``rng``."""
+        if not self._rig_ready:
+            self._prepare_rig()
+            self._rig_ready = True
+        img = self._background_and_ground(th, R, C, box)
+        self._draw_markers(img, R, C, boards, box[:2])
+        if self.noise_std > 0:
+            noise = rng.standard_normal(img.shape, dtype=np.float32) * self.noise_std
+            img = np.clip(img + noise, 0, 255).astype(np.uint8)
+        return img
+
+    def _background_and_ground(self, th: float, R: np.ndarray, C: np.ndarray, box) -> np.ndarray:
+        """The ground and the background at infinity in ``box`` = (x0, y0, x1, y1) of the image."""
+        x0, y0, x1, y1 = box
+        img = np.empty((y1 - y0, x1 - x0), np.uint8)
         # background at infinity: shift the azimuth map by the heading
         shift = np.float32((-th / (2 * math.pi) * self.PANO_W) % self.PANO_W)
-        bg = cv2.remap(self._pano, self._bg_x + shift, self._bg_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP)
-        img[:self._nb] = bg
-        v0 = self._v_ground
-        if v0 < r.height:
+        yb = min(y1, self._nb)
+        if yb > y0:
+            img[:yb - y0] = cv2.remap(self._pano, self._bg_x[y0:yb, x0:x1] + shift,
+                                      np.ascontiguousarray(self._bg_y[y0:yb, x0:x1]), cv2.INTER_LINEAR,
+                                      borderMode=cv2.BORDER_WRAP)
+        v0 = max(self._v_ground, y0)
+        if v0 < y1:
             period = self.GROUND_TILE * self.GROUND_RES_M
             X0, Y0 = math.floor(C[0] / period) * period, math.floor(C[1] / period) * period
             A = np.array([[self.GROUND_RES_M, 0, X0], [0, self.GROUND_RES_M, Y0], [0, 0, 1.0]])
-            H = r.K @ np.column_stack([R[:, 0], R[:, 1], -R @ C]) @ A   # texel -> image pixel
-            H = np.array([[1, 0, 0], [0, 1, -v0], [0, 0, 1.0]]) @ H     # rows from v0
-            g = cv2.warpPerspective(self._ground, np.linalg.inv(H), (r.width, r.height - v0),
+            H = self.rig.K @ np.column_stack([R[:, 0], R[:, 1], -R @ C]) @ A   # texel -> image pixel
+            H = np.array([[1, 0, -x0], [0, 1, -v0], [0, 0, 1.0]]) @ H          # the box's pixels, rows from v0
+            g = cv2.warpPerspective(self._ground, np.linalg.inv(H), (x1 - x0, y1 - v0),
                                     flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_WRAP)
             m = self._ground_mean
-            img[v0:] = ((g.astype(np.float32) - m) * self._haze + m).astype(np.uint8)
+            haze = self._haze[v0 - self._v_ground:y1 - self._v_ground]
+            img[v0 - y0:] = ((g.astype(np.float32) - m) * haze + m).astype(np.uint8)
         return img
 
-    def _draw_markers(self, img: np.ndarray, R: np.ndarray, C: np.ndarray, boards) -> None:
+    def _draw_markers(self, img: np.ndarray, R: np.ndarray, C: np.ndarray, boards, origin=(0, 0)) -> None:
+        """Draw ``boards`` into ``img``, whose pixel (0, 0) is the image's ``origin`` (x, y)."""
         r = self.rig
-        f, cx, cy = r.focal_length_px, r.cx, r.cy
+        f, cx, cy = r.focal_length_px, r.cx - origin[0], r.cy - origin[1]
         items = []
         for lid, corners, pole, facing in boards:
             if not facing:

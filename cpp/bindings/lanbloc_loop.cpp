@@ -1,0 +1,149 @@
+// Python bindings of the camera loop: LanBLoc's search plan
+// (safenav/lanbloc.hpp), camera frames into the Localizer
+// (Localizer::observe_frame, safenav/localizer.hpp) and the simulator's camera
+// loop (Navigator::run_frames, safenav/navigation.hpp).  Added to the classes
+// that bindings/lanbloc.cpp, guidance.cpp and navigation.cpp made.
+#include "common.hpp"
+#include "safenav/lanbloc.hpp"
+#include "safenav/localizer.hpp"
+#include "safenav/navigation.hpp"
+
+#include <memory>
+#include <optional>
+
+#include <pybind11/numpy.h>
+
+using namespace safenav;
+
+namespace {
+using U8Array = py::array_t<std::uint8_t, py::array::c_style | py::array::forcecast>;
+
+ImageView grey_view(const U8Array& a, const char* what) {
+  if (a.ndim() != 2)
+    throw std::invalid_argument(std::string(what) + " image must be (H, W) 8-bit grey, got " +
+                                std::to_string(a.ndim()) + " dimensions");
+  return ImageView{a.data(), static_cast<int>(a.shape(0)), static_cast<int>(a.shape(1)), 1,
+                   static_cast<std::ptrdiff_t>(a.strides(0))};
+}
+
+py::list box_list(const std::vector<Box>& bs) {
+  py::list out;
+  for (const Box& b : bs) out.append(py::make_tuple(b.x_min, b.y_min, b.x_max, b.y_max));
+  return out;
+}
+
+/// A front end owned by its Python object: shared without ownership (the caller keeps it alive).
+std::shared_ptr<const LanBLocFrontEnd> borrowed(const LanBLocFrontEnd& f) {
+  return std::shared_ptr<const LanBLocFrontEnd>(&f, [](const LanBLocFrontEnd*) {});
+}
+
+void bind_plan(py::module_& m) {
+  py::class_<SearchPlan>(m, "SearchPlan",
+                         "Where a frame is searched: mode and reason, the prediction the windows came from, the "
+                         "windows, and each image's regions (the windows merged; empty for the whole frame).")
+      .def_readonly("mode", &SearchPlan::mode)
+      .def_readonly("reason", &SearchPlan::reason)
+      .def_property_readonly("prediction",
+                             [](const SearchPlan& p) -> py::object {
+                               if (!p.prediction) return py::none();
+                               return py::make_tuple(p.prediction->pose, p.prediction->covariance);
+                             },
+                             "(pose (x, y, theta), 3x3 covariance), or None (whole frame without a prediction)")
+      .def_readonly("windows", &SearchPlan::windows)
+      .def_property_readonly("left_regions", [](const SearchPlan& p) { return box_list(p.left_regions); },
+                             "(x_min, y_min, x_max, y_max) [px] of the left image's regions")
+      .def_property_readonly("right_regions", [](const SearchPlan& p) { return box_list(p.right_regions); },
+                             "the right image's regions");
+  py::enum_<FrameUpdate>(m, "FrameUpdate", "How a camera frame's result enters the filter.")
+      .value("FIX", FrameUpdate::Fix)
+      .value("LANDMARKS", FrameUpdate::Landmarks);
+  py::class_<FrameResult>(m, "FrameResult", "What became of one camera frame (Localizer.observe_frame).")
+      .def_readonly("plan", &FrameResult::plan)
+      .def_readonly("fix", &FrameResult::fix)
+      .def_readonly("update", &FrameResult::update)
+      .def_readonly("landmarks", &FrameResult::landmarks);
+
+  auto fe = py::reinterpret_borrow<py::class_<LanBLocFrontEnd>>(m.attr("LanBLocFrontEnd"));
+  fe.def(
+        "plan",
+        [](const LanBLocFrontEnd& f, const std::optional<Eigen::Vector3d>& pose,
+           const std::optional<Eigen::Matrix3d>& covariance) {
+          if (pose.has_value() != covariance.has_value())
+            throw std::invalid_argument("predicted_pose and predicted_covariance must be given together (or neither)");
+          return f.plan(pose ? std::optional<PosePrediction>(PosePrediction{*pose, *covariance}) : std::nullopt);
+        },
+        py::arg("predicted_pose") = py::none(), py::arg("predicted_covariance") = py::none(),
+        "The SearchPlan that localize(left, right, predicted_pose, predicted_covariance) searches.")
+      .def(
+          "localize_plan",
+          [](const LanBLocFrontEnd& f, const U8Array& left, const U8Array& right, const SearchPlan& plan) {
+            const ImageView l = grey_view(left, "left"), r = grey_view(right, "right");
+            py::gil_scoped_release nogil;
+            return f.localize(l, r, plan);
+          },
+          py::arg("left"), py::arg("right"), py::arg("plan"), "Observations and fix, searched where `plan` says.");
+}
+
+void bind_localizer_frames(py::module_& m) {
+  auto loc = py::reinterpret_borrow<py::class_<Localizer>>(m.attr("Localizer"));
+  loc.def(
+         "set_front_end",
+         [](Localizer& l, const LanBLocFrontEnd* f) { l.set_front_end(f ? borrowed(*f) : nullptr); },
+         py::arg("front_end"), py::keep_alive<1, 2>(),
+         "The LanBLocFrontEnd that observe_frame runs (None: frames off); its ids are the map's.")
+      .def("frame_plan", &Localizer::frame_plan, py::arg("t"),
+           "Where the frame at t is searched: windows from the filter's prediction to t, or the whole frame "
+           "(before the start, for a frame older than the filter, or when too uncertain).")
+      .def(
+          "observe_frame",
+          [](Localizer& l, double t, const U8Array& left, const U8Array& right, FrameUpdate how) {
+            const ImageView lv = grey_view(left, "left"), rv = grey_view(right, "right");
+            py::gil_scoped_release nogil;
+            return l.observe_frame(t, lv, rv, how);
+          },
+          py::arg("t"), py::arg("left"), py::arg("right"), py::arg_v("update", FrameUpdate::Fix, "FrameUpdate.FIX"),
+          "One rectified grey pair at t: the front end searches where frame_plan(t) says, and the fix "
+          "(FrameUpdate.FIX) or each landmark's range and bearing (LANDMARKS) updates the filter, gated.");
+}
+
+void bind_run_frames(py::module_& m) {
+  auto nav = py::reinterpret_borrow<py::class_<Navigator>>(m.attr("Navigator"));
+  nav.def(
+      "run_frames",
+      [](const Navigator& n, std::uint64_t seed, const LanBLocFrontEnd& front_end, py::object frames) {
+        py::object keep;  // the last frame's arrays, alive until the next call (released with the GIL held)
+        FrameCallback cb = [&frames, &keep](const State& x, int step, const SearchPlan& plan, ImageView& left,
+                                            ImageView& right) {
+          py::gil_scoped_acquire acquire;
+          py::object out = frames(x, step, plan);
+          if (out.is_none()) return false;
+          auto t = out.cast<py::tuple>();
+          if (t.size() != 2)
+            throw py::value_error("frames callback must return None or (left, right), got a tuple of " +
+                                  std::to_string(t.size()));
+          U8Array l = U8Array::ensure(t[0]), r = U8Array::ensure(t[1]);
+          if (!l || !r) throw py::value_error("frames callback must return 8-bit grey (H, W) arrays");
+          left = grey_view(l, "left");
+          right = grey_view(r, "right");
+          keep = py::make_tuple(l, r);
+          return true;
+        };
+        TrialResult res;
+        {
+          py::gil_scoped_release release;
+          res = n.run_frames(seed, borrowed(front_end), cb);
+        }
+        return res;
+      },
+      py::arg("seed"), py::arg("front_end"), py::arg("frames"),
+      "One trial with the camera in the loop: each fix step frames(truth, step, plan) renders the pair (at "
+      "least plan's regions; None: no frame), and the vehicle's localizer searches it where its own "
+      "prediction says (Localizer.observe_frame).");
+}
+}  // namespace
+
+void pybind_lanbloc_loop(py::module_& m) {
+  bind_plan(m);
+  bind_localizer_frames(m);
+  bind_run_frames(m);
+}

@@ -1,0 +1,173 @@
+"""The camera loop through the core's LanBLoc front end (ours; [SafeNav §IV-A]).
+
+A camera on a vehicle knows where to look only from its map and its own
+estimate.  :class:`CameraFrames` is the simulator's side of that loop: each
+fix step the vehicle's localizer plans where its front end will search
+(``Localizer.frame_plan``: the mapped landmarks projected from the filter's
+prediction, each window grown by its projected 3σ; the whole frame before
+the start or when the prediction is too uncertain), :class:`CameraFrames`
+renders exactly those regions at the true pose (ground and background
+textures, markers, poles, pixel noise: what the whole image holds there, so
+false detections can happen there as in a whole frame), and
+``Localizer.observe_frame`` detects, ranges, trilaterates and updates the
+filter through its gate.  ``Navigator.run_frames`` drives it: the same loop
+as for every other input.
+
+:func:`front_end` builds the core's ``LanBLocFrontEnd`` for a world and a
+:class:`~safenav.vision.rig.StereoRig`.
+
+With ``compare_whole_frame`` each frame is also rendered whole and searched
+without a prediction, to count what the estimate's windows cost
+(:attr:`CameraFrames.comparison`): fixes in each mode, the markers the whole
+frame found that the windows missed, and false detections (an id that is
+not drawn in the image, or not a landmark) in each mode.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .. import _core
+from ..world import World
+from .render import StereoRenderer
+from .rig import StereoRig
+
+__all__ = ["CameraFrames", "front_end", "NOISE_STREAM"]
+
+#: The pixel-noise stream of a frame: ``derive_seed(derive_seed(seed, NOISE_STREAM), step)``
+#: (as :class:`~safenav.vision.lanbloc.CameraLoopSource`'s).
+NOISE_STREAM = 2
+
+
+def front_end(world: World, rig: StereoRig, *, marker_size_m: float = 1.5, dictionary: str = "DICT_4X4_100",
+              min_landmarks: int = 3, **settings) -> _core.LanBLocFrontEnd:
+    """The core's LanBLoc front end for ``world``'s landmarks (marker id = landmark id, the
+    marker centre at the landmark's height) seen by ``rig`` (depths beyond ``rig.max_range_m``
+    give no range); ``settings`` are ``_core.LanBLocSettings`` fields."""
+    if not isinstance(world, World):
+        raise ValueError(f"world = {world!r}: must be a safenav World")
+    if not isinstance(rig, StereoRig):
+        raise ValueError(f"rig = {rig!r}: must be a StereoRig")
+    cam = _core.RectifiedCamera()
+    cam.f, cam.cx, cam.cy, cam.baseline, cam.doffs = rig.focal_length_px, rig.cx, rig.cy, rig.baseline_m, 0.0
+    cam.width, cam.height = rig.width, rig.height
+    s = _core.LanBLocSettings()
+    s.dictionary, s.marker_size_m, s.min_landmarks, s.max_range_m = dictionary, marker_size_m, min_landmarks, \
+        rig.max_range_m
+    for k, v in settings.items():
+        if not hasattr(s, k):
+            raise ValueError(f"{k} = {v!r}: not a LanBLocSettings field")
+        setattr(s, k, v)
+    return _core.LanBLocFrontEnd(_core.LanBLocRig(cam, rig.camera_height_m, rig.pitch_rad),
+                                 {lm.id: (*lm.position[:2], lm.height) for lm in world.landmarks}, s)
+
+
+class CameraFrames:
+    """Frames for ``Navigator.run_frames``: ``frames(truth, step, plan)`` renders the pair at the
+    true pose in the regions of ``plan`` (the whole images when it says so) and returns
+    ``(left, right)``, or ``None`` when the frame cannot give a fix (``early_out``: fewer
+    landmark centres in the left image than ``min_landmarks``, a bound from the geometry that
+    holds whatever the detector does with the pixels; such a frame counts as a dropout).
+
+    :attr:`front_end` is the core's front end (:func:`front_end`); :meth:`run` runs one trial;
+    :attr:`stats` counts frames by search mode, early outs and render time.
+    """
+
+    name = "lanbloc-camera"
+    emulated = False
+
+    def __init__(self, world: World, rig: StereoRig | None = None, *, marker_size_m: float = 1.5,
+                 dictionary: str = "DICT_4X4_100", noise_std: float = 1.0, occlusion: bool = True,
+                 early_out: bool = True, seed: int = 0, texture_seed: int = 0, min_landmarks: int = 3,
+                 compare_whole_frame: bool = False, **settings):
+        from .lanbloc import CameraLoopSource
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2 ** 64:
+            raise ValueError(f"seed = {seed!r}: must be an integer in [0, 2**64)")
+        self.rig = CameraLoopSource.DEFAULT_RIG if rig is None else rig
+        self.renderer = StereoRenderer(world, self.rig, marker_size_m=marker_size_m, dictionary=dictionary,
+                                       noise_std=noise_std, seed=seed, texture_seed=texture_seed,
+                                       occlusion=occlusion)
+        self.front_end = front_end(world, self.rig, marker_size_m=marker_size_m, dictionary=dictionary,
+                                   min_landmarks=min_landmarks, **settings)
+        self.min_landmarks = int(min_landmarks)
+        self.early_out = bool(early_out)
+        self._noise_seed = int(_core.derive_seed(int(seed), NOISE_STREAM))
+        self.compare_whole_frame = bool(compare_whole_frame)
+        self.stats = {"frames": 0, "windows": 0, "whole_frame": 0, "early_out": 0, "render_s": 0.0}
+        self.comparison = {k: 0 for k in ("frames", "fixes_windows", "fixes_whole", "markers_windows",
+                                          "markers_whole", "missed", "false_windows", "false_whole")}
+        #: per compared frame: the windows' fix error [m], NEES and farthest range [m] against the truth
+        #: (fixes only), the front end's seconds in the windows and on the whole frame, and the
+        #: comparison's own seconds
+        self.samples = {k: [] for k in ("error", "nees", "range", "s_windows", "s_whole", "s_compare")}
+
+    @classmethod
+    def from_scenario(cls, scenario, width: int | None = None, height: int | None = None, *,
+                      camera_height_m: float = 1.5, **kwargs) -> "CameraFrames":
+        """From a :class:`~safenav.scenario.Scenario`: its world, its camera (at its own resolution, or
+        scaled to ``width`` px), detection range, minimum landmark count and occlusion setting."""
+        width = scenario.camera.image_width_px if width is None else width
+        rig = StereoRig.from_camera(scenario.camera, width, height, camera_height_m=camera_height_m,
+                                    max_range_m=scenario.detection.max_range_m)
+        kwargs.setdefault("min_landmarks", max(3, scenario.detection.min_landmarks))
+        kwargs.setdefault("occlusion", getattr(scenario.detection, "occlusion", False))
+        return cls(scenario.world, rig, **kwargs)
+
+    def run(self, navigator, seed: int):
+        """One trial of ``navigator`` (a ``Navigator``) with these frames in the loop."""
+        return navigator.run_frames(int(seed), self.front_end, self)
+
+    def __call__(self, truth, step: int, plan):
+        s = np.asarray(truth, dtype=float).ravel()
+        if s.shape != (4,) or not np.isfinite(s).all():
+            raise ValueError(f"truth = {truth!r}: must be a finite (x, y, v, theta)")
+        pose = (s[0], s[1], s[3])
+        self.stats["frames"] += 1
+        if self.early_out and self.renderer.centres_in_view(pose) < self.min_landmarks:
+            self.stats["early_out"] += 1
+            return None
+        t0 = time.perf_counter()
+        seed = int(_core.derive_seed(self._noise_seed, int(step)))
+        whole = plan.mode == _core.SearchMode.WHOLE_FRAME
+        self.stats["whole_frame" if whole else "windows"] += 1
+        if whole:
+            full = [(0, 0, self.rig.width, self.rig.height)]
+            left, right = self.renderer.render_regions(pose, full, full, seed)
+        else:
+            left, right = self.renderer.render_regions(pose, plan.left_regions, plan.right_regions, seed)
+        self.stats["render_s"] += time.perf_counter() - t0
+        if self.compare_whole_frame and not whole:
+            t1 = time.perf_counter()
+            self._compare(pose, seed, plan, left, right)
+            self.samples["s_compare"].append(time.perf_counter() - t1)
+        return left, right
+
+    def _compare(self, pose, seed: int, plan, left, right) -> None:
+        """The same frame searched in the plan's windows and in the whole (rendered) frame."""
+        full = [(0, 0, self.rig.width, self.rig.height)]
+        wl, wr = self.renderer.render_regions(pose, full, full, seed)
+        t0 = time.perf_counter()
+        fw = self.front_end.localize_plan(left, right, plan)
+        t1 = time.perf_counter()
+        ff = self.front_end.localize(wl, wr)
+        self.samples["s_windows"].append(t1 - t0)
+        self.samples["s_whole"].append(time.perf_counter() - t1)
+        if fw.ok:
+            e = np.asarray(fw.position) - pose[:2]
+            self.samples["error"].append(float(np.hypot(*e)))
+            self.samples["nees"].append(float(e @ np.linalg.solve(fw.covariance, e)))
+            self.samples["range"].append(max(o.range for o in fw.observations if o.ok))
+        drawn = set(self.renderer.frame(pose, seed).footprints("left"))   # geometry only: no pixels drawn
+        c = self.comparison
+        c["frames"] += 1
+        c["fixes_windows"] += fw.ok
+        c["fixes_whole"] += ff.ok
+        ids_w = {o.landmark_id for o in fw.observations}
+        ids_f = {o.landmark_id for o in ff.observations}
+        c["markers_windows"] += len(ids_w)
+        c["markers_whole"] += len(ids_f)
+        c["missed"] += len(ids_f - ids_w)
+        c["false_windows"] += len(ids_w - drawn) + len(fw.unmapped)
+        c["false_whole"] += len(ids_f - drawn) + len(ff.unmapped)

@@ -1,0 +1,87 @@
+"""The whole-frame pipeline with corner ranging through the core's front end (ours;
+[SafeNav §IV-A]): ``LanBLoc(..., ranging="corners", backend="core")``.
+
+Detection, corner refinement and corner ranging run in C++
+(``safenav._core.LanBLocFrontEnd``, docs/lanbloc_cpp.md); the sightings come back as
+:class:`~safenav.vision.sighting.LandmarkSighting` and go through the same last step as
+every other pipeline (:meth:`~safenav.vision.ranging.LandmarkRanging.solve`: landmark
+faults, the core's trilateration, the mirror ambiguity), so the result is a
+:class:`~safenav.vision.sighting.LanBLocResult` like the Python pipeline's.  It equals the
+Python pipeline's on the same pair up to the two OpenCV versions' detectors (the C++ core
+links Debian's OpenCV 4.6, the Python side pip's cv2): same landmarks in 98 of 100 random
+frames, ranges within 1.4e-5 m median (``bench/bench_lanbloc_cpp.py``).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .. import _core
+from .detect import Detection, FiducialDetector
+from .ranging import LandmarkRanging, check_faults
+from .sighting import LandmarkSighting, LanBLocResult
+
+__all__ = ["CorePipeline"]
+
+
+class CorePipeline:
+    """Whole rectified pairs through the core's LanBLoc front end; the parameters are
+    :class:`~safenav.vision.lanbloc.LanBLoc`'s (``detector`` a
+    :class:`~safenav.vision.detect.FiducialDetector` whose marker ids are the landmark ids)."""
+
+    def __init__(self, ranger: LandmarkRanging, detector, check_pair):
+        if not isinstance(detector, FiducialDetector):
+            raise ValueError(f"backend = 'core' needs a FiducialDetector, got {type(detector).__name__}")
+        if detector._map is not None and any(m != lm for m, lm in detector._map.items()):
+            raise ValueError("backend = 'core' needs marker id = landmark id (the detector's landmark_map maps "
+                             "other ids)")
+        self.ranger, self.detector, self._check_pair = ranger, detector, check_pair
+        r, cam = ranger, ranger.camera
+        c = _core.RectifiedCamera()
+        c.f, c.cx, c.cy, c.baseline, c.doffs, c.width, c.height = (cam.f, cam.cx, cam.cy, cam.baseline, cam.doffs,
+                                                                    cam.width, cam.height)
+        s = _core.LanBLocSettings()
+        s.dictionary = detector.dictionary_name
+        s.corner_sigma_d, s.max_row_error_px, s.bearing_sigma_px = (r.corner_sigma_d, r.max_row_error_px,
+                                                                   r.bearing_sigma_px)
+        s.max_range_m, s.min_landmarks, s.resolve_ambiguity = r.max_range_m, r.min_landmarks, r.resolve_ambiguity
+        self.front_end = _core.LanBLocFrontEnd(_core.LanBLocRig(c, r.camera_height_m, r.pitch_rad),
+                                               {k: tuple(v[0]) for k, v in r.landmarks.items()}, s)
+
+    def localize(self, left, right, *, faults=None, position=None, seed: int = 0) -> LanBLocResult:
+        """One pair (raw if the camera needs rectification): the core's front end on the whole
+        frame, then :meth:`LandmarkRanging.solve`."""
+        faults = check_faults(faults)
+        t = {}
+        t0 = time.perf_counter()
+        left, right = self._check_pair(left, right)
+        if self.ranger.matcher.needs_rectification:
+            left, right = self.ranger.matcher.rectify(left, right)
+        if left.ndim == 3:
+            import cv2
+            left, right = cv2.cvtColor(left, cv2.COLOR_BGR2GRAY), cv2.cvtColor(right, cv2.COLOR_BGR2GRAY)
+        t1 = time.perf_counter()
+        t["rectify"] = t1 - t0
+        fix = self.front_end.localize(left, right)
+        t3 = time.perf_counter()
+        t["detect"], t["disparity"] = t3 - t1, 0.0
+        if self.ranger.unknown_landmark == "error" and fix.unmapped:
+            raise ValueError(f"detected landmark id {fix.unmapped[0]} is not in the landmark map (known ids: "
+                             f"{sorted(self.ranger.landmarks)})")
+        if not fix.observations:
+            return self.ranger.no_landmarks(t)
+        dets, obs = [], []
+        for o in fix.observations:
+            c = np.asarray(o.corners_left)
+            box = (float(c[:, 0].min()), float(c[:, 1].min()), float(c[:, 0].max()), float(c[:, 1].max()))
+            _, name = self.ranger.landmarks[o.landmark_id]
+            dets.append(Detection(o.landmark_id, name, box, 1.0, corners=c))
+            ok = bool(o.ok)
+            obs.append(LandmarkSighting(
+                landmark_id=o.landmark_id, class_name=name, box=box, score=1.0, anchor=np.asarray(o.anchor),
+                ok=ok, range=o.range if ok else np.nan, sigma=o.sigma if ok else np.nan, slant_range=o.slant_range,
+                depth=o.depth, disparity=o.disparity, n_valid=4 if np.isfinite(o.corners_right).all() else 0,
+                bearing=o.bearing, bearing_sigma=o.bearing_sigma, reason=o.reason))
+        return self.ranger.solve(dets, tuple(obs), t, t3, faults, position, seed)

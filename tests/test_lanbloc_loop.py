@@ -1,0 +1,196 @@
+"""The camera loop through the core's LanBLoc front end: ``Localizer.observe_frame`` searches
+where the filter's own prediction says (equal to planning with the prediction, localizing and
+fixing by hand), a wrong estimate costs detections, a lost or uncertain one searches the whole
+frame; the renderer draws the planned regions as the whole frame has them (ground and
+background included); and ``Navigator.run_frames`` closes the loop, deterministically."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import safenav
+from safenav import _core
+from safenav import navigation as nv
+from safenav.vision.camera_loop import CameraFrames, front_end
+from safenav.vision.render import StereoRenderer
+from test_lanbloc_cpp import RIG, SCENES, _pair, _scene
+
+POSE, PLACEMENTS = SCENES[0]
+
+
+@pytest.fixture(scope="module")
+def scene():
+    world = _scene(POSE, PLACEMENTS)
+    left, right = _pair(world, POSE)
+    return world, left, right, front_end(world, RIG, marker_size_m=1.5)
+
+
+def _localizer(world, fe, pose, P_pose, speed=0.0):
+    ids = [lm.id for lm in world.landmarks]
+    loc = _core.Localizer(_core.LocalizerSettings(), np.array([lm.position[:2] for lm in world.landmarks]), ids)
+    P = np.diag([P_pose[0, 0], P_pose[1, 1], 0.01, P_pose[2, 2]])
+    loc.initialize(0.0, np.array([pose[0], pose[1], speed, pose[2]]), P)
+    loc.set_front_end(fe)
+    return loc
+
+
+def _pose_cov(x, P):
+    i = [0, 1, 3]
+    return x[i], P[np.ix_(i, i)]
+
+
+def test_observe_frame_is_the_front_end_with_the_filters_prediction_then_fix(scene):
+    world, left, right, fe = scene
+    P3 = np.diag([0.2 ** 2, 0.2 ** 2, math.radians(1.5) ** 2])
+    a, b = (_localizer(world, fe, POSE, P3, speed=1.0) for _ in range(2))
+    for loc in (a, b):
+        loc.motion(0.1, 1.0, 0.0)
+    # by hand: the filter's prediction to t, the front end's plan from it, localize, fix
+    x, P = b.predict_to(0.3)
+    plan = fe.plan(*_pose_cov(x, P))
+    fix = fe.localize_plan(left, right, plan)
+    want = b.fix(0.3, *fix.position, fix.covariance)
+    got = a.observe_frame(0.3, left, right)
+    assert got.plan.mode == _core.SearchMode.WINDOWS and got.plan.reason == ""
+    assert got.plan.left_regions == plan.left_regions and got.plan.right_regions == plan.right_regions
+    np.testing.assert_array_equal(got.plan.prediction[0], _pose_cov(x, P)[0])
+    assert str(got.fix.status) == "ok" and got.fix.search == _core.SearchMode.WINDOWS
+    np.testing.assert_array_equal(got.fix.position, fix.position)
+    assert got.update.status == want.status == _core.InputStatus.APPLIED and got.update.nis == want.nis
+    np.testing.assert_array_equal(a.x, b.x)
+    np.testing.assert_array_equal(a.P, b.P)
+    assert [s.status for s in got.landmarks] == [_core.InputStatus.APPLIED] * len(got.fix.observations)
+    # every marker the whole frame finds is found in the windows of a right estimate
+    whole = fe.localize(left, right)
+    assert [o.landmark_id for o in got.fix.observations] == [o.landmark_id for o in whole.observations]
+
+
+def test_landmark_updates_gate_each_range_and_bearing(scene):
+    world, left, right, fe = scene
+    P3 = np.diag([0.2 ** 2, 0.2 ** 2, math.radians(1.5) ** 2])
+    a, b = (_localizer(world, fe, POSE, P3) for _ in range(2))
+    got = a.observe_frame(0.0, left, right, _core.FrameUpdate.LANDMARKS)
+    assert got.plan.mode == _core.SearchMode.WINDOWS
+    for o, s in zip(got.fix.observations, got.landmarks):
+        assert o.ok
+        want = b.observe(0.0, o.landmark_id, o.range, o.bearing, o.sigma, o.bearing_sigma)
+        assert s.status == want.status and s.nis == pytest.approx(want.nis, rel=1e-12)
+    np.testing.assert_allclose(a.x, b.x, rtol=0, atol=1e-12)
+    assert got.update.applied
+
+
+def test_a_wrong_estimate_costs_detections(scene):
+    world, left, right, fe = scene
+    whole = {o.landmark_id for o in fe.localize(left, right).observations}
+    # confident and 20 degrees off: the windows sit beside the markers
+    wrong = (POSE[0], POSE[1], POSE[2] + math.radians(20.0))
+    loc = _localizer(world, fe, wrong, np.diag([0.2 ** 2, 0.2 ** 2, math.radians(1.5) ** 2]))
+    got = loc.observe_frame(0.0, left, right)
+    assert got.plan.mode == _core.SearchMode.WINDOWS
+    found = {o.landmark_id for o in got.fix.observations}
+    assert found < whole
+    assert str(got.fix.status) != "ok" or got.update.status != _core.InputStatus.APPLIED or len(found) < len(whole)
+
+
+def test_lost_or_uncertain_estimates_search_the_whole_frame(scene):
+    world, left, right, fe = scene
+    whole = fe.localize(left, right)
+    lost = _localizer(world, fe, POSE, np.diag([30.0 ** 2, 30.0 ** 2, 1.0]))
+    got = lost.observe_frame(0.0, left, right)
+    assert got.plan.mode == _core.SearchMode.WHOLE_FRAME and "too uncertain" in got.plan.reason
+    np.testing.assert_array_equal(got.fix.position, whole.position)
+    ids = [lm.id for lm in world.landmarks]
+    fresh = _core.Localizer(_core.LocalizerSettings(), np.array([lm.position[:2] for lm in world.landmarks]), ids)
+    fresh.set_front_end(fe)
+    plan = fresh.frame_plan(0.0)
+    assert plan.mode == _core.SearchMode.WHOLE_FRAME and "not started" in plan.reason and plan.prediction is None
+    # a frame older than the filter: no prediction for it
+    late = _localizer(world, fe, POSE, np.diag([0.04, 0.04, 0.001]))
+    late.motion(1.0, 0.0, 0.0)
+    assert "older than the filter" in late.frame_plan(0.5).reason
+
+
+def test_bad_frame_input_is_named(scene):
+    world, left, right, fe = scene
+    loc = _localizer(world, fe, POSE, np.diag([0.04, 0.04, 0.001]))
+    with pytest.raises(ValueError, match="left image is 320x480"):
+        loc.observe_frame(0.0, left[:, :320], right)
+    with pytest.raises(ValueError, match="frame time t = nan"):
+        loc.frame_plan(float("nan"))
+    bare = _core.Localizer(_core.LocalizerSettings())
+    with pytest.raises(ValueError, match="no front end"):
+        bare.frame_plan(0.0)
+    other = _core.Localizer(_core.LocalizerSettings(), np.array([[0.0, 0.0]]), [99])
+    other.initialize(0.0, np.array([POSE[0], POSE[1], 0.0, POSE[2]]), np.diag([0.04, 0.04, 0.01, 0.001]))
+    other.set_front_end(fe)
+    assert other.observe_frame(0.0, left, right).update.applied      # a fix needs no map ids
+    with pytest.raises(ValueError, match="front end landmark 1 is not in the localizer's map"):
+        other.observe_frame(0.0, left, right, _core.FrameUpdate.LANDMARKS)
+
+
+def test_regions_are_drawn_as_the_whole_frame_draws_them():
+    world = _scene(POSE, PLACEMENTS)
+    r = StereoRenderer(world, RIG, noise_std=0.0)
+    left, right = r.render(POSE)
+    boxes = [(0, 0, RIG.width, RIG.height)]
+    l2, r2 = r.render_regions(POSE, boxes, boxes)
+    np.testing.assert_array_equal(l2, left)
+    np.testing.assert_array_equal(r2, right)
+    # a window below the horizon (ground texture) and one on a marker: the whole frame's pixels
+    boxes = [(10, 400, 200, 470), (300, 150, 420, 260)]
+    l3, r3 = r.render_regions(POSE, boxes, boxes[:1])
+    for x0, y0, x1, y1 in boxes:
+        d = np.abs(l3[y0:y1, x0:x1].astype(int) - left[y0:y1, x0:x1])
+        assert d.max() <= 1 and d.mean() < 0.01
+    assert l3[:100, 500:].max() == 0 and r3[150:260, 300:420].max() == 0      # nothing outside
+    assert left[400:470, 10:200].std() > 5                                      # the ground is textured there
+
+
+def test_camera_frames_run_the_loop_deterministically():
+    sc = safenav.default_scenario()
+    path = np.asarray(nv.plan_safe_path(sc, "P3", iterations=1500).path)
+    nav = nv.make_navigator(sc, path, method="centroid", position_every=40, record=False)
+    runs = []
+    for _ in range(2):
+        src = CameraFrames.from_scenario(sc, seed=5)
+        runs.append((src.run(nav, 5), src.stats))
+    (a, sa), (b, sb) = runs
+    assert a.success, a.reason
+    assert a.steps == b.steps and a.position_fixes == b.position_fixes and a.metrics["truth_ade"] == \
+        b.metrics["truth_ade"]
+    assert a.position_fixes > 0 and sa["windows"] > 0
+    # one frame at the start (whole frame, no estimate yet) and one every 40 steps
+    assert sa["frames"] == 1 + a.steps // 40
+    # each later frame gave a fix (applied, or rejected by the gate) or a dropout; rejected counts the IMU's too
+    assert a.position_fixes + a.dropouts <= a.steps // 40 <= a.position_fixes + a.dropouts + a.rejected
+
+
+@pytest.mark.parametrize("k", range(len(SCENES)))
+def test_lanbloc_core_backend_is_the_front_end_under_the_python_api(k):
+    from safenav.vision.lanbloc import LanBLoc
+
+    pose, placements = SCENES[k]
+    world = _scene(pose, placements)
+    left, right = _pair(world, pose)
+    core = LanBLoc(world, RIG, ranging="corners", backend="core").localize(left, right)
+    py = LanBLoc(world, RIG, ranging="corners").localize(left, right)
+    fe = front_end(world, RIG).localize(left, right)
+    assert core.status == str(fe.status) == py.status == "ok"
+    # the same sightings as the front end's, solved by the shared last step: the front end's fix
+    assert [o.landmark_id for o in core.observations] == [o.landmark_id for o in fe.observations]
+    assert [o.range for o in core.observations] == [o.range for o in fe.observations]
+    np.testing.assert_allclose(core.position, fe.position, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(core.covariance, fe.covariance, rtol=1e-9, atol=1e-15)
+    # the Python pipeline's landmarks, and its fix within the two OpenCV versions' corner difference
+    assert [o.landmark_id for o in core.observations] == [o.landmark_id for o in py.observations]
+    assert np.linalg.norm(core.position - py.position) < 0.05
+    # landmark faults act on the core's ranges as on the Python pipeline's
+    faults = _core.LandmarkFaults(1.0, 0.0, 1.0, 0.0)
+    dropped = LanBLoc(world, RIG, ranging="corners", backend="core").localize(left, right, faults=faults,
+                                                                              position=np.array(pose[:2]))
+    assert dropped.status == "too_few_ranges" and dropped.dropped == len(fe.observations)
+    with pytest.raises(ValueError, match="backend = 'core' needs ranging = 'corners'"):
+        LanBLoc(world, RIG, backend="core")
