@@ -275,18 +275,18 @@ struct ParticleFilter::Impl {
   }
 
   /// The regularised update (see ParticleFilter in safenav/filters.hpp): each
-  /// particle is the centre of a kernel N(c_i, h²Σ⁻), c_i = m + a(x_i − m),
-  /// a = √(1 − h²); the kernels are updated by
+  /// particle is the centre of a kernel N(c_i, h_u²Σ⁻), c_i = m + a(x_i − m),
+  /// a = √(1 − h_u²), h_u = adaptive_bandwidth(); the kernels are updated by
   /// statistical linearisation (one gain K for all), weighted by their own
   /// predictive likelihood N(y_c,i; 0, S_h), and each particle is redrawn
   /// from its updated kernel (C_xh = −C_xy):
-  ///   S_h = h²C_yy + R,  K = h²C_xh S_h⁻¹,  P_k = h²Σ⁻ − K S_h Kᵀ
+  ///   S_h = h_u²C_yy + R,  K = h_u²C_xh S_h⁻¹,  P_k = h_u²Σ⁻ − K S_h Kᵀ
   ///   y_c,i = ȳ + a(y_i − ȳ),  log w_i += −½ y_c,iᵀ S_h⁻¹ y_c,i
-  ///   x_i ← c_i + K y_c,i + d_i − Σ_j w_j d_j,  d_i = L ε_i,  L Lᵀ = P_k (+ the Monte Carlo term below)
+  ///   x_i ← c_i + K y_c,i + d_i,  d_i from redraw() with L Lᵀ = P_k
+  ///         (+ (g − 1)Σ_c when resampled, the Monte Carlo term)
   /// with systematic resampling before the redraw when ESS <
-  /// resample_threshold·N.  The redraw's noise is centred (its weighted mean
-  /// removed): it moves no particle mean.  Needs likelihood() called first
-  /// under the prior weights (ȳ, C_yy, C_xy).
+  /// resample_threshold·N.  Needs likelihood() called first under the prior
+  /// weights (ȳ, C_yy, C_xy).
   void kernel_update(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z,
                      const Eigen::MatrixXd& R) {
     const bool position = model.kind() == MeasurementKind::Position;
@@ -328,7 +328,9 @@ struct ParticleFilter::Impl {
     redraw(L);
   }
 
-  /// x_i += d_i − Σ_j w_j d_j, d_i = L ε_i (v clamped to [v_min, v_max], θ wrapped).
+  /// x_i += d_i − Σ_j w_j d_j, d_i = L T(ε_i − ε̄) (v clamped to [v_min,
+  /// v_max], θ wrapped): the draws are moment-matched, so the redraw moves
+  /// no weighted mean and adds exactly L Lᵀ to the weighted covariance.
   void redraw(const Eigen::Matrix4d& L) {
     rng.fill_normal(noise.col(0), 4L * noise.stride());
     double* e[4] = {noise.col(0), noise.col(1), noise.col(2), noise.col(3)};
@@ -342,6 +344,7 @@ struct ParticleFilter::Impl {
       Ce.noalias() += (w()[i] * d) * d.transpose();
     }
     const Eigen::LLT<Eigen::Matrix4d> lc(Ce);
+    // Matched only when Cov_w(ε) is well estimated (ESS > 2d = 8); else centred only.
     const bool match = lc.info() == Eigen::Success && ess > 8.0;
     const Eigen::Matrix4d M = match ? Eigen::Matrix4d(L * lc.matrixL().solve(Eigen::Matrix4d::Identity())) : L;
     Eigen::Vector4d dbar = Eigen::Vector4d::Zero();
