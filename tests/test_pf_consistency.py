@@ -1,7 +1,10 @@
 """The regularised particle filter stays consistent: its NEES against the
-chi-square band on a near-linear problem and after fix gaps (where the plain
-SIR filter collapses), its reported covariance never below the kernel floor,
-the jitter's bandwidth as Musso et al. 2001 give it, and fixed seeds.
+chi-square band on a near-linear problem, after fix gaps (where the plain
+SIR filter collapses) and through long dead reckoning on the IMU alone
+(where resampling used to shrink the cloud), its estimate against the
+Kalman filter's on a near-linear problem, its reported covariance never
+below the kernel floor, the jitter's bandwidth as Musso et al. 2001 give
+it, and fixed seeds.
 
 Truth from ``Bmm(params).simulate`` with the filter's own parameters; position
 fixes with noise drawn from the R the filter is given; the initial estimate
@@ -151,13 +154,15 @@ def test_same_seed_same_numbers():
     run = lambda seed: safenav.filter_trajectory(u, X0_TRUE, P0, params=PARAMS, filter="pf", position=z,
                                                  position_cov=R_LANBLOC, n_particles=300, seed=seed)
     a, b, c = run(5), run(5), run(6)
-    assert a.n_resampled > 5
+    assert a.n_updates == 40
     np.testing.assert_array_equal(a.states, b.states)
     np.testing.assert_array_equal(a.covariances, b.covariances)
     assert not np.array_equal(a.states, c.states)
     # the step API: two filters with one seed stay equal through resamplings and their jitter
     pos = MeasurementModel.position(R_LANBLOC)
-    f, g = (safenav.ParticleFilter(PARAMS, X0_TRUE, P0, n_particles=300, seed=5) for _ in range(2))
+    # (resample_threshold 1: every update resamples)
+    f, g = (safenav.ParticleFilter(PARAMS, X0_TRUE, P0, n_particles=300, seed=5, resample_threshold=1.0)
+            for _ in range(2))
     for k in range(len(u)):
         for h in (f, g):
             h.predict(u[k])
@@ -166,3 +171,72 @@ def test_same_seed_same_numbers():
     assert f.resample_count > 5
     np.testing.assert_array_equal(f.particles, g.particles)
     np.testing.assert_array_equal(f.P, g.P)
+
+
+#: The IMU (speed, heading) noise of the default scenario.
+R_IMU = np.diag([0.05**2, 0.02**2])
+
+
+def dead_reckoning(n_runs, n_steps, seed, p0):
+    """Per-run NEES (n_runs, n_steps) and reported position variances of the
+    PF (500 particles) and the EKF on the same runs: an IMU update every step,
+    no position fix.  Position is observed by nothing; the IMU reweights the
+    particles by (v, θ) only."""
+    u = np.column_stack([np.full(n_steps, 50.0), 0.01 * np.sin(2 * np.pi * np.arange(n_steps) / n_steps)])
+    out = {"pf": [], "ekf": []}
+    for ss in np.random.SeedSequence(seed).spawn(n_runs):
+        rng = np.random.default_rng(ss)
+        truth = Bmm(PARAMS).simulate(X0_TRUE, u, seed=int(rng.integers(2**63)))
+        z = truth[1:, 2:] + rng.multivariate_normal(np.zeros(2), R_IMU, size=n_steps)
+        x0 = rng.multivariate_normal(X0_TRUE, p0)
+        for f in out:
+            kw = dict(n_particles=500, seed=int(rng.integers(2**63))) if f == "pf" else {}
+            r = safenav.filter_trajectory(u, x0, p0, params=PARAMS, filter=f, speed_heading=z,
+                                          speed_heading_cov=R_IMU, **kw)
+            out[f].append((nees_or_inf(r.states[1:], truth[1:], r.covariances[1:]),
+                           r.covariances[1:, 0, 0] + r.covariances[1:, 1, 1]))
+    return {f: (np.array([a for a, _ in v]), np.array([b for _, b in v])) for f, v in out.items()}
+
+
+def test_dead_reckoning_on_the_imu_keeps_the_cloud_and_the_nees():
+    """200 steps of IMU updates only, from a 0.3 m position prior.  Every
+    update reweights by (v, θ), which says almost nothing about position: a
+    filter that resamples on those weights turns ~Σ/ESS of the position
+    spread into Monte Carlo error of the mean per cycle, and the spread
+    shrinks while the error grows (mean NEES 9 with the old update, 20 with
+    the SIR filter).  The EKF's position variance barely changes here; the
+    PF's must not collapse below it, and its mean NEES stays near the
+    chi-square band."""
+    M, N = 30, 200
+    p0 = np.diag([0.3**2, 0.3**2, 0.05**2, 0.02**2])
+    r = dead_reckoning(M, N, seed=21, p0=p0)
+    e_pf, v_pf = r["pf"]
+    e_ekf, v_ekf = r["ekf"]
+    ratio = v_pf[:, -1].mean() / v_ekf[:, -1].mean()
+    assert 0.7 < ratio < 1.5, ratio
+    lo, hi = chi2_interval(dof=4, n_runs=M)
+    anees = e_pf.mean(axis=1).mean()
+    assert 0.75 * lo < anees < 1.25 * hi, (anees, lo, hi, e_ekf.mean())
+    assert e_pf[:, -1].mean() < 2.0 * hi, e_pf[:, -1].mean()
+
+
+def test_estimate_follows_the_kalman_filter_on_a_near_linear_problem():
+    """Fixes (R comparable to the cloud) and IMU every step, eq. 3 kept linear
+    by the controls: the EKF is then (nearly) the exact filter.  The PF's mean
+    stays within a fraction of the EKF's σ of the EKF's estimate, and its
+    reported covariance within Monte Carlo error of the EKF's P (traces)."""
+    n = 60
+    u = controls(n)
+    rng = np.random.default_rng(31)
+    truth = Bmm(PARAMS).simulate(X0_TRUE, u, seed=31)
+    R = np.diag([0.2**2, 0.25**2])
+    zp = truth[1:, :2] + rng.multivariate_normal(np.zeros(2), R, size=n)
+    zi = truth[1:, 2:] + rng.multivariate_normal(np.zeros(2), R_IMU, size=n)
+    kw = dict(params=PARAMS, position=zp, position_cov=R, speed_heading=zi, speed_heading_cov=R_IMU)
+    ekf = safenav.filter_trajectory(u, X0_TRUE, P0, filter="ekf", **kw)
+    pf = safenav.filter_trajectory(u, X0_TRUE, P0, filter="pf", n_particles=500, seed=3, **kw)
+    d = nees(pf.states[1:], ekf.states[1:], ekf.covariances[1:])  # (x_pf − x_ekf)ᵀ P_ekf⁻¹ (…)
+    assert np.median(d) < 0.5 and d.max() < 3.0, (np.median(d), d.max())
+    t_pf = np.trace(pf.covariances[1:, :2, :2], axis1=1, axis2=2)
+    t_ekf = np.trace(ekf.covariances[1:, :2, :2], axis1=1, axis2=2)
+    assert 0.8 < np.median(t_pf / t_ekf) < 1.3, np.median(t_pf / t_ekf)

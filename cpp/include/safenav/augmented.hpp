@@ -161,15 +161,19 @@ class AugmentedEkf {
 /// ESS < resample_threshold·N.  With bandwidth_scale > 0 each resampling is
 /// regularised over the whole augmented state, d = state_size() (Musso et
 /// al.'s post-regularised PF; the references are at ParticleFilter in
-/// safenav/filters.hpp): x_i ← m + a(x_i − m) + L ε_i, a = √(1 − h²) (Liu &
-/// West's shrinkage), L Lᵀ = P_k, the kernel h²Σ⁻ of the cloud before the
-/// update conditioned on z by statistical linearisation, P_k = h²Σ⁻ −
+/// safenav/filters.hpp): x_i ← m + a(x_i − m) + d_i − d̄, d_i = L ε_i, d̄
+/// their mean (the jitter moves no mean), a = √(1 − h²) (Liu & West's
+/// shrinkage), L Lᵀ = P_k + (g − 1)·Σ₊, the kernel h²Σ⁻ of the cloud before
+/// the update conditioned on z by statistical linearisation, P_k = h²Σ⁻ −
 /// h⁴C_xy(h²C_yy + R)⁻¹C_xyᵀ (Musso et al. use h² times the weighted
-/// posterior covariance, ~0 when the weights degenerate).  This keeps the
+/// posterior covariance, ~0 when the weights degenerate), plus the Monte
+/// Carlo variance that resampling loses, Σ₊ the weighted posterior
+/// covariance and g = ESS/(ESS − 1) with the lineages' ESS (as
+/// ParticleFilter's).  This keeps the
 /// slowly varying k, β, b_j from collapsing onto a few values (their random
 /// walks are far too small to restore diversity).  The weights stay those of
 /// the SIR filter (ParticleFilter's kernel update is not used here).
-/// covariance() is floored as ParticleFilter's.  Gate as
+/// covariance() is g·sample_covariance() floored, as ParticleFilter's.  Gate as
 /// ParticleFilter::set_gate: the NIS of the weighted-mean prediction
 /// (S = weighted covariance of the particles' residuals + R).  A plain
 /// scalar loop; predict and the updates allocate nothing after construction
@@ -204,7 +208,8 @@ class AugmentedParticleFilter {
 
   /// Weighted mean (circular for θ) of (x, y, v, θ).
   State mean() const;
-  /// The reported covariance of (x, y, v, θ): sample_covariance() floored by covariance_floor().
+  /// The reported covariance of (x, y, v, θ): g·sample_covariance() (the Monte Carlo
+  /// error of the weighted mean, ParticleFilter's g) floored by covariance_floor().
   StateCov covariance() const;
   /// The weighted covariance of (x, y, v, θ), unfloored.
   StateCov sample_covariance() const;

@@ -121,20 +121,34 @@ class Ekf {
 /// Kalman filter and particle filters", Comput. Geosci. 15:293–305]:
 ///
 ///  bandwidth: h = c·(4/(N(d+2)))^{1/(d+4)}, d = 4: Musso et al.'s optimal
-///             Gaussian-kernel bandwidth h_opt at c = 1
-///  kernels:   N(c_i, h²Σ⁻), c_i = m + a(x_i − m), a = √(1 − h²) [Liu & West
-///             2001, ch. 10 of the same book]: the mixture keeps the cloud's
-///             mean m and covariance Σ⁻ (weighted, before the update)
-///  update:    S_h = h²C_yy + R, K = h²C_xh S_h⁻¹, P_k = h²Σ⁻ − K S_h Kᵀ, with
-///             C_yy, C_xh the weighted covariances of the residuals
+///             Gaussian-kernel bandwidth h_opt at c = 1; per update the
+///             smallest h_u ∈ [h, 1] whose kernel weights keep ESS ≥
+///             resample_threshold·N (Stordal et al.'s adaptive bandwidth;
+///             h_u = 1 is the ensemble Kalman update, flat kernel weights)
+///  kernels:   N(c_i, h_u²Σ⁻), c_i = m + a(x_i − m), a = √(1 − h_u²) [Liu &
+///             West 2001, ch. 10 of the same book]: the mixture keeps the
+///             cloud's mean m and covariance Σ⁻ (weighted, before the update)
+///  update:    S_h = h_u²C_yy + R, K = h_u²C_xh S_h⁻¹, P_k = h_u²Σ⁻ − K S_h Kᵀ,
+///             with C_yy, C_xh the weighted covariances of the residuals
 ///             y_i = z ⊖ h(x_i) and of x with h(x) (statistical linearisation
 ///             over the particles, exact for the position and IMU models);
 ///             y_c,i = ȳ + a(y_i − ȳ), log w_i += −½ y_c,iᵀ S_h⁻¹ y_c,i,
-///             centre c_i + K y_c,i; resample when ESS < resample_threshold·N;
-///             then each particle is redrawn from its kernel: + L ε_i,
-///             L Lᵀ = P_k, ε_i ~ N(0, I)
-///  report:    P = P̂ + (h²C_u − P̂)₊ (⪰ P̂ and ⪰ h²C_u), P̂ the weighted
-///             covariance of the particles, C_u their unweighted covariance
+///             centre c_i + K y_c,i; resample when ESS < resample_threshold·N
+///             (systematic), and then redraw from P_k + (g − 1)·Σ_c, Σ_c the
+///             weighted covariance of the updated centres (below); each
+///             particle is redrawn from its kernel: + d_i − Σ w_j d_j,
+///             d_i = L T(ε_i − ε̄), L Lᵀ = P_k, T moment-matching the draws
+///             (weighted mean 0, weighted covariance I exactly)
+///  Monte Carlo error: the weighted covariance P̂ about the weighted mean m̂
+///             has expectation (1 − Σw²)·P; the missing P/ESS is the
+///             covariance of m̂'s Monte Carlo error, which resampling turns
+///             into an error of the mean that no later update sees.  With
+///             g = ESS/(ESS − 1) (ESS of the lineages, 1/Σ_a W_a², W_a the
+///             weight of the descendants of one particle of the last
+///             resampling: copies move together), g·P̂ is put back into the
+///             redraw at each resampling and into the report
+///  report:    P = gP̂ + (h²C_u − gP̂)₊ (⪰ gP̂ and ⪰ h²C_u), C_u the
+///             particles' unweighted covariance
 ///
 /// Why: with LanBLoc fixes (σ ≈ 1–4 cm) after a few steps without one, the
 /// SIR likelihood is far narrower than the particle spacing; one or two
@@ -143,19 +157,25 @@ class Ekf {
 /// weighted by its own predictive likelihood (S_h ⪰ R) and moved toward z
 /// by K, so a fix narrower than the cloud, or beyond it, moves the cloud
 /// instead of selecting one particle, and the redraw keeps the cloud from
-/// collapsing after resampling.
+/// collapsing after resampling.  In dead reckoning (the IMU's speed and
+/// heading every step, no fix) the IMU weights say almost nothing about
+/// position, yet each weigh-and-resample cycle with a fixed h turned
+/// ~P/ESS of the position spread into a random walk of the mean: the cloud
+/// shrank while the error grew (NEES 12–24 in the loop at 500 particles,
+/// from runs that waited hundreds of steps for a fix).  The adaptive h
+/// moves the cloud instead of reweighting it, the moment-matched redraw
+/// moves no mean, and g puts back what resampling still loses.
 /// Where this departs from the references: Musso et al. regularise after
 /// resampling only, with kernel h²·(weighted posterior covariance), which
-/// is ~0 when the weights are degenerate; Stordal et al. choose h
-/// adaptively from the ESS, here h is Musso's h_opt times a fixed scale and
-/// the kernel update is used only when the SIR weights would degenerate
-/// (the sampled cross-covariances of statistical linearisation bias the
-/// variances of weakly observed components low, so it is kept for the
-/// updates that need it); the
+/// is ~0 when the weights are degenerate; the kernel update is used only
+/// when the SIR weights would degenerate (the sampled cross-covariances of
+/// statistical linearisation bias the variances of weakly observed
+/// components low, so it is kept for the updates that need it); the
 /// kernel centres are shrunk (Liu & West) so that the mixture does not
-/// inflate the covariance by (1 + h²) per update; the reported covariance is
-/// floored by the unweighted cloud's kernel covariance, which the particles
-/// cannot resolve below.
+/// inflate the covariance by (1 + h²) per update; the reported covariance
+/// is floored by the unweighted cloud's kernel covariance, which the
+/// particles cannot resolve below.  The lineage ESS and the moment
+/// matching are ours.
 ///
 /// A run is fixed by its seed: the same numbers on every x86-64 CPU, with or
 /// without AVX2 (its hot loops have an AVX2 copy chosen at run time that
@@ -195,7 +215,9 @@ class ParticleFilter {
   /// Weighted mean (circular mean for θ).
   State mean() const;
   /// The reported covariance: the weighted covariance (angle-wrapped
-  /// deviations) floored by covariance_floor() (see the class comment).
+  /// deviations) times g = ESS/(ESS − 1) of the lineages, floored by
+  /// covariance_floor() (see the class comment; the SIR filter reports the
+  /// weighted covariance alone).
   StateCov covariance() const;
   /// The same about a given mean (saves recomputing mean()).
   StateCov covariance(const State& about) const;

@@ -10,6 +10,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "checks.hpp"
 #include "regularise.hpp"
@@ -55,6 +56,8 @@ struct AugmentedParticleFilter::Impl {
   Eigen::VectorXd w_prior, m_prior, m_post, dev, eps;
   Eigen::MatrixXd Sigma, Pk, L;
   Eigen::Matrix<double, Eigen::Dynamic, 2> Cxy;
+  std::vector<int> ancestor;                 // the particle each one descends from at the last resampling
+  mutable Eigen::VectorXd lineage_w;         // scratch: the weight of each lineage
   mutable Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es;
   mutable Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> es4;
 
@@ -78,6 +81,9 @@ struct AugmentedParticleFilter::Impl {
     L.resize(n, n);
     Cxy.resize(n, 2);
     es = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(n);
+    ancestor.resize(N);
+    for (int i = 0; i < N; ++i) ancestor[i] = i;
+    lineage_w.resize(N);
   }
 
   /// Mean of the full state under weights u (θ circular).
@@ -110,19 +116,41 @@ struct AugmentedParticleFilter::Impl {
     }
   }
 
-  /// After a resampling: x_i ← m + a(x_i − m) + L ε_i (regularise.hpp), v clamped to [v_min, v_max], θ wrapped.
+  /// After a resampling: x_i ← m + a(x_i − m) + d_i − d̄, d_i = L ε_i, d̄ their
+  /// mean (centred: the jitter moves no mean; regularise.hpp), v clamped to
+  /// [v_min, v_max], θ wrapped.  X_next (the set before resampling) is scratch.
   void regularise() {
     detail::psd_factor(Pk, es, L);
     const double a = std::sqrt(std::max(0.0, 1.0 - h * h));
     const double vmax = bmm.params().max_speed;
     for (int i = 0; i < N; ++i) {
-      deviation(i, m_post);
       for (int r = 0; r < n; ++r) eps[r] = rng.normal();
-      dev *= a;
-      dev.noalias() += L * eps;
-      X.col(i) = m_post + dev;
+      X_next.col(i).noalias() = L * eps;
+    }
+    const Eigen::VectorXd dbar = X_next.rowwise().mean();
+    for (int i = 0; i < N; ++i) {
+      deviation(i, m_post);
+      X.col(i) = m_post + a * dev + X_next.col(i) - dbar;
       X(kV, i) = std::clamp(X(kV, i), bmm.params().min_speed(), vmax);
       X(kTheta, i) = wrap_angle(X(kTheta, i));
+    }
+  }
+
+  /// The lineages' effective sample size 1/Σ_a W_a² (W_a: the weight of the
+  /// descendants of particle a of the last resampling; ParticleFilter's).
+  double lineage_ess() const {
+    lineage_w.setZero();
+    for (int i = 0; i < N; ++i) lineage_w[ancestor[i]] += w[i];
+    return 1.0 / lineage_w.squaredNorm();
+  }
+
+  /// The weighted covariance of the full state about the weighted mean (θ wrapped) into Sigma.
+  void posterior_covariance() {
+    weighted_mean(w, m_post);
+    Sigma.setZero();
+    for (int i = 0; i < N; ++i) {
+      deviation(i, m_post);
+      Sigma.noalias() += (w[i] * dev) * dev.transpose();
     }
   }
 
@@ -155,6 +183,7 @@ struct AugmentedParticleFilter::Impl {
       const double u = (j + U) / N;
       while (u > c && i < N - 1) c += w[++i];
       X_next.col(j) = X.col(i);
+      ancestor[j] = i;
     }
     X.swap(X_next);
     logw.setConstant(-std::log(static_cast<double>(N)));
@@ -209,7 +238,9 @@ struct AugmentedParticleFilter::Impl {
         const MatMM Cyy = S - R;
         Pk = detail::conditioned_kernel(Sigma, Eigen::MatrixXd(Cxy.leftCols<M>()), Eigen::MatrixXd(Cyy),
                                         Eigen::MatrixXd(R), h);
-        weighted_mean(w, m_post);
+        // + the Monte Carlo variance that resampling would lose (monte_carlo_gain)
+        posterior_covariance();
+        Pk += (detail::monte_carlo_gain(lineage_ess()) - 1.0) * Sigma;
       }
       resample();
       if (h > 0.0) regularise();
@@ -425,7 +456,8 @@ StateCov AugmentedParticleFilter::covariance_floor() const {
 StateCov AugmentedParticleFilter::covariance() const {
   const StateCov P = sample_covariance();
   if (impl_->h <= 0.0) return P;
-  return detail::loewner_floor(P, covariance_floor(), impl_->es4);
+  const double g = detail::monte_carlo_gain(impl_->lineage_ess());  // regularise.hpp
+  return detail::loewner_floor(StateCov(g * P), covariance_floor(), impl_->es4);
 }
 
 double AugmentedParticleFilter::bandwidth() const { return impl_->h; }

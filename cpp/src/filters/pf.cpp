@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "checks.hpp"
+#include "pf_columns.hpp"
 #include "pf_kernels.hpp"
 #include "regularise.hpp"
 #include "safenav/filters.hpp"
@@ -21,39 +22,6 @@
 namespace safenav {
 
 using namespace detail;  // the kernels of pf_kernels.hpp
-
-/// Columns of doubles for the particle filter, each starting on a 64-byte
-/// boundary (the column stride is padded to 8 doubles): vector loads then
-/// never split a cache line, whichever allocator the host process uses.
-class Columns {
- public:
-  void resize(int rows, int cols) {
-    stride_ = (rows + 7) / 8 * 8;
-    data_.assign(static_cast<std::size_t>(stride_) * cols, 0.0);
-  }
-  int stride() const { return stride_; }
-  double* col(int c) { return data_.data() + static_cast<std::ptrdiff_t>(c) * stride_; }
-  const double* col(int c) const { return data_.data() + static_cast<std::ptrdiff_t>(c) * stride_; }
-  void swap(Columns& o) noexcept {
-    data_.swap(o.data_);
-    std::swap(stride_, o.stride_);
-  }
-
- private:
-  template <class T>
-  struct Allocator {
-    using value_type = T;
-    Allocator() = default;
-    template <class U>
-    Allocator(const Allocator<U>&) noexcept {}
-    T* allocate(std::size_t n) { return static_cast<T*>(::operator new(n * sizeof(T), std::align_val_t{64})); }
-    void deallocate(T* p, std::size_t) noexcept { ::operator delete(p, std::align_val_t{64}); }
-    friend bool operator==(const Allocator&, const Allocator&) { return true; }
-    friend bool operator!=(const Allocator&, const Allocator&) { return false; }
-  };
-  std::vector<double, Allocator<double>> data_;
-  int stride_ = 0;
-};
 
 struct ParticleFilter::Impl {
   // Particle columns: x, y, v, θ, cos θ, sin θ; weight columns: log w, w.
@@ -71,6 +39,9 @@ struct ParticleFilter::Impl {
   double ess = 0.0;           // 1/Σw², kept with w
   int n_resampled = 0;
   double h = 0.0;             // kernel bandwidth (0: plain SIR, no jitter, no floor)
+  std::vector<double> trial_logw;  // kernel log-weights of an update (kernel_weights)
+  std::vector<int> ancestor;  // the particle each one descends from at the last resampling
+  mutable std::vector<double> lineage_w;  // scratch: the weight of each lineage
   double gate_probability = 0.0;     // NIS gate (0 = off)
   std::vector<double> gate_thresholds;  // chi-square quantile per measurement dimension
   // scratch
@@ -83,6 +54,7 @@ struct ParticleFilter::Impl {
   double log_det_s = 0.0;             // log det (C_yy + R) of the last likelihood()
   Eigen::VectorXd ybar;               // weighted mean residual
   Eigen::MatrixXd Yraw;               // residuals of a general model (before whitening)
+  Eigen::MatrixXd U;                  // y_i − ȳ of a kernel update
   mutable Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> es;
 
   Impl(const BmmParams& p, std::uint64_t seed, double thr, int n, double bandwidth_scale)
@@ -93,6 +65,10 @@ struct ParticleFilter::Impl {
     std::fill_n(W.col(kUniform), N, 1.0 / N);  // padding stays 0
     noise.resize(N, 4);
     start.resize(static_cast<std::size_t>(N) + 1);
+    trial_logw.resize(N);
+    lineage_w.resize(N);
+    ancestor.resize(N);
+    for (int i = 0; i < N; ++i) ancestor[i] = i;
   }
 
   int n() const { return N; }
@@ -119,6 +95,19 @@ struct ParticleFilter::Impl {
     ess = 1.0 / detail::dispatch<scale_weights<32>, scale_weights<16>>(N, logw(), w(), 1.0 / sum, mx + std::log(sum));
   }
 
+  /// The effective sample size of the lineages, 1/Σ_a W_a², W_a the weight
+  /// of the particles that descend from one particle a of the last
+  /// resampling: copies of one particle move together, so the weighted mean's
+  /// Monte Carlo covariance is about Σ/ESS_lineage, not Σ·Σw² (≤ the Kish ESS;
+  /// equal when no two particles share a parent).
+  double lineage_ess() const {
+    std::fill(lineage_w.begin(), lineage_w.end(), 0.0);
+    for (int i = 0; i < N; ++i) lineage_w[ancestor[i]] += w()[i];
+    double s2 = 0.0;
+    for (double v : lineage_w) s2 += v * v;
+    return 1.0 / s2;
+  }
+
   /// Systematic resampling: pointers u_j = (j + U)/N, j = 0..N−1, one
   /// U ~ U[0, 1); particle i gets the pointers in (C_{i−1}, C_i], C_i = Σ_{k≤i} w_k:
   /// n_i = #{j : u_j ≤ C_i} − #{j : u_j ≤ C_{i−1}} copies, so E[n_i] = N w_i and
@@ -143,6 +132,7 @@ struct ParticleFilter::Impl {
     copy_selected(N, st, S.col(0), S.col(1), S.col(2), S.col(3), S.col(4), S.col(5), S_next.col(0), S_next.col(1),
                   S_next.col(2), S_next.col(3), S_next.col(4), S_next.col(5));
     S.swap(S_next);
+    for (int j = 0, src = 0; j < N; ++j) ancestor[j] = src = std::max(src, st[j]);
     reset_weights();
     ++n_resampled;
   }
@@ -172,13 +162,14 @@ struct ParticleFilter::Impl {
     return P;
   }
 
-  /// The reported covariance: the weighted one about m, floored by the
-  /// kernel covariance h²·C_u of the unweighted cloud (regularise.hpp).
+  /// The reported covariance: the weighted one about m, corrected for the
+  /// Monte Carlo error of the weighted mean (monte_carlo_gain, regularise.hpp),
+  /// floored by the kernel covariance h²·C_u of the unweighted cloud.
   StateCov reported_covariance(const State& m) const {
     const StateCov P = covariance(m);
     if (h <= 0.0) return P;
     const StateCov floor = (h * h) * covariance(mean(kUniform), kUniform);
-    return loewner_floor(P, floor, es);
+    return loewner_floor(StateCov(monte_carlo_gain(lineage_ess()) * P), floor, es);
   }
 
   /// log p(z | x_i) (up to a constant) of every particle into the gain
@@ -239,65 +230,136 @@ struct ParticleFilter::Impl {
     return nis;
   }
 
+  /// Residual y_i = z ⊖ h(x_i) of particle i (Yraw holds a general model's).
+  void residual_of(bool position, const Eigen::Ref<const Eigen::VectorXd>& z, int i, Eigen::VectorXd& y) const {
+    if (position) {
+      y << z[0] - col(kX)[i], z[1] - col(kY)[i];
+    } else {
+      y = Yraw.col(i);
+    }
+  }
+
+  /// The kernel weights at bandwidth hh into trial_logw: log w_i − ½ y_c,iᵀ
+  /// S_h⁻¹ y_c,i, y_c,i = ȳ + a(y_i − ȳ), S_h = hh²C_yy + R; returns their
+  /// ESS.  Needs U = (y_i − ȳ) filled (kernel_update).
+  double kernel_weights(const Eigen::MatrixXd& R, double hh) {
+    const double a = std::sqrt(std::max(0.0, 1.0 - hh * hh));
+    const Eigen::MatrixXd Si = (hh * hh * Cyy + R).inverse();
+    const Eigen::VectorXd b = Si * ybar;
+    // y_cᵀS⁻¹y_c = ȳᵀS⁻¹ȳ + 2a bᵀu + a² uᵀS⁻¹u, u = y − ȳ
+    const Eigen::ArrayXd q = ybar.dot(b) + (2.0 * a) * (b.transpose() * U).transpose().array() +
+                             (a * a) * (U.array() * (Si * U).array()).colwise().sum().transpose();
+    Eigen::Map<Eigen::ArrayXd> t(trial_logw.data(), N);
+    t = Eigen::Map<const Eigen::ArrayXd>(logw(), N) - 0.5 * q;
+    const double mx = t.maxCoeff();
+    const Eigen::ArrayXd e = (t - mx).exp();
+    return e.sum() * e.sum() / e.square().sum();
+  }
+
+  /// The bandwidth of one kernel update [Stordal et al. 2011, adaptive h]:
+  /// the smallest h_u² = h² + t(1 − h²), t ∈ [0, 1] (bisection to 1/64),
+  /// whose kernel weights keep ESS ≥ resample_threshold·N, or h_u = 1 (the
+  /// ensemble Kalman update: the kernel weights are the prior weights) when
+  /// none does.  Leaves trial_logw at h_u.
+  double adaptive_bandwidth(const Eigen::MatrixXd& R) {
+    const double target = resample_threshold * N, h2 = h * h;
+    auto at = [&](double t) { return std::sqrt(h2 + t * (1.0 - h2)); };
+    if (kernel_weights(R, h) >= target) return h;
+    double lo = 0.0, hi = 1.0, last = 0.0;
+    for (int k = 0; k < 6; ++k) {
+      last = 0.5 * (lo + hi);
+      (kernel_weights(R, at(last)) >= target ? hi : lo) = last;
+    }
+    if (last != hi) kernel_weights(R, at(hi));
+    return at(hi);
+  }
+
   /// The regularised update (see ParticleFilter in safenav/filters.hpp): each
-  /// particle is the centre of a kernel N(c_i, h²Σ⁻), c_i = m + a(x_i − m);
-  /// the kernels are updated by statistical linearisation (one gain K for
-  /// all), weighted by their own predictive likelihood N(y_c,i; 0, S_h), and
-  /// each particle is redrawn from its updated kernel (C_xh = −C_xy):
-  ///   S_h = h²C_yy + R,  K = h²C_xh S_h⁻¹,  P_k = h²Σ⁻ − K S_h Kᵀ
+  /// particle is the centre of a kernel N(c_i, h_u²Σ⁻), c_i = m + a(x_i − m),
+  /// a = √(1 − h_u²), h_u = adaptive_bandwidth(); the kernels are updated by
+  /// statistical linearisation (one gain K for all), weighted by their own
+  /// predictive likelihood N(y_c,i; 0, S_h), and each particle is redrawn
+  /// from its updated kernel (C_xh = −C_xy):
+  ///   S_h = h_u²C_yy + R,  K = h_u²C_xh S_h⁻¹,  P_k = h_u²Σ⁻ − K S_h Kᵀ
   ///   y_c,i = ȳ + a(y_i − ȳ),  log w_i += −½ y_c,iᵀ S_h⁻¹ y_c,i
-  ///   x_i ← c_i + K y_c,i + L ε_i,  L Lᵀ = P_k
-  /// then systematic resampling when ESS < resample_threshold·N.  Needs
-  /// likelihood() called first under the prior weights (ȳ, C_yy, C_xy).
+  ///   x_i ← c_i + K y_c,i + d_i,  d_i from redraw() with L Lᵀ = P_k
+  ///         (+ (g − 1)Σ_c when resampled, the Monte Carlo term)
+  /// with systematic resampling before the redraw when ESS <
+  /// resample_threshold·N.  Needs likelihood() called first under the prior
+  /// weights (ȳ, C_yy, C_xy).
   void kernel_update(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z,
                      const Eigen::MatrixXd& R) {
     const bool position = model.kind() == MeasurementKind::Position;
-    const int m = model.dim();
     const State m0 = mean();
     const Eigen::Matrix4d Sigma = covariance(m0);
     if (position) Cxy = -Sigma.leftCols<2>();  // y = z − (x, y): C_xy = −Σ⁻Hᵀ with H = [I₂ 0]
-    const double h2 = h * h, a = std::sqrt(std::max(0.0, 1.0 - h2));
-    const Eigen::MatrixXd Sh = h2 * Cyy + R;
-    const Eigen::LLT<Eigen::MatrixXd> llt(Sh);
+    U.resize(model.dim(), N);
+    Eigen::VectorXd y(model.dim());
+    for (int i = 0; i < N; ++i) {
+      residual_of(position, z, i, y);
+      U.col(i) = y - ybar;
+    }
+    const double hu = adaptive_bandwidth(R);
+    const double h2 = hu * hu, a = std::sqrt(std::max(0.0, 1.0 - h2));
+    const Eigen::LLT<Eigen::MatrixXd> llt(h2 * Cyy + R);
     // The gain of x on h(x) is h²C_xh S_h⁻¹, and C_xh = −C_xy (y = z ⊖ h(x)).
     const Eigen::MatrixXd K = llt.solve((-h2 * Cxy).transpose()).transpose();
-    const Eigen::Matrix4d Pk = conditioned_kernel(Sigma, Cxy, Cyy, R, h);
-    Eigen::Matrix4d L;
-    psd_factor(Pk, es, L);
-    const Eigen::MatrixXd Linv = llt.matrixL().solve(Eigen::MatrixXd::Identity(m, m));  // S_h = L Lᵀ
-    rng.fill_normal(noise.col(0), 4L * noise.stride());
-    const double vmin = bmm.params().min_speed(), vmax = bmm.params().max_speed;
+    const Eigen::Matrix4d Pk = conditioned_kernel(Sigma, Cxy, Cyy, R, hu);
     double* c[4] = {col(kX), col(kY), col(kV), col(kTheta)};
-    const double* e[4] = {noise.col(0), noise.col(1), noise.col(2), noise.col(3)};
-    double* lw = logw();
     double mx = -std::numeric_limits<double>::infinity();
-    Eigen::VectorXd y(m), yc(m);
     for (int i = 0; i < N; ++i) {
-      if (position) {
-        y << z[0] - c[0][i], z[1] - c[1][i];
-      } else {
-        y = Yraw.col(i);
-      }
-      yc = ybar + a * (y - ybar);
-      lw[i] -= 0.5 * (Linv * yc).squaredNorm();
-      mx = std::max(mx, lw[i]);
+      logw()[i] = trial_logw[i];
+      mx = std::max(mx, trial_logw[i]);
       Eigen::Vector4d d(c[0][i] - m0[0], c[1][i] - m0[1], c[2][i] - m0[2], wrap_angle(c[3][i] - m0[3]));
-      d = a * d + K * yc;  // the updated kernel's centre
-      c[0][i] = m0[0] + d[0];
-      c[1][i] = m0[1] + d[1];
-      c[2][i] = m0[2] + d[2];
-      c[3][i] = m0[3] + d[3];
+      d = a * d + K * (ybar + a * U.col(i));  // the updated kernel's centre
+      for (int k = 0; k < 4; ++k) c[k][i] = m0[k] + d[k];
     }
     normalise(mx);
-    if (ess < resample_threshold * N) resample();  // copies centres (cos/sin are rewritten below)
-    // A draw from each (resampled) particle's updated kernel (resample() swapped the columns).
-    for (int k = 0; k < 4; ++k) c[k] = col(k);
+    Eigen::Matrix4d L;
+    if (ess < resample_threshold * N) {
+      // The variance that resampling turns into Monte Carlo error of the
+      // mean goes back into the redraw (regularise.hpp, monte_carlo_gain):
+      // P_k + (g − 1)·Σ_c, Σ_c the weighted covariance of the updated centres.
+      psd_factor(Eigen::Matrix4d(Pk + (monte_carlo_gain(lineage_ess()) - 1.0) * covariance(mean())), es, L);
+      resample();  // copies centres (cos/sin are rewritten below)
+    } else {
+      psd_factor(Pk, es, L);
+    }
+    redraw(L);
+  }
+
+  /// x_i += d_i − Σ_j w_j d_j, d_i = L T(ε_i − ε̄) (v clamped to [v_min,
+  /// v_max], θ wrapped): the draws are moment-matched, so the redraw moves
+  /// no weighted mean and adds exactly L Lᵀ to the weighted covariance.
+  void redraw(const Eigen::Matrix4d& L) {
+    rng.fill_normal(noise.col(0), 4L * noise.stride());
+    double* e[4] = {noise.col(0), noise.col(1), noise.col(2), noise.col(3)};
+    // Moment matching: ε_i ← T(ε_i − ε̄), T Cov_w(ε) Tᵀ = I, so that the
+    // d_i = L ε_i have weighted mean 0 and weighted covariance L Lᵀ exactly.
+    Eigen::Vector4d ebar = Eigen::Vector4d::Zero();
+    for (int i = 0; i < N; ++i) ebar += w()[i] * Eigen::Vector4d(e[0][i], e[1][i], e[2][i], e[3][i]);
+    Eigen::Matrix4d Ce = Eigen::Matrix4d::Zero();
     for (int i = 0; i < N; ++i) {
-      const Eigen::Vector4d d = L * Eigen::Vector4d(e[0][i], e[1][i], e[2][i], e[3][i]);
-      c[0][i] += d[0];
-      c[1][i] += d[1];
-      c[2][i] = std::clamp(c[2][i] + d[2], vmin, vmax);
-      c[3][i] = wrap_angle(c[3][i] + d[3]);
+      const Eigen::Vector4d d = Eigen::Vector4d(e[0][i], e[1][i], e[2][i], e[3][i]) - ebar;
+      Ce.noalias() += (w()[i] * d) * d.transpose();
+    }
+    const Eigen::LLT<Eigen::Matrix4d> lc(Ce);
+    // Matched only when Cov_w(ε) is well estimated (ESS > 2d = 8); else centred only.
+    const bool match = lc.info() == Eigen::Success && ess > 8.0;
+    const Eigen::Matrix4d M = match ? Eigen::Matrix4d(L * lc.matrixL().solve(Eigen::Matrix4d::Identity())) : L;
+    Eigen::Vector4d dbar = Eigen::Vector4d::Zero();
+    for (int i = 0; i < N; ++i) {
+      const Eigen::Vector4d d = M * (Eigen::Vector4d(e[0][i], e[1][i], e[2][i], e[3][i]) - ebar);
+      for (int k = 0; k < 4; ++k) e[k][i] = d[k];
+      dbar += w()[i] * d;
+    }
+    const double vmin = bmm.params().min_speed(), vmax = bmm.params().max_speed;
+    double* c[4] = {col(kX), col(kY), col(kV), col(kTheta)};
+    for (int i = 0; i < N; ++i) {
+      c[0][i] += e[0][i] - dbar[0];
+      c[1][i] += e[1][i] - dbar[1];
+      c[2][i] = std::clamp(c[2][i] + e[2][i] - dbar[2], vmin, vmax);
+      c[3][i] = wrap_angle(c[3][i] + e[3][i] - dbar[3]);
       col(kCos)[i] = std::cos(c[3][i]);
       col(kSin)[i] = std::sin(c[3][i]);
     }
@@ -398,6 +460,7 @@ ParticleFilter& ParticleFilter::operator=(const ParticleFilter& o) {
   a.W = b.W;
   a.ess = b.ess;
   a.n_resampled = b.n_resampled;
+  a.ancestor = b.ancestor;
   a.gate_probability = b.gate_probability;
   a.gate_thresholds = b.gate_thresholds;
   return *this;

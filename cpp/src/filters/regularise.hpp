@@ -32,6 +32,17 @@ inline double kernel_bandwidth(int n_particles, int dim, double scale) {
   return std::min(h, 1.0);
 }
 
+/// g = 1/(1 − Σw²) = ESS/(ESS − 1), ESS = 1/Σw² (Kish): the weighted
+/// covariance Σ̂ = Σ w_i (x_i − m̂)(x_i − m̂)ᵀ about the weighted mean m̂ has
+/// expectation (1 − Σw²)·Σ (the reliability-weights bias; the missing
+/// Σ·Σw² = Σ/ESS is the covariance of m̂'s Monte Carlo error), so g·Σ̂ is
+/// the unbiased estimate, of the posterior covariance and of the covariance
+/// of the error truth − m̂ alike.  Resampling turns that Σ/ESS into an error
+/// of the mean that no later update sees; put back at each resampling, the
+/// cloud stops losing (1 − 1/ESS) of its spread per cycle.  ESS ≤ 1 + 1e-9
+/// (one particle holds the weight; Σ̂ ≈ 0) gives 1.
+inline double monte_carlo_gain(double ess) { return ess > 1.0 + 1e-9 ? ess / (ess - 1.0) : 1.0; }
+
 /// The kernel h²Σ conditioned on the measurement by statistical linearisation:
 /// P_k = h²Σ − h⁴ C_xy (h² C_yy + R)⁻¹ C_xyᵀ, symmetrised.  C_xy is the
 /// weighted covariance of the states with the residuals (n × m), C_yy that of
