@@ -28,6 +28,7 @@ void GuardSettings::validate() const { param_set<GuardSettings>().check(*this, "
 Guard::Guard(const GuardSettings& settings, const Bmm& bmm, const ObstacleChecker& obstacles,
              const Points2& landmarks, double corridor_limit)
     : settings_(settings), bmm_(bmm), obstacles_(obstacles), landmarks_(landmarks), corridor_limit_(corridor_limit) {
+  track_.reserve(kTrackPoints);  // the online tick allocates nothing
   if (!(settings.k > 0.0))
     detail::bad("Guard: settings.guard.k = " + detail::num(settings.k) +
                 ": must be > 0 (k = 0 is resolved from collision_probability by Guidance: guard_k_for_risk)");
@@ -234,8 +235,9 @@ bool Guard::slow_to_clear(const State& x, const Control& u0, double keep, GuardD
 
 /// The run's history from the estimate alone: the least σ of a fix, and the
 /// track driven since σ was last of fix quality (≤ 2 × that σ), one point
-/// per metre.  The BMM's process noise grows σ every step, so a σ that did
-/// not grow since the previous request was shrunk by a measurement.
+/// per metre, the last kTrackPoints of them.  The BMM's process noise
+/// grows σ every step, so a σ that did not grow since the previous request
+/// was shrunk by a measurement.
 void Guard::track(const State& x, double position_std) {
   const double sd = position_std;
   fixing_ = std::isfinite(sigma_prev_) && sd <= sigma_prev_;
@@ -246,6 +248,7 @@ void Guard::track(const State& x, double position_std) {
   if (!std::isfinite(sigma_min_) || sd <= 2.0 * sigma_min_) {
     track_.assign(1, p);
   } else if (track_.empty() || (p - track_.back()).norm() >= 1.0) {
+    if (track_.size() == kTrackPoints) track_.erase(track_.begin());  // the last kTrackPoints metres
     track_.push_back(p);
   }
 }

@@ -202,6 +202,7 @@ class Guard {
   double sigma_min_ = std::numeric_limits<double>::infinity();
   double sigma_prev_ = std::numeric_limits<double>::infinity();
   bool fixing_ = false;  // σ did not grow since the previous request: fixes arrive
+  static constexpr std::size_t kTrackPoints = 512;  // a recovery backs up at most this many metres
   std::vector<Eigen::Vector2d> track_;
   // The hold in progress: its start time (−inf: none) and σ then.
   double hold_start_ = -std::numeric_limits<double>::infinity();
