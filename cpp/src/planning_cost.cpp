@@ -18,6 +18,7 @@
 #include <ompl/base/objectives/PathLengthOptimizationObjective.h>
 
 #include "planning_internal.hpp"
+#include "planning_nn.hpp"
 
 namespace safenav::planning_detail {
 
@@ -31,16 +32,6 @@ namespace {
 // (overflow_scale: frexp exponent > 500); below that it works unscaled.
 constexpr double kUnscaled = 0x1p500;
 bool unscaled(double v) { return std::abs(v) < kUnscaled; }  // false for NaN
-
-// RealVectorStateSpace::distance in 2-D, operation for operation.
-double distance(const double* p, const double* q) {
-  double dist = 0.0;
-  const double dx = p[0] - q[0];
-  dist += dx * dx;
-  const double dy = p[1] - q[1];
-  dist += dy * dy;
-  return std::sqrt(dist);
-}
 
 // β_h-term (ours): ∫ risk ds over the hazards, exact per motion.
 class HazardObjective : public ob::OptimizationObjective {
@@ -121,12 +112,12 @@ ob::Cost WrsObjective::motionCost(const ob::State* s1, const ob::State* s2) cons
     const double t = static_cast<double>(j) / static_cast<double>(nd);
     const double q[2] = {a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t};
     const double next = risk_.risk(Vec2(q[0], q[1]));
-    total = total + 0.5 * distance(p, q) * (prev + next);
+    total = total + 0.5 * ompl_distance_2d(p, q) * (prev + next);
     p[0] = q[0];
     p[1] = q[1];
     prev = next;
   }
-  total = total + 0.5 * distance(p, b) * (prev + risk_.risk(Vec2(b[0], b[1])));
+  total = total + 0.5 * ompl_distance_2d(p, b) * (prev + risk_.risk(Vec2(b[0], b[1])));
   return ob::Cost(total);
 }
 

@@ -26,6 +26,17 @@
 
 namespace safenav::planning_detail {
 
+/// OMPL's RealVectorStateSpace::distance in 2-D, operation for operation, so
+/// that neighbours and costs computed here equal OMPL's bit for bit.
+inline double ompl_distance_2d(const double* p, const double* q) {
+  double dist = 0.0;
+  const double dx = p[0] - q[0];
+  dist += dx * dx;
+  const double dy = p[1] - q[1];
+  dist += dy * dy;
+  return std::sqrt(dist);
+}
+
 /// T: a pointer to a motion with a `state` member in a 2-D RealVectorStateSpace.
 template <class T>
 class GridNearestNeighbors : public ompl::NearestNeighbors<T> {
@@ -115,15 +126,6 @@ class GridNearestNeighbors : public ompl::NearestNeighbors<T> {
   static const double* coords(const T& data) {
     return data->state->template as<ompl::base::RealVectorStateSpace::StateType>()->values;
   }
-  // RealVectorStateSpace::distance (2-D), operation for operation.
-  static double distance(const double* p, const double* q) {
-    double dist = 0.0;
-    const double dx = p[0] - q[0];
-    dist += dx * dx;
-    const double dy = p[1] - q[1];
-    dist += dy * dy;
-    return std::sqrt(dist);
-  }
   static bool less(const Found& a, const Found& b) { return a < b; }
 
   int clamp_index(double v) const {
@@ -165,7 +167,7 @@ class GridNearestNeighbors : public ompl::NearestNeighbors<T> {
   void collect(const double* q, const Bucket& bucket, double radius) const {
     for (const Entry& e : bucket) {
       const double p[2] = {e.x, e.y};
-      const double dist = distance(q, p);
+      const double dist = ompl_distance_2d(q, p);
       if (dist <= radius) {
         found_.emplace_back(dist, candidates_.size());
         candidates_.push_back(e.data);

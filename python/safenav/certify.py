@@ -518,38 +518,18 @@ def _markdown(certs: list, proposed_file: str | None) -> str:
 
 # --------------------------------------------------------------------------- command line
 
-def _positive(text: str) -> float:
-    """An argparse type: a finite number > 0."""
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not (np.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"must be a number > 0, got {text}")
-    return v
-
-
-def _rounds(text: str) -> int:
-    """An argparse type: an integer >= 1."""
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {v}")
-    return v
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """``safenav plan``'s certificate options."""
+    """``safenav plan``'s certificate options (called by the command line's parser)."""
+    from .validation import arg_at_least, arg_positive
+
     parser.add_argument("--planner", choices=["raw", "belief"], default="raw",
                         help="raw: the paper's RAw-RRT* (default); belief: the belief-aware RRBT planner at "
                              "k(ε), with the RAw-RRT* path as a guide")
     parser.add_argument("--no-landmarks", action="store_true",
                         help="certify only; propose no landmarks for the paths that fail")
-    parser.add_argument("--landmark-spacing", type=_positive, default=2.0,
+    parser.add_argument("--landmark-spacing", type=arg_positive, default=2.0,
                         help="candidate grid spacing for proposed landmarks [m] (default 2)")
-    parser.add_argument("--landmark-rounds", type=_rounds, default=3,
+    parser.add_argument("--landmark-rounds", type=arg_at_least(1), default=3,
                         help="placement rounds at most per path (default 3)")
 
 

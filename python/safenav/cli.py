@@ -32,7 +32,7 @@ import numpy as np
 
 from . import __version__, console, foxglove
 from .results import RunFolder, verify_run, write_json, write_table
-from .validation import integer
+from .validation import arg_at_least, arg_probability
 
 #: The paper's navigation tables, in the one numbering safenav uses (the conference version's).
 TABLE_NUMBERING = "conference numbering; the extended version's Table {ext}"
@@ -43,32 +43,6 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message):
         self.exit(2, f"safenav: error: {message}\n")
-
-
-def _probability(text: str) -> float:
-    """An argparse type: a probability in [0, 1]."""
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not 0.0 <= v <= 1.0:
-        raise argparse.ArgumentTypeError(f"must be a probability in [0, 1], got {text}")
-    return v
-
-
-def _at_least(lo: int):
-    """An argparse type: an integer >= ``lo`` (the range checked by :func:`safenav.validation.integer`,
-    the message in argparse's words)."""
-    def parse(text: str) -> int:
-        try:
-            v = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-        try:
-            return integer(text, v, lo, None)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"must be an integer >= {lo}, got {v}") from None
-    return parse
 
 
 def _load(args):
@@ -390,13 +364,13 @@ def _with_scenario(common) -> argparse.ArgumentParser:
 
 
 def _dask_options(s) -> None:
-    s.add_argument("--workers", type=_at_least(1), default=None, help="local worker threads (default: all cores)")
+    s.add_argument("--workers", type=arg_at_least(1), default=None, help="local worker threads (default: all cores)")
     s.add_argument("--scheduler", default=None, help="Dask scheduler address: run the trials on that cluster")
 
 
 def _navigation_options(s, *, demo: bool) -> None:
     """The options of demo and run."""
-    s.add_argument("--trials", type=_at_least(1), default=300 if demo else 1000,
+    s.add_argument("--trials", type=arg_at_least(1), default=300 if demo else 1000,
                    help=f"Monte Carlo trials per path type and method (default {300 if demo else 1000})")
     s.add_argument("--methods", nargs="+", default=["chull", "centroid"], choices=["chull", "centroid"])
     s.add_argument("--filters", nargs="+", default=["ekf"], choices=["ekf", "pf"])
@@ -404,20 +378,20 @@ def _navigation_options(s, *, demo: bool) -> None:
                    choices=["lanbloc", "lanbloc-camera", "deeploc-gps", "deeploc-ekf-gps", "sensor-fusion"],
                    help="position source: LanBLoc at the measurement level, LanBLoc through the camera loop "
                         "(rendered stereo pairs, detection, SGBM, trilateration; slow), or an emulated baseline")
-    s.add_argument("--position-every", type=_at_least(1), default=None,
+    s.add_argument("--position-every", type=arg_at_least(1), default=None,
                    help="a position fix every n steps (default 1; 10 for lanbloc-camera)")
     s.add_argument("--path-types", nargs="+", default=None, help="default: all of the scenario's")
-    s.add_argument("--particles", type=_at_least(1), default=500, help="PF particles (default 500)")
+    s.add_argument("--particles", type=arg_at_least(1), default=500, help="PF particles (default 500)")
     s.add_argument("--loop", choices=["ours", "paper"], default="ours",
                    help="ours (default): the uncertainty-aware guard and the chi-square gate on; paper: the "
                         "papers' loop, neither (docs/safety.md)")
-    s.add_argument("--faults", nargs=3, type=_probability, default=None,
+    s.add_argument("--faults", nargs=3, type=arg_probability, default=None,
                    metavar=("DROPOUT", "OUTLIER", "MISASSOCIATION"),
                    help="landmark faults: probabilities of a missed detection, an outlier range "
                         "(noise.outlier_magnitude, 5 m) and a wrong landmark id; fixes then come from "
                         "single landmark ranges (noise.fix_model = 'ranges')")
     _dask_options(s)
-    s.add_argument("--seed", type=_at_least(0), default=None,
+    s.add_argument("--seed", type=arg_at_least(0), default=None,
                    help="trial seed (default: the scenario's seeds.trials)")
     s.add_argument("--out", default="out/demo" if demo else "out/run", help="output folder")
     foxglove.add_view_argument(s)
@@ -440,7 +414,7 @@ def _add_experiment_commands(sub, common, scenario) -> None:
                        "certify them against the risk budget and propose landmarks where needed")
     s.add_argument("scenario_file", nargs="?", default=None, help=argparse.SUPPRESS)   # the old positional form
     s.add_argument("--path-types", nargs="+", default=None)
-    s.add_argument("--iterations", type=_at_least(1), default=None,
+    s.add_argument("--iterations", type=arg_at_least(1), default=None,
                    help="RAw-RRT* iterations (default: the scenario's)")
     s.add_argument("--out", default="out/plan")
     foxglove.add_view_argument(s)
@@ -451,10 +425,10 @@ def _add_experiment_commands(sub, common, scenario) -> None:
     s = sub.add_parser("synthetic", parents=[common],
                        help="filter the synthetic data set (SafeNav-ext §V-A3(i); SafeNav-conf Table I = ext "
                             "Table II) with EKF and PF")
-    s.add_argument("--trials", type=_at_least(1), default=100, help="Monte Carlo trials (default 100)")
+    s.add_argument("--trials", type=arg_at_least(1), default=100, help="Monte Carlo trials (default 100)")
     s.add_argument("--filters", nargs="+", default=["ekf", "pf"], choices=["ekf", "pf", "eif"])
-    s.add_argument("--particles", type=_at_least(1), default=1000, help="PF particles (default 1000)")
-    s.add_argument("--seed", type=_at_least(0), default=0)
+    s.add_argument("--particles", type=arg_at_least(1), default=1000, help="PF particles (default 1000)")
+    s.add_argument("--seed", type=arg_at_least(0), default=0)
     s.add_argument("--out", default=None, help="folder for the per-trial and summary CSV files and a figure")
     s.set_defaults(func=_synthetic)
 
@@ -465,21 +439,21 @@ def _add_experiment_commands(sub, common, scenario) -> None:
                                    "table1..table4, fig1, fig3, fig4, fig5 work too (tables: conference "
                                    "numbering; figures: extended numbering).")
     s.add_argument("names", nargs="+", metavar="NAME", help="experiment name(s), or 'all'")
-    s.add_argument("--trials", type=_at_least(1), default=1000,
+    s.add_argument("--trials", type=arg_at_least(1), default=1000,
                    help="Monte Carlo trials per cell (default 1000, as the paper)")
     from .experiments.run import ExperimentOptions
-    s.add_argument("--camera-trials", type=_at_least(0), default=ExperimentOptions.camera_trials,
+    s.add_argument("--camera-trials", type=arg_at_least(0), default=ExperimentOptions.camera_trials,
                    help="trials per cell of the camera-in-the-loop variants of Tables II and IV "
                         f"(default {ExperimentOptions.camera_trials}; 0 = skip)")
-    s.add_argument("--position-every", type=_at_least(1), default=10,
+    s.add_argument("--position-every", type=arg_at_least(1), default=10,
                    help="camera loop: a fix every n steps (default 10)")
-    s.add_argument("--particles", type=_at_least(1), default=1000, help="PF particles (default 1000)")
+    s.add_argument("--particles", type=arg_at_least(1), default=1000, help="PF particles (default 1000)")
     s.add_argument("--no-placement", action="store_true",
                    help="skip Table II's variant with landmarks placed along the safe paths (ILP, with obstacles "
                         "hiding landmarks, and again without for comparison; minutes)")
     s.add_argument("--path-types", nargs="+", default=None, help="default: all of the scenario's")
     _dask_options(s)
-    s.add_argument("--seed", type=_at_least(0), default=None,
+    s.add_argument("--seed", type=arg_at_least(0), default=None,
                    help="base seed (default: the scenario's seeds.trials)")
     s.add_argument("--out", default="out/experiments", help="output folder (default out/experiments)")
     s.set_defaults(func=_experiment)
@@ -504,7 +478,7 @@ def _add_tune_command(sub, common) -> None:
     s.add_argument("--gate", type=float, default=None, help="chi-square gate probability (default: the preset's)")
     s.add_argument("--range-std", type=float, default=None,
                    help="range sigma for a .mat file's ranges (default: 0.55 m with the plaza preset, else 1 m)")
-    s.add_argument("--evaluations", type=_at_least(1), default=150, help="replays the search may run (default 150)")
+    s.add_argument("--evaluations", type=arg_at_least(1), default=150, help="replays the search may run (default 150)")
     s.set_defaults(func=_tune)
 
 
@@ -520,7 +494,7 @@ def build_parser() -> argparse.ArgumentParser:
                             "online localizer; with ground truth, print RMSE, ADE, FDE and NEES (causal)")
     s.add_argument("log", help="a log file (.csv or .parquet), a Plaza-layout .mat file or a ROS bag")
     s.add_argument("--filter", choices=["ekf", "pf"], default="ekf")
-    s.add_argument("--particles", type=_at_least(1), default=1000, help="PF particles (default 1000)")
+    s.add_argument("--particles", type=arg_at_least(1), default=1000, help="PF particles (default 1000)")
     s.add_argument("--gate", type=float, default=None,
                    help="chi-square gate probability of every update (default 0.99; 0 = off)")
     s.add_argument("--preset", default=None, metavar="NAME|FILE",
@@ -533,7 +507,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "(default: 0.55 m with the plaza preset, else 1 m)")
     s.add_argument("--prior-from-truth", action="store_true",
                    help="start from the first truth pose instead of from the data (for comparison only)")
-    s.add_argument("--seed", type=_at_least(0), default=0, help="particle filter seed")
+    s.add_argument("--seed", type=arg_at_least(0), default=0, help="particle filter seed")
     s.add_argument("--lag", type=float, default=None, metavar="SECONDS", help="also run the fixed-lag smoother "
                    "(EKF; docs/replay.md): trajectory_lag.csv, scored as 'fixed-lag SECONDS s' (not causal)")
     s.add_argument("--smoother", choices=["rts", "iterated"], default="rts",
@@ -548,7 +522,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_tune_command(sub, common)
 
     from .placement.cli import register as register_place
-    register_place(sub, parents=[common], positive=_at_least(1), run_folder=_run_folder, wrote=_wrote)
+    register_place(sub, parents=[common], positive=arg_at_least(1), run_folder=_run_folder, wrote=_wrote)
 
     s = sub.add_parser("verify", parents=[common],
                        help="check that a run folder is complete: its manifest.json and the files it lists")

@@ -17,6 +17,7 @@ or planning.
 
 from __future__ import annotations
 
+import argparse
 import math
 import reprlib
 from dataclasses import dataclass
@@ -28,6 +29,7 @@ __all__ = [
     "ScenarioError", "cut", "as_array", "integer", "as_positive_int", "as_seed", "join", "at", "fail", "Range",
     "interval", "real", "text", "vector", "items", "table", "INT32_MAX", "MAX_COORDINATE", "FIELD_SIZE",
     "MAX_RADIUS", "MAX_OBSTACLES", "MAX_HAZARDS", "MAX_LANDMARKS", "MAX_VERTICES", "MAX_PATH_CLUSTERS", "MAX_NAME",
+    "arg_probability", "arg_positive", "arg_at_least",
 ]
 
 INT32_MAX = 2**31 - 1      #: the largest C++ ``int``: ids and counts that reach the core
@@ -259,3 +261,42 @@ def declared(settings_type, **values):
     for name, value in values.items():
         out.set_param(name, value.item() if isinstance(value, np.generic) else value)
     return out
+
+
+# --------------------------------------------------------------------------- command-line types
+
+def arg_probability(text: str) -> float:
+    """An argparse type: a probability in [0, 1]."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not 0.0 <= v <= 1.0:
+        raise argparse.ArgumentTypeError(f"must be a probability in [0, 1], got {text}")
+    return v
+
+
+def arg_positive(text: str) -> float:
+    """An argparse type: a finite number > 0."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (np.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"must be a number > 0, got {text}")
+    return v
+
+
+def arg_at_least(lo: int):
+    """An argparse type: an integer >= ``lo`` (the range checked by :func:`safenav.validation.integer`,
+    the message in argparse's words)."""
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        try:
+            return integer(text, v, lo, None)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be an integer >= {lo}, got {v}") from None
+    return parse

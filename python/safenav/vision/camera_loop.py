@@ -108,11 +108,9 @@ class CameraFrames:
                       camera_height_m: float = 1.5, **kwargs) -> "CameraFrames":
         """From a :class:`~safenav.scenario.Scenario`: its world, its camera (at its own resolution, or
         scaled to ``width`` px), detection range, minimum landmark count and occlusion setting."""
-        width = scenario.camera.image_width_px if width is None else width
-        rig = StereoRig.from_camera(scenario.camera, width, height, camera_height_m=camera_height_m,
-                                    max_range_m=scenario.detection.max_range_m)
-        kwargs.setdefault("min_landmarks", max(3, scenario.detection.min_landmarks))
-        kwargs.setdefault("occlusion", getattr(scenario.detection, "occlusion", False))
+        from .lanbloc import scenario_camera
+
+        rig, kwargs = scenario_camera(scenario, width, height, camera_height_m, kwargs)
         return cls(scenario.world, rig, **kwargs)
 
     def run(self, navigator, seed: int):

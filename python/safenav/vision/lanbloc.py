@@ -97,6 +97,19 @@ FAULT_STREAM = 1
 NOISE_STREAM = 2
 
 
+def scenario_camera(scenario, width, height, camera_height_m: float, kwargs: dict) -> tuple:
+    """(rig, keyword arguments) of a camera loop built from a scenario: its
+    camera (at its own resolution, or scaled to ``width`` px) and detection
+    range as a :class:`StereoRig`; ``kwargs`` with the scenario's minimum
+    landmark count and occlusion setting as defaults."""
+    width = scenario.camera.image_width_px if width is None else width
+    rig = StereoRig.from_camera(scenario.camera, width, height, camera_height_m=camera_height_m,
+                                max_range_m=scenario.detection.max_range_m)
+    kw = {"min_landmarks": max(3, scenario.detection.min_landmarks),
+          "occlusion": getattr(scenario.detection, "occlusion", False), **kwargs}
+    return rig, kw
+
+
 class LanBLoc:
     """The LanBLoc vision pipeline for one stereo rig and landmark map.
 
@@ -378,11 +391,7 @@ class CameraLoopSource:
                       camera_height_m: float = 1.5, **kwargs) -> "CameraLoopSource":
         """From a :class:`~safenav.scenario.Scenario`: its world, its camera (at its own resolution, or
         scaled to ``width`` px), its detection range, minimum landmark count and occlusion setting."""
-        width = scenario.camera.image_width_px if width is None else width
-        rig = StereoRig.from_camera(scenario.camera, width, height, camera_height_m=camera_height_m,
-                                    max_range_m=scenario.detection.max_range_m)
-        kwargs.setdefault("min_landmarks", max(3, scenario.detection.min_landmarks))
-        kwargs.setdefault("occlusion", getattr(scenario.detection, "occlusion", False))
+        rig, kwargs = scenario_camera(scenario, width, height, camera_height_m, kwargs)
         return cls(scenario.world, rig, **kwargs)
 
     def __call__(self, true_state, step: int):
