@@ -53,6 +53,7 @@ void bind_types(py::module_& m) {
       .def_readwrite("subpixel", &LanBLocSettings::subpixel)
       .def_readwrite("corner_refinement_win_size", &LanBLocSettings::corner_refinement_win_size)
       .def_readwrite("relative_corner_refinement_win_size", &LanBLocSettings::relative_corner_refinement_win_size)
+      .def_readwrite("detect_side_px", &LanBLocSettings::detect_side_px)
       .def_readwrite("corner_sigma_d", &LanBLocSettings::corner_sigma_d)
       .def_readwrite("max_row_error_px", &LanBLocSettings::max_row_error_px)
       .def_readwrite("bearing_sigma_px", &LanBLocSettings::bearing_sigma_px)

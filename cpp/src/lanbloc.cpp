@@ -58,6 +58,7 @@ const ParamSet<LanBLocSettings>& param_set<LanBLocSettings>() {
           .flag("subpixel", SN_REF(S, subpixel), "refine the marker corners to sub-pixel accuracy (CORNER_REFINE_SUBPIX)")
           .integer("corner_refinement_win_size", SN_REF(S, corner_refinement_win_size), closed(1, 100), "ArUco cornerRefinementWinSize [px]")
           .real("relative_corner_refinement_win_size", SN_REF(S, relative_corner_refinement_win_size), "", closed(0, 10), "OpenCV >= 4.8's relativeCornerRefinmentWinSize (window = min(round(this * cell px), corner_refinement_win_size)); 0 = the linked ArUco's fixed window")
+          .real("detect_side_px", SN_REF(S, detect_side_px), "px", closed(0, 1e4), "search windows: detect at the pyramid level where the smallest predicted board is at least this wide, refine at full resolution; 0 = full resolution")
           .real("corner_sigma_d", SN_REF(S, corner_sigma_d), "px", above(0, 100), "sigma of the marker centre's disparity from its corners; sigma_Z = Z^2 sigma / (f B)")
           .real("max_row_error_px", SN_REF(S, max_row_error_px), "px", above(0, 1e4), "largest row difference of a corner between the left and the right image")
           .real("bearing_sigma_px", SN_REF(S, bearing_sigma_px), "px", above(0, 1e4), "sigma of the marker centre; bearing sigma = sigma_px / f")
@@ -77,6 +78,8 @@ template class ParamSet<LanBLocSettings>;
 
 void LanBLocSettings::validate() const {
   param_set<LanBLocSettings>().check(*this);
+  if (detect_side_px > 0.0 && detect_side_px < 16.0)
+    detail::bad("detect_side_px = " + detail::num(detect_side_px) + ": must be 0 (full resolution) or >= 16 px");
   trilateration.validate();
   (void)lanbloc_detail::dictionary(dictionary);
 }
@@ -96,7 +99,7 @@ struct LanBLocFrontEnd::Impl {
   Impl(const LanBLocRig& r, std::vector<LanBLocLandmark> lms, const LanBLocSettings& s)
       : rig(r), settings(s), landmarks(std::move(lms)), matcher(r.camera) {}
 
-  std::vector<Marker> detect(const ImageView& img, const std::vector<Box>& regions, bool right, bool whole) const;
+  std::vector<Marker> detect(const ImageView& img, const SearchPlan& plan, bool right) const;
   LandmarkSighting observe(const Marker& left, const Marker* right, const std::string& why) const;
   void sighting(LandmarkSighting& o, double depth, double sigma_z) const;
   void solve(LanBLocFix& fix) const;
@@ -187,12 +190,15 @@ cv::Mat as_gray_mat(const ImageView& v, const RectifiedCamera& cam, const char* 
 
 }  // namespace
 
-std::vector<Marker> LanBLocFrontEnd::Impl::detect(const ImageView& img, const std::vector<Box>& regions, bool right,
-                                                  bool whole) const {
+std::vector<Marker> LanBLocFrontEnd::Impl::detect(const ImageView& img, const SearchPlan& plan, bool right) const {
   const cv::Mat m = as_gray_mat(img, rig.camera, right ? "right" : "left");
-  if (!whole && regions.empty()) return {};
-  return lanbloc_detail::detect_markers(m, whole ? std::vector<Box>{} : regions, dict, params,
-                                        settings.min_perimeter_rate, refine);
+  const bool whole = plan.mode == SearchMode::WholeFrame;
+  if (!whole && (right ? plan.right_regions : plan.left_regions).empty()) return {};
+  // Each region at its pyramid level (lanbloc_detect.cpp: detection_regions); the whole frame at full resolution.
+  return lanbloc_detail::detect_markers(
+      m, whole ? std::vector<lanbloc_detail::Region>{}
+               : lanbloc_detail::detection_regions(rig, settings, landmarks, dict->markerSize, plan, right),
+      dict, params, settings.min_perimeter_rate, refine);
 }
 
 SearchPlan LanBLocFrontEnd::plan(const std::optional<PosePrediction>& prediction) const {
@@ -235,7 +241,7 @@ LanBLocFix LanBLocFrontEnd::localize(const ImageView& left, const ImageView& rig
                     detail::num(b.x_max) + ", " + detail::num(b.y_max) + ") is not inside the " +
                     std::to_string(I.rig.camera.width) + "x" + std::to_string(I.rig.camera.height) + " image");
   std::vector<Marker> dets;
-  for (const Marker& m : I.detect(left, plan.left_regions, false, whole)) {
+  for (const Marker& m : I.detect(left, plan, false)) {
     if (I.anchor.count(m.id))
       dets.push_back(m);
     else
@@ -247,7 +253,7 @@ LanBLocFix LanBLocFrontEnd::localize(const ImageView& left, const ImageView& rig
     return fix;
   }
   std::map<int, Marker> in_right;
-  for (const Marker& m : I.detect(right, plan.right_regions, true, whole)) in_right.emplace(m.id, m);
+  for (const Marker& m : I.detect(right, plan, true)) in_right.emplace(m.id, m);
   for (const Marker& d : dets) {
     auto it = in_right.find(d.id);
     fix.observations.push_back(I.observe(d, it == in_right.end() ? nullptr : &it->second, ""));

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <utility>
 
@@ -108,17 +109,73 @@ bool window_of(const LanBLocRig& rig, const LanBLocSettings& s, const LanBLocLan
   return true;
 }
 
+double module_px(const std::vector<cv::Point2f>& c, int marker_bits, int border_bits);
+
 /// OpenCV >= 4.8's CORNER_REFINE_SUBPIX (the one pip's cv2 runs): cornerSubPix in a window of
 /// min(max(1, round(relative·m)), max_win) px, m the marker's average module (cell) size in px.
 void refine_corners(const cv::Mat& grey, std::vector<cv::Point2f>& c, int marker_bits, int border_bits,
                     const CornerRefinement& r) {
-  double perimeter = 0.0;
-  for (int k = 0; k < 4; ++k) perimeter += cv::norm(c[k] - c[(k + 1) % 4]);
-  const double module = perimeter / (4.0 * (marker_bits + 2 * border_bits));
+  const double module = module_px(c, marker_bits, border_bits);
   const int win = std::min(std::max(1, cvRound(r.relative_win_size * module)), r.max_win_size);
   cv::cornerSubPix(grey, c, cv::Size(win, win), cv::Size(-1, -1),
                    cv::TermCriteria(cv::TermCriteria::MAX_ITER | cv::TermCriteria::EPS, r.max_iterations,
                                     r.min_accuracy));
+}
+
+/// Module (cell) size in px of a marker with corners c, marker_bits + 2·border_bits cells a side.
+double module_px(const std::vector<cv::Point2f>& c, int marker_bits, int border_bits) {
+  double perimeter = 0.0;
+  for (int k = 0; k < 4; ++k) perimeter += cv::norm(c[k] - c[(k + 1) % 4]);
+  return perimeter / (4.0 * (marker_bits + 2 * border_bits));
+}
+
+/// Corners found at pyramid level L (in `level_img`, the region averaged 2^L times; `origin` its
+/// full-resolution top-left) brought to full resolution in `grey`: cornerSubPix at the level
+/// (window half a cell) so the mapped corners are within ~0.1·2^L px, mapped up (level pixel i
+/// is centred on full-resolution (i + 0.5)·2^L − 0.5), cornerSubPix at full resolution in a
+/// window of up to 0.4 cell (at least 2^L px, at most 16) to the corner's fixed point, then the
+/// front end's own final refinement (`final_win` > 0: that fixed window; otherwise the OpenCV >= 4.8
+/// rule of `refine`).  A window stays inside the board's quiet zone, so it holds one corner.
+void refine_from_level(const cv::Mat& grey, const cv::Mat& level_img, cv::Point2f origin, int level,
+                       std::vector<cv::Point2f>& c, int marker_bits, int border_bits, const CornerRefinement& refine,
+                       int final_win, int max_iterations, double min_accuracy) {
+  const int k = 1 << level;
+  const cv::TermCriteria fine(cv::TermCriteria::MAX_ITER | cv::TermCriteria::EPS, 30, 0.01);
+  const double m_level = module_px(c, marker_bits, border_bits);
+  const int w_level = std::min(std::max(2, cvRound(0.5 * m_level)), 12);
+  cv::cornerSubPix(level_img, c, cv::Size(w_level, w_level), cv::Size(-1, -1), fine);
+  for (auto& p : c) p = cv::Point2f((p.x + 0.5f) * k - 0.5f + origin.x, (p.y + 0.5f) * k - 0.5f + origin.y);
+  const int w0 = std::min({std::max(k, 2), std::max(2, cvRound(0.4 * m_level * k)), 16});
+  cv::cornerSubPix(grey, c, cv::Size(w0, w0), cv::Size(-1, -1), fine);
+  if (final_win > 0)
+    cv::cornerSubPix(grey, c, cv::Size(final_win, final_win), cv::Size(-1, -1),
+                     cv::TermCriteria(cv::TermCriteria::MAX_ITER | cv::TermCriteria::EPS, max_iterations,
+                                      min_accuracy));
+  else
+    refine_corners(grey, c, marker_bits, border_bits, refine);
+}
+
+/// One region searched at level L > 0: averaged down (cv::INTER_AREA over whole 2^L blocks; the
+/// region is trimmed to a multiple of 2^L), detected there with refinement off, corners refined
+/// back to full resolution (refine_from_level); corners in full-image pixels.
+void detect_at_level(const cv::Mat& image, const cv::Rect& roi, int level, const cv::Ptr<cv::aruco::Dictionary>& dict,
+                     const cv::aruco::DetectorParameters& base, double min_perimeter_px,
+                     const CornerRefinement& refine, std::vector<std::vector<cv::Point2f>>& corners,
+                     std::vector<int>& ids) {
+  const int k = 1 << level;
+  const cv::Rect cut(roi.x, roi.y, roi.width / k * k, roi.height / k * k);
+  cv::Mat small;
+  cv::resize(image(cut), small, cv::Size(cut.width / k, cut.height / k), 0, 0, cv::INTER_AREA);
+  const cv::Ptr<cv::aruco::DetectorParameters> p = cv::makePtr<cv::aruco::DetectorParameters>(base);
+  p->minMarkerPerimeterRate = std::min(min_perimeter_px / k / std::max(small.cols, small.rows), 3.9);
+  p->cornerRefinementMethod = cv::aruco::CORNER_REFINE_NONE;
+  cv::aruco::detectMarkers(small, dict, corners, ids, p);
+  // ArUco's own refinement (OpenCV 4.6: a fixed window) when the rule of >= 4.8 is not selected.
+  const bool aruco_rule = refine.relative_win_size <= 0.0;
+  for (auto& c : corners)
+    refine_from_level(image, small, cv::Point2f(float(cut.x), float(cut.y)), level, c, dict->markerSize,
+                      base.markerBorderBits, refine, aruco_rule ? base.cornerRefinementWinSize : 0,
+                      base.cornerRefinementMaxIterations, base.cornerRefinementMinAccuracy);
 }
 
 }  // namespace
@@ -144,30 +201,37 @@ Eigen::Matrix3d camera_rotation(double theta, double pitch) {
   return R;
 }
 
-std::vector<Marker> detect_markers(const cv::Mat& image, const std::vector<Box>& boxes,
+std::vector<Marker> detect_markers(const cv::Mat& image, const std::vector<Region>& regions,
                                    const cv::Ptr<cv::aruco::Dictionary>& dict,
                                    const cv::Ptr<cv::aruco::DetectorParameters>& params,
                                    double min_perimeter_rate, const CornerRefinement& refine) {
-  std::vector<Box> search = boxes;
-  if (search.empty()) search.push_back({0.0, 0.0, double(image.cols), double(image.rows)});
-  const double full_side = std::max(image.cols, image.rows);
+  std::vector<Region> search = regions;
+  if (search.empty()) search.push_back({{0.0, 0.0, double(image.cols), double(image.rows)}, 0});
+  // The whole image's smallest perimeter in full-resolution pixels, kept in every region.
+  const double min_perimeter_px = min_perimeter_rate * std::max(image.cols, image.rows);
   std::vector<Marker> out;
-  for (const Box& b : search) {
+  for (const Region& r : search) {
+    const Box& b = r.box;
     const cv::Rect roi(int(b.x_min), int(b.y_min), int(b.x_max - b.x_min), int(b.y_max - b.y_min));
     if (roi.width < 8 || roi.height < 8) continue;
-    // The same smallest perimeter in pixels as on the whole image (a rate of the searched side);
-    // a copy of the parameters, so that concurrent calls share nothing they write.
-    const cv::Ptr<cv::aruco::DetectorParameters> p = cv::makePtr<cv::aruco::DetectorParameters>(*params);
-    p->minMarkerPerimeterRate = std::min(min_perimeter_rate * full_side / std::max(roi.width, roi.height), 3.9);
     std::vector<std::vector<cv::Point2f>> corners;
     std::vector<int> ids;
-    cv::aruco::detectMarkers(image(roi), dict, corners, ids, p);
-    if (refine.relative_win_size > 0.0)
-      for (auto& c : corners) refine_corners(image(roi), c, dict->markerSize, p->markerBorderBits, refine);
+    if (r.level > 0) {
+      detect_at_level(image, roi, r.level, dict, *params, min_perimeter_px, refine, corners, ids);
+    } else {
+      // A copy of the parameters, so that concurrent calls share nothing they write.
+      const cv::Ptr<cv::aruco::DetectorParameters> p = cv::makePtr<cv::aruco::DetectorParameters>(*params);
+      p->minMarkerPerimeterRate = std::min(min_perimeter_px / std::max(roi.width, roi.height), 3.9);
+      cv::aruco::detectMarkers(image(roi), dict, corners, ids, p);
+      if (refine.relative_win_size > 0.0)
+        for (auto& c : corners) refine_corners(image(roi), c, dict->markerSize, p->markerBorderBits, refine);
+      for (auto& c : corners)
+        for (auto& q : c) q += cv::Point2f(float(roi.x), float(roi.y));
+    }
     for (std::size_t i = 0; i < ids.size(); ++i) {
       Marker m;
       m.id = ids[i];
-      for (int k = 0; k < 4; ++k) m.corners.row(k) << corners[i][k].x + roi.x, corners[i][k].y + roi.y;
+      for (int k = 0; k < 4; ++k) m.corners.row(k) << corners[i][k].x, corners[i][k].y;
       out.push_back(m);
     }
   }
@@ -220,6 +284,42 @@ std::vector<SearchWindow> predicted_windows(const LanBLocRig& rig, const LanBLoc
     SearchWindow w;
     if (window_of(rig, settings, lm, board_radius, prediction, false, w)) out.push_back(w);
     if (window_of(rig, settings, lm, board_radius, prediction, true, w)) out.push_back(w);
+  }
+  return out;
+}
+
+std::vector<Region> detection_regions(const LanBLocRig& rig, const LanBLocSettings& settings,
+                                      const std::vector<LanBLocLandmark>& landmarks, int marker_bits,
+                                      const SearchPlan& plan, bool right) {
+  const std::vector<Box>& boxes = right ? plan.right_regions : plan.left_regions;
+  std::vector<Region> out;
+  for (const Box& b : boxes) out.push_back({b, 0});
+  if (!(settings.detect_side_px > 0.0) || !settings.subpixel || !plan.prediction) return out;
+  const PosePrediction& pred = *plan.prediction;
+  // The board's side (marker plus a one-cell quiet zone per side), as in predicted_windows.
+  const double cells = marker_bits + 2.0;
+  const double board_side = settings.marker_size_m * (cells + 2.0) / cells;
+  const double pos_sigma = std::sqrt(std::max(pred.covariance.topLeftCorner<2, 2>().trace(), 0.0));
+  for (Region& r : out) {
+    double side = std::numeric_limits<double>::infinity();
+    for (const SearchWindow& w : plan.windows) {
+      const Box& wb = w.box;
+      if (w.right != right || wb.x_min < r.box.x_min || wb.y_min < r.box.y_min || wb.x_max > r.box.x_max ||
+          wb.y_max > r.box.y_max)
+        continue;
+      const auto lm = std::find_if(landmarks.begin(), landmarks.end(),
+                                   [&](const LanBLocLandmark& l) { return l.id == w.landmark_id; });
+      if (lm == landmarks.end()) continue;
+      // The smallest the board can be: at its predicted depth plus window_sigmas·σ of the position.
+      const double z_far = project(rig, pred.pose, lm->position, right).z() + settings.window_sigmas * pos_sigma;
+      side = std::min(side, rig.camera.f * board_side / z_far);
+    }
+    if (!std::isfinite(side)) continue;  // no window of a mapped landmark: full resolution
+    int level = 0;
+    while (level < 6 && side / double(2 << level) >= settings.detect_side_px) ++level;
+    const double smaller = std::min(r.box.x_max - r.box.x_min, r.box.y_max - r.box.y_min);
+    while (level > 0 && smaller / double(1 << level) < 16.0) --level;
+    r.level = level;
   }
   return out;
 }

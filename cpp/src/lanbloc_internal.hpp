@@ -38,11 +38,28 @@ struct CornerRefinement {
   double min_accuracy = 0.1;       ///< cornerRefinementMinAccuracy [px]
 };
 
-/// ArUco detection (FiducialDetector's parameters) in the boxes of `image`
-/// (the whole image when `boxes` is empty), corners in full-image pixels,
-/// sorted by id, the first of each id kept.  The perimeter threshold is
-/// scaled per box so that it stays the whole image's in pixels.
-std::vector<Marker> detect_markers(const cv::Mat& image, const std::vector<Box>& boxes,
+/// A region of an image searched at pyramid level `level` (2^level × 2^level pixels averaged).
+struct Region {
+  Box box;
+  int level = 0;
+};
+
+/// The regions of `plan` in one image (right: the right image's), each with the pyramid level
+/// where the smallest board predicted in it (its windows' landmarks, at their farthest depth within
+/// window_sigmas·σ of the predicted position) is at least settings.detect_side_px wide; level 0
+/// when detect_side_px is 0, without subpixel refinement, or for a region without windows.
+std::vector<Region> detection_regions(const LanBLocRig& rig, const LanBLocSettings& settings,
+                                      const std::vector<LanBLocLandmark>& landmarks, int marker_bits,
+                                      const SearchPlan& plan, bool right);
+
+/// ArUco detection (FiducialDetector's parameters) in the regions of `image`
+/// (the whole image at full resolution when `regions` is empty), corners in
+/// full-image pixels, sorted by id, the first of each id kept.  The perimeter
+/// threshold is scaled per region so that it stays the whole image's in
+/// full-resolution pixels.  A region at level L > 0 is averaged down 2^L
+/// times, searched there, and its corners are refined back to full
+/// resolution (refine_from_level).
+std::vector<Marker> detect_markers(const cv::Mat& image, const std::vector<Region>& regions,
                                    const cv::Ptr<cv::aruco::Dictionary>& dict,
                                    const cv::Ptr<cv::aruco::DetectorParameters>& params,
                                    double min_perimeter_rate, const CornerRefinement& refine);
