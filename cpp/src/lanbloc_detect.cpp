@@ -231,11 +231,14 @@ std::vector<Marker> detect_markers(const cv::Mat& image, const std::vector<Regio
     for (std::size_t i = 0; i < ids.size(); ++i) {
       Marker m;
       m.id = ids[i];
+      m.own = ids[i] == r.landmark_id;
       for (int k = 0; k < 4; ++k) m.corners.row(k) << corners[i][k].x, corners[i][k].y;
       out.push_back(m);
     }
   }
-  std::stable_sort(out.begin(), out.end(), [](const Marker& a, const Marker& b) { return a.id < b.id; });
+  // By id; of the same id the one found in its own landmark's window first, then the first found.
+  std::stable_sort(out.begin(), out.end(),
+                   [](const Marker& a, const Marker& b) { return a.id < b.id || (a.id == b.id && a.own > b.own); });
   out.erase(std::unique(out.begin(), out.end(), [](const Marker& a, const Marker& b) { return a.id == b.id; }),
             out.end());
   return out;
@@ -288,38 +291,67 @@ std::vector<SearchWindow> predicted_windows(const LanBLocRig& rig, const LanBLoc
   return out;
 }
 
+namespace {
+
+/// The pyramid level of a region whose smallest board is `side` px wide and whose shorter side
+/// is `extent` px: the coarsest (at most 6) where the board is still at least `detect_side_px`
+/// wide and the region at least 16 px.
+int level_for(double side, double extent, double detect_side_px) {
+  int level = 0;
+  while (level < 6 && side / double(2 << level) >= detect_side_px) ++level;
+  while (level > 0 && extent / double(1 << level) < 16.0) --level;
+  return level;
+}
+
+}  // namespace
+
 std::vector<Region> detection_regions(const LanBLocRig& rig, const LanBLocSettings& settings,
                                       const std::vector<LanBLocLandmark>& landmarks, int marker_bits,
                                       const SearchPlan& plan, bool right) {
   const std::vector<Box>& boxes = right ? plan.right_regions : plan.left_regions;
   std::vector<Region> out;
-  for (const Box& b : boxes) out.push_back({b, 0});
-  if (!(settings.detect_side_px > 0.0) || !settings.subpixel || !plan.prediction) return out;
+  if (!(settings.detect_side_px > 0.0) || !settings.subpixel || !plan.prediction) {
+    for (const Box& b : boxes) out.push_back({b, 0, -1});
+    return out;
+  }
   const PosePrediction& pred = *plan.prediction;
   // The board's side (marker plus a one-cell quiet zone per side), as in predicted_windows.
   const double cells = marker_bits + 2.0;
   const double board_side = settings.marker_size_m * (cells + 2.0) / cells;
   const double pos_sigma = std::sqrt(std::max(pred.covariance.topLeftCorner<2, 2>().trace(), 0.0));
-  for (Region& r : out) {
-    double side = std::numeric_limits<double>::infinity();
+  for (const Box& b : boxes) {
+    // The region's windows, each at the level of its own board: the smallest the board can be,
+    // at its predicted depth plus window_sigmas·σ of the position.
+    std::vector<Region> own;
+    bool coarse = false;
     for (const SearchWindow& w : plan.windows) {
       const Box& wb = w.box;
-      if (w.right != right || wb.x_min < r.box.x_min || wb.y_min < r.box.y_min || wb.x_max > r.box.x_max ||
-          wb.y_max > r.box.y_max)
+      if (w.right != right || wb.x_min < b.x_min || wb.y_min < b.y_min || wb.x_max > b.x_max || wb.y_max > b.y_max)
         continue;
       const auto lm = std::find_if(landmarks.begin(), landmarks.end(),
                                    [&](const LanBLocLandmark& l) { return l.id == w.landmark_id; });
       if (lm == landmarks.end()) continue;
-      // The smallest the board can be: at its predicted depth plus window_sigmas·σ of the position.
-      const double z_far = project(rig, pred.pose, lm->position, right).z() + settings.window_sigmas * pos_sigma;
-      side = std::min(side, rig.camera.f * board_side / z_far);
+      const double z = project(rig, pred.pose, lm->position, right).z();
+      const double z_far = z + settings.window_sigmas * pos_sigma;
+      int level = level_for(rig.camera.f * board_side / z_far, std::min(wb.x_max - wb.x_min, wb.y_max - wb.y_min),
+                            settings.detect_side_px);
+      // ArUco drops a contour within 3 px of the searched image's border: a marker predicted near
+      // the image's edge (its sphere's box, grown by window_sigmas·σ) keeps 4 px of it at the level.
+      const double rm = std::sqrt(2.0) * 0.5 * settings.marker_size_m;
+      const double half = rig.camera.f * rm / std::max(z - rm, 1e-9);
+      const Eigen::Vector2d c = w.predicted_centre, g = settings.window_sigmas * w.sigma_px;
+      const double edge = std::min({c.x() - half - g.x(), c.y() - half - g.y(), rig.camera.width - 1 - c.x() - half - g.x(),
+                                    rig.camera.height - 1 - c.y() - half - g.y()});
+      while (level > 0 && edge < 4.0 * double(1 << level)) --level;
+      coarse = coarse || level > 0;
+      own.push_back({wb, level, w.landmark_id});
     }
-    if (!std::isfinite(side)) continue;  // no window of a mapped landmark: full resolution
-    int level = 0;
-    while (level < 6 && side / double(2 << level) >= settings.detect_side_px) ++level;
-    const double smaller = std::min(r.box.x_max - r.box.x_min, r.box.y_max - r.box.y_min);
-    while (level > 0 && smaller / double(1 << level) < 16.0) --level;
-    r.level = level;
+    // All at full resolution (or no window): the merged region, as without a pyramid.  Otherwise
+    // each window on its own at its level (a near board is not searched at a far one's level).
+    if (!coarse)
+      out.push_back({b, 0, -1});
+    else
+      out.insert(out.end(), own.begin(), own.end());
   }
   return out;
 }
