@@ -157,25 +157,46 @@ void refine_from_level(const cv::Mat& grey, const cv::Mat& level_img, cv::Point2
 
 /// One region searched at level L > 0: averaged down (cv::INTER_AREA over whole 2^L blocks; the
 /// region is trimmed to a multiple of 2^L), detected there with refinement off, corners refined
-/// back to full resolution (refine_from_level); corners in full-image pixels.
+/// back to full resolution (refine_from_level); corners in full-image pixels.  ArUco drops a
+/// contour within minDistanceToBorder px of the searched image's edge; at the level that would be
+/// 2^L times as far, so the level image is padded (edge pixels repeated) and the rule is applied
+/// to the refined corners at full resolution instead, as a full-resolution search would.
 void detect_at_level(const cv::Mat& image, const cv::Rect& roi, int level, const cv::Ptr<cv::aruco::Dictionary>& dict,
                      const cv::aruco::DetectorParameters& base, double min_perimeter_px,
                      const CornerRefinement& refine, std::vector<std::vector<cv::Point2f>>& corners,
                      std::vector<int>& ids) {
   const int k = 1 << level;
   const cv::Rect cut(roi.x, roi.y, roi.width / k * k, roi.height / k * k);
-  cv::Mat small;
+  cv::Mat small, padded;
   cv::resize(image(cut), small, cv::Size(cut.width / k, cut.height / k), 0, 0, cv::INTER_AREA);
+  const int pad = base.minDistanceToBorder + 1;
+  cv::copyMakeBorder(small, padded, pad, pad, pad, pad, cv::BORDER_REPLICATE);
   const cv::Ptr<cv::aruco::DetectorParameters> p = cv::makePtr<cv::aruco::DetectorParameters>(base);
-  p->minMarkerPerimeterRate = std::min(min_perimeter_px / k / std::max(small.cols, small.rows), 3.9);
+  p->minMarkerPerimeterRate = std::min(min_perimeter_px / k / std::max(padded.cols, padded.rows), 3.9);
   p->cornerRefinementMethod = cv::aruco::CORNER_REFINE_NONE;
-  cv::aruco::detectMarkers(small, dict, corners, ids, p);
+  // At the level a cell is detect_side_px/8 to detect_side_px/4 px (a board of 8 cells, 4-8 px at
+  // the default 32): the adaptive threshold's windows of 13 px and more; the 3 px one finds texture.
+  p->adaptiveThreshWinSizeMin = std::max(p->adaptiveThreshWinSizeMin, std::min(13, p->adaptiveThreshWinSizeMax));
+  std::vector<std::vector<cv::Point2f>> found;
+  std::vector<int> found_ids;
+  cv::aruco::detectMarkers(padded, dict, found, found_ids, p);
   // ArUco's own refinement (OpenCV 4.6: a fixed window) when the rule of >= 4.8 is not selected.
   const bool aruco_rule = refine.relative_win_size <= 0.0;
-  for (auto& c : corners)
+  const float d = float(base.minDistanceToBorder);
+  for (std::size_t i = 0; i < found.size(); ++i) {
+    auto& c = found[i];
+    for (auto& q : c) q -= cv::Point2f(float(pad), float(pad));
     refine_from_level(image, small, cv::Point2f(float(cut.x), float(cut.y)), level, c, dict->markerSize,
                       base.markerBorderBits, refine, aruco_rule ? base.cornerRefinementWinSize : 0,
                       base.cornerRefinementMaxIterations, base.cornerRefinementMinAccuracy);
+    const bool inside = std::all_of(c.begin(), c.end(), [&](const cv::Point2f& q) {
+      return q.x >= roi.x + d && q.y >= roi.y + d && q.x <= roi.x + roi.width - 1 - d &&
+             q.y <= roi.y + roi.height - 1 - d;
+    });
+    if (!inside) continue;
+    corners.push_back(c);
+    ids.push_back(found_ids[i]);
+  }
 }
 
 }  // namespace
@@ -331,18 +352,9 @@ std::vector<Region> detection_regions(const LanBLocRig& rig, const LanBLocSettin
       const auto lm = std::find_if(landmarks.begin(), landmarks.end(),
                                    [&](const LanBLocLandmark& l) { return l.id == w.landmark_id; });
       if (lm == landmarks.end()) continue;
-      const double z = project(rig, pred.pose, lm->position, right).z();
-      const double z_far = z + settings.window_sigmas * pos_sigma;
-      int level = level_for(rig.camera.f * board_side / z_far, std::min(wb.x_max - wb.x_min, wb.y_max - wb.y_min),
+      const double z_far = project(rig, pred.pose, lm->position, right).z() + settings.window_sigmas * pos_sigma;
+      const int level = level_for(rig.camera.f * board_side / z_far, std::min(wb.x_max - wb.x_min, wb.y_max - wb.y_min),
                             settings.detect_side_px);
-      // ArUco drops a contour within 3 px of the searched image's border: a marker predicted near
-      // the image's edge (its sphere's box, grown by window_sigmas·σ) keeps 4 px of it at the level.
-      const double rm = std::sqrt(2.0) * 0.5 * settings.marker_size_m;
-      const double half = rig.camera.f * rm / std::max(z - rm, 1e-9);
-      const Eigen::Vector2d c = w.predicted_centre, g = settings.window_sigmas * w.sigma_px;
-      const double edge = std::min({c.x() - half - g.x(), c.y() - half - g.y(), rig.camera.width - 1 - c.x() - half - g.x(),
-                                    rig.camera.height - 1 - c.y() - half - g.y()});
-      while (level > 0 && edge < 4.0 * double(1 << level)) --level;
       coarse = coarse || level > 0;
       own.push_back({wb, level, w.landmark_id});
     }

@@ -82,11 +82,11 @@ struct LanBLocSettings {
   /// (which the Python pipeline runs) refines; 0 = the linked ArUco's own
   /// refinement (OpenCV 4.6: always corner_refinement_win_size).
   double relative_corner_refinement_win_size = 0.3;
-  /// Search windows only (ours, as the Python region pipeline's detect_side_px): each region is
-  /// searched at the pyramid level (2^L px averaged) where the smallest board predicted in it is
-  /// at least this many pixels on a side, and the corners found there are refined back to full
-  /// resolution; 0 = detect at full resolution.  At least 16 (ArUco needs ~2 px per cell).
-  double detect_side_px = 48.0;
+  /// Search windows only (ours, as the Python region pipeline's detect_side_px): each window is
+  /// searched at the pyramid level (2^L px averaged) where its landmark's board is predicted at
+  /// least this many pixels on a side (4 px per cell at 32), and the corners found there are
+  /// refined back to full resolution; 0 = detect at full resolution.  At least 16.
+  double detect_side_px = 32.0;
   // --- ranging (LandmarkRanging.observe_corners / sighting)
   double corner_sigma_d = 0.035;        ///< [px] σ_c of the centre's disparity from the corners
   double max_row_error_px = 1.0;        ///< [px] largest left/right row difference of a corner
