@@ -17,7 +17,10 @@ resolution), the same trial seeds (the sweep's seed rule) run twice:
   and background included), the core's front end searches them and the fix goes through the
   localizer's gate.  Each of its frames is also rendered whole and searched without a prediction
   (``compare_whole_frame``): fixes, markers missed by the windows, false detections, the windows'
-  fix error and NEES against the truth, and the front end's time per frame.
+  fix error and NEES against the truth, and the front end's time per frame.  On that whole
+  rendering the plan's windows are searched at the pyramid levels and at full resolution
+  (``detect_side_px = 0``), and the Python region pipeline runs on the same pixels: markers found
+  and missed, fix and corner differences, and the median time per frame of each.
 
 Prints per path: arrivals, the median fix error (fixes against the true position), the
 trials' mean NEES and share outside 3σ, and seconds per trial.
@@ -58,9 +61,8 @@ def _row(label, results, seconds) -> str:
 def main(trials: int, every: int, paths, seed: int) -> None:
     sc = safenav.default_scenario()
     sweep = runner.Sweep(sc, trials=trials, seed=seed)
-    total = {k: 0 for k in ("frames", "fixes_windows", "fixes_whole", "markers_windows", "markers_whole", "missed",
-                            "false_windows", "false_whole")}
-    samples = {k: [] for k in ("error", "nees", "range", "s_windows", "s_whole", "s_compare")}
+    total: dict = {}
+    samples: dict = {}
     for name in paths:
         path = np.asarray(nv.plan_safe_path(sc, name).path)
         nav = nv.make_navigator(sc, path, method="centroid", position_every=every, record=True)
@@ -74,10 +76,10 @@ def main(trials: int, every: int, paths, seed: int) -> None:
         for s in seeds:
             src = CameraFrames.from_scenario(sc, seed=int(s) % 2**32, compare_whole_frame=True)
             after.append(src.run(nav, int(s)))
-            for k in total:
-                total[k] += src.comparison[k]
-            for k in samples:
-                samples[k] += src.samples[k]
+            for k, v in src.comparison.items():
+                total[k] = total.get(k, 0) + v
+            for k, v in src.samples.items():
+                samples[k] = samples.get(k, []) + v
             compare += sum(src.samples["s_compare"])
         t2 = time.perf_counter()
         print(f"{name}: {trials} trials, a frame every {every} steps")
@@ -98,6 +100,31 @@ def main(trials: int, every: int, paths, seed: int) -> None:
         v = np.asarray(samples[k]) * 1e3
         if len(v):
             print(f"front end ms per frame, {label}: median {np.median(v):.1f}, p95 {np.percentile(v, 95):.1f}")
+    _levels(c, samples)
+
+
+def _q(v, unit: str) -> str:
+    v = np.asarray(v)
+    return (f"median {np.median(v):.3g} {unit}, p95 {np.percentile(v, 95):.3g}, max {v.max():.3g} (n = {len(v)})"
+            if len(v) else "none")
+
+
+def _levels(c: dict, samples: dict) -> None:
+    """The plan's windows at the pyramid levels against full resolution and beside the Python region
+    pipeline, on the same whole renderings."""
+    if not samples.get("s_pyramid"):
+        return
+    print(f"pyramid levels vs full resolution in the same windows, same {c['frames']} frames: fixes "
+          f"{c['fixes_pyramid']} vs {c['fixes_full_res']}, markers {c['markers_pyramid']} vs {c['markers_full_res']} "
+          f"(missed by the pyramid {c['missed_pyramid']}, found only by it {c['extra_pyramid']})")
+    print(f"  |fix pyramid - fix full resolution|: {_q(samples['fix_diff'], 'm')}")
+    print(f"  corner difference (both images): {_q(samples['corner_diff'], 'px')}")
+    print(f"  fix error vs truth: pyramid {_q(samples['error_pyramid'], 'm')}; full resolution "
+          f"{_q(samples['error_full_res'], 'm')}")
+    t = {k: 1e3 * np.median(samples[k]) for k in ("s_pyramid", "s_full_res", "s_python")}
+    print(f"  median ms per frame: C++ pyramid {t['s_pyramid']:.2f}, C++ full resolution {t['s_full_res']:.2f}, "
+          f"Python region pipeline {t['s_python']:.2f} (regions from the truth); Python / C++ pyramid "
+          f"{t['s_python'] / t['s_pyramid']:.1f}x, full / pyramid {t['s_full_res'] / t['s_pyramid']:.1f}x")
 
 
 if __name__ == "__main__":

@@ -20,7 +20,12 @@ With ``compare_whole_frame`` each frame is also rendered whole and searched
 without a prediction, to count what the estimate's windows cost
 (:attr:`CameraFrames.comparison`): fixes in each mode, the markers the whole
 frame found that the windows missed, and false detections (an id that is
-not drawn in the image, or not a landmark) in each mode.
+not drawn in the image, or not a landmark) in each mode.  On that whole
+rendering the plan's windows are also searched at full resolution
+(``detect_side_px = 0``) beside the pyramid levels, and the Python region
+pipeline (:class:`~safenav.vision.regions.RegionPipeline`, its regions from
+the markers' true footprints) runs on the same pixels, for the time per frame
+of each and the pyramid's agreement with full resolution.
 """
 
 from __future__ import annotations
@@ -86,6 +91,8 @@ class CameraFrames:
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2 ** 64:
             raise ValueError(f"seed = {seed!r}: must be an integer in [0, 2**64)")
         self.rig = CameraLoopSource.DEFAULT_RIG if rig is None else rig
+        self._world, self._dictionary, self._settings = world, dictionary, dict(settings)
+        self._marker_size_m = marker_size_m
         self.renderer = StereoRenderer(world, self.rig, marker_size_m=marker_size_m, dictionary=dictionary,
                                        noise_std=noise_std, seed=seed, texture_seed=texture_seed,
                                        occlusion=occlusion)
@@ -97,11 +104,19 @@ class CameraFrames:
         self.compare_whole_frame = bool(compare_whole_frame)
         self.stats = {"frames": 0, "windows": 0, "whole_frame": 0, "early_out": 0, "render_s": 0.0}
         self.comparison = {k: 0 for k in ("frames", "fixes_windows", "fixes_whole", "markers_windows",
-                                          "markers_whole", "missed", "false_windows", "false_whole")}
+                                          "markers_whole", "missed", "false_windows", "false_whole",
+                                          "fixes_pyramid", "fixes_full_res", "markers_pyramid",
+                                          "markers_full_res", "missed_pyramid", "extra_pyramid")}
         #: per compared frame: the windows' fix error [m], NEES and farthest range [m] against the truth
         #: (fixes only), the front end's seconds in the windows and on the whole frame, and the
-        #: comparison's own seconds
-        self.samples = {k: [] for k in ("error", "nees", "range", "s_windows", "s_whole", "s_compare")}
+        #: comparison's own seconds; on the whole rendering: the front end's seconds in the plan's
+        #: windows at the pyramid levels and at full resolution, the Python region pipeline's seconds,
+        #: |pyramid fix − full-resolution fix| [m] (both fixes), the largest corner difference [px] of
+        #: each marker both found (both images), and each one's fix error against the truth [m]
+        self.samples = {k: [] for k in ("error", "nees", "range", "s_windows", "s_whole", "s_compare",
+                                        "s_pyramid", "s_full_res", "s_python", "fix_diff", "corner_diff",
+                                        "error_pyramid", "error_full_res")}
+        self._full_res = self._python = None
 
     @classmethod
     def from_scenario(cls, scenario, width: int | None = None, height: int | None = None, *,
@@ -157,6 +172,7 @@ class CameraFrames:
             self.samples["error"].append(float(np.hypot(*e)))
             self.samples["nees"].append(float(e @ np.linalg.solve(fw.covariance, e)))
             self.samples["range"].append(max(o.range for o in fw.observations if o.ok))
+        self._compare_levels(pose, seed, plan, wl, wr)
         drawn = set(self.renderer.frame(pose, seed).footprints("left"))   # geometry only: no pixels drawn
         c = self.comparison
         c["frames"] += 1
@@ -169,3 +185,49 @@ class CameraFrames:
         c["missed"] += len(ids_f - ids_w)
         c["false_windows"] += len(ids_w - drawn) + len(fw.unmapped)
         c["false_whole"] += len(ids_f - drawn) + len(ff.unmapped)
+
+    def _compare_levels(self, pose, seed: int, plan, wl, wr) -> None:
+        """On the whole rendering: the plan's windows at the pyramid levels and at full resolution,
+        and the Python region pipeline, timed; the pyramid's agreement with full resolution."""
+        from .detect import FiducialDetector
+        from .lanbloc import LanBLoc
+
+        if self._full_res is None:
+            kw = dict(self._settings, detect_side_px=0.0)
+            self._full_res = front_end(self._world, self.rig, marker_size_m=self._marker_size_m,
+                                       dictionary=self._dictionary, min_landmarks=self.min_landmarks, **kw)
+            self._python = LanBLoc(self._world, self.rig, FiducialDetector(self._world, dictionary=self._dictionary,
+                                                                           aruco3=True),
+                                   ranging="corners", min_landmarks=self.min_landmarks,
+                                   max_range_m=self.rig.max_range_m)
+        t0 = time.perf_counter()
+        fp = self.front_end.localize_plan(wl, wr, plan)
+        t1 = time.perf_counter()
+        fr = self._full_res.localize_plan(wl, wr, plan)
+        t2 = time.perf_counter()
+        frame = self.renderer.frame(pose, seed, images=(wl, wr))
+        t3 = time.perf_counter()
+        self._python.localize_frame(frame)
+        t4 = time.perf_counter()
+        s, c = self.samples, self.comparison
+        s["s_pyramid"].append(t1 - t0)
+        s["s_full_res"].append(t2 - t1)
+        s["s_python"].append(t4 - t3)
+        c["fixes_pyramid"] += fp.ok
+        c["fixes_full_res"] += fr.ok
+        for res, key in ((fp, "error_pyramid"), (fr, "error_full_res")):
+            if res.ok:
+                s[key].append(float(np.hypot(*(np.asarray(res.position) - pose[:2]))))
+        if fp.ok and fr.ok:
+            s["fix_diff"].append(float(np.hypot(*(np.asarray(fp.position) - np.asarray(fr.position)))))
+        ip = {o.landmark_id: o for o in fp.observations}
+        ir = {o.landmark_id: o for o in fr.observations}
+        c["markers_pyramid"] += len(ip)
+        c["markers_full_res"] += len(ir)
+        c["missed_pyramid"] += len(set(ir) - set(ip))
+        c["extra_pyramid"] += len(set(ip) - set(ir))
+        for i in set(ip) & set(ir):
+            d = np.abs(np.vstack([ip[i].corners_left, ip[i].corners_right])
+                       - np.vstack([ir[i].corners_left, ir[i].corners_right]))
+            if np.isfinite(d).any():
+                s["corner_diff"].append(float(np.nanmax(d)))

@@ -45,8 +45,24 @@ class StereoFrame:
 
     CAMERAS = ("left", "right")
 
-    def __init__(self, renderer: StereoRenderer, pose, noise_seed: int | None = None):
+    def __init__(self, renderer: StereoRenderer, pose, noise_seed: int | None = None, images=None):
         self.renderer = renderer
+        #: ``(left, right)`` full-resolution grey images that :meth:`patch` cuts from instead of
+        #: drawing (e.g. a pair already rendered, to run the region pipeline on the same pixels as
+        #: another detector); ``None``: drawn on demand
+        self.images = None
+        if images is not None:
+            try:
+                left, right = images
+            except (TypeError, ValueError):
+                raise ValueError(f"images = {images!r}: must be a pair (left, right)") from None
+            r = renderer.rig
+            ims = tuple(np.ascontiguousarray(a) for a in (left, right))
+            for name, a in zip(self.CAMERAS, ims):
+                if a.dtype != np.uint8 or a.shape != (r.height, r.width):
+                    raise ValueError(f"images: the {name} image is {a.dtype} {a.shape}, expected uint8 "
+                                     f"({r.height}, {r.width})")
+            self.images = ims
         self._rng = renderer._rng if noise_seed is None else np.random.default_rng(noise_seed)
         self._offsets, self._next = None, 0   # noise-tile offsets, drawn 32 at a time
         r = self.rig = renderer.rig
@@ -173,6 +189,8 @@ class StereoFrame:
                              f"with x0 < x1, y0 < y1")
         k = 1 << int(level)
         X0, Y0, X1, Y1 = x0 // k, y0 // k, -(-x1 // k), -(-y1 // k)
+        if self.images is not None:
+            return self._cut(camera, X0, Y0, X1, Y1, k)
         img = self.renderer._background_patch(int(level), X0, Y0, X1, Y1, self._bg_shift // k)
         off = np.array([X0, Y0], float)
         lbox = (X0 * k, Y0 * k, X1 * k, Y1 * k)
@@ -192,3 +210,16 @@ class StereoFrame:
             noise = self.renderer._noise(img.shape, self.renderer.noise_std / k, self._rng, self._offsets[self._next - 1])
             img = np.clip(img + noise + 0.5, 0, 255).astype(np.uint8)
         return img
+
+    def _cut(self, camera: str, X0: int, Y0: int, X1: int, Y1: int, k: int) -> np.ndarray:
+        """Level pixels [X0, X1) × [Y0, Y1) (2^L = ``k``) of the given image: the k×k block means
+        (``cv2.INTER_AREA``), the blocks past the image's edge filled by repeating its edge pixels."""
+        img = self.images[self.CAMERAS.index(camera)]
+        h, w = img.shape
+        block = img[Y0 * k:min(Y1 * k, h), X0 * k:min(X1 * k, w)]
+        if k == 1:
+            return block.copy()
+        pad_y, pad_x = Y1 * k - (Y0 * k + block.shape[0]), X1 * k - (X0 * k + block.shape[1])
+        if pad_x or pad_y:
+            block = cv2.copyMakeBorder(block, 0, pad_y, 0, pad_x, cv2.BORDER_REPLICATE)
+        return cv2.resize(block, (X1 - X0, Y1 - Y0), interpolation=cv2.INTER_AREA)

@@ -344,7 +344,10 @@ class StereoRenderer:
         ``(x0, y0, x1, y1)``, ends exclusive; the rest stays 0): in each, what :meth:`render` draws
         there (ground and background textures, markers, poles) and pixel noise from the stream
         ``noise_seed``.  A detector that searches only these regions sees the whole image's pixels
-        there, false detections in the textures included."""
+        there, false detections in the textures included.  The noise of a region is a window of a
+        fixed tile of Gaussian draws at an offset drawn from that stream (fresh draws for a region
+        larger than the tile), as :class:`StereoFrame`'s: drawing fresh normals for every pixel
+        took as long as drawing the region."""
         x, y, th = as_pose(pose)
         pose = (x, y, th)
         R = camera_rotation(th, self.rig.pitch_rad)
@@ -361,7 +364,7 @@ class StereoRenderer:
                 if not (0 <= x0 < x1 <= w and 0 <= y0 < y1 <= h):
                     raise ValueError(f"region {tuple(box)}: must lie inside the {w}x{h} image with x0 < x1, y0 < y1")
                 img[y0:y1, x0:x1] = self._draw_box(th, R, C, [b for b in boards if b[0] not in hidden[cam]],
-                                                   (x0, y0, x1, y1), rng)
+                                                   (x0, y0, x1, y1), rng, tiled_noise=True)
             out.append(img)
         return out[0], out[1]
 
@@ -396,11 +399,13 @@ class StereoRenderer:
             out[cam] = {self.landmarks[i].id for i, v in zip(idx, seen) if not v}
         return out
 
-    def frame(self, pose, noise_seed: int | None = None) -> "StereoFrame":
+    def frame(self, pose, noise_seed: int | None = None, images=None) -> "StereoFrame":
         """The stereo pair at ``pose``, rendered region by region on demand (:class:`StereoFrame`).
         ``noise_seed``: the frame's own pixel-noise stream (so a frame's pixels do not depend on which
-        frames were drawn before it); default: the renderer's running stream."""
-        return StereoFrame(self, pose, noise_seed)
+        frames were drawn before it); default: the renderer's running stream.  ``images``: a pair
+        ``(left, right)`` already rendered at ``pose``, whose pixels the frame's patches are cut from
+        (the geometry, regions and footprints still come from the renderer)."""
+        return StereoFrame(self, pose, noise_seed, images)
 
     # ---- internals
     @property
@@ -447,16 +452,29 @@ class StereoRenderer:
     def _pyramid(self, lid: int, grey: bool = False) -> list[np.ndarray]:
         return _marker_pyramid(self.dictionary_name, self._marker_id[lid])[1 if grey else 0]
 
-    def _draw_box(self, th: float, R: np.ndarray, C: np.ndarray, boards, box, rng) -> np.ndarray:
+    #: side of the noise tile of render_regions (a window of it per region)
+    REGION_NOISE_TILE = 1024
+
+    def _draw_box(self, th: float, R: np.ndarray, C: np.ndarray, boards, box, rng,
+                  tiled_noise: bool = False) -> np.ndarray:
         """The pixels of ``box`` (x0, y0, x1, y1) of the camera at centre ``C``: ground and background,
-        the ``boards`` (markers and poles), pixel noise from ``rng``."""
+        the ``boards`` (markers and poles), pixel noise from ``rng`` (``tiled_noise``: a window of
+        the region noise tile at an offset from ``rng``, fresh draws beyond the tile's size)."""
         if not self._rig_ready:
             self._prepare_rig()
             self._rig_ready = True
         img = self._background_and_ground(th, R, C, box)
         self._draw_markers(img, R, C, boards, box[:2])
         if self.noise_std > 0:
-            noise = rng.standard_normal(img.shape, dtype=np.float32) * self.noise_std
+            n = self.REGION_NOISE_TILE
+            if tiled_noise and img.shape[0] <= n and img.shape[1] <= n:
+                if getattr(self, "_region_noise", None) is None:
+                    t = np.random.default_rng([self._seed, 11]).standard_normal((n, n), dtype=np.float32)
+                    self._region_noise = np.tile(t, (2, 2))
+                r0, c0 = rng.integers(0, n, 2)
+                noise = self._region_noise[r0:r0 + img.shape[0], c0:c0 + img.shape[1]] * np.float32(self.noise_std)
+            else:
+                noise = rng.standard_normal(img.shape, dtype=np.float32) * self.noise_std
             img = np.clip(img + noise, 0, 255).astype(np.uint8)
         return img
 
