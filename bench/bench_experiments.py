@@ -15,6 +15,14 @@ The run also writes the full report (``<out>/report.html``) and every table
 and figure: this is how the README's numbers were made.
 
     python bench/bench_experiments.py [--trials 1000] [--camera-trials 20] [--out out/bench_experiments]
+
+``--camera-only`` runs the camera-in-the-loop cells alone (the three that ``experiment all``
+runs: SafeNav-Centroid with the EKF and with the PF, SafeNav-CHull with the EKF, a frame every
+``--camera-every`` steps, on every path type) at ``--camera-trials`` per cell, and prints the
+time per trial per cell and the wall time that 1000 trials per cell would take on
+``--workers`` processes, extrapolated linearly from these trials::
+
+    python bench/bench_experiments.py --camera-only --camera-trials 4 --workers 2
 """
 
 from __future__ import annotations
@@ -35,7 +43,12 @@ def main() -> None:
     ap.add_argument("--particles", type=int, default=1000)
     ap.add_argument("--workers", type=int, default=None)
     ap.add_argument("--out", default="out/bench_experiments")
+    ap.add_argument("--camera-only", action="store_true")
+    ap.add_argument("--camera-every", type=int, default=ex.ExperimentOptions.camera_position_every)
     args = ap.parse_args()
+    if args.camera_only:
+        camera_only(args)
+        return
 
     opts = ex.ExperimentOptions(trials=args.trials, camera_trials=args.camera_trials,
                                        particles=args.particles, workers=args.workers, out=args.out)
@@ -76,6 +89,39 @@ def main() -> None:
     held = [c for r in results for c in r.claims]
     print(f"\nthe paper's claims: {sum(c.holds is True for c in held)} hold, {sum(c.holds is False for c in held)} "
           f"do not, {sum(c.holds is None for c in held)} not comparable (see the report)")
+
+
+def camera_only(args) -> None:
+    """The camera-loop cells of ``experiment all`` alone, timed per trial, and the extrapolation."""
+    import safenav
+    from safenav import runner
+
+    sc = safenav.default_scenario()
+    workers = args.workers or os.cpu_count()
+    safe = runner.plan_safe_paths(sc)
+    frames = []
+    t0 = time.perf_counter()
+    for methods, filters in ((("centroid",), ("ekf", "pf")), (("chull",), ("ekf",))):
+        sweep = runner.Sweep(sc, methods=methods, filters=filters, sources=("lanbloc-camera",),
+                             trials=args.camera_trials, n_particles=args.particles,
+                             position_every=args.camera_every, chunk=1)
+        frames.append(runner.run_sweep(sweep, workers=workers, safe_paths=safe))
+    wall = time.perf_counter() - t0
+    raw = pd.concat(frames, ignore_index=True)
+    cells = raw.groupby(["path_type", "method", "filter"], sort=False)
+    print(f"camera loop, {args.camera_trials} trials per cell, a frame every {args.camera_every} steps, "
+          f"{workers} worker processes: {len(raw)} trials in {wall:.1f} s")
+    print(f"{'path':<6}{'method':<10}{'filter':<8}{'median s/trial':>16}{'mean s/trial':>14}{'arrived':>9}"
+          f"{'fixes/trial':>13}")
+    for (p, m, f), g in cells:
+        print(f"{p:<6}{m:<10}{f:<8}{g['time_ms'].median() / 1e3:>16.2f}{g['time_ms'].mean() / 1e3:>14.2f}"
+              f"{g['success'].mean():>9.2f}{g['position_fixes'].mean():>13.1f}")
+    n_cells = cells.ngroups
+    mean_s = raw["time_ms"].mean() / 1e3
+    print(f"mean {mean_s:.2f} s per trial (in the worker), wall {wall / len(raw):.2f} s per trial on {workers} "
+          f"workers; 1000 trials per cell ({n_cells} cells): {wall / len(raw) * 1000 * n_cells / 60:.0f} min "
+          f"extrapolated from the wall time, {mean_s * 1000 * n_cells / workers / 60:.0f} min from the mean trial "
+          f"time (target: 30 min on 2 cores)")
 
 
 if __name__ == "__main__":
