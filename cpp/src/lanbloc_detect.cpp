@@ -175,8 +175,12 @@ void detect_at_level(const cv::Mat& image, const cv::Rect& roi, int level, const
   p->minMarkerPerimeterRate = std::min(min_perimeter_px / k / std::max(padded.cols, padded.rows), 3.9);
   p->cornerRefinementMethod = cv::aruco::CORNER_REFINE_NONE;
   // At the level a cell is detect_side_px/8 to detect_side_px/4 px (a board of 8 cells, 4-8 px at
-  // the default 32): the adaptive threshold's windows of 13 px and more; the 3 px one finds texture.
-  p->adaptiveThreshWinSizeMin = std::max(p->adaptiveThreshWinSizeMin, std::min(13, p->adaptiveThreshWinSizeMax));
+  // the default 32): one adaptive threshold window of ArUco's scales, the first of at least 13 px
+  // (1.6-3 cells; the 3 px window is below a cell and finds texture, and one scale fits all the
+  // cell sizes a level holds).
+  int win = p->adaptiveThreshWinSizeMin;
+  while (win < 13 && win + p->adaptiveThreshWinSizeStep <= p->adaptiveThreshWinSizeMax) win += p->adaptiveThreshWinSizeStep;
+  p->adaptiveThreshWinSizeMin = p->adaptiveThreshWinSizeMax = win;
   std::vector<std::vector<cv::Point2f>> found;
   std::vector<int> found_ids;
   cv::aruco::detectMarkers(padded, dict, found, found_ids, p);
@@ -252,14 +256,11 @@ std::vector<Marker> detect_markers(const cv::Mat& image, const std::vector<Regio
     for (std::size_t i = 0; i < ids.size(); ++i) {
       Marker m;
       m.id = ids[i];
-      m.own = ids[i] == r.landmark_id;
       for (int k = 0; k < 4; ++k) m.corners.row(k) << corners[i][k].x, corners[i][k].y;
       out.push_back(m);
     }
   }
-  // By id; of the same id the one found in its own landmark's window first, then the first found.
-  std::stable_sort(out.begin(), out.end(),
-                   [](const Marker& a, const Marker& b) { return a.id < b.id || (a.id == b.id && a.own > b.own); });
+  std::stable_sort(out.begin(), out.end(), [](const Marker& a, const Marker& b) { return a.id < b.id; });
   out.erase(std::unique(out.begin(), out.end(), [](const Marker& a, const Marker& b) { return a.id == b.id; }),
             out.end());
   return out;
@@ -312,58 +313,39 @@ std::vector<SearchWindow> predicted_windows(const LanBLocRig& rig, const LanBLoc
   return out;
 }
 
-namespace {
-
-/// The pyramid level of a region whose smallest board is `side` px wide and whose shorter side
-/// is `extent` px: the coarsest (at most 6) where the board is still at least `detect_side_px`
-/// wide and the region at least 16 px.
-int level_for(double side, double extent, double detect_side_px) {
-  int level = 0;
-  while (level < 6 && side / double(2 << level) >= detect_side_px) ++level;
-  while (level > 0 && extent / double(1 << level) < 16.0) --level;
-  return level;
-}
-
-}  // namespace
-
 std::vector<Region> detection_regions(const LanBLocRig& rig, const LanBLocSettings& settings,
                                       const std::vector<LanBLocLandmark>& landmarks, int marker_bits,
                                       const SearchPlan& plan, bool right) {
   const std::vector<Box>& boxes = right ? plan.right_regions : plan.left_regions;
   std::vector<Region> out;
-  if (!(settings.detect_side_px > 0.0) || !settings.subpixel || !plan.prediction) {
-    for (const Box& b : boxes) out.push_back({b, 0, -1});
-    return out;
-  }
+  for (const Box& b : boxes) out.push_back({b, 0});
+  if (!(settings.detect_side_px > 0.0) || !settings.subpixel || !plan.prediction) return out;
   const PosePrediction& pred = *plan.prediction;
   // The board's side (marker plus a one-cell quiet zone per side), as in predicted_windows.
   const double cells = marker_bits + 2.0;
   const double board_side = settings.marker_size_m * (cells + 2.0) / cells;
   const double pos_sigma = std::sqrt(std::max(pred.covariance.topLeftCorner<2, 2>().trace(), 0.0));
-  for (const Box& b : boxes) {
-    // The region's windows, each at the level of its own board: the smallest the board can be,
-    // at its predicted depth plus window_sigmas·σ of the position.
-    std::vector<Region> own;
-    bool coarse = false;
+  for (Region& r : out) {
+    // The smallest board in the region: each window's landmark at its predicted depth plus
+    // window_sigmas·σ of the position (the farthest, so the smallest, it can be).
+    double side = std::numeric_limits<double>::infinity();
     for (const SearchWindow& w : plan.windows) {
       const Box& wb = w.box;
-      if (w.right != right || wb.x_min < b.x_min || wb.y_min < b.y_min || wb.x_max > b.x_max || wb.y_max > b.y_max)
+      if (w.right != right || wb.x_min < r.box.x_min || wb.y_min < r.box.y_min || wb.x_max > r.box.x_max ||
+          wb.y_max > r.box.y_max)
         continue;
       const auto lm = std::find_if(landmarks.begin(), landmarks.end(),
                                    [&](const LanBLocLandmark& l) { return l.id == w.landmark_id; });
       if (lm == landmarks.end()) continue;
       const double z_far = project(rig, pred.pose, lm->position, right).z() + settings.window_sigmas * pos_sigma;
-      const int level = level_for(rig.camera.f * board_side / z_far, std::min(wb.x_max - wb.x_min, wb.y_max - wb.y_min),
-                            settings.detect_side_px);
-      coarse = coarse || level > 0;
-      own.push_back({wb, level, w.landmark_id});
+      side = std::min(side, rig.camera.f * board_side / z_far);
     }
-    // All at full resolution (or no window): the merged region, as without a pyramid.  Otherwise
-    // each window on its own at its level (a near board is not searched at a far one's level).
-    if (!coarse)
-      out.push_back({b, 0, -1});
-    else
-      out.insert(out.end(), own.begin(), own.end());
+    if (!std::isfinite(side)) continue;  // no window of a mapped landmark: full resolution
+    // The coarsest level (at most 6) where that board is still detect_side_px wide and the region
+    // at least 16 px.
+    const double extent = std::min(r.box.x_max - r.box.x_min, r.box.y_max - r.box.y_min);
+    while (r.level < 6 && side / double(2 << r.level) >= settings.detect_side_px) ++r.level;
+    while (r.level > 0 && extent / double(1 << r.level) < 16.0) --r.level;
   }
   return out;
 }

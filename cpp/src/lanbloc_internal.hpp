@@ -27,7 +27,6 @@ Eigen::Matrix3d camera_rotation(double theta, double pitch);
 struct Marker {
   int id = 0;
   MarkerCorners corners;
-  bool own = false;  ///< found in the search window of its own landmark
 };
 
 /// Sub-pixel corner refinement as OpenCV >= 4.8 does it (relative_win_size > 0), run after a
@@ -43,15 +42,13 @@ struct CornerRefinement {
 struct Region {
   Box box;
   int level = 0;
-  int landmark_id = -1;  ///< the landmark whose window this is (-1: a merged region)
 };
 
-/// Where to detect in one image of `plan` (right: the right image's) and at which pyramid level.
-/// Each window gets the coarsest level where its landmark's board, at its farthest depth within
-/// window_sigmas·σ of the predicted position, is at least settings.detect_side_px wide.  A merged
-/// region whose windows all get level 0 is searched whole at full resolution (as without a
-/// pyramid: detect_side_px = 0, no subpixel refinement, no prediction); otherwise each of its
-/// windows is searched on its own at its level.
+/// The regions of `plan` in one image (right: the right image's), each with the pyramid level
+/// where the smallest board predicted in it (its windows' landmarks, at their farthest depth within
+/// window_sigmas·σ of the predicted position) is at least settings.detect_side_px wide (as the
+/// Python region pipeline chooses it); level 0 when detect_side_px is 0, without subpixel
+/// refinement, without a prediction, or for a region without windows.
 std::vector<Region> detection_regions(const LanBLocRig& rig, const LanBLocSettings& settings,
                                       const std::vector<LanBLocLandmark>& landmarks, int marker_bits,
                                       const SearchPlan& plan, bool right);
