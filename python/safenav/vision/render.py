@@ -113,6 +113,33 @@ def _marker_pyramid(dictionary: str, marker_id: int) -> tuple[list[np.ndarray], 
     return [cv2.merge([m, np.full_like(m, 255)]) for m in pyr], pyr
 
 
+@functools.lru_cache(maxsize=4)
+def _rig_maps(r: StereoRig, haze_m: float, pano_w: int, pano_h: int, pano_el: tuple[float, float]):
+    """(first ground row, haze per ground row, background x and y maps, background rows) of rig ``r``
+    (read-only arrays, shared)."""
+    f, cx, cy, ph = r.focal_length_px, r.cx, r.cy, r.pitch_rad
+    v = np.arange(r.height, dtype=np.float64)
+    up = -math.cos(ph) * (v - cy) / f + math.sin(ph)   # world-up component of the ray (camera z = 1)
+    # ground rows: the ray meets the ground nearer than 2 km
+    ground = up < -r.camera_height_m / 2000.0
+    v_ground = int(np.argmax(ground)) if ground.any() else r.height
+    t = r.camera_height_m / np.maximum(-up[v_ground:], 1e-12)   # camera depth of the ground row
+    haze = np.exp(-t / haze_m).astype(np.float32)[:, None]
+    # background maps (rows above the ground): azimuth relative to the heading and elevation
+    nb = min(v_ground + 2, r.height)
+    uu, vv = np.meshgrid(np.arange(r.width, dtype=np.float64), np.arange(nb, dtype=np.float64))
+    R0 = camera_rotation(0.0, ph)
+    rays = np.stack([(uu - cx) / f, (vv - cy) / f, np.ones_like(uu)], axis=-1) @ R0  # world directions
+    az = np.arctan2(rays[..., 1], rays[..., 0])
+    el = np.arctan2(rays[..., 2], np.hypot(rays[..., 0], rays[..., 1]))
+    e0, e1 = pano_el
+    bg_x = (-az / (2 * math.pi) * pano_w).astype(np.float32)
+    bg_y = np.clip((e1 - el) / (e1 - e0) * (pano_h - 1), 0, pano_h - 1).astype(np.float32)
+    for a in (haze, bg_x, bg_y):
+        a.flags.writeable = False
+    return v_ground, haze, bg_x, bg_y, nb
+
+
 # --------------------------------------------------------------------------- the renderer
 
 class StereoRenderer:
@@ -215,26 +242,10 @@ class StereoRenderer:
 
     # ---- rig-dependent precomputation
     def _prepare_rig(self):
-        r = self.rig
-        f, cx, cy, ph = r.focal_length_px, r.cx, r.cy, r.pitch_rad
-        v = np.arange(r.height, dtype=np.float64)
-        up = -math.cos(ph) * (v - cy) / f + math.sin(ph)   # world-up component of the ray (camera z = 1)
-        # ground rows: the ray meets the ground nearer than 2 km
-        ground = up < -r.camera_height_m / 2000.0
-        self._v_ground = int(np.argmax(ground)) if ground.any() else r.height
-        t = r.camera_height_m / np.maximum(-up[self._v_ground:], 1e-12)   # camera depth of the ground row
-        self._haze = np.exp(-t / self.HAZE_M).astype(np.float32)[:, None]
-        # background maps (rows above the ground): azimuth relative to the heading and elevation
-        nb = min(self._v_ground + 2, r.height)
-        uu, vv = np.meshgrid(np.arange(r.width, dtype=np.float64), np.arange(nb, dtype=np.float64))
-        R0 = camera_rotation(0.0, ph)
-        rays = np.stack([(uu - cx) / f, (vv - cy) / f, np.ones_like(uu)], axis=-1) @ R0  # world directions
-        az = np.arctan2(rays[..., 1], rays[..., 0])
-        el = np.arctan2(rays[..., 2], np.hypot(rays[..., 0], rays[..., 1]))
-        e0, e1 = self.PANO_EL
-        self._bg_x = (-az / (2 * math.pi) * self.PANO_W).astype(np.float32)
-        self._bg_y = np.clip((e1 - el) / (e1 - e0) * (self.PANO_H - 1), 0, self.PANO_H - 1).astype(np.float32)
-        self._nb = nb
+        """The rig's whole-frame maps (ground rows, haze, background azimuth/elevation maps): made once
+        per rig and shared by every renderer of it (a camera trial makes a renderer per trial)."""
+        self._v_ground, self._haze, self._bg_x, self._bg_y, self._nb = _rig_maps(
+            self.rig, self.HAZE_M, self.PANO_W, self.PANO_H, self.PANO_EL)
 
     # ---- public API
     def calibration(self):
