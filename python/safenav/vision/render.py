@@ -470,7 +470,8 @@ class StereoRenderer:
                   tiled_noise: bool = False) -> np.ndarray:
         """The pixels of ``box`` (x0, y0, x1, y1) of the camera at centre ``C``: ground and background,
         the ``boards`` (markers and poles), pixel noise from ``rng`` (``tiled_noise``: a window of
-        the region noise tile at an offset from ``rng``, fresh draws beyond the tile's size)."""
+        the region noise tile at an offset from ``rng``, rounded to the nearest grey level; fresh
+        draws, truncated, beyond the tile's size)."""
         if not self._rig_ready:
             self._prepare_rig()
             self._rig_ready = True
@@ -481,11 +482,11 @@ class StereoRenderer:
             if tiled_noise and img.shape[0] <= n and img.shape[1] <= n:
                 if getattr(self, "_region_noise", None) is None:
                     t = np.random.default_rng([self._seed, 11]).standard_normal((n, n), dtype=np.float32)
-                    self._region_noise = np.tile(t, (2, 2))
+                    self._region_noise = np.tile(t * np.float32(self.noise_std), (2, 2))
                 r0, c0 = rng.integers(0, n, 2)
-                noise = self._region_noise[r0:r0 + img.shape[0], c0:c0 + img.shape[1]] * np.float32(self.noise_std)
-            else:
-                noise = rng.standard_normal(img.shape, dtype=np.float32) * self.noise_std
+                # one pass, rounded to the nearest grey level and saturated
+                return cv2.add(img, self._region_noise[r0:r0 + img.shape[0], c0:c0 + img.shape[1]], dtype=cv2.CV_8U)
+            noise = rng.standard_normal(img.shape, dtype=np.float32) * self.noise_std
             img = np.clip(img + noise, 0, 255).astype(np.uint8)
         return img
 
