@@ -115,8 +115,7 @@ def _marker_pyramid(dictionary: str, marker_id: int) -> tuple[list[np.ndarray], 
 
 @functools.lru_cache(maxsize=4)
 def _rig_maps(r: StereoRig, haze_m: float, pano_w: int, pano_h: int, pano_el: tuple[float, float]):
-    """(first ground row, haze per ground row, background x and y maps, background rows) of rig ``r``
-    (read-only arrays, shared)."""
+    """(first ground row, haze per ground row, background x, y maps, background rows) of rig ``r``."""
     f, cx, cy, ph = r.focal_length_px, r.cx, r.cy, r.pitch_rad
     v = np.arange(r.height, dtype=np.float64)
     up = -math.cos(ph) * (v - cy) / f + math.sin(ph)   # world-up component of the ray (camera z = 1)
@@ -182,6 +181,7 @@ class StereoRenderer:
     HAZE_M = 80.0            # ground contrast falls as exp(-Z / HAZE_M)
     POLE_WIDTH_M = 0.08
     NOISE_TILE = 512         # side of the pixel-noise tile of StereoFrame patches
+    REGION_NOISE_TILE = 1024  # side of the pixel-noise tile of render_regions
 
     def __init__(self, landmarks, rig: StereoRig | None = None, *, marker_size_m: float = 1.5,
                  dictionary: str = "DICT_4X4_100", marker_ids: Mapping[int, int] | None = None,
@@ -462,9 +462,6 @@ class StereoRenderer:
 
     def _pyramid(self, lid: int, grey: bool = False) -> list[np.ndarray]:
         return _marker_pyramid(self.dictionary_name, self._marker_id[lid])[1 if grey else 0]
-
-    #: side of the noise tile of render_regions (a window of it per region)
-    REGION_NOISE_TILE = 1024
 
     def _draw_box(self, th: float, R: np.ndarray, C: np.ndarray, boards, box, rng,
                   tiled_noise: bool = False) -> np.ndarray:
