@@ -109,7 +109,12 @@ bool window_of(const LanBLocRig& rig, const LanBLocSettings& s, const LanBLocLan
   return true;
 }
 
-double module_px(const std::vector<cv::Point2f>& c, int marker_bits, int border_bits);
+/// Module (cell) size in px of a marker with corners c, marker_bits + 2·border_bits cells a side.
+double module_px(const std::vector<cv::Point2f>& c, int marker_bits, int border_bits) {
+  double perimeter = 0.0;
+  for (int k = 0; k < 4; ++k) perimeter += cv::norm(c[k] - c[(k + 1) % 4]);
+  return perimeter / (4.0 * (marker_bits + 2 * border_bits));
+}
 
 /// OpenCV >= 4.8's CORNER_REFINE_SUBPIX (the one pip's cv2 runs): cornerSubPix in a window of
 /// min(max(1, round(relative·m)), max_win) px, m the marker's average module (cell) size in px.
@@ -120,13 +125,6 @@ void refine_corners(const cv::Mat& grey, std::vector<cv::Point2f>& c, int marker
   cv::cornerSubPix(grey, c, cv::Size(win, win), cv::Size(-1, -1),
                    cv::TermCriteria(cv::TermCriteria::MAX_ITER | cv::TermCriteria::EPS, r.max_iterations,
                                     r.min_accuracy));
-}
-
-/// Module (cell) size in px of a marker with corners c, marker_bits + 2·border_bits cells a side.
-double module_px(const std::vector<cv::Point2f>& c, int marker_bits, int border_bits) {
-  double perimeter = 0.0;
-  for (int k = 0; k < 4; ++k) perimeter += cv::norm(c[k] - c[(k + 1) % 4]);
-  return perimeter / (4.0 * (marker_bits + 2 * border_bits));
 }
 
 /// Corners found at pyramid level L (in `level_img`, the region averaged 2^L times; `origin` its
@@ -179,7 +177,8 @@ void detect_at_level(const cv::Mat& image, const cv::Rect& roi, int level, const
   // (1.6-3 cells; the 3 px window is below a cell and finds texture, and one scale fits all the
   // cell sizes a level holds).
   int win = p->adaptiveThreshWinSizeMin;
-  while (win < 13 && win + p->adaptiveThreshWinSizeStep <= p->adaptiveThreshWinSizeMax) win += p->adaptiveThreshWinSizeStep;
+  while (win < 13 && win + p->adaptiveThreshWinSizeStep <= p->adaptiveThreshWinSizeMax)
+    win += p->adaptiveThreshWinSizeStep;
   p->adaptiveThreshWinSizeMin = p->adaptiveThreshWinSizeMax = win;
   std::vector<std::vector<cv::Point2f>> found;
   std::vector<int> found_ids;
