@@ -58,7 +58,7 @@ def _row(label, results, seconds) -> str:
             f"{seconds / max(len(results), 1):.1f} s/trial")
 
 
-def main(trials: int, every: int, paths, seed: int) -> None:
+def main(trials: int, every: int, paths, seed: int, settings: dict | None = None) -> None:
     sc = safenav.default_scenario()
     sweep = runner.Sweep(sc, trials=trials, seed=seed)
     total: dict = {}
@@ -74,7 +74,7 @@ def main(trials: int, every: int, paths, seed: int) -> None:
         t1 = time.perf_counter()
         compare = 0.0
         for s in seeds:
-            src = CameraFrames.from_scenario(sc, seed=int(s) % 2**32, compare_whole_frame=True)
+            src = CameraFrames.from_scenario(sc, seed=int(s) % 2**32, compare_whole_frame=True, **(settings or {}))
             after.append(src.run(nav, int(s)))
             for k, v in src.comparison.items():
                 total[k] = total.get(k, 0) + v
@@ -133,5 +133,8 @@ if __name__ == "__main__":
     ap.add_argument("--every", type=int, default=10)
     ap.add_argument("--paths", nargs="+", default=["P1", "P2", "P3"])
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--detect-side-px", type=float, default=None,
+                    help="the front end's detect_side_px (default: its own; 0 = full resolution)")
     a = ap.parse_args()
-    main(a.trials, a.every, a.paths, a.seed)
+    main(a.trials, a.every, a.paths, a.seed,
+         {} if a.detect_side_px is None else {"detect_side_px": a.detect_side_px})

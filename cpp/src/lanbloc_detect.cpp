@@ -172,9 +172,9 @@ void detect_at_level(const cv::Mat& image, const cv::Rect& roi, int level, const
   const cv::Ptr<cv::aruco::DetectorParameters> p = cv::makePtr<cv::aruco::DetectorParameters>(base);
   p->minMarkerPerimeterRate = std::min(min_perimeter_px / k / std::max(padded.cols, padded.rows), 3.9);
   p->cornerRefinementMethod = cv::aruco::CORNER_REFINE_NONE;
-  // At the level a cell is detect_side_px/8 to detect_side_px/4 px (a board of 8 cells, 4-8 px at
-  // the default 32): one adaptive threshold window of ArUco's scales, the first of at least 13 px
-  // (1.6-3 cells; the 3 px window is below a cell and finds texture, and one scale fits all the
+  // At the level a cell is detect_side_px/8 to detect_side_px/4 px (a board of 8 cells, 3-6 px at
+  // the default 24): one adaptive threshold window of ArUco's scales, the first of at least 13 px
+  // (2-4 cells; the 3 px window is about a cell and finds texture, and one scale fits all the
   // cell sizes a level holds).
   int win = p->adaptiveThreshWinSizeMin;
   while (win < 13 && win + p->adaptiveThreshWinSizeStep <= p->adaptiveThreshWinSizeMax)
