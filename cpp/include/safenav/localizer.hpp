@@ -115,8 +115,9 @@ enum class InputStatus {
   Buffered,  ///< kept for initialization from data (not initialized yet)
   Ignored,   ///< not initialized, and of no use to initialization
   /// A position fix that failed its gate after reset_after_rejections
-  /// consecutive rejected fixes: the filter restarts its position from it
-  /// (the estimate had lost the track; without this a gate locks it out).
+  /// consecutive rejected fixes, or that agrees with the rejected fixes
+  /// before it (reset_after_consistent): the filter restarts its position
+  /// from it (the estimate had lost the track; without this a gate locks it out).
   Reset,
 };
 const char* to_string(InputStatus status);
@@ -171,6 +172,17 @@ struct LocalizerSettings {
   /// P_xy ← R, the position's cross-covariances 0; augmented states restart
   /// from 0, a particle filter redraws its particles.  0 = never.
   int reset_after_rejections = 10;
+  /// A rejected fix that agrees with each of the reset_after_consistent − 1
+  /// rejected fixes before it resets the position too (InputStatus::Reset):
+  /// they agree when z_j − z_i minus the prediction's displacement between
+  /// them passes the gate's χ²₂ test with covariance R_i + R_j + the growth
+  /// of P_xy by the predictions between them.  Independent faults rarely
+  /// agree; fixes that agree with each other and not with the filter say the
+  /// filter has lost the track, even when an occasional fix gets through the
+  /// gate between them (which restarts the consecutive count above).  The
+  /// rejected fixes are forgotten after this many fixes in a row pass the
+  /// gate.  0 = off; at most Localizer's 8 kept rejected fixes.
+  int reset_after_consistent = 3;
   /// [s] A measurement at most this much older than the filter's time is
   /// applied at its own time (the inputs since are applied again after it);
   /// an older one is Late.  0 = every measurement older than the filter is Late.
