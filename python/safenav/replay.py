@@ -40,7 +40,8 @@ from .guidance import Localizer, LocalizerSettings, localizer_settings
 from .logs import Log, load_plaza, read_log
 from .validation import as_array
 
-__all__ = ["ReplayResult", "replay", "INNOVATION_COLUMNS", "ODOMETRY_HEADINGS", "odometry_heading_inputs", "causal_index", "lag_label", "load", "score", "PRESETS",
+__all__ = ["ReplayResult", "replay", "INNOVATION_COLUMNS", "ODOMETRY_HEADINGS", "odometry_heading_inputs",
+           "PLAZA_ODOMETRY_HEADING", "causal_index", "lag_label", "load", "score", "PRESETS",
            "preset_settings"]
 
 #: Named localizer set-ups for replay.  Both take a log's motion rows as the
@@ -56,6 +57,10 @@ __all__ = ["ReplayResult", "replay", "INNOVATION_COLUMNS", "ODOMETRY_HEADINGS", 
 PRESETS = ("default", "plaza")
 #: σ of a Plaza file's ranges in the ``plaza`` preset [m]: their residual against the truth after the scale.
 PLAZA_RANGE_STD = 0.55
+#: How the Plaza files' odometry rows (``DR``: distance and heading change per interval) are read:
+#: along the chord of each interval's arc (:func:`odometry_heading_inputs`; docs/replay.md, "Odometry
+#: along the arc").  Chosen from Plaza1 and the geometry of an arc; Plaza2 was held out.
+PLAZA_ODOMETRY_HEADING = "mid"
 
 
 def preset_settings(name: str, *, filter: str = "ekf", n_particles: int = 1000, seed: int = 0,
