@@ -174,15 +174,16 @@ def _plaza1_before_start():
     return log, s, i
 
 
-def _delayed(log, s, i, arrival, lag=2.0):
+def _delayed(log, s, i, arrival, lag=2.0, smoother="rts"):
     from safenav import replay as rp
 
     d = np.zeros(len(log.events))
     d[i] = arrival - log.events["t"][i]
-    return rp.replay(log, s, lag=lag, delays=d)
+    return rp.replay(log, s, lag=lag, delays=d, smoother=smoother)
 
 
-def test_a_range_from_before_the_start_joins_its_fit():
+@pytest.mark.parametrize("smoother", ["rts", "iterated"])
+def test_a_range_from_before_the_start_joins_its_fit(smoother):
     """The last range before Plaza1's start, delivered after a start made without it (within max_delay),
     re-runs that start with it in the fit's window: the estimate is then the one it gets when it arrives
     just before the start's motion input (buffered in time), bit for bit, causal rows after the start and
@@ -192,8 +193,8 @@ def test_a_range_from_before_the_start_joins_its_fit():
     # Without it the fit at the in-order start fails; the next motion input starts the filter.
     t_start = _delayed(log, s, i, t_r + 0.14).t_start
     assert t_start > t_r + 0.14
-    in_time = _delayed(log, s, i, t_start - 1e-3)  # buffered before the start's fit
-    after = _delayed(log, s, i, t_start + 0.05)    # delivered after that start: it re-runs
+    in_time = _delayed(log, s, i, t_start - 1e-3, smoother=smoother)  # buffered before the start's fit
+    after = _delayed(log, s, i, t_start + 0.05, smoother=smoother)    # delivered after that start: it re-runs
     assert in_time.t_start == after.t_start and t_start + 0.05 - t_r <= s.max_delay
     assert after.counts == in_time.counts and after.counts["late"] == 0
     # Row 0 is the estimate at the start, recorded before the range arrived (causal); every later row
