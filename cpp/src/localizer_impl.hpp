@@ -337,6 +337,7 @@ struct Localizer::Impl {
     std::unique_ptr<Filter> filter;
     std::uint64_t input = 0;
     std::size_t smoother_mark = 0;  // FixedLagSmoother::mark() at the checkpoint
+    bool start = false;             // taken at a start from the data (keep_start)
   };
   std::vector<LoggedInput> inputs;      // every input from the oldest checkpoint's motion input on
   std::uint64_t first_input = 0;        // sequence number of inputs[0]
@@ -356,6 +357,24 @@ struct Localizer::Impl {
   void recycle(Checkpoint& c);
   void prune();
   void clear_history();
+
+  /// A start from the data as its fit saw it: the window of buffered
+  /// observations, headings and motion integral, kept (with a checkpoint at
+  /// the start) so that an observation older than the start, delivered late,
+  /// joins the fit (take_before_start).
+  struct StartWindow {
+    bool kept = false;
+    double t = kNaN;  // the start's time (its motion input)
+    std::uint64_t input = 0;  // sequence number of the first input after the start
+    std::vector<BufferedObs> ranges;
+    std::vector<BufferedHeading> headings;
+    std::vector<Eigen::Vector4d> track;
+    std::string why;
+  };
+  StartWindow start_window;
+  StartWindow start_window_now(double t) const;
+  void keep_start(StartWindow w);
+  InputResult take_before_start(const LoggedInput& in);
 
   // -- starting from the data (localizer_start.cpp) ---------------------------
 

@@ -23,9 +23,13 @@
 // each motion input, a copy of its filter; it goes back to the newest copy at
 // or before the measurement's time and applies the logged inputs again with
 // the late one in its place, which gives exactly the estimate of the same
-// inputs given in time order (localizer_history.cpp).  An older measurement,
-// and any late motion input, is not applied (status Late) and never applied
-// at the wrong time.  Equal times are applied in call order.
+// inputs given in time order (localizer_history.cpp).  A landmark
+// observation from before a start from the data, arriving after it within
+// max_delay, re-runs that start with the observation in the fit's window
+// (status Buffered; Rejected when that fit is refused: the old start stands).
+// An older measurement, and any late motion input, is not applied (status
+// Late) and never applied at the wrong time.  Equal times are applied in call
+// order.
 //
 // Initialization.  initialize() takes a prior.  Without one the localizer
 // starts from the data.  It dead-reckons the motion inputs in their own frame
