@@ -61,7 +61,8 @@ def measure(poses, seed: int = 0, width: int | None = None) -> dict:
     noise = int(_core.derive_seed(int(_core.derive_seed(seed, NOISE_STREAM)), 0))
     lm = {l.id: np.array([*l.position[:2], l.height]) for l in sc.world.landmarks}
     rows = {k: [] for k in ("side_px", "Z", "view", "off_axis", "err_l", "err_r", "err_d", "err_dc", "used",
-                            "dv", "sigma_rel")}
+                            "dv", "sigma_rel", "corners_used")}
+    fixes = {k: [] for k in ("fix_error", "fix_nees", "fix_range")}
     for k, pose in enumerate(poses):
         plan = fe.plan(predicted_pose=tuple(pose),
                        predicted_covariance=np.diag([0.05 ** 2, 0.05 ** 2, math.radians(0.5) ** 2]))
@@ -69,6 +70,11 @@ def measure(poses, seed: int = 0, width: int | None = None) -> dict:
             continue
         left, right = ren.render_regions(pose, plan.left_regions, plan.right_regions, noise + k)
         fix = fe.localize_plan(left, right, plan)
+        if fix.ok:
+            e = np.asarray(fix.position) - pose[:2]
+            fixes["fix_error"].append(float(np.hypot(*e)))
+            fixes["fix_nees"].append(float(e @ np.linalg.solve(fix.covariance, e)))
+            fixes["fix_range"].append(max(o.range for o in fix.observations if o.ok))
         corners = ren.marker_corners(pose)
         Cl, Cr = rig.camera_centers(pose)
         for o in fix.observations:
@@ -94,15 +100,39 @@ def measure(poses, seed: int = 0, width: int | None = None) -> dict:
             rows["err_dc"].append(o.disparity - rig.fB / Zc)
             rows["dv"].append(np.abs(cl[:, 1] - cr[:, 1]))
             rows["used"].append(bool(o.ok))
+            rows["corners_used"].append(int(o.corners_used))
             rows["sigma_rel"].append(o.sigma / max(o.range, 1e-9) if o.ok else np.nan)
-    return {k: np.asarray(v) for k, v in rows.items()}
+    return {k: np.asarray(v) for k, v in {**rows, **fixes}.items()}
 
 
 def fit(data: dict, bins=(0, 20, 30, 40, 60, 90, 140, 1e9)) -> None:
-    """Prints the centre's disparity error by marker size (RMS, median |e|, 99th percentile)."""
+    """Prints the centre's disparity error by marker size (RMS, median |e|, 99th percentile), the
+    maximum-likelihood σ of a constant model and of σ·(side/100 px)^p (the exponent tells whether the
+    size matters), the corner pairs' correlation, and the fixes' NEES.  A marker whose corners are more
+    than 2 px from the true ones is a misdetection, not corner noise, and is left out (counted)."""
+    from scipy.optimize import minimize
+
     s, e = data["side_px"], data["err_dc"]
-    ok = data["used"]
-    print(f"{ok.sum()} ranged markers of {len(ok)}; centre disparity error RMS {np.sqrt(np.mean(e[ok] ** 2)):.4f} px, "
+    good = np.abs(data["err_l"]).max(axis=(1, 2)) < 2.0
+    print(f"misdetections (a corner > 2 px off): {(~good).sum()}")
+    ok = data["used"] & good & (data["corners_used"] == 4)
+    print(f"ranged from three corners: {(data['used'] & (data['corners_used'] == 3)).sum()}")
+    nll = lambda sig: float(np.sum(np.log(sig) + 0.5 * (e[ok] / sig) ** 2))   # noqa: E731
+    p = minimize(lambda q: nll(np.exp(q[0]) * (s[ok] / 100.0) ** q[1]), [np.log(0.03), 0.0], method="Nelder-Mead").x
+    kurt = np.mean(e[ok] ** 4) / np.mean(e[ok] ** 2) ** 2
+    rms = np.sqrt(np.mean(e[ok] ** 2))
+    print(f"constant model: sigma_d = {rms:.4f} +- {rms * np.sqrt((kurt - 1) / (4 * ok.sum())):.4f} px "
+          f"(kurtosis {kurt:.1f}); sigma_d (side/100 px)^p: {np.exp(p[0]):.4f} px, p = {p[1]:+.3f}")
+    C = np.corrcoef(data["err_d"][ok].T)
+    print(f"corner disparity error correlation: same edge {np.mean([C[0, 3], C[1, 2]]):.2f}, "
+          f"across {np.mean([C[0, 1], C[0, 2], C[1, 3], C[2, 3]]):+.2f}")
+    n, fe = data.get("fix_nees", np.zeros(0)), data.get("fix_error", np.zeros(0))
+    if len(n):
+        print(f"{len(n)} fixes: NEES mean {n.mean():.2f} (2 +- {1.96 * 2 / np.sqrt(len(n)):.2f} for a calibrated "
+              f"2-D fix), median {np.median(n):.2f} (1.39); median error {np.median(fe):.3f} m, within 20 m "
+              f"{np.median(fe[data['fix_range'] <= 20]) if (data['fix_range'] <= 20).any() else np.nan:.3f} m "
+              f"({(data['fix_range'] <= 20).sum()} fixes)")
+    print(f"{ok.sum()} markers ranged from four corners of {len(ok)}; centre disparity error RMS {np.sqrt(np.mean(e[ok] ** 2)):.4f} px, "
           f"mean {np.mean(e[ok]):+.4f}, median |e| {np.median(np.abs(e[ok])):.4f}, 99 % {np.percentile(np.abs(e[ok]), 99):.4f}")
     for lo, hi in zip(bins[:-1], bins[1:]):
         m = ok & (s >= lo) & (s < hi)
