@@ -132,8 +132,9 @@ def fit(data: dict, bins=(0, 20, 30, 40, 60, 90, 140, 1e9)) -> None:
               f"2-D fix), median {np.median(n):.2f} (1.39); median error {np.median(fe):.3f} m, within 20 m "
               f"{np.median(fe[data['fix_range'] <= 20]) if (data['fix_range'] <= 20).any() else np.nan:.3f} m "
               f"({(data['fix_range'] <= 20).sum()} fixes)")
-    print(f"{ok.sum()} markers ranged from four corners of {len(ok)}; centre disparity error RMS {np.sqrt(np.mean(e[ok] ** 2)):.4f} px, "
-          f"mean {np.mean(e[ok]):+.4f}, median |e| {np.median(np.abs(e[ok])):.4f}, 99 % {np.percentile(np.abs(e[ok]), 99):.4f}")
+    print(f"{ok.sum()} markers ranged from four corners of {len(ok)}; centre disparity error RMS "
+          f"{np.sqrt(np.mean(e[ok] ** 2)):.4f} px, mean {np.mean(e[ok]):+.4f}, median |e| "
+          f"{np.median(np.abs(e[ok])):.4f}, 99 % {np.percentile(np.abs(e[ok]), 99):.4f}")
     for lo, hi in zip(bins[:-1], bins[1:]):
         m = ok & (s >= lo) & (s < hi)
         if m.sum() < 3:
