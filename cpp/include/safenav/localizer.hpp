@@ -198,6 +198,10 @@ struct LocalizerSettings {
 enum class FrameUpdate {
   Fix,        ///< the trilaterated fix with its covariance, through fix() (one χ² gate)
   Landmarks,  ///< each ranged landmark's range and bearing, through observe() (a gate each)
+  /// The fix when the frame gives one (as Fix), else each ranged landmark's
+  /// range and bearing (as Landmarks): a frame with too few whole markers for
+  /// a fix (fewer ranges than min_landmarks) still informs the filter.
+  FixOrLandmarks,
 };
 
 /// What became of one camera frame: where the front end searched (windows
@@ -208,7 +212,8 @@ struct FrameResult {
   LanBLocFix fix;
   /// FrameUpdate::Fix: the fix's update (status Ignored without a fix).
   /// FrameUpdate::Landmarks: Applied when any landmark was applied, else the
-  /// first landmark's status (Ignored without a range).
+  /// first landmark's status (Ignored without a range).  FixOrLandmarks: as
+  /// Fix with a fix, else as Landmarks.
   InputResult update;
   /// Per fix.observations entry: its landmark update (Landmarks), or the fix's
   /// (Fix) for a ranged landmark; Ignored for one without a range.
