@@ -341,3 +341,29 @@ def test_the_robust_belief_is_never_below_the_expected_one():
     d = np.asarray(narrow.covariance).reshape(-1, 4, 4) - np.asarray(own.covariance).reshape(-1, 4, 4)
     assert np.linalg.eigvalsh(0.5 * (d + d.transpose(0, 2, 1))).min() >= -1e-12
     assert (np.asarray(narrow.sigma) >= np.asarray(own.sigma) - 1e-12).all()
+
+
+@pytest.mark.parametrize("n_lm", [3, 4, 5])
+def test_range_dropout_weighs_each_range_by_its_share_of_fixes(n_lm):
+    """FixModel.RANGES with the dropout fault: the simulator builds a fix only
+    from >= 3 kept ranges, so a range counts with q·P(Bin(n − 1, q) ≥ 2) of
+    its information (q = 1 − dropout, n in view): the belief with dropout
+    equals the one without and range_std / sqrt(that weight), brute-forced
+    over every subset of kept ranges."""
+    import itertools
+
+    q = 0.8
+    lms = np.array([[20.0 + 6 * np.cos(a), 20.0 + 6 * np.sin(a)] for a in np.linspace(0, 2 * np.pi, n_lm + 1)[:-1]])
+    path = np.array([[18.0, 19.0], [22.0, 21.0]])
+    m = open_map(upper=(60, 40))
+    P0 = np.diag([1.0, 1.0, 1e-2, 1e-2])
+    weight = sum(q ** sum(kept) * (1 - q) ** (n_lm - sum(kept))
+                 for kept in itertools.product([0, 1], repeat=n_lm) if sum(kept) >= 3 and kept[0])
+    se = sensors(lms, ranges=True, occlusion=False)
+    se.faults.dropout_probability = 1 - q
+    got = P.propagate_belief(path, sensors=se, map=m, start_cov=P0, speed=SPEED)
+    ref = sensors(lms, ranges=True, occlusion=False)
+    ref.range_std = se.range_std / np.sqrt(weight)
+    want = P.propagate_belief(path, sensors=ref, map=m, start_cov=P0, speed=SPEED)
+    assert (np.asarray(got.landmarks) == n_lm).all()
+    np.testing.assert_allclose(np.asarray(got.covariance), np.asarray(want.covariance), rtol=1e-9, atol=1e-15)
