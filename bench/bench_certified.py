@@ -162,21 +162,23 @@ def _profiles(sc, path):
     return propagate_belief(path, **kw), propagate_belief(path, **robust_sight(), **kw)
 
 
-def _fix_shares(prof, needs: int, edges: np.ndarray, truths, measured) -> tuple[np.ndarray, np.ndarray]:
-    """Per arc-length bin: (the share of the belief's stages with a fix in
-    view, the share of the recorded steps with a fix measured)."""
-    pos = np.asarray(prof.positions)
+def _fix_shares(profiles, needs: int, edges: np.ndarray, truths, measured) -> list[np.ndarray]:
+    """Per arc-length bin: the share of each profile's stages with a fix in
+    view (the profiles are of one path: their stages coincide), then the
+    share of the recorded steps with a fix measured."""
+    pos = np.asarray(profiles[0].positions)
     nb = len(edges) - 1
     bins = lambda s: np.clip(np.searchsorted(edges, s, side="right") - 1, 0, nb - 1)  # noqa: E731
     b = bins(arc_position(pos, pos))
-    pred = np.bincount(b, np.asarray(prof.landmarks) >= needs, nb) / np.maximum(np.bincount(b, minlength=nb), 1)
+    n_stage = np.maximum(np.bincount(b, minlength=nb), 1)
+    out = [np.bincount(b, np.asarray(p.landmarks) >= needs, nb) / n_stage for p in profiles]
     hit, n = np.zeros(nb), np.zeros(nb)
     for x, z in zip(truths, measured):
         b = bins(arc_position(pos, x[:, :2]))
         hit += np.bincount(b, np.isfinite(z[:, 0]), nb)
         n += np.bincount(b, minlength=nb)
     with np.errstate(invalid="ignore", divide="ignore"):
-        return pred, hit / n
+        return out + [hit / n]
 
 
 def _blind_step_limits(navigator_rec, prof, seeds, outcome, check: int) -> tuple[int, int, int]:
@@ -215,8 +217,7 @@ def drive(job: DriveJob) -> dict:
     cal = sigma_calibration(prof, truths, estimates, bin_m=job.bin_m)
     cal_robust = sigma_calibration(robust, truths, estimates, bin_m=job.bin_m)
     needs = C.fix_needs(rec.sensors)
-    fix_expected, fix_observed = _fix_shares(prof, needs, cal.edges, truths, measured)
-    fix_robust, _ = _fix_shares(robust, needs, cal.edges, truths, measured)
+    fix_expected, fix_robust, fix_observed = _fix_shares([prof, robust], needs, cal.edges, truths, measured)
     d = out["trials"]
     n_sl, n_checked, n_blind = _blind_step_limits(rec, prof, out["seeds"], out["outcome"], job.blind_check)
     cpu_extra = time.thread_time() - cpu - cpu_trials
