@@ -56,7 +56,8 @@ from bench_safety import SHORT, Cell, faulty, run_cell, verdict  # noqa: E402  (
 from safenav import certify as C  # noqa: E402
 from safenav import navigation as nav  # noqa: E402
 from safenav import results, runner  # noqa: E402
-from safenav.belief import arc_position, clopper_pearson, propagate_belief, robust_sight, sigma_calibration  # noqa: E402,E501
+from safenav.belief import (arc_position, clopper_pearson, propagate_belief, robust_sight,  # noqa: E402
+                             sigma_calibration)
 from safenav.generate import DEFAULT_SEED, generate_scenario  # noqa: E402
 from safenav.scenario import Scenario, default_scenario  # noqa: E402
 
@@ -302,7 +303,8 @@ def print_calibration(df: pd.DataFrame, outs: list, record: int) -> None:
         print(_ratio_line(f"{m:6} {f:3} expected", v["expected"]) + f": {verdict(inside)}")
         print(_ratio_line(f"{m:6} {f:3} robust  ", v["robust"]))
         if v["fix_e"].size:
-            print(f"     {m:6} {f:3} fix share |predicted − observed| per bin: expected mean {np.mean(v['fix_e']):.3f} "
+            print(f"     {m:6} {f:3} fix share |predicted − observed| per bin: expected mean "
+                  f"{np.mean(v['fix_e']):.3f} "
                   f"max {np.max(v['fix_e']):.2f}; robust mean {np.mean(v['fix_r']):.3f} max {np.max(v['fix_r']):.2f}")
     print("   (b) predicted path collision probability (belief with the cell's sensors: the certificate's robust "
           "camera, and the expected one) vs observed rate; one-sided 95 % Clopper-Pearson bounds")
@@ -311,7 +313,8 @@ def print_calibration(df: pd.DataFrame, outs: list, record: int) -> None:
         pred = float((g.predicted_pc * g.trials).sum() / n)
         expd = float((g.expected_pc * g.trials).sum() / n)
         lo, hi = clopper_pearson(k, n)
-        print(f"     {m:6} {f:3}: predicted {pred:.3g} (expected belief {expd:.3g}; expected collisions {pred * n:.3g}); "
+        print(f"     {m:6} {f:3}: predicted {pred:.3g} (expected belief {expd:.3g}; expected collisions "
+              f"{pred * n:.3g}); "
               f"observed {k}/{n} = {k / n:.3g}, 95 % upper {hi:.3g}, lower {lo:.3g}; observed not significantly "
               f"above predicted: {verdict(lo <= pred)}")
 

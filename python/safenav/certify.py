@@ -512,9 +512,9 @@ def report_lines(certs: list) -> list[str]:
                              f"{ch.min_room:.3g} m at s = {ch.min_room_s:.1f} m (robust camera)")
                 if ch.expected is not None:
                     e = ch.expected
-                    lines.append(f"  {' ' * len(label)}  expected (the vehicle's camera): σ max {e.sigma_max:.3g} m at "
-                                 f"s = {e.sigma_max_s:.1f} m, P(collision) {e.collision_probability:.3g}, min room "
-                                 f"{e.min_room:.3g} m")
+                    lines.append(f"  {' ' * len(label)}  expected (the vehicle's camera): σ max {e.sigma_max:.3g} "
+                                 f"m at s = {e.sigma_max_s:.1f} m, P(collision) {e.collision_probability:.3g}, "
+                                 f"min room {e.min_room:.3g} m")
         lines.append(f"  {c.reason}")
     n = {s: sum(c.status == s for c in certs) for s in (CERTIFIED, NEEDS_LANDMARKS, CANNOT)}
     lines.append(f"certificate: {n[CERTIFIED]} certified as given, {n[NEEDS_LANDMARKS]} need landmarks "
