@@ -14,11 +14,16 @@
    trials and how many of them end where the belief predicts no fix (a blind
    gap), NEES.  Targets: 0 collisions, arrival >= 99.9 %.
 3. Calibration: (a) the predicted RMS position error sqrt(trace P_xy) of the
-   belief along the driven path against the Monte Carlo RMS error of the
+   expected belief (the vehicle's own camera, ``propagate_belief``'s
+   default) along the driven path against the Monte Carlo RMS error of the
    first ``--record`` trials per cell, per arc-length bin (target: ratio
-   within ±25 %); (b) the predicted path collision probability against the
-   observed collision rate with its one-sided 95 % Clopper–Pearson bounds
-   (target: observed not significantly above predicted).
+   within ±25 %), and the same for the certificate's robust camera
+   (``robust_sight``) for comparison; per bin also the predicted and the
+   observed share of steps with a fix; (b) the predicted path collision
+   probability (the certificate's robust belief, and the expected one)
+   against the observed collision rate with its one-sided 95 %
+   Clopper–Pearson bounds (target: observed not significantly above
+   predicted).
 4. Timing: per trial per filter, and the estimated wall time of a run of
    ``--full`` trials in all on ``--workers`` workers.
 
@@ -51,7 +56,8 @@ from bench_safety import SHORT, Cell, faulty, run_cell, verdict  # noqa: E402  (
 from safenav import certify as C  # noqa: E402
 from safenav import navigation as nav  # noqa: E402
 from safenav import results, runner  # noqa: E402
-from safenav.belief import clopper_pearson, propagate_belief, sigma_calibration  # noqa: E402
+from safenav.belief import (arc_position, clopper_pearson, propagate_belief, robust_sight,  # noqa: E402
+                             sigma_calibration)
 from safenav.generate import DEFAULT_SEED, generate_scenario  # noqa: E402
 from safenav.scenario import Scenario, default_scenario  # noqa: E402
 
@@ -149,9 +155,31 @@ class DriveJob:
     blind_check: int           # step-limit trials rerun with a record to see where they ended
 
 
-def _profile(sc, path):
-    """The belief the certificate predicts along ``path`` with ``sc``'s sensors."""
-    return propagate_belief(path, **C.mission_inputs(sc, path))
+def _profiles(sc, path):
+    """(expected, robust): the belief along ``path`` with ``sc``'s sensors,
+    seen with the vehicle's own camera (what it will get) and with the
+    certificate's robust camera."""
+    kw = C.mission_inputs(sc, path)
+    return propagate_belief(path, **kw), propagate_belief(path, **robust_sight(), **kw)
+
+
+def _fix_shares(profiles, needs: int, edges: np.ndarray, truths, measured) -> list[np.ndarray]:
+    """Per arc-length bin: the share of each profile's stages with a fix in
+    view (the profiles are of one path: their stages coincide), then the
+    share of the recorded steps with a fix measured."""
+    pos = np.asarray(profiles[0].positions)
+    nb = len(edges) - 1
+    bins = lambda s: np.clip(np.searchsorted(edges, s, side="right") - 1, 0, nb - 1)  # noqa: E731
+    b = bins(arc_position(pos, pos))
+    n_stage = np.maximum(np.bincount(b, minlength=nb), 1)
+    out = [np.bincount(b, np.asarray(p.landmarks) >= needs, nb) / n_stage for p in profiles]
+    hit, n = np.zeros(nb), np.zeros(nb)
+    for x, z in zip(truths, measured):
+        b = bins(arc_position(pos, x[:, :2]))
+        hit += np.bincount(b, np.isfinite(z[:, 0]), nb)
+        n += np.bincount(b, minlength=nb)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return out + [hit / n]
 
 
 def _blind_step_limits(navigator_rec, prof, seeds, outcome, check: int) -> tuple[int, int, int]:
@@ -179,22 +207,28 @@ def drive(job: DriveJob) -> dict:
     cpu = time.thread_time()              # run_many runs on this thread: its CPU time, whatever else runs
     out = run_cell(c)
     cpu_trials = time.thread_time() - cpu
-    prof = _profile(c.scenario, c.path)
+    prof, robust = _profiles(c.scenario, c.path)
     rec = nav.make_navigator(c.scenario, c.path, method=c.method, filter=c.filter, record=True)
-    truths, estimates = [], []
+    truths, estimates, measured = [], [], []
     for seed in out["seeds"][:job.record]:
         r = rec.run(seed)
         truths.append(np.asarray(r.truth))
         estimates.append(np.asarray(r.estimate))
+        measured.append(np.asarray(r.measured))
     cal = sigma_calibration(prof, truths, estimates, bin_m=job.bin_m)
+    cal_robust = sigma_calibration(robust, truths, estimates, bin_m=job.bin_m)
+    needs = C.fix_needs(rec.sensors)
+    fix_expected, fix_robust, fix_observed = _fix_shares([prof, robust], needs, cal.edges, truths, measured)
     d = out["trials"]
     n_sl, n_checked, n_blind = _blind_step_limits(rec, prof, out["seeds"], out["outcome"], job.blind_check)
     cpu_extra = time.thread_time() - cpu - cpu_trials
-    row = dict(out["row"], filt=c.filter, predicted_pc=float(prof.collision_probability),
+    row = dict(out["row"], filt=c.filter, predicted_pc=float(robust.collision_probability),
+               expected_pc=float(prof.collision_probability),
                holds=float(np.mean(d["guard_hold"])), held_trials=int(np.sum(np.asarray(d["guard_hold"]) > 0)),
                step_limit=n_sl, step_limit_checked=n_checked, step_limit_blind=n_blind, cpu_s=cpu_trials,
                extra_cpu_s=cpu_extra)
-    return dict(row=row, calibration=cal, crashes=out["crashes"])
+    return dict(row=row, calibration=cal, calibration_robust=cal_robust, crashes=out["crashes"],
+                fix_shares=(fix_expected, fix_robust, fix_observed))
 
 
 def cell_table(df: pd.DataFrame) -> str:
@@ -211,10 +245,14 @@ def cell_table(df: pd.DataFrame) -> str:
     return show.to_string(index=False)
 
 
+def _kept_bins(cal, record: int) -> np.ndarray:
+    """The bins that enough recorded trials reached and that have a ratio."""
+    return (cal.trials >= max(1, math.ceil(MIN_BIN_TRIALS * record))) & np.isfinite(cal.ratio)
+
+
 def _ratio_bins(cal, record: int) -> np.ndarray:
     """The cell's bin ratios observed / predicted where enough recorded trials reached the bin."""
-    keep = (cal.trials >= max(1, math.ceil(MIN_BIN_TRIALS * record))) & np.isfinite(cal.ratio)
-    return cal.ratio[keep]
+    return cal.ratio[_kept_bins(cal, record)]
 
 
 def print_targets(df: pd.DataFrame) -> None:
@@ -236,29 +274,49 @@ def print_targets(df: pd.DataFrame) -> None:
               f"mean NEES {nees:.3g} (4 for a consistent filter)")
 
 
-def print_calibration(df: pd.DataFrame, cals: list, record: int) -> None:
+def _ratio_line(label: str, v: np.ndarray) -> str:
+    if not v.size:
+        return f"     {label}: no bins"
+    inside = float(np.mean(np.abs(v - 1) <= TARGET_RATIO))
+    return (f"     {label}: {v.size:4d} bins, ratio min {np.min(v):.2f} median {np.median(v):.2f} max {np.max(v):.2f}; "
+            f"{inside:.0%} of bins within ±{TARGET_RATIO:.0%}, {np.mean(v < 1 - TARGET_RATIO):.0%} below, "
+            f"{np.mean(v > 1 + TARGET_RATIO):.0%} above")
+
+
+def print_calibration(df: pd.DataFrame, outs: list, record: int) -> None:
     print(f"   (a) RMS position error, Monte Carlo / predicted sqrt(trace P_xy), per arc-length bin reached by "
-          f">= {MIN_BIN_TRIALS:.0%} of the {record} recorded trials (target within ±{TARGET_RATIO:.0%})")
+          f">= {MIN_BIN_TRIALS:.0%} of the {record} recorded trials (target within ±{TARGET_RATIO:.0%}); "
+          "expected = the vehicle's own camera (the reported sigma profile), robust = the certificate's camera; "
+          "fix = mean |predicted − observed share of steps with a fix| per bin")
     groups = {}
-    for (_, r), cal in zip(df.iterrows(), cals):
-        groups.setdefault((r.measurement, r.filt), []).append(_ratio_bins(cal, record))
-    everything = []
-    for (m, f), lst in groups.items():
-        v = np.concatenate(lst) if lst else np.zeros(0)
-        everything.append(v)
-        inside = float(np.mean(np.abs(v - 1) <= TARGET_RATIO)) if v.size else np.nan
-        print(f"     {m:6} {f:3}: {v.size:4d} bins, ratio min {np.min(v):.2f} median {np.median(v):.2f} max "
-              f"{np.max(v):.2f}; {inside:.0%} of bins within ±{TARGET_RATIO:.0%}: "
-              f"{verdict(v.size > 0 and inside == 1.0)}" if v.size else f"     {m:6} {f:3}: no bins")
-    print("   (b) predicted path collision probability (belief with the cell's sensors) vs observed rate; "
-          "one-sided 95 % Clopper-Pearson bounds")
+    for (_, r), o in zip(df.iterrows(), outs):
+        g = groups.setdefault((r.measurement, r.filt), {"expected": [], "robust": [], "fix_e": [], "fix_r": []})
+        keep = _kept_bins(o["calibration"], record)
+        fe, fr, fo = o["fix_shares"]
+        g["expected"].append(o["calibration"].ratio[keep])
+        g["robust"].append(o["calibration_robust"].ratio[_kept_bins(o["calibration_robust"], record)])
+        g["fix_e"].append(np.abs(fe - fo)[keep])
+        g["fix_r"].append(np.abs(fr - fo)[keep])
+    for (m, f), g in groups.items():
+        v = {k: np.concatenate(x) if x else np.zeros(0) for k, x in g.items()}
+        inside = bool(v["expected"].size) and bool(np.all(np.abs(v["expected"] - 1) <= TARGET_RATIO))
+        print(_ratio_line(f"{m:6} {f:3} expected", v["expected"]) + f": {verdict(inside)}")
+        print(_ratio_line(f"{m:6} {f:3} robust  ", v["robust"]))
+        if v["fix_e"].size:
+            print(f"     {m:6} {f:3} fix share |predicted − observed| per bin: expected mean "
+                  f"{np.mean(v['fix_e']):.3f} "
+                  f"max {np.max(v['fix_e']):.2f}; robust mean {np.mean(v['fix_r']):.3f} max {np.max(v['fix_r']):.2f}")
+    print("   (b) predicted path collision probability (belief with the cell's sensors: the certificate's robust "
+          "camera, and the expected one) vs observed rate; one-sided 95 % Clopper-Pearson bounds")
     for (m, f), g in [(("all", "all"), df), *df.groupby(["measurement", "filt"], sort=False)]:
         n, k = int(g.trials.sum()), int(g.collisions.sum())
         pred = float((g.predicted_pc * g.trials).sum() / n)
+        expd = float((g.expected_pc * g.trials).sum() / n)
         lo, hi = clopper_pearson(k, n)
-        print(f"     {m:6} {f:3}: predicted {pred:.3g} (expected collisions {pred * n:.3g}); observed {k}/{n} = "
-              f"{k / n:.3g}, 95 % upper {hi:.3g}, lower {lo:.3g}; observed not significantly above "
-              f"predicted: {verdict(lo <= pred)}")
+        print(f"     {m:6} {f:3}: predicted {pred:.3g} (expected belief {expd:.3g}; expected collisions "
+              f"{pred * n:.3g}); "
+              f"observed {k}/{n} = {k / n:.3g}, 95 % upper {hi:.3g}, lower {lo:.3g}; observed not significantly "
+              f"above predicted: {verdict(lo <= pred)}")
 
 
 def print_timing(df: pd.DataFrame, wall: float, workers: int, full: int) -> None:
@@ -341,7 +399,7 @@ def main() -> None:
     print("\n   targets")
     print_targets(df)
     print("\n3. calibration")
-    print_calibration(df, cals, args.record)
+    print_calibration(df, out, args.record)
     print("\n4. timing")
     print_timing(df, wall, args.workers, args.full)
     if args.out is not None:

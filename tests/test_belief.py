@@ -298,21 +298,72 @@ def test_bad_input_names_the_value(kwargs, match):
         P.propagate_belief(**args)
 
 
-def test_the_belief_sees_with_a_narrower_camera_than_the_vehicle():
+def test_the_expected_belief_sees_with_the_vehicles_camera_and_the_robust_one_narrower():
     """BeliefSettings.sight_fov_margin / sight_range_fraction: a landmark at
-    the edge of the vehicle's view (inside its 85° and 30 m) is not counted by
-    the default belief, and is with margins 0 and 1."""
+    the edge of the vehicle's view (inside its 85° and 30 m) is counted by
+    the default (expected) belief, and not by the robust camera of the
+    planner and the certificate (robust_sight: 25° less, 90 % of the range)."""
+    from safenav.belief import robust_sight
+
     # Heading +x; one landmark 35° off the heading at 20 m (inside 42.5°, outside 30°),
     # one straight ahead at 28 m (inside 30 m, outside 27 m).
     lms = np.array([[20 * np.cos(np.deg2rad(35)), 20 * np.sin(np.deg2rad(35))], [28.0, 0.0]]) + 10.0
     se = sensors(lms, fov=np.deg2rad(85), occlusion=False)
     m = open_map(upper=(100, 100))
     path = np.array([[10.0, 10.0], [10.2, 10.0]])
-    own = P.propagate_belief(path, sensors=se, map=m, speed=SPEED, sight_fov_margin=0.0, sight_range_fraction=1.0)
-    narrow = P.propagate_belief(path, sensors=se, map=m, speed=SPEED)
+    own = P.propagate_belief(path, sensors=se, map=m, speed=SPEED)
+    narrow = P.propagate_belief(path, sensors=se, map=m, speed=SPEED, **robust_sight())
     assert np.asarray(own.landmarks)[1] == 2
     assert np.asarray(narrow.landmarks)[1] == 0
     s = _core.BeliefSettings()
-    assert s.sight_fov_margin == pytest.approx(np.deg2rad(25.0)) and s.sight_range_fraction == 0.9
+    assert s.sight_fov_margin == 0.0 and s.sight_range_fraction == 1.0
+    b = _core.BeliefPlannerSettings().belief
+    assert b.sight_fov_margin == pytest.approx(np.deg2rad(25.0)) and b.sight_range_fraction == 0.9
+    assert robust_sight() == {"sight_fov_margin": b.sight_fov_margin, "sight_range_fraction": 0.9}
     with pytest.raises(ValueError, match="sight_range_fraction"):
         P.propagate_belief(path, sensors=se, map=m, sight_range_fraction=0.0)
+
+
+def test_the_robust_belief_is_never_below_the_expected_one():
+    """The robust camera sees a subset of the vehicle's landmarks at every
+    stage; the covariance recursion is monotone, so P_robust ⪰ P_expected
+    stage by stage (smallest eigenvalue of the difference ≥ 0)."""
+    from safenav.belief import robust_sight
+
+    rng = np.random.default_rng(11)
+    se = sensors(rng.uniform(0.0, 60.0, (25, 2)), fov=np.deg2rad(85), occlusion=False)
+    m = open_map(upper=(60, 60))
+    path = np.array([[5.0, 5.0], [55.0, 10.0], [50.0, 55.0], [8.0, 40.0]])
+    own = P.propagate_belief(path, sensors=se, map=m, speed=SPEED)
+    narrow = P.propagate_belief(path, sensors=se, map=m, speed=SPEED, **robust_sight())
+    assert (np.asarray(narrow.landmarks) <= np.asarray(own.landmarks)).all()
+    assert (np.asarray(narrow.landmarks) < np.asarray(own.landmarks)).any()
+    d = np.asarray(narrow.covariance).reshape(-1, 4, 4) - np.asarray(own.covariance).reshape(-1, 4, 4)
+    assert np.linalg.eigvalsh(0.5 * (d + d.transpose(0, 2, 1))).min() >= -1e-12
+    assert (np.asarray(narrow.sigma) >= np.asarray(own.sigma) - 1e-12).all()
+
+
+@pytest.mark.parametrize("n_lm", [3, 4, 5])
+def test_range_dropout_weighs_each_range_by_its_share_of_fixes(n_lm):
+    """FixModel.RANGES with the dropout fault: the simulator builds a fix only
+    from >= 3 kept ranges, so a range counts with q·P(Bin(n − 1, q) ≥ 2) of
+    its information (q = 1 − dropout, n in view): the belief with dropout
+    equals the one without and range_std / sqrt(that weight), brute-forced
+    over every subset of kept ranges."""
+    import itertools
+
+    q = 0.8
+    lms = np.array([[20.0 + 6 * np.cos(a), 20.0 + 6 * np.sin(a)] for a in np.linspace(0, 2 * np.pi, n_lm + 1)[:-1]])
+    path = np.array([[18.0, 19.0], [22.0, 21.0]])
+    m = open_map(upper=(60, 40))
+    P0 = np.diag([1.0, 1.0, 1e-2, 1e-2])
+    weight = sum(q ** sum(kept) * (1 - q) ** (n_lm - sum(kept))
+                 for kept in itertools.product([0, 1], repeat=n_lm) if sum(kept) >= 3 and kept[0])
+    se = sensors(lms, ranges=True, occlusion=False)
+    se.faults.dropout_probability = 1 - q
+    got = P.propagate_belief(path, sensors=se, map=m, start_cov=P0, speed=SPEED)
+    ref = sensors(lms, ranges=True, occlusion=False)
+    ref.range_std = se.range_std / np.sqrt(weight)
+    want = P.propagate_belief(path, sensors=ref, map=m, start_cov=P0, speed=SPEED)
+    assert (np.asarray(got.landmarks) == n_lm).all()
+    np.testing.assert_allclose(np.asarray(got.covariance), np.asarray(want.covariance), rtol=1e-9, atol=1e-15)

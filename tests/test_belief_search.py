@@ -7,7 +7,7 @@ import pytest
 
 from safenav import _core
 from safenav import planning as P
-from safenav.belief import start_covariance
+from safenav.belief import robust_sight, start_covariance
 
 from test_belief import corridor_world
 
@@ -52,9 +52,9 @@ def test_belief_planner_takes_the_lane_with_landmarks_where_raw_rrt_star_takes_t
     rrt = P.plan(P.PlanningProblem(map=mc, start=START, goal=GOAL), beta=0.0, max_iterations=3000, seed=1)
     assert rrt.success and through_corridor(rrt.path)
     blind = P.propagate_belief(rrt.path, sensors=se, map=m, bmm=bmm, vehicle_radius=RADIUS, margin=MARGIN,
-                               step=0.25, start_cov=P0)
-    # The lane sees its landmarks through the belief's narrowed camera
-    # (BeliefSettings.sight_*), so its σ grows too, but less than blind.
+                               step=0.25, start_cov=P0, **robust_sight())
+    # The lane sees its landmarks through the planner's robust camera
+    # (robust_sight), so its σ grows too, but less than blind.
     assert blind.sigma.max() > 1.3 * res.sigma.max()
     assert blind.collision_probability > 0.05 > res.collision_probability
     assert np.asarray(blind.landmarks)[np.asarray(blind.positions)[:, 0] > 16].max() == 0

@@ -88,7 +88,8 @@ def test_corner_triangulation_is_exact_on_exact_corners():
             lm = next(m for m in SC.world.landmarks if m.id == lid)
             assert o.range == pytest.approx(math.dist(lm.position[:2], pose[:2]), abs=1e-9)
             fB = RIG.fB
-            assert o.sigma >= 0.035 * o.depth ** 2 / fB * 0.99   # σ_Z = Z²·σ_c/(f·B), then along the ray
+            sigma_d = safenav._core.LanBLocSettings().corner_sigma_d
+            assert o.sigma >= sigma_d * o.depth ** 2 / fB * 0.99   # σ_Z = Z²·σ_d/(f·B), then along the ray
             checked += 1
     assert checked > 20
 

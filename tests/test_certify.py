@@ -15,7 +15,7 @@ from safenav import certify as C
 from safenav import cli
 from safenav import navigation as nv
 from safenav import placement as P
-from safenav.belief import propagate_belief
+from safenav.belief import propagate_belief, robust_sight
 from safenav.scenario import Scenario, load_scenario, save_scenario
 
 
@@ -47,10 +47,11 @@ def gap():
     return sc, np.asarray(nv.plan_safe_path(sc, "A").path)
 
 
-def _recheck(scenario, path, k):
-    """The certificate's two conditions, recomputed from propagate_belief."""
+def _recheck(scenario, path, k, expected: bool = False):
+    """The certificate's two conditions, recomputed from propagate_belief
+    with the robust camera (or, ``expected``, the vehicle's own)."""
     kw = C.mission_inputs(scenario, path)
-    prof = propagate_belief(path, **kw)
+    prof = propagate_belief(path, **kw) if expected else propagate_belief(path, **robust_sight(), **kw)
     room = (np.asarray(prof.clearance) - kw["vehicle_radius"] - kw["margin"] - k * np.asarray(prof.sigma_toward))
     return prof, room
 
@@ -104,6 +105,16 @@ def test_wide_gap_is_certified_as_given():
     cert = C.certify_path(sc, "A", path)
     assert cert.status == C.CERTIFIED and cert.n_added == 0 and cert.given.certified
     assert cert.given.collision_probability <= sc.navigation.collision_probability and cert.given.min_room > 0
+    # the check is the robust camera's; the expected belief (the vehicle's camera) sits beside it, never worse
+    robust, _ = _recheck(sc, path, cert.k)
+    expected, room = _recheck(sc, path, cert.k, expected=True)
+    np.testing.assert_array_equal(cert.given.profile.sigma, robust.sigma)
+    e = cert.given.expected
+    assert e is not None and e.certified and e.expected is None
+    np.testing.assert_array_equal(e.profile.sigma, expected.sigma)
+    assert e.min_room == pytest.approx(room.min()) and e.min_room >= cert.given.min_room
+    assert e.sigma_max <= cert.given.sigma_max and e.collision_probability <= cert.given.collision_probability
+    assert cert.to_dict()["as_given"]["expected"]["sigma_max_m"] == e.sigma_max
 
 
 def test_start_inside_an_obstacles_k_sigma_zone_cannot_be_certified():

@@ -94,7 +94,7 @@ def test_same_landmarks_ranges_and_fix_as_the_python_pipeline(scene):
 
 def test_ranging_follows_the_corner_model(scene):
     """Each range from the observation's own numbers: Z = f·B/d, s = Z·‖ray‖, ρ = sqrt(s² − Δh²),
-    σ_ρ = Z²·σ_c/(f·B)·(s/Z)·(s/ρ); the bearing from the centre's column."""
+    σ_ρ = Z²·σ_d/(f·B)·(s/Z)·(s/ρ) (σ_d: the corner-noise model); the bearing from the centre's column."""
     _, _, _, _, cc = scene
     for o in cc.observations:
         Z = RIG.fB / o.disparity
@@ -104,7 +104,8 @@ def test_ranging_follows_the_corner_model(scene):
         assert o.slant_range == pytest.approx(s, rel=1e-6)
         rho = math.sqrt(s * s - (o.anchor[2] - RIG.camera_height_m) ** 2)
         assert o.range == pytest.approx(rho, rel=1e-6)
-        assert o.sigma == pytest.approx(Z * Z * 0.035 / RIG.fB * (s / Z) * (s / rho), rel=1e-6)
+        sigma_d = _core.corner_disparity_sigma(_core.LanBLocSettings(), o.corners_used)   # the corner-noise model
+        assert o.sigma == pytest.approx(Z * Z * sigma_d / RIG.fB * (s / Z) * (s / rho), rel=1e-6)
         assert o.bearing == pytest.approx(math.atan2(-(u - RIG.cx), RIG.focal_length_px), abs=1e-12)
 
 

@@ -137,19 +137,99 @@ def test_max_delay_is_declared():
 
 
 def test_plaza1_with_ranges_up_to_300_ms_late_keeps_its_accuracy():
-    """The replay delivers each range up to 0.3 s late: all are applied (but one that precedes the start
-    from the data), and the causal RMSE stays within 0.30 m; with max_delay = 0 most are dropped."""
+    """The replay delivers each range up to 0.3 s late: none is dropped (one taken before the start from
+    the data joins the start's fit), and the causal RMSE stays within 0.30 m; with max_delay = 0 most are
+    dropped."""
     from safenav import replay as rp
     from safenav.logs import plaza1_path
 
     log = rp.load(plaza1_path(), range_std=rp.PLAZA_RANGE_STD)
     ranges = log.events["kind"].eq("range").to_numpy()
     d = np.where(ranges, np.random.default_rng(1).uniform(0.0, 0.3, len(ranges)), 0.0)
-    res = rp.replay(log, rp.preset_settings("plaza"), delays=d)
-    assert res.counts["late"] <= 1 and res.metrics["truth_rmse"] <= 0.30
+    for seed in (0, 1):  # seed 0 delays a range past the start it belongs to
+        d = np.where(ranges, np.random.default_rng(seed).uniform(0.0, 0.3, len(ranges)), 0.0)
+        res = rp.replay(log, rp.preset_settings("plaza"), delays=d)
+        assert res.counts["late"] == 0 and res.metrics["truth_rmse"] <= 0.30
     off = rp.preset_settings("plaza")
     off.max_delay = 0.0
     dropped = rp.replay(log, off, delays=d)
     assert dropped.counts["late"] > 1000 and dropped.metrics["truth_rmse"] > res.metrics["truth_rmse"]
     with pytest.raises(ValueError, match=r"delays\[3\] = -1"):
         rp.replay(log, delays=np.where(np.arange(len(ranges)) == 3, -1.0, 0.0))
+
+
+# -- an observation from before the start from the data, delivered after it ----------------------------------
+
+
+def _plaza1_before_start():
+    """Plaza1, the plaza preset, and the last range before its start from the data (index, time)."""
+    from safenav import replay as rp
+    from safenav.logs import plaza1_path
+
+    log = rp.load(plaza1_path(), range_std=rp.PLAZA_RANGE_STD)
+    s = rp.preset_settings("plaza")
+    ev = log.events
+    t_start = rp.replay(log, s).t_start
+    i = int(np.flatnonzero(ev["kind"].eq("range").to_numpy() & (ev["t"].to_numpy() < t_start))[-1])
+    return log, s, i
+
+
+def _delayed(log, s, i, arrival, lag=2.0, smoother="rts"):
+    from safenav import replay as rp
+
+    d = np.zeros(len(log.events))
+    d[i] = arrival - log.events["t"][i]
+    return rp.replay(log, s, lag=lag, delays=d, smoother=smoother)
+
+
+@pytest.mark.parametrize("smoother", ["rts", "iterated"])
+def test_a_range_from_before_the_start_joins_its_fit(smoother):
+    """The last range before Plaza1's start, delivered after a start made without it (within max_delay),
+    re-runs that start with it in the fit's window: the estimate is then the one it gets when it arrives
+    just before the start's motion input (buffered in time), bit for bit, causal rows after the start and
+    fixed-lag outputs alike; nothing is late."""
+    log, s, i = _plaza1_before_start()
+    t_r = log.events["t"][i]
+    # Without it the fit at the in-order start fails; the next motion input starts the filter.
+    t_start = _delayed(log, s, i, t_r + 0.14).t_start
+    assert t_start > t_r + 0.14
+    in_time = _delayed(log, s, i, t_start - 1e-3, smoother=smoother)  # buffered before the start's fit
+    after = _delayed(log, s, i, t_start + 0.05, smoother=smoother)    # delivered after that start: it re-runs
+    assert in_time.t_start == after.t_start and t_start + 0.05 - t_r <= s.max_delay
+    assert after.counts == in_time.counts and after.counts["late"] == 0
+    # Row 0 is the estimate at the start, recorded before the range arrived (causal); every later row
+    # and every smoothed output is the in-time estimate.
+    np.testing.assert_array_equal(after.trajectory.to_numpy()[1:], in_time.trajectory.to_numpy()[1:])
+    np.testing.assert_array_equal(after.smoothed.to_numpy(), in_time.smoothed.to_numpy())
+    assert not np.array_equal(after.trajectory.to_numpy()[0], in_time.trajectory.to_numpy()[0])
+
+
+def test_a_range_from_before_the_start_that_spoils_its_fit_is_rejected():
+    """When the start's fit with the late range no longer passes (here: the range 1.5 m off and the RMS
+    limit just above the start's), the start stands as it was, the range counts as rejected, and the
+    estimate is the one of the log without that range."""
+    import dataclasses
+    import re
+
+    from safenav import replay as rp
+
+    log, s, i = _plaza1_before_start()
+    ev = log.events
+    without = dataclasses.replace(log, events=ev.drop(index=i).reset_index(drop=True))
+    rms = float(re.search(r"residual RMS ([0-9.]+) m", rp.replay(without, s).reason).group(1))
+    strict = rp.preset_settings("plaza")
+    strict.set_param("init_max_rms", rms + 0.005)
+    ref = rp.replay(without, strict, lag=2.0)
+    bad = ev.copy()
+    bad.loc[i, "range"] += 1.5
+    res = _delayed(dataclasses.replace(log, events=bad), strict, i, ref.t_start + 0.05)
+    assert res.counts == {**ref.counts, "rejected": ref.counts["rejected"] + 1}
+    np.testing.assert_array_equal(res.trajectory.to_numpy(), ref.trajectory.to_numpy())
+    np.testing.assert_array_equal(res.smoothed.to_numpy(), ref.smoothed.to_numpy())
+
+
+def test_a_range_older_than_max_delay_before_the_start_stays_late():
+    log, s, i = _plaza1_before_start()
+    t_r = log.events["t"][i]
+    res = _delayed(log, s, i, t_r + s.max_delay + 0.3, lag=None)
+    assert res.counts["late"] == 1

@@ -4,7 +4,9 @@ states range scale k and heading-rate bias β (augmented.hpp).
 
 Run as ``safenav replay`` runs them (safenav.replay with the ``plaza``
 preset): the odometry rows as odometry inputs, each range at its own
-timestamp, an odometry row before a range at the same time.  Position RMSE
+timestamp, an odometry row before a range at the same time; the odometry
+as fed (``odometry_heading="end"``), the numpy reference's reading (the
+command reads Plaza along the arc, tests/test_smoother_odometry.py).  Position RMSE
 over every ground-truth pose from the start on (poses before the start
 excluded), each scored with the latest estimate at or before its time."""
 

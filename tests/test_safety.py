@@ -295,6 +295,7 @@ def test_nees_under_faults_stays_in_its_band_with_the_gate_and_not_without(p2):
 
 def test_the_gate_rejects_an_injected_outlier_fix_and_a_run_of_them_resets_the_position():
     s = gd.localizer_settings()
+    s.reset_after_consistent = 0  # the count in a row alone (the agreement rule is tested below)
     loc = gd.Localizer(s, np.zeros((0, 2)), [])
     loc.initialize(0.0, np.array([0.0, 0.0, 0.0, 0.0]), np.diag([0.01, 0.01, 0.01, 0.01]))
     R = np.eye(2) * 0.01
@@ -309,6 +310,88 @@ def test_the_gate_rejects_an_injected_outlier_fix_and_a_run_of_them_resets_the_p
     assert r.status == gd.InputStatus.RESET
     assert loc.x[0] == 5.0 and loc.counts.resets == 1
     np.testing.assert_allclose(np.asarray(loc.P)[:2, :2], R)
+
+
+def _lost_localizer(k=3):
+    """A localizer sure of (0, 0) at rest, with the agreement reset at k."""
+    s = gd.localizer_settings()
+    s.reset_after_consistent = k
+    loc = gd.Localizer(s, np.zeros((0, 2)), [])
+    loc.initialize(0.0, np.array([0.0, 0.0, 0.0, 0.0]), np.diag([0.01, 0.01, 0.01, 0.01]))
+    return loc
+
+
+def test_rejected_fixes_that_agree_with_each_other_reset_the_position():
+    """k rejected fixes that agree (χ²₂ at the gate's probability on
+    z_j − z_i with R_i + R_j) reset the position at the k-th, though fewer
+    than reset_after_rejections were rejected in a row."""
+    R = np.eye(2) * 0.01
+    loc = _lost_localizer(3)
+    statuses = [loc.fix(0.1 * (i + 1), 5.0 + 0.05 * i, 0.0, R).status for i in range(3)]
+    assert statuses == [gd.InputStatus.REJECTED, gd.InputStatus.REJECTED, gd.InputStatus.RESET]
+    assert loc.x[0] == pytest.approx(5.1) and loc.counts.resets == 1
+    # Agreement with each of the newest k − 1: 0.58 m apart with S ≥ 2R gives d² ≥ 16.8 > 9.21.
+    assert 0.58**2 / 0.02 > chi2.ppf(0.99, 2)
+    loc = _lost_localizer(3)
+    assert loc.fix(0.1, 5.0, 0.0, R).status == gd.InputStatus.REJECTED
+    assert loc.fix(0.2, 5.58, 0.0, R).status == gd.InputStatus.REJECTED
+    assert loc.fix(0.3, 5.02, 0.0, R).status == gd.InputStatus.REJECTED  # agrees with the first only
+    assert loc.fix(0.4, 5.04, 0.0, R).status == gd.InputStatus.REJECTED  # not with 5.58
+    assert loc.fix(0.5, 5.06, 0.0, R).status == gd.InputStatus.RESET     # with 5.02 and 5.04
+    assert loc.x[0] == pytest.approx(5.06)
+
+
+def test_scattered_outliers_never_agree_and_a_fix_through_the_gate_does_not_forget_them():
+    R = np.eye(2) * 0.01
+    loc = _lost_localizer(3)
+    s = gd.localizer_settings()
+    for i in range(s.reset_after_rejections):  # 5 m off, in turn in four directions: no two agree
+        a = 0.5 * np.pi * i
+        r = loc.fix(0.1 * (i + 1), 5.0 * np.cos(a), 5.0 * np.sin(a), R)
+        assert r.status == gd.InputStatus.REJECTED
+    assert loc.counts.resets == 0 and abs(loc.x[0]) < 0.5
+    # A fix through the gate between two agreeing rejected ones: the count in a row restarts,
+    # the rejected fixes stay (fewer than k fixes in a row passed).
+    loc = _lost_localizer(3)
+    assert loc.fix(0.1, 5.0, 0.0, R).status == gd.InputStatus.REJECTED
+    assert loc.fix(0.2, 5.0, 0.0, R).status == gd.InputStatus.REJECTED
+    assert loc.fix(0.3, 0.02, 0.0, R).status == gd.InputStatus.APPLIED
+    assert loc.fix(0.4, 5.0, 0.0, R).status == gd.InputStatus.RESET
+    # … but k fixes in a row through the gate forget them.
+    loc = _lost_localizer(3)
+    assert loc.fix(0.1, 5.0, 0.0, R).status == gd.InputStatus.REJECTED
+    assert loc.fix(0.2, 5.0, 0.0, R).status == gd.InputStatus.REJECTED
+    for i in range(3):
+        assert loc.fix(0.3 + 0.1 * i, 0.0, 0.0, R).status == gd.InputStatus.APPLIED
+    assert loc.fix(0.7, 5.0, 0.0, R).status == gd.InputStatus.REJECTED
+    assert loc.fix(0.8, 5.0, 0.0, R).status == gd.InputStatus.REJECTED
+    assert loc.fix(0.9, 5.0, 0.0, R).status == gd.InputStatus.RESET
+
+
+def test_agreement_counts_the_predicted_motion_between_the_rejected_fixes():
+    """Fixes 5 m off that move with the vehicle agree; fixes that stay put
+    while the filter predicts 1 m of motion between them do not."""
+    R = np.eye(2) * 0.01
+
+    def run(moving):
+        loc = _lost_localizer(3)
+        loc.initialize(0.0, np.array([0.0, 0.0, 1.0, 0.0]), np.diag([0.01, 0.01, 1e-4, 1e-4]))
+        out = []
+        for i in range(3):
+            t = 1.0 * (i + 1)
+            loc.motion(t, 1.0, 0.0)
+            out.append(loc.fix(t, 5.0 + (t if moving else 1.0), 0.0, R).status)
+        return out
+
+    assert run(True)[-1] == gd.InputStatus.RESET
+    assert run(False) == [gd.InputStatus.REJECTED] * 3
+
+
+def test_reset_after_consistent_is_checked():
+    s = gd.localizer_settings()
+    s.reset_after_consistent = 9
+    with pytest.raises(ValueError, match="reset_after_consistent"):
+        gd.Localizer(s, np.zeros((0, 2)), [])
 
 
 # --------------------------------------------------------------------------- metrics and tables

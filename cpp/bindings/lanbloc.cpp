@@ -46,6 +46,7 @@ void bind_types(py::module_& m) {
 
   def_params<LanBLocSettings>(py::class_<LanBLocSettings>(m, "LanBLocSettings"))
       .def(py::init<>())
+      .def(py::init<const LanBLocSettings&>(), py::arg("other"), "a copy")
       .def_readwrite("dictionary", &LanBLocSettings::dictionary)
       .def_readwrite("min_perimeter_rate", &LanBLocSettings::min_perimeter_rate)
       .def_readwrite("error_correction_rate", &LanBLocSettings::error_correction_rate)
@@ -55,6 +56,7 @@ void bind_types(py::module_& m) {
       .def_readwrite("relative_corner_refinement_win_size", &LanBLocSettings::relative_corner_refinement_win_size)
       .def_readwrite("detect_side_px", &LanBLocSettings::detect_side_px)
       .def_readwrite("corner_sigma_d", &LanBLocSettings::corner_sigma_d)
+      .def_readwrite("corner_edge_correlation", &LanBLocSettings::corner_edge_correlation)
       .def_readwrite("max_row_error_px", &LanBLocSettings::max_row_error_px)
       .def_readwrite("bearing_sigma_px", &LanBLocSettings::bearing_sigma_px)
       .def_readwrite("max_range_m", &LanBLocSettings::max_range_m)
@@ -101,7 +103,18 @@ void bind_types(py::module_& m) {
       .def_readonly("anchor", &LandmarkSighting::anchor)
       .def_readonly("corners_left", &LandmarkSighting::corners_left)
       .def_readonly("corners_right", &LandmarkSighting::corners_right)
+      .def_readonly("corners_used", &LandmarkSighting::corners_used)
       .def_readonly("reason", &LandmarkSighting::reason);
+
+  py::class_<CornerDisparity>(m, "CornerDisparity")
+      .def_readonly("ok", &CornerDisparity::ok)
+      .def_readonly("reason", &CornerDisparity::reason)
+      .def_readonly("centre", &CornerDisparity::centre)
+      .def_readonly("disparity", &CornerDisparity::disparity)
+      .def_readonly("sigma", &CornerDisparity::sigma)
+      .def_readonly("side_px", &CornerDisparity::side_px)
+      .def_readonly("corners_used", &CornerDisparity::corners_used)
+      .def_readonly("dropped_corner", &CornerDisparity::dropped_corner);
 
   py::class_<LanBLocFix>(m, "LanBLocFix")
       .def_readonly("status", &LanBLocFix::status)
@@ -134,6 +147,17 @@ std::optional<PosePrediction> prediction_of(const std::optional<Eigen::Vector3d>
 
 void pybind_lanbloc(py::module_& m) {
   bind_types(m);
+  m.def("marker_centre", [](const MarkerCorners& c) { return marker_centre(c); }, py::arg("corners"),
+        "The image of a marker's centre: the intersection of the diagonals of its (4, 2) corners "
+        "(TL, TR, BR, BL).");
+  m.def("corner_disparity_sigma", &corner_disparity_sigma, py::arg("settings"), py::arg("corners_used"),
+        py::arg("scale") = 1.0,
+        "sigma [px] of a marker centre's disparity from its corners: the fitted corner-noise model.");
+  m.def("corner_disparity", &corner_disparity, py::arg("left"), py::arg("right"), py::arg("camera"),
+        py::arg("settings"), py::arg("scale") = 1.0,
+        "A marker's centre and disparity from its (4, 2) corners in both rectified images: the "
+        "least-squares disparity plane through the four, or, when one corner's rows disagree, the "
+        "midpoint of the other diagonal's triangulated corners (CornerDisparity).");
   py::class_<LanBLocFrontEnd>(m, "LanBLocFrontEnd")
       .def(py::init([](const LanBLocRig& rig, const std::map<int, Eigen::Vector3d>& landmarks,
                        const LanBLocSettings& settings) {

@@ -56,7 +56,8 @@ void bind_plan(py::module_& m) {
                              "the right image's regions");
   py::enum_<FrameUpdate>(m, "FrameUpdate", "How a camera frame's result enters the filter.")
       .value("FIX", FrameUpdate::Fix)
-      .value("LANDMARKS", FrameUpdate::Landmarks);
+      .value("LANDMARKS", FrameUpdate::Landmarks)
+      .value("FIX_OR_LANDMARKS", FrameUpdate::FixOrLandmarks);
   py::class_<FrameResult>(m, "FrameResult", "What became of one camera frame (Localizer.observe_frame).")
       .def_readonly("plan", &FrameResult::plan)
       .def_readonly("fix", &FrameResult::fix)
@@ -103,7 +104,8 @@ void bind_localizer_frames(py::module_& m) {
           },
           py::arg("t"), py::arg("left"), py::arg("right"), py::arg_v("update", FrameUpdate::Fix, "FrameUpdate.FIX"),
           "One rectified grey pair at t: the front end searches where frame_plan(t) says, and the fix "
-          "(FrameUpdate.FIX) or each landmark's range and bearing (LANDMARKS) updates the filter, gated.");
+          "(FrameUpdate.FIX) or each landmark's range and bearing (LANDMARKS; FIX_OR_LANDMARKS: the fix when "
+          "there is one, else the landmarks) updates the filter, gated.");
 }
 
 void bind_run_frames(py::module_& m) {

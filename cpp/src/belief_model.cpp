@@ -38,6 +38,19 @@ Eigen::Matrix<double, 2, 4> constant_jacobian(const MeasurementModel& model) {
   return model.jacobian(State::Zero());
 }
 
+/// P(Bin(k, q) ≥ r): the probability that at least r of k independent
+/// observations, each kept with probability q, are kept.
+double binomial_tail(int k, double q, int r) {
+  if (r <= 0) return 1.0;
+  if (r > k) return 0.0;
+  double sum = 0.0, c = 1.0;  // c = C(k, j)
+  for (int j = 0; j <= k; ++j) {
+    if (j >= r) sum += c * std::pow(q, j) * std::pow(1.0 - q, k - j);
+    c = c * (k - j) / (j + 1);
+  }
+  return std::min(1.0, sum);
+}
+
 /// The camera the belief sees with (BeliefSettings::sight_fov_margin,
 /// sight_range_fraction): the vehicle's, narrowed; an all-round one stays so.
 SensorSettings sight(SensorSettings s, const BeliefSettings& settings) {
@@ -123,13 +136,21 @@ void Model::step(const Step& s, StateCov& P, StateCov* Pm, Eigen::Matrix4d* Fout
   if (!s.seen.empty()) {
     State at = s.x;
     at.head<2>() = s.end;
-    const double fixes = n / sensors_.position_every * (1.0 - sensors_.faults.dropout_probability);
+    // FixModel::Ranges: the simulator builds a fix only from at least
+    // m = max(3, min_landmarks) ranges left after the dropout fault
+    // (navigation.cpp, Trial::range_fix).  A range is kept with q = 1 − dropout
+    // and is in a fix when at least m − 1 of the other ranges in view are
+    // kept too: its expected count per fix step is q·P(Bin(in view − 1, q) ≥ m − 1).
+    const double q = 1.0 - sensors_.faults.dropout_probability;
+    const int m = std::max(3, sensors_.min_landmarks);
+    const double fixes = n / sensors_.position_every * q *
+                         binomial_tail(static_cast<int>(s.seen.size()) - 1, q, m - 1);
     for (int row : s.seen) {
       const LandmarkGeometry g = landmark_geometry(at[kX], at[kY], sensors_.landmarks(row, 0), sensors_.landmarks(row, 1));
-      if (!g.defined() || !(fixes > 0.0)) continue;
+      if (!g.defined()) continue;
       LandmarkJacobian J;
       Eigen::Matrix<double, 1, 4> H;
-      if (s.ranges) {  // FixModel::Ranges: a range to each landmark in view (eq. 10)
+      if (s.ranges && fixes > 0.0) {  // FixModel::Ranges: a range to each landmark in view (eq. 10)
         predict_range(g, 0.0, 0.0, &J);
         H << J.x, J.y, 0.0, J.theta;
         const Eigen::Matrix<double, 1, 1> R(sensors_.range_std * sensors_.range_std / fixes);

@@ -59,7 +59,8 @@ const ParamSet<LanBLocSettings>& param_set<LanBLocSettings>() {
           .integer("corner_refinement_win_size", SN_REF(S, corner_refinement_win_size), closed(1, 100), "ArUco cornerRefinementWinSize [px]")
           .real("relative_corner_refinement_win_size", SN_REF(S, relative_corner_refinement_win_size), "", closed(0, 10), "OpenCV >= 4.8's relativeCornerRefinmentWinSize (window = min(round(this * cell px), corner_refinement_win_size)); 0 = the linked ArUco's fixed window")
           .real("detect_side_px", SN_REF(S, detect_side_px), "px", closed(0, 1e4), "search windows: detect at the pyramid level where the smallest predicted board is at least this wide, refine at full resolution; 0 = full resolution")
-          .real("corner_sigma_d", SN_REF(S, corner_sigma_d), "px", above(0, 100), "sigma of the marker centre's disparity from its corners; sigma_Z = Z^2 sigma / (f B)")
+          .real("corner_sigma_d", SN_REF(S, corner_sigma_d), "px", above(0, 100), "sigma of the marker centre's disparity from its four corners (measured RMS); sigma_Z = Z^2 sigma / (f B)")
+          .real("corner_edge_correlation", SN_REF(S, corner_edge_correlation), "", closed(-0.99, 1), "correlation of the disparity errors of the two corners on one vertical edge (three-corner sigma = sigma sqrt(2/(1 + rho)))")
           .real("max_row_error_px", SN_REF(S, max_row_error_px), "px", above(0, 1e4), "largest row difference of a corner between the left and the right image")
           .real("bearing_sigma_px", SN_REF(S, bearing_sigma_px), "px", above(0, 1e4), "sigma of the marker centre; bearing sigma = sigma_px / f")
           .real("max_range_m", SN_REF(S, max_range_m), "m", above(0, kNone), "depths beyond this: no range; inf = none")
@@ -82,6 +83,93 @@ void LanBLocSettings::validate() const {
     detail::bad("detect_side_px = " + detail::num(detect_side_px) + ": must be 0 (full resolution) or >= 16 px");
   trilateration.validate();
   (void)lanbloc_detail::dictionary(dictionary);
+}
+
+// ---------------------------------------------------------------------------
+// Ranging from the corners (LandmarkRanging.observe_corners calls these too).
+
+Eigen::Vector2d marker_centre(const MarkerCorners& c) {
+  const Eigen::Vector2d p = c.row(0), r = c.row(2) - c.row(0), q = c.row(1), s = c.row(3) - c.row(1);
+  const double den = r.x() * s.y() - r.y() * s.x();
+  if (!(std::abs(den) > 1e-12)) return c.colwise().mean().transpose();
+  return p + r * (((q - p).x() * s.y() - (q - p).y() * s.x()) / den);
+}
+
+double corner_disparity_sigma(const LanBLocSettings& settings, int corners_used, double scale) {
+  if (corners_used != 3 && corners_used != 4)
+    detail::bad("corners_used = " + std::to_string(corners_used) + ": must be 3 or 4");
+  if (!(scale > 0.0) || !std::isfinite(scale)) detail::bad("scale = " + detail::num(scale) + ": must be > 0");
+  const double rho = settings.corner_edge_correlation;
+  return scale * settings.corner_sigma_d * (corners_used == 3 ? std::sqrt(2.0 / (1.0 + rho)) : 1.0);
+}
+
+namespace {
+
+std::string fixed2(double v) {
+  std::ostringstream os;
+  os << std::fixed << std::setprecision(2) << v;
+  return os.str();
+}
+
+/// The two-corner midpoint of corner_disparity (one corner k dropped): the marker's centre in 3-D
+/// from corners k+1 and k+3, both triangulated.
+bool midpoint_centre(const MarkerCorners& l, const MarkerCorners& r, const RectifiedCamera& cam, int k,
+                     CornerDisparity& out) {
+  Eigen::Vector3d M = Eigen::Vector3d::Zero();
+  for (int j : {(k + 1) % 4, (k + 3) % 4}) {
+    const double w = l(j, 0) - r(j, 0) + cam.doffs;
+    if (!(w >= 1.0)) {
+      out.reason = "beyond resolvable range (corner " + std::to_string(j) + " disparity " + fixed2(w) + " px < 1 px)";
+      return false;
+    }
+    const double Z = cam.f * cam.baseline / w;
+    M += 0.5 * Z * Eigen::Vector3d((l(j, 0) - cam.cx) / cam.f, (l(j, 1) - cam.cy) / cam.f, 1.0);
+  }
+  out.centre = Eigen::Vector2d(cam.f * M.x() / M.z() + cam.cx, cam.f * M.y() / M.z() + cam.cy);
+  out.disparity = cam.f * cam.baseline / M.z() - cam.doffs;
+  return true;
+}
+
+}  // namespace
+
+CornerDisparity corner_disparity(const MarkerCorners& l, const MarkerCorners& r, const RectifiedCamera& cam,
+                                 const LanBLocSettings& settings, double scale) {
+  if (!l.allFinite() || !r.allFinite()) detail::bad("corner_disparity: the corners must be finite");
+  CornerDisparity out;
+  double side = 0.0;
+  for (int i = 0; i < 4; ++i) side += 0.25 * (l.row((i + 1) % 4) - l.row(i)).norm();
+  out.side_px = side;
+  const Eigen::Vector4d dv = (l.col(1) - r.col(1)).cwiseAbs();
+  int bad = 0, k = -1;
+  for (int i = 0; i < 4; ++i)
+    if (!(dv[i] <= settings.max_row_error_px)) ++bad, k = i;
+  if (bad >= 2) {
+    out.reason = "corners " + fixed2(dv.maxCoeff()) + " px off their epipolar lines (max_row_error_px = " +
+                 detail::num(settings.max_row_error_px) + "; " + std::to_string(bad) + " corners)";
+    return out;
+  }
+  out.centre = marker_centre(l);
+  if (bad == 1) {
+    out.dropped_corner = k;
+    if (!midpoint_centre(l, r, cam, k, out)) return out;
+    out.corners_used = 3;
+  } else {
+    // The least-squares disparity plane through the four corners, at the centre.
+    Eigen::Matrix<double, 4, 3> A;
+    A << l, Eigen::Vector4d::Ones();
+    const Eigen::Vector4d disp = l.col(0) - r.col(0);
+    const Eigen::Vector3d coef = A.colPivHouseholderQr().solve(disp);
+    out.disparity = coef.x() * out.centre.x() + coef.y() * out.centre.y() + coef.z();
+    out.corners_used = 4;
+  }
+  const double w = out.disparity + cam.doffs;
+  if (!(w >= 1.0)) {
+    out.reason = "beyond resolvable range (disparity " + fixed2(w) + " px < 1 px)";
+    return out;
+  }
+  out.sigma = corner_disparity_sigma(settings, out.corners_used, scale);
+  out.ok = true;
+  return out;
 }
 
 // ---------------------------------------------------------------------------
@@ -264,61 +352,45 @@ LanBLocFix LanBLocFrontEnd::localize(const ImageView& left, const ImageView& rig
 
 LandmarkSighting LanBLocFrontEnd::Impl::observe(const Marker& left, const Marker* right,
                                                    const std::string& why) const {
-  // LandmarkRanging.observe_corners: the centre is the diagonals' intersection (the image of the
-  // marker's centre under the homography); the disparity plane d = a·u + b·v + c (least squares
-  // through the four corners; the marker is a plane) evaluated there.
+  // LandmarkRanging.observe_corners: the centre and its disparity from the corners
+  // (corner_disparity), then Z = f·B/(d + doffs) with σ_Z = Z²·σ_d/(f·B).
   LandmarkSighting o;
   o.landmark_id = left.id;
   o.anchor = anchor.at(left.id);
   o.corners_left = left.corners;
-  const MarkerCorners& cl = left.corners;
-  const Eigen::Vector2d p = cl.row(0), r = cl.row(2) - cl.row(0), q = cl.row(1), s = cl.row(3) - cl.row(1);
-  const double den = r.x() * s.y() - r.y() * s.x();
-  o.centre = std::abs(den) > 1e-12 ? Eigen::Vector2d(p + r * (((q - p).x() * s.y() - (q - p).y() * s.x()) / den))
-                                   : Eigen::Vector2d(cl.colwise().mean().transpose());
+  o.centre = marker_centre(left.corners);
   const RectifiedCamera& cam = rig.camera;
   o.bearing_sigma = settings.bearing_sigma_px / cam.f;
-  sighting(o, std::numeric_limits<double>::quiet_NaN(), 0.0);  // the bearing
   if (right == nullptr) {
+    sighting(o, std::numeric_limits<double>::quiet_NaN(), 0.0);  // the bearing
     o.reason = why.empty() ? "not found in the right image" : why;
     return o;
   }
   o.corners_right = right->corners;
-  const double dv = (cl.col(1) - right->corners.col(1)).cwiseAbs().maxCoeff();
-  std::ostringstream os;
-  os << std::fixed << std::setprecision(2);
-  if (dv > settings.max_row_error_px) {
-    os << "corners " << dv << " px off their epipolar lines (max_row_error_px = "
-       << detail::num(settings.max_row_error_px) << ")";
-    o.reason = os.str();
+  const CornerDisparity cd = corner_disparity(left.corners, right->corners, cam, settings);
+  if (cd.corners_used == 3) o.centre = cd.centre;  // the centre from the corners that agree
+  sighting(o, std::numeric_limits<double>::quiet_NaN(), 0.0);  // the bearing
+  if (!cd.ok) {
+    o.reason = cd.reason;
     return o;
   }
-  Eigen::Matrix<double, 4, 3> A;
-  A << cl, Eigen::Vector4d::Ones();
-  const Eigen::Vector4d disp = cl.col(0) - right->corners.col(0);
-  const Eigen::Vector3d coef = A.colPivHouseholderQr().solve(disp);
-  o.disparity = coef.x() * o.centre.x() + coef.y() * o.centre.y() + coef.z();
-  const double w = o.disparity + cam.doffs;
-  if (!(w >= 1.0)) {
-    os << "beyond resolvable range (disparity " << w << " px < 1 px)";
-    o.reason = os.str();
-    return o;
-  }
+  o.disparity = cd.disparity;
+  o.corners_used = cd.corners_used;
   // The core's depth model Z = f·B/(d + doffs) (StereoMatcher::depth; float disparities, so Z
   // carries a relative rounding of ~1e-7).
   DisparityMap d1(1, 1);
   d1(0, 0) = static_cast<float>(o.disparity);
   const double Z = matcher.depth(d1)(0, 0);
   if (Z > settings.max_range_m) {
-    os << std::setprecision(1) << "beyond resolvable range (" << Z << " m > max_range_m = "
+    std::ostringstream os;
+    os << std::fixed << std::setprecision(1) << "beyond resolvable range (" << Z << " m > max_range_m = "
        << detail::num(settings.max_range_m) << " m)";
     o.reason = os.str();
     return o;
   }
-  sighting(o, Z, Z * Z * settings.corner_sigma_d / (cam.f * cam.baseline));  // σ_Z = Z²·σ_c/(f·B)
+  sighting(o, Z, Z * Z * cd.sigma / (cam.f * cam.baseline));  // σ_Z = Z²·σ_d/(f·B)
   return o;
 }
-
 
 void LanBLocFrontEnd::Impl::sighting(LandmarkSighting& o, double depth, double sigma_z) const {
   // LandmarkRanging.sighting: the centre's ray in the world at heading 0, ray = R₀ᵀ·((u − cx)/f,

@@ -233,12 +233,19 @@ InputResult Localizer::Impl::apply_fix(double t, const Eigen::Vector2d& z, const
     return I.counted(I.filter->update_position(z, R));
   });
   if (r.status == InputStatus::Late) return r;
+  Rejections& rej = I.fix_rejections;
+  const int k = I.settings.reset_after_consistent;
   if (r.status != InputStatus::Rejected) {
-    I.fix_rejections = 0;
+    rej.in_a_row = 0;
+    if (++rej.passed >= std::max(k, 1)) rej.n = 0;  // the filter agrees with the fixes again
     return r;
   }
   const int n = I.settings.reset_after_rejections;
-  if (n > 0 && ++I.fix_rejections > n) {
+  const double gate = -2.0 * std::log1p(-I.settings.filter.gate_probability);  // χ²₂ quantile
+  const bool in_a_row = n > 0 && ++rej.in_a_row > n;
+  const bool consistent = k > 0 && rej.agrees(z, R, k - 1, gate);
+  rej.keep(z, R);
+  if (in_a_row || consistent) {
     check_covariance(R, "fix R");
     State x = I.filter->x();
     x.head<2>() = z;

@@ -53,7 +53,7 @@ FrameResult Localizer::observe_frame(double t, const ImageView& left, const Imag
   const std::size_t n = out.fix.observations.size();
   out.update.status = InputStatus::Ignored;
   out.landmarks.assign(n, out.update);
-  if (how == FrameUpdate::Fix) {
+  if (how == FrameUpdate::Fix || (how == FrameUpdate::FixOrLandmarks && out.fix.ok())) {
     if (!out.fix.ok()) return out;
     out.update = fix(t, out.fix.position, out.fix.covariance);
     for (std::size_t i = 0; i < n; ++i)

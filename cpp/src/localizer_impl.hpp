@@ -5,6 +5,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -66,6 +67,50 @@ struct LoggedInput {
   bool measurement() const { return kind != Kind::Motion && kind != Kind::Odometry; }
 };
 
+/// The position fixes the gate rejected (the resets, localizer.cpp): the
+/// count in a row, and the newest rejected fixes, each with the displacement
+/// and P_xy growth that the predictions added since it
+/// (LocalizerSettings::reset_after_consistent).  Fixed storage: the tick
+/// allocates nothing.
+struct Rejections {
+  static constexpr int kKeep = 8;
+  struct Kept {
+    Eigen::Vector2d z, moved;
+    Eigen::Matrix2d R, grown;
+  };
+  int in_a_row = 0;  // fixes rejected in a row
+  int passed = 0;    // fixes in a row that passed the gate since the newest kept one
+  int n = 0;         // kept fixes, oldest first
+  std::array<Kept, kKeep> kept;
+
+  /// A prediction moved the estimate's position by d and P_xy by dC.
+  void predicted(const Eigen::Vector2d& d, const Eigen::Matrix2d& dC) {
+    for (int i = 0; i < n; ++i) {
+      kept[i].moved += d;
+      kept[i].grown += dC;
+    }
+  }
+  /// Whether (z, R) agrees with each of the newest `k` kept fixes (χ² bound `gate`).
+  bool agrees(const Eigen::Vector2d& z, const Eigen::Matrix2d& R, int k, double gate) const {
+    if (k > n) return false;
+    for (int i = n - k; i < n; ++i) {
+      const Eigen::Vector2d e = z - kept[i].z - kept[i].moved;
+      const Eigen::Matrix2d S = R + kept[i].R + 0.5 * (kept[i].grown + kept[i].grown.transpose());
+      const Eigen::LLT<Eigen::Matrix2d> llt(S);
+      if (llt.info() != Eigen::Success || !(e.dot(llt.solve(e)) <= gate)) return false;
+    }
+    return true;
+  }
+  void keep(const Eigen::Vector2d& z, const Eigen::Matrix2d& R) {
+    if (n == kKeep) {
+      std::move(kept.begin() + 1, kept.end(), kept.begin());
+      --n;
+    }
+    kept[n++] = Kept{z, Eigen::Vector2d::Zero(), R, Eigen::Matrix2d::Zero()};
+    passed = 0;
+  }
+};
+
 }  // namespace localizer_detail
 
 using namespace localizer_detail;  // NOLINT: private header, included by the localizer's .cpp files only
@@ -87,7 +132,7 @@ struct Localizer::Impl {
   double owed_distance = 0.0, owed_heading = 0.0;
   bool from_odometry = false;  // the motion input being applied is wheel odometry
   LocalizerCounts counts;
-  int fix_rejections = 0;  // consecutive position fixes rejected by the gate
+  Rejections fix_rejections;  // the position fixes rejected by the gate
   State x_none = State::Constant(kNaN);  // the estimate until initialized
   StateCov P_none = StateCov::Constant(kNaN);
 
@@ -136,7 +181,7 @@ struct Localizer::Impl {
     filter = make_filter(settings.filter, settings.bmm, settings.augment, static_cast<int>(landmarks.rows()), x0, P0,
                          seed);
     if (smoother) smoother->cut();  // no smoothing across a restart
-    fix_rejections = 0;
+    fix_rejections = Rejections{};
     t_f = t;
     // A stream not heard from before the start counts from it (the watchdog's clock).
     if (std::isnan(t_heard_motion)) t_heard_motion = t;
@@ -154,10 +199,18 @@ struct Localizer::Impl {
   /// output time).  With a lag set, each prediction feeds the smoother
   /// (smoother.cpp); without one this is the filter's predict alone.
   void predict(const Control& u, double dt, bool motion = false) {
-    if (!smoother) return filter->predict(u, dt);
-    smoother_filtered();
+    // While rejected fixes are kept, their displacement since (reset_after_consistent).
+    const bool watch = fix_rejections.n > 0;
+    Eigen::Vector2d p0;
+    Eigen::Matrix2d C0;
+    if (watch) {
+      p0 = filter->x().head<2>();
+      C0 = filter->P().topLeftCorner<2, 2>();
+    }
+    if (smoother) smoother_filtered();
     filter->predict(u, dt);
-    smoother_predicted(t_f + dt, u, dt, motion);
+    if (smoother) smoother_predicted(t_f + dt, u, dt, motion);
+    if (watch) fix_rejections.predicted(filter->x().head<2>() - p0, filter->P().topLeftCorner<2, 2>() - C0);
   }
   std::unique_ptr<FixedLagSmoother> smoother;  // null unless Localizer::set_lag
   Eigen::MatrixXd smooth_F, smooth_Q;          // the augmented EKF's last transition (scratch)
@@ -189,6 +242,7 @@ struct Localizer::Impl {
   InputResult atomic(const char* what, double t, F&& f) {
     const Clock saved = clock();
     const LocalizerCounts saved_counts = counts;
+    const Rejections saved_rejections = fix_rejections;
     Filter::Transaction tx(*filter);
     try {
       const InputResult r = f();
@@ -197,10 +251,12 @@ struct Localizer::Impl {
     } catch (const std::invalid_argument& e) {
       set_clock(saved);
       counts = saved_counts;
+      fix_rejections = saved_rejections;
       bad(std::string(what) + " at t = " + num(t) + ": " + e.what());
     } catch (...) {
       set_clock(saved);
       counts = saved_counts;
+      fix_rejections = saved_rejections;
       throw;
     }
   }
@@ -277,10 +333,11 @@ struct Localizer::Impl {
   struct Checkpoint {
     Clock clock;
     LocalizerCounts counts;
-    int fix_rejections = 0;
+    Rejections fix_rejections;
     std::unique_ptr<Filter> filter;
     std::uint64_t input = 0;
     std::size_t smoother_mark = 0;  // FixedLagSmoother::mark() at the checkpoint
+    bool start = false;             // taken at a start from the data (keep_start)
   };
   std::vector<LoggedInput> inputs;      // every input from the oldest checkpoint's motion input on
   std::uint64_t first_input = 0;        // sequence number of inputs[0]
@@ -300,6 +357,24 @@ struct Localizer::Impl {
   void recycle(Checkpoint& c);
   void prune();
   void clear_history();
+
+  /// A start from the data as its fit saw it: the window of buffered
+  /// observations, headings and motion integral, kept (with a checkpoint at
+  /// the start) so that an observation older than the start, delivered late,
+  /// joins the fit (take_before_start).
+  struct StartWindow {
+    bool kept = false;
+    double t = kNaN;  // the start's time (its motion input)
+    std::uint64_t input = 0;  // sequence number of the first input after the start
+    std::vector<BufferedObs> ranges;
+    std::vector<BufferedHeading> headings;
+    std::vector<Eigen::Vector4d> track;
+    std::string why;
+  };
+  StartWindow start_window;
+  StartWindow start_window_now(double t) const;
+  void keep_start(StartWindow w);
+  InputResult take_before_start(const LoggedInput& in);
 
   // -- starting from the data (localizer_start.cpp) ---------------------------
 

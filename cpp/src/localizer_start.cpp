@@ -136,8 +136,10 @@ void Localizer::Impl::accept_fit(double t_now, const detail::FitResult& fit) {
   P0(kTheta, kTheta) += kInitHeadingFloor * kInitHeadingFloor;
   P0(kV, kV) = settings.init_speed_std * settings.init_speed_std;
   const double speed = std::isfinite(rate_speed) ? std::max(bmm.params().min_speed(), rate_speed) : 0.0;
+  StartWindow window = start_window_now(t_now);  // start() empties the buffers
   start(t_now, State(px, py, speed, wrap_angle(th[2] + q[3])), 0.5 * (P0 + P0.transpose()));
   why += " from the data (" + os.str() + ")";
+  keep_start(std::move(window));  // late observations from before the start (localizer_history.cpp)
 }
 
 }  // namespace safenav

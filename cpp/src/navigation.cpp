@@ -9,6 +9,7 @@
 #include <Eigen/LU>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <optional>
 #include <sstream>
 #include <stdexcept>
@@ -147,6 +148,15 @@ class Trial {
     truth_ << safe_.path()(0, 0), safe_.path()(0, 1), 0.0, std::atan2(t.y(), t.x());
     obs_.reserve(static_cast<std::size_t>(se_.landmarks.rows()));
     trilateration_.seed = derive_seed(seed, 3);
+    if (frames_ && front_end) {
+      // The front end's landmark ids (the world's) → the localizer's (the map's rows), by position.
+      for (const LanBLocLandmark& lm : front_end->landmarks())
+        for (Eigen::Index i = 0; i < se_.landmarks.rows(); ++i)
+          if ((se_.landmarks.row(i).transpose() - lm.position.head<2>()).norm() < 1e-9) {
+            frame_rows_.emplace(lm.id, static_cast<int>(i));
+            break;
+          }
+    }
     if (frames_) guidance_.localizer().set_front_end(std::move(front_end));
   }
 
@@ -179,6 +189,7 @@ class Trial {
   const Eigen::Matrix2d& imu_R_;
   const PositionCallback& position_cb_;
   const FrameCallback* frames_;  // the camera loop (run_frames), or null
+  std::map<int, int> frame_rows_;  // the front end's landmark id → the map's row (the localizer's id)
   const bool rec_;
   const int N_;
   const Bmm bmm_;
@@ -290,6 +301,20 @@ bool Trial::frame(int step, double t, Eigen::Vector2d& z) {
   res_.observations += r.fix.n_ranges();
   if (!r.fix.ok()) {
     ++res_.dropouts;
+    // Without a fix (fewer whole markers than a fix needs) each ranged landmark's range and bearing
+    // still updates the filter through its gate (Localizer::observe, eq. 10's models); the front end's
+    // ids are the world's, the localizer's are the map's rows (frame_rows_).
+    for (const LandmarkSighting& o : r.fix.observations) {
+      const auto row = frame_rows_.find(o.landmark_id);
+      if (!o.ok || row == frame_rows_.end()) continue;
+      LandmarkObservation obs;
+      obs.id = row->second;
+      obs.range = o.range;
+      obs.bearing = o.bearing;
+      obs.range_std = o.sigma;
+      obs.bearing_std = o.bearing_sigma;
+      if (!loc.observe(t, obs).applied()) ++res_.rejected;
+    }
     return false;
   }
   z = r.fix.position;

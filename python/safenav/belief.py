@@ -7,7 +7,9 @@ and its Joseph-form update [SafeNav eqs. 12–14] with every measurement the
 sensors are expected to make (maximum-likelihood observations): a LanBLoc fix
 when ``min_landmarks`` are in view (``FixModel.PROFILE``), or a range to each
 landmark in view (``FixModel.RANGES``), and the IMU.  "In view" is
-``SensorSettings.landmarks_in_view``: range, field of view, occlusion.  It
+``SensorSettings.landmarks_in_view``: range, field of view, occlusion; by
+default with the vehicle's own camera (the expected belief), and with a
+narrower one in the planner and the certificate (:func:`robust_sight`).  It
 returns the sigma profile and the path's collision probability, each stage
 conditioned on no collision before (Patil, van den Berg & Alterovitz 2012).
 
@@ -45,7 +47,7 @@ collision_monte_carlo = _core.collision_monte_carlo
 
 __all__ = ["BeliefSettings", "BeliefPlannerSettings", "BeliefProblem", "BeliefProfile", "BeliefPlanStatus",
            "BeliefPlanResult", "BeliefPlan", "start_covariance", "collision_monte_carlo", "propagate_belief",
-           "plan_belief", "arc_position", "SigmaCalibration", "sigma_calibration", "clopper_pearson"]
+           "plan_belief", "robust_sight", "arc_position", "SigmaCalibration", "sigma_calibration", "clopper_pearson"]
 
 # Keyword names of plan_belief / propagate_belief -> declared parameter names.
 _BELIEF_KEYS = {"speed": "speed", "step": "step", "bearing_std": "bearing_std",
@@ -89,6 +91,18 @@ def _start_cov(start_cov, sensors, map, start, toward) -> np.ndarray:
     return as_array("start_cov", start_cov, (4, 4))
 
 
+def robust_sight() -> dict:
+    """The robust camera, as keywords of :func:`propagate_belief`: the
+    ``sight_fov_margin`` and ``sight_range_fraction`` of the planner's belief
+    (``BeliefPlannerSettings().belief``: the field of view less 25°, 90 % of
+    the detection range).  The planner's chance constraint and the mission
+    certificate see with it; :func:`propagate_belief`'s default is the
+    vehicle's own camera, the expected belief (docs/belief_planning.md,
+    "Calibration")."""
+    b = BeliefPlannerSettings().belief
+    return {"sight_fov_margin": float(b.sight_fov_margin), "sight_range_fraction": float(b.sight_range_fraction)}
+
+
 def propagate_belief(path, *, sensors, map, bmm=None, start_cov=None, settings: BeliefSettings | None = None,
                      **kwargs) -> BeliefProfile:
     """The belief along ``path`` ((N, 2), start first) at ``speed``:
@@ -101,7 +115,10 @@ def propagate_belief(path, *, sensors, map, bmm=None, start_cov=None, settings: 
     (default: the core's); ``start_cov``: 4x4 (default: the navigation loop's
     prior at the start, heading along the first leg: :func:`start_covariance`).
     Keywords: ``speed``, ``step`` (belief step [s], 0 = the BMM's dt),
-    ``bearing_std``, ``vehicle_radius``, ``margin``."""
+    ``bearing_std``, ``vehicle_radius``, ``margin``, ``sight_fov_margin``
+    and ``sight_range_fraction`` (default 0 and 1: the vehicle's own camera,
+    the expected belief; :func:`robust_sight` gives the planner's and the
+    certificate's narrower one)."""
     p = as_array("path", path, (None, 2))
     bmm = bmm if bmm is not None else _core.BmmParams()
     s = _belief_settings(kwargs, settings)

@@ -4,7 +4,10 @@ budget, and propose the fewest landmarks that make an uncertified one pass.
 A path is **certified** when, with the belief the navigation loop is
 predicted to have along it (:func:`safenav.belief.propagate_belief`: the
 EKF's predict [SafeNav eq. 11] and update [SafeNav eqs. 12–14] with the
-fixes the sensors will make, LQG-MP), both hold:
+fixes the sensors will make, LQG-MP), both hold, for the belief seen with
+the robust camera (:func:`safenav.belief.robust_sight`, the planner's) and
+for the expected one (the vehicle's own camera), that is for the worse of
+the two:
 
 * the path-level collision probability (Patil, van den Berg & Alterovitz
   2012, ``BeliefProfile.collision_probability``) is at most
@@ -96,15 +99,20 @@ class Check:
     failing: np.ndarray               #: stages where clearance − r − margin ≤ k·σ_a
     risky: np.ndarray                 #: failing, or p_k > ε / stages
     profile: object = None
+    #: the check of the expected belief (the vehicle's own camera) beside this one (the robust camera's)
+    expected: "Check | None" = None
 
     def summary(self) -> dict:
         x, y = self.sigma_max_xy
-        return {"certified": self.certified, "collision_probability": self.collision_probability,
-                "union_bound": self.union_bound, "sigma_max_m": self.sigma_max,
-                "sigma_max_at": {"s_m": self.sigma_max_s, "x": x, "y": y},
-                "min_room_m": _finite(self.min_room), "min_room_at": {"s_m": self.min_room_s, "x": self.min_room_xy[0],
-                                                              "y": self.min_room_xy[1]},
-                "failing_stages": int(self.failing.sum()), "stages": int(len(self.failing))}
+        out = {"certified": self.certified, "collision_probability": self.collision_probability,
+               "union_bound": self.union_bound, "sigma_max_m": self.sigma_max,
+               "sigma_max_at": {"s_m": self.sigma_max_s, "x": x, "y": y},
+               "min_room_m": _finite(self.min_room), "min_room_at": {"s_m": self.min_room_s, "x": self.min_room_xy[0],
+                                                             "y": self.min_room_xy[1]},
+               "failing_stages": int(self.failing.sum()), "stages": int(len(self.failing))}
+        if self.expected is not None:
+            out["expected"] = self.expected.summary()
+        return out
 
 
 def _finite(v: float) -> float | None:
@@ -174,18 +182,19 @@ def _cut(path: np.ndarray, s0: float, s1: float, min_length: float = 1.0) -> np.
 
 
 def placement_camera(scenario, settings=None):
-    """The camera the placement covers with and the belief sees with: the
-    vehicle's, narrowed by ``BeliefSettings.sight_fov_margin`` (25°, at
-    least 10° left) and shortened to ``sight_range_fraction`` (90 %) of the
-    detection range, for heading and cross-track deviations (also
-    :func:`safenav.experiments.run.placed_scenario`); landmarks keep the
-    planning clearance from the path."""
+    """The camera the placement covers with, the robust camera the planner
+    and the certificate see with: the vehicle's, narrowed by
+    ``sight_fov_margin`` (25°, at least 10° left) and shortened to
+    ``sight_range_fraction`` (90 %) of the detection range, for heading and
+    cross-track deviations (``BeliefPlannerSettings().belief``, or
+    ``settings``; also :func:`safenav.experiments.run.placed_scenario`);
+    landmarks keep the planning clearance from the path."""
     import math
 
     from . import placement as P
-    from .belief import BeliefSettings
+    from .belief import BeliefPlannerSettings
 
-    s = settings if settings is not None else BeliefSettings()
+    s = settings if settings is not None else BeliefPlannerSettings().belief
     return P.CameraParams(range=s.sight_range_fraction * scenario.detection.max_range_m,
                           angle_deg=max(10.0, scenario.camera.field_of_view_deg - math.degrees(s.sight_fov_margin)),
                           clearance=scenario.navigation.planning_clearance)
@@ -280,11 +289,21 @@ class PathCertificate:
 
 
 def _evaluate(scenario, path, k: float, step: float) -> Check:
-    from .belief import propagate_belief
+    """The certificate's check of ``path``: the robust camera's belief
+    (:func:`safenav.belief.robust_sight`), with the expected belief's check
+    (the vehicle's own camera) in ``.expected``; certified when both pass.
+    The robust camera sees a subset of what the vehicle's sees, so its
+    covariance is the larger at every stage (the Riccati recursion is
+    monotone) and its check decides in practice; the expected one is the σ
+    profile the vehicle will get."""
+    from .belief import propagate_belief, robust_sight
 
     kw = mission_inputs(scenario, path)
-    prof = propagate_belief(path, step=step, **kw)
-    return check_profile(prof, k, scenario.navigation.collision_probability, kw["vehicle_radius"], kw["margin"])
+    eps, r, m = scenario.navigation.collision_probability, kw["vehicle_radius"], kw["margin"]
+    robust = check_profile(propagate_belief(path, step=step, **robust_sight(), **kw), k, eps, r, m)
+    robust.expected = check_profile(propagate_belief(path, step=step, **kw), k, eps, r, m)
+    robust.certified = robust.certified and robust.expected.certified
+    return robust
 
 
 def _floor(c: Check, needs: int) -> float:
@@ -490,7 +509,12 @@ def report_lines(certs: list) -> list[str]:
                 lines.append(f"  {label}: σ max {ch.sigma_max:.3g} m at s = {ch.sigma_max_s:.1f} m "
                              f"({ch.sigma_max_xy[0]:.1f}, {ch.sigma_max_xy[1]:.1f}), P(collision) "
                              f"{ch.collision_probability:.3g} (union bound {ch.union_bound:.3g}), min room "
-                             f"{ch.min_room:.3g} m at s = {ch.min_room_s:.1f} m")
+                             f"{ch.min_room:.3g} m at s = {ch.min_room_s:.1f} m (robust camera)")
+                if ch.expected is not None:
+                    e = ch.expected
+                    lines.append(f"  {' ' * len(label)}  expected (the vehicle's camera): σ max {e.sigma_max:.3g} "
+                                 f"m at s = {e.sigma_max_s:.1f} m, P(collision) {e.collision_probability:.3g}, "
+                                 f"min room {e.min_room:.3g} m")
         lines.append(f"  {c.reason}")
     n = {s: sum(c.status == s for c in certs) for s in (CERTIFIED, NEEDS_LANDMARKS, CANNOT)}
     lines.append(f"certificate: {n[CERTIFIED]} certified as given, {n[NEEDS_LANDMARKS]} need landmarks "
@@ -500,17 +524,21 @@ def report_lines(certs: list) -> list[str]:
 
 
 def _markdown(certs: list, proposed_file: str | None) -> str:
-    rows = ["| path | status | planner | landmarks added | σ max [m] (at s) | P(collision) | min room [m] | reason |",
-            "|---|---|---|---|---|---|---|---|"]
+    rows = ["| path | status | planner | landmarks added | σ max [m] (at s) | expected σ max [m] | P(collision) | "
+            "expected P(collision) | min room [m] | reason |",
+            "|---|---|---|---|---|---|---|---|---|---|"]
     for c in certs:
         ch = c.final or c.given
-        cells = ("–", "–", "–") if ch is None else (
-            f"{ch.sigma_max:.3g} ({ch.sigma_max_s:.1f} m)", f"{ch.collision_probability:.3g}", f"{ch.min_room:.3g}")
+        e = ch.expected if ch is not None and ch.expected is not None else None
+        cells = ("–", "–", "–", "–", "–") if ch is None else (
+            f"{ch.sigma_max:.3g} ({ch.sigma_max_s:.1f} m)", f"{e.sigma_max:.3g}" if e else "–",
+            f"{ch.collision_probability:.3g}", f"{e.collision_probability:.3g}" if e else "–", f"{ch.min_room:.3g}")
         given = "" if c.given is None or c.final is None else \
             f" (as given: σ max {c.given.sigma_max:.3g} m, P {c.given.collision_probability:.3g})"
-        rows.append(f"| {c.name} | {c.status} | {c.planner} | {c.n_added} | {cells[0]} | {cells[1]} | {cells[2]} | "
-                    f"{c.reason}{given} |")
-    text = "# Mission certificate\n\n" + "\n".join(rows) + "\n"
+        rows.append(f"| {c.name} | {c.status} | {c.planner} | {c.n_added} | {' | '.join(cells)} | {c.reason}{given} |")
+    text = ("# Mission certificate\n\nσ max, P(collision) and min room: the robust camera's belief, which the "
+            "certificate checks; expected: the vehicle's own camera, the σ the vehicle will get.\n\n"
+            + "\n".join(rows) + "\n")
     if proposed_file:
         text += f"\nThe scenario with the proposed landmarks: `{proposed_file}`.\n"
     return text

@@ -282,8 +282,9 @@ def _replay(args) -> int:
         if np.isnan(h):
             raise ValueError(f"--prior-from-truth: the first truth row of {args.log} has no heading")
         prior = (t0, np.array([x, y, 0.0, h]), np.diag([0.1, 0.1, 0.5, 0.02]) ** 2)
+    heading = args.odometry_heading or (rp.PLAZA_ODOMETRY_HEADING if base == "plaza" else "end")
     result = rp.replay(log, settings, prior=prior, innovations=args.view is not None, lag=args.lag,
-                       smoother=args.smoother)
+                       smoother=args.smoother, odometry_heading=heading)
     out = Path(args.out)
     with _run_folder(args, out, seed=args.seed) as run:
         write_trajectory(out, result, log)   # trajectory.csv, .tum, .mcap; truth.tum
@@ -295,6 +296,7 @@ def _replay(args) -> int:
                    "started_from": result.started_from,
                    "t_start": result.t_start if result.estimated else None, "counts": result.counts, "metrics": result.metrics,
                    "reason": result.reason,
+                   "odometry_heading": heading,
                    "lag": args.lag, "smoother": args.smoother if args.lag is not None else None,
                    "smoothed_metrics": result.smoothed_metrics}
         write_json(out / "replay.json", summary)
@@ -510,6 +512,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--seed", type=arg_at_least(0), default=0, help="particle filter seed")
     s.add_argument("--lag", type=float, default=None, metavar="SECONDS", help="also run the fixed-lag smoother "
                    "(EKF; docs/replay.md): trajectory_lag.csv, scored as 'fixed-lag SECONDS s' (not causal)")
+    s.add_argument("--odometry-heading", choices=["end", "mid"], default=None,
+                   help="where an odometry row's heading change happens: at the end of its interval (as fed), or "
+                        "in its middle, along the arc's chord (default: mid for the plaza preset, else end)")
     s.add_argument("--smoother", choices=["rts", "iterated"], default="rts",
                    help="the fixed-lag smoother with --lag: an RTS pass over the filter's linearisation, or the "
                         "iterated window solve (docs/replay.md, 'Fixed-lag smoothing'; default rts)")

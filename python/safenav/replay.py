@@ -40,7 +40,8 @@ from .guidance import Localizer, LocalizerSettings, localizer_settings
 from .logs import Log, load_plaza, read_log
 from .validation import as_array
 
-__all__ = ["ReplayResult", "replay", "INNOVATION_COLUMNS", "causal_index", "lag_label", "load", "score", "PRESETS",
+__all__ = ["ReplayResult", "replay", "INNOVATION_COLUMNS", "ODOMETRY_HEADINGS", "odometry_heading_inputs",
+           "PLAZA_ODOMETRY_HEADING", "causal_index", "lag_label", "load", "score", "PRESETS",
            "preset_settings"]
 
 #: Named localizer set-ups for replay.  Both take a log's motion rows as the
@@ -56,6 +57,10 @@ __all__ = ["ReplayResult", "replay", "INNOVATION_COLUMNS", "causal_index", "lag_
 PRESETS = ("default", "plaza")
 #: σ of a Plaza file's ranges in the ``plaza`` preset [m]: their residual against the truth after the scale.
 PLAZA_RANGE_STD = 0.55
+#: How the Plaza files' odometry rows (``DR``: distance and heading change per interval) are read:
+#: along the chord of each interval's arc (:func:`odometry_heading_inputs`; docs/replay.md, "Odometry
+#: along the arc").  Chosen from Plaza1 and the geometry of an arc; Plaza2 was held out.
+PLAZA_ODOMETRY_HEADING = "mid"
 
 
 def preset_settings(name: str, *, filter: str = "ekf", n_particles: int = 1000, seed: int = 0,
@@ -123,9 +128,31 @@ def load(path, *, range_std: float = 1.0) -> Log:
     return read_log(p)
 
 
+#: How an ``odometry`` row's heading change enters the motion model (:func:`replay`'s ``odometry_heading``).
+ODOMETRY_HEADINGS = ("end", "mid")
+
+
+def odometry_heading_inputs(heading_change: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The heading changes to feed for odometry rows Δθ_0 … Δθ_{n-1} (in time order) so that the
+    BMM, which moves at the heading *after* its step ([SafeNav eq. 7]), moves each row's distance
+    at the heading of the middle of its interval: row k gets Δθ_{k−1}/2 + Δθ_k/2 (row 0: Δθ_0/2),
+    which uses no later row.  Also returns what each row still owes the heading at its time
+    (Δθ_k/2), which the reported heading adds back.
+
+    This is the odometry motion model of Thrun, Burgard & Fox, *Probabilistic Robotics* (2005),
+    §5.4 — a rotation δ_rot1, a translation δ_trans, a rotation δ_rot2 — with δ_rot1 = δ_rot2 = Δθ/2,
+    the split of a constant-curvature arc: its chord leaves at half the heading change (the chord's
+    length, d·sinc(Δθ/2), differs from the arc's d by less than 0.01 % for |Δθ| < 0.05 rad)."""
+    d = np.asarray(heading_change, dtype=float)
+    half = 0.5 * d
+    fed = half.copy()
+    fed[1:] += half[:-1]
+    return fed, half
+
+
 def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None,
            innovations: bool = False, delays=None, lag: float | None = None, smoother: str = "rts",
-           iterations: int = 1) -> ReplayResult:
+           iterations: int = 1, odometry_heading: str = "end") -> ReplayResult:
     """Run ``log`` through a :class:`Localizer` with ``settings`` (default:
     the ``default`` preset, :func:`preset_settings`).  ``prior`` = ``(t, x0, P0)``
     starts it from a prior; by default it starts from the data.
@@ -139,7 +166,16 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None,
     (:attr:`ReplayResult.smoothed`, :attr:`ReplayResult.smoothed_metrics`);
     ``smoother`` is its kind, ``"rts"`` or ``"iterated"`` (``iterations``
     Gauss–Newton passes per output; docs/replay.md, "Fixed-lag smoothing").
-    The causal trajectory and its scores stay as they are."""
+    The causal trajectory and its scores stay as they are.  ``odometry_heading``
+    says where in an ``odometry`` row's interval its heading change happens:
+    ``"end"`` (the default) feeds the row as it is, so the BMM moves the
+    distance at the heading after the change (eq. 7); ``"mid"`` moves it at the
+    heading of the interval's middle, along the chord of the arc
+    (:func:`odometry_heading_inputs`; docs/replay.md, "Odometry along the arc"),
+    and the trajectories report the heading at each row's time."""
+    from .validation import choice
+
+    choice("odometry_heading", odometry_heading, dict.fromkeys(ODOMETRY_HEADINGS))
     ids = sorted(log.landmarks)
     landmarks = np.array([log.landmarks[i] for i in ids], dtype=float).reshape(-1, 2)
     loc = Localizer(settings or preset_settings("default"), landmarks, ids)
@@ -154,6 +190,13 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None,
     lm = ev["landmark"].fillna(-1).to_numpy(np.int64)
     cols = {c: ev[c].to_numpy(float) for c in ("x", "y", "speed", "distance", "heading_change", "range", "bearing",
                                                 "range_std", "bearing_std", "std_x", "std_y")}
+    odo = kinds == "odometry"
+    owed = np.zeros(len(ev))  # heading change still owed at each odometry row's time ("mid")
+    if odometry_heading == "mid" and odo.any():
+        fed, half = odometry_heading_inputs(cols["heading_change"][odo])
+        cols["heading_change"] = cols["heading_change"].copy()
+        cols["heading_change"][odo] = fed
+        owed[odo] = half
     rows, inno = [], []
     order = range(len(ev))
     if delays is not None:
@@ -194,6 +237,8 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None,
             t_start = loc.time
             record()
     traj = pd.DataFrame(rows, columns=list(TRAJECTORY_COLUMNS))
+    if odometry_heading == "mid":
+        _add_owed_heading(traj, t[odo], owed[odo])
     c = loc.counts
     result = ReplayResult(trajectory=traj, t_start=t_start, started_from="prior" if prior is not None else "data",
                           counts={"motion": c.motion, "applied": c.applied, "rejected": c.rejected, "late": c.late,
@@ -204,6 +249,8 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None,
         result.metrics = score(traj, log.truth)
     if lag is not None:
         result.smoothed = _smoothed(loc)
+        if odometry_heading == "mid":
+            _add_owed_heading(result.smoothed, t[odo], owed[odo])
         if log.truth is not None and len(result.smoothed):
             result.smoothed_metrics = score(result.smoothed, log.truth, label=lag_label(lag))
             result.smoothed_metrics["smoother"] = smoother
@@ -213,6 +260,17 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None,
         n, m = result.metrics["n_before_start"], len(log.truth)
         result.reason = f"{n} of {m} truth poses lie before the start, unscored; {loc.reason()}"
     return result
+
+
+def _add_owed_heading(trajectory: pd.DataFrame, t_odometry: np.ndarray, owed: np.ndarray) -> None:
+    """Adds to each row at an odometry row's time the heading change that row still owes ("mid")."""
+    if not len(trajectory) or not len(t_odometry):
+        return
+    tt = trajectory["t"].to_numpy(float)
+    j = np.clip(np.searchsorted(t_odometry, tt), 0, len(t_odometry) - 1)
+    at = np.abs(t_odometry[j] - tt) <= 1e-9
+    h = trajectory["heading"].to_numpy(float) + np.where(at, owed[j], 0.0)
+    trajectory["heading"] = np.arctan2(np.sin(h), np.cos(h))
 
 
 def lag_label(lag: float) -> str:

@@ -59,15 +59,17 @@ struct BeliefSettings {
   double speed = 2.0;        ///< speed along the path [m/s] (NavigationSettings::cruise_speed), > 0
   double step = 0.0;         ///< belief step [s]; 0 = the BMM's Δt (then exact EKF steps)
   double bearing_std = 0.0;  ///< σ of a bearing to each landmark in view [rad]; 0 = no bearings (the simulator measures none)
-  /// The belief counts a landmark as seen only inside a narrower camera than
-  /// the vehicle's: the field of view less `sight_fov_margin` (at least
-  /// 10°) and `sight_range_fraction` of its range.  The controllers follow
-  /// the path only within the corridor and turn ahead of corners, so a
-  /// landmark at the edge of the nominal view may never be seen; the
-  /// placement paper's cover keeps the same margins (safenav.certify's
-  /// placement_camera).  0 and 1 give the vehicle's own camera.
-  double sight_fov_margin = 25.0 * kPi / 180.0;  ///< [rad]
-  double sight_range_fraction = 0.9;             ///< of SensorSettings::max_range, in (0, 1]
+  /// The belief counts a landmark as seen inside the vehicle's camera less
+  /// `sight_fov_margin` of field of view (at least 10° left) and within
+  /// `sight_range_fraction` of its range.  The defaults, 0 and 1, are the
+  /// vehicle's own camera: the expected belief, the σ profile the vehicle
+  /// will get (measured within ±25 % of the Monte Carlo RMS error,
+  /// docs/belief_planning.md, "Calibration").  The planner's chance constraint
+  /// and the certificate see with a narrower camera, a robustness margin for
+  /// heading and cross-track deviations: BeliefPlannerSettings::belief
+  /// (25°, 0.9), which safenav.certify's placement_camera also places for.
+  double sight_fov_margin = 0.0;     ///< [rad]
+  double sight_range_fraction = 1.0;  ///< of SensorSettings::max_range, in (0, 1]
   Inflation inflation;       ///< vehicle radius (collision) and margin (kept beyond it by the planner)
   void validate() const;     ///< throws std::invalid_argument naming the bad value
 };
@@ -122,10 +124,18 @@ double collision_monte_carlo(const BeliefProfile& profile, int samples, std::uin
 
 /// Belief-aware planner settings.
 struct BeliefPlannerSettings {
-  /// Belief steps of 0.25 s (coarser than the filter's; see the header comment).
+  /// Belief steps of 0.25 s (coarser than the filter's; see the header
+  /// comment), seen with the robust camera: the field of view less 25° and
+  /// 90 % of the detection range (BeliefSettings::sight_fov_margin,
+  /// sight_range_fraction).  The controllers follow the path only within the
+  /// corridor and turn ahead of corners, so a path must not rely on a
+  /// landmark at the edge of the view; the certificate checks paths with the
+  /// same camera (safenav.certify).
   BeliefSettings belief = [] {
     BeliefSettings b;
     b.step = 0.25;
+    b.sight_fov_margin = 25.0 * kPi / 180.0;
+    b.sight_range_fraction = 0.9;
     return b;
   }();
   double k_sigma = 3.0;        ///< k: clearance ≥ k·σ + vehicle_radius + margin at every stage, ≥ 0

@@ -88,7 +88,17 @@ struct LanBLocSettings {
   /// there are refined back to full resolution; 0 = detect at full resolution.  At least 16.
   double detect_side_px = 24.0;
   // --- ranging (LandmarkRanging.observe_corners / sighting)
-  double corner_sigma_d = 0.035;        ///< [px] σ_c of the centre's disparity from the corners
+  /// [px] σ_d of the marker centre's disparity from its four corners: the
+  /// measured RMS error of the refined corners' centre disparity, 0.0316 ±
+  /// 0.0015 px over 425 markers of 30–400 px rendered with pixel noise σ = 1
+  /// (bench/bench_corner_noise.py; no dependence on the marker's size in
+  /// pixels, its viewing angle or its angle off the axis was found).
+  double corner_sigma_d = 0.032;
+  /// Correlation of the disparity errors of the two corners on one vertical
+  /// edge of a marker (measured 0.80; corners on different edges: −0.08).  A
+  /// centre from three corners (the midpoint of one diagonal, one corner per
+  /// edge) has σ = σ_d·sqrt(2/(1 + ρ)) (corner_disparity_sigma).
+  double corner_edge_correlation = 0.8;
   double max_row_error_px = 1.0;        ///< [px] largest left/right row difference of a corner
   double bearing_sigma_px = 1.0;        ///< [px] σ of the centre, bearing σ = σ_px / f
   double max_range_m = std::numeric_limits<double>::infinity();  ///< [m] depths beyond: no range
@@ -104,6 +114,55 @@ struct LanBLocSettings {
 
   void validate() const;  ///< std::invalid_argument naming the field at fault
 };
+
+using MarkerCorners = Eigen::Matrix<double, 4, 2, Eigen::RowMajor>;  ///< TL, TR, BR, BL (u, v) [px]
+
+/// A marker's centre and its disparity from its refined corners in both
+/// rectified images (ours; LandmarkRanging.observe_corners in Python calls
+/// the same function).  corner_disparity() fills it.
+struct CornerDisparity {
+  static constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+  bool ok = false;              ///< whether disparity and sigma are valid
+  std::string reason;           ///< why not (empty when ok)
+  Eigen::Vector2d centre = Eigen::Vector2d::Constant(kNaN);  ///< the centre's image, left [px]
+  double disparity = kNaN;      ///< d at the centre [px]
+  double sigma = kNaN;          ///< σ_d of d [px] (corner_disparity_sigma)
+  double side_px = kNaN;        ///< the marker's mean side in the left image [px]
+  int corners_used = 0;         ///< 4, or 3 when one corner's rows disagree
+  int dropped_corner = -1;      ///< that corner (0..3: TL, TR, BR, BL), else −1
+};
+
+/// The image of a marker's centre: the intersection of the diagonals 0–2 and
+/// 1–3 of its corners (the centre under the homography; the corners' mean
+/// when the diagonals are parallel).
+Eigen::Vector2d marker_centre(const MarkerCorners& corners);
+
+/// σ_d [px] of a marker centre's disparity from its corners: the corner-noise
+/// model fitted to the refined corners' measured errors
+/// (bench/bench_corner_noise.py, docs/lanbloc_cpp.md).  Four corners: the
+/// plane at the centre is the mean of the four corner disparities (exact for
+/// a parallelogram), σ = corner_sigma_d.  Three: the mean of two corners on
+/// different edges, whose variance is 2/(1 + ρ) times the four's, ρ =
+/// corner_edge_correlation (the four's is σ_c²·(1 + ρ)/4 for per-corner σ_c,
+/// the two's σ_c²/2).  Times `scale` (2^L for corners refined at pyramid
+/// level L).
+double corner_disparity_sigma(const LanBLocSettings& settings, int corners_used, double scale = 1.0);
+
+/// A marker's centre and disparity from its corners (ours):
+///  * every corner's rows agree within settings.max_row_error_px: the least-squares
+///    disparity plane d = a·u + b·v + c through the four corner disparities
+///    (the marker is a plane, so its disparity is affine in (u, v)), evaluated
+///    at marker_centre(left);
+///  * exactly one corner k disagrees (hidden differently in the two images,
+///    e.g. behind another board's edge): corners k+1 and k+3 triangulated,
+///    P_i = Z_i·((u_i − cx)/f, (v_i − cy)/f, 1) with Z_i = f·B/(d_i + doffs),
+///    and the centre is the image of their midpoint, the marker's centre (exact
+///    for exact corners); its disparity d = f·B/M_z − doffs; the three
+///    corners that agree must do so;
+///  * two or more disagree: no disparity, with the reason.
+/// σ_d = corner_disparity_sigma(settings, corners used, scale).
+CornerDisparity corner_disparity(const MarkerCorners& left, const MarkerCorners& right, const RectifiedCamera& camera,
+                                 const LanBLocSettings& settings, double scale = 1.0);
 
 /// A predicted pose (x, y, θ) and its 3×3 covariance, e.g. the filter's
 /// prediction for the frame's time.
@@ -127,8 +186,6 @@ struct SearchWindow {
   Eigen::Vector2d predicted_centre = Eigen::Vector2d::Zero();  ///< projected marker centre [px]
   Eigen::Vector2d sigma_px = Eigen::Vector2d::Zero();          ///< its projected σ (u, v) [px]
 };
-
-using MarkerCorners = Eigen::Matrix<double, 4, 2, Eigen::RowMajor>;  ///< TL, TR, BR, BL (u, v) [px]
 
 /// Where a frame is searched: the mode and its reason, the prediction the
 /// windows came from (none: whole frame), each landmark's windows, and the
@@ -162,6 +219,7 @@ struct LandmarkSighting {
   Eigen::Vector3d anchor = Eigen::Vector3d::Constant(kNaN);  ///< the landmark's map position
   MarkerCorners corners_left = MarkerCorners::Constant(kNaN);
   MarkerCorners corners_right = MarkerCorners::Constant(kNaN);  ///< NaN when not found
+  int corners_used = 0;  ///< corners the disparity came from (corner_disparity): 4, 3, or 0 without
   std::string reason;  ///< why there is no range (empty when ok)
 };
 

@@ -23,9 +23,13 @@
 // each motion input, a copy of its filter; it goes back to the newest copy at
 // or before the measurement's time and applies the logged inputs again with
 // the late one in its place, which gives exactly the estimate of the same
-// inputs given in time order (localizer_history.cpp).  An older measurement,
-// and any late motion input, is not applied (status Late) and never applied
-// at the wrong time.  Equal times are applied in call order.
+// inputs given in time order (localizer_history.cpp).  A landmark
+// observation from before a start from the data, arriving after it within
+// max_delay, re-runs that start with the observation in the fit's window
+// (status Buffered; Rejected when that fit is refused: the old start stands).
+// An older measurement, and any late motion input, is not applied (status
+// Late) and never applied at the wrong time.  Equal times are applied in call
+// order.
 //
 // Initialization.  initialize() takes a prior.  Without one the localizer
 // starts from the data.  It dead-reckons the motion inputs in their own frame
@@ -115,8 +119,9 @@ enum class InputStatus {
   Buffered,  ///< kept for initialization from data (not initialized yet)
   Ignored,   ///< not initialized, and of no use to initialization
   /// A position fix that failed its gate after reset_after_rejections
-  /// consecutive rejected fixes: the filter restarts its position from it
-  /// (the estimate had lost the track; without this a gate locks it out).
+  /// consecutive rejected fixes, or that agrees with the rejected fixes
+  /// before it (reset_after_consistent): the filter restarts its position
+  /// from it (the estimate had lost the track; without this a gate locks it out).
   Reset,
 };
 const char* to_string(InputStatus status);
@@ -171,6 +176,17 @@ struct LocalizerSettings {
   /// P_xy ← R, the position's cross-covariances 0; augmented states restart
   /// from 0, a particle filter redraws its particles.  0 = never.
   int reset_after_rejections = 10;
+  /// A rejected fix that agrees with each of the reset_after_consistent − 1
+  /// rejected fixes before it resets the position too (InputStatus::Reset):
+  /// they agree when z_j − z_i minus the prediction's displacement between
+  /// them passes the gate's χ²₂ test with covariance R_i + R_j + the growth
+  /// of P_xy by the predictions between them.  Independent faults rarely
+  /// agree; fixes that agree with each other and not with the filter say the
+  /// filter has lost the track, even when an occasional fix gets through the
+  /// gate between them (which restarts the consecutive count above).  The
+  /// rejected fixes are forgotten after this many fixes in a row pass the
+  /// gate.  0 = off; at most Localizer's 8 kept rejected fixes.
+  int reset_after_consistent = 3;
   /// [s] A measurement at most this much older than the filter's time is
   /// applied at its own time (the inputs since are applied again after it);
   /// an older one is Late.  0 = every measurement older than the filter is Late.
@@ -182,6 +198,10 @@ struct LocalizerSettings {
 enum class FrameUpdate {
   Fix,        ///< the trilaterated fix with its covariance, through fix() (one χ² gate)
   Landmarks,  ///< each ranged landmark's range and bearing, through observe() (a gate each)
+  /// The fix when the frame gives one (as Fix), else each ranged landmark's
+  /// range and bearing (as Landmarks): a frame with too few whole markers for
+  /// a fix (fewer ranges than min_landmarks) still informs the filter.
+  FixOrLandmarks,
 };
 
 /// What became of one camera frame: where the front end searched (windows
@@ -192,7 +212,8 @@ struct FrameResult {
   LanBLocFix fix;
   /// FrameUpdate::Fix: the fix's update (status Ignored without a fix).
   /// FrameUpdate::Landmarks: Applied when any landmark was applied, else the
-  /// first landmark's status (Ignored without a range).
+  /// first landmark's status (Ignored without a range).  FixOrLandmarks: as
+  /// Fix with a fix, else as Landmarks.
   InputResult update;
   /// Per fix.observations entry: its landmark update (Landmarks), or the fix's
   /// (Fix) for a ranged landmark; Ignored for one without a range.

@@ -72,9 +72,9 @@ def front_end(world: World, rig: StereoRig, *, marker_size_m: float = 1.5, dicti
 class CameraFrames:
     """Frames for ``Navigator.run_frames``: ``frames(truth, step, plan)`` renders the pair at the
     true pose in the regions of ``plan`` (the whole images when it says so) and returns
-    ``(left, right)``, or ``None`` when the frame cannot give a fix (``early_out``: fewer
-    landmark centres in the left image than ``min_landmarks``, a bound from the geometry that
-    holds whatever the detector does with the pixels; such a frame counts as a dropout).
+    ``(left, right)``, or ``None`` when the frame cannot give a range (``early_out``: no
+    landmark centre in the left image, a bound from the geometry that holds whatever the
+    detector does with the pixels; such a frame counts as a dropout).
 
     :attr:`front_end` is the core's front end (:func:`front_end`); :meth:`run` runs one trial;
     :attr:`stats` counts frames by search mode, early outs and render time.
@@ -138,7 +138,9 @@ class CameraFrames:
             raise ValueError(f"truth = {truth!r}: must be a finite (x, y, v, theta)")
         pose = (s[0], s[1], s[3])
         self.stats["frames"] += 1
-        if self.early_out and self.renderer.centres_in_view(pose) < self.min_landmarks:
+        # a frame with fewer landmarks than a fix needs still gives their ranges and bearings
+        # (Navigator.run_frames updates with FrameUpdate.FIX_OR_LANDMARKS): only an empty view is skipped
+        if self.early_out and self.renderer.centres_in_view(pose) < 1:
             self.stats["early_out"] += 1
             return None
         t0 = time.perf_counter()

@@ -42,10 +42,9 @@ class CorePipeline:
         c = _core.RectifiedCamera()
         c.f, c.cx, c.cy, c.baseline, c.doffs, c.width, c.height = (cam.f, cam.cx, cam.cy, cam.baseline, cam.doffs,
                                                                     cam.width, cam.height)
-        s = _core.LanBLocSettings()
+        s = _core.LanBLocSettings(r.corner_settings)   # the corner-noise model and row check, as the ranger's
         s.dictionary = detector.dictionary_name
-        s.corner_sigma_d, s.max_row_error_px, s.bearing_sigma_px = (r.corner_sigma_d, r.max_row_error_px,
-                                                                   r.bearing_sigma_px)
+        s.bearing_sigma_px = r.bearing_sigma_px
         s.max_range_m, s.min_landmarks, s.resolve_ambiguity = r.max_range_m, r.min_landmarks, r.resolve_ambiguity
         self.front_end = _core.LanBLocFrontEnd(_core.LanBLocRig(c, r.camera_height_m, r.pitch_rad),
                                                {k: tuple(v[0]) for k, v in r.landmarks.items()}, s)

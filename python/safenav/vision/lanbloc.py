@@ -175,11 +175,15 @@ class LanBLoc:
         the marker's refined corners found in both images, triangulated,
         :meth:`observe_corners`).
     corner_sigma_d:
-        σ [px] of the marker centre's disparity from the corners, for
-        ``σ_Z = Z²·σ/(f·B)`` (``"corners"``).
+        σ [px] of the marker centre's disparity from four corners, for
+        ``σ_Z = Z²·σ/(f·B)`` (``"corners"``; the corner-noise model
+        ``_core.corner_disparity_sigma``); default: the core's
+        ``LanBLocSettings``.
     max_row_error_px:
         Largest row difference between a corner in the left and the right
-        image (rectified: ideally 0) before the pair is rejected.
+        image (rectified: ideally 0); one corner beyond it is left out, two
+        or more reject the pair (``_core.corner_disparity``); default: the
+        core's ``LanBLocSettings``.
     detect_side_px, region_margin_px:
         On a :class:`~safenav.vision.frame.StereoFrame`: the marker side
         [px] at the pyramid level used for detection, and the margin around
@@ -196,8 +200,8 @@ class LanBLoc:
                  min_landmarks: int = 3, max_range_m: float = math.inf, box_shrink: float = 0.1,
                  row_band: bool = True, band_margin_px: int = 24, bearing_sigma_px: float = 1.0,
                  unknown_landmark: str = "error", resolve_ambiguity: bool = True, sgbm: Mapping | None = None,
-                 trilateration: Mapping | None = None, ranging: str = "sgbm", corner_sigma_d: float = 0.035,
-                 max_row_error_px: float = 1.0, detect_side_px: float = 48.0, region_margin_px: int = 8,
+                 trilateration: Mapping | None = None, ranging: str = "sgbm", corner_sigma_d: float | None = None,
+                 max_row_error_px: float | None = None, detect_side_px: float = 48.0, region_margin_px: int = 8,
                  min_range_m: float = 2.5, min_correlation: float = 0.8, backend: str = "python"):
         self.ranger = LandmarkRanging(
             landmarks, camera, camera_height_m=camera_height_m, pitch_rad=pitch_rad, sigma_d=sigma_d,

@@ -156,7 +156,8 @@ class LandmarkRanging:
                  sigma_d: float = 0.5, min_landmarks: int = 3, max_range_m: float = math.inf,
                  box_shrink: float = 0.1, bearing_sigma_px: float = 1.0, unknown_landmark: str = "error",
                  resolve_ambiguity: bool = True, sgbm: Mapping | None = None, trilateration: Mapping | None = None,
-                 corner_sigma_d: float = 0.035, max_row_error_px: float = 1.0, min_range_m: float = 2.5):
+                 corner_sigma_d: float | None = None, max_row_error_px: float | None = None,
+                 min_range_m: float = 2.5):
         self.landmarks = _landmark_table(landmarks)
         rig = camera if isinstance(camera, StereoRig) else None
         if rig is not None:
@@ -188,9 +189,21 @@ class LandmarkRanging:
             raise ValueError(f"unknown_landmark = {unknown_landmark!r}: must be 'error' or 'skip'")
         self.unknown_landmark = unknown_landmark
         self.resolve_ambiguity = bool(resolve_ambiguity)
-        self.corner_sigma_d = check_finite("corner_sigma_d", corner_sigma_d, positive=True)
-        self.max_row_error_px = check_finite("max_row_error_px", max_row_error_px, positive=True)
+        # the corner-noise model and the row check: the core's (corner_disparity), its defaults declared
+        # once in LanBLocSettings
+        self.corner_settings = _core.LanBLocSettings()
+        cs = self.corner_settings
+        if corner_sigma_d is not None:
+            cs.corner_sigma_d = check_finite("corner_sigma_d", corner_sigma_d, positive=True)
+        if max_row_error_px is not None:
+            cs.max_row_error_px = check_finite("max_row_error_px", max_row_error_px, positive=True)
+        self.corner_sigma_d, self.max_row_error_px = cs.corner_sigma_d, cs.max_row_error_px
         self.trilateration = _trilateration_options(trilateration)
+        c = self.camera
+        self._core_camera = _core.RectifiedCamera()
+        (self._core_camera.f, self._core_camera.cx, self._core_camera.cy, self._core_camera.baseline,
+         self._core_camera.doffs, self._core_camera.width, self._core_camera.height) = (
+            c.f, c.cx, c.cy, c.baseline, c.doffs, c.width, c.height)
         self._R0t = camera_rotation(0.0, self.pitch_rad).T   # camera → world directions at heading 0
         # the landmark faults' map: row k is landmark self._ids[k]
         self._ids = sorted(self.landmarks)
@@ -226,53 +239,51 @@ class LandmarkRanging:
                         reason: str = "") -> LandmarkSighting:
         """Range and bearing of a fiducial from its corners in both images (ours).
 
-        The four refined corners ``(u_i, v_i)`` of the left image and ``u'_i``
-        of the right give disparities ``d_i = u_i − u'_i``; the marker is a
+        The centre and its disparity come from the core's
+        ``_core.corner_disparity`` (the C++ front end's rule, one place): the
+        four refined corners ``(u_i, v_i)`` of the left image and ``u'_i`` of
+        the right give disparities ``d_i = u_i − u'_i``; the marker is a
         plane, so its disparity is affine in the left image's ``(u, v)``: the
         least-squares plane ``d = a·u + b·v + c`` through the four is
         evaluated at the marker's centre, the diagonals' intersection
-        ``(u_c, v_c)`` (the image of the centre under the homography).
-        ``Z = f·B/(d_c + doffs)`` with ``σ_Z = Z²·σ_c/(f·B)``, σ_c =
-        ``corner_sigma_d·2^refine_level`` (measured at level 0:
-        bench/bench_vision.py; corners refined at pyramid level L are 2^L
-        times coarser,
-        :meth:`safenav.vision.regions.RegionPipeline.localize`); the centre's
-        slant distance and horizontal range follow as for SGBM.  No range when
-        the marker is not found in the right image (``right`` is None; ``reason`` says why), when its
-        corners are more
-        than ``max_row_error_px`` off their epipolar lines (rows), or when
-        ``d_c + doffs`` is below 1 px or the depth beyond ``max_range_m``.
+        ``(u_c, v_c)`` (the image of the centre under the homography).  When
+        exactly one corner is more than ``max_row_error_px`` off its epipolar
+        line (row), e.g. half hidden behind another board's edge differently
+        in the two images, the centre is the midpoint of the other diagonal's
+        two corners, triangulated (exact for exact corners).
+        ``Z = f·B/(d_c + doffs)`` with ``σ_Z = Z²·σ_d/(f·B)``; σ_d is the
+        corner-noise model ``_core.corner_disparity_sigma`` (fitted to the
+        refined corners' measured errors: bench/bench_corner_noise.py) times
+        ``2^refine_level`` (corners refined at pyramid level L are 2^L times
+        coarser, :meth:`safenav.vision.regions.RegionPipeline.localize`); the
+        centre's slant distance and horizontal range follow as for SGBM.  No
+        range when the marker is not found in the right image (``right`` is
+        None; ``reason`` says why), when two or more corners are off their
+        rows, or when ``d_c + doffs`` is below 1 px or the depth beyond
+        ``max_range_m``.
         """
         cl = np.asarray(det.corners, dtype=float).reshape(4, 2)
         cam = self.camera
-        # the centre: intersection of the diagonals 0-2 and 1-3
-        p, r = cl[0], cl[2] - cl[0]
-        q, s_ = cl[1], cl[3] - cl[1]
-        den = r[0] * s_[1] - r[1] * s_[0]
-        centre = p + r * (((q - p)[0] * s_[1] - (q - p)[1] * s_[0]) / den) if abs(den) > 1e-12 else cl.mean(axis=0)
+        centre = np.asarray(_core.marker_centre(cl))
         nan3 = np.full(3, np.nan)
         if right is None or right.corners is None:
             return self.sighting(det, centre, False, math.nan, math.nan, nan3, math.nan, 0,
                                  reason or "not found in the right image")
         cr = np.asarray(right.corners, dtype=float).reshape(4, 2)
-        dv = float(np.abs(cl[:, 1] - cr[:, 1]).max())
-        if dv > self.max_row_error_px:
-            return self.sighting(det, centre, False, math.nan, math.nan, nan3, math.nan, 4,
-                                 f"corners {dv:.2f} px off their epipolar lines "
-                                 f"(max_row_error_px = {self.max_row_error_px:g})")
-        coef, *_ = np.linalg.lstsq(np.column_stack([cl, np.ones(4)]), cl[:, 0] - cr[:, 0], rcond=None)
-        d = float(coef[0] * centre[0] + coef[1] * centre[1] + coef[2])
-        w = d + cam.doffs
-        if not w >= 1.0:
-            return self.sighting(det, centre, False, math.nan, math.nan, nan3, d, 4,
-                                 f"beyond resolvable range (disparity {w:.2f} px < 1 px)")
-        Z = cam.f * cam.baseline / w
+        cd = _core.corner_disparity(cl, cr, self._core_camera, self.corner_settings, float(1 << int(refine_level)))
+        if cd.corners_used == 3:
+            centre = np.asarray(cd.centre)
+        if not cd.ok:
+            return self.sighting(det, centre, False, math.nan, math.nan, nan3, cd.disparity, cd.corners_used or 4,
+                                 cd.reason)
+        d = float(cd.disparity)
+        Z = cam.f * cam.baseline / (d + cam.doffs)
         if Z > self.max_range_m:
-            return self.sighting(det, centre, False, math.nan, math.nan, nan3, d, 4,
+            return self.sighting(det, centre, False, math.nan, math.nan, nan3, d, cd.corners_used,
                                  f"beyond resolvable range ({Z:.1f} m > max_range_m = {self.max_range_m:g} m)")
         point = np.array([(centre[0] - cam.cx) * Z / cam.f, (centre[1] - cam.cy) * Z / cam.f, Z])
-        sigma_z = Z * Z * self.corner_sigma_d * (1 << int(refine_level)) / (cam.f * cam.baseline)
-        return self.sighting(det, centre, True, Z, sigma_z, point, d, 4, "")
+        sigma_z = Z * Z * cd.sigma / (cam.f * cam.baseline)
+        return self.sighting(det, centre, True, Z, sigma_z, point, d, cd.corners_used, "")
 
     def sighting(self, det: Detection, centre, ok: bool, depth: float, sigma_z: float, point, disparity: float,
                  n_valid: int, reason: str) -> LandmarkSighting:
