@@ -304,7 +304,11 @@ struct ParticleFilter::Impl {
     const Eigen::LLT<Eigen::MatrixXd> llt(h2 * Cyy + R);
     // The gain of x on h(x) is h²C_xh S_h⁻¹, and C_xh = −C_xy (y = z ⊖ h(x)).
     const Eigen::MatrixXd K = llt.solve((-h2 * Cxy).transpose()).transpose();
-    const Eigen::Matrix4d Pk = conditioned_kernel(Sigma, Cxy, Cyy, R, hu);
+    // The kernel conditioned on z, plus what the sampled gain takes beyond
+    // the Gaussian update (regularise.hpp, gain_sampling_excess; n: the
+    // prior weights' lineage ESS).
+    const Eigen::Matrix4d Pk = conditioned_kernel(Sigma, Cxy, Cyy, R, hu) +
+                               gain_sampling_excess(Sigma, Cxy, Cyy, R, hu, lineage_ess());
     double* c[4] = {col(kX), col(kY), col(kV), col(kTheta)};
     double mx = -std::numeric_limits<double>::infinity();
     for (int i = 0; i < N; ++i) {

@@ -10,6 +10,8 @@
 //               covariances of the particles), as the ensemble Kalman filter
 //               and the adaptive Gaussian mixture filter of Stordal et al.
 //               2011 update a member / a kernel
+//  excess       E = Σ_x|h·tr(A C_hh)/n: what a sampled gain takes beyond
+//               the Gaussian update (gain_sampling_excess)
 //  factor       L Lᵀ = P₊ for the kernel draws
 //  floor        P_reported = P̂ + (h² C_u − P̂)₊ ⪰ P̂ and ⪰ h² C_u, with P̂ the
 //               weighted and C_u the unweighted covariance of the particles
@@ -57,6 +59,39 @@ MatN conditioned_kernel(const MatN& Sigma, const MatNM& Cxy, const MatM& Cyy, co
   MatN P = h2 * Sigma;
   P.noalias() -= (h2 * h2) * G * Cxy.transpose();
   return 0.5 * (P + P.transpose());
+}
+
+/// The covariance that an update by a sampled gain takes beyond the Gaussian
+/// update [Furrer & Bengtsson 2007; Sacher & Bartello 2008]: a gain made of
+/// the cloud's own moments, C_xh = Cov_w(x, h(x)) and C_hh = Cov_w(h(x)),
+/// regresses x on h(x) with B̂ = C_xh C_hh⁻¹, whose sampling error has
+/// covariance Σ_x|h ⊗ C_hh⁻¹ / n (multivariate regression; n the effective
+/// sample size, Σ_x|h = Σ − C_xh C_hh⁻¹ C_hx the part of x that h(x) does
+/// not explain).  An update that removes B̂ Δ B̂ᵀ, Δ = C_hh A C_hh, removes in
+/// expectation B Δ Bᵀ + Σ_x|h·tr(C_hh⁻¹ Δ)/n: the second term is the excess,
+///   E = Σ_x|h · tr(A C_hh) / n,
+/// which a component that the measurement does not see (position under an
+/// IMU update of (v, θ)) loses at every update while the cloud stays the
+/// same size.  A is the update's gain weight: for the kernel update of
+/// ParticleFilter at bandwidth h, S = h² C_hh + R,
+///   A = (2h² − h⁴) S⁻¹ − (1 − h²) h⁴ S⁻¹ C_hh S⁻¹
+/// (the shrunk centres a(I − KH) plus the kernel h²Σ − K S Kᵀ; A = S⁻¹ at
+/// h = 1, the ensemble Kalman update).  Returns 0 when C_hh is singular or
+/// n ≤ 1.
+template <class MatN, class MatNM, class MatM>
+MatN gain_sampling_excess(const MatN& Sigma, const MatNM& Cxh, const MatM& Chh, const MatM& R, double h, double n) {
+  MatN E = MatN::Zero(Sigma.rows(), Sigma.cols());
+  if (!(n > 1.0)) return E;
+  const Eigen::LDLT<MatM> ch(Chh);
+  if (ch.info() != Eigen::Success || !(ch.vectorD().array() > 0.0).all()) return E;
+  const double h2 = h * h;
+  const Eigen::LDLT<MatM> ls(h2 * Chh + R);
+  const MatM SiC = ls.solve(Chh);  // S⁻¹ C_hh
+  const double tr = (2.0 * h2 - h2 * h2) * SiC.trace() - (1.0 - h2) * h2 * h2 * (SiC * SiC).trace();
+  if (!(tr > 0.0)) return E;
+  MatN cond = Sigma - Cxh * ch.solve(Cxh.transpose());
+  cond = 0.5 * (cond + cond.transpose()).eval();
+  return (tr / n) * cond;
 }
 
 /// L with L Lᵀ = A₊ (A symmetric; its negative eigenvalues, from rounding,
