@@ -308,7 +308,7 @@ struct ParticleFilter::Impl {
     // the Gaussian update (regularise.hpp, gain_sampling_excess; n: the
     // prior weights' lineage ESS).
     const Eigen::Matrix4d Pk = conditioned_kernel(Sigma, Cxy, Cyy, R, hu) +
-                               gain_sampling_excess(Sigma, Cxy, Cyy, R, hu, lineage_ess());
+                               2.0 * gain_sampling_excess(Sigma, Cxy, Cyy, R, hu, lineage_ess());
     double* c[4] = {col(kX), col(kY), col(kV), col(kTheta)};
     double mx = -std::numeric_limits<double>::infinity();
     for (int i = 0; i < N; ++i) {
