@@ -270,6 +270,7 @@ struct ParticleFilter::Impl {
       last = 0.5 * (lo + hi);
       (kernel_weights(R, at(last)) >= target ? hi : lo) = last;
     }
+    if (hi >= 1.0) return 1.0;  // exactly: a = 0 (kernel_update resets the weights)
     if (last != hi) kernel_weights(R, at(hi));
     return at(hi);
   }
@@ -300,15 +301,23 @@ struct ParticleFilter::Impl {
       U.col(i) = y - ybar;
     }
     const double hu = adaptive_bandwidth(R);
-    const double h2 = hu * hu, a = std::sqrt(std::max(0.0, 1.0 - h2));
+    // h_u = 1: a = 0, every kernel has the one centre m + Kȳ, so the mixture
+    // is one Gaussian whatever the weights: the particles are redrawn from it
+    // with uniform weights (exact), and the Monte Carlo error of m (P/ESS of
+    // the prior lineages) goes into the redraw, as at a resampling.
+    const bool ensemble = hu >= 1.0;
+    const double n_prior = lineage_ess();
+    const double h2 = hu * hu, a = ensemble ? 0.0 : std::sqrt(std::max(0.0, 1.0 - h2));
     const Eigen::LLT<Eigen::MatrixXd> llt(h2 * Cyy + R);
     // The gain of x on h(x) is h²C_xh S_h⁻¹, and C_xh = −C_xy (y = z ⊖ h(x)).
     const Eigen::MatrixXd K = llt.solve((-h2 * Cxy).transpose()).transpose();
-    // The kernel conditioned on z, plus what the sampled gain takes beyond
-    // the Gaussian update (regularise.hpp, gain_sampling_excess; n: the
-    // prior weights' lineage ESS).
-    const Eigen::Matrix4d Pk = conditioned_kernel(Sigma, Cxy, Cyy, R, hu) +
-                               2.0 * gain_sampling_excess(Sigma, Cxy, Cyy, R, hu, lineage_ess());
+    // The kernel conditioned on z, plus twice what the sampled gain takes
+    // beyond the Gaussian update (regularise.hpp, gain_sampling_excess, with
+    // n the prior lineage ESS): once for the spread it takes, once for the
+    // error it adds to the mean.
+    const double g = ensemble ? monte_carlo_gain(n_prior) : 1.0;
+    const Eigen::Matrix4d Pk = g * conditioned_kernel(Sigma, Cxy, Cyy, R, hu) +
+                               2.0 * gain_sampling_excess(Sigma, Cxy, Cyy, R, hu, n_prior);
     double* c[4] = {col(kX), col(kY), col(kV), col(kTheta)};
     double mx = -std::numeric_limits<double>::infinity();
     for (int i = 0; i < N; ++i) {
@@ -318,7 +327,12 @@ struct ParticleFilter::Impl {
       d = a * d + K * (ybar + a * U.col(i));  // the updated kernel's centre
       for (int k = 0; k < 4; ++k) c[k][i] = m0[k] + d[k];
     }
-    normalise(mx);
+    if (ensemble) {
+      reset_weights();
+      for (int i = 0; i < N; ++i) ancestor[i] = i;  // independent draws from here
+    } else {
+      normalise(mx);
+    }
     Eigen::Matrix4d L;
     if (ess < resample_threshold * N) {
       // The variance that resampling turns into Monte Carlo error of the
