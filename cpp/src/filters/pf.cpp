@@ -55,6 +55,7 @@ struct ParticleFilter::Impl {
   Eigen::VectorXd ybar;               // weighted mean residual
   Eigen::MatrixXd Yraw;               // residuals of a general model (before whitening)
   Eigen::MatrixXd U;                  // y_i − ȳ of a kernel update
+  Eigen::Matrix<double, Eigen::Dynamic, 4> Dev;  // weighted-centred deviations (deviations())
   mutable Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> es;
 
   Impl(const BmmParams& p, std::uint64_t seed, double thr, int n, double bandwidth_scale)
@@ -383,6 +384,43 @@ struct ParticleFilter::Impl {
     }
   }
 
+  /// The particles' weighted-centred deviations (θ wrapped), N × 4, into Dev.
+  void deviations() {
+    const State m = mean();
+    Dev.resize(N, 4);
+    for (int k = 0; k < 4; ++k) Dev.col(k) = Eigen::Map<const Eigen::ArrayXd>(col(k), N) - m[k];
+    for (int i = 0; i < N; ++i) Dev(i, kTheta) = wrap_angle(Dev(i, kTheta));
+  }
+
+  /// The ensemble Kalman update with perturbed observations [Burgers, van
+  /// Leeuwen & Evensen 1998] for a linear model that does not see the
+  /// position (the IMU's (v, θ)): x_i ← x_i + K(y_i + η_i), K = C_xh S⁻¹,
+  /// S = C_yy + R, η_i drawn from N(0, R) and moment-matched (match_draws):
+  /// the weighted mean moves by Kȳ and the weighted covariance becomes
+  /// exactly Σ − C_xh S⁻¹ C_hx, the Gaussian update of the cloud's own
+  /// moments; the weights stay, nothing is resampled, and the cloud keeps
+  /// its shape.  Needs likelihood() with `cross` (ȳ, C_yy, C_xy, Yraw).
+  void ensemble_update(const Eigen::MatrixXd& R) {
+    const int m = static_cast<int>(R.rows());
+    const Eigen::MatrixXd K = (-Cxy) * (Cyy + R).llt().solve(Eigen::MatrixXd::Identity(m, m));
+    deviations();
+    Eigen::MatrixXd eta(N, m);
+    rng.fill_normal(eta.data(), static_cast<long>(N) * m);
+    const Eigen::Map<const Eigen::VectorXd> wv(w(), N);
+    if (!match_draws(eta, Dev, wv)) eta.rowwise() -= (wv.transpose() * eta).eval();
+    const Eigen::MatrixXd Lr = R.llt().matrixL();
+    const Eigen::MatrixXd dx = (Yraw + Lr * eta.transpose()).transpose() * K.transpose();  // N × 4
+    const double vmin = bmm.params().min_speed(), vmax = bmm.params().max_speed;
+    for (int i = 0; i < N; ++i) {
+      col(kX)[i] += dx(i, 0);
+      col(kY)[i] += dx(i, 1);
+      col(kV)[i] = std::clamp(col(kV)[i] + dx(i, 2), vmin, vmax);
+      col(kTheta)[i] = wrap_angle(col(kTheta)[i] + dx(i, 3));
+      col(kCos)[i] = std::cos(col(kTheta)[i]);
+      col(kSin)[i] = std::sin(col(kTheta)[i]);
+    }
+  }
+
   /// Noisy BMM for every particle (eqs. 6–9, the body of Bmm::transition).
   /// θ moves by a small δ_i per step, so cos/sin of the new heading come from
   /// rotating the cached (cos θ, sin θ) by δ_i (particles_step); turns larger
@@ -391,6 +429,13 @@ struct ParticleFilter::Impl {
     const auto& p = bmm.params();
     const double k = p.terrain_factor() * p.dt;
     rng.fill_normal(noise.col(0), 4L * noise.stride());  // all four columns (and their padding)
+    if (h > 0.0 && ess > 16.0) {  // regularised: moment-matched process noise (match_draws)
+      deviations();
+      Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, 4>, 0, Eigen::OuterStride<>> E(
+          noise.col(0), N, 4, Eigen::OuterStride<>(noise.stride()));
+      Eigen::Matrix<double, Eigen::Dynamic, 4> e = E;
+      if (match_draws(e, Dev, Eigen::Map<const Eigen::VectorXd>(w(), N))) E = e;
+    }
     double* x = col(kX);
     double* y = col(kY);
     double* v = col(kV);
@@ -591,6 +636,10 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
     const double e = std::exp(logw[i] + gain[i] - mx);
     s1 += e;
     s2 += e * e;
+  }
+  if (regularised && model.kind() == MeasurementKind::SpeedHeading && I.ess > 16.0) {
+    I.ensemble_update(R);  // the IMU does not see the position: no reweighting (see the class comment)
+    return res;
   }
   if (!regularised || s1 * s1 >= I.resample_threshold * N * s2) {
     for (int i = 0; i < N; ++i) logw[i] += gain[i];
