@@ -98,8 +98,8 @@ MatN gain_sampling_excess(const MatN& Sigma, const MatNM& Cxh, const MatM& Chh, 
 
 /// Moment-matched draws: the columns of E (N × k, one row per particle) are
 /// made to have weighted mean 0, weighted covariance I_k and no weighted
-/// covariance with the columns of D (N × q, the particles' weighted-centred
-/// deviations), exactly: E ← E − 1ε̄ᵀ, then minus its weighted regression on
+/// covariance with the columns of D (N × q, the particles' deviations from
+/// their mean), exactly: E ← E − 1ε̄ᵀ, then minus its weighted regression on
 /// D, then whitened.  Sampled noise then adds exactly its covariance to the
 /// cloud and no spurious correlation with the state (with N draws the
 /// sample cross-covariance of a state component with a noise column is
@@ -109,10 +109,12 @@ MatN gain_sampling_excess(const MatN& Sigma, const MatNM& Cxh, const MatM& Chh, 
 template <class MatE, class MatD>
 bool match_draws(MatE& E, const MatD& D, const Eigen::Ref<const Eigen::VectorXd>& w) {
   E.rowwise() -= (w.transpose() * E).eval();
-  const Eigen::MatrixXd G = D.transpose() * w.asDiagonal() * D;
+  Eigen::MatrixXd Dc = D;  // centred exactly (a circular mean leaves θ's deviations off by O(σ³))
+  Dc.rowwise() -= (w.transpose() * Dc).eval();
+  const Eigen::MatrixXd G = Dc.transpose() * w.asDiagonal() * Dc;
   const Eigen::LDLT<Eigen::MatrixXd> gd(G);
   if (gd.info() == Eigen::Success && (gd.vectorD().array() > 0.0).all())
-    E -= D * gd.solve(Eigen::MatrixXd(D.transpose() * w.asDiagonal() * E));
+    E -= Dc * gd.solve(Eigen::MatrixXd(Dc.transpose() * w.asDiagonal() * E));
   const Eigen::MatrixXd C = E.transpose() * w.asDiagonal() * E;
   const Eigen::LLT<Eigen::MatrixXd> lc(C);
   if (lc.info() != Eigen::Success) return false;
