@@ -1,4 +1,4 @@
-// Private: the kernel arithmetic shared by ParticleFilter (pf.cpp, the kernel
+// Private: the kernel arithmetic shared by ParticleFilter (pf_impl.hpp, the kernel
 // update of the adaptive Gaussian mixture filter) and AugmentedParticleFilter
 // (augmented_pf.cpp, regularisation after resampling).  The methods and their
 // references are documented at those classes; the pieces here:
