@@ -147,6 +147,23 @@ class Ekf {
 ///             weight of the descendants of one particle of the last
 ///             resampling: copies move together), g·P̂ is put back into the
 ///             redraw at each resampling and into the report
+///  gain error: P_k += 2E, E = Σ_x|h·tr(A C_yy)/n, the covariance that a
+///             gain made of sampled moments takes beyond the Gaussian update
+///             (regularise.hpp, gain_sampling_excess; n the prior lineage
+///             ESS): once for the spread it takes, once for the error it
+///             adds to the mean.  At h_u = 1 (a = 0) every kernel has the one
+///             centre m + Kȳ: the particles are redrawn from g·P_k + 2E with
+///             uniform weights (the mixture is one Gaussian; exact)
+///  IMU:       an update that does not see the position (SpeedHeading) is
+///             the ensemble Kalman update with perturbed observations
+///             [Burgers, van Leeuwen & Evensen 1998, Mon. Wea. Rev. 126]:
+///             x_i ← x_i + K(y_i + η_i), K = C_xh S⁻¹, S = C_yy + R, η_i ~
+///             N(0, R) moment-matched (weighted mean 0, covariance R, no
+///             covariance with the state): the weights stay and the
+///             weighted covariance becomes Σ − K S Kᵀ exactly
+///  predict:   the process noise draws are moment-matched the same way
+///             (covariance I, none with the state), so that no sampled
+///             correlation of position with (v, θ) reaches the next IMU gain
 ///  report:    P = gP̂ + (h²C_u − gP̂)₊ (⪰ gP̂ and ⪰ h²C_u), C_u the
 ///             particles' unweighted covariance
 ///
@@ -164,7 +181,13 @@ class Ekf {
 /// shrank while the error grew (NEES 12–24 in the loop at 500 particles,
 /// from runs that waited hundreds of steps for a fix).  The adaptive h
 /// moves the cloud instead of reweighting it, the moment-matched redraw
-/// moves no mean, and g puts back what resampling still loses.
+/// moves no mean, and g puts back what resampling still loses.  What was
+/// left (NEES 6–7.5 on the long gaps at 500 particles; position variance
+/// 0.75 of the EKF's after 200 IMU-only steps) was the sampled gain: the
+/// cloud's chance correlations of position with (v, θ), ~σ/√N from the
+/// process noise and the weights, made each IMU update take position
+/// variance and move the mean at random.  The IMU's ensemble update, the
+/// moment-matched process noise and E remove or put back that part.
 /// Where this departs from the references: Musso et al. regularise after
 /// resampling only, with kernel h²·(weighted posterior covariance), which
 /// is ~0 when the weights are degenerate; the kernel update is used only
@@ -174,8 +197,9 @@ class Ekf {
 /// kernel centres are shrunk (Liu & West) so that the mixture does not
 /// inflate the covariance by (1 + h²) per update; the reported covariance
 /// is floored by the unweighted cloud's kernel covariance, which the
-/// particles cannot resolve below.  The lineage ESS and the moment
-/// matching are ours.
+/// particles cannot resolve below.  The lineage ESS, the moment
+/// matching, the factor 2 on E and the uniform weights after an h_u = 1
+/// update are ours.
 ///
 /// A run is fixed by its seed: the same numbers on every x86-64 CPU, with or
 /// without AVX2 (its hot loops have an AVX2 copy chosen at run time that

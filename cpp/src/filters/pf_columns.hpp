@@ -1,4 +1,4 @@
-// Private: the particle filter's column storage (used by pf.cpp only).
+// Private: the particle filter's column storage (used by pf_impl.hpp only).
 #pragma once
 
 #include <algorithm>

@@ -1,4 +1,4 @@
-// Private: the particle filter's per-particle kernels (used by pf.cpp only).
+// Private: the particle filter's per-particle kernels (used by pf_impl.hpp only).
 //
 // Layout: structure of arrays, one contiguous column per component (x, y, v,
 // θ, and cos θ, sin θ kept in step with θ), log-weights and weights in their

@@ -1,4 +1,4 @@
-// Private: the kernel arithmetic shared by ParticleFilter (pf.cpp, the kernel
+// Private: the kernel arithmetic shared by ParticleFilter (pf_impl.hpp, the kernel
 // update of the adaptive Gaussian mixture filter) and AugmentedParticleFilter
 // (augmented_pf.cpp, regularisation after resampling).  The methods and their
 // references are documented at those classes; the pieces here:
@@ -10,6 +10,10 @@
 //               covariances of the particles), as the ensemble Kalman filter
 //               and the adaptive Gaussian mixture filter of Stordal et al.
 //               2011 update a member / a kernel
+//  excess       E = Σ_x|h·tr(A C_hh)/n: what a sampled gain takes beyond
+//               the Gaussian update (gain_sampling_excess)
+//  matching     draws with weighted mean 0, covariance I and no covariance
+//               with the state (match_draws)
 //  factor       L Lᵀ = P₊ for the kernel draws
 //  floor        P_reported = P̂ + (h² C_u − P̂)₊ ⪰ P̂ and ⪰ h² C_u, with P̂ the
 //               weighted and C_u the unweighted covariance of the particles
@@ -57,6 +61,65 @@ MatN conditioned_kernel(const MatN& Sigma, const MatNM& Cxy, const MatM& Cyy, co
   MatN P = h2 * Sigma;
   P.noalias() -= (h2 * h2) * G * Cxy.transpose();
   return 0.5 * (P + P.transpose());
+}
+
+/// The covariance that an update by a sampled gain takes beyond the Gaussian
+/// update [Furrer & Bengtsson 2007; Sacher & Bartello 2008]: a gain made of
+/// the cloud's own moments, C_xh = Cov_w(x, h(x)) and C_hh = Cov_w(h(x)),
+/// regresses x on h(x) with B̂ = C_xh C_hh⁻¹, whose sampling error has
+/// covariance Σ_x|h ⊗ C_hh⁻¹ / n (multivariate regression; n the effective
+/// sample size, Σ_x|h = Σ − C_xh C_hh⁻¹ C_hx the part of x that h(x) does
+/// not explain).  An update that removes B̂ Δ B̂ᵀ, Δ = C_hh A C_hh, removes in
+/// expectation B Δ Bᵀ + Σ_x|h·tr(C_hh⁻¹ Δ)/n: the second term is the excess,
+///   E = Σ_x|h · tr(A C_hh) / n,
+/// which a component that the measurement does not see (position under an
+/// IMU update of (v, θ)) loses at every update while the cloud stays the
+/// same size.  A is the update's gain weight: for the kernel update of
+/// ParticleFilter at bandwidth h, S = h² C_hh + R,
+///   A = (2h² − h⁴) S⁻¹ − (1 − h²) h⁴ S⁻¹ C_hh S⁻¹
+/// (the shrunk centres a(I − KH) plus the kernel h²Σ − K S Kᵀ; A = S⁻¹ at
+/// h = 1, the ensemble Kalman update).  Returns 0 when C_hh is singular or
+/// n ≤ 1.
+template <class MatN, class MatNM, class MatM>
+MatN gain_sampling_excess(const MatN& Sigma, const MatNM& Cxh, const MatM& Chh, const MatM& R, double h, double n) {
+  MatN E = MatN::Zero(Sigma.rows(), Sigma.cols());
+  if (!(n > 1.0)) return E;
+  const Eigen::LDLT<MatM> ch(Chh);
+  if (ch.info() != Eigen::Success || !(ch.vectorD().array() > 0.0).all()) return E;
+  const double h2 = h * h;
+  const Eigen::LDLT<MatM> ls(h2 * Chh + R);
+  const MatM SiC = ls.solve(Chh);  // S⁻¹ C_hh
+  const double tr = (2.0 * h2 - h2 * h2) * SiC.trace() - (1.0 - h2) * h2 * h2 * (SiC * SiC).trace();
+  if (!(tr > 0.0)) return E;
+  MatN cond = Sigma - Cxh * ch.solve(Cxh.transpose());
+  cond = 0.5 * (cond + cond.transpose()).eval();
+  return (tr / n) * cond;
+}
+
+/// Moment-matched draws: the columns of E (N × k, one row per particle) are
+/// made to have weighted mean 0, weighted covariance I_k and no weighted
+/// covariance with the columns of D (N × q, the particles' deviations from
+/// their mean), exactly: E ← E − 1ε̄ᵀ, then minus its weighted regression on
+/// D, then whitened.  Sampled noise then adds exactly its covariance to the
+/// cloud and no spurious correlation with the state (with N draws the
+/// sample cross-covariance of a state component with a noise column is
+/// ~σ/√N, which a later update on that noise's component would read as
+/// information about the state).  Returns false (E centred only) when the
+/// weighted covariance of the residual draws is not positive definite.
+template <class MatE, class MatD>
+bool match_draws(MatE& E, const MatD& D, const Eigen::Ref<const Eigen::VectorXd>& w) {
+  E.rowwise() -= (w.transpose() * E).eval();
+  Eigen::MatrixXd Dc = D;  // centred exactly (a circular mean leaves θ's deviations off by O(σ³))
+  Dc.rowwise() -= (w.transpose() * Dc).eval();
+  const Eigen::MatrixXd G = Dc.transpose() * w.asDiagonal() * Dc;
+  const Eigen::LDLT<Eigen::MatrixXd> gd(G);
+  if (gd.info() == Eigen::Success && (gd.vectorD().array() > 0.0).all())
+    E -= Dc * gd.solve(Eigen::MatrixXd(Dc.transpose() * w.asDiagonal() * E));
+  const Eigen::MatrixXd C = E.transpose() * w.asDiagonal() * E;
+  const Eigen::LLT<Eigen::MatrixXd> lc(C);
+  if (lc.info() != Eigen::Success) return false;
+  E = lc.matrixU().template solve<Eigen::OnTheRight>(E).eval();  // E U⁻¹: weighted covariance Uᵀ⁻¹ C U⁻¹ = I
+  return true;
 }
 
 /// L with L Lᵀ = A₊ (A symmetric; its negative eigenvalues, from rounding,
