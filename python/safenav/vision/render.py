@@ -239,6 +239,7 @@ class StereoRenderer:
         self._seed = seed
         self._noise_tile = None
         self._rig_ready = False   # the whole-frame maps (_prepare_rig) are made on the first render()
+        self._region_noise = None  # the region noise tile (_draw_box), made on first use
 
     # ---- rig-dependent precomputation
     def _prepare_rig(self):
@@ -477,7 +478,7 @@ class StereoRenderer:
         if self.noise_std > 0:
             n = self.REGION_NOISE_TILE
             if tiled_noise and img.shape[0] <= n and img.shape[1] <= n:
-                if getattr(self, "_region_noise", None) is None:
+                if self._region_noise is None:
                     t = np.random.default_rng([self._seed, 11]).standard_normal((n, n), dtype=np.float32)
                     self._region_noise = np.tile(t * np.float32(self.noise_std), (2, 2))
                 r0, c0 = rng.integers(0, n, 2)
