@@ -71,37 +71,67 @@ def reference_covariances(prof, bmm, se, P0, bearing_std=0.0, checker=None):
     kf.x = np.zeros((4, 1))
     kf.P = P0.copy()
     out = [kf.P.copy()]
+    for k in range(1, len(prof.time)):
+        _reference_stage(kf, prof, k, prof.positions[k], bmm, se, bearing_std, checker)
+        out.append(kf.P.copy())
+    return np.array(out)
+
+
+def reference_mixture(prof, bmm, se, P0, bearing_std=0.0, checker=None):
+    """BeliefSettings.deviation_mixture by its specification: 9 FilterPy filters, one per 3x3
+    Gauss-Hermite node z of N(0, I) (nodes -sqrt(3), 0, sqrt(3), weights 1/6, 2/3, 1/6), each seeing
+    from the nominal pose deviated by (lateral, dtheta) = L z across the leg (to its left) and in
+    heading, L the Cholesky factor of its own covariance of those two at the stage's start; the
+    mixture sum_i w_i P_i per stage."""
+    nodes, weights = np.array([-np.sqrt(3.0), 0.0, np.sqrt(3.0)]), np.array([1, 4, 1]) / 6.0
+    kfs = []
+    for _ in range(9):
+        kf = kalman.KalmanFilter(dim_x=4, dim_z=1)
+        kf.x, kf.P = np.zeros((4, 1)), P0.copy()
+        kfs.append(kf)
+    w = np.outer(weights, weights).ravel()
+    out = [P0.copy()]
+    for k in range(1, len(prof.time)):
+        for i, kf in enumerate(kfs):
+            h = prof.headings[k]
+            J = np.array([[-np.sin(h), np.cos(h), 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]])  # lateral, heading
+            lat, dth = np.linalg.cholesky(J @ kf.P @ J.T) @ np.array([nodes[i // 3], nodes[i % 3]])
+            _reference_stage(kf, prof, k, prof.positions[k] + lat * J[0, :2], bmm, se, bearing_std, checker,
+                             dtheta=dth)
+        out.append(sum(wi * kf.P for wi, kf in zip(w, kfs)))
+    return np.array(out)
+
+
+def _reference_stage(kf, prof, k, p, bmm, se, bearing_std, checker, dtheta=0.0):
+    """Stage k of the recursion: predict along the nominal, then the ML updates of what is in view
+    from p, with the camera turned by dtheta from the leg's heading."""
     sig2 = np.array([bmm.position_noise, bmm.position_noise, bmm.speed_noise, bmm.heading_noise]) ** 2
     R_fix = se.position.reported_cov()
     lms = np.asarray(se.landmarks)
-    for k in range(1, len(prof.time)):
-        dt = prof.time[k] - prof.time[k - 1]
-        n = dt / bmm.dt
-        theta = prof.headings[k]
-        F, G = np_jacobians(SPEED, theta, dt)
-        kf.F, kf.Q = F, G @ np.diag(sig2 * n) @ G.T
-        kf.predict()
-        p = prof.positions[k]
-        seen = [i for i in range(len(lms)) if _visible(se, lms[i], p, theta, checker)]
-        ranges = se.fix_model == _core.FixModel.RANGES
-        if not ranges and len(seen) >= se.min_landmarks:
-            kf.update(np.zeros((2, 1)), R=R_fix / n, H=np.c_[np.eye(2), np.zeros((2, 2))])
-        for i in seen:
-            d = lms[i] - p
-            q = d @ d
-            if q < 1e-18:  # a landmark at the vehicle: no Jacobian, no update (measurement.hpp)
-                continue
-            if ranges and len(seen) >= max(3, se.min_landmarks):
-                kf.update(np.zeros((1, 1)), R=np.array([[se.range_std ** 2 / n]]),
-                          H=np.array([[-d[0] / np.sqrt(q), -d[1] / np.sqrt(q), 0.0, 0.0]]))
-            if bearing_std > 0:
-                kf.update(np.zeros((1, 1)), R=np.array([[bearing_std ** 2 / n]]),
-                          H=np.array([[d[1] / q, -d[0] / q, 0.0, -1.0]]))
-        if se.imu:
-            kf.update(np.zeros((2, 1)), R=np.diag([se.imu_speed_std ** 2, se.imu_heading_std ** 2]) / n,
-                      H=np.array([[0.0, 0, 1, 0], [0, 0, 0, 1]]))
-        out.append(kf.P.copy())
-    return np.array(out)
+    dt = prof.time[k] - prof.time[k - 1]
+    n = dt / bmm.dt
+    theta = prof.headings[k]
+    F, G = np_jacobians(SPEED, theta, dt)
+    kf.F, kf.Q = F, G @ np.diag(sig2 * n) @ G.T
+    kf.predict()
+    seen = [i for i in range(len(lms)) if _visible(se, lms[i], p, theta + dtheta, checker)]
+    ranges = se.fix_model == _core.FixModel.RANGES
+    if not ranges and len(seen) >= se.min_landmarks:
+        kf.update(np.zeros((2, 1)), R=R_fix / n, H=np.c_[np.eye(2), np.zeros((2, 2))])
+    for i in seen:
+        d = lms[i] - p
+        q = d @ d
+        if q < 1e-18:  # a landmark at the vehicle: no Jacobian, no update (measurement.hpp)
+            continue
+        if ranges and len(seen) >= max(3, se.min_landmarks):
+            kf.update(np.zeros((1, 1)), R=np.array([[se.range_std ** 2 / n]]),
+                      H=np.array([[-d[0] / np.sqrt(q), -d[1] / np.sqrt(q), 0.0, 0.0]]))
+        if bearing_std > 0:
+            kf.update(np.zeros((1, 1)), R=np.array([[bearing_std ** 2 / n]]),
+                      H=np.array([[d[1] / q, -d[0] / q, 0.0, -1.0]]))
+    if se.imu:
+        kf.update(np.zeros((2, 1)), R=np.diag([se.imu_speed_std ** 2, se.imu_heading_std ** 2]) / n,
+                  H=np.array([[0.0, 0, 1, 0], [0, 0, 0, 1]]))
 
 
 def _visible(se, landmark, p, theta, checker):
@@ -126,7 +156,8 @@ def test_covariance_equals_filterpy_ekf_recursion(ranges, bearing_std):
     bmm = _core.BmmParams()
     m = open_map(upper=(100, 100))
     P0 = np.diag([0.01, 0.02, 0.003, 0.001])
-    prof = P.propagate_belief(path, sensors=se, map=m, bmm=bmm, start_cov=P0, speed=SPEED, bearing_std=bearing_std)
+    prof = P.propagate_belief(path, sensors=se, map=m, bmm=bmm, start_cov=P0, speed=SPEED, bearing_std=bearing_std,
+                              deviation_mixture=False)
     assert np.allclose(np.diff(prof.time), bmm.dt)
     ref = reference_covariances(prof, bmm, se, P0, bearing_std, _core.ObstacleChecker(m))
     np.testing.assert_allclose(profile_cov(prof), ref, rtol=1e-9, atol=1e-15)
@@ -134,6 +165,45 @@ def test_covariance_equals_filterpy_ekf_recursion(ranges, bearing_std):
     lam = np.linalg.eigvalsh(ref[:, :2, :2])[:, 1]
     np.testing.assert_allclose(prof.sigma, np.sqrt(lam), rtol=1e-9)
     np.testing.assert_array_equal(np.asarray(prof.cov_xy).reshape(-1, 2, 2), profile_cov(prof)[:, :2, :2])
+
+
+@pytest.mark.parametrize("ranges, bearing_std", [(False, 0.0), (True, 0.0), (False, 0.05)])
+def test_deviation_mixture_equals_nine_filterpy_filters(ranges, bearing_std):
+    # A blind stretch (σ grows to about 0.5 m), then landmarks come into view one by one.
+    path = np.array([[0.0, 0.0], [40.0, 0.0], [40.0, 12.0]])
+    lms = [[44.0, 4.0], [46.0, -3.0], [48.0, 6.0], [52.0, 0.5]]
+    se = sensors(lms, ranges=ranges, max_range=12.0, fov=np.deg2rad(90))
+    bmm = _core.BmmParams()
+    m = open_map(upper=(100, 100))
+    P0 = np.diag([0.2, 0.1, 0.003, 0.001])
+    kw = dict(sensors=se, map=m, bmm=bmm, start_cov=P0, speed=SPEED, bearing_std=bearing_std)
+    prof = P.propagate_belief(path, **kw)
+    nominal = P.propagate_belief(path, **kw, deviation_mixture=False)
+    ref = reference_mixture(prof, bmm, se, P0, bearing_std, _core.ObstacleChecker(m))
+    np.testing.assert_allclose(profile_cov(prof), ref, rtol=1e-9, atol=1e-15)
+    # It differs from the nominal recursion where landmarks come into view: there the nominal
+    # drops at once, the mixture over the stages where part of its components see.
+    tr = lambda p: profile_cov(p)[:, 0, 0] + profile_cov(p)[:, 1, 1]  # noqa: E731
+    ratio = tr(prof) / tr(nominal)
+    assert ratio.max() > 1.05
+    np.testing.assert_allclose(ratio[:50], 1.0, rtol=1e-12)  # blind: every component steps alike
+    # Patil's error dynamics stay valid: Cov w_k = P_k+1 − A_k P_k A_kᵀ ⪰ 0.
+    A = np.asarray(prof.transition).reshape(-1, 4, 4)
+    Pk = profile_cov(prof)
+    for k in range(len(Pk) - 1):
+        W = Pk[k + 1] - A[k] @ Pk[k] @ A[k].T
+        assert np.linalg.eigvalsh(0.5 * (W + W.T)).min() > -1e-12
+
+
+def test_deviation_mixture_is_the_recursion_when_every_component_sees_alike():
+    # An all-round camera of long range: every component sees every landmark; with the fix
+    # model's constant H every component steps alike, and the mixture is the single recursion.
+    path = np.array([[0.0, 0.0], [20.0, 0.0], [20.0, 15.0]])
+    se = sensors([[10.0, 5.0], [12.0, -4.0], [8.0, 3.0]], max_range=1e4, occlusion=False)
+    kw = dict(sensors=se, map=open_map(upper=(100, 100)), start_cov=np.diag([0.3, 0.1, 0.003, 0.001]),
+              speed=SPEED)
+    np.testing.assert_allclose(profile_cov(P.propagate_belief(path, **kw)),
+                               profile_cov(P.propagate_belief(path, **kw, deviation_mixture=False)), rtol=1e-13)
 
 
 @settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -150,7 +220,8 @@ def test_covariance_recursion_property(lx, ly, turn, steps, s0, ranges):
     bmm = _core.BmmParams()
     m = open_map(upper=(100, 100))
     P0 = np.diag([s0, 2 * s0, 0.01, 0.001])
-    prof = P.propagate_belief(np.array([a, b, c]), sensors=se, map=m, bmm=bmm, start_cov=P0, speed=SPEED)
+    prof = P.propagate_belief(np.array([a, b, c]), sensors=se, map=m, bmm=bmm, start_cov=P0, speed=SPEED,
+                              deviation_mixture=False)
     ref = reference_covariances(prof, bmm, se, P0, 0.0, _core.ObstacleChecker(m))
     np.testing.assert_allclose(profile_cov(prof), ref, rtol=1e-7, atol=1e-14)
 
@@ -163,7 +234,8 @@ def test_sigma_grows_blind_and_shrinks_when_landmarks_come_into_view():
     bmm = _core.BmmParams()
     bmm.position_noise = 0.03
     prof = P.propagate_belief([[0.0, 0.0], [38.0, 0.0]], sensors=se, map=open_map(upper=(100, 100)),
-                              bmm=bmm, start_cov=np.diag([1e-4, 1e-4, 1e-3, 1e-4]), speed=SPEED)
+                              bmm=bmm, start_cov=np.diag([1e-4, 1e-4, 1e-3, 1e-4]), speed=SPEED,
+                              deviation_mixture=False)
     seen = np.asarray(prof.landmarks) >= se.min_landmarks
     first = int(np.argmax(seen))
     assert 0 < first < len(seen) - 1 and not seen[:first].any() and seen[first:].all()
@@ -319,7 +391,9 @@ def test_the_expected_belief_sees_with_the_vehicles_camera_and_the_robust_one_na
     assert s.sight_fov_margin == 0.0 and s.sight_range_fraction == 1.0
     b = _core.BeliefPlannerSettings().belief
     assert b.sight_fov_margin == pytest.approx(np.deg2rad(25.0)) and b.sight_range_fraction == 0.9
-    assert robust_sight() == {"sight_fov_margin": b.sight_fov_margin, "sight_range_fraction": 0.9}
+    assert s.deviation_mixture and not b.deviation_mixture
+    assert robust_sight() == {"sight_fov_margin": b.sight_fov_margin, "sight_range_fraction": 0.9,
+                              "deviation_mixture": False}
     with pytest.raises(ValueError, match="sight_range_fraction"):
         P.propagate_belief(path, sensors=se, map=m, sight_range_fraction=0.0)
 

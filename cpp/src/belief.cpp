@@ -131,6 +131,55 @@ void collision_probability(belief::Model& model, std::vector<belief::Step>& step
   out.union_bound = std::min(1.0, sum);
 }
 
+/// The Cholesky factor L (lower, L Lᵀ = S) of a 2×2 covariance: unique and continuous in S, so a
+/// component's deviation L z moves smoothly from stage to stage (an eigenvector's sign or order
+/// could flip it to another node's side).  S not positive definite: L from its diagonal, clipped at 0.
+Eigen::Matrix2d cholesky_2x2(const Eigen::Matrix2d& S) {
+  const Eigen::LLT<Eigen::Matrix2d> llt(0.5 * (S + S.transpose()));
+  if (llt.info() == Eigen::Success) return llt.matrixL();
+  return S.diagonal().cwiseMax(0.0).cwiseSqrt().asDiagonal();
+}
+
+/// BeliefSettings::deviation_mixture: 9 components, one per 3×3
+/// Gauss–Hermite node z_i of N(0, I₂) (per axis −√3, 0, √3 with weights 1/6,
+/// 2/3, 1/6).  A vehicle at a given arc position along the path deviates from
+/// it across the path and in heading (along the path it is, by definition,
+/// at that arc position): component i's deviation (lateral, Δθ) = L_i z_i,
+/// L_i the Cholesky factor of the covariance of its own error across the leg
+/// (n = the leg's left normal: nᵀ P_xy n) and in heading at the step's start
+/// (a deviation that persists while it is blind, and shrinks once it sees).
+/// It takes the updates of what is in view from there.  P[k] and P⁻ are the
+/// mixture's (Σ w_i P_i); A[k−1] = P[k] (P⁻)⁻¹ F as in the single recursion
+/// (P[k] ⪯ P⁻ holds for each component, so for the mixture, and Cov w_k ⪰ 0).
+void mixture_recursion(const belief::Model& model, const std::vector<belief::Step>& steps, std::vector<StateCov>& P,
+                       std::vector<Eigen::Matrix4d>& A) {
+  constexpr int kNodes = 9;
+  const double node[3] = {-std::sqrt(3.0), 0.0, std::sqrt(3.0)};
+  const double weight[3] = {1.0 / 6.0, 2.0 / 3.0, 1.0 / 6.0};
+  std::vector<StateCov> Pi(kNodes, P[0]);
+  for (std::size_t k = 1; k < steps.size(); ++k) {
+    const double h = steps[k].x[kTheta];
+    const Eigen::Vector4d n(-std::sin(h), std::cos(h), 0.0, 0.0), t(0.0, 0.0, 0.0, 1.0);
+    StateCov mix = StateCov::Zero(), mix_m = StateCov::Zero();
+    Eigen::Matrix4d F;
+    for (int i = 0; i < kNodes; ++i) {
+      const double w = weight[i / 3] * weight[i % 3];
+      Eigen::Matrix2d S;
+      S << n.dot(Pi[i] * n), n.dot(Pi[i] * t), t.dot(Pi[i] * n), t.dot(Pi[i] * t);
+      const Eigen::Vector2d d = cholesky_2x2(S) * Eigen::Vector2d(node[i / 3], node[i % 3]);
+      StateCov Pm;
+      if (d.squaredNorm() > 0.0)
+        model.step(model.offset(steps[k], d.x(), d.y()), Pi[i], &Pm, &F);
+      else
+        model.step(steps[k], Pi[i], &Pm, &F);
+      mix += w * Pi[i];
+      mix_m += w * Pm;
+    }
+    P[k] = 0.5 * (mix + mix.transpose());
+    A[k - 1] = mix_m.ldlt().solve(P[k].transpose()).transpose() * F;
+  }
+}
+
 }  // namespace
 
 BeliefProfile propagate_belief(const Eigen::Ref<const Points2>& path, const BmmParams& bmm,
@@ -159,13 +208,17 @@ BeliefProfile propagate_belief(const Eigen::Ref<const Points2>& path, const BmmP
   std::vector<StateCov> P(n);
   std::vector<Eigen::Matrix4d> A(n, Eigen::Matrix4d::Zero());
   P[0] = P0;
-  for (std::size_t k = 1; k < n; ++k) {
-    StateCov Pm;
-    Eigen::Matrix4d F;
-    P[k] = P[k - 1];
-    model.step(steps[k], P[k], &Pm, &F);
-    // A = (I − K H) F: the product of the update factors is P (P⁻)⁻¹.
-    A[k - 1] = Pm.ldlt().solve(P[k].transpose()).transpose() * F;
+  if (settings.deviation_mixture) {
+    mixture_recursion(model, steps, P, A);
+  } else {
+    for (std::size_t k = 1; k < n; ++k) {
+      StateCov Pm;
+      Eigen::Matrix4d F;
+      P[k] = P[k - 1];
+      model.step(steps[k], P[k], &Pm, &F);
+      // A = (I − K H) F: the product of the update factors is P (P⁻)⁻¹.
+      A[k - 1] = Pm.ldlt().solve(P[k].transpose()).transpose() * F;
+    }
   }
   BeliefProfile out;
   const Eigen::Index N = static_cast<Eigen::Index>(n);
@@ -260,6 +313,8 @@ const ParamSet<BeliefSettings>& param_set<BeliefSettings>() {
                 "the belief sees landmarks only inside the field of view less this (at least 10 deg)")
           .real("sight_range_fraction", SN_REF(BeliefSettings, sight_range_fraction), "", above(0, 1),
                 "the belief sees landmarks only within this share of the detection range")
+          .flag("deviation_mixture", SN_REF(BeliefSettings, deviation_mixture),
+                "the expected belief over the vehicle's deviation from the path (9 Gauss-Hermite components)")
           .nested("inflation.", param_set<Inflation>(), SN_REF(BeliefSettings, inflation))
           .set;
   return s;

@@ -80,6 +80,7 @@ Model::Model(const BmmParams& bmm, const SensorSettings& sensors, const Planning
 void Model::observe(Step& s) const {
   State at = s.x;
   at.head<2>() = s.end;
+  at[kTheta] += s.view_dtheta;
   s.in_view = sensors_.landmarks_in_view(at, &checker_);
   const bool ranges = sensors_.fix_model == FixModel::Ranges;
   s.fix = !ranges && (!sensors_.position.needs_landmarks || s.in_view >= sensors_.min_landmarks);
@@ -94,6 +95,14 @@ void Model::observe(Step& s) const {
     one.landmarks.row(0) = sensors_.landmarks.row(i);
     if (one.landmarks_in_view(at, &checker_) == 1) s.seen.push_back(static_cast<int>(i));
   }
+}
+
+Step Model::offset(const Step& s, double lateral, double dtheta) const {
+  Step m = s;
+  m.end += lateral * Eigen::Vector2d(-std::sin(s.x[kTheta]), std::cos(s.x[kTheta]));
+  m.view_dtheta = dtheta;
+  observe(m);
+  return m;
 }
 
 void Model::leg(const Eigen::Vector2d& a, const Eigen::Vector2d& b, std::vector<Step>& out) const {

@@ -23,6 +23,7 @@ struct Step {
   Eigen::Vector2d end = Eigen::Vector2d::Zero();
   double dt = 0.0;
   double length = 0.0;     ///< metres covered
+  double view_dtheta = 0.0;  ///< the camera's heading less the leg's (Model::offset)
   std::vector<int> seen;   ///< landmark rows in view (ranges or bearings measured)
   int in_view = 0;         ///< landmarks in view
   bool fix = false;        ///< a LanBLoc fix (FixModel::Profile) is expected
@@ -43,6 +44,11 @@ class Model {
   /// P ← one belief step (predict, then the expected updates).  Pm and F,
   /// when given, receive P⁻ and the step's F.
   void step(const Step& s, StateCov& P, StateCov* Pm = nullptr, Eigen::Matrix4d* F = nullptr) const;
+  /// `s` seen by a vehicle `lateral` metres to the left of the leg and
+  /// turned by `dtheta` (BeliefSettings::deviation_mixture): the landmarks in
+  /// view and the measurements from there; the motion (s.x) and the
+  /// clearance stay the nominal ones.
+  Step offset(const Step& s, double lateral, double dtheta) const;
   /// Fills s.toward (central differences of the keep-out distance).
   void direction(Step& s) const;
   /// σ toward s.toward (filled first), or √λ_max where that is undefined.

@@ -52,7 +52,7 @@ __all__ = ["BeliefSettings", "BeliefPlannerSettings", "BeliefProblem", "BeliefPr
 # Keyword names of plan_belief / propagate_belief -> declared parameter names.
 _BELIEF_KEYS = {"speed": "speed", "step": "step", "bearing_std": "bearing_std",
                 "sight_fov_margin": "sight_fov_margin", "sight_range_fraction": "sight_range_fraction",
-                "vehicle_radius": "inflation.vehicle_radius", "margin": "inflation.margin"}
+                "deviation_mixture": "deviation_mixture", "vehicle_radius": "inflation.vehicle_radius", "margin": "inflation.margin"}
 
 
 def _belief_settings(kwargs: dict, settings=None) -> BeliefSettings:
@@ -60,7 +60,7 @@ def _belief_settings(kwargs: dict, settings=None) -> BeliefSettings:
     for key, value in kwargs.items():
         if key not in _BELIEF_KEYS:
             raise TypeError(f"unknown belief setting {key!r} (have: {sorted(_BELIEF_KEYS)})")
-        s.set_param(_BELIEF_KEYS[key], float(value))
+        s.set_param(_BELIEF_KEYS[key], value if isinstance(value, (bool, np.bool_)) else float(value))
     s.validate()
     return s
 
@@ -95,12 +95,13 @@ def robust_sight() -> dict:
     """The robust camera, as keywords of :func:`propagate_belief`: the
     ``sight_fov_margin`` and ``sight_range_fraction`` of the planner's belief
     (``BeliefPlannerSettings().belief``: the field of view less 25°, 90 % of
-    the detection range).  The planner's chance constraint and the mission
+    the detection range, no deviation mixture).  The planner's chance constraint and the mission
     certificate see with it; :func:`propagate_belief`'s default is the
     vehicle's own camera, the expected belief (docs/belief_planning.md,
     "Calibration")."""
     b = BeliefPlannerSettings().belief
-    return {"sight_fov_margin": float(b.sight_fov_margin), "sight_range_fraction": float(b.sight_range_fraction)}
+    return {"sight_fov_margin": float(b.sight_fov_margin), "sight_range_fraction": float(b.sight_range_fraction),
+            "deviation_mixture": bool(b.deviation_mixture)}
 
 
 def propagate_belief(path, *, sensors, map, bmm=None, start_cov=None, settings: BeliefSettings | None = None,
@@ -118,7 +119,9 @@ def propagate_belief(path, *, sensors, map, bmm=None, start_cov=None, settings: 
     ``bearing_std``, ``vehicle_radius``, ``margin``, ``sight_fov_margin``
     and ``sight_range_fraction`` (default 0 and 1: the vehicle's own camera,
     the expected belief; :func:`robust_sight` gives the planner's and the
-    certificate's narrower one)."""
+    certificate's narrower one), ``deviation_mixture`` (default on: the
+    expected belief over the vehicle's deviation from the path, a mixture of
+    9 Gauss–Hermite components; ``BeliefSettings.deviation_mixture``)."""
     p = as_array("path", path, (None, 2))
     bmm = bmm if bmm is not None else _core.BmmParams()
     s = _belief_settings(kwargs, settings)

@@ -70,6 +70,22 @@ struct BeliefSettings {
   /// (25°, 0.9), which safenav.certify's placement_camera also places for.
   double sight_fov_margin = 0.0;     ///< [rad]
   double sight_range_fraction = 1.0;  ///< of SensorSettings::max_range, in (0, 1]
+  /// The expected belief over the vehicle's deviation from the nominal path
+  /// (ours): the vehicle drives its estimate along the path, so at a given
+  /// arc position its true position is off the path, and its heading off the
+  /// leg's, by about its own error, and a landmark comes into view (or leaves
+  /// it) a little earlier or later than from the nominal pose.  With this on,
+  /// the covariance is a mixture of 9 components, one per 3×3 Gauss–Hermite
+  /// node z_i (weights 1/36, 4/36, 16/36): component i sees from the nominal
+  /// pose deviated by L_i z_i across the leg and in heading, L_i the Cholesky
+  /// factor of its own covariance of those two, and steps with what it sees;
+  /// each stage reports the mixture's covariance Σ w_i P_i.  Off, a
+  /// transition is a step at the nominal pose, and the first fix after a
+  /// blind stretch lowers σ before half the vehicles get it
+  /// (docs/belief_planning.md, "Calibration").  On by default (the expected
+  /// belief); the planner's and the certificate's robust camera turn it off:
+  /// it is narrowed for the deviations already.
+  bool deviation_mixture = true;
   Inflation inflation;       ///< vehicle radius (collision) and margin (kept beyond it by the planner)
   void validate() const;     ///< throws std::invalid_argument naming the bad value
 };
@@ -136,6 +152,7 @@ struct BeliefPlannerSettings {
     b.step = 0.25;
     b.sight_fov_margin = 25.0 * kPi / 180.0;
     b.sight_range_fraction = 0.9;
+    b.deviation_mixture = false;
     return b;
   }();
   double k_sigma = 3.0;        ///< k: clearance ≥ k·σ + vehicle_radius + margin at every stage, ≥ 0
