@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 import safenav
+from safenav import _core
 from safenav.vision.detect import FiducialDetector
 from safenav.vision.lanbloc import LanBLoc, scenario_camera
 from safenav.vision.render import StereoRenderer
@@ -47,13 +48,17 @@ def _frames(rig, n: int, seed: int = 0):
         yield pose, world, StereoRenderer(world, rig, noise_std=1.0, seed=k).render(pose)
 
 
-def test_pyramid_finds_the_full_resolution_markers_with_the_same_corners(rig):
+@pytest.mark.parametrize("whole", [False, True], ids=["windows", "whole_frame"])
+def test_pyramid_finds_the_full_resolution_markers_with_the_same_corners(rig, whole):
+    # Windows from a prediction; or no prediction: the whole frame, at the level where a board at
+    # max_range_m (30 m, the scenario camera's) is still detect_side_px wide (level 1 here).
     moved = 0
     fixes = 0
     for pose, world, (left, right) in _frames(rig, 8):
-        full = _front_end(world, rig, detect_side_px=0.0).localize(left, right, np.array(pose), P)
-        pyr = _front_end(world, rig).localize(left, right, np.array(pose), P)
-        assert pyr.search == full.search
+        pred = () if whole else (np.array(pose), P)
+        full = _front_end(world, rig, detect_side_px=0.0, max_range_m=30.0).localize(left, right, *pred)
+        pyr = _front_end(world, rig, max_range_m=30.0).localize(left, right, *pred)
+        assert pyr.search == full.search == (_core.SearchMode.WHOLE_FRAME if whole else _core.SearchMode.WINDOWS)
         assert [o.landmark_id for o in pyr.observations] == [o.landmark_id for o in full.observations]
         assert pyr.ok == full.ok
         for o, q in zip(pyr.observations, full.observations):

@@ -282,9 +282,11 @@ std::vector<Marker> LanBLocFrontEnd::Impl::detect(const ImageView& img, const Se
   const cv::Mat m = as_gray_mat(img, rig.camera, right ? "right" : "left");
   const bool whole = plan.mode == SearchMode::WholeFrame;
   if (!whole && (right ? plan.right_regions : plan.left_regions).empty()) return {};
-  // Each region at its pyramid level (lanbloc_detect.cpp: detection_regions); the whole frame at full resolution.
+  // Each region at its pyramid level (lanbloc_detect.cpp: detection_regions); the whole frame at the
+  // level of the farthest board that gives a range (whole_frame_region).
   return lanbloc_detail::detect_markers(
-      m, whole ? std::vector<lanbloc_detail::Region>{}
+      m, whole ? std::vector<lanbloc_detail::Region>{lanbloc_detail::whole_frame_region(rig, settings,
+                                                                                        dict->markerSize)}
                : lanbloc_detail::detection_regions(rig, settings, landmarks, dict->markerSize, plan, right),
       dict, params, settings.min_perimeter_rate, refine);
 }

@@ -340,13 +340,29 @@ std::vector<Region> detection_regions(const LanBLocRig& rig, const LanBLocSettin
       side = std::min(side, rig.camera.f * board_side / z_far);
     }
     if (!std::isfinite(side)) continue;  // no window of a mapped landmark: full resolution
-    // The coarsest level (at most 6) where that board is still detect_side_px wide and the region
-    // at least 16 px.
-    const double extent = std::min(r.box.x_max - r.box.x_min, r.box.y_max - r.box.y_min);
-    while (r.level < 6 && side / double(2 << r.level) >= settings.detect_side_px) ++r.level;
-    while (r.level > 0 && extent / double(1 << r.level) < 16.0) --r.level;
+    r.level = pyramid_level(side, r.box, settings.detect_side_px);
   }
   return out;
+}
+
+int pyramid_level(double side, const Box& box, double detect_side_px) {
+  // The coarsest level (at most 6) where that board is still detect_side_px wide and the region
+  // at least 16 px.
+  int level = 0;
+  const double extent = std::min(box.x_max - box.x_min, box.y_max - box.y_min);
+  while (level < 6 && side / double(2 << level) >= detect_side_px) ++level;
+  while (level > 0 && extent / double(1 << level) < 16.0) --level;
+  return level;
+}
+
+Region whole_frame_region(const LanBLocRig& rig, const LanBLocSettings& settings, int marker_bits) {
+  Region r{{0.0, 0.0, double(rig.camera.width), double(rig.camera.height)}, 0};
+  if (!(settings.detect_side_px > 0.0) || !settings.subpixel || !std::isfinite(settings.max_range_m)) return r;
+  // The smallest board a range is taken of: at max_range_m (a board beyond gives no range).
+  const double cells = marker_bits + 2.0;
+  const double board_side = settings.marker_size_m * (cells + 2.0) / cells;
+  r.level = pyramid_level(rig.camera.f * board_side / settings.max_range_m, r.box, settings.detect_side_px);
+  return r;
 }
 
 }  // namespace safenav::lanbloc_detail

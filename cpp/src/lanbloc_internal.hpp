@@ -60,6 +60,15 @@ std::vector<Region> detection_regions(const LanBLocRig& rig, const LanBLocSettin
 /// full-resolution pixels.  A region at level L > 0 is averaged down 2^L
 /// times, searched there, and its corners are refined back to full
 /// resolution (refine_from_level).
+/// The pyramid level of a region `box` whose smallest board is `side` px: the coarsest (at most 6)
+/// where that board is still `detect_side_px` wide and the region at least 16 px.
+int pyramid_level(double side, const Box& box, double detect_side_px);
+
+/// The whole frame as one region, at the level where a board at `settings.max_range_m` (the
+/// farthest that gives a range) is still `detect_side_px` wide; level 0 (full resolution) with
+/// detect_side_px = 0, no sub-pixel refinement or an unbounded range.
+Region whole_frame_region(const LanBLocRig& rig, const LanBLocSettings& settings, int marker_bits);
+
 std::vector<Marker> detect_markers(const cv::Mat& image, const std::vector<Region>& regions,
                                    const cv::Ptr<cv::aruco::Dictionary>& dict,
                                    const cv::Ptr<cv::aruco::DetectorParameters>& params,

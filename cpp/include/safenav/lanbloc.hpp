@@ -82,10 +82,12 @@ struct LanBLocSettings {
   /// (which the Python pipeline runs) refines; 0 = the linked ArUco's own
   /// refinement (OpenCV 4.6: always corner_refinement_win_size).
   double relative_corner_refinement_win_size = 0.3;
-  /// Search windows only (ours, as the Python region pipeline's detect_side_px): each merged
-  /// region is searched at the pyramid level (2^L px averaged) where the smallest board predicted
-  /// in it is at least this many pixels on a side (3 px per cell at 24), and the corners found
-  /// there are refined back to full resolution; 0 = detect at full resolution.  At least 16.
+  /// Pyramid detection (ours, as the Python region pipeline's detect_side_px): each merged
+  /// search window is searched at the pyramid level (2^L px averaged) where the smallest board
+  /// predicted in it is at least this many pixels on a side (3 px per cell at 24), the whole
+  /// frame at the level where a board at max_range_m is (full resolution when max_range_m is
+  /// unbounded), and the corners found are refined back to full resolution; 0 = detect at full
+  /// resolution.  At least 16.
   double detect_side_px = 24.0;
   // --- ranging (LandmarkRanging.observe_corners / sighting)
   /// [px] σ_d of the marker centre's disparity from its four corners: the
