@@ -33,27 +33,10 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from test_lanbloc_cpp import RIG, _front_end  # noqa: E402  (the tests' rig → front end adapter)
+from test_lanbloc_cpp import RIG, _front_end, random_frame  # noqa: E402  (the tests' rig → front end adapter)
 
 from safenav.vision.detect import FiducialDetector  # noqa: E402
 from safenav.vision.lanbloc import LanBLoc  # noqa: E402
-from safenav.vision.render import StereoRenderer  # noqa: E402
-from safenav.world import Landmark, World  # noqa: E402
-
-
-def _frame(rng, k, rig=RIG):
-    pose = (rng.uniform(40, 160), rng.uniform(40, 160), rng.uniform(-math.pi, math.pi))
-    th = pose[2]
-    fwd, right = np.array([math.cos(th), math.sin(th)]), np.array([math.sin(th), -math.cos(th)])
-    lms = []
-    for j in range(int(rng.integers(3, 7))):
-        z = rng.uniform(5, 25)
-        lat = z * math.tan(rng.uniform(-0.6, 0.6))
-        lms.append(Landmark(j * 7 + int(rng.integers(0, 7)), (*(np.array(pose[:2]) + z * fwd + lat * right),
-                                                              rng.uniform(1.0, 4.0)), "m", 1))
-    world = World(landmarks=tuple(lms))
-    ren = StereoRenderer(world, rig, noise_std=1.0, seed=k)
-    return pose, world, ren, ren.render(pose)
 
 
 def _q(v) -> str:
@@ -108,7 +91,7 @@ def main(frames: int, scenario_camera: bool) -> None:
     found = {k: 0 for k in ("pyramid", "full_res", "missed", "extra", "fixes_pyramid", "fixes_full_res")}
     P = np.diag([0.3 ** 2, 0.3 ** 2, math.radians(2.0) ** 2])
     for k in range(frames):
-        pose, world, ren, (left, right) = _frame(rng, k, rig)
+        pose, world, ren, (left, right) = random_frame(rng, k, rig)
         t0 = time.perf_counter()
         py = LanBLoc(world, rig, ranging="corners").localize(left, right)
         t1 = time.perf_counter()

@@ -58,6 +58,25 @@ def _front_end(world: World, rig: StereoRig = RIG, **settings) -> _core.LanBLocF
                                  {lm.id: (*lm.position[:2], lm.height) for lm in world.landmarks}, s)
 
 
+def random_frame(rng, k: int, rig: StereoRig = RIG):
+    """A random pose with 3-6 markers at 5-25 m within ±0.6 rad of the heading, heights 1-4 m, drawn
+    from ``rng``, and its pair rendered with pixel noise σ = 1 (renderer seed ``k``):
+    ``(pose, world, renderer, (left, right))``.  The frames of bench/bench_lanbloc_cpp.py and of
+    tests/test_lanbloc_pyramid.py."""
+    pose = (rng.uniform(40, 160), rng.uniform(40, 160), rng.uniform(-math.pi, math.pi))
+    th = pose[2]
+    fwd, right = np.array([math.cos(th), math.sin(th)]), np.array([math.sin(th), -math.cos(th)])
+    lms = []
+    for j in range(int(rng.integers(3, 7))):
+        z = rng.uniform(5, 25)
+        lat = z * math.tan(rng.uniform(-0.6, 0.6))
+        lms.append(Landmark(j * 7 + int(rng.integers(0, 7)), (*(np.array(pose[:2]) + z * fwd + lat * right),
+                                                              rng.uniform(1.0, 4.0)), "m", 1))
+    world = World(landmarks=tuple(lms))
+    ren = StereoRenderer(world, rig, noise_std=1.0, seed=k)
+    return pose, world, ren, ren.render(pose)
+
+
 def _pair(world, pose):
     return StereoRenderer(world, RIG, noise_std=1.0, seed=5).render(pose)
 

@@ -20,7 +20,7 @@ from safenav.vision.detect import FiducialDetector
 from safenav.vision.lanbloc import LanBLoc, scenario_camera
 from safenav.vision.render import StereoRenderer
 from safenav.world import Landmark, World
-from test_lanbloc_cpp import SCENES, _front_end, _scene
+from test_lanbloc_cpp import SCENES, _front_end, _scene, random_frame
 
 P = np.diag([0.3 ** 2, 0.3 ** 2, math.radians(2.0) ** 2])
 
@@ -31,21 +31,12 @@ def rig():
 
 
 def _frames(rig, n: int, seed: int = 0):
-    """Random poses with 3-6 markers at 5-25 m within ±0.6 rad of the heading, heights 1-4 m (the
-    generator of bench/bench_lanbloc_cpp.py); with seed 0, frame 6 has a marker 6 px from the top."""
+    """``n`` frames of :func:`random_frame` (the generator of bench/bench_lanbloc_cpp.py); with seed 0,
+    frame 6 has a marker 6 px from the top."""
     rng = np.random.default_rng(seed)
     for k in range(n):
-        pose = (rng.uniform(40, 160), rng.uniform(40, 160), rng.uniform(-math.pi, math.pi))
-        th = pose[2]
-        fwd, right = np.array([math.cos(th), math.sin(th)]), np.array([math.sin(th), -math.cos(th)])
-        lms = []
-        for j in range(int(rng.integers(3, 7))):
-            z = rng.uniform(5, 25)
-            lat = z * math.tan(rng.uniform(-0.6, 0.6))
-            lms.append(Landmark(j * 7 + int(rng.integers(0, 7)),
-                                (*(np.array(pose[:2]) + z * fwd + lat * right), rng.uniform(1.0, 4.0)), "m", 1))
-        world = World(landmarks=tuple(lms))
-        yield pose, world, StereoRenderer(world, rig, noise_std=1.0, seed=k).render(pose)
+        pose, world, _, pair = random_frame(rng, k, rig)
+        yield pose, world, pair
 
 
 @pytest.mark.parametrize("whole", [False, True], ids=["windows", "whole_frame"])
