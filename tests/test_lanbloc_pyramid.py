@@ -126,3 +126,19 @@ def test_region_noise_is_tiled_and_deterministic():
     # N(0, 2²) rounded to the nearest grey level: mean 0, σ ≈ √(4 + 1/12)
     assert abs(d.mean()) < 0.1 and abs(d.std() - math.sqrt(4 + 1 / 12)) < 0.15
     assert not np.array_equal(a[0][:100, :300], a[1][:100, :300])   # the two images' noise differs
+    # A region larger than the tile (the scenario camera's whole frame): blocks of at most the tile's
+    # side, each a window of the tile at its own offset; the same statistics, deterministic.
+    big = StereoRig(width=2560, height=1440, focal_length_px=1400.0)
+    n = StereoRenderer.REGION_NOISE_TILE
+    full = [(0, 0, big.width, big.height)]
+    ren = StereoRenderer(World(landmarks=()), big, noise_std=2.0, seed=4)
+    a = ren.render_regions((0.0, 0.0, 0.3), full, full, noise_seed=9)[0].astype(float)
+    b = ren.render_regions((0.0, 0.0, 0.3), full, full, noise_seed=9)[0].astype(float)
+    c = StereoRenderer(World(landmarks=()), big, noise_std=0.0).render_regions((0.0, 0.0, 0.3), full, full)[0]
+    np.testing.assert_array_equal(a, b)
+    d = a - c
+    for y0 in range(0, big.height, n):
+        for x0 in range(0, big.width, n):   # every block has noise, N(0, 2²) rounded, away from saturation
+            blk = d[y0:y0 + n, x0:x0 + n][(c[y0:y0 + n, x0:x0 + n] > 10) & (c[y0:y0 + n, x0:x0 + n] < 245)]
+            assert abs(blk.mean()) < 0.1 and abs(blk.std() - math.sqrt(4 + 1 / 12)) < 0.15
+    assert not np.array_equal(d[:n, :n], d[:n, n:2 * n])   # blocks at their own offsets

@@ -27,10 +27,8 @@ coordinates, so a camera point ``(X, Y, Z)`` projects to
 disparity ``u_L − u_R = f·B/Z`` (the pair is rectified by construction,
 ``doffs = 0``).  :meth:`StereoRig.calibration` gives the matching
 :class:`safenav.vision.calibration.StereoCalibration` (zero distortion, ``R = I``,
-``T = (−B, 0, 0)``; ``cv2.stereoRectify`` of it is the identity) and
-:meth:`StereoRig.rectified_camera` the equivalent
-:class:`safenav.vision.stereo.RectifiedCamera`, so the LanBLoc pipeline can skip
-rectification.
+``T = (−B, 0, 0)``; ``cv2.stereoRectify`` of it is the identity) and :meth:`StereoRig.rectified_camera`
+the equivalent :class:`safenav.vision.stereo.RectifiedCamera`, so LanBLoc can skip rectification.
 
 Only landmarks inside the horizontal field of view and within
 ``rig.max_range_m`` are drawn (vectorised culling).  Obstacles are not drawn,
@@ -63,6 +61,7 @@ with the pixel count.
 from __future__ import annotations
 
 import functools
+import itertools
 import math
 from typing import Mapping
 
@@ -176,10 +175,8 @@ class StereoRenderer:
 
     GROUND_RES_M = 0.02      # ground texture: metres per texel
     GROUND_TILE = 1024       # texels per tile side (period 20.48 m)
-    PANO_W, PANO_H = 4096, 1024
-    PANO_EL = (-0.35, 0.9)   # elevations covered by the panorama [rad]
-    HAZE_M = 80.0            # ground contrast falls as exp(-Z / HAZE_M)
-    POLE_WIDTH_M = 0.08
+    PANO_W, PANO_H, PANO_EL = 4096, 1024, (-0.35, 0.9)   # panorama size and elevations covered [rad]
+    HAZE_M, POLE_WIDTH_M = 80.0, 0.08   # ground contrast falls as exp(-Z / HAZE_M); pole width [m]
     NOISE_TILE = 512         # side of the pixel-noise tile of StereoFrame patches
     REGION_NOISE_TILE = 1024  # side of the pixel-noise tile of render_regions
 
@@ -467,9 +464,9 @@ class StereoRenderer:
     def _draw_box(self, th: float, R: np.ndarray, C: np.ndarray, boards, box, rng,
                   tiled_noise: bool = False) -> np.ndarray:
         """The pixels of ``box`` (x0, y0, x1, y1) of the camera at centre ``C``: ground and background,
-        the ``boards`` (markers and poles), pixel noise from ``rng`` (``tiled_noise``: a window of
-        the region noise tile at an offset from ``rng``, rounded to the nearest grey level; fresh
-        draws, truncated, beyond the tile's size)."""
+        the ``boards`` (markers and poles), pixel noise from ``rng`` (``tiled_noise``: each block
+        of at most the tile's size, row by row, a window of the region noise tile at its own offset
+        from ``rng``, rounded to the nearest grey level; otherwise fresh draws, truncated)."""
         if not self._rig_ready:
             self._prepare_rig()
             self._rig_ready = True
@@ -477,13 +474,15 @@ class StereoRenderer:
         self._draw_markers(img, R, C, boards, box[:2])
         if self.noise_std > 0:
             n = self.REGION_NOISE_TILE
-            if tiled_noise and img.shape[0] <= n and img.shape[1] <= n:
+            if tiled_noise:
                 if self._region_noise is None:
                     t = np.random.default_rng([self._seed, 11]).standard_normal((n, n), dtype=np.float32)
                     self._region_noise = np.tile(t * np.float32(self.noise_std), (2, 2))
-                r0, c0 = rng.integers(0, n, 2)
-                # one pass, rounded to the nearest grey level and saturated
-                return cv2.add(img, self._region_noise[r0:r0 + img.shape[0], c0:c0 + img.shape[1]], dtype=cv2.CV_8U)
+                for y, x in itertools.product(range(0, img.shape[0], n), range(0, img.shape[1], n)):
+                    b, (r0, c0) = img[y:y + n, x:x + n], rng.integers(0, n, 2)
+                    # one pass in place, rounded to the nearest grey level and saturated
+                    cv2.add(b, self._region_noise[r0:r0 + b.shape[0], c0:c0 + b.shape[1]], dst=b, dtype=cv2.CV_8U)
+                return img
             noise = rng.standard_normal(img.shape, dtype=np.float32) * self.noise_std
             img = np.clip(img + noise, 0, 255).astype(np.uint8)
         return img
