@@ -10,12 +10,16 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import safenav
 from safenav import _core
 from safenav import navigation as nv
 from safenav.vision.camera_loop import CameraFrames, front_end
 from safenav.vision.render import StereoRenderer
+from safenav.vision.rig import StereoRig
+from safenav.world import Landmark, World
 from test_lanbloc_cpp import RIG, SCENES, _pair, _scene
 
 POSE, PLACEMENTS = SCENES[0]
@@ -194,3 +198,35 @@ def test_lanbloc_core_backend_is_the_front_end_under_the_python_api(k):
     assert dropped.status == "too_few_ranges" and dropped.dropped == len(fe.observations)
     with pytest.raises(ValueError, match="backend = 'core' needs ranging = 'corners'"):
         LanBLoc(world, RIG, backend="core")
+
+
+@settings(max_examples=60, deadline=None)
+@given(d=st.floats(3.0, 29.0), bearing=st.floats(-0.55, 0.55), height=st.floats(0.3, 5.0),
+       yaw=st.one_of(st.none(), st.floats(-math.pi, math.pi)), th=st.floats(-math.pi, math.pi),
+       pitch=st.sampled_from([0.0, -0.08, 0.1]))
+def test_a_window_holds_its_board_at_any_yaw(d, bearing, height, yaw, th, pitch):
+    """With a certain prediction (σ ≈ 0) and no margin, each landmark's window is the projected
+    bound of its upright board at any yaw (the prism around the board's cylinder): the board the
+    renderer draws, facing the camera or at a fixed yaw, lies inside it in both images (its
+    footprint is the corners' box floored − 1 px and ceiled + 2 px, the window's ceiled + 1)."""
+    rig = StereoRig(width=1280, height=720, focal_length_px=700.0, pitch_rad=pitch)
+    pose = (100.0, 100.0, th)
+    lm = Landmark(7, (pose[0] + d * math.cos(th + bearing), pose[1] + d * math.sin(th + bearing), height), "m", 1)
+    world = World(landmarks=(lm,))
+    ren = StereoRenderer(world, rig, facing="camera" if yaw is None else {7: yaw}, occlusion=False)
+    fe = front_end(world, rig, window_margin_px=0.0)
+    plan = fe.plan(np.array(pose), np.diag([1e-12, 1e-12, 1e-14]))
+    frame = ren.frame(pose, 0)
+    for cam, right in (("left", False), ("right", True)):
+        fp = frame.footprints(cam).get(7)
+        if fp is None:
+            continue
+        (w,) = [w for w in plan.windows if w.right == right and w.landmark_id == 7] or [None]
+        assert w is not None, (cam, fp)
+        x0, y0, x1, y1 = w.box
+        assert x0 <= fp[0] + 1 and y0 <= fp[1] + 1 and x1 >= fp[2] - 1 and y1 >= fp[3] - 1, (cam, w.box, fp)
+        inside = fp[0] > 0 and fp[1] > 0 and fp[2] < rig.width and fp[3] < rig.height
+        # and tight beyond a few board sides (nearer, a turned board's near edge is much closer than
+        # its centre, and the bound must hold it): a ball around the board would be twice the area
+        if yaw is None and inside and d >= 8.0:
+            assert (x1 - x0) * (y1 - y0) <= 1.4 * (fp[2] - fp[0] - 3) * (fp[3] - fp[1] - 3) + 100, (cam, w.box, fp)

@@ -73,11 +73,10 @@ void check_prediction(const PosePrediction& p) {
 
 /// The window of one landmark in one image, or false when its board is not
 /// predicted in front of the camera, within range and overlapping the image.
-bool window_of(const LanBLocRig& rig, const LanBLocSettings& s, const LanBLocLandmark& lm, double board_radius,
+bool window_of(const LanBLocRig& rig, const LanBLocSettings& s, const LanBLocLandmark& lm, double board_half,
                const PosePrediction& pred, bool right, SearchWindow& out) {
   const Eigen::Vector3d uvz = project(rig, pred.pose, lm.position, right);
-  const double near = board_radius + 0.2;
-  if (!(uvz.z() > near)) return false;
+  if (!(uvz.z() > 1.5 * board_half + 0.2)) return false;
   // J = ∂(u, v)/∂(x, y, θ) by central differences; Σ_uv = J P Jᵀ.
   Eigen::Matrix<double, 2, 3> J;
   for (int k = 0; k < 3; ++k) {
@@ -93,13 +92,26 @@ bool window_of(const LanBLocRig& rig, const LanBLocSettings& s, const LanBLocLan
   const double pos_sigma = std::sqrt(std::max(pred.covariance.topLeftCorner<2, 2>().trace(), 0.0));
   const Eigen::Vector3d C(pred.pose.x(), pred.pose.y(), rig.camera_height_m);
   if ((lm.position - C).norm() - s.window_sigmas * pos_sigma > s.max_range_m) return false;
-  // The board (any orientation) lies within a sphere of board_radius: f·r/(Z − r) px around its centre.
-  const double half = rig.camera.f * board_radius / (uvz.z() - board_radius) + s.window_margin_px;
-  const double W = rig.camera.width, H = rig.camera.height;
-  Box b{std::max(std::floor(uvz.x() - half - s.window_sigmas * sigma.x()), 0.0),
-        std::max(std::floor(uvz.y() - half - s.window_sigmas * sigma.y()), 0.0),
-        std::min(std::ceil(uvz.x() + half + s.window_sigmas * sigma.x()) + 1.0, W),
-        std::min(std::ceil(uvz.y() + half + s.window_sigmas * sigma.y()) + 1.0, H)};
+  // The board is upright and turns, if at all, about the vertical through its centre: it lies in
+  // the vertical cylinder of radius board_half and height ±board_half about the centre, and so in
+  // the 16-sided prism circumscribing that cylinder.  The image of a convex body in front of the
+  // camera is the convex hull of its vertices' images: their bounding box bounds the board's.
+  constexpr int kSides = 16;
+  const double r = board_half / std::cos(kPi / kSides);
+  double u0 = uvz.x(), u1 = uvz.x(), v0 = uvz.y(), v1 = uvz.y();
+  for (int k = 0; k < 2 * kSides; ++k) {
+    const double a = 2.0 * kPi * (k % kSides) / kSides;
+    const Eigen::Vector3d q = lm.position + Eigen::Vector3d(r * std::cos(a), r * std::sin(a),
+                                                            k < kSides ? board_half : -board_half);
+    const Eigen::Vector3d p = project(rig, pred.pose, q, right);
+    if (!(p.z() > 0.05)) return false;
+    u0 = std::min(u0, p.x()), u1 = std::max(u1, p.x()), v0 = std::min(v0, p.y()), v1 = std::max(v1, p.y());
+  }
+  const double m = s.window_margin_px, W = rig.camera.width, H = rig.camera.height;
+  Box b{std::max(std::floor(u0 - m - s.window_sigmas * sigma.x()), 0.0),
+        std::max(std::floor(v0 - m - s.window_sigmas * sigma.y()), 0.0),
+        std::min(std::ceil(u1 + m + s.window_sigmas * sigma.x()) + 1.0, W),
+        std::min(std::ceil(v1 + m + s.window_sigmas * sigma.y()) + 1.0, H)};
   if (!(b.x_max > b.x_min && b.y_max > b.y_min)) return false;
   out.landmark_id = lm.id;
   out.right = right;
@@ -298,16 +310,16 @@ std::vector<SearchWindow> predicted_windows(const LanBLocRig& rig, const LanBLoc
                                             const PosePrediction& prediction) {
   check_prediction(prediction);
   // The board: the black-framed marker of markerSize + 2 cells plus a one-cell quiet zone per side
-  // (safenav.vision.render: board half-side = marker_size·(cells + 2)/(2·cells)); a sphere holds it.
+  // (safenav.vision.render: board half-side = marker_size·(cells + 2)/(2·cells)).
   const double cells = marker_bits + 2.0;
-  const double board_radius = std::sqrt(2.0) * 0.5 * settings.marker_size_m * (cells + 2.0) / cells;
+  const double board_half = 0.5 * settings.marker_size_m * (cells + 2.0) / cells;
   std::vector<SearchWindow> out;
   for (const LanBLocLandmark& lm : landmarks) {
     // Each image on its own: a marker seen only in the left image is still detected there (and
     // reported as not found in the right one), as in the whole frame.
     SearchWindow w;
-    if (window_of(rig, settings, lm, board_radius, prediction, false, w)) out.push_back(w);
-    if (window_of(rig, settings, lm, board_radius, prediction, true, w)) out.push_back(w);
+    if (window_of(rig, settings, lm, board_half, prediction, false, w)) out.push_back(w);
+    if (window_of(rig, settings, lm, board_half, prediction, true, w)) out.push_back(w);
   }
   return out;
 }

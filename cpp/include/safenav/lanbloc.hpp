@@ -285,7 +285,9 @@ class LanBLocFrontEnd {
 
   /// The windows for `prediction`: per mapped landmark whose board projects
   /// in front of both cameras within max_range_m and into the image, the
-  /// board's box in each image grown by window_sigmas·σ (Jacobian of the
+  /// board's box in each image (the bounding box of the upright board at any
+  /// yaw about its vertical axis: the 16-sided prism around it, projected)
+  /// grown by window_sigmas·σ (Jacobian of the
   /// centre's projection with respect to (x, y, θ) times the covariance) plus
   /// window_margin_px.  Empty `mode_reason` and mode Windows, or mode
   /// WholeFrame with the reason (too uncertain).
