@@ -71,6 +71,13 @@ void check_prediction(const PosePrediction& p) {
   }
 }
 
+/// The board's side [m]: the black-framed marker of marker_bits + 2 cells plus a one-cell quiet
+/// zone per side (safenav.vision.render: half-side = marker_size·(cells + 2)/(2·cells)).
+double board_side_m(const LanBLocSettings& s, int marker_bits) {
+  const double cells = marker_bits + 2.0;
+  return s.marker_size_m * (cells + 2.0) / cells;
+}
+
 /// The window of one landmark in one image, or false when its board is not
 /// predicted in front of the camera, within range and overlapping the image.
 bool window_of(const LanBLocRig& rig, const LanBLocSettings& s, const LanBLocLandmark& lm, double board_half,
@@ -309,10 +316,7 @@ std::vector<SearchWindow> predicted_windows(const LanBLocRig& rig, const LanBLoc
                                             const std::vector<LanBLocLandmark>& landmarks, int marker_bits,
                                             const PosePrediction& prediction) {
   check_prediction(prediction);
-  // The board: the black-framed marker of markerSize + 2 cells plus a one-cell quiet zone per side
-  // (safenav.vision.render: board half-side = marker_size·(cells + 2)/(2·cells)).
-  const double cells = marker_bits + 2.0;
-  const double board_half = 0.5 * settings.marker_size_m * (cells + 2.0) / cells;
+  const double board_half = 0.5 * board_side_m(settings, marker_bits);
   std::vector<SearchWindow> out;
   for (const LanBLocLandmark& lm : landmarks) {
     // Each image on its own: a marker seen only in the left image is still detected there (and
@@ -332,9 +336,7 @@ std::vector<Region> detection_regions(const LanBLocRig& rig, const LanBLocSettin
   for (const Box& b : boxes) out.push_back({b, 0});
   if (!(settings.detect_side_px > 0.0) || !settings.subpixel || !plan.prediction) return out;
   const PosePrediction& pred = *plan.prediction;
-  // The board's side (marker plus a one-cell quiet zone per side), as in predicted_windows.
-  const double cells = marker_bits + 2.0;
-  const double board_side = settings.marker_size_m * (cells + 2.0) / cells;
+  const double board_side = board_side_m(settings, marker_bits);
   const double pos_sigma = std::sqrt(std::max(pred.covariance.topLeftCorner<2, 2>().trace(), 0.0));
   for (Region& r : out) {
     // The smallest board in the region: each window's landmark at its predicted depth plus
@@ -371,9 +373,8 @@ Region whole_frame_region(const LanBLocRig& rig, const LanBLocSettings& settings
   Region r{{0.0, 0.0, double(rig.camera.width), double(rig.camera.height)}, 0};
   if (!(settings.detect_side_px > 0.0) || !settings.subpixel || !std::isfinite(settings.max_range_m)) return r;
   // The smallest board a range is taken of: at max_range_m (a board beyond gives no range).
-  const double cells = marker_bits + 2.0;
-  const double board_side = settings.marker_size_m * (cells + 2.0) / cells;
-  r.level = pyramid_level(rig.camera.f * board_side / settings.max_range_m, r.box, settings.detect_side_px);
+  r.level = pyramid_level(rig.camera.f * board_side_m(settings, marker_bits) / settings.max_range_m, r.box,
+                          settings.detect_side_px);
   return r;
 }
 

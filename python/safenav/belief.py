@@ -52,7 +52,8 @@ __all__ = ["BeliefSettings", "BeliefPlannerSettings", "BeliefProblem", "BeliefPr
 # Keyword names of plan_belief / propagate_belief -> declared parameter names.
 _BELIEF_KEYS = {"speed": "speed", "step": "step", "bearing_std": "bearing_std",
                 "sight_fov_margin": "sight_fov_margin", "sight_range_fraction": "sight_range_fraction",
-                "deviation_mixture": "deviation_mixture", "vehicle_radius": "inflation.vehicle_radius", "margin": "inflation.margin"}
+                "deviation_mixture": "deviation_mixture", "vehicle_radius": "inflation.vehicle_radius",
+                "margin": "inflation.margin"}
 
 
 def _belief_settings(kwargs: dict, settings=None) -> BeliefSettings:
@@ -95,8 +96,8 @@ def robust_sight() -> dict:
     """The robust camera, as keywords of :func:`propagate_belief`: the
     ``sight_fov_margin`` and ``sight_range_fraction`` of the planner's belief
     (``BeliefPlannerSettings().belief``: the field of view less 25°, 90 % of
-    the detection range, no deviation mixture).  The planner's chance constraint and the mission
-    certificate see with it; :func:`propagate_belief`'s default is the
+    the detection range, no deviation mixture).  The planner's chance
+    constraint and the mission certificate see with it; :func:`propagate_belief`'s default is the
     vehicle's own camera, the expected belief (docs/belief_planning.md,
     "Calibration")."""
     b = BeliefPlannerSettings().belief
