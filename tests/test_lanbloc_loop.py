@@ -230,3 +230,28 @@ def test_a_window_holds_its_board_at_any_yaw(d, bearing, height, yaw, th, pitch)
         # its centre, and the bound must hold it): a ball around the board would be twice the area
         if yaw is None and inside and d >= 8.0:
             assert (x1 - x0) * (y1 - y0) <= 1.4 * (fp[2] - fp[0] - 3) * (fp[3] - fp[1] - 3) + 100, (cam, w.box, fp)
+
+
+@settings(max_examples=60, deadline=None)
+@given(x=st.floats(-20.0, 20.0), y=st.floats(-20.0, 20.0), th=st.floats(-math.pi, math.pi),
+       sx=st.floats(0.0, 6.0), st_=st.floats(0.0, 0.3), fraction=st.floats(0.0, 0.6))
+def test_the_uncertainty_switch_counts_the_windows_union_exactly(x, y, th, sx, st_, fraction):
+    """The plan searches the whole frame exactly when the union of the left image's windows covers
+    more than max_window_fraction of it: the share it reports is the pixel count of a mask of the
+    windows (overlaps counted once), for many landmarks in and out of view, at any uncertainty."""
+    rig = StereoRig(width=640, height=360, focal_length_px=350.0)
+    rng = np.random.default_rng(3)
+    world = World(landmarks=tuple(Landmark(i, (*rng.uniform(75, 125, 2), rng.uniform(0.5, 3.0)), "m", 1)
+                                  for i in range(12)))
+    fe = front_end(world, rig, max_window_fraction=fraction)
+    pose, cov = np.array([100.0 + x, 100.0 + y, th]), np.diag([sx ** 2, sx ** 2, st_ ** 2])
+    windows, mode, reason = fe.search_windows(pose, cov)
+    mask = np.zeros((rig.height, rig.width), bool)
+    for w in windows:
+        if not w.right:
+            x0, y0, x1, y1 = (int(v) for v in w.box)
+            mask[y0:y1, x0:x1] = True
+    share = mask.mean()
+    assert (mode == _core.SearchMode.WHOLE_FRAME) == (share > fraction), (share, fraction, reason)
+    if mode == _core.SearchMode.WHOLE_FRAME:
+        assert f"windows cover {share:.3g} of the frame" in reason

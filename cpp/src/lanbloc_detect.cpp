@@ -304,12 +304,30 @@ std::vector<Box> merge_boxes(std::vector<Box> boxes) {
 }
 
 double covered_fraction(const std::vector<Box>& boxes, int width, int height) {
-  std::vector<std::uint8_t> mask(static_cast<std::size_t>(width) * height, 0);
-  for (const Box& b : boxes)
-    for (int y = int(b.y_min); y < int(b.y_max); ++y)
-      std::fill(mask.begin() + std::ptrdiff_t(y) * width + int(b.x_min),
-                mask.begin() + std::ptrdiff_t(y) * width + int(b.x_max), std::uint8_t(1));
-  return double(std::count(mask.begin(), mask.end(), std::uint8_t(1))) / double(mask.size());
+  // The union's area in whole pixels (pixel columns int(x_min)..int(x_max) − 1, as a mask would
+  // count them), swept over the boxes' column edges: O(n² log n) for n boxes, not O(width·height).
+  std::vector<int> xs;
+  for (const Box& b : boxes) xs.insert(xs.end(), {int(b.x_min), int(b.x_max)});
+  std::sort(xs.begin(), xs.end());
+  xs.erase(std::unique(xs.begin(), xs.end()), xs.end());
+  long long area = 0;
+  std::vector<std::pair<int, int>> rows;
+  for (std::size_t i = 0; i + 1 < xs.size(); ++i) {
+    rows.clear();
+    for (const Box& b : boxes)
+      if (int(b.x_min) <= xs[i] && int(b.x_max) >= xs[i + 1] && int(b.y_max) > int(b.y_min))
+        rows.emplace_back(int(b.y_min), int(b.y_max));
+    std::sort(rows.begin(), rows.end());
+    long long covered = 0;
+    int end = std::numeric_limits<int>::min();
+    for (const auto& [y0, y1] : rows) {
+      if (y1 <= end) continue;
+      covered += y1 - std::max(y0, end);
+      end = y1;
+    }
+    area += covered * (xs[i + 1] - xs[i]);
+  }
+  return double(area) / (double(width) * double(height));
 }
 
 std::vector<SearchWindow> predicted_windows(const LanBLocRig& rig, const LanBLocSettings& settings,
