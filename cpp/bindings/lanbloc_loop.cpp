@@ -32,6 +32,48 @@ py::list box_list(const std::vector<Box>& bs) {
   return out;
 }
 
+/// A Python object with draw(right, level, x0, y0, width, height) -> (height, width) uint8 array as
+/// StereoPixels (safenav.vision.pixels.FramePixels); the object is borrowed (the caller keeps it alive).
+class PyPixels final : public StereoPixels {
+ public:
+  explicit PyPixels(py::handle obj) : obj_(obj) {}
+  void draw(bool right, int level, int x0, int y0, int width, int height, std::uint8_t* out,
+            std::ptrdiff_t stride) const override {
+    py::gil_scoped_acquire acquire;
+    U8Array a = U8Array::ensure(obj_.attr("draw")(right, level, x0, y0, width, height));
+    if (!a || a.ndim() != 2 || a.shape(0) != height || a.shape(1) != width)
+      throw py::value_error("pixels.draw(right=" + std::to_string(right) + ", level=" + std::to_string(level) +
+                            ", x0=" + std::to_string(x0) + ", y0=" + std::to_string(y0) + ", width=" +
+                            std::to_string(width) + ", height=" + std::to_string(height) +
+                            ") must return a (height, width) uint8 array");
+    for (int r = 0; r < height; ++r) std::copy_n(a.data(r, 0), width, out + r * stride);
+  }
+
+ private:
+  py::handle obj_;
+};
+
+/// Frame pixels from Python: a (left, right) pair of grey arrays, or an object with draw().  `keep`
+/// holds what the pixels borrow until the caller drops it (with the GIL held).
+std::shared_ptr<const StereoPixels> pixels_of(const py::object& obj, py::object& keep, const char* what) {
+  if (py::isinstance<py::tuple>(obj)) {
+    auto t = obj.cast<py::tuple>();
+    if (t.size() != 2)
+      throw py::value_error(std::string(what) + " must be (left, right) or an object with draw(), got a tuple of " +
+                            std::to_string(t.size()));
+    U8Array l = U8Array::ensure(t[0]), r = U8Array::ensure(t[1]);
+    if (!l || !r) throw py::value_error(std::string(what) + ": left and right must be 8-bit grey (H, W) arrays");
+    const ImageView lv = grey_view(l, "left"), rv = grey_view(r, "right");
+    keep = py::make_tuple(l, r);
+    return std::make_shared<StereoImages>(lv, rv);
+  }
+  if (!py::hasattr(obj, "draw"))
+    throw py::value_error(std::string(what) + " must be (left, right) grey arrays or an object with "
+                          "draw(right, level, x0, y0, width, height), got " + py::repr(obj).cast<std::string>());
+  keep = obj;
+  return std::make_shared<PyPixels>(obj);
+}
+
 /// A front end owned by its Python object: shared without ownership (the caller keeps it alive).
 std::shared_ptr<const LanBLocFrontEnd> borrowed(const LanBLocFrontEnd& f) {
   return std::shared_ptr<const LanBLocFrontEnd>(&f, [](const LanBLocFrontEnd*) {});
@@ -82,7 +124,19 @@ void bind_plan(py::module_& m) {
             py::gil_scoped_release nogil;
             return f.localize(l, r, plan);
           },
-          py::arg("left"), py::arg("right"), py::arg("plan"), "Observations and fix, searched where `plan` says.");
+          py::arg("left"), py::arg("right"), py::arg("plan"), "Observations and fix, searched where `plan` says.")
+      .def(
+          "localize_pixels",
+          [](const LanBLocFrontEnd& f, const py::object& pixels, const SearchPlan& plan) {
+            py::object keep;
+            const std::shared_ptr<const StereoPixels> px = pixels_of(pixels, keep, "pixels");
+            py::gil_scoped_release nogil;
+            return f.localize(*px, plan);
+          },
+          py::arg("pixels"), py::arg("plan"),
+          "Observations and fix, searched where `plan` says, on pixels drawn on demand: an object with "
+          "draw(right, level, x0, y0, width, height) returning that box at that pyramid level (or a (left, right) "
+          "pair); only the boxes detection and corner refinement read are drawn.");
 }
 
 void bind_localizer_frames(py::module_& m) {
@@ -105,7 +159,17 @@ void bind_localizer_frames(py::module_& m) {
           py::arg("t"), py::arg("left"), py::arg("right"), py::arg_v("update", FrameUpdate::Fix, "FrameUpdate.FIX"),
           "One rectified grey pair at t: the front end searches where frame_plan(t) says, and the fix "
           "(FrameUpdate.FIX) or each landmark's range and bearing (LANDMARKS; FIX_OR_LANDMARKS: the fix when "
-          "there is one, else the landmarks) updates the filter, gated.");
+          "there is one, else the landmarks) updates the filter, gated.")
+      .def(
+          "observe_frame",
+          [](Localizer& l, double t, const py::object& pixels, FrameUpdate how) {
+            py::object keep;
+            const std::shared_ptr<const StereoPixels> px = pixels_of(pixels, keep, "pixels");
+            py::gil_scoped_release nogil;
+            return l.observe_frame(t, *px, how);
+          },
+          py::arg("t"), py::arg("pixels"), py::arg_v("update", FrameUpdate::Fix, "FrameUpdate.FIX"),
+          "The same on pixels drawn on demand (LanBLocFrontEnd.localize_pixels).");
 }
 
 void bind_run_frames(py::module_& m) {
@@ -113,22 +177,13 @@ void bind_run_frames(py::module_& m) {
   nav.def(
       "run_frames",
       [](const Navigator& n, std::uint64_t seed, const LanBLocFrontEnd& front_end, py::object frames) {
-        py::object keep;  // the last frame's arrays, alive until the next call (released with the GIL held)
-        FrameCallback cb = [&frames, &keep](const State& x, int step, const SearchPlan& plan, ImageView& left,
-                                            ImageView& right) {
+        py::object keep;  // what the last frame's pixels borrow, alive until the next call (released with the GIL)
+        FrameCallback cb = [&frames, &keep](const State& x, int step,
+                                            const SearchPlan& plan) -> std::shared_ptr<const StereoPixels> {
           py::gil_scoped_acquire acquire;
           py::object out = frames(x, step, plan);
-          if (out.is_none()) return false;
-          auto t = out.cast<py::tuple>();
-          if (t.size() != 2)
-            throw py::value_error("frames callback must return None or (left, right), got a tuple of " +
-                                  std::to_string(t.size()));
-          U8Array l = U8Array::ensure(t[0]), r = U8Array::ensure(t[1]);
-          if (!l || !r) throw py::value_error("frames callback must return 8-bit grey (H, W) arrays");
-          left = grey_view(l, "left");
-          right = grey_view(r, "right");
-          keep = py::make_tuple(l, r);
-          return true;
+          if (out.is_none()) return nullptr;
+          return pixels_of(out, keep, "frames callback's result");
         };
         TrialResult res;
         {
@@ -138,9 +193,10 @@ void bind_run_frames(py::module_& m) {
         return res;
       },
       py::arg("seed"), py::arg("front_end"), py::arg("frames"),
-      "One trial with the camera in the loop: each fix step frames(truth, step, plan) renders the pair (at "
-      "least plan's regions; None: no frame), and the vehicle's localizer searches it where its own "
-      "prediction says (Localizer.observe_frame).");
+      "One trial with the camera in the loop: each fix step frames(truth, step, plan) gives the pair (at "
+      "least plan's regions) as (left, right) arrays or pixels drawn on demand (an object with draw(), as "
+      "LanBLocFrontEnd.localize_pixels takes; None: no frame), and the vehicle's localizer searches it where "
+      "its own prediction says (Localizer.observe_frame).");
 }
 }  // namespace
 

@@ -12,6 +12,7 @@
 #include <Eigen/QR>
 #include <boost/math/distributions/chi_squared.hpp>
 #include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "declare.hpp"
 #include "errors.hpp"
@@ -187,7 +188,7 @@ struct LanBLocFrontEnd::Impl {
   Impl(const LanBLocRig& r, std::vector<LanBLocLandmark> lms, const LanBLocSettings& s)
       : rig(r), settings(s), landmarks(std::move(lms)), matcher(r.camera) {}
 
-  std::vector<Marker> detect(const ImageView& img, const SearchPlan& plan, bool right) const;
+  std::vector<Marker> detect(const StereoPixels& px, const SearchPlan& plan, bool right) const;
   LandmarkSighting observe(const Marker& left, const Marker* right, const std::string& why) const;
   void sighting(LandmarkSighting& o, double depth, double sigma_z) const;
   void solve(LanBLocFix& fix) const;
@@ -261,14 +262,11 @@ std::vector<SearchWindow> LanBLocFrontEnd::search_windows(const PosePrediction& 
 
 namespace {
 
-cv::Mat as_gray_mat(const ImageView& v, const RectifiedCamera& cam, const char* name) {
+cv::Mat as_gray_mat(const ImageView& v, const char* name) {
   if (v.data == nullptr || v.rows <= 0 || v.cols <= 0)
     detail::bad(std::string(name) + " image is empty (" + std::to_string(v.cols) + "x" + std::to_string(v.rows) + ")");
   if (v.channels != 1)
     detail::bad(std::string(name) + " image has " + std::to_string(v.channels) + " channels, expected 1 (8-bit grey)");
-  if (v.cols != cam.width || v.rows != cam.height)
-    detail::bad(std::string(name) + " image is " + std::to_string(v.cols) + "x" + std::to_string(v.rows) +
-                " px but the rig is " + std::to_string(cam.width) + "x" + std::to_string(cam.height) + " px");
   const std::ptrdiff_t stride = v.row_stride ? v.row_stride : v.cols;
   if (stride < v.cols)
     detail::bad(std::string(name) + " image row_stride = " + std::to_string(stride) + " is below its width " +
@@ -276,18 +274,46 @@ cv::Mat as_gray_mat(const ImageView& v, const RectifiedCamera& cam, const char* 
   return cv::Mat(v.rows, v.cols, CV_8UC1, const_cast<std::uint8_t*>(v.data), static_cast<std::size_t>(stride));
 }
 
+void check_size(const ImageView& v, const RectifiedCamera& cam, const char* name) {
+  (void)as_gray_mat(v, name);
+  if (v.cols != cam.width || v.rows != cam.height)
+    detail::bad(std::string(name) + " image is " + std::to_string(v.cols) + "x" + std::to_string(v.rows) +
+                " px but the rig is " + std::to_string(cam.width) + "x" + std::to_string(cam.height) + " px");
+}
+
 }  // namespace
 
-std::vector<Marker> LanBLocFrontEnd::Impl::detect(const ImageView& img, const SearchPlan& plan, bool right) const {
-  const cv::Mat m = as_gray_mat(img, rig.camera, right ? "right" : "left");
+StereoImages::StereoImages(const ImageView& left, const ImageView& right) : left_(left), right_(right) {
+  (void)as_gray_mat(left, "left");
+  (void)as_gray_mat(right, "right");
+}
+
+void StereoImages::draw(bool right, int level, int x0, int y0, int width, int height, std::uint8_t* out,
+                        std::ptrdiff_t stride) const {
+  const cv::Mat img = as_gray_mat(right ? right_ : left_, right ? "right" : "left");
+  const int k = 1 << level;
+  const cv::Rect box(x0, y0, width * k, height * k);
+  if (level < 0 || level > 16 || width <= 0 || height <= 0 || (box & cv::Rect(0, 0, img.cols, img.rows)) != box)
+    detail::bad("StereoImages::draw: level " + std::to_string(level) + " box of " + std::to_string(width) + "x" +
+                std::to_string(height) + " at (" + std::to_string(x0) + ", " + std::to_string(y0) +
+                ") is not inside the " + std::to_string(img.cols) + "x" + std::to_string(img.rows) + " image");
+  cv::Mat dst(height, width, CV_8UC1, out, static_cast<std::size_t>(stride));
+  if (level == 0)
+    img(box).copyTo(dst);
+  else
+    cv::resize(img(box), dst, dst.size(), 0, 0, cv::INTER_AREA);
+}
+
+std::vector<Marker> LanBLocFrontEnd::Impl::detect(const StereoPixels& px, const SearchPlan& plan, bool right) const {
   const bool whole = plan.mode == SearchMode::WholeFrame;
   if (!whole && (right ? plan.right_regions : plan.left_regions).empty()) return {};
   // Each region at its pyramid level (lanbloc_detect.cpp: detection_regions); the whole frame at the
   // level of the farthest board that gives a range (whole_frame_region).
   return lanbloc_detail::detect_markers(
-      m, whole ? std::vector<lanbloc_detail::Region>{lanbloc_detail::whole_frame_region(rig, settings,
-                                                                                        dict->markerSize)}
-               : lanbloc_detail::detection_regions(rig, settings, landmarks, dict->markerSize, plan, right),
+      px, right, cv::Size(rig.camera.width, rig.camera.height),
+      whole ? std::vector<lanbloc_detail::Region>{lanbloc_detail::whole_frame_region(rig, settings,
+                                                                                     dict->markerSize)}
+            : lanbloc_detail::detection_regions(rig, settings, landmarks, dict->markerSize, plan, right),
       dict, params, settings.min_perimeter_rate, refine);
 }
 
@@ -312,6 +338,12 @@ LanBLocFix LanBLocFrontEnd::localize(const ImageView& left, const ImageView& rig
 }
 
 LanBLocFix LanBLocFrontEnd::localize(const ImageView& left, const ImageView& right, const SearchPlan& plan) const {
+  check_size(left, impl_->rig.camera, "left");
+  check_size(right, impl_->rig.camera, "right");  // bad input fails before any work
+  return localize(StereoImages(left, right), plan);
+}
+
+LanBLocFix LanBLocFrontEnd::localize(const StereoPixels& pixels, const SearchPlan& plan) const {
   const Impl& I = *impl_;
   LanBLocFix fix;
   fix.search = plan.mode;
@@ -322,7 +354,6 @@ LanBLocFix LanBLocFrontEnd::localize(const ImageView& left, const ImageView& rig
     fix.left_regions = plan.left_regions;
     fix.right_regions = plan.right_regions;
   }
-  (void)as_gray_mat(right, I.rig.camera, "right");  // bad input fails before any work
   for (const auto* regions : {&plan.left_regions, &plan.right_regions})
     for (const Box& b : *regions)
       if (!(b.x_min >= 0 && b.y_min >= 0 && b.x_max <= I.rig.camera.width && b.y_max <= I.rig.camera.height &&
@@ -331,7 +362,7 @@ LanBLocFix LanBLocFrontEnd::localize(const ImageView& left, const ImageView& rig
                     detail::num(b.x_max) + ", " + detail::num(b.y_max) + ") is not inside the " +
                     std::to_string(I.rig.camera.width) + "x" + std::to_string(I.rig.camera.height) + " image");
   std::vector<Marker> dets;
-  for (const Marker& m : I.detect(left, plan, false)) {
+  for (const Marker& m : I.detect(pixels, plan, false)) {
     if (I.anchor.count(m.id))
       dets.push_back(m);
     else
@@ -343,7 +374,7 @@ LanBLocFix LanBLocFrontEnd::localize(const ImageView& left, const ImageView& rig
     return fix;
   }
   std::map<int, Marker> in_right;
-  for (const Marker& m : I.detect(right, plan, true)) in_right.emplace(m.id, m);
+  for (const Marker& m : I.detect(pixels, plan, true)) in_right.emplace(m.id, m);
   for (const Marker& d : dets) {
     auto it = in_right.find(d.id);
     fix.observations.push_back(I.observe(d, it == in_right.end() ? nullptr : &it->second, ""));

@@ -135,27 +135,79 @@ double module_px(const std::vector<cv::Point2f>& c, int marker_bits, int border_
   return perimeter / (4.0 * (marker_bits + 2 * border_bits));
 }
 
-/// OpenCV >= 4.8's CORNER_REFINE_SUBPIX (the one pip's cv2 runs): cornerSubPix in a window of
-/// min(max(1, round(relative·m)), max_win) px, m the marker's average module (cell) size in px.
-void refine_corners(const cv::Mat& grey, std::vector<cv::Point2f>& c, int marker_bits, int border_bits,
-                    const CornerRefinement& r) {
-  const double module = module_px(c, marker_bits, border_bits);
-  const int win = std::min(std::max(1, cvRound(r.relative_win_size * module)), r.max_win_size);
-  cv::cornerSubPix(grey, c, cv::Size(win, win), cv::Size(-1, -1),
-                   cv::TermCriteria(cv::TermCriteria::MAX_ITER | cv::TermCriteria::EPS, r.max_iterations,
-                                    r.min_accuracy));
+/// OpenCV >= 4.8's CORNER_REFINE_SUBPIX window: min(max(1, round(relative·m)), max_win) px, m the
+/// marker's average module (cell) size in px.
+int refine_window(const std::vector<cv::Point2f>& c, int marker_bits, int border_bits, const CornerRefinement& r) {
+  return std::min(std::max(1, cvRound(r.relative_win_size * module_px(c, marker_bits, border_bits))), r.max_win_size);
 }
 
+cv::TermCriteria refine_criteria(const CornerRefinement& r) {
+  return cv::TermCriteria(cv::TermCriteria::MAX_ITER | cv::TermCriteria::EPS, r.max_iterations, r.min_accuracy);
+}
+
+/// OpenCV >= 4.8's CORNER_REFINE_SUBPIX (the one pip's cv2 runs): cornerSubPix in refine_window.
+void refine_corners(const cv::Mat& grey, std::vector<cv::Point2f>& c, int marker_bits, int border_bits,
+                    const CornerRefinement& r) {
+  const int win = refine_window(c, marker_bits, border_bits, r);
+  cv::cornerSubPix(grey, c, cv::Size(win, win), cv::Size(-1, -1), refine_criteria(r));
+}
+
+/// The level-`level` pixels of full-resolution box `cut` (whole 2^level blocks) of one image.
+cv::Mat draw_level(const StereoPixels& px, bool right, const cv::Rect& cut, int level) {
+  cv::Mat m(cut.height >> level, cut.width >> level, CV_8UC1);
+  px.draw(right, level, cut.x, cut.y, m.cols, m.rows, m.data, static_cast<std::ptrdiff_t>(m.step));
+  return m;
+}
+
+/// Full-resolution patches around a marker's four corners, drawn on demand: each corner's patch
+/// reaches `half` px beyond it (clipped to the image, as cornerSubPix clamps at its edges), and one
+/// patch holds all four when their bounding box is no larger than the four together.
+struct CornerPatches {
+  std::vector<cv::Mat> images;
+  std::vector<cv::Point2f> origins;
+  int of[4] = {0, 0, 0, 0};  ///< each corner's patch
+
+  CornerPatches(const StereoPixels& px, bool right, cv::Size image, const std::vector<cv::Point2f>& c, int half) {
+    const cv::Rect frame(0, 0, image.width, image.height);
+    cv::Rect boxes[4], all;
+    int area = 0;
+    for (int k = 0; k < 4; ++k) {
+      boxes[k] = cv::Rect(cvRound(c[k].x) - half, cvRound(c[k].y) - half, 2 * half + 1, 2 * half + 1) & frame;
+      all = k == 0 ? boxes[k] : (all | boxes[k]);
+      area += boxes[k].area();
+    }
+    const bool one = all.area() <= area;
+    for (int k = 0; k < (one ? 1 : 4); ++k) {
+      const cv::Rect& b = one ? all : boxes[k];
+      images.push_back(b.area() > 0 ? draw_level(px, right, b, 0) : cv::Mat());
+      origins.emplace_back(float(b.x), float(b.y));
+    }
+    for (int k = 0; k < 4; ++k) of[k] = one ? 0 : k;
+  }
+
+  /// cornerSubPix of corner k in its patch (nothing when the corner lies outside the image).
+  void refine(cv::Point2f& p, int k, int win, const cv::TermCriteria& criteria) const {
+    const cv::Mat& img = images[std::size_t(of[k])];
+    if (img.empty()) return;
+    std::vector<cv::Point2f> q{p - origins[std::size_t(of[k])]};
+    cv::cornerSubPix(img, q, cv::Size(win, win), cv::Size(-1, -1), criteria);
+    p = q[0] + origins[std::size_t(of[k])];
+  }
+};
+
 /// Corners found at pyramid level L (in `level_img`, the region averaged 2^L times; `origin` its
-/// full-resolution top-left) brought to full resolution in `grey`: cornerSubPix at the level
-/// (window half a cell) so the mapped corners are within ~0.1·2^L px, mapped up (level pixel i
-/// is centred on full-resolution (i + 0.5)·2^L − 0.5), cornerSubPix at full resolution in a
-/// window of up to 0.4 cell (at least 2^L px, at most 16) to the corner's fixed point, then the
-/// front end's own final refinement (`final_win` > 0: that fixed window; otherwise the OpenCV >= 4.8
-/// rule of `refine`).  A window stays inside the board's quiet zone, so it holds one corner.
-void refine_from_level(const cv::Mat& grey, const cv::Mat& level_img, cv::Point2f origin, int level,
-                       std::vector<cv::Point2f>& c, int marker_bits, int border_bits, const CornerRefinement& refine,
-                       int final_win, int max_iterations, double min_accuracy) {
+/// full-resolution top-left) brought to full resolution: cornerSubPix at the level (window half a
+/// cell) so the mapped corners are within ~0.1·2^L px, mapped up (level pixel i is centred on
+/// full-resolution (i + 0.5)·2^L − 0.5), cornerSubPix at full resolution in a window of up to 0.4
+/// cell (at least 2^L px, at most 16) to the corner's fixed point, then the front end's own final
+/// refinement (`final_win` > 0: that fixed window; otherwise the OpenCV >= 4.8 rule of `refine`).
+/// A window stays inside the board's quiet zone, so it holds one corner.  Only patches around the
+/// corners are read at full resolution (CornerPatches), reaching twice both windows beyond them:
+/// cornerSubPix returns its start when it ends farther than its window from it, and reads at most
+/// its window plus 2 px around where it stands.
+void refine_from_level(const StereoPixels& px, bool right, cv::Size image, const cv::Mat& level_img,
+                       cv::Point2f origin, int level, std::vector<cv::Point2f>& c, int marker_bits, int border_bits,
+                       const CornerRefinement& refine, int final_win) {
   const int k = 1 << level;
   const cv::TermCriteria fine(cv::TermCriteria::MAX_ITER | cv::TermCriteria::EPS, 30, 0.01);
   const double m_level = module_px(c, marker_bits, border_bits);
@@ -163,29 +215,27 @@ void refine_from_level(const cv::Mat& grey, const cv::Mat& level_img, cv::Point2
   cv::cornerSubPix(level_img, c, cv::Size(w_level, w_level), cv::Size(-1, -1), fine);
   for (auto& p : c) p = cv::Point2f((p.x + 0.5f) * k - 0.5f + origin.x, (p.y + 0.5f) * k - 0.5f + origin.y);
   const int w0 = std::min({std::max(k, 2), std::max(2, cvRound(0.4 * m_level * k)), 16});
-  cv::cornerSubPix(grey, c, cv::Size(w0, w0), cv::Size(-1, -1), fine);
-  if (final_win > 0)
-    cv::cornerSubPix(grey, c, cv::Size(final_win, final_win), cv::Size(-1, -1),
-                     cv::TermCriteria(cv::TermCriteria::MAX_ITER | cv::TermCriteria::EPS, max_iterations,
-                                      min_accuracy));
-  else
-    refine_corners(grey, c, marker_bits, border_bits, refine);
+  const int w_final_max = final_win > 0 ? final_win : refine.max_win_size;
+  const CornerPatches patches(px, right, image, c, 2 * w0 + 2 * w_final_max + 4);
+  for (int i = 0; i < 4; ++i) patches.refine(c[std::size_t(i)], i, w0, fine);
+  const int w_final = final_win > 0 ? final_win : refine_window(c, marker_bits, border_bits, refine);
+  for (int i = 0; i < 4; ++i) patches.refine(c[std::size_t(i)], i, w_final, refine_criteria(refine));
 }
 
-/// One region searched at level L > 0: averaged down (cv::INTER_AREA over whole 2^L blocks; the
-/// region is trimmed to a multiple of 2^L), detected there with refinement off, corners refined
-/// back to full resolution (refine_from_level); corners in full-image pixels.  ArUco drops a
-/// contour within minDistanceToBorder px of the searched image's edge; at the level that would be
-/// 2^L times as far, so the level image is padded (edge pixels repeated) and the rule is applied
-/// to the refined corners at full resolution instead, as a full-resolution search would.
-void detect_at_level(const cv::Mat& image, const cv::Rect& roi, int level, const cv::Ptr<cv::aruco::Dictionary>& dict,
-                     const cv::aruco::DetectorParameters& base, double min_perimeter_px,
-                     const CornerRefinement& refine, std::vector<std::vector<cv::Point2f>>& corners,
-                     std::vector<int>& ids) {
+/// One region searched at level L > 0: drawn at the level (whole 2^L blocks; the region is trimmed
+/// to a multiple of 2^L), detected there with refinement off, corners refined back to full
+/// resolution (refine_from_level); corners in full-image pixels.  ArUco drops a contour within
+/// minDistanceToBorder px of the searched image's edge; at the level that would be 2^L times as
+/// far, so the level image is padded (edge pixels repeated) and the rule is applied to the refined
+/// corners at full resolution instead, as a full-resolution search would.
+void detect_at_level(const StereoPixels& px, bool right, cv::Size image, const cv::Rect& roi, int level,
+                     const cv::Ptr<cv::aruco::Dictionary>& dict, const cv::aruco::DetectorParameters& base,
+                     double min_perimeter_px, const CornerRefinement& refine,
+                     std::vector<std::vector<cv::Point2f>>& corners, std::vector<int>& ids) {
   const int k = 1 << level;
   const cv::Rect cut(roi.x, roi.y, roi.width / k * k, roi.height / k * k);
-  cv::Mat small, padded;
-  cv::resize(image(cut), small, cv::Size(cut.width / k, cut.height / k), 0, 0, cv::INTER_AREA);
+  const cv::Mat small = draw_level(px, right, cut, level);
+  cv::Mat padded;
   const int pad = base.minDistanceToBorder + 1;
   cv::copyMakeBorder(small, padded, pad, pad, pad, pad, cv::BORDER_REPLICATE);
   const cv::Ptr<cv::aruco::DetectorParameters> p = cv::makePtr<cv::aruco::DetectorParameters>(base);
@@ -204,13 +254,16 @@ void detect_at_level(const cv::Mat& image, const cv::Rect& roi, int level, const
   cv::aruco::detectMarkers(padded, dict, found, found_ids, p);
   // ArUco's own refinement (OpenCV 4.6: a fixed window) when the rule of >= 4.8 is not selected.
   const bool aruco_rule = refine.relative_win_size <= 0.0;
+  const CornerRefinement final_rule = aruco_rule ? CornerRefinement{0.0, base.cornerRefinementWinSize,
+                                                                    base.cornerRefinementMaxIterations,
+                                                                    base.cornerRefinementMinAccuracy}
+                                                 : refine;
   const float d = float(base.minDistanceToBorder);
   for (std::size_t i = 0; i < found.size(); ++i) {
     auto& c = found[i];
     for (auto& q : c) q -= cv::Point2f(float(pad), float(pad));
-    refine_from_level(image, small, cv::Point2f(float(cut.x), float(cut.y)), level, c, dict->markerSize,
-                      base.markerBorderBits, refine, aruco_rule ? base.cornerRefinementWinSize : 0,
-                      base.cornerRefinementMaxIterations, base.cornerRefinementMinAccuracy);
+    refine_from_level(px, right, image, small, cv::Point2f(float(cut.x), float(cut.y)), level, c, dict->markerSize,
+                      base.markerBorderBits, final_rule, aruco_rule ? base.cornerRefinementWinSize : 0);
     const bool inside = std::all_of(c.begin(), c.end(), [&](const cv::Point2f& q) {
       return q.x >= roi.x + d && q.y >= roi.y + d && q.x <= roi.x + roi.width - 1 - d &&
              q.y <= roi.y + roi.height - 1 - d;
@@ -244,14 +297,14 @@ Eigen::Matrix3d camera_rotation(double theta, double pitch) {
   return R;
 }
 
-std::vector<Marker> detect_markers(const cv::Mat& image, const std::vector<Region>& regions,
-                                   const cv::Ptr<cv::aruco::Dictionary>& dict,
+std::vector<Marker> detect_markers(const StereoPixels& px, bool right, cv::Size image,
+                                   const std::vector<Region>& regions, const cv::Ptr<cv::aruco::Dictionary>& dict,
                                    const cv::Ptr<cv::aruco::DetectorParameters>& params,
                                    double min_perimeter_rate, const CornerRefinement& refine) {
   std::vector<Region> search = regions;
-  if (search.empty()) search.push_back({{0.0, 0.0, double(image.cols), double(image.rows)}, 0});
+  if (search.empty()) search.push_back({{0.0, 0.0, double(image.width), double(image.height)}, 0});
   // The whole image's smallest perimeter in full-resolution pixels, kept in every region.
-  const double min_perimeter_px = min_perimeter_rate * std::max(image.cols, image.rows);
+  const double min_perimeter_px = min_perimeter_rate * std::max(image.width, image.height);
   std::vector<Marker> out;
   for (const Region& r : search) {
     const Box& b = r.box;
@@ -260,14 +313,15 @@ std::vector<Marker> detect_markers(const cv::Mat& image, const std::vector<Regio
     std::vector<std::vector<cv::Point2f>> corners;
     std::vector<int> ids;
     if (r.level > 0) {
-      detect_at_level(image, roi, r.level, dict, *params, min_perimeter_px, refine, corners, ids);
+      detect_at_level(px, right, image, roi, r.level, dict, *params, min_perimeter_px, refine, corners, ids);
     } else {
       // A copy of the parameters, so that concurrent calls share nothing they write.
       const cv::Ptr<cv::aruco::DetectorParameters> p = cv::makePtr<cv::aruco::DetectorParameters>(*params);
       p->minMarkerPerimeterRate = std::min(min_perimeter_px / std::max(roi.width, roi.height), 3.9);
-      cv::aruco::detectMarkers(image(roi), dict, corners, ids, p);
+      const cv::Mat grey = draw_level(px, right, roi, 0);
+      cv::aruco::detectMarkers(grey, dict, corners, ids, p);
       if (refine.relative_win_size > 0.0)
-        for (auto& c : corners) refine_corners(image(roi), c, dict->markerSize, p->markerBorderBits, refine);
+        for (auto& c : corners) refine_corners(grey, c, dict->markerSize, p->markerBorderBits, refine);
       for (auto& c : corners)
         for (auto& q : c) q += cv::Point2f(float(roi.x), float(roi.y));
     }

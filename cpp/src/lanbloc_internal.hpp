@@ -53,13 +53,6 @@ std::vector<Region> detection_regions(const LanBLocRig& rig, const LanBLocSettin
                                       const std::vector<LanBLocLandmark>& landmarks, int marker_bits,
                                       const SearchPlan& plan, bool right);
 
-/// ArUco detection (FiducialDetector's parameters) in the regions of `image`
-/// (the whole image at full resolution when `regions` is empty), corners in
-/// full-image pixels, sorted by id, the first of each id kept.  The perimeter
-/// threshold is scaled per region so that it stays the whole image's in
-/// full-resolution pixels.  A region at level L > 0 is averaged down 2^L
-/// times, searched there, and its corners are refined back to full
-/// resolution (refine_from_level).
 /// The pyramid level of a region `box` whose smallest board is `side` px: the coarsest (at most 6)
 /// where that board is still `detect_side_px` wide and the region at least 16 px.
 int pyramid_level(double side, const Box& box, double detect_side_px);
@@ -69,8 +62,16 @@ int pyramid_level(double side, const Box& box, double detect_side_px);
 /// detect_side_px = 0, no sub-pixel refinement or an unbounded range.
 Region whole_frame_region(const LanBLocRig& rig, const LanBLocSettings& settings, int marker_bits);
 
-std::vector<Marker> detect_markers(const cv::Mat& image, const std::vector<Region>& regions,
-                                   const cv::Ptr<cv::aruco::Dictionary>& dict,
+/// ArUco detection (FiducialDetector's parameters) in the regions of one image of `pixels`
+/// (`right`: the right one; `image` its size; the whole image at full resolution when `regions` is
+/// empty), each region drawn at its level, corners in
+/// full-image pixels, sorted by id, the first of each id kept.  The perimeter
+/// threshold is scaled per region so that it stays the whole image's in
+/// full-resolution pixels.  A region at level L > 0 is averaged down 2^L
+/// times, searched there, and its corners are refined back to full
+/// resolution (refine_from_level) from patches around them.
+std::vector<Marker> detect_markers(const StereoPixels& pixels, bool right, cv::Size image,
+                                   const std::vector<Region>& regions, const cv::Ptr<cv::aruco::Dictionary>& dict,
                                    const cv::Ptr<cv::aruco::DetectorParameters>& params,
                                    double min_perimeter_rate, const CornerRefinement& refine);
 

@@ -47,9 +47,19 @@ SearchPlan Localizer::frame_plan(double t) const {
 }
 
 FrameResult Localizer::observe_frame(double t, const ImageView& left, const ImageView& right, FrameUpdate how) {
+  if (!front_end_) detail::bad("observe_frame: no front end (set_front_end first)");
+  const RectifiedCamera& cam = front_end_->rig().camera;
+  for (const auto& [v, name] : {std::pair{&left, "left"}, std::pair{&right, "right"}})
+    if (v->cols != cam.width || v->rows != cam.height)
+      detail::bad(std::string(name) + " image is " + std::to_string(v->cols) + "x" + std::to_string(v->rows) +
+                  " px but the rig is " + std::to_string(cam.width) + "x" + std::to_string(cam.height) + " px");
+  return observe_frame(t, StereoImages(left, right), how);
+}
+
+FrameResult Localizer::observe_frame(double t, const StereoPixels& pixels, FrameUpdate how) {
   FrameResult out;
   out.plan = frame_plan(t);
-  out.fix = front_end_->localize(left, right, out.plan);
+  out.fix = front_end_->localize(pixels, out.plan);
   const std::size_t n = out.fix.observations.size();
   out.update.status = InputStatus::Ignored;
   out.landmarks.assign(n, out.update);

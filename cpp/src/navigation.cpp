@@ -278,9 +278,9 @@ bool Trial::fix(const State& x, int step, Eigen::Vector2d& z, Eigen::Matrix2d& R
 bool Trial::first_frame(Eigen::Vector2d& z, Eigen::Matrix2d& R) {
   const LanBLocFrontEnd& fe = *guidance_.localizer().front_end();
   const SearchPlan plan = fe.plan(std::nullopt);
-  ImageView left, right;
-  if (!(*frames_)(truth_, 0, plan, left, right)) return false;
-  const LanBLocFix f = fe.localize(left, right, plan);
+  const std::shared_ptr<const StereoPixels> pixels = (*frames_)(truth_, 0, plan);
+  if (!pixels) return false;
+  const LanBLocFix f = fe.localize(*pixels, plan);
   res_.observations += f.n_ranges();
   if (!f.ok()) return false;
   z = f.position;
@@ -288,16 +288,16 @@ bool Trial::first_frame(Eigen::Vector2d& z, Eigen::Matrix2d& R) {
   return true;
 }
 
-/// A camera frame at a fix step: rendered where the localizer's front end will search (its plan from
+/// A camera frame at a fix step: drawn where the localizer's front end will search (its plan from
 /// the filter's prediction), then localized and applied by the localizer (observe_frame, gated).
 bool Trial::frame(int step, double t, Eigen::Vector2d& z) {
   Localizer& loc = guidance_.localizer();
-  ImageView left, right;
-  if (!(*frames_)(truth_, step, loc.frame_plan(t), left, right)) {
+  const std::shared_ptr<const StereoPixels> pixels = (*frames_)(truth_, step, loc.frame_plan(t));
+  if (!pixels) {
     ++res_.dropouts;
     return false;
   }
-  const FrameResult r = loc.observe_frame(t, left, right);
+  const FrameResult r = loc.observe_frame(t, *pixels);
   res_.observations += r.fix.n_ranges();
   if (!r.fix.ok()) {
     ++res_.dropouts;

@@ -248,6 +248,39 @@ struct LanBLocFix {
   int n_ranges() const;
 };
 
+/// A rectified grey stereo pair whose pixels are read on demand (ours): the
+/// front end asks for the boxes it reads, at the pyramid level it reads them,
+/// so a simulator draws only those (the camera loop) while a camera hands over
+/// whole images (StereoImages).  draw() writes the level-`level` pixels of a
+/// box of `width` × `height` level pixels whose top-left full-resolution pixel
+/// is (x0, y0): level pixel (i, j) is the mean of the 2^level × 2^level
+/// full-resolution pixels from (x0 + i·2^level, y0 + j·2^level), and the box
+/// lies inside the rig's image.  Calls for one frame come from one thread, in
+/// an order that depends only on the pixels drawn before.
+class StereoPixels {
+ public:
+  virtual ~StereoPixels() = default;
+  /// Writes the box of the left (right = false) or right image into `out`:
+  /// `height` rows of `width` bytes, `stride` bytes apart.
+  virtual void draw(bool right, int level, int x0, int y0, int width, int height, std::uint8_t* out,
+                    std::ptrdiff_t stride) const = 0;
+};
+
+/// Two whole images as StereoPixels: level 0 copied, a level L > 0 averaged
+/// over whole 2^L × 2^L blocks (OpenCV's INTER_AREA).  The views must outlive
+/// it; std::invalid_argument on an empty view or one that is not 8-bit grey.
+class StereoImages final : public StereoPixels {
+ public:
+  StereoImages(const ImageView& left, const ImageView& right);
+  void draw(bool right, int level, int x0, int y0, int width, int height, std::uint8_t* out,
+            std::ptrdiff_t stride) const override;
+  const ImageView& left() const { return left_; }
+  const ImageView& right() const { return right_; }
+
+ private:
+  ImageView left_, right_;
+};
+
 /// LanBLoc's front end for one rig, landmark map and settings.  localize()
 /// and search_windows() are const and write no shared state: one front end
 /// may serve several threads.
@@ -277,6 +310,11 @@ class LanBLocFrontEnd {
   /// camera loop asks for the plan, renders or reads the regions it names,
   /// then localizes in exactly those regions.
   LanBLocFix localize(const ImageView& left, const ImageView& right, const SearchPlan& plan) const;
+  /// The same on pixels read on demand: only the boxes that detection and
+  /// corner refinement read are drawn (each region at its pyramid level, and
+  /// full-resolution patches around the corners found there).  Equal to
+  /// localize(left, right, plan) on StereoImages(left, right).
+  LanBLocFix localize(const StereoPixels& pixels, const SearchPlan& plan) const;
 
   /// Where localize(…, prediction) searches: search_windows for a prediction
   /// (WholeFrame with the reason when too uncertain), merged into each

@@ -279,6 +279,9 @@ class Localizer {
   /// not in the map.
   FrameResult observe_frame(double t, const ImageView& left, const ImageView& right,
                             FrameUpdate how = FrameUpdate::Fix);
+  /// The same on a pair whose pixels are drawn on demand (StereoPixels):
+  /// only the boxes the front end reads are drawn.
+  FrameResult observe_frame(double t, const StereoPixels& pixels, FrameUpdate how = FrameUpdate::Fix);
 
   /// The estimate predicted to t > time() as a measurement at t would be
   /// predicted to (eq. 11 at the last motion input's rates), on a copy of the

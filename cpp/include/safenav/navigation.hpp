@@ -70,11 +70,11 @@ using PositionCallback = std::function<bool(const State& truth, int step, Eigen:
 
 /// Camera frames for the camera loop (ours): given the true state, the step
 /// and the plan of where the vehicle's front end will search (windows from
-/// its own prediction, or the whole frame), render the rectified grey pair —
-/// at least the plan's regions — into left and right, and return true; false
-/// when there is no frame.  The views must stay valid until the next call.
+/// its own prediction, or the whole frame), the rectified grey pair as
+/// StereoPixels — whole images (StereoImages), or a renderer that draws the
+/// boxes the front end asks for — or null when there is no frame.
 using FrameCallback =
-    std::function<bool(const State& truth, int step, const SearchPlan& plan, ImageView& left, ImageView& right)>;
+    std::function<std::shared_ptr<const StereoPixels>(const State& truth, int step, const SearchPlan& plan)>;
 
 /// Where the simulator's position fixes come from.
 enum class FixModel {
