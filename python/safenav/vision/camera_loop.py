@@ -6,11 +6,13 @@ fix step the vehicle's localizer plans where its front end will search
 (``Localizer.frame_plan``: the mapped landmarks projected from the filter's
 prediction, each window grown by its projected 3σ; the whole frame before
 the start or when the prediction is too uncertain), :class:`CameraFrames`
-renders exactly those regions at the true pose (ground and background
-textures, markers, poles, pixel noise: what the whole image holds there, so
-false detections can happen there as in a whole frame), and
-``Localizer.observe_frame`` detects, ranges, trilaterates and updates the
-filter through its gate.  ``Navigator.run_frames`` drives it: the same loop
+hands over the pair at the true pose as pixels drawn on demand
+(:class:`~safenav.vision.pixels.FramePixels`), and ``Localizer.observe_frame``
+draws exactly what its front end reads (each region at its detection level,
+patches around the corners at full resolution: ground and background
+textures, markers, poles, pixel noise, what the whole image holds there, so
+false detections can happen there as in a whole frame), detects, ranges,
+trilaterates and updates the filter through its gate.  ``Navigator.run_frames`` drives it: the same loop
 as for every other input.
 
 :func:`front_end` builds the core's ``LanBLocFrontEnd`` for a world and a
@@ -25,7 +27,10 @@ rendering the plan's windows are also searched at full resolution
 (``detect_side_px = 0``) beside the pyramid levels, and the Python region
 pipeline (:class:`~safenav.vision.regions.RegionPipeline`, its regions from
 the markers' true footprints) runs on the same pixels, for the time per frame
-of each and the pyramid's agreement with full resolution.
+of each and the pyramid's agreement with full resolution.  And the plan's
+windows drawn at full resolution are compared with the same windows drawn
+on demand as the loop draws them: fixes, markers missed or extra, the fixes'
+difference.
 """
 
 from __future__ import annotations
@@ -70,14 +75,16 @@ def front_end(world: World, rig: StereoRig, *, marker_size_m: float = 1.5, dicti
 
 
 class CameraFrames:
-    """Frames for ``Navigator.run_frames``: ``frames(truth, step, plan)`` renders the pair at the
-    true pose in the regions of ``plan`` (the whole images when it says so) and returns
-    ``(left, right)``, or ``None`` when the frame cannot give a range (``early_out``: no
+    """Frames for ``Navigator.run_frames``: ``frames(truth, step, plan)`` returns the pair at the
+    true pose as pixels drawn on demand (:class:`~safenav.vision.pixels.FramePixels`: the front
+    end draws the plan's regions, or the whole frame, at its detection levels, and patches around
+    the corners it finds), or ``None`` when the frame cannot give a range (``early_out``: no
     landmark centre in the left image, a bound from the geometry that holds whatever the
     detector does with the pixels; such a frame counts as a dropout).
 
     :attr:`front_end` is the core's front end (:func:`front_end`); :meth:`run` runs one trial;
-    :attr:`stats` counts frames by search mode, early outs and render time.
+    :attr:`stats` counts frames by search mode, early outs, and the boxes drawn (their pixels
+    and seconds).
     """
 
     name = "lanbloc-camera"
@@ -102,20 +109,26 @@ class CameraFrames:
         self.early_out = bool(early_out)
         self._noise_seed = int(_core.derive_seed(int(seed), NOISE_STREAM))
         self.compare_whole_frame = bool(compare_whole_frame)
-        self.stats = {"frames": 0, "windows": 0, "whole_frame": 0, "early_out": 0, "render_s": 0.0}
+        #: frames by search mode and early outs; the boxes the front end had drawn, their pixels and seconds
+        self.stats = {"frames": 0, "windows": 0, "whole_frame": 0, "early_out": 0, "draws": 0, "pixels": 0,
+                      "draw_s": 0.0}
         self.comparison = {k: 0 for k in ("frames", "fixes_windows", "fixes_whole", "markers_windows",
                                           "markers_whole", "missed", "false_windows", "false_whole",
                                           "fixes_pyramid", "fixes_full_res", "markers_pyramid",
-                                          "markers_full_res", "missed_pyramid", "extra_pyramid")}
+                                          "markers_full_res", "missed_pyramid", "extra_pyramid",
+                                          "fixes_drawn", "markers_drawn", "missed_drawn", "extra_drawn")}
         #: per compared frame: the windows' fix error [m], NEES and farthest range [m] against the truth
         #: (fixes only), the front end's seconds in the windows and on the whole frame, and the
         #: comparison's own seconds; on the whole rendering: the front end's seconds in the plan's
         #: windows at the pyramid levels and at full resolution, the Python region pipeline's seconds,
         #: |pyramid fix − full-resolution fix| [m] (both fixes), the largest corner difference [px] of
-        #: each marker both found (both images), and each one's fix error against the truth [m]
+        #: each marker both found (both images), and each one's fix error against the truth [m]; the
+        #: seconds to render the plan's regions at full resolution, and to draw and search them on
+        #: demand as the loop does, that fix's error and its distance from the full-resolution one [m]
         self.samples = {k: [] for k in ("error", "nees", "range", "s_windows", "s_whole", "s_compare",
                                         "s_pyramid", "s_full_res", "s_python", "fix_diff", "corner_diff",
-                                        "error_pyramid", "error_full_res")}
+                                        "error_pyramid", "error_full_res", "s_render_regions", "s_drawn",
+                                        "error_drawn", "drawn_diff")}
         self._full_res = self._python = None
 
     @classmethod
@@ -143,32 +156,34 @@ class CameraFrames:
         if self.early_out and self.renderer.centres_in_view(pose) < 1:
             self.stats["early_out"] += 1
             return None
-        t0 = time.perf_counter()
         seed = int(_core.derive_seed(self._noise_seed, int(step)))
         whole = plan.mode == _core.SearchMode.WHOLE_FRAME
         self.stats["whole_frame" if whole else "windows"] += 1
-        if whole:
-            full = [(0, 0, self.rig.width, self.rig.height)]
-            left, right = self.renderer.render_regions(pose, full, full, seed)
-        else:
-            left, right = self.renderer.render_regions(pose, plan.left_regions, plan.right_regions, seed)
-        self.stats["render_s"] += time.perf_counter() - t0
         if self.compare_whole_frame and not whole:
             t1 = time.perf_counter()
-            self._compare(pose, seed, plan, left, right)
+            self._compare(pose, seed, plan)
             self.samples["s_compare"].append(time.perf_counter() - t1)
-        return left, right
+        # the front end draws what it reads: each region at its pyramid level, patches around the corners
+        return self.renderer.pixels(pose, seed, self.stats)
 
-    def _compare(self, pose, seed: int, plan, left, right) -> None:
-        """The same frame searched in the plan's windows and in the whole (rendered) frame."""
+    def _compare(self, pose, seed: int, plan) -> None:
+        """The same frame searched in the plan's windows (drawn at full resolution, and as the loop
+        draws them: on demand at the detection levels) and in the whole (rendered) frame."""
         full = [(0, 0, self.rig.width, self.rig.height)]
+        t = time.perf_counter()
+        left, right = self.renderer.render_regions(pose, plan.left_regions, plan.right_regions, seed)
+        self.samples["s_render_regions"].append(time.perf_counter() - t)
         wl, wr = self.renderer.render_regions(pose, full, full, seed)
         t0 = time.perf_counter()
         fw = self.front_end.localize_plan(left, right, plan)
         t1 = time.perf_counter()
         ff = self.front_end.localize(wl, wr)
         self.samples["s_windows"].append(t1 - t0)
-        self.samples["s_whole"].append(time.perf_counter() - t1)
+        t2 = time.perf_counter()
+        self.samples["s_whole"].append(t2 - t1)
+        fd = self.front_end.localize_pixels(self.renderer.pixels(pose, seed), plan)
+        self.samples["s_drawn"].append(time.perf_counter() - t2)
+        self._compare_drawn(fw, fd, pose)
         if fw.ok:
             e = np.asarray(fw.position) - pose[:2]
             self.samples["error"].append(float(np.hypot(*e)))
@@ -187,6 +202,21 @@ class CameraFrames:
         c["missed"] += len(ids_f - ids_w)
         c["false_windows"] += len(ids_w - drawn) + len(fw.unmapped)
         c["false_whole"] += len(ids_f - drawn) + len(ff.unmapped)
+
+    def _compare_drawn(self, fw, fd, pose) -> None:
+        """The windows drawn on demand at the detection levels (the loop's pixels) against the same
+        windows drawn at full resolution: fixes, markers each found that the other did not, and the
+        fixes' difference and error."""
+        c, s = self.comparison, self.samples
+        c["fixes_drawn"] += fd.ok
+        iw, idr = ({o.landmark_id for o in f.observations} for f in (fw, fd))
+        c["markers_drawn"] += len(idr)
+        c["missed_drawn"] += len(iw - idr)
+        c["extra_drawn"] += len(idr - iw)
+        if fd.ok:
+            s["error_drawn"].append(float(np.hypot(*(np.asarray(fd.position) - pose[:2]))))
+        if fd.ok and fw.ok:
+            s["drawn_diff"].append(float(np.hypot(*(np.asarray(fd.position) - np.asarray(fw.position)))))
 
     def _compare_levels(self, pose, seed: int, plan, wl, wr) -> None:
         """On the whole rendering: the plan's windows at the pyramid levels and at full resolution,

@@ -60,7 +60,6 @@ with the pixel count.
 
 from __future__ import annotations
 
-import functools
 import itertools
 import math
 from typing import Mapping
@@ -69,73 +68,12 @@ import cv2
 import numpy as np
 
 from ..world import Landmark, World
-from .detect import aruco_dictionary, marker_image
+from .detect import aruco_dictionary
 from .frame import StereoFrame
 from .rig import StereoRig, as_pose, camera_rotation, check_positive
+from .textures import marker_pyramid, periodic_noise, rig_maps, textures, view_maps
 
 __all__ = ["StereoRig", "StereoRenderer", "StereoFrame", "camera_rotation", "periodic_noise"]
-
-
-# --------------------------------------------------------------------------- textures
-
-def periodic_noise(shape: tuple[int, int], seed: int, beta: float = 1.6, lo: int = 20, hi: int = 235) -> np.ndarray:
-    """A seamlessly tiling uint8 texture: white noise shaped to a 1/f^β spectrum (FFT, so periodic)."""
-    rng = np.random.default_rng(seed)
-    h, w = shape
-    spec = np.fft.rfft2(rng.standard_normal((h, w)))
-    fy = np.fft.fftfreq(h)[:, None]
-    fx = np.fft.rfftfreq(w)[None, :]
-    f = np.hypot(fx, fy)
-    f[0, 0] = 1.0
-    img = np.fft.irfft2(spec / f ** (beta / 2.0), s=(h, w))
-    img -= np.percentile(img, 1)
-    img /= max(np.percentile(img, 99), 1e-12)
-    return np.clip(lo + (hi - lo) * img, 0, 255).astype(np.uint8)
-
-
-@functools.lru_cache(maxsize=4)
-def _textures(texture_seed: int, ground_tile: int, pano_h: int, pano_w: int):
-    """The ground tile, the panorama and the panorama's pyramid levels (each tiled 2×2) for a seed."""
-    ground = periodic_noise((ground_tile, ground_tile), texture_seed, beta=1.4)
-    pano = periodic_noise((pano_h, pano_w), texture_seed + 1, beta=1.8, lo=90, hi=250)
-    return ground, pano, [np.tile(pano, (2, 2))]
-
-
-@functools.lru_cache(maxsize=4096)
-def _marker_pyramid(dictionary: str, marker_id: int) -> tuple[list[np.ndarray], list[np.ndarray]]:
-    """A marker board's mip pyramid, smallest first: (grey + alpha) levels and grey levels."""
-    base = marker_image(aruco_dictionary(dictionary), marker_id, cell_px=64, border_cells=1)
-    pyr = [base]
-    while pyr[-1].shape[0] > 8:
-        pyr.append(cv2.resize(pyr[-1], None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA))
-    pyr = pyr[::-1]
-    return [cv2.merge([m, np.full_like(m, 255)]) for m in pyr], pyr
-
-
-@functools.lru_cache(maxsize=4)
-def _rig_maps(r: StereoRig, haze_m: float, pano_w: int, pano_h: int, pano_el: tuple[float, float]):
-    """(first ground row, haze per ground row, background x, y maps, background rows) of rig ``r``."""
-    f, cx, cy, ph = r.focal_length_px, r.cx, r.cy, r.pitch_rad
-    v = np.arange(r.height, dtype=np.float64)
-    up = -math.cos(ph) * (v - cy) / f + math.sin(ph)   # world-up component of the ray (camera z = 1)
-    # ground rows: the ray meets the ground nearer than 2 km
-    ground = up < -r.camera_height_m / 2000.0
-    v_ground = int(np.argmax(ground)) if ground.any() else r.height
-    t = r.camera_height_m / np.maximum(-up[v_ground:], 1e-12)   # camera depth of the ground row
-    haze = np.exp(-t / haze_m).astype(np.float32)[:, None]
-    # background maps (rows above the ground): azimuth relative to the heading and elevation
-    nb = min(v_ground + 2, r.height)
-    uu, vv = np.meshgrid(np.arange(r.width, dtype=np.float64), np.arange(nb, dtype=np.float64))
-    R0 = camera_rotation(0.0, ph)
-    rays = np.stack([(uu - cx) / f, (vv - cy) / f, np.ones_like(uu)], axis=-1) @ R0  # world directions
-    az = np.arctan2(rays[..., 1], rays[..., 0])
-    el = np.arctan2(rays[..., 2], np.hypot(rays[..., 0], rays[..., 1]))
-    e0, e1 = pano_el
-    bg_x = (-az / (2 * math.pi) * pano_w).astype(np.float32)
-    bg_y = np.clip((e1 - el) / (e1 - e0) * (pano_h - 1), 0, pano_h - 1).astype(np.float32)
-    for a in (haze, bg_x, bg_y):
-        a.flags.writeable = False
-    return v_ground, haze, bg_x, bg_y, nb
 
 
 # --------------------------------------------------------------------------- the renderer
@@ -230,7 +168,7 @@ class StereoRenderer:
         self._rng = np.random.default_rng(seed)
         self._L = np.array([(*lm.position[:2], lm.height) for lm in self.landmarks], float).reshape(-1, 3)
         # textures (shared by every renderer with this texture seed)
-        self._ground, self._pano, self._pano_levels = _textures(int(texture_seed), self.GROUND_TILE, self.PANO_H,
+        self._ground, self._pano, self._pano_levels = textures(int(texture_seed), self.GROUND_TILE, self.PANO_H,
                                                                 self.PANO_W)
         self._ground_mean = float(self._ground.mean())
         self._seed = seed
@@ -242,7 +180,7 @@ class StereoRenderer:
     def _prepare_rig(self):
         """The rig's whole-frame maps (ground rows, haze, background azimuth/elevation maps): made once
         per rig and shared by every renderer of it (a camera trial makes a renderer per trial)."""
-        self._v_ground, self._haze, self._bg_x, self._bg_y, self._nb = _rig_maps(
+        self._v_ground, self._haze, self._bg_x, self._bg_y, self._nb = rig_maps(
             self.rig, self.HAZE_M, self.PANO_W, self.PANO_H, self.PANO_EL)
 
     # ---- public API
@@ -343,7 +281,7 @@ class StereoRenderer:
         hidden = self.hidden(pose)
         out = []
         for cam, C in zip(("left", "right"), centers):
-            img = self._draw_box(th, R, C, [b for b in boards if b[0] not in hidden[cam]],
+            img = self._draw_box(th, R, C, self._board_items(R, C, [b for b in boards if b[0] not in hidden[cam]]),
                                  (0, 0, self.rig.width, self.rig.height), self._rng)
             out.append(img if not self.color else cv2.cvtColor(img, cv2.COLOR_GRAY2BGR))
         return out[0], out[1]
@@ -354,28 +292,32 @@ class StereoRenderer:
         there (ground and background textures, markers, poles) and pixel noise from the stream
         ``noise_seed``.  A detector that searches only these regions sees the whole image's pixels
         there, false detections in the textures included.  The noise of a region is a window of a
-        fixed tile of Gaussian draws at an offset drawn from that stream (fresh draws for a region
-        larger than the tile), as :class:`StereoFrame`'s: drawing fresh normals for every pixel
-        took as long as drawing the region."""
-        x, y, th = as_pose(pose)
-        pose = (x, y, th)
-        R = camera_rotation(th, self.rig.pitch_rad)
-        rng = np.random.default_rng(noise_seed)
-        idx = self.culled(pose)
-        boards = [self._board(i, pose) for i in idx]
-        hidden = self.hidden(pose) if len(idx) else {"left": set(), "right": set()}
+        fixed tile of Gaussian draws at an offset drawn from that stream, block by block for a
+        region larger than the tile (:meth:`_add_noise`): drawing fresh normals for every pixel
+        took as long as drawing the region.  The regions are drawn as :meth:`pixels` draws boxes
+        at level 0, left then right."""
+        px = self.pixels(pose, noise_seed)
         w, h = self.rig.width, self.rig.height
         out = []
-        for cam, C, regions in zip(("left", "right"), self.rig.camera_centers(pose), (left_regions, right_regions)):
+        for right, regions in ((False, left_regions), (True, right_regions)):
             img = np.zeros((h, w), np.uint8)
             for box in regions:
                 x0, y0, x1, y1 = (int(round(float(v))) for v in box)
                 if not (0 <= x0 < x1 <= w and 0 <= y0 < y1 <= h):
                     raise ValueError(f"region {tuple(box)}: must lie inside the {w}x{h} image with x0 < x1, y0 < y1")
-                img[y0:y1, x0:x1] = self._draw_box(th, R, C, [b for b in boards if b[0] not in hidden[cam]],
-                                                   (x0, y0, x1, y1), rng, tiled_noise=True)
+                img[y0:y1, x0:x1] = px.draw(right, 0, x0, y0, x1 - x0, y1 - y0)
             out.append(img)
         return out[0], out[1]
+
+    def pixels(self, pose, noise_seed: int = 0, stats: dict | None = None):
+        """The pair at ``pose`` drawn box by box on demand, at any pyramid level, for the core's front
+        end (:class:`~safenav.vision.pixels.FramePixels`; ``stats`` counts its draws)."""
+        from .pixels import FramePixels
+
+        if not self._rig_ready:
+            self._prepare_rig()
+            self._rig_ready = True
+        return FramePixels(self, pose, noise_seed, stats)
 
     def centres_in_view(self, pose, camera: str = "left") -> int:
         """How many culled landmarks have their marker's centre inside ``camera``'s image and are not
@@ -459,63 +401,99 @@ class StereoRenderer:
         return self.landmarks[i].id, corners, pole, facing
 
     def _pyramid(self, lid: int, grey: bool = False) -> list[np.ndarray]:
-        return _marker_pyramid(self.dictionary_name, self._marker_id[lid])[1 if grey else 0]
+        return marker_pyramid(self.dictionary_name, self._marker_id[lid])[1 if grey else 0]
 
-    def _draw_box(self, th: float, R: np.ndarray, C: np.ndarray, boards, box, rng,
+    def _draw_box(self, th: float, R: np.ndarray, C: np.ndarray, items, box, rng,
                   tiled_noise: bool = False) -> np.ndarray:
         """The pixels of ``box`` (x0, y0, x1, y1) of the camera at centre ``C``: ground and background,
-        the ``boards`` (markers and poles), pixel noise from ``rng`` (``tiled_noise``: each block
-        of at most the tile's size, row by row, a window of the region noise tile at its own offset
-        from ``rng``, rounded to the nearest grey level; otherwise fresh draws, truncated)."""
+        the boards (``items``: :meth:`_board_items`, markers and poles), pixel noise from ``rng``
+        (``tiled_noise``: :meth:`_add_noise`; otherwise fresh draws, truncated)."""
         if not self._rig_ready:
             self._prepare_rig()
             self._rig_ready = True
         img = self._background_and_ground(th, R, C, box)
-        self._draw_markers(img, R, C, boards, box[:2])
+        self._paint(img, items, self.rig.K, box)
         if self.noise_std > 0:
-            n = self.REGION_NOISE_TILE
             if tiled_noise:
-                if self._region_noise is None:
-                    t = np.random.default_rng([self._seed, 11]).standard_normal((n, n), dtype=np.float32)
-                    self._region_noise = np.tile(t * np.float32(self.noise_std), (2, 2))
-                for y, x in itertools.product(range(0, img.shape[0], n), range(0, img.shape[1], n)):
-                    b, (r0, c0) = img[y:y + n, x:x + n], rng.integers(0, n, 2)
-                    # one pass in place, rounded to the nearest grey level and saturated
-                    cv2.add(b, self._region_noise[r0:r0 + b.shape[0], c0:c0 + b.shape[1]], dst=b, dtype=cv2.CV_8U)
+                self._add_noise(img, rng)
                 return img
             noise = rng.standard_normal(img.shape, dtype=np.float32) * self.noise_std
             img = np.clip(img + noise, 0, 255).astype(np.uint8)
         return img
 
-    def _background_and_ground(self, th: float, R: np.ndarray, C: np.ndarray, box) -> np.ndarray:
-        """The ground and the background at infinity in ``box`` = (x0, y0, x1, y1) of the image."""
+    def draw_level(self, th: float, R: np.ndarray, C: np.ndarray, items, x0: int, y0: int, width: int,
+                   height: int, level: int, rng) -> np.ndarray:
+        """The ``height`` × ``width`` box of pyramid level ``level`` whose top-left full-resolution pixel
+        is (x0, y0), drawn at that level (ours; the core's ``StereoPixels.draw``): level pixel (i, j)
+        stands for the 2^L × 2^L full-resolution pixels from (x0 + i·2^L, y0 + j·2^L), so it is drawn
+        by a pinhole view of focal f/2^L whose pixel centres are those blocks' centres
+        ((c − x0 + 0.5)/2^L − 0.5 the principal point): ground, background, markers and poles as
+        at full resolution, the tiled pixel noise at σ/2^L (the mean of 4^L independent pixels).
+        Level 0 is :meth:`_draw_box` of the box with tiled noise.  Departure from averaging a
+        full-resolution drawing: textures and board edges are sampled once per level pixel, not
+        averaged over its block (the board from the mip level below its size on screen)."""
+        if level == 0:
+            return self._draw_box(th, R, C, items, (x0, y0, x0 + width, y0 + height), rng, tiled_noise=True)
+        k = 1 << level
+        r = self.rig
+        f, cx, cy = r.focal_length_px / k, (r.cx - x0 + 0.5) / k - 0.5, (r.cy - y0 + 0.5) / k - 0.5
+        maps = view_maps(f, cx, cy, width, height, r.camera_height_m, r.pitch_rad, self.HAZE_M, self.PANO_W,
+                         self.PANO_H, self.PANO_EL)
+        K = np.array([[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]])
+        img = self._background_and_ground(th, R, C, (0, 0, width, height), (K, *maps))
+        self._paint(img, items, K, (0, 0, width, height), (x0, y0, x0 + width * k, y0 + height * k))
+        if self.noise_std > 0:
+            self._add_noise(img, rng, 1.0 / k)
+        return img
+
+    def _add_noise(self, img: np.ndarray, rng, scale: float = 1.0) -> None:
+        """Pixel noise N(0, (scale·σ)²) added to ``img`` in place, rounded to the nearest grey level and
+        saturated: each block of at most the region noise tile's size, row by row, a window of that
+        tile at its own offset drawn from ``rng``."""
+        n = self.REGION_NOISE_TILE
+        if self._region_noise is None:
+            t = np.random.default_rng([self._seed, 11]).standard_normal((n, n), dtype=np.float32)
+            self._region_noise = np.tile(t * np.float32(self.noise_std), (2, 2))
+        for y, x in itertools.product(range(0, img.shape[0], n), range(0, img.shape[1], n)):
+            b, (r0, c0) = img[y:y + n, x:x + n], rng.integers(0, n, 2)
+            w = self._region_noise[r0:r0 + b.shape[0], c0:c0 + b.shape[1]]
+            cv2.add(b, w if scale == 1.0 else w * np.float32(scale), dst=b, dtype=cv2.CV_8U)
+
+    def _background_and_ground(self, th: float, R: np.ndarray, C: np.ndarray, box, view=None) -> np.ndarray:
+        """The ground and the background at infinity in ``box`` = (x0, y0, x1, y1) of the image, or of
+        ``view`` = (K, and :func:`~safenav.vision.textures.view_maps` of it) when given."""
+        K, v_ground, haze_rows, bg_x, bg_y, nb = view if view is not None else (
+            self.rig.K, self._v_ground, self._haze, self._bg_x, self._bg_y, self._nb)
         x0, y0, x1, y1 = box
         img = np.empty((y1 - y0, x1 - x0), np.uint8)
         # background at infinity: shift the azimuth map by the heading
         shift = np.float32((-th / (2 * math.pi) * self.PANO_W) % self.PANO_W)
-        yb = min(y1, self._nb)
+        yb = min(y1, nb)
         if yb > y0:
-            img[:yb - y0] = cv2.remap(self._pano, self._bg_x[y0:yb, x0:x1] + shift,
-                                      np.ascontiguousarray(self._bg_y[y0:yb, x0:x1]), cv2.INTER_LINEAR,
+            img[:yb - y0] = cv2.remap(self._pano, bg_x[y0:yb, x0:x1] + shift,
+                                      np.ascontiguousarray(bg_y[y0:yb, x0:x1]), cv2.INTER_LINEAR,
                                       borderMode=cv2.BORDER_WRAP)
-        v0 = max(self._v_ground, y0)
+        v0 = max(v_ground, y0)
         if v0 < y1:
             period = self.GROUND_TILE * self.GROUND_RES_M
             X0, Y0 = math.floor(C[0] / period) * period, math.floor(C[1] / period) * period
             A = np.array([[self.GROUND_RES_M, 0, X0], [0, self.GROUND_RES_M, Y0], [0, 0, 1.0]])
-            H = self.rig.K @ np.column_stack([R[:, 0], R[:, 1], -R @ C]) @ A   # texel -> image pixel
+            H = K @ np.column_stack([R[:, 0], R[:, 1], -R @ C]) @ A   # texel -> image pixel
             H = np.array([[1, 0, -x0], [0, 1, -v0], [0, 0, 1.0]]) @ H          # the box's pixels, rows from v0
             g = cv2.warpPerspective(self._ground, np.linalg.inv(H), (x1 - x0, y1 - v0),
                                     flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_WRAP)
             m = self._ground_mean
-            haze = self._haze[v0 - self._v_ground:y1 - self._v_ground]
+            haze = haze_rows[v0 - v_ground:y1 - v_ground]
             img[v0 - y0:] = ((g.astype(np.float32) - m) * haze + m).astype(np.uint8)
         return img
 
-    def _draw_markers(self, img: np.ndarray, R: np.ndarray, C: np.ndarray, boards, origin=(0, 0)) -> None:
-        """Draw ``boards`` into ``img``, whose pixel (0, 0) is the image's ``origin`` (x, y)."""
+    def _board_items(self, R: np.ndarray, C: np.ndarray, boards) -> list:
+        """The ``boards`` (:meth:`_board`) that face the camera at centre ``C`` and lie in front of it, far
+        first (painter's order): (depth, id, corners in camera coordinates (4, 3), the pole's (4, 3) or
+        None when it is not wholly in front, and the full-resolution pixel box (x0, y0, x1, y1) that
+        drawing them can touch)."""
         r = self.rig
-        f, cx, cy = r.focal_length_px, r.cx - origin[0], r.cy - origin[1]
+        f, cx, cy = r.focal_length_px, r.cx, r.cy
         items = []
         for lid, corners, pole, facing in boards:
             if not facing:
@@ -523,14 +501,31 @@ class StereoRenderer:
             pc = (corners - C) @ R.T
             if (pc[:, 2] <= r.near_m).any():
                 continue
-            items.append((float(pc[:, 2].mean()), lid, pc, pole))
+            pp = None if pole is None else (pole - C) @ R.T
+            if pp is not None and not (pp[:, 2] > r.near_m).all():
+                pp = None
+            pts = pc if pp is None else np.vstack([pc, pp])
+            uv = f * pts[:, :2] / pts[:, 2:3] + [cx, cy]
+            lo, hi = uv.min(axis=0), uv.max(axis=0)
+            box = (math.floor(lo[0]) - 2, math.floor(lo[1]) - 2, math.ceil(hi[0]) + 3, math.ceil(hi[1]) + 3)
+            items.append((float(pc[:, 2].mean()), lid, pc, pp, box))
         items.sort(key=lambda t: -t[0])   # far first
-        for _, lid, pc, pole in items:
-            if pole is not None:
-                pp = (pole - C) @ R.T
-                if (pp[:, 2] > r.near_m).all():
-                    uv = f * pp[:, :2] / pp[:, 2:3] + [cx, cy]
-                    cv2.fillConvexPoly(img, np.round(uv * 16).astype(np.int32), 70, cv2.LINE_AA, 4)
+        return items
+
+    def _paint(self, img: np.ndarray, items, K: np.ndarray, box, full_box=None) -> None:
+        """Paint the boards ``items`` (:meth:`_board_items`, in order: each pole, then its marker) into
+        ``img``, the pixels ``box`` (x0, y0, …) of the view with intrinsics ``K``; ``full_box``: the
+        full-resolution pixels the image covers (default ``box``), which skips boards that cannot
+        touch it."""
+        x0, y0 = box[:2]
+        fb = box if full_box is None else full_box
+        f, cx, cy = K[0, 0], K[0, 2] - x0, K[1, 2] - y0
+        for _, lid, pc, pp, b in items:
+            if not (b[0] < fb[2] and fb[0] < b[2] and b[1] < fb[3] and fb[1] < b[3]):
+                continue
+            if pp is not None:
+                uv = f * pp[:, :2] / pp[:, 2:3] + [cx, cy]
+                cv2.fillConvexPoly(img, np.round(uv * 16).astype(np.int32), 70, cv2.LINE_AA, 4)
             self._warp_marker(img, lid, f * pc[:, :2] / pc[:, 2:3] + [cx, cy])
 
     def _warp_marker(self, img: np.ndarray, lid: int, uv: np.ndarray, side: float | None = None,
