@@ -53,9 +53,11 @@ class PyPixels final : public StereoPixels {
   py::handle obj_;
 };
 
-/// Frame pixels from Python: a (left, right) pair of grey arrays, or an object with draw().  `keep`
+/// Frame pixels from Python: a core StereoPixels (e.g. RenderedFrame), a (left, right) pair of grey
+/// arrays, or an object with draw().  `keep`
 /// holds what the pixels borrow until the caller drops it (with the GIL held).
 std::shared_ptr<const StereoPixels> pixels_of(const py::object& obj, py::object& keep, const char* what) {
+  if (py::isinstance<StereoPixels>(obj)) return obj.cast<std::shared_ptr<StereoPixels>>();  // drawn in C++
   if (py::isinstance<py::tuple>(obj)) {
     auto t = obj.cast<py::tuple>();
     if (t.size() != 2)

@@ -3,6 +3,7 @@
 void pybind_geometry_simple_polygon(py::module_& m);  // appended to bindings/geometry.cpp
 void pybind_lanbloc(py::module_& m);                   // bindings/lanbloc.cpp
 void pybind_lanbloc_loop(py::module_& m);              // bindings/lanbloc_loop.cpp
+void pybind_render(py::module_& m);                    // bindings/render.cpp
 
 PYBIND11_MODULE(_core, m) {
   m.doc() = "safenav C++ core (use the safenav package, not this module directly)";
@@ -24,6 +25,7 @@ PYBIND11_MODULE(_core, m) {
   pybind_placement(m);
   pybind_navigation(m);
   pybind_guidance(m);
+  pybind_render(m);        // before lanbloc_loop: its pixels go to the front end
   pybind_lanbloc_loop(m);  // after lanbloc, navigation and guidance: it extends their classes
   pybind_belief(m);  // after navigation: it takes SensorSettings
 }

@@ -6,8 +6,8 @@ fix step the vehicle's localizer plans where its front end will search
 (``Localizer.frame_plan``: the mapped landmarks projected from the filter's
 prediction, each window grown by its projected 3σ; the whole frame before
 the start or when the prediction is too uncertain), :class:`CameraFrames`
-hands over the pair at the true pose as pixels drawn on demand
-(:class:`~safenav.vision.pixels.FramePixels`), and ``Localizer.observe_frame``
+hands over the pair at the true pose as pixels drawn on demand by the core
+(:meth:`StereoRenderer.pixels <safenav.vision.render.StereoRenderer.pixels>`), and ``Localizer.observe_frame``
 draws exactly what its front end reads (each region at its detection level,
 patches around the corners at full resolution: ground and background
 textures, markers, poles, pixel noise, what the whole image holds there, so
@@ -76,15 +76,14 @@ def front_end(world: World, rig: StereoRig, *, marker_size_m: float = 1.5, dicti
 
 class CameraFrames:
     """Frames for ``Navigator.run_frames``: ``frames(truth, step, plan)`` returns the pair at the
-    true pose as pixels drawn on demand (:class:`~safenav.vision.pixels.FramePixels`: the front
-    end draws the plan's regions, or the whole frame, at its detection levels, and patches around
-    the corners it finds), or ``None`` when the frame cannot give a range (``early_out``: no
+    true pose as pixels drawn on demand (:meth:`StereoRenderer.pixels
+    <safenav.vision.render.StereoRenderer.pixels>`: the front end draws the plan's regions, or the
+    whole frame, at its detection levels, and patches around the corners it finds), or ``None`` when the frame cannot give a range (``early_out``: no
     landmark centre in the left image, a bound from the geometry that holds whatever the
     detector does with the pixels; such a frame counts as a dropout).
 
     :attr:`front_end` is the core's front end (:func:`front_end`); :meth:`run` runs one trial;
-    :attr:`stats` counts frames by search mode, early outs, and the boxes drawn (their pixels
-    and seconds).
+    :attr:`stats` counts frames by search mode, early outs, and the boxes drawn and their pixels.
     """
 
     name = "lanbloc-camera"
@@ -109,9 +108,9 @@ class CameraFrames:
         self.early_out = bool(early_out)
         self._noise_seed = int(_core.derive_seed(int(seed), NOISE_STREAM))
         self.compare_whole_frame = bool(compare_whole_frame)
-        #: frames by search mode and early outs; the boxes the front end had drawn, their pixels and seconds
-        self.stats = {"frames": 0, "windows": 0, "whole_frame": 0, "early_out": 0, "draws": 0, "pixels": 0,
-                      "draw_s": 0.0}
+        #: frames by search mode and early outs; the boxes the front end had drawn and their pixels
+        self.stats = {"frames": 0, "windows": 0, "whole_frame": 0, "early_out": 0, "draws": 0, "pixels": 0}
+        self._last = None   # the last frame's pixels, counted into stats on the next frame or after the trial
         self.comparison = {k: 0 for k in ("frames", "fixes_windows", "fixes_whole", "markers_windows",
                                           "markers_whole", "missed", "false_windows", "false_whole",
                                           "fixes_pyramid", "fixes_full_res", "markers_pyramid",
@@ -143,7 +142,10 @@ class CameraFrames:
 
     def run(self, navigator, seed: int):
         """One trial of ``navigator`` (a ``Navigator``) with these frames in the loop."""
-        return navigator.run_frames(int(seed), self.front_end, self)
+        try:
+            return navigator.run_frames(int(seed), self.front_end, self)
+        finally:
+            self._count_drawn()
 
     def __call__(self, truth, step: int, plan):
         s = np.asarray(truth, dtype=float).ravel()
@@ -164,7 +166,15 @@ class CameraFrames:
             self._compare(pose, seed, plan)
             self.samples["s_compare"].append(time.perf_counter() - t1)
         # the front end draws what it reads: each region at its pyramid level, patches around the corners
-        return self.renderer.pixels(pose, seed, self.stats)
+        self._count_drawn()
+        self._last = self.renderer.pixels(pose, seed)
+        return self._last
+
+    def _count_drawn(self) -> None:
+        if self._last is not None:
+            self.stats["draws"] += self._last.draws
+            self.stats["pixels"] += self._last.pixels
+            self._last = None
 
     def _compare(self, pose, seed: int, plan) -> None:
         """The same frame searched in the plan's windows (drawn at full resolution, and as the loop

@@ -200,8 +200,7 @@ class StereoFrame:
             if d.pole is not None:
                 cv2.fillConvexPoly(img, np.round(((d.pole + 0.5) / k - 0.5 - off) * 16).astype(np.int32), 70,
                                    cv2.LINE_AA, 4)
-            self.renderer._warp_marker(img, d.landmark_id, (d.uv + 0.5) / k - 0.5 - off, d.max_side / k,
-                                       transparent=True)
+            self.renderer._warp_marker(img, d.landmark_id, (d.uv + 0.5) / k - 0.5 - off, d.max_side / k)
         if self.renderer.noise_std > 0:
             if self._offsets is None or self._next >= len(self._offsets):
                 self._offsets = self._rng.integers(0, self.renderer.NOISE_TILE, (32, 2)).tolist()

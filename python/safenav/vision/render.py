@@ -60,20 +60,36 @@ with the pixel count.
 
 from __future__ import annotations
 
-import itertools
+import functools
 import math
 from typing import Mapping
 
 import cv2
 import numpy as np
 
+from .. import _core
 from ..world import Landmark, World
 from .detect import aruco_dictionary
 from .frame import StereoFrame
 from .rig import StereoRig, as_pose, camera_rotation, check_positive
-from .textures import marker_pyramid, periodic_noise, rig_maps, textures, view_maps
+from .textures import marker_pyramid, periodic_noise, textures
 
 __all__ = ["StereoRig", "StereoRenderer", "StereoFrame", "camera_rotation", "periodic_noise"]
+
+
+@functools.lru_cache(maxsize=8)
+def _pixel_renderer(rig: StereoRig, texture_seed: int, dictionary: str, markers: tuple, haze_m: float,
+                    pole_grey: float, ground_res_m: float, ground_tile: int, pano_w: int, pano_h: int,
+                    pano_el: tuple[float, float]) -> "_core.PixelRenderer":
+    """The core's renderer of a scene (``_core.PixelRenderer``: the rig, the textures of
+    ``texture_seed``, each landmark's board pyramid for ``markers`` = ((landmark id, marker id), …)),
+    shared by every renderer of it: it computes the panorama coordinates of the rig's pixels once,
+    and a camera trial makes a renderer per trial."""
+    ground, pano, _ = textures(texture_seed, ground_tile, pano_h, pano_w)
+    boards = {lid: marker_pyramid(dictionary, mid)[0] for lid, mid in markers}
+    return _core.PixelRenderer(rig.focal_length_px, rig.cx, rig.cy, rig.width, rig.height, rig.camera_height_m,
+                               rig.pitch_rad, ground, ground_res_m, pano, pano_el[0], pano_el[1], haze_m, pole_grey,
+                               boards)
 
 
 # --------------------------------------------------------------------------- the renderer
@@ -115,8 +131,9 @@ class StereoRenderer:
     GROUND_TILE = 1024       # texels per tile side (period 20.48 m)
     PANO_W, PANO_H, PANO_EL = 4096, 1024, (-0.35, 0.9)   # panorama size and elevations covered [rad]
     HAZE_M, POLE_WIDTH_M = 80.0, 0.08   # ground contrast falls as exp(-Z / HAZE_M); pole width [m]
+    POLE_GREY = 70.0         # grey level of the poles
     NOISE_TILE = 512         # side of the pixel-noise tile of StereoFrame patches
-    REGION_NOISE_TILE = 1024  # side of the pixel-noise tile of render_regions
+    REGION_NOISE_TILE = 256   # side of the pixel-noise tile of pixels() (small: it is read from cache)
 
     def __init__(self, landmarks, rig: StereoRig | None = None, *, marker_size_m: float = 1.5,
                  dictionary: str = "DICT_4X4_100", marker_ids: Mapping[int, int] | None = None,
@@ -172,16 +189,9 @@ class StereoRenderer:
                                                                 self.PANO_W)
         self._ground_mean = float(self._ground.mean())
         self._seed = seed
+        self._texture_seed = int(texture_seed)
         self._noise_tile = None
-        self._rig_ready = False   # the whole-frame maps (_prepare_rig) are made on the first render()
-        self._region_noise = None  # the region noise tile (_draw_box), made on first use
-
-    # ---- rig-dependent precomputation
-    def _prepare_rig(self):
-        """The rig's whole-frame maps (ground rows, haze, background azimuth/elevation maps): made once
-        per rig and shared by every renderer of it (a camera trial makes a renderer per trial)."""
-        self._v_ground, self._haze, self._bg_x, self._bg_y, self._nb = rig_maps(
-            self.rig, self.HAZE_M, self.PANO_W, self.PANO_H, self.PANO_EL)
+        self._pixel_noise = None   # the pixel-noise tile of pixels() (a _core.RenderNoise), made on first use
 
     # ---- public API
     def calibration(self):
@@ -268,21 +278,17 @@ class StereoRenderer:
         return ids
 
     def render(self, pose) -> tuple[np.ndarray, np.ndarray]:
-        """The rectified ``(left, right)`` images at ``pose = (x, y, θ)`` (or a state (x, y, v, θ))."""
-        x, y, th = as_pose(pose)
-        if not self._rig_ready:
-            self._prepare_rig()
-            self._rig_ready = True
-        pose = (x, y, th)
-        R = camera_rotation(th, self.rig.pitch_rad)
-        centers = self.rig.camera_centers(pose)
-        idx = self.culled(pose)
-        boards = [self._board(i, pose) for i in idx]
-        hidden = self.hidden(pose)
+        """The rectified ``(left, right)`` images at ``pose = (x, y, θ)`` (or a state (x, y, v, θ)): each
+        whole image drawn by the core (:meth:`pixels` at level 0, without its noise), then pixel noise
+        of fresh draws from the renderer's running stream, truncated."""
+        px = self.pixels(pose, noise=False)
+        w, h = self.rig.width, self.rig.height
         out = []
-        for cam, C in zip(("left", "right"), centers):
-            img = self._draw_box(th, R, C, self._board_items(R, C, [b for b in boards if b[0] not in hidden[cam]]),
-                                 (0, 0, self.rig.width, self.rig.height), self._rng)
+        for right in (False, True):
+            img = px.draw(right, 0, 0, 0, w, h)
+            if self.noise_std > 0:
+                noise = self._rng.standard_normal(img.shape, dtype=np.float32) * self.noise_std
+                img = np.clip(img + noise, 0, 255).astype(np.uint8)
             out.append(img if not self.color else cv2.cvtColor(img, cv2.COLOR_GRAY2BGR))
         return out[0], out[1]
 
@@ -291,11 +297,8 @@ class StereoRenderer:
         ``(x0, y0, x1, y1)``, ends exclusive; the rest stays 0): in each, what :meth:`render` draws
         there (ground and background textures, markers, poles) and pixel noise from the stream
         ``noise_seed``.  A detector that searches only these regions sees the whole image's pixels
-        there, false detections in the textures included.  The noise of a region is a window of a
-        fixed tile of Gaussian draws at an offset drawn from that stream, block by block for a
-        region larger than the tile (:meth:`_add_noise`): drawing fresh normals for every pixel
-        took as long as drawing the region.  The regions are drawn as :meth:`pixels` draws boxes
-        at level 0, left then right."""
+        there, false detections in the textures included.  The regions are drawn as :meth:`pixels`
+        draws boxes at level 0, left then right."""
         px = self.pixels(pose, noise_seed)
         w, h = self.rig.width, self.rig.height
         out = []
@@ -309,15 +312,33 @@ class StereoRenderer:
             out.append(img)
         return out[0], out[1]
 
-    def pixels(self, pose, noise_seed: int = 0, stats: dict | None = None):
-        """The pair at ``pose`` drawn box by box on demand, at any pyramid level, for the core's front
-        end (:class:`~safenav.vision.pixels.FramePixels`; ``stats`` counts its draws)."""
-        from .pixels import FramePixels
+    def pixels(self, pose, noise_seed: int = 0, noise: bool = True):
+        """The pair at ``pose`` drawn box by box on demand by the core (``_core.RenderedFrame``, the
+        front end's ``StereoPixels``; see "Pixels on demand" above): ``draw(right, level, x0, y0,
+        width, height)`` gives the box of pyramid level ``level`` whose top-left full-resolution pixel
+        is (x0, y0).  The boards' geometry (culling, occlusion, facing, projection) is computed here
+        once.  Pixel noise (``noise``): windows of a tile of N(0, σ²) draws fixed by the renderer's
+        seed, at offsets from the stream ``noise_seed``."""
+        x, y, th = as_pose(pose)
+        pose = (x, y, th)
+        R = camera_rotation(th, self.rig.pitch_rad)
+        idx = self.culled(pose)
+        boards = [self._board(i, pose) for i in idx]
+        hidden = self.hidden(pose) if len(idx) else {"left": set(), "right": set()}
+        views = [(th, R, C, [(lid, pc, pp, box) for _, lid, pc, pp, box in
+                             self._board_items(R, C, [b for b in boards if b[0] not in hidden[cam]])])
+                 for cam, C in zip(("left", "right"), self.rig.camera_centers(pose))]
+        if noise and self.noise_std > 0 and self._pixel_noise is None:
+            self._pixel_noise = _core.RenderNoise(self.noise_std, int(_core.derive_seed(int(self._seed) % 2 ** 64, 11)),
+                                                  self.REGION_NOISE_TILE)
+        return _core.RenderedFrame(self._pixel_renderer(), self._pixel_noise if noise else None, views[0], views[1],
+                                   int(noise_seed) % 2 ** 64)
 
-        if not self._rig_ready:
-            self._prepare_rig()
-            self._rig_ready = True
-        return FramePixels(self, pose, noise_seed, stats)
+    def _pixel_renderer(self):
+        return _pixel_renderer(self.rig, self._texture_seed, self.dictionary_name,
+                               tuple((lm.id, self._marker_id[lm.id]) for lm in self.landmarks), self.HAZE_M,
+                               self.POLE_GREY, self.GROUND_RES_M, self.GROUND_TILE, self.PANO_W, self.PANO_H,
+                               self.PANO_EL)
 
     def centres_in_view(self, pose, camera: str = "left") -> int:
         """How many culled landmarks have their marker's centre inside ``camera``'s image and are not
@@ -403,90 +424,6 @@ class StereoRenderer:
     def _pyramid(self, lid: int, grey: bool = False) -> list[np.ndarray]:
         return marker_pyramid(self.dictionary_name, self._marker_id[lid])[1 if grey else 0]
 
-    def _draw_box(self, th: float, R: np.ndarray, C: np.ndarray, items, box, rng,
-                  tiled_noise: bool = False) -> np.ndarray:
-        """The pixels of ``box`` (x0, y0, x1, y1) of the camera at centre ``C``: ground and background,
-        the boards (``items``: :meth:`_board_items`, markers and poles), pixel noise from ``rng``
-        (``tiled_noise``: :meth:`_add_noise`; otherwise fresh draws, truncated)."""
-        if not self._rig_ready:
-            self._prepare_rig()
-            self._rig_ready = True
-        img = self._background_and_ground(th, R, C, box)
-        self._paint(img, items, self.rig.K, box)
-        if self.noise_std > 0:
-            if tiled_noise:
-                self._add_noise(img, rng)
-                return img
-            noise = rng.standard_normal(img.shape, dtype=np.float32) * self.noise_std
-            img = np.clip(img + noise, 0, 255).astype(np.uint8)
-        return img
-
-    def draw_level(self, th: float, R: np.ndarray, C: np.ndarray, items, x0: int, y0: int, width: int,
-                   height: int, level: int, rng) -> np.ndarray:
-        """The ``height`` × ``width`` box of pyramid level ``level`` whose top-left full-resolution pixel
-        is (x0, y0), drawn at that level (ours; the core's ``StereoPixels.draw``): level pixel (i, j)
-        stands for the 2^L × 2^L full-resolution pixels from (x0 + i·2^L, y0 + j·2^L), so it is drawn
-        by a pinhole view of focal f/2^L whose pixel centres are those blocks' centres
-        ((c − x0 + 0.5)/2^L − 0.5 the principal point): ground, background, markers and poles as
-        at full resolution, the tiled pixel noise at σ/2^L (the mean of 4^L independent pixels).
-        Level 0 is :meth:`_draw_box` of the box with tiled noise.  Departure from averaging a
-        full-resolution drawing: textures and board edges are sampled once per level pixel, not
-        averaged over its block (the board from the mip level below its size on screen)."""
-        if level == 0:
-            return self._draw_box(th, R, C, items, (x0, y0, x0 + width, y0 + height), rng, tiled_noise=True)
-        k = 1 << level
-        r = self.rig
-        f, cx, cy = r.focal_length_px / k, (r.cx - x0 + 0.5) / k - 0.5, (r.cy - y0 + 0.5) / k - 0.5
-        maps = view_maps(f, cx, cy, width, height, r.camera_height_m, r.pitch_rad, self.HAZE_M, self.PANO_W,
-                         self.PANO_H, self.PANO_EL)
-        K = np.array([[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]])
-        img = self._background_and_ground(th, R, C, (0, 0, width, height), (K, *maps))
-        self._paint(img, items, K, (0, 0, width, height), (x0, y0, x0 + width * k, y0 + height * k))
-        if self.noise_std > 0:
-            self._add_noise(img, rng, 1.0 / k)
-        return img
-
-    def _add_noise(self, img: np.ndarray, rng, scale: float = 1.0) -> None:
-        """Pixel noise N(0, (scale·σ)²) added to ``img`` in place, rounded to the nearest grey level and
-        saturated: each block of at most the region noise tile's size, row by row, a window of that
-        tile at its own offset drawn from ``rng``."""
-        n = self.REGION_NOISE_TILE
-        if self._region_noise is None:
-            t = np.random.default_rng([self._seed, 11]).standard_normal((n, n), dtype=np.float32)
-            self._region_noise = np.tile(t * np.float32(self.noise_std), (2, 2))
-        for y, x in itertools.product(range(0, img.shape[0], n), range(0, img.shape[1], n)):
-            b, (r0, c0) = img[y:y + n, x:x + n], rng.integers(0, n, 2)
-            w = self._region_noise[r0:r0 + b.shape[0], c0:c0 + b.shape[1]]
-            cv2.add(b, w if scale == 1.0 else w * np.float32(scale), dst=b, dtype=cv2.CV_8U)
-
-    def _background_and_ground(self, th: float, R: np.ndarray, C: np.ndarray, box, view=None) -> np.ndarray:
-        """The ground and the background at infinity in ``box`` = (x0, y0, x1, y1) of the image, or of
-        ``view`` = (K, and :func:`~safenav.vision.textures.view_maps` of it) when given."""
-        K, v_ground, haze_rows, bg_x, bg_y, nb = view if view is not None else (
-            self.rig.K, self._v_ground, self._haze, self._bg_x, self._bg_y, self._nb)
-        x0, y0, x1, y1 = box
-        img = np.empty((y1 - y0, x1 - x0), np.uint8)
-        # background at infinity: shift the azimuth map by the heading
-        shift = np.float32((-th / (2 * math.pi) * self.PANO_W) % self.PANO_W)
-        yb = min(y1, nb)
-        if yb > y0:
-            img[:yb - y0] = cv2.remap(self._pano, bg_x[y0:yb, x0:x1] + shift,
-                                      np.ascontiguousarray(bg_y[y0:yb, x0:x1]), cv2.INTER_LINEAR,
-                                      borderMode=cv2.BORDER_WRAP)
-        v0 = max(v_ground, y0)
-        if v0 < y1:
-            period = self.GROUND_TILE * self.GROUND_RES_M
-            X0, Y0 = math.floor(C[0] / period) * period, math.floor(C[1] / period) * period
-            A = np.array([[self.GROUND_RES_M, 0, X0], [0, self.GROUND_RES_M, Y0], [0, 0, 1.0]])
-            H = K @ np.column_stack([R[:, 0], R[:, 1], -R @ C]) @ A   # texel -> image pixel
-            H = np.array([[1, 0, -x0], [0, 1, -v0], [0, 0, 1.0]]) @ H          # the box's pixels, rows from v0
-            g = cv2.warpPerspective(self._ground, np.linalg.inv(H), (x1 - x0, y1 - v0),
-                                    flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_WRAP)
-            m = self._ground_mean
-            haze = haze_rows[v0 - v_ground:y1 - v_ground]
-            img[v0 - y0:] = ((g.astype(np.float32) - m) * haze + m).astype(np.uint8)
-        return img
-
     def _board_items(self, R: np.ndarray, C: np.ndarray, boards) -> list:
         """The ``boards`` (:meth:`_board`) that face the camera at centre ``C`` and lie in front of it, far
         first (painter's order): (depth, id, corners in camera coordinates (4, 3), the pole's (4, 3) or
@@ -512,29 +449,12 @@ class StereoRenderer:
         items.sort(key=lambda t: -t[0])   # far first
         return items
 
-    def _paint(self, img: np.ndarray, items, K: np.ndarray, box, full_box=None) -> None:
-        """Paint the boards ``items`` (:meth:`_board_items`, in order: each pole, then its marker) into
-        ``img``, the pixels ``box`` (x0, y0, …) of the view with intrinsics ``K``; ``full_box``: the
-        full-resolution pixels the image covers (default ``box``), which skips boards that cannot
-        touch it."""
-        x0, y0 = box[:2]
-        fb = box if full_box is None else full_box
-        f, cx, cy = K[0, 0], K[0, 2] - x0, K[1, 2] - y0
-        for _, lid, pc, pp, b in items:
-            if not (b[0] < fb[2] and fb[0] < b[2] and b[1] < fb[3] and fb[1] < b[3]):
-                continue
-            if pp is not None:
-                uv = f * pp[:, :2] / pp[:, 2:3] + [cx, cy]
-                cv2.fillConvexPoly(img, np.round(uv * 16).astype(np.int32), 70, cv2.LINE_AA, 4)
-            self._warp_marker(img, lid, f * pc[:, :2] / pc[:, 2:3] + [cx, cy])
-
-    def _warp_marker(self, img: np.ndarray, lid: int, uv: np.ndarray, side: float | None = None,
-                     transparent: bool = False) -> None:
-        """Blend landmark ``lid``'s board into ``img`` (uint8, in place) with its corners at pixels ``uv``
-        (4, 2); ``side``: its longest side [px] when known.  ``transparent``: warp straight into ``img``
-        (``BORDER_TRANSPARENT``: pixels that sample outside the board keep the background), which is
-        faster but leaves the board's outer edge (the quiet zone's, a cell away from the marker's
-        corners) unsmoothed."""
+    def _warp_marker(self, img: np.ndarray, lid: int, uv: np.ndarray, side: float) -> None:
+        """Warp landmark ``lid``'s board straight into ``img`` (uint8, in place) with its corners at
+        pixels ``uv`` (4, 2) and its longest side ``side`` [px] (``BORDER_TRANSPARENT``: pixels that
+        sample outside the board keep the background, so the board's outer edge, the quiet zone's,
+        is not smoothed): the quick warp of :class:`StereoFrame`'s patches.  The loop's frames are
+        drawn by the core with an alpha edge (:meth:`pixels`)."""
         h, w = img.shape
         uv = np.asarray(uv, dtype=np.float64)
         lo, hi = uv.min(axis=0), uv.max(axis=0)
@@ -542,26 +462,15 @@ class StereoRenderer:
         x1, y1 = min(math.ceil(hi[0]) + 2, w), min(math.ceil(hi[1]) + 2, h)
         if x1 <= x0 or y1 <= y0:
             return
-        if side is None:
-            side = float(np.max(np.linalg.norm(uv - np.roll(uv, 1, axis=0), axis=1)))
-        pyr = self._pyramid(lid)
+        pyr = self._pyramid(lid, grey=True)
         # the largest level not bigger than on screen: magnified by 1-2x, bilinear keeps each
         # step edge's ramp symmetric about the true edge (minifying would alias edges by ~0.1 px)
         tex = next((p for p in reversed(pyr) if p.shape[0] <= side), pyr[0])
         s = tex.shape[0]
         src = np.array([[-0.5, -0.5], [s - 0.5, -0.5], [s - 0.5, s - 0.5], [-0.5, s - 0.5]], np.float32)
         M = cv2.getPerspectiveTransform(src, (uv - [x0, y0]).astype(np.float32))
-        if transparent:
-            grey = self._pyramid(lid, grey=True)
-            cv2.warpPerspective(grey[next((i for i in range(len(pyr) - 1, -1, -1) if pyr[i].shape[0] <= side), 0)],
-                                M, (x1 - x0, y1 - y0), dst=img[y0:y1, x0:x1], flags=cv2.INTER_LINEAR,
-                                borderMode=cv2.BORDER_TRANSPARENT)
-            return
-        warped = cv2.warpPerspective(tex, M, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR,
-                                     borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-        alpha = warped[:, :, 1].astype(np.float32) * (1.0 / 255.0)
-        roi = img[y0:y1, x0:x1]
-        roi[:] = (roi + (warped[:, :, 0].astype(np.float32) - roi) * alpha + 0.5).astype(np.uint8)
+        cv2.warpPerspective(tex, M, (x1 - x0, y1 - y0), dst=img[y0:y1, x0:x1], flags=cv2.INTER_LINEAR,
+                            borderMode=cv2.BORDER_TRANSPARENT)
 
     def _background_patch(self, level: int, X0: int, Y0: int, X1: int, Y1: int, shift: int) -> np.ndarray:
         """Level-``level`` pixels [X0, X1) × [Y0, Y1) of the cheap background of :class:`StereoFrame`:

@@ -1,0 +1,124 @@
+// safenav/render.hpp — the simulator's stereo pixels (ours;
+// safenav.vision.render): a rectified pair drawn box by box, at any pyramid
+// level, as the front end asks for it (StereoPixels).
+//
+// A box of a view is drawn as the whole image has it there: the background at
+// infinity (a periodic panorama indexed by azimuth and elevation, zero
+// disparity), the textured ground plane through its homography H = K[r₁ r₂ t],
+// faded into haze with distance, every board (marker with its white quiet zone)
+// warped from its mip pyramid with an alpha edge over a pole, far boards first,
+// and pixel noise.  A box at level L is drawn by the pinhole view whose pixel
+// centres are the 2^L × 2^L blocks' centres (focal f/2^L), its noise at σ/2^L
+// (the mean of 4^L independent pixels).  The geometry (which boards are seen,
+// occlusion, facing) is the caller's: each frame gets each camera's boards in
+// camera coordinates.
+//
+// Only Eigen and std types cross this header (OpenCV stays in cpp/src).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "safenav/lanbloc.hpp"
+#include "safenav/stereo.hpp"
+
+namespace safenav {
+
+/// What stays fixed across a renderer's frames: the rig, the textures and
+/// the boards' mip pyramids.  validate() names the field at fault.
+struct RenderScene {
+  // --- the rig (safenav.vision.rig.StereoRig): pinhole, the pixel centres at integers
+  double f = 350.0, cx = 319.5, cy = 239.5;  ///< [px]
+  int width = 640, height = 480;              ///< [px]
+  double camera_height_m = 1.5;               ///< camera centres above the ground [m]
+  double pitch_rad = 0.0;                     ///< positive looks up
+  // --- textures
+  Image ground;                ///< periodic ground tile (grey), ground_res_m per texel
+  double ground_res_m = 0.02;  ///< [m]
+  Image panorama;              ///< background at infinity (grey): azimuth over its width, elevation down its height
+  double pano_el_min = -0.35, pano_el_max = 0.9;  ///< elevations at its bottom and top rows [rad]
+  double haze_m = 80.0;        ///< the ground's contrast falls as exp(−Z / haze_m)
+  double pole_grey = 70.0;     ///< grey level of the poles
+  /// landmark id → its board's mip levels, smallest first, each square with
+  /// two channels (grey, alpha).
+  std::map<int, std::vector<Image>> boards;
+
+  void validate() const;
+};
+
+/// One board in a camera's view: its id, its corners (TL, TR, BR, BL of the
+/// board, quiet zone included) in camera coordinates (x right, y down, z
+/// forward) [m], its pole's quad when wholly in front of the camera, and the
+/// full-resolution pixels [x0, x1) × [y0, y1) that drawing both can touch.
+struct RenderBoard {
+  int id = 0;
+  Eigen::Matrix<double, 4, 3, Eigen::RowMajor> corners = Eigen::Matrix<double, 4, 3, Eigen::RowMajor>::Zero();
+  bool has_pole = false;
+  Eigen::Matrix<double, 4, 3, Eigen::RowMajor> pole = Eigen::Matrix<double, 4, 3, Eigen::RowMajor>::Zero();
+  std::array<int, 4> box{0, 0, 0, 0};
+};
+
+/// One camera at one pose: the heading θ, the world → camera rotation R
+/// (rows: right, down, forward), the camera centre C [m], and its boards far
+/// first (painter's order).
+struct RenderView {
+  double theta = 0.0;
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  std::vector<RenderBoard> boards;
+};
+
+/// Pixel noise of a trial: a tile of side `side` of N(0, σ²) draws from
+/// `seed` (the core's generator); a box's noise is a window of it at an offset
+/// drawn from the frame's stream, block by block for a box larger than it.
+struct RenderNoise {
+  RenderNoise(double sigma, std::uint64_t seed, int side = 1024);
+  double sigma;
+  int side;
+  std::vector<float> tile;  ///< (2·side)², the tile repeated 2 × 2 (any window up to side is one slice)
+};
+
+class RenderedFrame;
+
+/// The renderer of one scene: its textures as images, and the panorama
+/// coordinates of the image's pixels (computed once: a renderer serves every
+/// trial of its scene).  Immutable; frames share it.
+class PixelRenderer {
+ public:
+  explicit PixelRenderer(RenderScene scene);  ///< std::invalid_argument from scene.validate()
+  ~PixelRenderer();
+  PixelRenderer(const PixelRenderer&) = delete;
+  PixelRenderer& operator=(const PixelRenderer&) = delete;
+  const RenderScene& scene() const;
+
+ private:
+  friend class RenderedFrame;
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// The pair of one frame as StereoPixels (draw() as the class says; the
+/// boxes' noise offsets come from `noise_seed` in the order they are drawn).
+class RenderedFrame final : public StereoPixels {
+ public:
+  /// `noise` may be null (no pixel noise).  std::invalid_argument on a null
+  /// renderer or a board whose id has no pyramid in the scene.
+  RenderedFrame(std::shared_ptr<const PixelRenderer> renderer, std::shared_ptr<const RenderNoise> noise,
+                RenderView left, RenderView right, std::uint64_t noise_seed);
+  ~RenderedFrame() override;
+  void draw(bool right, int level, int x0, int y0, int width, int height, std::uint8_t* out,
+            std::ptrdiff_t stride) const override;
+  long draws() const;   ///< boxes drawn so far
+  long pixels() const;  ///< their pixels
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace safenav

@@ -1,0 +1,333 @@
+// The simulator's stereo pixels (safenav/render.hpp; safenav.vision.render
+// draws through it): background, ground, boards and noise of any box of a
+// view at any pyramid level.
+#include "safenav/render.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include <Eigen/LU>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "errors.hpp"
+#include "rng.hpp"
+#include "safenav/types.hpp"
+
+namespace safenav {
+
+namespace {
+
+using Quad = Eigen::Matrix<double, 4, 3, Eigen::RowMajor>;
+
+cv::Mat as_mat(const Image& im) {
+  return cv::Mat(im.rows, im.cols, CV_8UC(im.channels), const_cast<std::uint8_t*>(im.data.data()));
+}
+
+/// A pinhole view of a box: focal f and principal point (cx, cy) in the box's own pixels, and the
+/// full-resolution pixels [x0, x1) × [y0, y1) it covers at 2^level pixels per side.
+struct View {
+  double f, cx, cy;
+  int level, x0, y0, x1, y1;
+};
+
+/// World-up component of row v's ray (camera z = 1) at the scene's pitch.
+double ray_up(const RenderScene& s, const View& v, double row) {
+  return -std::cos(s.pitch_rad) * (row - v.cy) / v.f + std::sin(s.pitch_rad);
+}
+
+}  // namespace
+
+void RenderScene::validate() const {
+  detail::require_finite_positive(f, "scene.f");
+  if (!std::isfinite(cx) || !std::isfinite(cy)) detail::bad("scene.cx, cy = " + detail::num(cx) + ", " +
+                                                            detail::num(cy) + ": must be finite");
+  if (width < 1 || height < 1)
+    detail::bad("scene image " + std::to_string(width) + "x" + std::to_string(height) + ": must not be empty");
+  detail::require_finite_positive(camera_height_m, "scene.camera_height_m");
+  if (!(std::abs(pitch_rad) < 0.5)) detail::bad("scene.pitch_rad = " + detail::num(pitch_rad) + ": |pitch| < 0.5");
+  detail::require_finite_positive(ground_res_m, "scene.ground_res_m");
+  detail::require_finite_positive(haze_m, "scene.haze_m");
+  if (!(pano_el_max > pano_el_min)) detail::bad("scene.pano_el_max must exceed pano_el_min");
+  for (const auto& [name, im] : {std::pair<const char*, const Image*>{"ground", &ground}, {"panorama", &panorama}})
+    if (im->rows < 2 || im->cols < 2 || im->channels != 1 ||
+        im->data.size() != std::size_t(im->rows) * std::size_t(im->cols))
+      detail::bad(std::string("scene.") + name + ": must be a grey image of at least 2x2 px");
+  for (const auto& [id, pyr] : boards) {
+    if (pyr.empty()) detail::bad("scene.boards[" + std::to_string(id) + "]: no mip levels");
+    for (const Image& im : pyr)
+      if (im.rows < 1 || im.rows != im.cols || im.channels != 2 ||
+          im.data.size() != std::size_t(im.rows) * std::size_t(im.cols) * 2)
+        detail::bad("scene.boards[" + std::to_string(id) + "]: each level must be square with 2 channels");
+  }
+}
+
+RenderNoise::RenderNoise(double sigma_, std::uint64_t seed, int side_) : sigma(sigma_), side(side_) {
+  detail::require_finite_nonneg(sigma, "noise sigma");
+  if (side < 1 || side > 8192) detail::bad("noise tile side = " + std::to_string(side) + ": must be in [1, 8192]");
+  detail::Rng rng(seed);
+  const std::size_t n = std::size_t(side), m = 2 * n;
+  tile.resize(m * m);
+  for (std::size_t r = 0; r < n; ++r)
+    for (std::size_t c = 0; c < n; ++c) {
+      const float v = static_cast<float>(rng.normal() * sigma);
+      for (std::size_t a : {r, r + n})
+        for (std::size_t b : {c, c + n}) tile[a * m + b] = v;
+    }
+}
+
+/// The renderer of one scene: its textures and boards as OpenCV images, and the panorama
+/// coordinates (at heading 0) of the image's rows down to the lowest any view's background needs.
+struct PixelRenderer::Impl {
+  RenderScene scene;
+  cv::Mat ground, ground3, pano;  // ground3: the ground tile repeated 3 × 3
+  float ground_mean = 0.0f;
+  std::map<int, std::vector<cv::Mat>> boards;
+  cv::Mat map_x, map_y;  // CV_32F, rows [0, map rows) × the image's columns
+
+  explicit Impl(RenderScene s) : scene(std::move(s)) {
+    scene.validate();
+    ground = as_mat(scene.ground);
+    cv::repeat(ground, 3, 3, ground3);
+    pano = as_mat(scene.panorama);
+    ground_mean = static_cast<float>(cv::mean(ground)[0]);
+    for (const auto& [id, pyr] : scene.boards)
+      for (const Image& im : pyr) boards[id].push_back(as_mat(im));
+    maps();
+  }
+
+  /// Panorama x (azimuth) and y (elevation) of pixel (u, v), for the rows above the ground and the
+  /// 2 + 2·64 rows below the first ground row that a level view's background may sample.
+  void maps() {
+    const RenderScene& s = scene;
+    const View full{s.f, s.cx, s.cy, 0, 0, 0, s.width, s.height};
+    int v_ground = s.height;
+    for (int v = 0; v < s.height; ++v)
+      if (ray_up(s, full, v) < -s.camera_height_m / 2000.0) {
+        v_ground = v;
+        break;
+      }
+    const int rows = std::min(s.height, v_ground + 2 + 130);
+    map_x.create(rows, s.width, CV_32F);
+    map_y.create(rows, s.width, CV_32F);
+    const double cp = std::cos(s.pitch_rad), sp = std::sin(s.pitch_rad);
+    const double pw = s.panorama.cols, ph = s.panorama.rows;
+    for (int v = 0; v < rows; ++v) {
+      // the ray R0ᵀ((u − cx)/f, (v − cy)/f, 1) at heading 0: x and z from the row, y from the column
+      const double yn = (v - s.cy) / s.f, rx = yn * sp + cp, rz = sp - yn * cp;
+      float* mx = map_x.ptr<float>(v);
+      float* my = map_y.ptr<float>(v);
+      for (int u = 0; u < s.width; ++u) {
+        const double ry = -(u - s.cx) / s.f;
+        const double az = std::atan2(ry, rx), el = std::atan2(rz, std::hypot(rx, ry));
+        mx[u] = static_cast<float>(-az / (2.0 * kPi) * pw);
+        my[u] = static_cast<float>(std::clamp((s.pano_el_max - el) / (s.pano_el_max - s.pano_el_min) * (ph - 1),
+                                              0.0, ph - 1));
+      }
+    }
+  }
+
+  void background(const RenderView& rv, const View& v, int rows, cv::Mat& img) const;
+  void ground_rows(const RenderView& rv, const View& v, int v_ground, cv::Mat& img) const;
+  void paint(const RenderView& rv, const View& v, cv::Mat& img) const;
+};
+
+PixelRenderer::PixelRenderer(RenderScene scene) : impl_(std::make_unique<Impl>(std::move(scene))) {}
+PixelRenderer::~PixelRenderer() = default;
+const RenderScene& PixelRenderer::scene() const { return impl_->scene; }
+
+void PixelRenderer::Impl::background(const RenderView& rv, const View& v, int rows, cv::Mat& img) const {
+  // The background at infinity: the panorama at the pixel's azimuth relative to the heading.
+  const int w = img.cols, k = 1 << v.level;
+  cv::Mat mx(rows, w, CV_32F), my(rows, w, CV_32F);
+  if (v.level == 0 && v.y0 + rows <= map_x.rows) {
+    map_x(cv::Rect(v.x0, v.y0, w, rows)).copyTo(mx);
+    map_y(cv::Rect(v.x0, v.y0, w, rows)).copyTo(my);
+  } else {  // the maps at the level pixels' centres (smooth: bilinear)
+    cv::Mat cu(rows, w, CV_32F), cv_(rows, w, CV_32F);
+    for (int j = 0; j < rows; ++j)
+      for (int i = 0; i < w; ++i) {
+        cu.at<float>(j, i) = static_cast<float>(v.x0 + (i + 0.5) * k - 0.5);
+        cv_.at<float>(j, i) = static_cast<float>(v.y0 + (j + 0.5) * k - 0.5);
+      }
+    cv::remap(map_x, mx, cu, cv_, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+    cv::remap(map_y, my, cu, cv_, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  }
+  // The heading shifts the azimuth; the column is wrapped into [0, pw) here, so that remap reads
+  // inside the panorama (its BORDER_WRAP path costs a border lookup per pixel).
+  const double pw = scene.panorama.cols;
+  const float shift = static_cast<float>(std::fmod(std::fmod(-rv.theta / (2.0 * kPi) * pw, pw) + pw, pw));
+  const float fpw = static_cast<float>(pw);
+  for (int j = 0; j < rows; ++j) {
+    float* p = mx.ptr<float>(j);
+    for (int i = 0; i < w; ++i) {
+      float x = p[i] + shift;
+      x -= fpw * std::floor(x / fpw);
+      p[i] = x < fpw ? x : 0.0f;
+    }
+  }
+  cv::Mat dst = img.rowRange(0, rows);
+  cv::remap(pano, dst, mx, my, cv::INTER_LINEAR, cv::BORDER_WRAP);
+}
+
+void PixelRenderer::Impl::ground_rows(const RenderView& rv, const View& v, int v_ground, cv::Mat& img) const {
+  // The ground plane through H = K [r₁ r₂ −R·C] A (texel → pixel), rows from v_ground, faded into
+  // haze with the row's depth.
+  const RenderScene& s = scene;
+  // The texture is periodic: its origin is moved by whole periods so that the box's middle ground
+  // pixel reads the middle tile of the 3 × 3 tiled texture, and nearby pixels read inside it
+  // (warpPerspective's BORDER_WRAP path costs a border lookup per pixel outside).
+  const int n = s.ground.cols;
+  const double period = n * s.ground_res_m;
+  Eigen::Matrix3d K, P, T;
+  K << v.f, 0, v.cx, 0, v.f, v.cy, 0, 0, 1;
+  P.col(0) = rv.R.col(0);
+  P.col(1) = rv.R.col(1);
+  P.col(2) = -rv.R * rv.centre;
+  T << 1, 0, 0, 0, 1, -v_ground, 0, 0, 1;
+  const Eigen::Matrix3d G = (T * K * P).inverse();  // pixel (rows from v_ground) → ground (x, y) [m]
+  const Eigen::Vector3d mid = G * Eigen::Vector3d(0.5 * (img.cols - 1), 0.5 * (img.rows - 1 - v_ground), 1.0);
+  const double mx = mid.x() / mid.z(), my = mid.y() / mid.z();
+  const double X0 = (std::floor(mx / period) - 1.0) * period, Y0 = (std::floor(my / period) - 1.0) * period;
+  Eigen::Matrix3d Ainv;  // ground [m] → texel of the tiled texture
+  Ainv << 1.0 / s.ground_res_m, 0, -X0 / s.ground_res_m, 0, 1.0 / s.ground_res_m, -Y0 / s.ground_res_m, 0, 0, 1;
+  const Eigen::Matrix3d Hinv = Ainv * G;  // pixel (rows from v_ground) → texel
+  cv::Matx33d M;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) M(r, c) = Hinv(r, c);
+  cv::Mat g;
+  cv::warpPerspective(ground3, g, M, cv::Size(img.cols, img.rows - v_ground), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP,
+                      cv::BORDER_WRAP);
+  const float m = ground_mean;
+  for (int j = v_ground; j < img.rows; ++j) {
+    const double t = s.camera_height_m / std::max(-ray_up(s, v, j), 1e-12);  // the row's camera depth
+    const float haze = static_cast<float>(std::exp(-t / s.haze_m));
+    const std::uint8_t* src = g.ptr<std::uint8_t>(j - v_ground);
+    std::uint8_t* dst = img.ptr<std::uint8_t>(j);
+    for (int i = 0; i < img.cols; ++i) dst[i] = static_cast<std::uint8_t>((float(src[i]) - m) * haze + m);
+  }
+}
+
+/// A board's mip level just below its size on screen (magnified by 1-2×, so bilinear keeps each
+/// edge's ramp symmetric about the true edge), warped into `img` at corners `uv` with its alpha.
+void warp_board(cv::Mat& img, const std::vector<cv::Mat>& pyr, const Eigen::Matrix<double, 4, 2>& uv) {
+  const Eigen::Vector2d lo = uv.colwise().minCoeff(), hi = uv.colwise().maxCoeff();
+  const int bx0 = std::max(int(std::floor(lo.x())) - 1, 0), by0 = std::max(int(std::floor(lo.y())) - 1, 0);
+  const int bx1 = std::min(int(std::ceil(hi.x())) + 2, img.cols), by1 = std::min(int(std::ceil(hi.y())) + 2, img.rows);
+  if (bx1 <= bx0 || by1 <= by0) return;
+  double side = 0.0;
+  for (int k = 0; k < 4; ++k) side = std::max(side, (uv.row(k) - uv.row((k + 3) % 4)).norm());
+  const cv::Mat* tex = &pyr.front();
+  for (auto it = pyr.rbegin(); it != pyr.rend(); ++it)
+    if (it->rows <= side) {
+      tex = &*it;
+      break;
+    }
+  const float s = float(tex->rows);
+  const cv::Point2f src[4] = {{-0.5f, -0.5f}, {s - 0.5f, -0.5f}, {s - 0.5f, s - 0.5f}, {-0.5f, s - 0.5f}};
+  cv::Point2f dst[4];
+  for (int k = 0; k < 4; ++k) dst[k] = cv::Point2f(float(uv(k, 0) - bx0), float(uv(k, 1) - by0));
+  cv::Mat warped;
+  cv::warpPerspective(*tex, warped, cv::getPerspectiveTransform(src, dst), cv::Size(bx1 - bx0, by1 - by0),
+                      cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0, 0));
+  const float inv255 = static_cast<float>(1.0 / 255.0);
+  for (int y = by0; y < by1; ++y) {
+    const cv::Vec2b* wp = warped.ptr<cv::Vec2b>(y - by0);
+    std::uint8_t* p = img.ptr<std::uint8_t>(y) + bx0;
+    for (int x = 0; x < bx1 - bx0; ++x) {
+      const float a = float(wp[x][1]) * inv255, r = float(p[x]);
+      p[x] = static_cast<std::uint8_t>(r + (float(wp[x][0]) - r) * a + 0.5f);
+    }
+  }
+}
+
+void PixelRenderer::Impl::paint(const RenderView& rv, const View& v, cv::Mat& img) const {
+  auto project = [&](const Quad& q) {
+    Eigen::Matrix<double, 4, 2> uv;
+    for (int k = 0; k < 4; ++k) uv.row(k) << v.f * q(k, 0) / q(k, 2) + v.cx, v.f * q(k, 1) / q(k, 2) + v.cy;
+    return uv;
+  };
+  for (const RenderBoard& b : rv.boards) {
+    if (!(b.box[0] < v.x1 && v.x0 < b.box[2] && b.box[1] < v.y1 && v.y0 < b.box[3])) continue;
+    if (b.has_pole) {
+      const Eigen::Matrix<double, 4, 2> uv = project(b.pole);
+      cv::Point pts[4];
+      for (int k = 0; k < 4; ++k) pts[k] = cv::Point(int(std::lround(uv(k, 0) * 16)), int(std::lround(uv(k, 1) * 16)));
+      cv::fillConvexPoly(img, pts, 4, cv::Scalar(scene.pole_grey), cv::LINE_AA, 4);
+    }
+    warp_board(img, boards.at(b.id), project(b.corners));
+  }
+}
+
+struct RenderedFrame::Impl {
+  std::shared_ptr<const PixelRenderer> renderer;
+  std::shared_ptr<const RenderNoise> noise;
+  RenderView views[2];
+  mutable detail::Rng rng;
+  mutable long draws = 0, pixels = 0;
+  Impl(std::shared_ptr<const PixelRenderer> r, std::shared_ptr<const RenderNoise> n, RenderView l, RenderView rt,
+       std::uint64_t seed)
+      : renderer(std::move(r)), noise(std::move(n)), views{std::move(l), std::move(rt)}, rng(seed) {}
+
+  /// N(0, (scale·σ)²) added block by block (each a window of the noise tile at an offset from the
+  /// frame's stream), rounded to the nearest grey level and saturated.
+  void add_noise(cv::Mat& img, float scale) const {
+    const int n = noise->side, m = 2 * n;
+    for (int y = 0; y < img.rows; y += n)
+      for (int x = 0; x < img.cols; x += n) {
+        const int r0 = int(rng.uniform() * n), c0 = int(rng.uniform() * n);
+        for (int j = y; j < std::min(y + n, img.rows); ++j) {
+          const float* t = noise->tile.data() + std::size_t(r0 + j - y) * std::size_t(m) + std::size_t(c0);
+          std::uint8_t* p = img.ptr<std::uint8_t>(j);
+          for (int i = x; i < std::min(x + n, img.cols); ++i)
+            p[i] = cv::saturate_cast<std::uint8_t>(p[i] + t[i - x] * scale);
+        }
+      }
+  }
+};
+
+RenderedFrame::RenderedFrame(std::shared_ptr<const PixelRenderer> renderer, std::shared_ptr<const RenderNoise> noise,
+                             RenderView left, RenderView right, std::uint64_t noise_seed) {
+  if (!renderer) detail::bad("RenderedFrame: renderer is null");
+  for (const RenderView* v : {&left, &right})
+    for (const RenderBoard& b : v->boards)
+      if (!renderer->scene().boards.count(b.id))
+        detail::bad("RenderedFrame: board " + std::to_string(b.id) + " has no mip pyramid in the scene");
+  impl_ = std::make_unique<Impl>(std::move(renderer), std::move(noise), std::move(left), std::move(right), noise_seed);
+}
+
+RenderedFrame::~RenderedFrame() = default;
+long RenderedFrame::draws() const { return impl_->draws; }
+long RenderedFrame::pixels() const { return impl_->pixels; }
+
+void RenderedFrame::draw(bool right, int level, int x0, int y0, int width, int height, std::uint8_t* out,
+                         std::ptrdiff_t stride) const {
+  const PixelRenderer::Impl& R = *impl_->renderer->impl_;
+  const RenderScene& s = R.scene;
+  if (level < 0 || level > 16 || width < 1 || height < 1 || x0 < 0 || y0 < 0 ||
+      x0 + (std::int64_t(width) << level) > s.width || y0 + (std::int64_t(height) << level) > s.height)
+    detail::bad("draw: level " + std::to_string(level) + " box of " + std::to_string(width) + "x" +
+                std::to_string(height) + " at (" + std::to_string(x0) + ", " + std::to_string(y0) +
+                ") is not inside the " + std::to_string(s.width) + "x" + std::to_string(s.height) + " image");
+  const int k = 1 << level;
+  const View v{s.f / k, (s.cx - x0 + 0.5) / k - 0.5, (s.cy - y0 + 0.5) / k - 0.5, level, x0, y0, x0 + width * k,
+               y0 + height * k};
+  const RenderView& rv = impl_->views[right ? 1 : 0];
+  cv::Mat img(height, width, CV_8UC1, out, static_cast<std::size_t>(stride));
+  int v_ground = height;
+  for (int j = 0; j < height; ++j)
+    if (ray_up(s, v, j) < -s.camera_height_m / 2000.0) {
+      v_ground = j;
+      break;
+    }
+  const int rows = std::min(v_ground + 2, height);
+  if (rows > 0) R.background(rv, v, rows, img);
+  if (v_ground < height) R.ground_rows(rv, v, v_ground, img);
+  R.paint(rv, v, img);
+  if (impl_->noise && impl_->noise->sigma > 0) impl_->add_noise(img, 1.0f / float(k));
+  ++impl_->draws;
+  impl_->pixels += long(width) * height;
+}
+
+}  // namespace safenav
