@@ -172,7 +172,9 @@ struct CornerPatches {
     cv::Rect boxes[4], all;
     int area = 0;
     for (int k = 0; k < 4; ++k) {
-      boxes[k] = cv::Rect(cvRound(c[k].x) - half, cvRound(c[k].y) - half, 2 * half + 1, 2 * half + 1) & frame;
+      // about the corner's pixel, clamped into the image: the patch is at least half + 1 px a side
+      const int u = std::clamp(cvRound(c[k].x), 0, image.width - 1), v = std::clamp(cvRound(c[k].y), 0, image.height - 1);
+      boxes[k] = cv::Rect(u - half, v - half, 2 * half + 1, 2 * half + 1) & frame;
       all = k == 0 ? boxes[k] : (all | boxes[k]);
       area += boxes[k].area();
     }
@@ -185,10 +187,11 @@ struct CornerPatches {
     for (int k = 0; k < 4; ++k) of[k] = one ? 0 : k;
   }
 
-  /// cornerSubPix of corner k in its patch (nothing when the corner lies outside the image).
+  /// cornerSubPix of corner k in its patch (nothing when the patch is smaller than cornerSubPix's
+  /// 2·win + 5, which only an image that small has).
   void refine(cv::Point2f& p, int k, int win, const cv::TermCriteria& criteria) const {
     const cv::Mat& img = images[std::size_t(of[k])];
-    if (img.empty()) return;
+    if (img.cols < 2 * win + 5 || img.rows < 2 * win + 5) return;
     std::vector<cv::Point2f> q{p - origins[std::size_t(of[k])]};
     cv::cornerSubPix(img, q, cv::Size(win, win), cv::Size(-1, -1), criteria);
     p = q[0] + origins[std::size_t(of[k])];

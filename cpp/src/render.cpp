@@ -81,7 +81,12 @@ RenderNoise::RenderNoise(double sigma_, std::uint64_t seed, int side_) : sigma(s
 /// coordinates (at heading 0) of the image's rows down to the lowest any view's background needs.
 struct PixelRenderer::Impl {
   RenderScene scene;
-  cv::Mat ground, ground3, pano;  // ground3: the ground tile repeated 3 × 3
+  cv::Mat ground;
+  // Per pyramid level L (up to kLevels − 1): the ground tile and the panorama averaged 2^L times
+  // (INTER_AREA), so that a view at level L samples textures prefiltered to its pixel size, as
+  // the average of the full-resolution pixels would be; the ground tile repeated 3 × 3.
+  static constexpr int kLevels = 7;
+  std::vector<cv::Mat> ground3, pano;
   float ground_mean = 0.0f;
   std::map<int, std::vector<cv::Mat>> boards;
   cv::Mat map_x, map_y;  // CV_32F, rows [0, map rows) × the image's columns
@@ -89,8 +94,17 @@ struct PixelRenderer::Impl {
   explicit Impl(RenderScene s) : scene(std::move(s)) {
     scene.validate();
     ground = as_mat(scene.ground);
-    cv::repeat(ground, 3, 3, ground3);
-    pano = as_mat(scene.panorama);
+    cv::Mat g = ground, p = as_mat(scene.panorama);
+    for (int L = 0; L < kLevels; ++L) {
+      ground3.emplace_back();
+      cv::repeat(g, 3, 3, ground3.back());
+      pano.push_back(p);
+      if (g.cols < 4 || p.cols < 4 || p.rows < 4) break;
+      cv::Mat gs, ps;
+      cv::resize(g, gs, cv::Size(g.cols / 2, g.rows / 2), 0, 0, cv::INTER_AREA);
+      cv::resize(p, ps, cv::Size(p.cols / 2, p.rows / 2), 0, 0, cv::INTER_AREA);
+      g = gs, p = ps;
+    }
     ground_mean = static_cast<float>(cv::mean(ground)[0]);
     for (const auto& [id, pyr] : scene.boards)
       for (const Image& im : pyr) boards[id].push_back(as_mat(im));
@@ -156,19 +170,27 @@ void PixelRenderer::Impl::background(const RenderView& rv, const View& v, int ro
   }
   // The heading shifts the azimuth; the column is wrapped into [0, pw) here, so that remap reads
   // inside the panorama (its BORDER_WRAP path costs a border lookup per pixel).
+  // At level L the panorama's level min(L, its levels) is read: texel i of level l is centred on
+  // level-0 texel (i + 0.5)·2^l − 0.5.
+  const int l = std::min<int>(v.level, int(pano.size()) - 1);
+  const cv::Mat& tex = pano[std::size_t(l)];
   const double pw = scene.panorama.cols;
   const float shift = static_cast<float>(std::fmod(std::fmod(-rv.theta / (2.0 * kPi) * pw, pw) + pw, pw));
-  const float fpw = static_cast<float>(pw);
+  const float fpw = static_cast<float>(pw), a = 1.0f / float(1 << l), b = 0.5f * a - 0.5f;
+  const float fw = static_cast<float>(tex.cols);
   for (int j = 0; j < rows; ++j) {
     float* p = mx.ptr<float>(j);
+    float* q = my.ptr<float>(j);
     for (int i = 0; i < w; ++i) {
       float x = p[i] + shift;
       x -= fpw * std::floor(x / fpw);
-      p[i] = x < fpw ? x : 0.0f;
+      x = x * a + b;
+      p[i] = x < 0.0f ? x + fw : (x < fw ? x : x - fw);
+      q[i] = q[i] * a + b;
     }
   }
   cv::Mat dst = img.rowRange(0, rows);
-  cv::remap(pano, dst, mx, my, cv::INTER_LINEAR, cv::BORDER_WRAP);
+  cv::remap(tex, dst, mx, my, cv::INTER_LINEAR, cv::BORDER_WRAP);
 }
 
 void PixelRenderer::Impl::ground_rows(const RenderView& rv, const View& v, int v_ground, cv::Mat& img) const {
@@ -178,8 +200,10 @@ void PixelRenderer::Impl::ground_rows(const RenderView& rv, const View& v, int v
   // The texture is periodic: its origin is moved by whole periods so that the box's middle ground
   // pixel reads the middle tile of the 3 × 3 tiled texture, and nearby pixels read inside it
   // (warpPerspective's BORDER_WRAP path costs a border lookup per pixel outside).
+  // At level L the ground's level min(L, its levels) is read, each texel res·2^l a side.
+  const int l = std::min<int>(v.level, int(ground3.size()) - 1);
   const int n = s.ground.cols;
-  const double period = n * s.ground_res_m;
+  const double period = n * s.ground_res_m, res = s.ground_res_m * (1 << l);
   Eigen::Matrix3d K, P, T;
   K << v.f, 0, v.cx, 0, v.f, v.cy, 0, 0, 1;
   P.col(0) = rv.R.col(0);
@@ -191,13 +215,16 @@ void PixelRenderer::Impl::ground_rows(const RenderView& rv, const View& v, int v
   const double mx = mid.x() / mid.z(), my = mid.y() / mid.z();
   const double X0 = (std::floor(mx / period) - 1.0) * period, Y0 = (std::floor(my / period) - 1.0) * period;
   Eigen::Matrix3d Ainv;  // ground [m] → texel of the tiled texture
-  Ainv << 1.0 / s.ground_res_m, 0, -X0 / s.ground_res_m, 0, 1.0 / s.ground_res_m, -Y0 / s.ground_res_m, 0, 0, 1;
+  // ground [m] → texel of level l: level-0 texel j sits at X0 + j·res₀, and level-l texel i is the
+  // mean of level-0 texels [i·2^l, (i + 1)·2^l), centred on X0 + (i + 0.5)·res − 0.5·res₀
+  const double h0 = 0.5 * s.ground_res_m;
+  Ainv << 1.0 / res, 0, (h0 - X0) / res - 0.5, 0, 1.0 / res, (h0 - Y0) / res - 0.5, 0, 0, 1;
   const Eigen::Matrix3d Hinv = Ainv * G;  // pixel (rows from v_ground) → texel
   cv::Matx33d M;
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) M(r, c) = Hinv(r, c);
   cv::Mat g;
-  cv::warpPerspective(ground3, g, M, cv::Size(img.cols, img.rows - v_ground), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP,
+  cv::warpPerspective(ground3[std::size_t(l)], g, M, cv::Size(img.cols, img.rows - v_ground), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP,
                       cv::BORDER_WRAP);
   const float m = ground_mean;
   for (int j = v_ground; j < img.rows; ++j) {
