@@ -1,0 +1,111 @@
+"""Pixels drawn on demand (the core's PixelRenderer / RenderedFrame, and the front end's
+StereoPixels): a box at level 0 is the whole image's pixels there, a box at a pyramid level is
+what the front end finds the same markers in as in the full-resolution image (fixes within
+millimetres), the noise is σ/2^L and reproducible, and bad boxes are named."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from safenav import _core
+from safenav.vision.camera_loop import front_end
+from test_lanbloc_cpp import random_frame
+
+SIGMA = 1.0
+
+
+@pytest.fixture(scope="module")
+def frames():
+    rng = np.random.default_rng(11)
+    return [random_frame(rng, k) for k in range(8)]
+
+
+def test_a_level_0_box_is_the_whole_images_pixels_there(frames):
+    rng = np.random.default_rng(0)
+    for pose, _world, ren, _pair in frames[:4]:
+        px = ren.pixels(pose, 0, noise=False)
+        w, h = ren.rig.width, ren.rig.height
+        for right in (False, True):
+            whole = px.draw(right, 0, 0, 0, w, h)
+            for _ in range(6):
+                bw, bh = int(rng.integers(8, 200)), int(rng.integers(8, 150))
+                x0, y0 = int(rng.integers(0, w - bw)), int(rng.integers(0, h - bh))
+                box = px.draw(right, 0, x0, y0, bw, bh)
+                # the boards' warps are placed from the box's own origin (OpenCV maps each pixel at
+                # 1/32 px): a few pixels on a board's edges may differ
+                same = box == whole[y0:y0 + bh, x0:x0 + bw]
+                assert same.mean() >= 0.995, (pose, right, (x0, y0, bw, bh))
+
+
+def test_the_front_end_finds_in_drawn_levels_what_it_finds_in_the_images(frames):
+    """The plan's regions drawn on demand at the detection levels against the whole images drawn at
+    full resolution (the same scene and noise level): the same markers ranged, and fixes that differ
+    as two draws of the noise do."""
+    fixes = agree = 0
+    for pose, world, ren, _pair in frames:
+        fe = front_end(world, ren.rig, marker_size_m=ren.marker_size_m)
+        plan = fe.plan(np.array(pose), np.diag([0.05 ** 2, 0.05 ** 2, 0.005 ** 2]))
+        assert plan.mode == _core.SearchMode.WINDOWS, plan.reason
+        whole = [(0, 0, ren.rig.width, ren.rig.height)]
+        left, right = ren.render_regions(pose, whole, whole, 3)
+        full = fe.localize_plan(left, right, plan)
+        px = ren.pixels(pose, 3)
+        drawn = fe.localize_pixels(px, plan)
+        assert {o.landmark_id for o in drawn.observations} == {o.landmark_id for o in full.observations}
+        assert all(a.ok == b.ok for a, b in zip(drawn.observations, full.observations))
+        # a random frame may be near a trilateration ambiguity, which the noise settles either way
+        agree += drawn.ok == full.ok
+        if full.ok and drawn.ok:
+            fixes += 1
+            # two draws of independent noise: the fixes differ by N(0, 2P) (χ², 2 dof, 99.9 %)
+            e = np.asarray(drawn.position) - full.position
+            assert e @ np.linalg.solve(2 * np.asarray(full.covariance), e) < 13.8, (e, full.covariance)
+        # only what detection reads was drawn: far fewer pixels than the two images
+        assert 0 < px.pixels < 0.5 * 2 * ren.rig.width * ren.rig.height
+    assert fixes >= 4 and agree >= len(frames) - 1
+
+
+@pytest.mark.parametrize("level", [0, 1, 2, 3])
+def test_pixel_noise_is_sigma_over_two_to_the_level_and_reproducible(frames, level):
+    pose, _world, ren, _pair = frames[0]
+    k = 1 << level
+    w, h = 512 // k, 256 // k
+    clean = ren.pixels(pose, 5, noise=False).draw(False, level, 64, 100, w, h).astype(float)
+    a = ren.pixels(pose, 5).draw(False, level, 64, 100, w, h)
+    again = ren.pixels(pose, 5).draw(False, level, 64, 100, w, h)
+    other = ren.pixels(pose, 6).draw(False, level, 64, 100, w, h)
+    np.testing.assert_array_equal(a, again)
+    assert not np.array_equal(a, other)
+    keep = (clean > 5) & (clean < 250)             # away from saturation
+    d = (a - clean)[keep]
+    # N(0, (σ/2^L)²) rounded to whole grey levels (half to even, as OpenCV saturates)
+    want = (np.round(np.random.default_rng(1).normal(0.0, SIGMA / k, 200_000))).std()
+    assert abs(d.mean()) < 0.05 and abs(d.std() - want) < 0.1 * want + 0.01, (d.mean(), d.std(), want)
+
+
+def test_bad_boxes_and_pixels_are_named(frames):
+    pose, world, ren, _pair = frames[0]
+    px = ren.pixels(pose, 0)
+    w, h = ren.rig.width, ren.rig.height
+    with pytest.raises(ValueError, match="not inside the 640x480 image"):
+        px.draw(False, 0, w - 10, 0, 20, 10)
+    with pytest.raises(ValueError, match="not inside"):
+        px.draw(True, 2, 0, 0, w // 4 + 1, 10)
+    with pytest.raises(ValueError, match="must be >= 1"):
+        px.draw(False, 0, 0, 0, 0, 10)
+    with pytest.raises(ValueError, match="board 999 has no mip pyramid"):
+        _core.RenderedFrame(ren._pixel_renderer(), None, (0.0, np.eye(3), np.zeros(3),
+                                                          [(999, np.ones((4, 3)), None, (0, 0, 1, 1))]),
+                            (0.0, np.eye(3), np.zeros(3), []), 0)
+    fe = front_end(world, ren.rig)
+    plan = fe.plan(np.array(pose), np.diag([0.01, 0.01, 1e-4]))
+
+    class Wrong:
+        def draw(self, right, level, x0, y0, width, height):
+            return np.zeros((height + 1, width), np.uint8)
+
+    with pytest.raises(ValueError, match=r"must return a \(height, width\) uint8 array"):
+        fe.localize_pixels(Wrong(), plan)
+    with pytest.raises(ValueError, match="an object with draw"):
+        fe.localize_pixels(42, plan)
