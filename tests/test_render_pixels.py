@@ -1,15 +1,23 @@
-"""Pixels drawn on demand (the core's PixelRenderer / RenderedFrame, and the front end's
-StereoPixels): a box at level 0 is the whole image's pixels there, a box at a pyramid level is
-what the front end finds the same markers in as in the full-resolution image (fixes within
-millimetres), the noise is σ/2^L and reproducible, and bad boxes are named."""
+"""Pixels drawn on demand (the core's SimulatedCamera, PixelRenderer and RenderedFrame, and the
+front end's StereoPixels): a box at level 0 is the whole image's pixels there, a box at a pyramid
+level is what the front end finds the same markers in as in the full-resolution image, the noise
+is σ/2^L and reproducible, bad boxes are named, and the core's camera sees the boards the Python
+geometry sees."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from safenav import _core
 from safenav.vision.camera_loop import front_end
+from safenav.vision.render import StereoRenderer
+from safenav.vision.rig import StereoRig, camera_rotation
+from safenav.world import Circle, Landmark, World
 from test_lanbloc_cpp import random_frame
 
 SIGMA = 1.0
@@ -95,7 +103,7 @@ def test_bad_boxes_and_pixels_are_named(frames):
     with pytest.raises(ValueError, match="must be >= 1"):
         px.draw(False, 0, 0, 0, 0, 10)
     with pytest.raises(ValueError, match="board 999 has no mip pyramid"):
-        _core.RenderedFrame(ren._pixel_renderer(), None, (0.0, np.eye(3), np.zeros(3),
+        _core.RenderedFrame(ren.camera().renderer, None, (0.0, np.eye(3), np.zeros(3),
                                                           [(999, np.ones((4, 3)), None, (0, 0, 1, 1))]),
                             (0.0, np.eye(3), np.zeros(3), []), 0)
     fe = front_end(world, ren.rig)
@@ -109,3 +117,45 @@ def test_bad_boxes_and_pixels_are_named(frames):
         fe.localize_pixels(Wrong(), plan)
     with pytest.raises(ValueError, match="an object with draw"):
         fe.localize_pixels(42, plan)
+
+
+@settings(max_examples=40, deadline=None)
+@given(x=st.floats(60.0, 140.0), y=st.floats(60.0, 140.0), th=st.floats(-math.pi, math.pi),
+       yaw=st.one_of(st.none(), st.floats(-math.pi, math.pi)), pitch=st.sampled_from([0.0, -0.08, 0.1]),
+       seed=st.integers(0, 2 ** 16))
+def test_the_cores_camera_sees_what_the_python_geometry_sees(x, y, th, yaw, pitch, seed):
+    """The core's simulated camera (which boards each camera draws, in camera coordinates, far first,
+    and how many centres the left image holds) against the renderer's Python geometry (culled,
+    _board, hidden: the region pipeline's), with obstacles hiding some boards, boards facing the
+    camera or at a fixed yaw, boards behind, beside and above the camera."""
+    rng = np.random.default_rng(seed)
+    lms = tuple(Landmark(i, (*rng.uniform(50, 150, 2), rng.uniform(0.3, 5.0)), "m", 1) for i in range(14))
+    obstacles = tuple(Circle(center=tuple(rng.uniform(60, 140, 2)), radius=float(rng.uniform(1, 6))) for _ in range(4))
+    world = World(landmarks=lms, obstacles=obstacles)
+    rig = StereoRig(width=640, height=360, focal_length_px=350.0, pitch_rad=pitch, max_range_m=40.0)
+    ren = StereoRenderer(world, rig, facing="camera" if yaw is None else yaw, occlusion=True)
+    pose = (x, y, th)
+    views = ren.camera().views(np.array(pose))
+    R = camera_rotation(th, pitch)
+    boards = [ren._board(i, pose) for i in ren.culled(pose)]
+    hidden = ren.hidden(pose)
+    for view, cam, C in zip(views, ("left", "right"), rig.camera_centers(pose)):
+        want = []
+        for lid, corners, _pole, facing in boards:
+            pc = (corners - C) @ R.T
+            if facing and lid not in hidden[cam] and (pc[:, 2] > rig.near_m).all():
+                want.append((float(pc[:, 2].mean()), lid, pc))
+        want.sort(key=lambda t: -t[0])
+        got = view[3]
+        assert [b[0] for b in got] == [w[1] for w in want], cam
+        for b, w in zip(got, want):
+            np.testing.assert_allclose(b[1], w[2], rtol=1e-12, atol=1e-9)
+    # the early out's count: centres inside the left image, not hidden
+    C = rig.camera_centers(pose)[0]
+    n = 0
+    for i in ren.culled(pose):
+        pc = (ren._L[i] - C) @ R.T
+        u, v = rig.focal_length_px * pc[:2] / pc[2] + [rig.cx, rig.cy]
+        n += bool(pc[2] > rig.near_m and 0 <= u <= rig.width - 1 and 0 <= v <= rig.height - 1
+                  and ren.landmarks[i].id not in hidden["left"])
+    assert ren.centres_in_view(pose) == n

@@ -1,7 +1,9 @@
 // Python bindings of the simulator's stereo pixels (safenav/render.hpp):
 // safenav.vision.render draws every image through them.
 #include "common.hpp"
+#include "safenav/navigation.hpp"
 #include "safenav/render.hpp"
+#include "safenav/seed.hpp"
 
 #include <memory>
 #include <optional>
@@ -113,4 +115,82 @@ void pybind_render(py::module_& m) {
           "The (height, width) box of pyramid level `level` whose top-left full-resolution pixel is (x0, y0).")
       .def_property_readonly("draws", &RenderedFrame::draws)
       .def_property_readonly("pixels", &RenderedFrame::pixels);
+  py::class_<SimulatedCamera, std::shared_ptr<SimulatedCamera>>(
+      m, "SimulatedCamera",
+      "The simulator's stereo camera (safenav/render.hpp): which boards each camera sees at a pose (range, field of "
+      "view, facing, occlusion by the obstacles), drawn by its PixelRenderer on demand.")
+      .def(py::init([](std::shared_ptr<const PixelRenderer> r, const std::vector<std::tuple<int, Eigen::Vector3d,
+                                                                                          std::optional<double>>>& boards,
+                       double baseline_m, double max_range_m, double near_m, double board_half_m, double pole_width_m,
+                       std::optional<ObstacleChecker> occlusion) {
+             std::vector<CameraBoard> bs;
+             for (const auto& [id, c, yaw] : boards)
+               bs.push_back({id, c, yaw ? *yaw : std::numeric_limits<double>::quiet_NaN()});
+             SimulatedCameraSettings s{baseline_m, max_range_m, near_m, board_half_m, pole_width_m};
+             return std::make_shared<SimulatedCamera>(std::move(r), std::move(bs), s, std::move(occlusion));
+           }),
+           py::arg("renderer"), py::arg("boards"), py::arg("baseline_m"), py::arg("max_range_m"), py::arg("near_m"),
+           py::arg("board_half_m"), py::arg("pole_width_m"), py::arg("occlusion") = py::none(),
+           "boards: (id, centre (x, y, height), yaw or None to face the camera); occlusion: the world's "
+           "ObstacleChecker, or None")
+      .def_property_readonly("renderer", &SimulatedCamera::renderer)
+      .def("centres_in_view", &SimulatedCamera::centres_in_view, py::arg("pose"), release_gil())
+      .def(
+          "views",
+          [](const SimulatedCamera& c, const Eigen::Vector3d& pose) {
+            py::list out;
+            for (const RenderView& v : c.views(pose)) {
+              py::list boards;
+              for (const RenderBoard& b : v.boards)
+                boards.append(py::make_tuple(b.id, b.corners, b.has_pole ? py::cast(b.pole) : py::none(), b.box));
+              out.append(py::make_tuple(v.theta, v.R, v.centre, boards));
+            }
+            return out;
+          },
+          py::arg("pose"),
+          "[left, right] views at pose: (theta, R, centre, boards far first: (id, corners (4, 3) in camera "
+          "coordinates, pole (4, 3) or None, full-resolution box))")
+      .def("frame", &SimulatedCamera::frame, py::arg("pose"), py::arg("noise"), py::arg("noise_seed"), release_gil());
+
+  auto nav = py::reinterpret_borrow<py::class_<Navigator>>(m.attr("Navigator"));
+  nav.def(
+      "run_camera",
+      [](const Navigator& n, std::uint64_t seed, const LanBLocFrontEnd& front_end,
+         std::shared_ptr<const SimulatedCamera> camera, std::shared_ptr<const RenderNoise> noise,
+         std::uint64_t noise_seed, bool early_out) {
+        if (!camera) throw std::invalid_argument("run_camera: camera is None");
+        long frames = 0, early = 0, whole = 0, windows = 0, draws = 0, pixels = 0;
+        std::shared_ptr<RenderedFrame> last;
+        auto count = [&] {
+          if (last) draws += last->draws(), pixels += last->pixels();
+          last.reset();
+        };
+        FrameCallback cb = [&](const State& x, int step, const SearchPlan& plan) -> std::shared_ptr<const StereoPixels> {
+          ++frames;
+          const Eigen::Vector3d pose(x[kX], x[kY], x[kTheta]);
+          count();
+          if (early_out && camera->centres_in_view(pose) < 1) {
+            ++early;
+            return nullptr;
+          }
+          ++(plan.mode == SearchMode::WholeFrame ? whole : windows);
+          last = camera->frame(pose, noise, derive_seed(noise_seed, std::uint64_t(step)));
+          return last;
+        };
+        TrialResult res;
+        {
+          py::gil_scoped_release nogil;
+          res = n.run_frames(seed, std::shared_ptr<const LanBLocFrontEnd>(&front_end, [](const LanBLocFrontEnd*) {}), cb);
+          count();
+        }
+        py::dict stats;
+        stats["frames"] = frames, stats["early_out"] = early, stats["whole_frame"] = whole, stats["windows"] = windows;
+        stats["draws"] = draws, stats["pixels"] = pixels;
+        return py::make_tuple(res, stats);
+      },
+      py::arg("seed"), py::arg("front_end"), py::arg("camera"), py::arg("noise"), py::arg("noise_seed"),
+      py::arg("early_out") = true,
+      "run_frames with the simulated camera in C++: each fix step the frame at the true pose is drawn on demand "
+      "(noise offsets from derive_seed(noise_seed, step)); with early_out a frame whose left image holds no board "
+      "centre is a dropout.  Returns (TrialResult, counts: frames, early_out, whole_frame, windows, draws, pixels).");
 }

@@ -18,14 +18,17 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <map>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include <Eigen/Core>
 
 #include "safenav/lanbloc.hpp"
 #include "safenav/stereo.hpp"
+#include "safenav/world.hpp"
 
 namespace safenav {
 
@@ -119,6 +122,59 @@ class RenderedFrame final : public StereoPixels {
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
+};
+
+/// A landmark's board for the simulated camera: its id (a pyramid of the
+/// scene's), its marker's centre (x, y east/north, height) [m], and the yaw
+/// its face points to [rad] (NaN: it turns to face the camera).
+struct CameraBoard {
+  int id = 0;
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  double yaw = std::numeric_limits<double>::quiet_NaN();
+};
+
+/// The simulated rig's geometry beyond the scene's camera.
+struct SimulatedCameraSettings {
+  double baseline_m = 0.3;     ///< the right camera sits this far to the left camera's right
+  double max_range_m = 30.0;   ///< boards farther (3D, from the left camera) are not drawn
+  double near_m = 0.2;         ///< near clipping depth
+  double board_half_m = 1.0;   ///< half the board's side (marker and quiet zone)
+  double pole_width_m = 0.08;  ///< the pole under each board
+
+  void validate() const;
+};
+
+/// The simulator's stereo camera (ours; safenav.vision.render.StereoRenderer's
+/// geometry): at a vehicle pose (x, y, θ) — the left camera's centre, the
+/// right one baseline_m to its right, both at the scene's height and pitch —
+/// the boards within max_range_m and the horizontal field of view (plus the
+/// board's and the baseline's angular slack), each facing the camera's
+/// midpoint or at its yaw (seen from behind: not drawn), hidden from a camera
+/// whose centre an obstacle blocks (ObstacleChecker::visible_from, the
+/// measurement model's and placement's line of sight; per board, not per
+/// pixel), in painter's order.  Immutable: one camera serves every trial.
+class SimulatedCamera {
+ public:
+  /// `occlusion`: the world's obstacles (none: nothing is hidden).
+  /// std::invalid_argument on a null renderer, bad settings or a board without a pyramid.
+  SimulatedCamera(std::shared_ptr<const PixelRenderer> renderer, std::vector<CameraBoard> boards,
+                  const SimulatedCameraSettings& settings, std::optional<ObstacleChecker> occlusion);
+  /// The cameras' views at `pose` (left, right).
+  std::array<RenderView, 2> views(const Eigen::Vector3d& pose) const;
+  /// Boards whose centre projects into the left image and that no obstacle
+  /// hides: a bound on the whole markers a detector can find there.
+  int centres_in_view(const Eigen::Vector3d& pose) const;
+  /// The frame at `pose` drawn on demand (noise may be null).
+  std::shared_ptr<RenderedFrame> frame(const Eigen::Vector3d& pose, std::shared_ptr<const RenderNoise> noise,
+                                       std::uint64_t noise_seed) const;
+  const std::shared_ptr<const PixelRenderer>& renderer() const { return renderer_; }
+
+ private:
+  std::vector<int> culled(const Eigen::Vector3d& pose) const;
+  std::shared_ptr<const PixelRenderer> renderer_;
+  std::vector<CameraBoard> boards_;
+  SimulatedCameraSettings settings_;
+  std::optional<ObstacleChecker> occlusion_;
 };
 
 }  // namespace safenav

@@ -141,7 +141,16 @@ class CameraFrames:
         return cls(scenario.world, rig, **kwargs)
 
     def run(self, navigator, seed: int):
-        """One trial of ``navigator`` (a ``Navigator``) with these frames in the loop."""
+        """One trial of ``navigator`` (a ``Navigator``) with these frames in the loop: in the core
+        (``Navigator.run_camera``, the frames drawn by the renderer's simulated camera with the same
+        noise streams as :meth:`__call__`), or through :meth:`__call__` with ``compare_whole_frame``."""
+        if not self.compare_whole_frame:
+            # the whole camera loop in the core: frames drawn by its simulated camera, no Python per frame
+            r, counts = navigator.run_camera(int(seed), self.front_end, self.renderer.camera(),
+                                             self.renderer.pixel_noise(), self._noise_seed, self.early_out)
+            for k, v in counts.items():
+                self.stats[k] += v
+            return r
         try:
             return navigator.run_frames(int(seed), self.front_end, self)
         finally:

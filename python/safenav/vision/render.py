@@ -192,6 +192,7 @@ class StereoRenderer:
         self._texture_seed = int(texture_seed)
         self._noise_tile = None
         self._pixel_noise = None   # the pixel-noise tile of pixels() (a _core.RenderNoise), made on first use
+        self._camera = None        # the core's simulated camera (camera()), made on first use
 
     # ---- public API
     def calibration(self):
@@ -316,48 +317,40 @@ class StereoRenderer:
         """The pair at ``pose`` drawn box by box on demand by the core (``_core.RenderedFrame``, the
         front end's ``StereoPixels``; see "Pixels on demand" above): ``draw(right, level, x0, y0,
         width, height)`` gives the box of pyramid level ``level`` whose top-left full-resolution pixel
-        is (x0, y0).  The boards' geometry (culling, occlusion, facing, projection) is computed here
-        once.  Pixel noise (``noise``): windows of a tile of N(0, σ²) draws fixed by the renderer's
-        seed, at offsets from the stream ``noise_seed``."""
-        x, y, th = as_pose(pose)
-        pose = (x, y, th)
-        R = camera_rotation(th, self.rig.pitch_rad)
-        idx = self.culled(pose)
-        boards = [self._board(i, pose) for i in idx]
-        hidden = self.hidden(pose) if len(idx) else {"left": set(), "right": set()}
-        views = [(th, R, C, [(lid, pc, pp, box) for _, lid, pc, pp, box in
-                             self._board_items(R, C, [b for b in boards if b[0] not in hidden[cam]])])
-                 for cam, C in zip(("left", "right"), self.rig.camera_centers(pose))]
-        if noise and self.noise_std > 0 and self._pixel_noise is None:
-            self._pixel_noise = _core.RenderNoise(self.noise_std, int(_core.derive_seed(int(self._seed) % 2 ** 64, 11)),
-                                                  self.REGION_NOISE_TILE)
-        return _core.RenderedFrame(self._pixel_renderer(), self._pixel_noise if noise else None, views[0], views[1],
+        is (x0, y0).  The boards' geometry (culling, occlusion, facing, projection) is the core's
+        camera's (:meth:`camera`), computed once per frame.  Pixel noise (``noise``): windows of a
+        tile of N(0, σ²) draws fixed by the renderer's seed, at offsets from the stream ``noise_seed``."""
+        return self.camera().frame(np.array(as_pose(pose), float), self.pixel_noise() if noise else None,
                                    int(noise_seed) % 2 ** 64)
 
-    def _pixel_renderer(self):
-        return _pixel_renderer(self.rig, self._texture_seed, self.dictionary_name,
-                               tuple((lm.id, self._marker_id[lm.id]) for lm in self.landmarks), self.HAZE_M,
-                               self.POLE_GREY, self.GROUND_RES_M, self.GROUND_TILE, self.PANO_W, self.PANO_H,
-                               self.PANO_EL)
+    def pixel_noise(self):
+        """The pixel noise of :meth:`pixels` (``_core.RenderNoise``; ``None`` without noise)."""
+        if self.noise_std > 0 and self._pixel_noise is None:
+            self._pixel_noise = _core.RenderNoise(self.noise_std, int(_core.derive_seed(int(self._seed) % 2 ** 64, 11)),
+                                                  self.REGION_NOISE_TILE)
+        return self._pixel_noise
 
-    def centres_in_view(self, pose, camera: str = "left") -> int:
-        """How many culled landmarks have their marker's centre inside ``camera``'s image and are not
-        hidden: a bound on the whole markers a detector can find there (a marker wholly in the image
-        has its centre in it), much cheaper than drawing the frame."""
-        idx = self.culled(pose)
-        if len(idx) == 0:
-            return 0
-        x, y, th = as_pose(pose)
-        C = self.rig.camera_centers((x, y, th))[0 if camera == "left" else 1]
-        pc = (self._L[idx] - C) @ camera_rotation(th, self.rig.pitch_rad).T
-        r = self.rig
-        with np.errstate(divide="ignore", invalid="ignore"):
-            u = r.focal_length_px * pc[:, 0] / pc[:, 2] + r.cx
-            v = r.focal_length_px * pc[:, 1] / pc[:, 2] + r.cy
-        inside = (pc[:, 2] > r.near_m) & (u >= 0) & (u <= r.width - 1) & (v >= 0) & (v <= r.height - 1)
-        if self.occlusion and inside.any():
-            inside[inside] = self.world.visible_from(C[:2], self._L[idx[inside], :2])
-        return int(inside.sum())
+    def camera(self):
+        """The core's simulated camera of this renderer (``_core.SimulatedCamera``: its landmarks'
+        boards, facing and occlusion, drawn by the shared ``_core.PixelRenderer`` of its scene)."""
+        if self._camera is None:
+            r = self.rig
+            renderer = _pixel_renderer(r, self._texture_seed, self.dictionary_name,
+                                       tuple((lm.id, self._marker_id[lm.id]) for lm in self.landmarks), self.HAZE_M,
+                                       self.POLE_GREY, self.GROUND_RES_M, self.GROUND_TILE, self.PANO_W,
+                                       self.PANO_H, self.PANO_EL)
+            boards = [(lm.id, self._L[i], None if self._yaw is None else float(self._yaw[i]))
+                      for i, lm in enumerate(self.landmarks)]
+            self._camera = _core.SimulatedCamera(renderer, boards, r.baseline_m, r.max_range_m, r.near_m,
+                                                 self._board_half_m, self.POLE_WIDTH_M,
+                                                 self.world._checker if self.occlusion else None)
+        return self._camera
+
+    def centres_in_view(self, pose) -> int:
+        """How many landmarks have their marker's centre inside the left image and are not hidden (the
+        core's camera): a bound on the whole markers a detector can find there (a marker wholly in the
+        image has its centre in it), much cheaper than drawing the frame."""
+        return self.camera().centres_in_view(np.array(as_pose(pose), float))
 
     def hidden(self, pose) -> dict[str, set[int]]:
         """``{"left": ids, "right": ids}``: the culled landmarks that an obstacle hides from each
@@ -423,31 +416,6 @@ class StereoRenderer:
 
     def _pyramid(self, lid: int, grey: bool = False) -> list[np.ndarray]:
         return marker_pyramid(self.dictionary_name, self._marker_id[lid])[1 if grey else 0]
-
-    def _board_items(self, R: np.ndarray, C: np.ndarray, boards) -> list:
-        """The ``boards`` (:meth:`_board`) that face the camera at centre ``C`` and lie in front of it, far
-        first (painter's order): (depth, id, corners in camera coordinates (4, 3), the pole's (4, 3) or
-        None when it is not wholly in front, and the full-resolution pixel box (x0, y0, x1, y1) that
-        drawing them can touch)."""
-        r = self.rig
-        f, cx, cy = r.focal_length_px, r.cx, r.cy
-        items = []
-        for lid, corners, pole, facing in boards:
-            if not facing:
-                continue
-            pc = (corners - C) @ R.T
-            if (pc[:, 2] <= r.near_m).any():
-                continue
-            pp = None if pole is None else (pole - C) @ R.T
-            if pp is not None and not (pp[:, 2] > r.near_m).all():
-                pp = None
-            pts = pc if pp is None else np.vstack([pc, pp])
-            uv = f * pts[:, :2] / pts[:, 2:3] + [cx, cy]
-            lo, hi = uv.min(axis=0), uv.max(axis=0)
-            box = (math.floor(lo[0]) - 2, math.floor(lo[1]) - 2, math.ceil(hi[0]) + 3, math.ceil(hi[1]) + 3)
-            items.append((float(pc[:, 2].mean()), lid, pc, pp, box))
-        items.sort(key=lambda t: -t[0])   # far first
-        return items
 
     def _warp_marker(self, img: np.ndarray, lid: int, uv: np.ndarray, side: float) -> None:
         """Warp landmark ``lid``'s board straight into ``img`` (uint8, in place) with its corners at
