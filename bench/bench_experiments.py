@@ -111,11 +111,12 @@ def camera_only(args) -> None:
     cells = raw.groupby(["path_type", "method", "filter"], sort=False)
     print(f"camera loop, {args.camera_trials} trials per cell, a frame every {args.camera_every} steps, "
           f"{workers} worker processes: {len(raw)} trials in {wall:.1f} s")
-    print(f"{'path':<6}{'method':<10}{'filter':<8}{'median s/trial':>16}{'mean s/trial':>14}{'arrived':>9}"
+    print(f"{'path':<6}{'method':<10}{'filter':<8}{'median s/trial':>16}{'mean s/trial':>14}{'arrived':>12}"
           f"{'fixes/trial':>13}")
     for (p, m, f), g in cells:
+        arrived = f"{int(g['success'].sum())}/{len(g)}"
         print(f"{p:<6}{m:<10}{f:<8}{g['time_ms'].median() / 1e3:>16.2f}{g['time_ms'].mean() / 1e3:>14.2f}"
-              f"{g['success'].mean():>9.2f}{g['position_fixes'].mean():>13.1f}")
+              f"{arrived:>12}{g['position_fixes'].mean():>13.1f}")
     n_cells = cells.ngroups
     mean_s = raw["time_ms"].mean() / 1e3
     print(f"mean {mean_s:.2f} s per trial (in the worker), wall {wall / len(raw):.2f} s per trial on {workers} "

@@ -5,11 +5,11 @@ already rectified stereo rig (:class:`~safenav.vision.rig.StereoRig`: pinhole, s
 ``K`` for both cameras, baseline ``B`` along the camera x axis, camera height
 ``h``, a fixed pitch) at a vehicle pose ``(x, y, θ)``:
 
-* a textured ground plane (a periodic 1/f-noise tile, drawn with one
-  ``cv2.warpPerspective`` through the ground-to-image homography
+* a textured ground plane (a periodic 1/f-noise tile, drawn with a
+  perspective warp through the ground-to-image homography
   ``H = K [r₁ r₂ t]``, faded into haze with distance);
 * a textured background at infinity (a periodic panorama indexed by azimuth
-  and elevation with ``cv2.remap``; at infinity it has zero disparity);
+  and elevation; at infinity it has zero disparity);
 * every landmark of the world as a planar fiducial marker (an ArUco or
   AprilTag image with a white quiet zone, side ``marker_size_m``) whose centre
   stands at the landmark's map position and height on a thin pole, facing the
@@ -39,6 +39,16 @@ query (:meth:`safenav.world.World.visible_from`), the same one the
 measurement-level visibility test and landmark placement use.  Occlusion is
 per landmark (its marker's centre), not per pixel: a marker half behind a
 boulder is either drawn whole or not at all.
+
+**Pixels on demand** (:meth:`StereoRenderer.pixels`, ours; the core's ``safenav/render.hpp``).
+The pixels are drawn by the core: ``_core.PixelRenderer`` holds a scene's textures and board
+pyramids, ``_core.SimulatedCamera`` the geometry above (culling, facing, occlusion), and a
+``_core.RenderedFrame`` draws any box of either image at any pyramid level ``L`` as the front end
+asks for it (``StereoPixels``): the view whose pixel centres are the 2^L-blocks' centres (focal
+f/2^L), textures read from their own level, pixel noise σ/2^L from a tile of Gaussian draws at
+offsets from the frame's noise stream.  :meth:`render` and :meth:`render_regions` draw whole
+images and regions through it; the camera loop draws only what its front end reads
+(``docs/lanbloc_cpp.md``, "Pixels drawn on demand").
 
 **Rendering by region** (:meth:`StereoRenderer.frame`, ours; :mod:`safenav.vision.frame`).  A
 frame of the scenario's camera (2560×1440) holds a few markers covering a
@@ -185,9 +195,8 @@ class StereoRenderer:
         self._rng = np.random.default_rng(seed)
         self._L = np.array([(*lm.position[:2], lm.height) for lm in self.landmarks], float).reshape(-1, 3)
         # textures (shared by every renderer with this texture seed)
-        self._ground, self._pano, self._pano_levels = textures(int(texture_seed), self.GROUND_TILE, self.PANO_H,
-                                                                self.PANO_W)
-        self._ground_mean = float(self._ground.mean())
+        # the panorama's levels for StereoFrame's cheap background (the core draws everything else)
+        self._pano_levels = textures(int(texture_seed), self.GROUND_TILE, self.PANO_H, self.PANO_W)[2]
         self._seed = seed
         self._texture_seed = int(texture_seed)
         self._noise_tile = None
