@@ -119,8 +119,8 @@ void pybind_render(py::module_& m) {
       m, "SimulatedCamera",
       "The simulator's stereo camera (safenav/render.hpp): which boards each camera sees at a pose (range, field of "
       "view, facing, occlusion by the obstacles), drawn by its PixelRenderer on demand.")
-      .def(py::init([](std::shared_ptr<const PixelRenderer> r, const std::vector<std::tuple<int, Eigen::Vector3d,
-                                                                                          std::optional<double>>>& boards,
+      .def(py::init([](std::shared_ptr<const PixelRenderer> r,
+                       const std::vector<std::tuple<int, Eigen::Vector3d, std::optional<double>>>& boards,
                        double baseline_m, double max_range_m, double near_m, double board_half_m, double pole_width_m,
                        std::optional<ObstacleChecker> occlusion) {
              std::vector<CameraBoard> bs;
@@ -165,7 +165,8 @@ void pybind_render(py::module_& m) {
           if (last) draws += last->draws(), pixels += last->pixels();
           last.reset();
         };
-        FrameCallback cb = [&](const State& x, int step, const SearchPlan& plan) -> std::shared_ptr<const StereoPixels> {
+        FrameCallback cb = [&](const State& x, int step,
+                               const SearchPlan& plan) -> std::shared_ptr<const StereoPixels> {
           ++frames;
           const Eigen::Vector3d pose(x[kX], x[kY], x[kTheta]);
           count();
@@ -180,7 +181,8 @@ void pybind_render(py::module_& m) {
         TrialResult res;
         {
           py::gil_scoped_release nogil;
-          res = n.run_frames(seed, std::shared_ptr<const LanBLocFrontEnd>(&front_end, [](const LanBLocFrontEnd*) {}), cb);
+          const std::shared_ptr<const LanBLocFrontEnd> fe(&front_end, [](const LanBLocFrontEnd*) {});  // borrowed
+          res = n.run_frames(seed, fe, cb);
           count();
         }
         py::dict stats;

@@ -173,7 +173,8 @@ struct CornerPatches {
     int area = 0;
     for (int k = 0; k < 4; ++k) {
       // about the corner's pixel, clamped into the image: the patch is at least half + 1 px a side
-      const int u = std::clamp(cvRound(c[k].x), 0, image.width - 1), v = std::clamp(cvRound(c[k].y), 0, image.height - 1);
+      const int u = std::clamp(cvRound(c[k].x), 0, image.width - 1);
+      const int v = std::clamp(cvRound(c[k].y), 0, image.height - 1);
       boxes[k] = cv::Rect(u - half, v - half, 2 * half + 1, 2 * half + 1) & frame;
       all = k == 0 ? boxes[k] : (all | boxes[k]);
       area += boxes[k].area();

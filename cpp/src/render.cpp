@@ -224,8 +224,8 @@ void PixelRenderer::Impl::ground_rows(const RenderView& rv, const View& v, int v
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) M(r, c) = Hinv(r, c);
   cv::Mat g;
-  cv::warpPerspective(ground3[std::size_t(l)], g, M, cv::Size(img.cols, img.rows - v_ground), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP,
-                      cv::BORDER_WRAP);
+  cv::warpPerspective(ground3[std::size_t(l)], g, M, cv::Size(img.cols, img.rows - v_ground),
+                      cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_WRAP);
   const float m = ground_mean;
   for (int j = v_ground; j < img.rows; ++j) {
     const double t = s.camera_height_m / std::max(-ray_up(s, v, j), 1e-12);  // the row's camera depth

@@ -35,7 +35,10 @@ void SimulatedCameraSettings::validate() const {
 
 SimulatedCamera::SimulatedCamera(std::shared_ptr<const PixelRenderer> renderer, std::vector<CameraBoard> boards,
                                  const SimulatedCameraSettings& settings, std::optional<ObstacleChecker> occlusion)
-    : renderer_(std::move(renderer)), boards_(std::move(boards)), settings_(settings), occlusion_(std::move(occlusion)) {
+    : renderer_(std::move(renderer)),
+      boards_(std::move(boards)),
+      settings_(settings),
+      occlusion_(std::move(occlusion)) {
   if (!renderer_) detail::bad("SimulatedCamera: renderer is null");
   settings_.validate();
   for (const CameraBoard& b : boards_) {
@@ -57,7 +60,8 @@ std::vector<int> SimulatedCamera::culled(const Eigen::Vector3d& pose) const {
     const Eigen::Vector3d d = boards_[i].centre - C;
     const double fwd = d.x() * c + d.y() * sn, lat = d.x() * sn - d.y() * c;
     const double ang = std::abs(std::atan2(lat, fwd));
-    const double slack = std::atan2(settings_.board_half_m + settings_.baseline_m, std::max(std::hypot(fwd, lat), 1e-9));
+    const double slack =
+        std::atan2(settings_.board_half_m + settings_.baseline_m, std::max(std::hypot(fwd, lat), 1e-9));
     if (d.norm() <= settings_.max_range_m && fwd > settings_.near_m && ang <= half + slack) out.push_back(int(i));
   }
   return out;
@@ -75,9 +79,11 @@ std::array<RenderView, 2> SimulatedCamera::views(const Eigen::Vector3d& pose) co
     RenderView& v = out[std::size_t(cam)];
     v.theta = th, v.R = R, v.centre = C[std::size_t(cam)];
     Points2 targets(idx.size(), 2);
-    for (std::size_t k = 0; k < idx.size(); ++k) targets.row(Eigen::Index(k)) = boards_[std::size_t(idx[k])].centre.head<2>();
-    const auto seen = occlusion_ && !idx.empty() ? occlusion_->visible_from(v.centre.head<2>(), targets)
-                                                  : Eigen::Matrix<bool, Eigen::Dynamic, 1>::Constant(Eigen::Index(idx.size()), true);
+    for (std::size_t k = 0; k < idx.size(); ++k)
+      targets.row(Eigen::Index(k)) = boards_[std::size_t(idx[k])].centre.head<2>();
+    const Eigen::Matrix<bool, Eigen::Dynamic, 1> seen =
+        occlusion_ && !idx.empty() ? occlusion_->visible_from(v.centre.head<2>(), targets)
+                                   : Eigen::Matrix<bool, Eigen::Dynamic, 1>::Constant(Eigen::Index(idx.size()), true);
     std::vector<std::pair<double, RenderBoard>> items;
     for (std::size_t k = 0; k < idx.size(); ++k) {
       if (!seen(Eigen::Index(k))) continue;
@@ -86,7 +92,8 @@ std::array<RenderView, 2> SimulatedCamera::views(const Eigen::Vector3d& pose) co
       // The face's normal: toward the cameras' midpoint, or the board's yaw.
       Eigen::Vector2d n;
       if (std::isnan(b.yaw)) {
-        const Eigen::Vector2d mid = pose.head<2>() + 0.5 * settings_.baseline_m * Eigen::Vector2d(std::sin(th), -std::cos(th));
+        const Eigen::Vector2d mid =
+            pose.head<2>() + 0.5 * settings_.baseline_m * Eigen::Vector2d(std::sin(th), -std::cos(th));
         n = mid - c.head<2>();
         const double nn = n.norm();
         n = nn > 1e-9 ? Eigen::Vector2d(n / nn) : Eigen::Vector2d(-std::cos(th), -std::sin(th));
@@ -148,7 +155,8 @@ int SimulatedCamera::centres_in_view(const Eigen::Vector3d& pose) const {
   }
   if (!occlusion_ || inside.empty()) return int(inside.size());
   Points2 targets(inside.size(), 2);
-  for (std::size_t k = 0; k < inside.size(); ++k) targets.row(Eigen::Index(k)) = boards_[std::size_t(inside[k])].centre.head<2>();
+  for (std::size_t k = 0; k < inside.size(); ++k)
+    targets.row(Eigen::Index(k)) = boards_[std::size_t(inside[k])].centre.head<2>();
   return int(occlusion_->visible_from(C.head<2>(), targets).count());
 }
 

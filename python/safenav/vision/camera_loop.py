@@ -7,13 +7,14 @@ fix step the vehicle's localizer plans where its front end will search
 prediction, each window grown by its projected 3σ; the whole frame before
 the start or when the prediction is too uncertain), :class:`CameraFrames`
 hands over the pair at the true pose as pixels drawn on demand by the core
-(:meth:`StereoRenderer.pixels <safenav.vision.render.StereoRenderer.pixels>`), and ``Localizer.observe_frame``
-draws exactly what its front end reads (each region at its detection level,
-patches around the corners at full resolution: ground and background
-textures, markers, poles, pixel noise, what the whole image holds there, so
-false detections can happen there as in a whole frame), detects, ranges,
-trilaterates and updates the filter through its gate.  ``Navigator.run_frames`` drives it: the same loop
-as for every other input.
+(:meth:`StereoRenderer.pixels <safenav.vision.render.StereoRenderer.pixels>`),
+and ``Localizer.observe_frame`` draws exactly what its front end reads (each
+region at its detection level, patches around the corners at full
+resolution: ground and background textures, markers, poles, pixel noise,
+what the whole image holds there, so false detections can happen there as
+in a whole frame), detects, ranges, trilaterates and updates the filter
+through its gate.  ``Navigator.run_frames`` drives it (``run_camera`` with
+the simulated camera in the core): the same loop as for every other input.
 
 :func:`front_end` builds the core's ``LanBLocFrontEnd`` for a world and a
 :class:`~safenav.vision.rig.StereoRig`.
@@ -78,9 +79,10 @@ class CameraFrames:
     """Frames for ``Navigator.run_frames``: ``frames(truth, step, plan)`` returns the pair at the
     true pose as pixels drawn on demand (:meth:`StereoRenderer.pixels
     <safenav.vision.render.StereoRenderer.pixels>`: the front end draws the plan's regions, or the
-    whole frame, at its detection levels, and patches around the corners it finds), or ``None`` when the frame cannot give a range (``early_out``: no
-    landmark centre in the left image, a bound from the geometry that holds whatever the
-    detector does with the pixels; such a frame counts as a dropout).
+    whole frame, at its detection levels, and patches around the corners it finds), or ``None``
+    when the frame cannot give a range (``early_out``: no landmark centre in the left image, a
+    bound from the geometry that holds whatever the detector does with the pixels; such a frame
+    counts as a dropout).
 
     :attr:`front_end` is the core's front end (:func:`front_end`); :meth:`run` runs one trial;
     :attr:`stats` counts frames by search mode, early outs, and the boxes drawn and their pixels.
