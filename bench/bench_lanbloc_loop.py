@@ -13,14 +13,17 @@ resolution), the same trial seeds (the sweep's seed rule) run twice:
   markers' true footprints and runs the Python region pipeline there (the windows come from
   the truth);
 * **after**: :class:`safenav.vision.camera_loop.CameraFrames` through ``Navigator.run_frames``:
-  the localizer plans windows from its own prediction, the renderer draws those regions (ground
-  and background included), the core's front end searches them and the fix goes through the
+  the localizer plans windows from its own prediction, the front end draws what it reads of those
+  regions (ground and background included) and searches them, and the fix goes through the
   localizer's gate.  Each of its frames is also rendered whole and searched without a prediction
   (``compare_whole_frame``): fixes, markers missed by the windows, false detections, the windows'
   fix error and NEES against the truth, and the front end's time per frame.  On that whole
   rendering the plan's windows are searched at the pyramid levels and at full resolution
   (``detect_side_px = 0``), and the Python region pipeline runs on the same pixels: markers found
-  and missed, fix and corner differences, and the median time per frame of each.
+  and missed, fix and corner differences, and the median time per frame of each.  And the plan's
+  windows rendered at full resolution are searched beside the same windows drawn on demand at the
+  detection levels, as the loop draws them: fixes, markers, the fixes' difference and the time per
+  frame of each.
 
 Prints per path: arrivals, the median fix error (fixes against the true position), the
 trials' mean NEES and share outside 3σ, and seconds per trial.
@@ -101,6 +104,22 @@ def main(trials: int, every: int, paths, seed: int, settings: dict | None = None
         if len(v):
             print(f"front end ms per frame, {label}: median {np.median(v):.1f}, p95 {np.percentile(v, 95):.1f}")
     _levels(c, samples)
+    _drawn(c, samples)
+
+
+def _drawn(c: dict, samples: dict) -> None:
+    """The plan's windows drawn on demand at the detection levels (the loop's pixels) against the same
+    windows rendered at full resolution, and the time per frame of each."""
+    if not samples.get("s_drawn"):
+        return
+    print(f"drawn on demand vs full-resolution windows, same {c['frames']} frames: fixes {c['fixes_drawn']} vs "
+          f"{c['fixes_windows']}, markers {c['markers_drawn']} vs {c['markers_windows']} (found only at full "
+          f"resolution {c['missed_drawn']}, only drawn {c['extra_drawn']})")
+    print(f"  |fix drawn - fix full resolution|: {_q(samples['drawn_diff'], 'm')}")
+    print(f"  fix error vs truth: drawn {_q(samples['error_drawn'], 'm')}; full resolution {_q(samples['error'], 'm')}")
+    t = {k: 1e3 * np.median(samples[k]) for k in ("s_drawn", "s_render_regions", "s_windows")}
+    print(f"  median ms per frame: drawn and searched {t['s_drawn']:.2f}; rendered at full resolution "
+          f"{t['s_render_regions']:.2f} + searched {t['s_windows']:.2f}")
 
 
 def _q(v, unit: str) -> str:
