@@ -112,14 +112,23 @@ def _drawn(c: dict, samples: dict) -> None:
     windows rendered at full resolution, and the time per frame of each."""
     if not samples.get("s_drawn"):
         return
-    print(f"drawn on demand vs full-resolution windows, same {c['frames']} frames: fixes {c['fixes_drawn']} vs "
-          f"{c['fixes_windows']}, markers {c['markers_drawn']} vs {c['markers_windows']} (found only at full "
-          f"resolution {c['missed_drawn']}, only drawn {c['extra_drawn']})")
-    print(f"  |fix drawn - fix full resolution|: {_q(samples['drawn_diff'], 'm')}")
-    print(f"  fix error vs truth: drawn {_q(samples['error_drawn'], 'm')}; full resolution {_q(samples['error'], 'm')}")
+    _compared("drawn on demand vs full-resolution windows", c, samples, ("drawn", "drawn"),
+              ("windows", "full resolution"), "drawn_diff", ("error_drawn", "error"))
     t = {k: 1e3 * np.median(samples[k]) for k in ("s_drawn", "s_render_regions", "s_windows")}
     print(f"  median ms per frame: drawn and searched {t['s_drawn']:.2f}; rendered at full resolution "
           f"{t['s_render_regions']:.2f} + searched {t['s_windows']:.2f}")
+
+
+def _compared(title: str, c: dict, samples: dict, a: tuple, b: tuple, diff: str, errors: tuple) -> None:
+    """Fixes and markers of detector ``a`` = (key, label) against ``b`` on the same frames (``c``'s
+    ``fixes_<key>`` and ``markers_<key>``, and ``missed_<a key>``, ``extra_<a key>``: found only by
+    ``b``, only by ``a``), the two fixes' distance (``samples[diff]``) and each one's error."""
+    (ka, la), (kb, lb) = a, b
+    print(f"{title}, same {c['frames']} frames: fixes {c['fixes_' + ka]} vs {c['fixes_' + kb]}, markers "
+          f"{c['markers_' + ka]} vs {c['markers_' + kb]} (found only by {lb} {c['missed_' + ka]}, only by {la} "
+          f"{c['extra_' + ka]})")
+    print(f"  |fix {la} - fix {lb}|: {_q(samples[diff], 'm')}")
+    print(f"  fix error vs truth: {la} {_q(samples[errors[0]], 'm')}; {lb} {_q(samples[errors[1]], 'm')}")
 
 
 def _q(v, unit: str) -> str:
@@ -133,13 +142,9 @@ def _levels(c: dict, samples: dict) -> None:
     pipeline, on the same whole renderings."""
     if not samples.get("s_pyramid"):
         return
-    print(f"pyramid levels vs full resolution in the same windows, same {c['frames']} frames: fixes "
-          f"{c['fixes_pyramid']} vs {c['fixes_full_res']}, markers {c['markers_pyramid']} vs {c['markers_full_res']} "
-          f"(missed by the pyramid {c['missed_pyramid']}, found only by it {c['extra_pyramid']})")
-    print(f"  |fix pyramid - fix full resolution|: {_q(samples['fix_diff'], 'm')}")
+    _compared("pyramid levels vs full resolution in the same windows", c, samples, ("pyramid", "pyramid"),
+              ("full_res", "full resolution"), "fix_diff", ("error_pyramid", "error_full_res"))
     print(f"  corner difference (both images): {_q(samples['corner_diff'], 'px')}")
-    print(f"  fix error vs truth: pyramid {_q(samples['error_pyramid'], 'm')}; full resolution "
-          f"{_q(samples['error_full_res'], 'm')}")
     t = {k: 1e3 * np.median(samples[k]) for k in ("s_pyramid", "s_full_res", "s_python")}
     print(f"  median ms per frame: C++ pyramid {t['s_pyramid']:.2f}, C++ full resolution {t['s_full_res']:.2f}, "
           f"Python region pipeline {t['s_python']:.2f} (regions from the truth); Python / C++ pyramid "

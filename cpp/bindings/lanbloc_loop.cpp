@@ -1,12 +1,15 @@
 // Python bindings of the camera loop: LanBLoc's search plan
 // (safenav/lanbloc.hpp), camera frames into the Localizer
 // (Localizer::observe_frame, safenav/localizer.hpp) and the simulator's camera
-// loop (Navigator::run_frames, safenav/navigation.hpp).  Added to the classes
+// loop (Navigator::run_frames, and run_camera with the simulated camera of
+// safenav/render.hpp).  Added to the classes
 // that bindings/lanbloc.cpp, guidance.cpp and navigation.cpp made.
 #include "common.hpp"
 #include "safenav/lanbloc.hpp"
 #include "safenav/localizer.hpp"
 #include "safenav/navigation.hpp"
+#include "safenav/render.hpp"
+#include "safenav/seed.hpp"
 
 #include <memory>
 #include <optional>
@@ -199,6 +202,47 @@ void bind_run_frames(py::module_& m) {
       "least plan's regions) as (left, right) arrays or pixels drawn on demand (an object with draw(), as "
       "LanBLocFrontEnd.localize_pixels takes; None: no frame), and the vehicle's localizer searches it where "
       "its own prediction says (Localizer.observe_frame).");
+  nav.def(
+      "run_camera",
+      [](const Navigator& n, std::uint64_t seed, const LanBLocFrontEnd& front_end,
+         std::shared_ptr<const SimulatedCamera> camera, std::shared_ptr<const RenderNoise> noise,
+         std::uint64_t noise_seed, bool early_out) {
+        if (!camera) throw std::invalid_argument("run_camera: camera is None");
+        long frames = 0, early = 0, whole = 0, windows = 0, draws = 0, pixels = 0;
+        std::shared_ptr<RenderedFrame> last;
+        auto count = [&] {
+          if (last) draws += last->draws(), pixels += last->pixels();
+          last.reset();
+        };
+        FrameCallback cb = [&](const State& x, int step,
+                               const SearchPlan& plan) -> std::shared_ptr<const StereoPixels> {
+          ++frames;
+          const Eigen::Vector3d pose(x[kX], x[kY], x[kTheta]);
+          count();
+          if (early_out && camera->centres_in_view(pose) < 1) {
+            ++early;
+            return nullptr;
+          }
+          ++(plan.mode == SearchMode::WholeFrame ? whole : windows);
+          last = camera->frame(pose, noise, derive_seed(noise_seed, std::uint64_t(step)));
+          return last;
+        };
+        TrialResult res;
+        {
+          py::gil_scoped_release nogil;
+          res = n.run_frames(seed, borrowed(front_end), cb);
+          count();
+        }
+        py::dict stats;
+        stats["frames"] = frames, stats["early_out"] = early, stats["whole_frame"] = whole, stats["windows"] = windows;
+        stats["draws"] = draws, stats["pixels"] = pixels;
+        return py::make_tuple(res, stats);
+      },
+      py::arg("seed"), py::arg("front_end"), py::arg("camera"), py::arg("noise"), py::arg("noise_seed"),
+      py::arg("early_out") = true,
+      "run_frames with the simulated camera in C++: each fix step the frame at the true pose is drawn on demand "
+      "(noise offsets from derive_seed(noise_seed, step)); with early_out a frame whose left image holds no board "
+      "centre is a dropout.  Returns (TrialResult, counts: frames, early_out, whole_frame, windows, draws, pixels).");
 }
 }  // namespace
 

@@ -1,9 +1,7 @@
 // Python bindings of the simulator's stereo pixels (safenav/render.hpp):
 // safenav.vision.render draws every image through them.
 #include "common.hpp"
-#include "safenav/navigation.hpp"
 #include "safenav/render.hpp"
-#include "safenav/seed.hpp"
 
 #include <memory>
 #include <optional>
@@ -151,48 +149,4 @@ void pybind_render(py::module_& m) {
           "[left, right] views at pose: (theta, R, centre, boards far first: (id, corners (4, 3) in camera "
           "coordinates, pole (4, 3) or None, full-resolution box))")
       .def("frame", &SimulatedCamera::frame, py::arg("pose"), py::arg("noise"), py::arg("noise_seed"), release_gil());
-
-  auto nav = py::reinterpret_borrow<py::class_<Navigator>>(m.attr("Navigator"));
-  nav.def(
-      "run_camera",
-      [](const Navigator& n, std::uint64_t seed, const LanBLocFrontEnd& front_end,
-         std::shared_ptr<const SimulatedCamera> camera, std::shared_ptr<const RenderNoise> noise,
-         std::uint64_t noise_seed, bool early_out) {
-        if (!camera) throw std::invalid_argument("run_camera: camera is None");
-        long frames = 0, early = 0, whole = 0, windows = 0, draws = 0, pixels = 0;
-        std::shared_ptr<RenderedFrame> last;
-        auto count = [&] {
-          if (last) draws += last->draws(), pixels += last->pixels();
-          last.reset();
-        };
-        FrameCallback cb = [&](const State& x, int step,
-                               const SearchPlan& plan) -> std::shared_ptr<const StereoPixels> {
-          ++frames;
-          const Eigen::Vector3d pose(x[kX], x[kY], x[kTheta]);
-          count();
-          if (early_out && camera->centres_in_view(pose) < 1) {
-            ++early;
-            return nullptr;
-          }
-          ++(plan.mode == SearchMode::WholeFrame ? whole : windows);
-          last = camera->frame(pose, noise, derive_seed(noise_seed, std::uint64_t(step)));
-          return last;
-        };
-        TrialResult res;
-        {
-          py::gil_scoped_release nogil;
-          const std::shared_ptr<const LanBLocFrontEnd> fe(&front_end, [](const LanBLocFrontEnd*) {});  // borrowed
-          res = n.run_frames(seed, fe, cb);
-          count();
-        }
-        py::dict stats;
-        stats["frames"] = frames, stats["early_out"] = early, stats["whole_frame"] = whole, stats["windows"] = windows;
-        stats["draws"] = draws, stats["pixels"] = pixels;
-        return py::make_tuple(res, stats);
-      },
-      py::arg("seed"), py::arg("front_end"), py::arg("camera"), py::arg("noise"), py::arg("noise_seed"),
-      py::arg("early_out") = true,
-      "run_frames with the simulated camera in C++: each fix step the frame at the true pose is drawn on demand "
-      "(noise offsets from derive_seed(noise_seed, step)); with early_out a frame whose left image holds no board "
-      "centre is a dropout.  Returns (TrialResult, counts: frames, early_out, whole_frame, windows, draws, pixels).");
 }

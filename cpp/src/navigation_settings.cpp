@@ -1,6 +1,6 @@
 // NavigationProblem, NavigationSettings (safenav/navigation_settings.hpp) and
-// SensorSettings (safenav/navigation.hpp):
-// validation and the parameter declarations of the navigation settings.
+// SensorSettings (safenav/navigation.hpp): names, validation and the parameter
+// declarations of the navigation settings, and apply_faults.
 #include "safenav/navigation_settings.hpp"
 #include "safenav/navigation.hpp"
 
@@ -8,6 +8,7 @@
 
 #include "declare.hpp"
 #include "errors.hpp"
+#include "rng.hpp"
 #include "safenav/metrics.hpp"
 
 namespace safenav {
@@ -20,8 +21,51 @@ const ParamSet<SensorSettings>& param_set<SensorSettings>();  // defined below
 using detail::bad;
 using detail::require_finite_positive;
 
+
 std::string to_string(NavigationMethod method) {
   return method == NavigationMethod::CHull ? "chull" : "centroid";
+}
+
+std::string to_string(TrialOutcome outcome) {
+  switch (outcome) {
+    case TrialOutcome::Arrived: return "arrived";
+    case TrialOutcome::Collision: return "collision";
+    case TrialOutcome::LeftCorridor: return "left_corridor";
+    case TrialOutcome::StepLimit: return "step_limit";
+    case TrialOutcome::LostLocalization: return "lost_localization";
+    case TrialOutcome::NoPath: return "no_path";
+    case TrialOutcome::Blocked: return "blocked";
+  }
+  return "unknown";
+}
+
+std::string to_string(FixModel model) { return model == FixModel::Profile ? "profile" : "ranges"; }
+
+/// LandmarkFaults on given observations (the simulator's fault model, safenav/navigation.hpp).
+FaultedObservations apply_faults(const LandmarkFaults& faults, const std::vector<int>& rows,
+                                 const std::vector<double>& ranges, const Landmarks& landmarks,
+                                 const Eigen::Vector2d& position, double confusion_range, std::uint64_t seed) {
+  if (rows.size() != ranges.size())
+    bad("apply_faults: rows and ranges differ in length: " + std::to_string(rows.size()) + " and " +
+        std::to_string(ranges.size()));
+  for (int r : rows)
+    if (r < 0 || r >= landmarks.rows())
+      bad("apply_faults: row " + std::to_string(r) + " is not a landmark of the map (" +
+          std::to_string(landmarks.rows()) + " landmarks)");
+  faults.validate();
+  std::vector<LandmarkFaults::Observation> obs;
+  obs.reserve(rows.size());
+  for (std::size_t i = 0; i < rows.size(); ++i) obs.push_back({rows[i], ranges[i], 0u});
+  detail::Rng rng(seed);
+  RandomSourceOf<detail::Rng> draws(rng);
+  FaultedObservations out;
+  faults.apply(obs, landmarks, position, confusion_range, draws, &out.dropped);
+  for (const auto& o : obs) {
+    out.rows.push_back(o.row);
+    out.ranges.push_back(o.range);
+    out.faults.push_back(o.faults);
+  }
+  return out;
 }
 
 void NavigationProblem::validate() const {

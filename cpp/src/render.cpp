@@ -236,6 +236,8 @@ void PixelRenderer::Impl::ground_rows(const RenderView& rv, const View& v, int v
   }
 }
 
+namespace {
+
 /// A board's mip level just below its size on screen (magnified by 1-2×, so bilinear keeps each
 /// edge's ramp symmetric about the true edge), warped into `img` at corners `uv` with its alpha.
 void warp_board(cv::Mat& img, const std::vector<cv::Mat>& pyr, const Eigen::Matrix<double, 4, 2>& uv) {
@@ -268,6 +270,8 @@ void warp_board(cv::Mat& img, const std::vector<cv::Mat>& pyr, const Eigen::Matr
     }
   }
 }
+
+}  // namespace
 
 void PixelRenderer::Impl::paint(const RenderView& rv, const View& v, cv::Mat& img) const {
   auto project = [&](const Quad& q) {
