@@ -74,6 +74,57 @@ def test_the_front_end_finds_in_drawn_levels_what_it_finds_in_the_images(frames)
     assert fixes >= 4 and agree >= len(frames) - 1
 
 
+class _Recorder:
+    """StereoPixels that record the boxes drawn, (right, level, x0, y0, width, height); with
+    ``both_right`` the left image is the right one too."""
+
+    def __init__(self, pixels, both_right: bool = False):
+        self.pixels, self.both_right, self.boxes = pixels, both_right, []
+
+    def draw(self, right, level, x0, y0, width, height):
+        self.boxes.append((right, level, x0, y0, width, height))
+        return self.pixels.draw(right or self.both_right, level, x0, y0, width, height)
+
+
+def test_the_whole_frame_searches_the_right_image_along_the_left_markers_rows(frames):
+    """Without a prediction the left image is searched whole and the right one only in bands along
+    the rows of the landmarks found in the left (the rig is rectified): each band holds its
+    landmark's true marker in the right image, the bands are a small part of it, and they find in
+    the right image every landmark of the left one that a search of the whole right image finds."""
+    found = 0
+    for pose, world, ren, _pair in frames:
+        fe = front_end(world, ren.rig, marker_size_m=ren.marker_size_m)
+        px = ren.pixels(pose, 0)
+        rec = _Recorder(px)
+        fix = fe.localize_pixels(rec, fe.plan())
+        assert fix.search == _core.SearchMode.WHOLE_FRAME
+        w, h = ren.rig.width, ren.rig.height
+        right = [b for b in rec.boxes if b[0]]
+        left_ids = {o.landmark_id for o in fix.observations}
+        # the right image searched whole, as a left image (the same pixels, the same level)
+        whole_right = {o.landmark_id for o in fe.localize_pixels(_Recorder(px, True), fe.plan()).observations}
+        in_right = {o.landmark_id for o in fix.observations if o.reason != "not found in the right image"}
+        assert in_right == left_ids & whole_right, (in_right, left_ids, whole_right)
+        found += len(in_right)
+        if not left_ids:
+            assert not right
+            continue
+        # the bands, drawn at the search level; corner patches are drawn at level 0 below it
+        top = max(b[1] for b in right)
+        bands = [(x0, y0, x0 + (bw << lv), y0 + (bh << lv)) for _r, lv, x0, y0, bw, bh in right if lv == top]
+        corners = ren.marker_corners(pose)
+        for lid in left_ids:
+            uv, z = ren.project(pose, corners[lid], "right")
+            if (z > 0).all() and (uv >= 0).all() and (uv[:, 0] <= w - 1).all() and (uv[:, 1] <= h - 1).all():
+                assert any((uv[:, 0] >= x0).all() and (uv[:, 0] <= x1).all() and (uv[:, 1] >= y0).all()
+                           and (uv[:, 1] <= y1).all() for x0, y0, x1, y1 in bands), (lid, uv, bands)
+        mask = np.zeros((h, w), bool)
+        for x0, y0, x1, y1 in bands:
+            mask[y0:y1, x0:x1] = True
+        assert mask.mean() < 0.3, mask.mean()
+    assert found >= 20
+
+
 @pytest.mark.parametrize("level", [0, 1, 2, 3])
 def test_pixel_noise_is_sigma_over_two_to_the_level_and_reproducible(frames, level):
     pose, _world, ren, _pair = frames[0]

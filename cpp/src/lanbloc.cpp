@@ -189,6 +189,7 @@ struct LanBLocFrontEnd::Impl {
       : rig(r), settings(s), landmarks(std::move(lms)), matcher(r.camera) {}
 
   std::vector<Marker> detect(const StereoPixels& px, const SearchPlan& plan, bool right) const;
+  std::vector<Marker> detect_along_rows(const StereoPixels& px, const std::vector<Marker>& left) const;
   LandmarkSighting observe(const Marker& left, const Marker* right, const std::string& why) const;
   void sighting(LandmarkSighting& o, double depth, double sigma_z) const;
   void solve(LanBLocFix& fix) const;
@@ -317,6 +318,16 @@ std::vector<Marker> LanBLocFrontEnd::Impl::detect(const StereoPixels& px, const 
       dict, params, settings.min_perimeter_rate, refine);
 }
 
+std::vector<Marker> LanBLocFrontEnd::Impl::detect_along_rows(const StereoPixels& px,
+                                                             const std::vector<Marker>& left) const {
+  // The whole frame's right image: only where the left image's landmarks can be (epipolar_regions).
+  const std::vector<lanbloc_detail::Region> bands =
+      lanbloc_detail::epipolar_regions(rig, settings, dict->markerSize, left);
+  if (bands.empty()) return {};  // (detect_markers would search the whole image)
+  return lanbloc_detail::detect_markers(px, true, cv::Size(rig.camera.width, rig.camera.height), bands, dict,
+                                        params, settings.min_perimeter_rate, refine);
+}
+
 SearchPlan LanBLocFrontEnd::plan(const std::optional<PosePrediction>& prediction) const {
   SearchPlan p;
   if (!prediction) return p;
@@ -374,7 +385,8 @@ LanBLocFix LanBLocFrontEnd::localize(const StereoPixels& pixels, const SearchPla
     return fix;
   }
   std::map<int, Marker> in_right;
-  for (const Marker& m : I.detect(pixels, plan, true)) in_right.emplace(m.id, m);
+  for (const Marker& m : whole ? I.detect_along_rows(pixels, dets) : I.detect(pixels, plan, true))
+    in_right.emplace(m.id, m);
   for (const Marker& d : dets) {
     auto it = in_right.find(d.id);
     fix.observations.push_back(I.observe(d, it == in_right.end() ? nullptr : &it->second, ""));

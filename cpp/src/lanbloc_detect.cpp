@@ -454,4 +454,33 @@ Region whole_frame_region(const LanBLocRig& rig, const LanBLocSettings& settings
   return r;
 }
 
+std::vector<Region> epipolar_regions(const LanBLocRig& rig, const LanBLocSettings& settings, int marker_bits,
+                                     const std::vector<Marker>& left) {
+  const RectifiedCamera& cam = rig.camera;
+  const double W = cam.width, H = cam.height, cells = marker_bits + 2.0;
+  std::vector<Box> boxes;
+  for (const Marker& mk : left) {
+    const Eigen::Matrix<double, 4, 2>& c = mk.corners;  // TL, TR, BR, BL
+    // An upright board turns about the vertical: its marker's vertical sides stay f·size/Z tall.
+    const double side = 0.5 * ((c.row(3) - c.row(0)).norm() + (c.row(2) - c.row(1)).norm());
+    if (!(side > 0.0)) continue;
+    const double z = cam.f * settings.marker_size_m / side, fb = cam.f * cam.baseline;
+    const double d_lo = fb / (2.0 * z) - cam.doffs, d_hi = 2.0 * fb / z - cam.doffs;  // depths z/2 … 2z
+    const double m = settings.window_margin_px + side / cells;  // the detector's margin and the quiet zone
+    const Box b{std::max(std::floor(c.col(0).minCoeff() - d_hi - m), 0.0),
+                std::max(std::floor(c.col(1).minCoeff() - m), 0.0),
+                std::min(std::ceil(c.col(0).maxCoeff() - d_lo + m) + 1.0, W),
+                std::min(std::ceil(c.col(1).maxCoeff() + m) + 1.0, H)};
+    if (b.x_max > b.x_min && b.y_max > b.y_min) boxes.push_back(b);
+  }
+  // Each band at the whole frame's level (its board size rule), so that it finds what a whole
+  // right image searched at that level would.
+  const Region whole = whole_frame_region(rig, settings, marker_bits);
+  const double far_side = cam.f * board_side_m(settings, marker_bits) / settings.max_range_m;
+  std::vector<Region> out;
+  for (const Box& b : merge_boxes(std::move(boxes)))
+    out.push_back({b, whole.level == 0 ? 0 : pyramid_level(far_side, b, settings.detect_side_px)});
+  return out;
+}
+
 }  // namespace safenav::lanbloc_detail

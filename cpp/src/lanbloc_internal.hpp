@@ -62,6 +62,13 @@ int pyramid_level(double side, const Box& box, double detect_side_px);
 /// detect_side_px = 0, no sub-pixel refinement or an unbounded range.
 Region whole_frame_region(const LanBLocRig& rig, const LanBLocSettings& settings, int marker_bits);
 
+/// The right image's regions when the left was searched whole: each left marker's box carried
+/// along its rows (the rig is rectified) over the disparities of depths from half to twice the
+/// depth its vertical sides give (f·marker_size_m / side), grown by window_margin_px and a cell,
+/// overlaps merged, each at the whole frame's level (pyramid_level of a board at max_range_m).
+std::vector<Region> epipolar_regions(const LanBLocRig& rig, const LanBLocSettings& settings, int marker_bits,
+                                     const std::vector<Marker>& left);
+
 /// ArUco detection (FiducialDetector's parameters) in the regions of one image of `pixels`
 /// (`right`: the right one; `image` its size; the whole image at full resolution when `regions` is
 /// empty), each region drawn at its level, corners in

@@ -90,6 +90,10 @@ struct PixelRenderer::Impl {
   float ground_mean = 0.0f;
   std::map<int, std::vector<cv::Mat>> boards;
   cv::Mat map_x, map_y;  // CV_32F, rows [0, map rows) × the image's columns
+  // The maps at the centres of the level-L pixels of boxes on the 2^L grid (index L, 1 ≤ L < 5):
+  // what background() would sample from map_x and map_y for such a box, computed once.
+  static constexpr int kMapLevels = 5;
+  std::vector<cv::Mat> level_map_x, level_map_y;
 
   explicit Impl(RenderScene s) : scene(std::move(s)) {
     scene.validate();
@@ -140,6 +144,25 @@ struct PixelRenderer::Impl {
                                               0.0, ph - 1));
       }
     }
+    level_map_x.resize(kMapLevels);
+    level_map_y.resize(kMapLevels);
+    for (int L = 1; L < kMapLevels; ++L) {
+      const int k = 1 << L;
+      sample_maps(0, 0, k, (s.width + k - 1) / k, (rows + k - 1) / k + 1, level_map_x[L], level_map_y[L]);
+    }
+  }
+
+  /// map_x and map_y sampled (bilinear) at the centres of a w × rows box of level pixels 2^L = k
+  /// full-resolution pixels a side, the box's top-left at full-resolution (x0, y0).
+  void sample_maps(int x0, int y0, int k, int w, int rows, cv::Mat& mx, cv::Mat& my) const {
+    cv::Mat cu(rows, w, CV_32F), cv_(rows, w, CV_32F);
+    for (int j = 0; j < rows; ++j)
+      for (int i = 0; i < w; ++i) {
+        cu.at<float>(j, i) = static_cast<float>(x0 + (i + 0.5) * k - 0.5);
+        cv_.at<float>(j, i) = static_cast<float>(y0 + (j + 0.5) * k - 0.5);
+      }
+    cv::remap(map_x, mx, cu, cv_, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+    cv::remap(map_y, my, cu, cv_, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
   }
 
   void background(const RenderView& rv, const View& v, int rows, cv::Mat& img) const;
@@ -155,18 +178,16 @@ void PixelRenderer::Impl::background(const RenderView& rv, const View& v, int ro
   // The background at infinity: the panorama at the pixel's azimuth relative to the heading.
   const int w = img.cols, k = 1 << v.level;
   cv::Mat mx(rows, w, CV_32F), my(rows, w, CV_32F);
-  if (v.level == 0 && v.y0 + rows <= map_x.rows) {
-    map_x(cv::Rect(v.x0, v.y0, w, rows)).copyTo(mx);
-    map_y(cv::Rect(v.x0, v.y0, w, rows)).copyTo(my);
-  } else {  // the maps at the level pixels' centres (smooth: bilinear)
-    cv::Mat cu(rows, w, CV_32F), cv_(rows, w, CV_32F);
-    for (int j = 0; j < rows; ++j)
-      for (int i = 0; i < w; ++i) {
-        cu.at<float>(j, i) = static_cast<float>(v.x0 + (i + 0.5) * k - 0.5);
-        cv_.at<float>(j, i) = static_cast<float>(v.y0 + (j + 0.5) * k - 0.5);
-      }
-    cv::remap(map_x, mx, cu, cv_, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
-    cv::remap(map_y, my, cu, cv_, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  // A box on its level's grid reads the level's maps (the same samples); any other box samples
+  // the full-resolution maps at its level pixels' centres (smooth: bilinear).
+  const bool on_grid = v.level < kMapLevels && v.x0 % k == 0 && v.y0 % k == 0;
+  const cv::Mat& sx = on_grid ? (v.level == 0 ? map_x : level_map_x[std::size_t(v.level)]) : map_x;
+  const cv::Mat& sy = on_grid ? (v.level == 0 ? map_y : level_map_y[std::size_t(v.level)]) : map_y;
+  if (on_grid && v.y0 / k + rows <= sx.rows && v.x0 / k + w <= sx.cols) {
+    sx(cv::Rect(v.x0 / k, v.y0 / k, w, rows)).copyTo(mx);
+    sy(cv::Rect(v.x0 / k, v.y0 / k, w, rows)).copyTo(my);
+  } else {
+    sample_maps(v.x0, v.y0, k, w, rows, mx, my);
   }
   // The heading shifts the azimuth; the column is wrapped into [0, pw) here, so that remap reads
   // inside the panorama (its BORDER_WRAP path costs a border lookup per pixel).

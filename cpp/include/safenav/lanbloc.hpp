@@ -301,7 +301,9 @@ class LanBLocFrontEnd {
 
   /// One rectified grey pair (1 channel, the rig's size) → observations and
   /// fix.  With a prediction the search is in windows around the landmarks'
-  /// predicted projections (see search_windows).  Throws
+  /// predicted projections (see search_windows); without, the left image is
+  /// searched whole and the right one along the rows of the landmarks found
+  /// in the left, over the disparities their marker size allows.  Throws
   /// std::invalid_argument on images of the wrong size or channels, or a
   /// non-finite or non-symmetric-PSD prediction.
   LanBLocFix localize(const ImageView& left, const ImageView& right,
