@@ -105,7 +105,7 @@ def measure(poses, seed: int = 0, width: int | None = None) -> dict:
     return {k: np.asarray(v) for k, v in {**rows, **fixes}.items()}
 
 
-def fit(data: dict, bins=(0, 20, 30, 40, 60, 90, 140, 1e9)) -> None:
+def fit(data: dict, bins=(0, 20, 30, 40, 60, 80, 100, 120, 140, 180, 250, 400, 1e9)) -> None:
     """Prints the centre's disparity error by marker size (RMS, median |e|, 99th percentile), the
     maximum-likelihood σ of a constant model and of σ·(side/100 px)^p (the exponent tells whether the
     size matters), the corner pairs' correlation, and the fixes' NEES.  A marker whose corners are more

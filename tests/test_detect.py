@@ -88,7 +88,8 @@ def test_fiducial_errors_name_the_value():
 
 def test_fiducials_on_a_rendered_frame_match_the_visible_markers():
     """Every marker the renderer reports as wholly visible (>= 16 px a side) is detected,
-    with its box around the pinhole projection of its corners (within 1 px)."""
+    with its box around the pinhole projection of its corners (within 1.5 px: cornerSubPix slides
+    up to ~1.3 px inside a convex corner blurred by the optics' point spread, see test_render)."""
     world = safenav.default_scenario().world
     r = StereoRenderer(world, StereoRig())
     c = world.cluster_centroid(6)
@@ -104,7 +105,7 @@ def test_fiducials_on_a_rendered_frame_match_the_visible_markers():
         assert set(found) <= set(r.visible(pose))  # nothing invented
         for lid in visible:
             uv, _ = r.project(pose, corners[lid], cam)
-            np.testing.assert_allclose(found[lid].box, [*uv.min(axis=0), *uv.max(axis=0)], atol=1.0)
+            np.testing.assert_allclose(found[lid].box, [*uv.min(axis=0), *uv.max(axis=0)], atol=1.5)
 
 
 # --------------------------------------------------------------------------- YOLO decode + NMS

@@ -123,7 +123,11 @@ def test_ranging_follows_the_corner_model(scene):
         assert o.slant_range == pytest.approx(s, rel=1e-6)
         rho = math.sqrt(s * s - (o.anchor[2] - RIG.camera_height_m) ** 2)
         assert o.range == pytest.approx(rho, rel=1e-6)
-        sigma_d = _core.corner_disparity_sigma(_core.LanBLocSettings(), o.corners_used)   # the corner-noise model
+        cl = np.asarray(o.corners_left)
+        side = float(np.mean(np.linalg.norm(np.roll(cl, -1, 0) - cl, axis=1)))
+        # the corner-noise model, ×5 for a marker under 30 px a side
+        sigma_d = _core.corner_disparity_sigma(_core.LanBLocSettings(), o.corners_used, 1.0, side)
+        assert sigma_d == _core.corner_disparity_sigma(_core.LanBLocSettings(), o.corners_used) * (5 if side < 30 else 1)
         assert o.sigma == pytest.approx(Z * Z * sigma_d / RIG.fB * (s / Z) * (s / rho), rel=1e-6)
         assert o.bearing == pytest.approx(math.atan2(-(u - RIG.cx), RIG.focal_length_px), abs=1e-12)
 

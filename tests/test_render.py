@@ -99,9 +99,10 @@ def test_marker_edges_project_where_the_pinhole_model_says():
 
 @pytest.mark.parametrize("pitch", [0.0, 0.08])
 def test_detected_corners_match_the_pinhole_model(pitch):
-    """ArUco's corners on the rendered markers, pitched camera included.  The tolerance is 0.75 px:
-    cornerSubPix is made for saddle points, and on a convex marker corner it lands up to ~0.7 px
-    inside (the subpixel edge test above pins the rendering itself to 0.1 px)."""
+    """ArUco's corners on the rendered markers, pitched camera included.  The tolerance is 1.25 px:
+    cornerSubPix is made for saddle points, and on a convex marker corner blurred by the optics'
+    point spread (σ 0.8 px) it lands up to ~1.1 px inside (the subpixel edge test above pins the
+    rendering itself to 0.1 px; the front end refines at full resolution in its own windows)."""
     pose = (10.0, 9.0, 0.3)
     size = 1.2
     rig, centres, r = _fronto_scene(pose, {1: (9.0, 1.5, 2.2), 2: (14.0, -3.0, 3.0)}, size, pitch)
@@ -112,8 +113,8 @@ def test_detected_corners_match_the_pinhole_model(pitch):
     assert set(found_l) == set(found_r) == {1, 2}
     for lid, c in centres.items():
         uv_l, uv_r, _ = _expected_corners(rig, pose, c, size, pitch)
-        np.testing.assert_allclose(found_l[lid].corners, uv_l, atol=0.75)
-        np.testing.assert_allclose(found_r[lid].corners, uv_r, atol=0.75)
+        np.testing.assert_allclose(found_l[lid].corners, uv_l, atol=1.25)
+        np.testing.assert_allclose(found_r[lid].corners, uv_r, atol=1.25)
         np.testing.assert_allclose(r.project(pose, r.marker_corners(pose)[lid], "left")[0], uv_l, atol=1e-9)
 
 
@@ -139,7 +140,8 @@ def test_marker_disparity_is_fB_over_Z_and_rows_agree():
     assert set(fl) == set(fr) == set(depths)
     for lid, z in depths.items():
         np.testing.assert_allclose(fl[lid].corners[:, 0] - fr[lid].corners[:, 0], RIG.fB / z, atol=1.0)
-        np.testing.assert_allclose(fl[lid].corners[:, 1], fr[lid].corners[:, 1], atol=0.75)
+        # rows: the convex-corner slide of cornerSubPix (see above) differs between the images
+        np.testing.assert_allclose(fl[lid].corners[:, 1], fr[lid].corners[:, 1], atol=1.25)
 
 
 def test_visible_excludes_markers_hidden_by_nearer_ones():

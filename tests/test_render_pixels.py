@@ -135,7 +135,14 @@ def test_pixel_noise_is_sigma_over_two_to_the_level_and_reproducible(frames, lev
     again = ren.pixels(pose, 5).draw(False, level, 64, 100, w, h)
     other = ren.pixels(pose, 6).draw(False, level, 64, 100, w, h)
     np.testing.assert_array_equal(a, again)
-    assert not np.array_equal(a, other)
+    if level <= 2:  # at level 3, σ/8 rounds to 0 in all but ~1 pixel in 10⁴
+        assert not np.array_equal(a, other)
+    # a pixel's noise is the frame's, whatever was drawn before: a box inside `a`, drawn after other
+    # boxes of the same frame, is `a` there (boards' edges may round the other way, as above)
+    px = ren.pixels(pose, 5)
+    px.draw(True, level, 0, 0, w // 3, h // 3)
+    inner = px.draw(False, level, 64 + 8 * k, 100 + 4 * k, w // 2, h // 2)
+    assert (inner == a[4:4 + h // 2, 8:8 + w // 2]).mean() >= 0.995
     keep = (clean > 5) & (clean < 250)             # away from saturation
     d = (a - clean)[keep]
     # N(0, (σ/2^L)²) rounded to whole grey levels (half to even, as OpenCV saturates)

@@ -58,6 +58,7 @@ void bind_types(py::module_& m) {
       .def_readwrite("corner_sigma_d", &LanBLocSettings::corner_sigma_d)
       .def_readwrite("corner_edge_correlation", &LanBLocSettings::corner_edge_correlation)
       .def_readwrite("max_row_error_px", &LanBLocSettings::max_row_error_px)
+      .def_readwrite("corner_square_sigmas", &LanBLocSettings::corner_square_sigmas)
       .def_readwrite("bearing_sigma_px", &LanBLocSettings::bearing_sigma_px)
       .def_readwrite("max_range_m", &LanBLocSettings::max_range_m)
       .def_readwrite("min_landmarks", &LanBLocSettings::min_landmarks)
@@ -151,8 +152,9 @@ void pybind_lanbloc(py::module_& m) {
         "The image of a marker's centre: the intersection of the diagonals of its (4, 2) corners "
         "(TL, TR, BR, BL).");
   m.def("corner_disparity_sigma", &corner_disparity_sigma, py::arg("settings"), py::arg("corners_used"),
-        py::arg("scale") = 1.0,
-        "sigma [px] of a marker centre's disparity from its corners: the fitted corner-noise model.");
+        py::arg("scale") = 1.0, py::arg("side_px") = std::numeric_limits<double>::infinity(),
+        "sigma [px] of a marker centre's disparity from its corners: the fitted corner-noise model "
+        "(times kSmallMarkerSigmaFactor for a marker under kSmallMarkerSidePx a side).");
   m.def("corner_disparity", &corner_disparity, py::arg("left"), py::arg("right"), py::arg("camera"),
         py::arg("settings"), py::arg("scale") = 1.0,
         "A marker's centre and disparity from its (4, 2) corners in both rectified images: the "

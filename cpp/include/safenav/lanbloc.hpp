@@ -91,17 +91,22 @@ struct LanBLocSettings {
   double detect_side_px = 24.0;
   // --- ranging (LandmarkRanging.observe_corners / sighting)
   /// [px] σ_d of the marker centre's disparity from its four corners: the
-  /// measured RMS error of the refined corners' centre disparity, 0.0316 ±
-  /// 0.0015 px over 425 markers of 30–400 px rendered with pixel noise σ = 1
-  /// (bench/bench_corner_noise.py; no dependence on the marker's size in
-  /// pixels, its viewing angle or its angle off the axis was found).
-  double corner_sigma_d = 0.032;
+  /// measured RMS error of the refined corners' centre disparity, 0.0290 ±
+  /// 0.0009 px over 502 markers rendered with pixel noise σ = 1 and the
+  /// optics' blur σ = 0.8 px (bench/bench_corner_noise.py; Gaussian, kurtosis
+  /// 3.0; no dependence on the marker's size in pixels was found).
+  double corner_sigma_d = 0.029;
   /// Correlation of the disparity errors of the two corners on one vertical
-  /// edge of a marker (measured 0.80; corners on different edges: −0.08).  A
+  /// edge of a marker (measured 0.80–0.82; corners on different edges: −0.06).  A
   /// centre from three corners (the midpoint of one diagonal, one corner per
   /// edge) has σ = σ_d·sqrt(2/(1 + ρ)) (corner_disparity_sigma).
   double corner_edge_correlation = 0.8;
   double max_row_error_px = 1.0;        ///< [px] largest left/right row difference of a corner
+  /// The square check of corner_disparity: the four edges of the marker
+  /// triangulated in 3-D must agree in length, and the four corner
+  /// disparities lie on one plane, within this many σ (σ from the corners'
+  /// disparity noise); 0 turns it off.
+  double corner_square_sigmas = 6.0;
   double bearing_sigma_px = 1.0;        ///< [px] σ of the centre, bearing σ = σ_px / f
   double max_range_m = std::numeric_limits<double>::infinity();  ///< [m] depths beyond: no range
   // --- trilateration (LandmarkRanging.solve)
@@ -148,7 +153,14 @@ Eigen::Vector2d marker_centre(const MarkerCorners& corners);
 /// corner_edge_correlation (the four's is σ_c²·(1 + ρ)/4 for per-corner σ_c,
 /// the two's σ_c²/2).  Times `scale` (2^L for corners refined at pyramid
 /// level L).
-double corner_disparity_sigma(const LanBLocSettings& settings, int corners_used, double scale = 1.0);
+/// Markers under kSmallMarkerSidePx a side (mean, left image, px at full
+/// resolution) have kSmallMarkerSigmaFactor times that σ: OpenCV's refinement
+/// window (0.3 cell, rounded) is 1 px there, and under the optics' blur the
+/// centre's disparity RMS was 0.15 px for 20–30 px against 0.029–0.037 px
+/// from 30 px up (bench/bench_corner_noise.py at 640 px wide).
+inline constexpr double kSmallMarkerSidePx = 30.0, kSmallMarkerSigmaFactor = 5.0;
+double corner_disparity_sigma(const LanBLocSettings& settings, int corners_used, double scale = 1.0,
+                              double side_px = std::numeric_limits<double>::infinity());
 
 /// A marker's centre and disparity from its corners (ours):
 ///  * every corner's rows agree within settings.max_row_error_px: the least-squares
@@ -162,6 +174,20 @@ double corner_disparity_sigma(const LanBLocSettings& settings, int corners_used,
 ///    for exact corners); its disparity d = f·B/M_z − doffs; the three
 ///    corners that agree must do so;
 ///  * two or more disagree: no disparity, with the reason.
+/// Then the square check (settings.corner_square_sigmas > 0): the corners
+/// triangulated must give four edges of one length, each within n σ of the
+/// others (σ from the corners' depth noise, σ_Z = Z²·σ_c/(f·B) along their
+/// rays, σ_c the per-corner disparity σ).  A corner hidden behind a nearer
+/// board in one image moves along its row, which the row check cannot see:
+/// when exactly one corner's two edges disagree with the two edges away from
+/// it, that corner is dropped as above; otherwise no disparity, with the
+/// reason.  With a corner already dropped, the two edges away from it must
+/// agree.  With four edges that agree, the residual of the disparity plane
+/// must be within n σ too (one residual direction for four corners; σ from
+/// corner_edge_correlation): a corner moved along its own ray barely changes
+/// the edges of a board facing the camera, but moves the residual by about
+/// half its shift; such a corner cannot be told from the others, so no
+/// disparity.
 /// σ_d = corner_disparity_sigma(settings, corners used, scale).
 CornerDisparity corner_disparity(const MarkerCorners& left, const MarkerCorners& right, const RectifiedCamera& camera,
                                  const LanBLocSettings& settings, double scale = 1.0);

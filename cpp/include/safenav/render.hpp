@@ -47,6 +47,10 @@ struct RenderScene {
   double pano_el_min = -0.35, pano_el_max = 0.9;  ///< elevations at its bottom and top rows [rad]
   double haze_m = 80.0;        ///< the ground's contrast falls as exp(−Z / haze_m)
   double pole_grey = 70.0;     ///< grey level of the poles
+  /// σ [px] of the optics' point spread, applied to the boards (σ/2^L at
+  /// level L; none below 0.25 px): an edge ramps over ~2 px at any size, as
+  /// in a camera, so that refined corners do not lock to the pixel grid.
+  double psf_sigma_px = 0.8;
   /// landmark id → its board's mip levels, smallest first, each square with
   /// two channels (grey, alpha).
   std::map<int, std::vector<Image>> boards;
