@@ -97,8 +97,10 @@ def main(trials: int, every: int, paths, seed: int, settings: dict | None = None
     near = rg <= 20.0
     if len(e):
         print(f"windows' fixes: median error {np.median(e):.3f} m (all), {np.median(e[near]) if near.any() else np.nan:.3f}"
-              f" m (landmarks within 20 m, {near.sum()} fixes); NEES mean {n.mean():.2f}, median {np.median(n):.2f} "
-              f"(2 for a calibrated 2-D fix)")
+              f" m (landmarks within 20 m, {near.sum()} fixes); NEES mean {n.mean():.2f} (calibrated: 2 ± "
+              f"{1.96 * 2 / np.sqrt(len(n)):.2f}), median {np.median(n):.2f} (1.39), beyond the χ² 95 / 99 / 99.9 % "
+              f"quantiles {100 * np.mean(n > 5.99):.1f} / {100 * np.mean(n > 9.21):.1f} / {100 * np.mean(n > 13.82):.2f} %"
+              f", max {n.max():.1f}")
     for k, label in (("s_windows", "windows"), ("s_whole", "whole frame")):
         v = np.asarray(samples[k]) * 1e3
         if len(v):

@@ -379,7 +379,6 @@ struct RenderedFrame::Impl {
       }
     }
   }
-
 };
 
 RenderedFrame::RenderedFrame(std::shared_ptr<const PixelRenderer> renderer, std::shared_ptr<const RenderNoise> noise,

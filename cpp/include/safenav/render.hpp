@@ -81,8 +81,11 @@ struct RenderView {
 };
 
 /// Pixel noise of a trial: a tile of side `side` of N(0, σ²) draws from
-/// `seed` (the core's generator); a box's noise is a window of it at an offset
-/// drawn from the frame's stream, block by block for a box larger than it.
+/// `seed` (the core's generator).  A frame's level-L pixel at full-resolution
+/// (X, Y) reads it at ((X mod S)/2^L, (Y mod S)/2^L), S = side·2^L, from the
+/// offset of its block (X div S, Y div S), which a hash of the frame's seed,
+/// the image, the level and the block gives: a pixel's noise does not depend
+/// on what was drawn before it.
 struct RenderNoise {
   RenderNoise(double sigma, std::uint64_t seed, int side = 1024);
   double sigma;
@@ -110,7 +113,7 @@ class PixelRenderer {
 };
 
 /// The pair of one frame as StereoPixels (draw() as the class says; the
-/// boxes' noise offsets come from `noise_seed` in the order they are drawn).
+/// pixel noise from `noise_seed`, see RenderNoise).
 class RenderedFrame final : public StereoPixels {
  public:
   /// `noise` may be null (no pixel noise).  std::invalid_argument on a null
