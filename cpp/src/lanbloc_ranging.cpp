@@ -83,9 +83,9 @@ struct MarkerEdges {
       sigma[i] = std::hypot(u.dot(ray.row(i)) * sz[i], u.dot(ray.row(j)) * sz[j]);
     }
   }
-  /// Whether edges a and b have the same length within n σ of their difference.
+  /// Whether edges a and b have the same length within n σ of their difference (and rounding).
   bool agree(int a, int b, double n) const {
-    return std::abs(length[a] - length[b]) <= n * std::hypot(sigma[a], sigma[b]);
+    return std::abs(length[a] - length[b]) <= n * std::hypot(sigma[a], sigma[b]) + 1e-9 * (length[a] + length[b]);
   }
 };
 
