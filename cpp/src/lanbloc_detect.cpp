@@ -445,13 +445,17 @@ int pyramid_level(double side, const Box& box, double detect_side_px) {
   return level;
 }
 
-Region whole_frame_region(const LanBLocRig& rig, const LanBLocSettings& settings, int marker_bits) {
-  Region r{{0.0, 0.0, double(rig.camera.width), double(rig.camera.height)}, 0};
+Region far_board_region(const LanBLocRig& rig, const LanBLocSettings& settings, int marker_bits, const Box& box) {
+  Region r{box, 0};
   if (!(settings.detect_side_px > 0.0) || !settings.subpixel || !std::isfinite(settings.max_range_m)) return r;
   // The smallest board a range is taken of: at max_range_m (a board beyond gives no range).
   r.level = pyramid_level(rig.camera.f * board_side_m(settings, marker_bits) / settings.max_range_m, r.box,
                           settings.detect_side_px);
   return r;
+}
+
+Region whole_frame_region(const LanBLocRig& rig, const LanBLocSettings& settings, int marker_bits) {
+  return far_board_region(rig, settings, marker_bits, {0.0, 0.0, double(rig.camera.width), double(rig.camera.height)});
 }
 
 std::vector<Region> epipolar_regions(const LanBLocRig& rig, const LanBLocSettings& settings, int marker_bits,
@@ -475,11 +479,8 @@ std::vector<Region> epipolar_regions(const LanBLocRig& rig, const LanBLocSetting
   }
   // Each band at the whole frame's level (its board size rule), so that it finds what a whole
   // right image searched at that level would.
-  const Region whole = whole_frame_region(rig, settings, marker_bits);
-  const double far_side = cam.f * board_side_m(settings, marker_bits) / settings.max_range_m;
   std::vector<Region> out;
-  for (const Box& b : merge_boxes(std::move(boxes)))
-    out.push_back({b, whole.level == 0 ? 0 : pyramid_level(far_side, b, settings.detect_side_px)});
+  for (const Box& b : merge_boxes(std::move(boxes))) out.push_back(far_board_region(rig, settings, marker_bits, b));
   return out;
 }
 

@@ -57,15 +57,18 @@ std::vector<Region> detection_regions(const LanBLocRig& rig, const LanBLocSettin
 /// where that board is still `detect_side_px` wide and the region at least 16 px.
 int pyramid_level(double side, const Box& box, double detect_side_px);
 
-/// The whole frame as one region, at the level where a board at `settings.max_range_m` (the
-/// farthest that gives a range) is still `detect_side_px` wide; level 0 (full resolution) with
-/// detect_side_px = 0, no sub-pixel refinement or an unbounded range.
+/// `box` as a region at the level where a board at `settings.max_range_m` (the farthest that gives a
+/// range) is still `detect_side_px` wide (pyramid_level); level 0 with detect_side_px = 0, no
+/// sub-pixel refinement or an unbounded range.
+Region far_board_region(const LanBLocRig& rig, const LanBLocSettings& settings, int marker_bits, const Box& box);
+
+/// The whole frame as one region at its far_board_region level.
 Region whole_frame_region(const LanBLocRig& rig, const LanBLocSettings& settings, int marker_bits);
 
 /// The right image's regions when the left was searched whole: each left marker's box carried
 /// along its rows (the rig is rectified) over the disparities of depths from half to twice the
 /// depth its vertical sides give (f·marker_size_m / side), grown by window_margin_px and a cell,
-/// overlaps merged, each at the whole frame's level (pyramid_level of a board at max_range_m).
+/// overlaps merged, each at the whole frame's level (far_board_region).
 std::vector<Region> epipolar_regions(const LanBLocRig& rig, const LanBLocSettings& settings, int marker_bits,
                                      const std::vector<Marker>& left);
 

@@ -21,7 +21,6 @@ const ParamSet<SensorSettings>& param_set<SensorSettings>();  // defined below
 using detail::bad;
 using detail::require_finite_positive;
 
-
 std::string to_string(NavigationMethod method) {
   return method == NavigationMethod::CHull ? "chull" : "centroid";
 }

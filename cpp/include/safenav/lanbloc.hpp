@@ -188,7 +188,8 @@ double corner_disparity_sigma(const LanBLocSettings& settings, int corners_used,
 /// the edges of a board facing the camera, but moves the residual by about
 /// half its shift; such a corner cannot be told from the others, so no
 /// disparity.
-/// σ_d = corner_disparity_sigma(settings, corners used, scale).
+/// σ_d = corner_disparity_sigma(settings, corners used, scale, the left
+/// marker's mean side).
 CornerDisparity corner_disparity(const MarkerCorners& left, const MarkerCorners& right, const RectifiedCamera& camera,
                                  const LanBLocSettings& settings, double scale = 1.0);
 

@@ -45,8 +45,9 @@ The pixels are drawn by the core: ``_core.PixelRenderer`` holds a scene's textur
 pyramids, ``_core.SimulatedCamera`` the geometry above (culling, facing, occlusion), and a
 ``_core.RenderedFrame`` draws any box of either image at any pyramid level ``L`` as the front end
 asks for it (``StereoPixels``): the view whose pixel centres are the 2^L-blocks' centres (focal
-f/2^L), textures read from their own level, pixel noise σ/2^L from a tile of Gaussian draws at
-offsets from the frame's noise stream.  :meth:`render` and :meth:`render_regions` draw whole
+f/2^L), textures read from their own level, boards blurred by the optics' point spread, pixel
+noise σ/2^L from a tile of Gaussian draws at offsets that a hash of the frame's noise seed and the
+pixel's block gives (a pixel's noise does not depend on what was drawn before it).  :meth:`render` and :meth:`render_regions` draw whole
 images and regions through it; the camera loop draws only what its front end reads
 (``docs/lanbloc_cpp.md``, "Pixels drawn on demand").
 
