@@ -7,12 +7,14 @@
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include <Eigen/LU>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "errors.hpp"
+#include "render_kernels.hpp"
 #include "rng.hpp"
 #include "safenav/types.hpp"
 
@@ -91,6 +93,7 @@ struct PixelRenderer::Impl {
   float ground_mean = 0.0f;
   std::map<int, std::vector<cv::Mat>> boards;
   cv::Mat map_x, map_y;  // CV_32F, rows [0, map rows) × the image's columns
+  cv::Mat map_xy;        // the two as one CV_32FC2 (one remap samples both at the same weights)
   // The maps at the centres of the level-L pixels of boxes on the 2^L grid (index L, 1 ≤ L < 5):
   // what background() would sample from map_x and map_y for such a box, computed once.
   static constexpr int kMapLevels = 5;
@@ -145,6 +148,7 @@ struct PixelRenderer::Impl {
                                               0.0, ph - 1));
       }
     }
+    cv::merge(std::vector<cv::Mat>{map_x, map_y}, map_xy);
     level_map_x.resize(kMapLevels);
     level_map_y.resize(kMapLevels);
     for (int L = 1; L < kMapLevels; ++L) {
@@ -157,13 +161,21 @@ struct PixelRenderer::Impl {
   /// full-resolution pixels a side, the box's top-left at full-resolution (x0, y0).
   void sample_maps(int x0, int y0, int k, int w, int rows, cv::Mat& mx, cv::Mat& my) const {
     cv::Mat cu(rows, w, CV_32F), cv_(rows, w, CV_32F);
-    for (int j = 0; j < rows; ++j)
+    for (int j = 0; j < rows; ++j) {
+      float* u = cu.ptr<float>(j);
+      float* vv = cv_.ptr<float>(j);
+      const float y = static_cast<float>(y0 + (j + 0.5) * k - 0.5);
       for (int i = 0; i < w; ++i) {
-        cu.at<float>(j, i) = static_cast<float>(x0 + (i + 0.5) * k - 0.5);
-        cv_.at<float>(j, i) = static_cast<float>(y0 + (j + 0.5) * k - 0.5);
+        u[i] = static_cast<float>(x0 + (i + 0.5) * k - 0.5);
+        vv[i] = y;
       }
-    cv::remap(map_x, mx, cu, cv_, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
-    cv::remap(map_y, my, cu, cv_, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+    }
+    cv::Mat xy;
+    cv::remap(map_xy, xy, cu, cv_, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+    std::vector<cv::Mat> ch;
+    cv::split(xy, ch);
+    mx = ch[0];
+    my = ch[1];
   }
 
   void background(const RenderView& rv, const View& v, int rows, cv::Mat& img) const;
@@ -200,17 +212,7 @@ void PixelRenderer::Impl::background(const RenderView& rv, const View& v, int ro
   const float shift = static_cast<float>(std::fmod(std::fmod(-rv.theta / (2.0 * kPi) * pw, pw) + pw, pw));
   const float fpw = static_cast<float>(pw), a = 1.0f / float(1 << l), b = 0.5f * a - 0.5f;
   const float fw = static_cast<float>(tex.cols);
-  for (int j = 0; j < rows; ++j) {
-    float* p = mx.ptr<float>(j);
-    float* q = my.ptr<float>(j);
-    for (int i = 0; i < w; ++i) {
-      float x = p[i] + shift;
-      x -= fpw * std::floor(x / fpw);
-      x = x * a + b;
-      p[i] = x < 0.0f ? x + fw : (x < fw ? x : x - fw);
-      q[i] = q[i] * a + b;
-    }
-  }
+  for (int j = 0; j < rows; ++j) render_detail::pano_row(mx.ptr<float>(j), my.ptr<float>(j), w, shift, fpw, a, b, fw);
   cv::Mat dst = img.rowRange(0, rows);
   cv::remap(tex, dst, mx, my, cv::INTER_LINEAR, cv::BORDER_WRAP);
 }
@@ -252,9 +254,7 @@ void PixelRenderer::Impl::ground_rows(const RenderView& rv, const View& v, int v
   for (int j = v_ground; j < img.rows; ++j) {
     const double t = s.camera_height_m / std::max(-ray_up(s, v, j), 1e-12);  // the row's camera depth
     const float haze = static_cast<float>(std::exp(-t / s.haze_m));
-    const std::uint8_t* src = g.ptr<std::uint8_t>(j - v_ground);
-    std::uint8_t* dst = img.ptr<std::uint8_t>(j);
-    for (int i = 0; i < img.cols; ++i) dst[i] = static_cast<std::uint8_t>((float(src[i]) - m) * haze + m);
+    render_detail::haze_run(g.ptr<std::uint8_t>(j - v_ground), img.ptr<std::uint8_t>(j), m, haze, img.cols);
   }
 }
 
@@ -374,7 +374,7 @@ struct RenderedFrame::Impl {
         const std::uint64_t h = derive_seed(image_seed, (std::uint64_t(bx) << 32) ^ std::uint64_t(by));
         const int r0 = int((h & 0xffffffffu) % std::uint64_t(n)), c0 = int((h >> 32) % std::uint64_t(n));
         const float* t = noise->tile.data() + std::size_t(r0 + ty) * std::size_t(m) + std::size_t(c0 + tx);
-        for (int q = 0; q < run; ++q) p[i + q] = cv::saturate_cast<std::uint8_t>(p[i + q] + t[q] * scale);
+        render_detail::add_noise_run(p + i, t, scale, run);
         i += run;
       }
     }

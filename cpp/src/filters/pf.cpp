@@ -174,6 +174,10 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
        << "every particle (log-likelihood " << mx << ")";
     throw std::invalid_argument(os.str());
   }
+  if (regularised && model.kind() == MeasurementKind::SpeedHeading && I.ess > 16.0) {
+    I.ensemble_update(R);  // the IMU does not see the position: no reweighting (see the class comment)
+    return res;
+  }
   // The SIR weights, unless they would fall below the resampling threshold
   // and the filter is regularised: then the kernel update instead.
   double s1 = 0.0, s2 = 0.0;  // ESS = s1²/s2 of the SIR weights
@@ -181,10 +185,6 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
     const double e = std::exp(logw[i] + gain[i] - mx);
     s1 += e;
     s2 += e * e;
-  }
-  if (regularised && model.kind() == MeasurementKind::SpeedHeading && I.ess > 16.0) {
-    I.ensemble_update(R);  // the IMU does not see the position: no reweighting (see the class comment)
-    return res;
   }
   if (!regularised || s1 * s1 >= I.resample_threshold * N * s2) {
     for (int i = 0; i < N; ++i) logw[i] += gain[i];

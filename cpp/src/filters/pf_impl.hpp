@@ -205,12 +205,23 @@ struct ParticleFilter::Impl {
     }
     // Residual of every particle, y_i = z ⊖ h(x_i), one per column.
     Y.resize(m, N);
-    zhat.resize(m);
-    resid.resize(m);
-    for (int i = 0; i < N; ++i) {
-      model.predict(particle(i), zhat);
-      model.residual(z, zhat, resid);
-      Y.col(i) = resid;
+    if (model.kind() == MeasurementKind::SpeedHeading) {
+      // h(x) = (v, θ) (MeasurementModel::speed_heading), θ's residual wrapped:
+      // the values that predict() and residual() give, without a call per particle.
+      const double* v = col(kV);
+      const double* th = col(kTheta);
+      for (int i = 0; i < N; ++i) {
+        Y(0, i) = z[0] - v[i];
+        Y(1, i) = wrap_angle(z[1] - th[i]);
+      }
+    } else {
+      zhat.resize(m);
+      resid.resize(m);
+      for (int i = 0; i < N; ++i) {
+        model.predict(particle(i), zhat);
+        model.residual(z, zhat, resid);
+        Y.col(i) = resid;
+      }
     }
     const Eigen::Map<const Eigen::VectorXd> wv(w(), N);
     ybar = Y * wv;
@@ -219,11 +230,17 @@ struct ParticleFilter::Impl {
     const double nis = innovation(R);
     if (cross) {
       const State m0 = mean();
+      // C_xy += (w_i dx_i) y_iᵀ element by element: the sums of Eigen's outer
+      // product, in its order, without a dynamic-size temporary per particle.
       Cxy.setZero(4, m);
+      double* cxy = Cxy.data();
+      const double *x = col(kX), *y = col(kY), *v = col(kV), *th = col(kTheta);
       for (int i = 0; i < N; ++i) {
-        State dx = particle(i) - m0;
-        dx[kTheta] = wrap_angle(dx[kTheta]);
-        Cxy.noalias() += (wv[i] * dx) * D.col(i).transpose();
+        const double a[4] = {wv[i] * (x[i] - m0[kX]), wv[i] * (y[i] - m0[kY]), wv[i] * (v[i] - m0[kV]),
+                             wv[i] * wrap_angle(th[i] - m0[kTheta])};
+        const double* d = D.col(i).data();
+        for (int c = 0; c < m; ++c)
+          for (int r = 0; r < 4; ++r) cxy[4 * c + r] += d[c] * a[r];
       }
       Yraw = Y;
     }
@@ -380,9 +397,10 @@ struct ParticleFilter::Impl {
       c[0][i] += e[0][i] - dbar[0];
       c[1][i] += e[1][i] - dbar[1];
       c[2][i] = std::clamp(c[2][i] + e[2][i] - dbar[2], vmin, vmax);
-      c[3][i] = wrap_angle(c[3][i] + e[3][i] - dbar[3]);
-      col(kCos)[i] = std::cos(c[3][i]);
-      col(kSin)[i] = std::sin(c[3][i]);
+      const double t = wrap_angle(c[3][i] + e[3][i] - dbar[3]);  // a local: cos and sin share one sincos
+      c[3][i] = t;
+      col(kCos)[i] = std::cos(t);
+      col(kSin)[i] = std::sin(t);
     }
   }
 
@@ -417,9 +435,10 @@ struct ParticleFilter::Impl {
       col(kX)[i] += dx(i, 0);
       col(kY)[i] += dx(i, 1);
       col(kV)[i] = std::clamp(col(kV)[i] + dx(i, 2), vmin, vmax);
-      col(kTheta)[i] = wrap_angle(col(kTheta)[i] + dx(i, 3));
-      col(kCos)[i] = std::cos(col(kTheta)[i]);
-      col(kSin)[i] = std::sin(col(kTheta)[i]);
+      const double t = wrap_angle(col(kTheta)[i] + dx(i, 3));  // a local: cos and sin share one sincos
+      col(kTheta)[i] = t;
+      col(kCos)[i] = std::cos(t);
+      col(kSin)[i] = std::sin(t);
     }
   }
 
