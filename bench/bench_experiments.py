@@ -91,6 +91,10 @@ def main() -> None:
           f"do not, {sum(c.holds is None for c in held)} not comparable (see the report)")
 
 
+# Trials per chunk of work, as `safenav experiment` runs its camera cells (experiments/run.py).
+CAMERA_CHUNK = 10
+
+
 def camera_only(args) -> None:
     """The camera-loop cells of ``experiment all`` alone, timed per trial, and the extrapolation."""
     import safenav
@@ -104,7 +108,7 @@ def camera_only(args) -> None:
     for methods, filters in ((("centroid",), ("ekf", "pf")), (("chull",), ("ekf",))):
         sweep = runner.Sweep(sc, methods=methods, filters=filters, sources=("lanbloc-camera",),
                              trials=args.camera_trials, n_particles=args.particles,
-                             position_every=args.camera_every, chunk=1)
+                             position_every=args.camera_every, chunk=CAMERA_CHUNK)
         frames.append(runner.run_sweep(sweep, workers=workers, safe_paths=safe))
     wall = time.perf_counter() - t0
     raw = pd.concat(frames, ignore_index=True)
