@@ -172,6 +172,40 @@ def test_camera_frames_run_the_loop_deterministically():
     assert a.position_fixes + a.dropouts <= a.steps // 40 <= a.position_fixes + a.dropouts + a.rejected
 
 
+def test_the_loops_localizer_names_landmarks_as_the_front_end_does():
+    """The navigator's localizer carries the world's ids (1 … 39 in the default scenario, not the
+    map's rows), so a landmark sighting updates the landmark it names; a front end whose ids or
+    positions are not the map's is refused by name, and bad ids are named."""
+    sc = safenav.default_scenario()
+    ids = [lm.id for lm in sc.world.landmarks]
+    assert ids != list(range(len(ids)))                      # the case a mapping by rows would get wrong
+    path = np.asarray(nv.plan_safe_path(sc, "P3", iterations=1500).path)
+    nav = nv.make_navigator(sc, path, method="centroid", position_every=40, record=False)
+    assert list(nav.sensors.landmark_ids) == ids
+    src = CameraFrames.from_scenario(sc, seed=5)
+    assert src.run(nav, 5).success
+
+    def navigator(landmark_ids, landmarks=None):
+        se = nav.sensors
+        se.landmark_ids = landmark_ids
+        if landmarks is not None:
+            se.landmarks = landmarks
+        return _core.Navigator(nav.problem, nav.settings, se)
+
+    with pytest.raises(ValueError, match=r"front end landmark id 1 at .* is not in the map's ids"):
+        src.run(navigator([i + 100 for i in ids]), 5)
+    with pytest.raises(ValueError, match=r"front end landmark id 1 is at .* the map's landmark 1 at"):
+        src.run(navigator([]), 5)                            # the default ids 0 … 38: id 1 is row 1's
+    moved = np.array(nav.sensors.landmarks)
+    moved[[0, 1]] = moved[[1, 0]]                            # ids 1 and 2 at each other's place
+    with pytest.raises(ValueError, match=r"front end landmark id 1 is at .* the map's landmark 1 at"):
+        src.run(navigator(ids, moved), 5)
+    with pytest.raises(ValueError, match=r"sensors.landmark_ids: 38 ids for 39 landmarks"):
+        navigator(ids[:-1])
+    with pytest.raises(ValueError, match=r"sensors.landmark_ids: id 1 repeats"):
+        navigator([1] + ids[:-1])
+
+
 @pytest.mark.parametrize("k", range(len(SCENES)))
 def test_lanbloc_core_backend_is_the_front_end_under_the_python_api(k):
     from safenav.vision.lanbloc import LanBLoc

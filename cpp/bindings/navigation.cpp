@@ -103,6 +103,8 @@ void bind_sensors(py::module_& m) {
       .def_readwrite("range_std", &SensorSettings::range_std)
       .def_readwrite("faults", &SensorSettings::faults)
       .def_readwrite("landmarks", &SensorSettings::landmarks)
+      .def_readwrite("landmark_ids", &SensorSettings::landmark_ids,
+                     "The landmarks' ids (the world's), one per row of landmarks; empty: 0 … K−1.")
       .def_readwrite("max_range", &SensorSettings::max_range)
       .def_readwrite("field_of_view", &SensorSettings::field_of_view)
       .def_readwrite("min_landmarks", &SensorSettings::min_landmarks)

@@ -104,15 +104,7 @@ class Trial {
     truth_ << safe_.path()(0, 0), safe_.path()(0, 1), 0.0, std::atan2(t.y(), t.x());
     obs_.reserve(static_cast<std::size_t>(se_.landmarks.rows()));
     trilateration_.seed = derive_seed(seed, 3);
-    if (frames_ && front_end) {
-      // The front end's landmark ids (the world's) → the localizer's (the map's rows), by position.
-      for (const LanBLocLandmark& lm : front_end->landmarks())
-        for (Eigen::Index i = 0; i < se_.landmarks.rows(); ++i)
-          if ((se_.landmarks.row(i).transpose() - lm.position.head<2>()).norm() < 1e-9) {
-            frame_rows_.emplace(lm.id, static_cast<int>(i));
-            break;
-          }
-    }
+    if (frames_ && front_end) check_front_end_ids(*front_end);
     if (frames_) guidance_.localizer().set_front_end(std::move(front_end));
   }
 
@@ -122,6 +114,7 @@ class Trial {
   bool range_fix(const State& x, Eigen::Vector2d& z, Eigen::Matrix2d& R);
   bool fix(const State& x, int step, Eigen::Vector2d& z, Eigen::Matrix2d& R);
   bool first_frame(Eigen::Vector2d& z, Eigen::Matrix2d& R);
+  void check_front_end_ids(const LanBLocFrontEnd& fe) const;
   bool frame(int step, double t, Eigen::Vector2d& z);
   void initialize();
   void start_recording();
@@ -145,7 +138,6 @@ class Trial {
   const Eigen::Matrix2d& imu_R_;
   const PositionCallback& position_cb_;
   const FrameCallback* frames_;  // the camera loop (run_frames), or null
-  std::map<int, int> frame_rows_;  // the front end's landmark id → the map's row (the localizer's id)
   const bool rec_;
   const int N_;
   const Bmm bmm_;
@@ -230,6 +222,23 @@ bool Trial::fix(const State& x, int step, Eigen::Vector2d& z, Eigen::Matrix2d& R
   return true;
 }
 
+/// The front end's landmarks are the map's: each id is a localizer id (sensors.landmark_ids) at the
+/// same position, so that a sighting updates the landmark it names.
+void Trial::check_front_end_ids(const LanBLocFrontEnd& fe) const {
+  const Localizer& loc = guidance_.localizer();
+  for (const LanBLocLandmark& lm : fe.landmarks()) {
+    const int row = loc.landmark_index(lm.id);
+    const Eigen::Vector2d p = lm.position.head<2>();
+    if (row < 0)
+      bad("front end landmark id " + std::to_string(lm.id) + " at (" + num(p.x()) + ", " + num(p.y()) +
+          ") is not in the map's ids (sensors.landmark_ids)");
+    const Eigen::Vector2d q = loc.landmarks().row(row).transpose();
+    if (!((q - p).norm() <= 1e-9 * std::max(1.0, q.norm())))
+      bad("front end landmark id " + std::to_string(lm.id) + " is at (" + num(p.x()) + ", " + num(p.y()) +
+          "), the map's landmark " + std::to_string(lm.id) + " at (" + num(q.x()) + ", " + num(q.y()) + ")");
+  }
+}
+
 /// The camera loop's first frame: no estimate yet, so the front end searches the whole frame.
 bool Trial::first_frame(Eigen::Vector2d& z, Eigen::Matrix2d& R) {
   const LanBLocFrontEnd& fe = *guidance_.localizer().front_end();
@@ -258,13 +267,12 @@ bool Trial::frame(int step, double t, Eigen::Vector2d& z) {
   if (!r.fix.ok()) {
     ++res_.dropouts;
     // Without a fix (fewer whole markers than a fix needs) each ranged landmark's range and bearing
-    // still updates the filter through its gate (Localizer::observe, eq. 10's models); the front end's
-    // ids are the world's, the localizer's are the map's rows (frame_rows_).
+    // still updates the filter through its gate (Localizer::observe, eq. 10's models); the front end
+    // and the localizer name landmarks by the same ids (check_front_end_ids).
     for (const LandmarkSighting& o : r.fix.observations) {
-      const auto row = frame_rows_.find(o.landmark_id);
-      if (!o.ok || row == frame_rows_.end()) continue;
+      if (!o.ok) continue;
       LandmarkObservation obs;
-      obs.id = row->second;
+      obs.id = o.landmark_id;
       obs.range = o.range;
       obs.bearing = o.bearing;
       obs.range_std = o.sigma;
@@ -511,7 +519,7 @@ struct Navigator::Impl {
   }
 
   Impl(NavigationProblem p, NavigationSettings s, SensorSettings se)
-      : guidance(p, with_camera(s, se), loop_filter(s), se.landmarks),
+      : guidance(p, with_camera(s, se), loop_filter(s), se.landmarks, se.landmark_ids),
         sensors((se.validate(), std::move(se))),
         collisions(no_clearance(p.map)) {
     imu_R = Eigen::Vector2d(sensors.imu_speed_std * sensors.imu_speed_std,

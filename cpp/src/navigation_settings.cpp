@@ -4,6 +4,7 @@
 #include "safenav/navigation_settings.hpp"
 #include "safenav/navigation.hpp"
 
+#include <set>
 #include <string>
 
 #include "declare.hpp"
@@ -135,6 +136,14 @@ void SensorSettings::validate() const {
     bad("sensors.faults: landmark faults need sensors.fix_model = ranges (fixes from single landmark ranges); "
         "the profile model has no landmark observations to corrupt");
   if (!landmarks.allFinite()) bad("sensors.landmarks: every landmark position must be finite");
+  if (!landmark_ids.empty()) {
+    if (static_cast<Eigen::Index>(landmark_ids.size()) != landmarks.rows())
+      bad("sensors.landmark_ids: " + std::to_string(landmark_ids.size()) + " ids for " +
+          std::to_string(landmarks.rows()) + " landmarks (one per row, or none for 0 … K−1)");
+    std::set<int> seen;
+    for (int id : landmark_ids)
+      if (!seen.insert(id).second) bad("sensors.landmark_ids: id " + std::to_string(id) + " repeats");
+  }
   require_finite_positive(max_range, "sensors.max_range");
   require_finite_positive(field_of_view, "sensors.field_of_view");
   if (min_landmarks < 0) bad("sensors.min_landmarks = " + std::to_string(min_landmarks) + ": must be >= 0");

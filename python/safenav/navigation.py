@@ -146,6 +146,7 @@ def make_navigator(scenario, safe_path, *, method: str = "centroid", filter: str
     se = SensorSettings()
     se.position = position_source(source)
     se.landmarks = scenario.world.landmark_array()[:, :2]
+    se.landmark_ids = [lm.id for lm in scenario.world.landmarks]   # the localizer names them as the world does
     se.field_of_view = np.deg2rad(scenario.camera.field_of_view_deg)
     scenario.detection.apply(se)
     if paper:  # the papers' loop reproduces the trials run before occlusion existed, bit for bit

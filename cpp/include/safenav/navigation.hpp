@@ -113,6 +113,10 @@ struct SensorSettings {
   double range_std = 0.05;             ///< σ of one landmark range in FixModel::Ranges [m]
   LandmarkFaults faults;               ///< landmark-level faults (FixModel::Ranges, or a camera-loop callback)
   Landmarks landmarks;                 ///< K×2 landmark positions (map)
+  /// The landmarks' ids (the world's), one per row of `landmarks`, distinct;
+  /// empty: 0 … K−1.  The vehicle's localizer carries them, and the camera
+  /// loop's front end must name its landmarks by them.
+  std::vector<int> landmark_ids;
   double max_range = 30.0;             ///< landmark detection range [m]
   double field_of_view = 85.0 * kPi / 180.0;  ///< full horizontal FOV [rad], centred on the heading; ≥ 2π = all round
   int min_landmarks = 3;               ///< trilateration needs ≥ 3 ([SafeNav-ext §V-A3(ii)]: clusters of ≥ 3)
