@@ -93,7 +93,7 @@ def main(frames: int, scenario_camera: bool) -> None:
     for k in range(frames):
         pose, world, ren, (left, right) = random_frame(rng, k, rig)
         t0 = time.perf_counter()
-        py = LanBLoc(world, rig, ranging="corners").localize(left, right)
+        py = LanBLoc(world, rig, ranging="corners", backend="python").localize(left, right)
         t1 = time.perf_counter()
         fe = _front_end(world, rig)
         cc = fe.localize(left, right)

@@ -91,7 +91,7 @@ def scene(request):
 
 def test_same_landmarks_ranges_and_fix_as_the_python_pipeline(scene):
     pose, world, left, right, cc = scene
-    py = LanBLoc(world, RIG, ranging="corners").localize(left, right)
+    py = LanBLoc(world, RIG, ranging="corners", backend="python").localize(left, right)
     assert cc.search == _core.SearchMode.WHOLE_FRAME and cc.search_reason == "no prediction given"
     assert str(cc.status) == py.status == "ok", (cc.reason, py.reason)
     assert [o.landmark_id for o in cc.observations] == [o.landmark_id for o in py.observations]
@@ -365,7 +365,7 @@ def test_a_pitched_rig_ranges_and_predicts_windows_as_python():
     pose, placements = SCENES[0]
     world = _scene(pose, placements)
     left, right = StereoRenderer(world, rig, noise_std=1.0, seed=5).render(pose)
-    py = LanBLoc(world, rig, ranging="corners").localize(left, right)
+    py = LanBLoc(world, rig, ranging="corners", backend="python").localize(left, right)
     fe = _front_end(world, rig)
     cc = fe.localize(left, right)
     assert str(cc.status) == py.status == "ok"

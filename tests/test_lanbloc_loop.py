@@ -214,7 +214,7 @@ def test_lanbloc_core_backend_is_the_front_end_under_the_python_api(k):
     world = _scene(pose, placements)
     left, right = _pair(world, pose)
     core = LanBLoc(world, RIG, ranging="corners", backend="core").localize(left, right)
-    py = LanBLoc(world, RIG, ranging="corners").localize(left, right)
+    py = LanBLoc(world, RIG, ranging="corners", backend="python").localize(left, right)
     fe = front_end(world, RIG).localize(left, right)
     assert core.status == str(fe.status) == py.status == "ok"
     # the same sightings as the front end's, solved by the shared last step: the front end's fix
@@ -232,6 +232,28 @@ def test_lanbloc_core_backend_is_the_front_end_under_the_python_api(k):
     assert dropped.status == "too_few_ranges" and dropped.dropped == len(fe.observations)
     with pytest.raises(ValueError, match="backend = 'core' needs ranging = 'corners'"):
         LanBLoc(world, RIG, backend="core")
+
+
+def test_the_default_backend_is_the_core_where_it_serves():
+    """backend="auto": corner ranging with the default detector runs in the core (the result is the
+    core backend's, bit for bit); a detector passed in, or SGBM ranging, keeps the Python pipeline;
+    a bad name is named."""
+    from safenav.vision.detect import FiducialDetector
+    from safenav.vision.lanbloc import LanBLoc
+
+    pose, placements = SCENES[0]
+    world = _scene(pose, placements)
+    left, right = _pair(world, pose)
+    auto = LanBLoc(world, RIG, ranging="corners")
+    assert auto.backend == "core"
+    a, c = auto.localize(left, right), LanBLoc(world, RIG, ranging="corners", backend="core").localize(left, right)
+    assert a.status == c.status == "ok"
+    assert np.array_equal(a.position, c.position) and np.array_equal(a.covariance, c.covariance)
+    assert [o.range for o in a.observations] == [o.range for o in c.observations]
+    assert LanBLoc(world, RIG, FiducialDetector(world), ranging="corners").backend == "python"
+    assert LanBLoc(world, RIG).backend == "python"                       # SGBM: no core path
+    with pytest.raises(ValueError, match="backend = 'gpu': must be 'auto', 'python' or 'core'"):
+        LanBLoc(world, RIG, backend="gpu")
 
 
 @settings(max_examples=60, deadline=None)

@@ -300,7 +300,7 @@ def test_one_pipeline_per_input_sharing_one_ranging_step():
     renderer = StereoRenderer(world, RIG)
     left, right = renderer.render(pose)
     frame = renderer.frame(pose, noise_seed=5)
-    lb = LanBLoc(world, RIG, ranging="corners", trilateration=dict(reject_outliers=False))
+    lb = LanBLoc(world, RIG, ranging="corners", backend="python", trilateration=dict(reject_outliers=False))
     full, regions = lb.pipelines["full"], lb.pipelines["regions"]
     assert isinstance(full, FullFramePipeline) and isinstance(regions, RegionPipeline)
     assert full.ranger is regions.ranger is lb.ranger and full.detector is regions.detector

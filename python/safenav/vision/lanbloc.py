@@ -163,10 +163,18 @@ class LanBLoc:
         The nearest landmark of interest [m] (at the image's edge, for a
         rectified camera): the top of the disparity search.
     backend:
-        ``"python"`` (default) or ``"core"``: whole pairs with
-        ``ranging="corners"`` through the C++ front end
+        ``"auto"`` (default), ``"python"`` or ``"core"``.  ``"core"``: whole
+        pairs with ``ranging="corners"`` through the C++ front end
         (:class:`~safenav.vision.core_pipeline.CorePipeline`: detection,
-        refinement and corner ranging in the core, then the shared last step).
+        refinement and corner ranging in the core, then the shared last
+        step).  ``"auto"``: the core where it serves, that is with
+        ``ranging="corners"`` and the default detector (a ``detector`` given
+        here keeps its own settings, which the core does not read, so it
+        keeps the Python pipeline); the Python pipeline otherwise (SGBM
+        ranging has no core path).  The two agree up to the OpenCV versions'
+        detectors (:mod:`~safenav.vision.core_pipeline`).  :attr:`backend`
+        is the one chosen.  :meth:`localize_frame` is the Python region
+        pipeline whatever the backend.
     trilateration:
         Keyword arguments for :func:`~safenav.vision.localization.trilaterate`.
     ranging:
@@ -202,13 +210,17 @@ class LanBLoc:
                  unknown_landmark: str = "error", resolve_ambiguity: bool = True, sgbm: Mapping | None = None,
                  trilateration: Mapping | None = None, ranging: str = "sgbm", corner_sigma_d: float | None = None,
                  max_row_error_px: float | None = None, detect_side_px: float = 48.0, region_margin_px: int = 8,
-                 min_range_m: float = 2.5, min_correlation: float = 0.8, backend: str = "python"):
+                 min_range_m: float = 2.5, min_correlation: float = 0.8, backend: str = "auto"):
         self.ranger = LandmarkRanging(
             landmarks, camera, camera_height_m=camera_height_m, pitch_rad=pitch_rad, sigma_d=sigma_d,
             min_landmarks=min_landmarks, max_range_m=max_range_m, box_shrink=box_shrink,
             bearing_sigma_px=bearing_sigma_px, unknown_landmark=unknown_landmark,
             resolve_ambiguity=resolve_ambiguity, sgbm=sgbm, trilateration=trilateration,
             corner_sigma_d=corner_sigma_d, max_row_error_px=max_row_error_px, min_range_m=min_range_m)
+        if backend not in ("auto", "python", "core"):
+            raise ValueError(f"backend = {backend!r}: must be 'auto', 'python' or 'core'")
+        if backend == "auto":
+            backend = "core" if ranging == "corners" and detector is None else "python"
         if detector is None:
             detector = FiducialDetector(landmarks if isinstance(landmarks, World) else
                                         {k: k for k in self.ranger.landmarks})
@@ -218,8 +230,6 @@ class LanBLoc:
             "regions": RegionPipeline(self.ranger, detector, ranging=ranging, band_margin_px=band_margin_px,
                                       detect_side_px=detect_side_px, region_margin_px=region_margin_px,
                                       min_correlation=min_correlation)}
-        if backend not in ("python", "core"):
-            raise ValueError(f"backend = {backend!r}: must be 'python' or 'core'")
         if backend == "core":
             if ranging != "corners":
                 raise ValueError(f"backend = 'core' needs ranging = 'corners', got {ranging!r}")
