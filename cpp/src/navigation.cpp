@@ -504,6 +504,11 @@ struct Navigator::Impl {
   static LocalizerSettings loop_filter(const NavigationSettings& s) {
     LocalizerSettings ls;
     ls.filter = s.filter;  // the loop's gate is the settings' (0 = off, the paper's loop)
+    // No history for late measurements: each step's inputs come at the time of its motion input
+    // (Trial::run: motion(t), then the fix or frame and the IMU at t), so none is ever older than
+    // the filter and Localizer::take applies each one as it would with a history; the history
+    // would only copy the filter before every motion input.
+    ls.max_delay = 0.0;
     return ls;
   }
   static PlanningMap no_clearance(PlanningMap m) {
