@@ -190,7 +190,7 @@ const RenderScene& PixelRenderer::scene() const { return impl_->scene; }
 void PixelRenderer::Impl::background(const RenderView& rv, const View& v, int rows, cv::Mat& img) const {
   // The background at infinity: the panorama at the pixel's azimuth relative to the heading.
   const int w = img.cols, k = 1 << v.level;
-  cv::Mat mx(rows, w, CV_32F), my(rows, w, CV_32F);
+  cv::Mat mx, my;  // the box's panorama coordinates: copied from a level's maps or sampled (both allocate)
   // A box on its level's grid reads the level's maps (the same samples); any other box samples
   // the full-resolution maps at its level pixels' centres (smooth: bilinear).
   const bool on_grid = v.level < kMapLevels && v.x0 % k == 0 && v.y0 % k == 0;
