@@ -30,12 +30,16 @@
 Fixed seeds: the planner seed of each scenario, and per cell the trial seeds
 ``runner.trial_seeds(sc.seeds.trials, path index, trials)`` (the same for
 every method, measurement and filter); results do not depend on --workers.
+The seed sequence is prefix-stable, so ``--first-trial K --trials n`` drives
+trials [K, K + n) of each cell: a 10⁵-trial run can be split into parts
+(with ``--record 0``, the calibration being the first trials') whose
+counts add up.
 Generated worlds 13 and 17 are used by no test or other benchmark (those use
 0–5, 7 and 11).
 
     python bench/bench_certified.py [--trials 50] [--worlds 13 17] [--no-gap] [--filters ekf pf]
                                     [--record 20] [--bin-m 10] [--blind-check 10] [--workers 2]
-                                    [--full 100000] [--out DIR]
+                                    [--full 100000] [--first-trial 0] [--out DIR]
 """
 
 from __future__ import annotations
@@ -343,16 +347,20 @@ def main() -> None:
     ap.add_argument("--bin-m", type=float, default=10.0, help="arc-length bin of the calibration [m]")
     ap.add_argument("--blind-check", type=int, default=10,
                     help="step-limit trials per cell rerun with a record to see whether they ended in a blind gap")
+    ap.add_argument("--first-trial", type=int, default=0,
+                    help="drive trials [first, first + trials) of each cell's seed sequence, so that a long run "
+                         "can be split into parts whose trials add up to one run's (default 0)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--full", type=int, default=100_000, help="total trials of the run to estimate the time of")
     ap.add_argument("--out", type=Path, default=None, help="write the per-cell table (CSV) here")
     args = ap.parse_args()
-    for name in ("trials", "record", "blind_check", "workers", "full"):
-        if getattr(args, name) < (0 if name in ("record", "blind_check") else 1):
+    for name in ("trials", "record", "blind_check", "workers", "full", "first_trial"):
+        if getattr(args, name) < (0 if name in ("record", "blind_check", "first_trial") else 1):
             ap.error(f"--{name} = {getattr(args, name)}: too small")
     t_all = time.perf_counter()
     scenarios = worlds(args.worlds, not args.no_gap)
-    print(f"worlds: {', '.join(scenarios)}; {args.trials} trials per cell; methods {', '.join(METHODS)}; "
+    print(f"worlds: {', '.join(scenarios)}; {args.trials} trials per cell from trial {args.first_trial}; "
+          f"methods {', '.join(METHODS)}; "
           f"measurements clean / faulty; filters {', '.join(args.filters)}; our loop; {args.workers} workers")
 
     jobs = [(w, sc, i, p.name) for w, sc in scenarios.items() for i, p in enumerate(sc.path_types)]
@@ -362,7 +370,7 @@ def main() -> None:
     driven = print_certificates(missions)
 
     cells = [Cell(m.world, meas, m.cert.name, m.stream, np.asarray(m.cert.path), method, "ours", name,
-                  args.trials, filt)
+                  args.trials, filt, args.first_trial)
              for m in missions if m.cert.status != C.CANNOT
              for method in METHODS
              for name, meas in (("clean", driven[m.world]), ("faulty", faulty(driven[m.world])))

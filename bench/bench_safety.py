@@ -68,6 +68,7 @@ class Cell:
     measurement: str
     trials: int
     filter: str = "ekf"        # "ekf" or "pf" (bench_certified.py drives both)
+    first: int = 0             # the cell's trials are [first, first + trials) of its seed sequence
 
 
 @dataclasses.dataclass(frozen=True)
@@ -116,7 +117,8 @@ def run_cell(c: Cell) -> dict:
     run_many's dict (``trials``) with the ``seeds``."""
     navigator = nav.make_navigator(c.scenario, c.path, method=c.method, filter=c.filter, record=False,
                                    paper=c.loop == "paper")
-    seeds = [int(s) for s in runner.trial_seeds(c.scenario.seeds.trials, c.stream, c.trials)]
+    # trial_seeds is prefix-stable: trials [first, first + n) of a cell are those of one longer run
+    seeds = [int(s) for s in runner.trial_seeds(c.scenario.seeds.trials, c.stream, c.first + c.trials)[c.first:]]
     t = time.perf_counter()
     d = navigator.run_many(seeds)
     wall = time.perf_counter() - t
@@ -160,7 +162,7 @@ def run_cell(c: Cell) -> dict:
         time_per_step_us=float(np.median(us_step)) if us_step.size else np.nan,
     )
     reasons = d.get("reason")
-    crashes = [(int(i), seeds[i], float(d["min_clearance"][i]), str(reasons[i]) if reasons is not None else "")
+    crashes = [(c.first + int(i), seeds[i], float(d["min_clearance"][i]), str(reasons[i]) if reasons is not None else "")
                for i in coll]
     return dict(row=row, steps=steps, outcome=o, crashes=crashes, trials=d, seeds=seeds)
 
