@@ -74,7 +74,22 @@ void bind_models(py::module_& m) {
             mm.residual(z, zhat, y);
             return y;
           },
-          py::arg("z"), py::arg("zhat"));
+          py::arg("z"), py::arg("zhat"))
+      .def(
+          "residuals",
+          [](const MeasurementModel& mm, const Eigen::VectorXd& z,
+             const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>& states) {
+            mm.check(z);
+            if (!states.allFinite()) throw std::invalid_argument("residuals: states must be finite");
+            Eigen::MatrixXd Y(mm.dim(), states.rows());
+            // row-major n × 4: state i is contiguous, so the 4 × n view has inner stride 1, outer 4
+            mm.residuals(z, StatesView(states.data(), 4, states.rows(), Eigen::Stride<Eigen::Dynamic, Eigen::Dynamic>(4, 1)),
+                         Y);
+            return Eigen::MatrixXd(Y.transpose());
+          },
+          py::arg("z"), py::arg("states"),
+          "z ⊖ h(x_i) for each row x_i = (x, y, v, θ) of states (n × 4): an n × dim array, the values of "
+          "predict and residual per state, the direct kinds (position, speed and heading) in one pass.");
 
 }
 

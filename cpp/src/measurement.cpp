@@ -199,8 +199,10 @@ MeasurementModel MeasurementModel::range_bearing(const Landmarks& lm, double sr,
   return MeasurementModel(MeasurementKind::RangeBearing, GaussianNoise::Sigmas(s, "range_bearing sigma"), lm);
 }
 
-bool MeasurementModel::is_angle(int i) const {
-  switch (kind_) {
+namespace {
+/// Whether row i of a kind's z is an angle (its residual wrapped).
+bool angle_row(MeasurementKind kind, int i) {
+  switch (kind) {
     case MeasurementKind::Position:
     case MeasurementKind::Range: return false;
     case MeasurementKind::Bearing: return true;
@@ -209,6 +211,9 @@ bool MeasurementModel::is_angle(int i) const {
   }
   return false;
 }
+}  // namespace
+
+bool MeasurementModel::is_angle(int i) const { return angle_row(kind_, i); }
 
 namespace {
 // The measurement functions (position and speed/heading share one), in
@@ -217,8 +222,17 @@ namespace {
 // rows of *H, whose other entries stay zero.
 using Jacobian = Eigen::Ref<Eigen::MatrixXd>;
 
+/// The components that a direct kind observes; false for a landmark kind.
+bool direct(MeasurementKind kind, StateIndex& i, StateIndex& j) {
+  switch (kind) {
+    case MeasurementKind::Position: i = kX, j = kY; return true;
+    case MeasurementKind::SpeedHeading: i = kV, j = kTheta; return true;
+    default: return false;
+  }
+}
+
 /// Two state components observed directly: h(x) = (x_i, x_j), H = rows i and
-/// j of I₄.  Position is (x, y), speed and heading (v, θ).
+/// j of I₄.  Position is (x, y), speed and heading (v, θ): direct().
 void components(const State& x, StateIndex i, StateIndex j, Eigen::Ref<Eigen::VectorXd> zhat, Jacobian* H) {
   zhat[0] = x[i];
   zhat[1] = x[j];
@@ -256,8 +270,12 @@ void evaluate(MeasurementKind kind, const Landmarks& lm, const State& x, Eigen::
   if (H) H->setZero();
   const Eigen::Index n = lm.rows();
   switch (kind) {
-    case MeasurementKind::Position: return components(x, kX, kY, zhat, H);
-    case MeasurementKind::SpeedHeading: return components(x, kV, kTheta, zhat, H);
+    case MeasurementKind::Position:
+    case MeasurementKind::SpeedHeading: {
+      StateIndex i, j;
+      direct(kind, i, j);
+      return components(x, i, j, zhat, H);
+    }
     case MeasurementKind::Range:
       for (Eigen::Index i = 0; i < n; ++i) range(offset(lm, i, x), i, zhat, H);
       return;
@@ -303,6 +321,49 @@ Eigen::MatrixXd MeasurementModel::jacobian(const State& x) const {
 void MeasurementModel::residual(const Eigen::Ref<const Eigen::VectorXd>& z,
                                 const Eigen::Ref<const Eigen::VectorXd>& zhat, Eigen::Ref<Eigen::VectorXd> y) const {
   for (int i = 0; i < dim_; ++i) y[i] = is_angle(i) ? wrap_angle(z[i] - zhat[i]) : z[i] - zhat[i];
+}
+
+void MeasurementModel::direct_residuals(MeasurementKind kind, const Eigen::Ref<const Eigen::VectorXd>& z,
+                                        const StatesView& states, Eigen::Ref<Eigen::MatrixXd> Y) {
+  StateIndex a, b;
+  if (!direct(kind, a, b))
+    throw std::invalid_argument(std::string("direct_residuals: a ") + to_string(kind) + " model needs its landmarks");
+  const Eigen::Index n = states.cols();
+  if (z.size() != 2 || Y.rows() != 2 || Y.cols() != n)
+    throw std::invalid_argument("direct_residuals: z must have 2 entries and Y be 2 x " + std::to_string(n));
+  // residual(z, components(x)) for each state
+  if (angle_row(kind, 1)) {
+    for (Eigen::Index i = 0; i < n; ++i) {
+      Y(0, i) = z[0] - states(a, i);
+      Y(1, i) = wrap_angle(z[1] - states(b, i));
+    }
+  } else {
+    for (Eigen::Index i = 0; i < n; ++i) {
+      Y(0, i) = z[0] - states(a, i);
+      Y(1, i) = z[1] - states(b, i);
+    }
+  }
+}
+
+Eigen::Vector2d MeasurementModel::direct_residual(MeasurementKind kind, const Eigen::Vector2d& z, const State& x) {
+  Eigen::Vector2d y;
+  direct_residuals(kind, z, StatesView(x.data(), 4, 1, Eigen::Stride<Eigen::Dynamic, Eigen::Dynamic>(4, 1)), y);
+  return y;
+}
+
+void MeasurementModel::residuals(const Eigen::Ref<const Eigen::VectorXd>& z, const StatesView& states,
+                                 Eigen::Ref<Eigen::MatrixXd> Y) const {
+  StateIndex a, b;
+  if (direct(kind_, a, b)) return direct_residuals(kind_, z, states, Y);
+  const Eigen::Index n = states.cols();
+  if (Y.rows() != dim_ || Y.cols() != n)
+    throw std::invalid_argument("residuals: Y must be " + std::to_string(dim_) + " x " + std::to_string(n));
+  Eigen::VectorXd zhat(dim_), y(dim_);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    predict(State(states.col(i)), zhat);
+    residual(z, zhat, y);
+    Y.col(i) = y;
+  }
 }
 
 void MeasurementModel::check(const Eigen::Ref<const Eigen::VectorXd>& z) const {

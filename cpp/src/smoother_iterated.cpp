@@ -164,9 +164,9 @@ void FixedLagSmoother::update(Eigen::VectorXd& x, Eigen::MatrixXd& P, const Meas
     const bool pos = meas.kind == Measurement::Kind::Position;
     const int a = pos ? kX : kV, b = pos ? kY : kTheta;
     w.H(0, a) = w.H(1, b) = 1.0;
-    Eigen::Vector2d y(meas.z[0] - x[a], meas.z[1] - x[b]);
-    if (!pos) y[1] = wrap_angle(y[1]);
-    kalman_update<2>("iterated smoother", pos ? MeasurementKind::Position : MeasurementKind::SpeedHeading, x, P, y,
+    const MeasurementKind kind = pos ? MeasurementKind::Position : MeasurementKind::SpeedHeading;
+    const Eigen::Vector2d y = MeasurementModel::direct_residual(kind, meas.z, x);
+    kalman_update<2>("iterated smoother", kind, x, P, y,
                      w.H.topRows<2>(), meas.R, never, kw);
   } else {
     const LandmarkMeasurement& m = meas.m;

@@ -34,8 +34,8 @@ Example::
     g.localizer.initialize(0.0, np.r_[safe[0], 0.0, 0.0], np.diag([0.1, 0.1, 0.1, 0.1]) ** 2)
     cmd = g.command(0.0)            # cmd.speed, cmd.heading_change, cmd.status, cmd.events
     g.motion(0.05, cmd.speed, cmd.heading_change)
-    # each tick: the vehicle's own measurements, e.g. a range of landmark 3
-    # (a gross one is rejected by its gate: the result's status says so)
+    # each tick: the vehicle's own measurements, e.g. a range of the world's
+    # landmark of id 3 (a gross one is rejected by its gate: the result's status says so)
     r = g.observe(0.05, 3, range=measured_range, range_std=0.1)
 """
 
@@ -146,11 +146,12 @@ def navigation_setup(scenario, safe_path, *, method: str = "centroid", world_map
 def make_guidance(scenario, safe_path, *, method: str = "centroid", filter: str = "ekf", n_particles: int = 500,
                   gate: float | None = None, seed: int = 0, world_map=None) -> Guidance:
     """A :class:`Guidance` along ``safe_path`` in ``scenario``'s world: its
-    obstacles (detours), its landmarks (observations, ids = their rows) and the
-    scenario's BMM and navigation settings (those of
-    :func:`~safenav.navigation.make_navigator`)."""
+    obstacles (detours), its landmarks (observations name them by the world's
+    landmark ids, as the simulator's localizer does) and the scenario's BMM
+    and navigation settings (those of :func:`~safenav.navigation.make_navigator`)."""
     problem, settings = navigation_setup(scenario, as_array("safe_path", safe_path, (None, 2)), method=method,
                                          world_map=world_map)
     ls = localizer_settings(filter=filter, bmm=problem.bmm, gate=gate, n_particles=n_particles)
     landmarks = np.ascontiguousarray(scenario.world.landmark_array()[:, :2], dtype=float)
-    return Guidance(problem, settings, ls, landmarks, list(range(len(landmarks))), as_seed("seed", seed))
+    ids = [int(lm.id) for lm in scenario.world.landmarks]
+    return Guidance(problem, settings, ls, landmarks, ids, as_seed("seed", seed))

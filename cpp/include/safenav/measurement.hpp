@@ -28,6 +28,12 @@ const char* to_string(MeasurementKind kind);
 
 using Landmarks = Points2;
 
+/// n states as the columns of a 4 × n matrix, read in place with any strides:
+/// a particle filter's columns (inner stride: the distance between its state
+/// columns, outer stride 1), an augmented state's first four rows, one State.
+using StatesView =
+    Eigen::Map<const Eigen::Matrix<double, 4, Eigen::Dynamic>, 0, Eigen::Stride<Eigen::Dynamic, Eigen::Dynamic>>;
+
 // ---------------------------------------------------------------------------
 // The landmark observation model, written once.  In GTSAM's form (a factor's
 // evaluateError with optional Jacobians) it returns the prediction h and, when
@@ -164,6 +170,19 @@ class MeasurementModel {
   /// y = z − ẑ with angle components wrapped to (−π, π].
   void residual(const Eigen::Ref<const Eigen::VectorXd>& z, const Eigen::Ref<const Eigen::VectorXd>& zhat,
                 Eigen::Ref<Eigen::VectorXd> y) const;
+  /// Y.col(i) = z ⊖ h(x_i) for the states x_i = states.col(i) (Y: dim() × n):
+  /// the values of predict() and residual() for each state.  The kinds that
+  /// observe two state components (position, speed and heading) read them
+  /// without a call per state (direct_residuals).
+  void residuals(const Eigen::Ref<const Eigen::VectorXd>& z, const StatesView& states,
+                 Eigen::Ref<Eigen::MatrixXd> Y) const;
+  /// residuals() of a kind that observes two state components, which needs no
+  /// model: position z ⊖ (x, y), speed and heading z ⊖ (v, θ) with θ's
+  /// residual wrapped.  Throws std::invalid_argument for a landmark kind.
+  static void direct_residuals(MeasurementKind kind, const Eigen::Ref<const Eigen::VectorXd>& z,
+                               const StatesView& states, Eigen::Ref<Eigen::MatrixXd> Y);
+  /// direct_residuals() of one state.
+  static Eigen::Vector2d direct_residual(MeasurementKind kind, const Eigen::Vector2d& z, const State& x);
   /// Validate a measurement vector: right size and finite.
   void check(const Eigen::Ref<const Eigen::VectorXd>& z) const;
 

@@ -298,7 +298,8 @@ UpdateResult AugmentedEkf::update_position(const Eigen::Vector2d& z, const Eigen
   H_.setZero();
   H_(0, kX) = 1.0;
   H_(1, kY) = 1.0;
-  return apply<2>(Eigen::Vector2d(z[0] - x_[kX], z[1] - x_[kY]), R, MeasurementKind::Position);
+  return apply<2>(MeasurementModel::direct_residual(MeasurementKind::Position, z, x_.head<4>()), R,
+                  MeasurementKind::Position);
 }
 
 UpdateResult AugmentedEkf::update_speed_heading(const Eigen::Vector2d& z, const Eigen::Matrix2d& R) {
@@ -307,7 +308,8 @@ UpdateResult AugmentedEkf::update_speed_heading(const Eigen::Vector2d& z, const 
   H_.setZero();
   H_(0, kV) = 1.0;
   H_(1, kTheta) = 1.0;
-  return apply<2>(Eigen::Vector2d(z[0] - x_[kV], wrap_angle(z[1] - x_[kTheta])), R, MeasurementKind::SpeedHeading);
+  return apply<2>(MeasurementModel::direct_residual(MeasurementKind::SpeedHeading, z, x_.head<4>()), R,
+                  MeasurementKind::SpeedHeading);
 }
 
 }  // namespace safenav

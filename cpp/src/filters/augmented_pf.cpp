@@ -58,6 +58,9 @@ struct AugmentedParticleFilter::Impl {
   Eigen::Matrix<double, Eigen::Dynamic, 2> Cxy;
   std::vector<int> ancestor;                 // the particle each one descends from at the last resampling
   mutable Eigen::VectorXd lineage_w;         // scratch: the weight of each lineage
+
+  /// The particles' vehicle states (the first four rows of X), MeasurementModel::residuals' view.
+  StatesView states() const { return StatesView(X.data(), 4, N, Eigen::Stride<Eigen::Dynamic, Eigen::Dynamic>(X.outerStride(), 1)); }
   mutable Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es;
   mutable Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> es4;
 
@@ -392,7 +395,7 @@ UpdateResult AugmentedParticleFilter::update_position(const Eigen::Vector2d& z, 
   Impl& I = *impl_;
   check_finite2(z, "position");
   check_cov2(R, "AugmentedParticleFilter position update:");
-  for (int i = 0; i < I.N; ++i) I.Y.col(i) = z - I.X.col(i).head<2>();
+  MeasurementModel::direct_residuals(MeasurementKind::Position, z, I.states(), I.Y);
   return I.weigh<2>(R, MeasurementKind::Position);
 }
 
@@ -400,10 +403,7 @@ UpdateResult AugmentedParticleFilter::update_speed_heading(const Eigen::Vector2d
   Impl& I = *impl_;
   check_finite2(z, "speed-heading");
   check_cov2(R, "AugmentedParticleFilter speed-heading update:");
-  for (int i = 0; i < I.N; ++i) {
-    I.Y(0, i) = z[0] - I.X(kV, i);
-    I.Y(1, i) = wrap_angle(z[1] - I.X(kTheta, i));
-  }
+  MeasurementModel::direct_residuals(MeasurementKind::SpeedHeading, z, I.states(), I.Y);
   return I.weigh<2>(R, MeasurementKind::SpeedHeading);
 }
 

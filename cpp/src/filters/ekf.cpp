@@ -145,7 +145,7 @@ UpdateResult Ekf::update_position(const Eigen::Vector2d& z, const Eigen::Matrix2
   check_cov2(R, "position");
   // Eqs. 12–14 with H = [I₂ 0] written out: P Hᵀ = P[:, :2], H P Hᵀ = P[:2, :2].
   // Same arithmetic as update_fixed<2>, without the products by zeros.
-  const Eigen::Vector2d y(z[0] - x_[kX], z[1] - x_[kY]);
+  const Eigen::Vector2d y = MeasurementModel::direct_residual(MeasurementKind::Position, z, x_);
   const Eigen::Matrix<double, 4, 2> PHt = P_.leftCols<2>();
   const Eigen::Matrix2d S = P_.topLeftCorner<2, 2>() + R;
   const Eigen::LLT<Eigen::Matrix2d> llt(S);

@@ -233,8 +233,7 @@ class EkfFilter final : public Filter {
   }
   UpdateResult do_update_speed_heading(const Eigen::Vector2d& z, const Eigen::Matrix2d& R) override {
     // h(x) = (v, θ), H = [0 0 1 0; 0 0 0 1]: the arithmetic of update(MeasurementModel::speed_heading(R), z).
-    const State& x = f_.x();
-    const Eigen::Vector2d y(z[0] - x[kV], wrap_angle(z[1] - x[kTheta]));
+    const Eigen::Vector2d y = MeasurementModel::direct_residual(MeasurementKind::SpeedHeading, z, f_.x());
     Eigen::Matrix<double, 2, 4> H;
     H << 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0;
     return f_.update_linearized(y, H, R, MeasurementKind::SpeedHeading);

@@ -50,7 +50,6 @@ struct ParticleFilter::Impl {
   Columns noise;              // ε_x, ε_y, ε_v, ε_θ of every particle
   std::vector<int> start;     // resampling: the particle of each pointer
   Eigen::MatrixXd Y;          // residuals of a general measurement model
-  Eigen::VectorXd zhat, resid;
   Eigen::Matrix4d Sigma_prior;        // the prior cloud's weighted covariance (of an update)
   Eigen::MatrixXd Cxy, Cyy;           // weighted state–residual and residual covariances
   double log_det_s = 0.0;             // log det (C_yy + R) of the last likelihood()
@@ -80,7 +79,8 @@ struct ParticleFilter::Impl {
   double* logw() { return W.col(kLogW); }
   double* w() { return W.col(kW); }
   const double* w() const { return W.col(kW); }
-  State particle(int i) const { return State(S.col(kX)[i], S.col(kY)[i], S.col(kV)[i], S.col(kTheta)[i]); }
+  /// The particles as the columns of a 4 × N matrix (MeasurementModel::residuals).
+  StatesView states() const { return StatesView(S.col(0), 4, N, Eigen::Stride<Eigen::Dynamic, Eigen::Dynamic>(1, S.stride())); }
   void reset_weights() {
     std::fill_n(logw(), N, -std::log(static_cast<double>(N)));
     std::fill_n(w(), N, 1.0 / N);
@@ -205,24 +205,7 @@ struct ParticleFilter::Impl {
     }
     // Residual of every particle, y_i = z ⊖ h(x_i), one per column.
     Y.resize(m, N);
-    if (model.kind() == MeasurementKind::SpeedHeading) {
-      // h(x) = (v, θ) (MeasurementModel::speed_heading), θ's residual wrapped:
-      // the values that predict() and residual() give, without a call per particle.
-      const double* v = col(kV);
-      const double* th = col(kTheta);
-      for (int i = 0; i < N; ++i) {
-        Y(0, i) = z[0] - v[i];
-        Y(1, i) = wrap_angle(z[1] - th[i]);
-      }
-    } else {
-      zhat.resize(m);
-      resid.resize(m);
-      for (int i = 0; i < N; ++i) {
-        model.predict(particle(i), zhat);
-        model.residual(z, zhat, resid);
-        Y.col(i) = resid;
-      }
-    }
+    model.residuals(z, states(), Y);
     const Eigen::Map<const Eigen::VectorXd> wv(w(), N);
     ybar = Y * wv;
     const Eigen::MatrixXd D = Y.colwise() - ybar;
