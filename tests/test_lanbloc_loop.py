@@ -311,3 +311,76 @@ def test_the_uncertainty_switch_counts_the_windows_union_exactly(x, y, th, sx, s
     assert (mode == _core.SearchMode.WHOLE_FRAME) == (share > fraction), (share, fraction, reason)
     if mode == _core.SearchMode.WHOLE_FRAME:
         assert f"windows cover {share:.3g} of the frame" in reason
+
+
+@pytest.mark.parametrize("seed", [3, 11])
+def test_the_camera_loops_sighting_faults_are_the_python_pipelines(seed):
+    """apply_sighting_faults (the core camera loop's landmark faults) on a frame's sightings equals
+    LanBLoc's Python faults (LandmarkRanging.apply_faults) on the same sightings: the same
+    dropped, relabelled (id, anchor, true id) and outlier ranges, flag for flag."""
+    pose, placements = SCENES[0]
+    world = _scene(pose, placements)
+    left, right = _pair(world, pose)
+    lb = safenav.vision.LanBLoc(world, RIG, ranging="corners", backend="core")
+    fix = lb.pipelines["core"].front_end.localize(left, right)
+    assert sum(o.ok for o in fix.observations) >= 4
+    faults = nv.LandmarkFaults(dropout_probability=0.3, outlier_probability=0.4, outlier_magnitude=4.0,
+                               misassociation_probability=0.4)
+    position = np.array(pose[:2]) + 0.2
+    ranger = lb.ranger
+    ids = [lm.id for lm in world.landmarks]
+    anchors = {k: tuple(v[0]) for k, v in ranger.landmarks.items()}
+    landmarks = np.array([anchors[i][:2] for i in ids])
+    for frame_seed in range(seed, seed + 40, 4):
+        kept, counts = _core.apply_sighting_faults(faults, list(fix.observations), landmarks, ids, anchors, position,
+                                                   ranger.max_range_m, frame_seed)
+        py_in = lb.localize(left, right).observations       # the same sightings, as Python's dataclasses
+        assert [o.landmark_id for o in py_in] == [o.landmark_id for o in fix.observations]
+        py, dropped = ranger.apply_faults(py_in, faults, position, frame_seed)
+        assert counts["dropped"] == dropped and counts["observations"] == sum(o.ok for o in py_in)
+        assert [o.landmark_id for o in kept] == [o.landmark_id for o in py]
+        assert [o.faults for o in kept] == [o.faults for o in py]
+        assert [o.true_landmark_id for o in kept] == [-1 if o.true_landmark_id is None else o.true_landmark_id
+                                                      for o in py]
+        np.testing.assert_array_equal([o.range for o in kept], [o.range for o in py])
+        np.testing.assert_array_equal(np.array([o.anchor for o in kept]), np.array([o.anchor for o in py]))
+        assert counts["outliers"] == sum(bool(o.faults & 4) for o in kept)
+        assert counts["misassociated"] == sum(bool(o.faults & 2) for o in kept)
+
+
+def _faulty_camera_trial(sc, path, seed, **faults):
+    from dataclasses import replace
+    fsc = replace(sc, noise=replace(sc.noise, fix_model="ranges", **faults))
+    nav = nv.make_navigator(fsc, path, method="centroid", position_every=20, record=False)
+    return CameraFrames.from_scenario(fsc, seed=seed).run(nav, seed)
+
+
+def test_the_camera_loop_applies_the_scenarios_landmark_faults_in_the_core():
+    """With the scenario's landmark faults on, the core camera loop drops, corrupts and relabels the
+    frames' ranged sightings before trilateration and counts them: all dropped leaves no fix;
+    dropouts at 30 % drop a binomial share; no faults count none and equal the fault-free loop."""
+    sc = safenav.default_scenario()
+    path = np.asarray(nv.plan_safe_path(sc, "P3", iterations=1500).path)
+    clean = _faulty_camera_trial(sc, path, 7)
+    assert clean.observations > 20 and clean.dropped == clean.outliers == clean.misassociated == 0
+    assert clean.faults_through == 0
+    none = _faulty_camera_trial(sc, path, 7, dropout_probability=0.0)
+    assert none.steps == clean.steps and none.metrics["truth_ade"] == clean.metrics["truth_ade"]
+
+    lost = _faulty_camera_trial(sc, path, 7, dropout_probability=1.0)
+    assert lost.observations > 0 and lost.dropped == lost.observations
+    assert lost.position_fixes == 0 and lost.faults_through == 0
+
+    part = _faulty_camera_trial(sc, path, 7, dropout_probability=0.3)
+    n, k = part.observations, part.dropped
+    assert n > 20
+    from scipy.stats import binomtest
+    ci = binomtest(k, n).proportion_ci(0.999)
+    assert ci.low <= 0.3 <= ci.high
+
+    bad = _faulty_camera_trial(sc, path, 7, outlier_probability=0.5, misassociation_probability=0.5)
+    assert bad.outliers > 0 and bad.misassociated > 0
+    assert bad.faults_through <= bad.outliers + bad.misassociated
+    again = _faulty_camera_trial(sc, path, 7, outlier_probability=0.5, misassociation_probability=0.5)
+    assert (again.steps, again.outliers, again.misassociated, again.faults_through, again.metrics["truth_ade"]) == \
+        (bad.steps, bad.outliers, bad.misassociated, bad.faults_through, bad.metrics["truth_ade"])

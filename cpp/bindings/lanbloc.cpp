@@ -105,7 +105,10 @@ void bind_types(py::module_& m) {
       .def_readonly("corners_left", &LandmarkSighting::corners_left)
       .def_readonly("corners_right", &LandmarkSighting::corners_right)
       .def_readonly("corners_used", &LandmarkSighting::corners_used)
-      .def_readonly("reason", &LandmarkSighting::reason);
+      .def_readonly("reason", &LandmarkSighting::reason)
+      .def_readonly("faults", &LandmarkSighting::faults, "LandmarkFaults flags applied (the simulator's faults)")
+      .def_readonly("true_landmark_id", &LandmarkSighting::true_landmark_id,
+                    "the landmark actually seen when a fault relabelled the sighting, else -1");
 
   py::class_<CornerDisparity>(m, "CornerDisparity")
       .def_readonly("ok", &CornerDisparity::ok)

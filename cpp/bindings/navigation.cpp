@@ -1,5 +1,7 @@
 #include <pybind11/numpy.h>
 
+#include <map>
+
 #include "common.hpp"
 #include "params.hpp"
 #include "safenav/navigation.hpp"
@@ -92,6 +94,26 @@ void bind_faults(py::module_& m) {
           "Apply the faults to observations (landmark rows, ranges) of a vehicle at `position`, drawing from the "
           "core's generator seeded with `seed`.  Returns (rows, ranges, fault flags, number dropped); flags: "
           "1 dropped (never returned), 2 misassociated, 4 outlier.");
+  m.def(
+      "apply_sighting_faults",
+      [](const LandmarkFaults& f, std::vector<LandmarkSighting> sightings, const Landmarks& landmarks,
+         const std::vector<int>& ids, const std::map<int, Eigen::Vector3d>& anchors, const Eigen::Vector2d& position,
+         double confusion_range, std::uint64_t seed) {
+        std::vector<LanBLocLandmark> a;
+        for (const auto& [id, p] : anchors) a.push_back({id, p});
+        const SightingFaults c = apply_sighting_faults(f, sightings, landmarks, ids, a, position, confusion_range, seed);
+        py::dict counts;
+        counts["observations"] = c.observations;
+        counts["dropped"] = c.dropped;
+        counts["outliers"] = c.outliers;
+        counts["misassociated"] = c.misassociated;
+        return py::make_tuple(sightings, counts);
+      },
+      py::arg("faults"), py::arg("sightings"), py::arg("landmarks"), py::arg("ids"), py::arg("anchors"),
+      py::arg("position"), py::arg("confusion_range"), py::arg("seed"),
+      "The landmark faults on a camera frame's sightings (the camera loop's): each ranged sighting through "
+      "LandmarkFaults.apply alone with the draws of derive_seed(seed, its id); returns (the sightings kept, "
+      "counts).  landmarks: the map's (K, 2) rows, ids one per row ([]: the rows), anchors {id: (x, y, z)}.");
 }
 
 /// SensorSettings.

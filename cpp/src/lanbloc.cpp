@@ -269,6 +269,11 @@ LanBLocFix LanBLocFrontEnd::localize(const ImageView& left, const ImageView& rig
 }
 
 LanBLocFix LanBLocFrontEnd::localize(const StereoPixels& pixels, const SearchPlan& plan) const {
+  return localize(pixels, plan, SightingEdit());
+}
+
+LanBLocFix LanBLocFrontEnd::localize(const StereoPixels& pixels, const SearchPlan& plan,
+                                     const SightingEdit& edit) const {
   const Impl& I = *impl_;
   LanBLocFix fix;
   fix.search = plan.mode;
@@ -305,6 +310,7 @@ LanBLocFix LanBLocFrontEnd::localize(const StereoPixels& pixels, const SearchPla
     auto it = in_right.find(d.id);
     fix.observations.push_back(I.observe(d, it == in_right.end() ? nullptr : &it->second, ""));
   }
+  if (edit) edit(fix.observations);
   I.solve(fix);
   return fix;
 }

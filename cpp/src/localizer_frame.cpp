@@ -56,10 +56,11 @@ FrameResult Localizer::observe_frame(double t, const ImageView& left, const Imag
   return observe_frame(t, StereoImages(left, right), how);
 }
 
-FrameResult Localizer::observe_frame(double t, const StereoPixels& pixels, FrameUpdate how) {
+FrameResult Localizer::observe_frame(double t, const StereoPixels& pixels, FrameUpdate how,
+                                     const SightingEdit& edit) {
   FrameResult out;
   out.plan = frame_plan(t);
-  out.fix = front_end_->localize(pixels, out.plan);
+  out.fix = front_end_->localize(pixels, out.plan, edit);
   const std::size_t n = out.fix.observations.size();
   out.update.status = InputStatus::Ignored;
   out.landmarks.assign(n, out.update);

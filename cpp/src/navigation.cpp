@@ -104,6 +104,7 @@ class Trial {
     truth_ << safe_.path()(0, 0), safe_.path()(0, 1), 0.0, std::atan2(t.y(), t.x());
     obs_.reserve(static_cast<std::size_t>(se_.landmarks.rows()));
     trilateration_.seed = derive_seed(seed, 3);
+    frame_fault_seed_ = derive_seed(seed, 4);
     if (frames_ && front_end) check_front_end_ids(*front_end);
     if (frames_) guidance_.localizer().set_front_end(std::move(front_end));
   }
@@ -116,6 +117,7 @@ class Trial {
   bool first_frame(Eigen::Vector2d& z, Eigen::Matrix2d& R);
   void check_front_end_ids(const LanBLocFrontEnd& fe) const;
   bool frame(int step, double t, Eigen::Vector2d& z);
+  SightingEdit frame_faults(int step);
   void initialize();
   void start_recording();
   void record(int row, const Eigen::Vector2d& predicted, const Eigen::Vector2d* measured);
@@ -157,6 +159,7 @@ class Trial {
   const double gate_;
   std::vector<double> fit_thresholds_;
   int fix_faults_ = 0;  // faulty ranges inside the last fix
+  std::uint64_t frame_fault_seed_ = 0;  // the camera frames' landmark faults (frame_faults)
   TrialResult res_;
   // Metrics accumulate on the fly, so they need no recording.
   TrajectoryScore score_;
@@ -245,8 +248,7 @@ bool Trial::first_frame(Eigen::Vector2d& z, Eigen::Matrix2d& R) {
   const SearchPlan plan = fe.plan(std::nullopt);
   const std::shared_ptr<const StereoPixels> pixels = (*frames_)(truth_, 0, plan);
   if (!pixels) return false;
-  const LanBLocFix f = fe.localize(*pixels, plan);
-  res_.observations += f.n_ranges();
+  const LanBLocFix f = fe.localize(*pixels, plan, frame_faults(0));
   if (!f.ok()) return false;
   z = f.position;
   R = f.covariance;
@@ -262,8 +264,7 @@ bool Trial::frame(int step, double t, Eigen::Vector2d& z) {
     ++res_.dropouts;
     return false;
   }
-  const FrameResult r = loc.observe_frame(t, *pixels);
-  res_.observations += r.fix.n_ranges();
+  const FrameResult r = loc.observe_frame(t, *pixels, FrameUpdate::Fix, frame_faults(step));
   if (!r.fix.ok()) {
     ++res_.dropouts;
     // Without a fix (fewer whole markers than a fix needs) each ranged landmark's range and bearing
@@ -278,13 +279,44 @@ bool Trial::frame(int step, double t, Eigen::Vector2d& z) {
       obs.range_std = o.sigma;
       obs.bearing_std = o.bearing_sigma;
       if (!loc.observe(t, obs).applied()) ++res_.rejected;
+      else if (o.faults) ++res_.faults_through;
     }
     return false;
   }
   z = r.fix.position;
-  if (r.update.applied()) ++res_.position_fixes;
-  else ++res_.rejected;
+  if (r.update.applied()) {
+    ++res_.position_fixes;
+    // the faulty ranges among the trilateration's inliers (in the order of the ranged sightings)
+    const LocalizationResult& lr = r.fix.localization;
+    Eigen::Index j = 0;
+    for (const LandmarkSighting& o : r.fix.observations)
+      if (o.ok && j < lr.inliers.size() && lr.inliers[j++] && o.faults) ++res_.faults_through;
+  } else {
+    ++res_.rejected;
+  }
   return true;
+}
+
+/// The simulator's landmark faults on a camera frame's ranged sightings, before trilateration
+/// (apply_sighting_faults, as range_fix applies them to the measurement level's ranges), with the
+/// vehicle at its true position and each frame's draws from derive_seed(trial stream 4, step); the
+/// ranged sightings are counted here, before the faults drop any.
+SightingEdit Trial::frame_faults(int step) {
+  const bool faults = se_.faults.any();
+  const std::uint64_t seed = derive_seed(frame_fault_seed_, static_cast<std::uint64_t>(step));
+  return [this, faults, seed](std::vector<LandmarkSighting>& sightings) {
+    if (!faults) {
+      for (const LandmarkSighting& o : sightings) res_.observations += o.ok;
+      return;
+    }
+    const SightingFaults f =
+        apply_sighting_faults(se_.faults, sightings, se_.landmarks, se_.landmark_ids,
+                              guidance_.localizer().front_end()->landmarks(), truth_.head<2>(), se_.max_range, seed);
+    res_.observations += f.observations;
+    res_.dropped += f.dropped;
+    res_.outliers += f.outliers;
+    res_.misassociated += f.misassociated;
+  };
 }
 
 /// The initial estimate (the localizer's prior): a LanBLoc fix, if one is available, and the IMU.

@@ -4,6 +4,7 @@
 #include "safenav/navigation_settings.hpp"
 #include "safenav/navigation.hpp"
 
+#include <algorithm>
 #include <set>
 #include <string>
 
@@ -11,6 +12,7 @@
 #include "errors.hpp"
 #include "rng.hpp"
 #include "safenav/metrics.hpp"
+#include "safenav/seed.hpp"
 
 namespace safenav {
 
@@ -65,6 +67,55 @@ FaultedObservations apply_faults(const LandmarkFaults& faults, const std::vector
     out.ranges.push_back(o.range);
     out.faults.push_back(o.faults);
   }
+  return out;
+}
+
+SightingFaults apply_sighting_faults(const LandmarkFaults& faults, std::vector<LandmarkSighting>& sightings,
+                                     const Landmarks& landmarks, const std::vector<int>& ids,
+                                     const std::vector<LanBLocLandmark>& anchors, const Eigen::Vector2d& position,
+                                     double confusion_range, std::uint64_t seed) {
+  const auto row_of = [&](int id) -> int {
+    if (ids.empty()) return id >= 0 && id < landmarks.rows() ? id : -1;
+    const auto it = std::find(ids.begin(), ids.end(), id);
+    return it == ids.end() ? -1 : static_cast<int>(it - ids.begin());
+  };
+  SightingFaults out;
+  std::vector<LandmarkSighting> kept;
+  kept.reserve(sightings.size());
+  std::vector<LandmarkFaults::Observation> one(1);
+  for (LandmarkSighting& s : sightings) {
+    if (!s.ok) {
+      kept.push_back(std::move(s));
+      continue;
+    }
+    ++out.observations;
+    const int row = row_of(s.landmark_id);
+    if (row < 0) bad("apply_sighting_faults: landmark id " + std::to_string(s.landmark_id) + " is not in the map");
+    one.assign(1, {row, s.range, 0u});
+    detail::Rng rng(derive_seed(seed, static_cast<std::uint64_t>(s.landmark_id)));
+    RandomSourceOf<detail::Rng> draws(rng);
+    int dropped = 0;
+    faults.apply(one, landmarks, position, confusion_range, draws, &dropped);
+    if (dropped) {
+      ++out.dropped;
+      continue;
+    }
+    const LandmarkFaults::Observation& o = one.front();
+    s.range = o.range;
+    s.faults = o.faults;
+    out.outliers += (o.faults & LandmarkFaults::kOutlier) != 0;
+    if (o.faults & LandmarkFaults::kMisassociated) {
+      ++out.misassociated;
+      const int id = ids.empty() ? o.row : ids[static_cast<std::size_t>(o.row)];
+      s.true_landmark_id = s.landmark_id;
+      s.landmark_id = id;
+      const auto a = std::find_if(anchors.begin(), anchors.end(), [&](const LanBLocLandmark& l) { return l.id == id; });
+      s.anchor = a != anchors.end() ? a->position
+                                    : Eigen::Vector3d(landmarks(o.row, 0), landmarks(o.row, 1), s.anchor.z());
+    }
+    kept.push_back(std::move(s));
+  }
+  sightings.swap(kept);
   return out;
 }
 

@@ -161,31 +161,20 @@ def _camera_trials(navigator, c: _Cell, seeds) -> dict:
     scenario): each fix step the vehicle's localizer plans where the core's front end searches
     (windows from its own prediction), :class:`~safenav.vision.camera_loop.CameraFrames` renders
     those regions at the true pose, and the localizer detects, triangulates the markers' corners,
-    trilaterates and updates (``Navigator.run_frames``).  Python renders each frame, so the
-    trials are slower and run in processes.  With the scenario's landmark faults on, the faults
-    act on the ranges of the Python region pipeline (:class:`~safenav.vision.CameraLoopSource`,
-    a position callback), which the front end does not model yet."""
-    from .vision import CameraLoopSource
+    trilaterates and updates (``Navigator.run_camera``, in the core).  With the scenario's
+    landmark faults on, they act on each frame's ranged sightings before trilateration, with
+    the vehicle at its true position (``apply_sighting_faults``, as the measurement level's
+    ranges), and the loop counts them."""
     from .vision.camera_loop import CameraFrames
 
     d = {k: [] for k in ("outcome", "reason", "time_s", *COUNTS, *METRICS, *SAFETY)}
-    faults = c.scenario.noise.faults()
     for s in seeds:
-        if faults.any():
-            source = CameraLoopSource.from_scenario(c.scenario, seed=int(s) % 2**32, faults=faults)
-            r = navigator.run(int(s), position=source)
-            # The camera's landmark observations and faults are counted by the source,
-            # not the loop; "through" is what its trilateration kept, before the filter's
-            # gate (the simulator counts after it), and the camera has no fit χ² test.
-            fs = dict(source.fault_stats, faults_through=source.fault_stats["faults_in_fix"])
-        else:
-            r = CameraFrames.from_scenario(c.scenario, seed=int(s) % 2**32).run(navigator, int(s))
-            fs = {}
+        r = CameraFrames.from_scenario(c.scenario, seed=int(s) % 2**32).run(navigator, int(s))
         d["outcome"].append(int(r.outcome))
         d["reason"].append(r.reason)
         d["time_s"].append(r.wall_time)
         for k in COUNTS:
-            d[k].append(fs[k] if k in fs else getattr(r, k))
+            d[k].append(getattr(r, k))
         for k in (*METRICS, *SAFETY):
             d[k].append(r.metrics[k])
     return d

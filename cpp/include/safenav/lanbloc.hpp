@@ -33,6 +33,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -250,7 +251,20 @@ struct LandmarkSighting {
   MarkerCorners corners_right = MarkerCorners::Constant(kNaN);  ///< NaN when not found
   int corners_used = 0;  ///< corners the disparity came from (corner_disparity): 4, 3, or 0 without
   std::string reason;  ///< why there is no range (empty when ok)
+  /// Landmark faults applied to this sighting (LandmarkFaults::Fault flags;
+  /// 0 without a SightingEdit that applies them, e.g. the simulator's).
+  unsigned faults = 0;
+  /// The landmark actually seen when a fault relabelled the sighting
+  /// (misassociation: landmark_id and anchor are then the wrong landmark's);
+  /// −1 otherwise.
+  int true_landmark_id = -1;
 };
+
+/// Changes a frame's sightings before trilateration: it may drop, relabel or
+/// change the ranged ones (ok), e.g. the simulator's landmark faults
+/// (Navigator's camera loop), or a vehicle's exclusion of landmarks it knows
+/// to be moved.  An empty function changes nothing.
+using SightingEdit = std::function<void(std::vector<LandmarkSighting>&)>;
 
 /// A frame's result: status and reason, the fix (NaN unless ok), every
 /// detected landmark's observation (by id), the search mode and windows.
@@ -344,6 +358,8 @@ class LanBLocFrontEnd {
   /// full-resolution patches around the corners found there).  Equal to
   /// localize(left, right, plan) on StereoImages(left, right).
   LanBLocFix localize(const StereoPixels& pixels, const SearchPlan& plan) const;
+  /// The same with `edit` applied to the sightings before trilateration.
+  LanBLocFix localize(const StereoPixels& pixels, const SearchPlan& plan, const SightingEdit& edit) const;
 
   /// Where localize(…, prediction) searches: search_windows for a prediction
   /// (WholeFrame with the reason when too uncertain), merged into each

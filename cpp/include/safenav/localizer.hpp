@@ -280,8 +280,10 @@ class Localizer {
   FrameResult observe_frame(double t, const ImageView& left, const ImageView& right,
                             FrameUpdate how = FrameUpdate::Fix);
   /// The same on a pair whose pixels are drawn on demand (StereoPixels):
-  /// only the boxes the front end reads are drawn.
-  FrameResult observe_frame(double t, const StereoPixels& pixels, FrameUpdate how = FrameUpdate::Fix);
+  /// only the boxes the front end reads are drawn.  `edit` changes the
+  /// sightings before trilateration (LanBLocFrontEnd::localize).
+  FrameResult observe_frame(double t, const StereoPixels& pixels, FrameUpdate how = FrameUpdate::Fix,
+                            const SightingEdit& edit = SightingEdit());
 
   /// The estimate predicted to t > time() as a measurement at t would be
   /// predicted to (eq. 11 at the last motion input's rates), on a copy of the

@@ -106,6 +106,29 @@ FaultedObservations apply_faults(const LandmarkFaults& faults, const std::vector
                                  const std::vector<double>& ranges, const Landmarks& landmarks,
                                  const Eigen::Vector2d& position, double confusion_range, std::uint64_t seed);
 
+/// What the faults did to a camera frame's sightings (apply_sighting_faults).
+struct SightingFaults {
+  int observations = 0;   ///< ranged sightings before the faults
+  int dropped = 0;
+  int outliers = 0;
+  int misassociated = 0;
+};
+/// `faults` on a camera frame's ranged sightings (the simulator's camera loop;
+/// LanBLoc.apply_faults in Python does the same), with the vehicle at
+/// `position` (a misassociation draws another landmark within
+/// `confusion_range`): each ranged sighting goes through LandmarkFaults::apply
+/// alone, drawing from derive_seed(seed, its landmark id), so what happens to
+/// one does not depend on which others were found.  Dropped sightings are
+/// removed; an outlier's range is changed; a misassociated one takes the other
+/// landmark's id and `anchors` position (true_landmark_id says which it was).
+/// `landmarks` and `ids` are the map (rows, one id per row; empty ids: the
+/// rows); every ranged sighting's id must be in it.  Sightings without a range
+/// pass unchanged.
+SightingFaults apply_sighting_faults(const LandmarkFaults& faults, std::vector<LandmarkSighting>& sightings,
+                                     const Landmarks& landmarks, const std::vector<int>& ids,
+                                     const std::vector<LanBLocLandmark>& anchors, const Eigen::Vector2d& position,
+                                     double confusion_range, std::uint64_t seed);
+
 /// What the vehicle senses.
 struct SensorSettings {
   PositionNoise position;              ///< the measurement-level source (LanBLoc by default)
@@ -172,7 +195,7 @@ struct TrialResult {
   int outliers = 0;              ///< outlier faults injected
   int misassociated = 0;         ///< misassociation faults injected
   int ranges_rejected = 0;       ///< ranges rejected by the trilateration's outlier test
-  int faults_through = 0;        ///< faulty ranges inside a fix that the filter accepted
+  int faults_through = 0;        ///< faulty ranges that the filter accepted: inside a fix, or alone (camera loop)
   // Guard (guidance.hpp): steps on which it acted.
   int guard_slow = 0;            ///< slowed down
   int guard_steer = 0;           ///< steered away from the way the method chose
