@@ -284,16 +284,17 @@ bool Trial::frame(int step, double t, Eigen::Vector2d& z) {
     return false;
   }
   z = r.fix.position;
-  if (r.update.applied()) {
-    ++res_.position_fixes;
-    // the faulty ranges among the trilateration's inliers (in the order of the ranged sightings)
-    const LocalizationResult& lr = r.fix.localization;
-    Eigen::Index j = 0;
-    for (const LandmarkSighting& o : r.fix.observations)
-      if (o.ok && j < lr.inliers.size() && lr.inliers[j++] && o.faults) ++res_.faults_through;
-  } else {
-    ++res_.rejected;
+  // the trilateration's outliers, and the faulty ranges among its inliers (in the ranged sightings' order)
+  const LocalizationResult& lr = r.fix.localization;
+  const bool applied = r.update.applied();
+  Eigen::Index j = 0;
+  for (const LandmarkSighting& o : r.fix.observations) {
+    if (!o.ok || j >= lr.inliers.size()) continue;
+    if (!lr.inliers[j++]) ++res_.ranges_rejected;
+    else if (applied && o.faults) ++res_.faults_through;
   }
+  if (applied) ++res_.position_fixes;
+  else ++res_.rejected;
   return true;
 }
 
