@@ -315,9 +315,10 @@ def test_the_uncertainty_switch_counts_the_windows_union_exactly(x, y, th, sx, s
 
 @pytest.mark.parametrize("seed", [3, 11])
 def test_the_camera_loops_sighting_faults_are_the_python_pipelines(seed):
-    """apply_sighting_faults (the core camera loop's landmark faults) on a frame's sightings equals
-    LanBLoc's Python faults (LandmarkRanging.apply_faults) on the same sightings: the same
-    dropped, relabelled (id, anchor, true id) and outlier ranges, flag for flag."""
+    """apply_sighting_faults (the core camera loop's landmark faults) on a frame's core sightings, all
+    at once, equals LanBLoc's Python faults (LandmarkRanging.apply_faults, one sighting per call) on
+    the same sightings as Python's: the same dropped, relabelled (id, anchor, true id) and outlier
+    ranges, flag for flag, whichever other sightings the frame holds."""
     pose, placements = SCENES[0]
     world = _scene(pose, placements)
     left, right = _pair(world, pose)

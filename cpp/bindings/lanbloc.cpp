@@ -91,6 +91,16 @@ void bind_types(py::module_& m) {
       .def_readonly("sigma_px", &SearchWindow::sigma_px);
 
   py::class_<LandmarkSighting>(m, "LandmarkSighting")
+      .def(py::init([](int landmark_id, double range, const Eigen::Vector3d& anchor) {
+             LandmarkSighting s;
+             s.landmark_id = landmark_id;
+             s.ok = std::isfinite(range);
+             s.range = range;
+             s.anchor = anchor;
+             return s;
+           }),
+           py::arg("landmark_id"), py::arg("range"), py::arg("anchor"),
+           "A ranged sighting (ok when the range is finite), e.g. for apply_sighting_faults.")
       .def_readonly("landmark_id", &LandmarkSighting::landmark_id)
       .def_readonly("ok", &LandmarkSighting::ok)
       .def_readonly("range", &LandmarkSighting::range)

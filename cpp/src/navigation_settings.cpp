@@ -79,6 +79,7 @@ SightingFaults apply_sighting_faults(const LandmarkFaults& faults, std::vector<L
     const auto it = std::find(ids.begin(), ids.end(), id);
     return it == ids.end() ? -1 : static_cast<int>(it - ids.begin());
   };
+  faults.validate();
   SightingFaults out;
   std::vector<LandmarkSighting> kept;
   kept.reserve(sightings.size());

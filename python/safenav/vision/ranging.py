@@ -207,8 +207,8 @@ class LandmarkRanging:
         self._R0t = camera_rotation(0.0, self.pitch_rad).T   # camera → world directions at heading 0
         # the landmark faults' map: row k is landmark self._ids[k]
         self._ids = sorted(self.landmarks)
-        self._rows = {i: k for k, i in enumerate(self._ids)}
         self._map_xy = np.array([self.landmarks[i][0][:2] for i in self._ids], dtype=float).reshape(-1, 2)
+        self._anchors = {i: tuple(self.landmarks[i][0]) for i in self._ids}
         self._crop_matchers: dict[tuple[int, int, int, int], StereoMatcher] = {}
 
     def crop_matcher(self, x0: int, y0: int, x1: int, y1: int) -> StereoMatcher:
@@ -315,9 +315,9 @@ class LandmarkRanging:
                      ) -> tuple[tuple[LandmarkSighting, ...], int]:
         """The sightings after the landmark faults, and how many ranges were dropped.
 
-        Each ranged sighting goes through the core's
-        :meth:`safenav.navigation.LandmarkFaults.apply` (the simulator's model) with the
-        vehicle at ``position`` (the truth: a misassociation picks another
+        The core camera loop's faults (``_core.apply_sighting_faults``): each ranged
+        sighting goes through :meth:`safenav.navigation.LandmarkFaults.apply` (the
+        simulator's model) alone, with the vehicle at ``position`` (the truth: a misassociation picks another
         landmark within ``max_range_m`` of it, else any other) and its own draw
         stream ``derive_seed(seed, landmark id)``.  A dropped range is removed;
         a misassociated one carries the wrong landmark's id, class and map
@@ -338,18 +338,20 @@ class LandmarkRanging:
             if not o.ok:
                 out.append(o)
                 continue
-            # one observation per call: its own draws, so that the result maps back to the detection
-            rows, ranges, flags, n_dropped = faults.apply(
-                [self._rows[o.landmark_id]], [o.range], self._map_xy, p, self.max_range_m,
-                _core.derive_seed(int(seed), o.landmark_id))
-            if n_dropped:
+            # the core camera loop's faults (apply_sighting_faults), one sighting per call so that the
+            # result maps back to the detection; its draws depend on the seed and its id alone
+            kept, _ = _core.apply_sighting_faults(
+                faults, [_core.LandmarkSighting(o.landmark_id, float(o.range), np.asarray(o.anchor, dtype=float))],
+                self._map_xy, self._ids, self._anchors, p, self.max_range_m, int(seed))
+            if not kept:
                 dropped += 1
                 continue
-            lm = self._ids[rows[0]]
-            changes = dict(range=float(ranges[0]), faults=int(flags[0]))
-            if lm != o.landmark_id:
-                anchor, class_name = self.landmarks[lm]
-                changes.update(landmark_id=lm, class_name=class_name, anchor=anchor, true_landmark_id=o.landmark_id)
+            k = kept[0]
+            changes = dict(range=float(k.range), faults=int(k.faults))
+            if k.true_landmark_id >= 0:
+                anchor, class_name = self.landmarks[k.landmark_id]
+                changes.update(landmark_id=k.landmark_id, class_name=class_name, anchor=anchor,
+                               true_landmark_id=o.landmark_id)
             out.append(dataclasses.replace(o, **changes))
         return tuple(out), dropped
 
