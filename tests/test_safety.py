@@ -350,12 +350,23 @@ def test_scattered_outliers_never_agree_and_a_fix_through_the_gate_does_not_forg
         r = loc.fix(0.1 * (i + 1), 5.0 * np.cos(a), 5.0 * np.sin(a), R)
         assert r.status == gd.InputStatus.REJECTED
     assert loc.counts.resets == 0 and abs(loc.x[0]) < 0.5
-    # A fix through the gate between two agreeing rejected ones: the count in a row restarts,
-    # the rejected fixes stay (fewer than k fixes in a row passed).
+    # A fix through the gate between two agreeing rejected ones that contradicts them discredits
+    # them: a repeated wrong landmark between good fixes must not reset the position.
     loc = _lost_localizer(3)
     assert loc.fix(0.1, 5.0, 0.0, R).status == gd.InputStatus.REJECTED
     assert loc.fix(0.2, 5.0, 0.0, R).status == gd.InputStatus.REJECTED
     assert loc.fix(0.3, 0.02, 0.0, R).status == gd.InputStatus.APPLIED
+    assert loc.fix(0.4, 5.0, 0.0, R).status == gd.InputStatus.REJECTED
+    assert loc.fix(0.5, 5.0, 0.0, R).status == gd.InputStatus.REJECTED
+    assert loc.fix(0.6, 5.0, 0.0, R).status == gd.InputStatus.RESET   # three that agree, none contradicted
+    assert loc.counts.resets == 1
+    # A lost filter's occasional pass (a good fix through a grown σ) agrees with the rejected good
+    # fixes: they stay, the count in a row restarts, and the next one resets.
+    loc = _lost_localizer(3)
+    wide = np.eye(2) * 30.0                                 # a fix uncertain enough to pass and to agree
+    assert loc.fix(0.1, 5.0, 0.0, R).status == gd.InputStatus.REJECTED
+    assert loc.fix(0.2, 5.0, 0.0, R).status == gd.InputStatus.REJECTED
+    assert loc.fix(0.3, 4.9, 0.0, wide).status == gd.InputStatus.APPLIED
     assert loc.fix(0.4, 5.0, 0.0, R).status == gd.InputStatus.RESET
     # … but k fixes in a row through the gate forget them.
     loc = _lost_localizer(3)

@@ -235,13 +235,18 @@ InputResult Localizer::Impl::apply_fix(double t, const Eigen::Vector2d& z, const
   if (r.status == InputStatus::Late) return r;
   Rejections& rej = I.fix_rejections;
   const int k = I.settings.reset_after_consistent;
+  const double gate = -2.0 * std::log1p(-I.settings.filter.gate_probability);  // χ²₂ quantile
   if (r.status != InputStatus::Rejected) {
     rej.in_a_row = 0;
     if (++rej.passed >= std::max(k, 1)) rej.n = 0;  // the filter agrees with the fixes again
+    // A fix through the gate that contradicts a kept rejected one discredits it: rejected fixes
+    // that agree with each other but not with the fixes the filter takes (a repeated wrong
+    // landmark) must not reset the position.  A lost filter's occasional pass, a good fix
+    // through a grown σ, agrees with the rejected good ones and keeps them.
+    else if (k > 0 && rej.n > 0) rej.passed_fix(z, R, gate);
     return r;
   }
   const int n = I.settings.reset_after_rejections;
-  const double gate = -2.0 * std::log1p(-I.settings.filter.gate_probability);  // χ²₂ quantile
   const bool in_a_row = n > 0 && ++rej.in_a_row > n;
   const bool consistent = k > 0 && rej.agrees(z, R, k - 1, gate);
   rej.keep(z, R);

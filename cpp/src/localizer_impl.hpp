@@ -90,16 +90,28 @@ struct Rejections {
       kept[i].grown += dC;
     }
   }
+  /// Whether (z, R) agrees with kept fix i: χ² of z − (z_i + its predicted
+  /// displacement since) on R + R_i + the P_xy growth since, within `gate`.
+  bool agrees_with(int i, const Eigen::Vector2d& z, const Eigen::Matrix2d& R, double gate) const {
+    const Eigen::Vector2d e = z - kept[i].z - kept[i].moved;
+    const Eigen::Matrix2d S = R + kept[i].R + 0.5 * (kept[i].grown + kept[i].grown.transpose());
+    const Eigen::LLT<Eigen::Matrix2d> llt(S);
+    return llt.info() == Eigen::Success && e.dot(llt.solve(e)) <= gate;
+  }
   /// Whether (z, R) agrees with each of the newest `k` kept fixes (χ² bound `gate`).
   bool agrees(const Eigen::Vector2d& z, const Eigen::Matrix2d& R, int k, double gate) const {
     if (k > n) return false;
-    for (int i = n - k; i < n; ++i) {
-      const Eigen::Vector2d e = z - kept[i].z - kept[i].moved;
-      const Eigen::Matrix2d S = R + kept[i].R + 0.5 * (kept[i].grown + kept[i].grown.transpose());
-      const Eigen::LLT<Eigen::Matrix2d> llt(S);
-      if (llt.info() != Eigen::Success || !(e.dot(llt.solve(e)) <= gate)) return false;
-    }
+    for (int i = n - k; i < n; ++i)
+      if (!agrees_with(i, z, R, gate)) return false;
     return true;
+  }
+  /// A fix that passed the gate, (z, R), discredits the kept rejected fixes
+  /// that it disagrees with: they are dropped (oldest first order kept).
+  void passed_fix(const Eigen::Vector2d& z, const Eigen::Matrix2d& R, double gate) {
+    int m = 0;
+    for (int i = 0; i < n; ++i)
+      if (agrees_with(i, z, R, gate)) kept[m++] = kept[i];
+    n = m;
   }
   void keep(const Eigen::Vector2d& z, const Eigen::Matrix2d& R) {
     if (n == kKeep) {

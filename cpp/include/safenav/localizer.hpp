@@ -183,9 +183,11 @@ struct LocalizerSettings {
   /// of P_xy by the predictions between them.  Independent faults rarely
   /// agree; fixes that agree with each other and not with the filter say the
   /// filter has lost the track, even when an occasional fix gets through the
-  /// gate between them (which restarts the consecutive count above).  The
-  /// rejected fixes are forgotten after this many fixes in a row pass the
-  /// gate.  0 = off; at most Localizer's 8 kept rejected fixes.
+  /// gate between them (which restarts the consecutive count above) and
+  /// agrees with them.  A fix through the gate discredits the kept rejected
+  /// fixes that it disagrees with (the same test); all are forgotten after
+  /// this many fixes in a row pass the gate.  0 = off; at most Localizer's 8
+  /// kept rejected fixes.
   int reset_after_consistent = 3;
   /// [s] A measurement at most this much older than the filter's time is
   /// applied at its own time (the inputs since are applied again after it);
