@@ -21,6 +21,7 @@ from safenav.vision.render import StereoRenderer
 from safenav.vision.rig import StereoRig
 from safenav.world import Landmark, World
 from test_lanbloc_cpp import RIG, SCENES, _pair, _scene
+from test_lanbloc_sgbm import BoxesOnly
 
 POSE, PLACEMENTS = SCENES[0]
 
@@ -230,14 +231,14 @@ def test_lanbloc_core_backend_is_the_front_end_under_the_python_api(k):
     dropped = LanBLoc(world, RIG, ranging="corners", backend="core").localize(left, right, faults=faults,
                                                                               position=np.array(pose[:2]))
     assert dropped.status == "too_few_ranges" and dropped.dropped == len(fe.observations)
-    with pytest.raises(ValueError, match="backend = 'core' needs ranging = 'corners'"):
-        LanBLoc(world, RIG, backend="core")
+    with pytest.raises(ValueError, match="ranging = 'corners' needs a fiducial detector .marker corners., "
+                                         "not BoxesOnly"):
+        LanBLoc(world, RIG, BoxesOnly(world), ranging="corners", backend="core")
 
 
 def test_the_default_backend_is_the_core_where_it_serves():
-    """backend="auto": corner ranging with the default detector runs in the core (the result is the
-    core backend's, bit for bit); a detector passed in, or SGBM ranging, keeps the Python pipeline;
-    a bad name is named."""
+    """backend="auto": the default detector runs in the core, with either ranging (the result is the
+    core backend's, bit for bit); a detector passed in keeps the Python pipeline; a bad name is named."""
     from safenav.vision.detect import FiducialDetector
     from safenav.vision.lanbloc import LanBLoc
 
@@ -251,7 +252,8 @@ def test_the_default_backend_is_the_core_where_it_serves():
     assert np.array_equal(a.position, c.position) and np.array_equal(a.covariance, c.covariance)
     assert [o.range for o in a.observations] == [o.range for o in c.observations]
     assert LanBLoc(world, RIG, FiducialDetector(world), ranging="corners").backend == "python"
-    assert LanBLoc(world, RIG).backend == "python"                       # SGBM: no core path
+    assert LanBLoc(world, RIG).backend == "core"                         # SGBM too
+    assert LanBLoc(world, RIG, FiducialDetector(world)).backend == "python"
     with pytest.raises(ValueError, match="backend = 'gpu': must be 'auto', 'python' or 'core'"):
         LanBLoc(world, RIG, backend="gpu")
 

@@ -3,6 +3,7 @@
 #include "params.hpp"
 #include "safenav/lanbloc.hpp"
 
+#include <array>
 #include <map>
 #include <optional>
 
@@ -44,6 +45,13 @@ void bind_types(py::module_& m) {
       .def_readwrite("pitch_rad", &LanBLocRig::pitch_rad)
       .def("validate", &LanBLocRig::validate);
 
+  py::enum_<LanBLocRanging>(m, "LanBLocRanging")
+      .value("CORNERS", LanBLocRanging::Corners)
+      .value("SGBM", LanBLocRanging::Sgbm)
+      .def("__str__", [](LanBLocRanging r) { return std::string(to_string(r)); });
+  m.def("pipeline_sgbm", &pipeline_sgbm,
+        "The pipeline's SGBM parameters (3-way, block 5, ...) with num_disparities = 0 (the search from min_range_m)");
+
   def_params<LanBLocSettings>(py::class_<LanBLocSettings>(m, "LanBLocSettings"))
       .def(py::init<>())
       .def(py::init<const LanBLocSettings&>(), py::arg("other"), "a copy")
@@ -68,6 +76,13 @@ void bind_types(py::module_& m) {
       .def_readwrite("window_sigmas", &LanBLocSettings::window_sigmas)
       .def_readwrite("window_margin_px", &LanBLocSettings::window_margin_px)
       .def_readwrite("max_window_fraction", &LanBLocSettings::max_window_fraction)
+      .def_readwrite("ranging", &LanBLocSettings::ranging)
+      .def_readwrite("sgbm", &LanBLocSettings::sgbm)
+      .def_readwrite("min_range_m", &LanBLocSettings::min_range_m)
+      .def_readwrite("sgbm_sigma_d", &LanBLocSettings::sgbm_sigma_d)
+      .def_readwrite("box_shrink", &LanBLocSettings::box_shrink)
+      .def_readwrite("row_band", &LanBLocSettings::row_band)
+      .def_readwrite("band_margin_px", &LanBLocSettings::band_margin_px)
       .def("validate", &LanBLocSettings::validate);
 
   py::enum_<LanBLocStatus>(m, "LanBLocStatus")
@@ -115,6 +130,9 @@ void bind_types(py::module_& m) {
       .def_readonly("corners_left", &LandmarkSighting::corners_left)
       .def_readonly("corners_right", &LandmarkSighting::corners_right)
       .def_readonly("corners_used", &LandmarkSighting::corners_used)
+      .def_property_readonly("box", [](const LandmarkSighting& o) { return box_tuple(o.box); },
+                             "the landmark's box in the left image (x_min, y_min, x_max, y_max) [px]")
+      .def_readonly("n_valid", &LandmarkSighting::n_valid, "SGBM: valid disparities in the shrunk box")
       .def_readonly("reason", &LandmarkSighting::reason)
       .def_readonly("faults", &LandmarkSighting::faults, "LandmarkFaults flags applied (the simulator's faults)")
       .def_readonly("true_landmark_id", &LandmarkSighting::true_landmark_id,
@@ -197,6 +215,19 @@ void pybind_lanbloc(py::module_& m) {
           py::arg("predicted_covariance") = py::none(),
           "Observations and fix of one rectified grey pair; with a predicted pose (x, y, theta) and its 3x3 "
           "covariance the search is in windows around the landmarks' predicted projections.")
+      .def(
+          "localize_boxes",
+          [](const LanBLocFrontEnd& f, const U8Array& left, const U8Array& right,
+             const std::vector<std::pair<int, std::array<double, 4>>>& boxes) {
+            const ImageView l = gray_view(left, "left"), r = gray_view(right, "right");
+            std::vector<LandmarkBox> bs;
+            for (const auto& [id, b] : boxes) bs.push_back({id, Box{b[0], b[1], b[2], b[3]}});
+            py::gil_scoped_release nogil;
+            return f.localize_boxes(l, r, bs);
+          },
+          py::arg("left"), py::arg("right"), py::arg("boxes"),
+          "SGBM ranging of the landmarks a detector of the caller's found: boxes [(landmark id, (x_min, y_min, "
+          "x_max, y_max))] in the rectified left image; observations and fix as localize.")
       .def(
           "search_windows",
           [](const LanBLocFrontEnd& f, const Eigen::Vector3d& pose, const Eigen::Matrix3d& covariance) {

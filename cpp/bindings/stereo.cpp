@@ -74,6 +74,10 @@ void bind_settings(py::module_& m) {
       .def_readwrite("speckle_range", &SgbmParams::speckle_range)
       .def_readwrite("mode", &SgbmParams::mode)
       .def("validate", &SgbmParams::validate);
+  m.def("disparity_search", &disparity_search, py::arg("camera"), py::arg("near_m"), py::arg("far_m"),
+        py::arg("base"), py::arg("margin_px") = 2,
+        "SGBM's disparity search for the depths [near_m, far_m]: base with min_disparity and num_disparities set");
+
 
   def_params<BoxRangeOptions>(py::class_<BoxRangeOptions>(m, "BoxRangeOptions"))
       .def(py::init<>())

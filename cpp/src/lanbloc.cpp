@@ -34,6 +34,15 @@ const char* to_string(LanBLocStatus s) {
   return "?";
 }
 
+const char* to_string(LanBLocRanging r) { return r == LanBLocRanging::Sgbm ? "sgbm" : "corners"; }
+
+SgbmParams pipeline_sgbm() {
+  SgbmParams p;  // block 5, uniqueness 10, speckle window 100 and range 2: OpenCV's names, our defaults
+  p.mode = SgbmParams::Mode::SGBM3Way;
+  p.num_disparities = 0;
+  return p;
+}
+
 const char* to_string(SearchMode m) { return m == SearchMode::Windows ? "windows" : "whole_frame"; }
 
 int LanBLocFix::n_ranges() const {
@@ -66,6 +75,11 @@ const ParamSet<LanBLocSettings>& param_set<LanBLocSettings>() {
           .real("corner_square_sigmas", SN_REF(S, corner_square_sigmas), "", closed(0, 1e3), "the marker's corners in 3-D must form a square on one plane within this many sigma of their disparity noise (one corner off: dropped; otherwise no range); 0 = no check")
           .real("bearing_sigma_px", SN_REF(S, bearing_sigma_px), "px", above(0, 1e4), "sigma of the marker centre; bearing sigma = sigma_px / f")
           .real("max_range_m", SN_REF(S, max_range_m), "m", above(0, kNone), "depths beyond this: no range; inf = none")
+          .real("min_range_m", SN_REF(S, min_range_m), "m", above(0, kNone), "SGBM: the nearest landmark to range (the disparity search's near end when sgbm.num_disparities = 0)")
+          .real("sgbm_sigma_d", SN_REF(S, sgbm_sigma_d), "px", above(0, 100), "SGBM: sigma of a box's median disparity; sigma_Z = Z^2 sigma / (f B)")
+          .real("box_shrink", SN_REF(S, box_shrink), "", closed(0, 0.49), "SGBM: each side of a box moves in by this share of its size before the median depth")
+          .flag("row_band", SN_REF(S, row_band), "SGBM: match only the band of rows that holds the boxes")
+          .integer("band_margin_px", SN_REF(S, band_margin_px), closed(0, 1e5), "SGBM: rows above and below the boxes in the band [px]")
           .integer("min_landmarks", SN_REF(S, min_landmarks), closed(3, 1e6), "ranges needed to trilaterate (at least 3) [SafeNav-ext §IV-A]")
           .flag("resolve_ambiguity", SN_REF(S, resolve_ambiguity), "settle a mirror ambiguity of the fix by the bearings")
           .nested("trilateration.", param_set<LocalizationOptions>(), [](S& t) -> auto& { return t.trilateration; })
@@ -84,41 +98,50 @@ void LanBLocSettings::validate() const {
   if (detect_side_px > 0.0 && detect_side_px < 16.0)
     detail::bad("detect_side_px = " + detail::num(detect_side_px) + ": must be 0 (full resolution) or >= 16 px");
   trilateration.validate();
-  (void)lanbloc_detail::dictionary(dictionary);
+  if (!dictionary.empty()) (void)lanbloc_detail::dictionary(dictionary);
+  if (ranging != LanBLocRanging::Corners && ranging != LanBLocRanging::Sgbm)
+    detail::bad("ranging = " + std::to_string(static_cast<int>(ranging)) + ": must be Corners or Sgbm");
+  SgbmParams p = sgbm;
+  if (p.num_disparities == 0) p.num_disparities = 16;  // 0: the search from min_range_m
+  try {
+    p.validate();
+  } catch (const std::invalid_argument& e) {
+    detail::bad(std::string("sgbm.") + e.what());
+  }
 }
 
 // ---------------------------------------------------------------------------
 
-struct LanBLocFrontEnd::Impl {
-  LanBLocRig rig;
-  LanBLocSettings settings;
-  std::vector<LanBLocLandmark> landmarks;
-  std::map<int, Eigen::Vector3d> anchor;  // id → map position
-  cv::Ptr<cv::aruco::Dictionary> dict;
-  cv::Ptr<cv::aruco::DetectorParameters> params;
-  lanbloc_detail::CornerRefinement refine;  // relative_win_size 0: ArUco refines (or nothing does)
-  StereoMatcher matcher;  // the depth model Z = f·B/(d + doffs)
 
-  Impl(const LanBLocRig& r, std::vector<LanBLocLandmark> lms, const LanBLocSettings& s)
-      : rig(r), settings(s), landmarks(std::move(lms)), matcher(r.camera) {}
+LanBLocFrontEnd::Impl::Impl(const LanBLocRig& r, std::vector<LanBLocLandmark> lms, const LanBLocSettings& s)
+    : rig(r), settings(s), landmarks(std::move(lms)), matcher(r.camera), sgbm(s.sgbm) {
+  if (sgbm.num_disparities == 0) {
+    // LandmarkRanging's search: from min_range_m at the image's edge (its depth there is
+    // min_range_m·cos of the angle off the axis) to infinity.
+    const RectifiedCamera& c = r.camera;
+    const double near = s.min_range_m * std::cos(std::atan2(std::max(c.cx, c.width - 1 - c.cx), c.f));
+    sgbm = disparity_search(c, near, std::numeric_limits<double>::infinity(), s.sgbm);
+  }
+}
 
-  std::vector<Marker> detect(const StereoPixels& px, const SearchPlan& plan, bool right) const;
-  std::vector<Marker> detect_along_rows(const StereoPixels& px, const std::vector<Marker>& left) const;
-  LandmarkSighting observe(const Marker& left, const Marker* right, const std::string& why) const;
-  void sighting(LandmarkSighting& o, double depth, double sigma_z) const;
-  void solve(LanBLocFix& fix) const;
-  bool bearings_agree(const LocalizationResult& loc, const std::vector<const LandmarkSighting*>& obs) const;
-};
+int LanBLocFrontEnd::Impl::marker_bits() const {
+  if (!dict)
+    detail::bad("settings.dictionary is empty: this front end detects no markers; range the boxes of a "
+                "detector of your own with localize_boxes");
+  return dict->markerSize;
+}
 
 LanBLocFrontEnd::LanBLocFrontEnd(const LanBLocRig& rig, std::vector<LanBLocLandmark> landmarks,
                                  const LanBLocSettings& settings) {
   rig.validate();
   settings.validate();
   impl_ = std::make_unique<Impl>(rig, std::move(landmarks), settings);
-  impl_->dict = lanbloc_detail::dictionary(settings.dictionary);
-  const int n_ids = impl_->dict->bytesList.rows;
+  // An empty dictionary: no fiducial detection, the front end ranges the caller's boxes
+  // (localize_boxes), and a landmark id is any integer.
+  if (!settings.dictionary.empty()) impl_->dict = lanbloc_detail::dictionary(settings.dictionary);
+  const int n_ids = impl_->dict ? impl_->dict->bytesList.rows : 0;
   for (const LanBLocLandmark& lm : impl_->landmarks) {
-    if (lm.id < 0 || lm.id >= n_ids)
+    if (impl_->dict && (lm.id < 0 || lm.id >= n_ids))
       detail::bad("landmark id " + std::to_string(lm.id) + " is not in dictionary " + settings.dictionary +
                   " (ids 0.." + std::to_string(n_ids - 1) + ")");
     if (!lm.position.allFinite()) detail::bad("landmark " + std::to_string(lm.id) + " has a non-finite position");
@@ -156,7 +179,7 @@ std::vector<SearchWindow> LanBLocFrontEnd::search_windows(const PosePrediction& 
                                                           std::string& mode_reason) const {
   const LanBLocRig& r = impl_->rig;
   std::vector<SearchWindow> w = lanbloc_detail::predicted_windows(r, impl_->settings, impl_->landmarks,
-                                                                  impl_->dict->markerSize, prediction);
+                                                                  impl_->marker_bits(), prediction);
   std::vector<Box> left;
   for (const SearchWindow& s : w)
     if (!s.right) left.push_back(s.box);
@@ -227,8 +250,8 @@ std::vector<Marker> LanBLocFrontEnd::Impl::detect(const StereoPixels& px, const 
   return lanbloc_detail::detect_markers(
       px, right, cv::Size(rig.camera.width, rig.camera.height),
       whole ? std::vector<lanbloc_detail::Region>{lanbloc_detail::whole_frame_region(rig, settings,
-                                                                                     dict->markerSize)}
-            : lanbloc_detail::detection_regions(rig, settings, landmarks, dict->markerSize, plan, right),
+                                                                                     marker_bits())}
+            : lanbloc_detail::detection_regions(rig, settings, landmarks, marker_bits(), plan, right),
       dict, params, settings.min_perimeter_rate, refine);
 }
 
@@ -236,7 +259,7 @@ std::vector<Marker> LanBLocFrontEnd::Impl::detect_along_rows(const StereoPixels&
                                                              const std::vector<Marker>& left) const {
   // The whole frame's right image: only where the left image's landmarks can be (epipolar_regions).
   const std::vector<lanbloc_detail::Region> bands =
-      lanbloc_detail::epipolar_regions(rig, settings, dict->markerSize, left);
+      lanbloc_detail::epipolar_regions(rig, settings, marker_bits(), left);
   if (bands.empty()) return {};  // (detect_markers would search the whole image)
   return lanbloc_detail::detect_markers(px, true, cv::Size(rig.camera.width, rig.camera.height), bands, dict,
                                         params, settings.min_perimeter_rate, refine);
@@ -266,6 +289,13 @@ LanBLocFix LanBLocFrontEnd::localize(const ImageView& left, const ImageView& rig
   check_size(left, impl_->rig.camera, "left");
   check_size(right, impl_->rig.camera, "right");  // bad input fails before any work
   return localize(StereoImages(left, right), plan);
+}
+
+LanBLocFix LanBLocFrontEnd::localize_boxes(const ImageView& left, const ImageView& right,
+                                           const std::vector<LandmarkBox>& boxes) const {
+  check_size(left, impl_->rig.camera, "left");
+  check_size(right, impl_->rig.camera, "right");
+  return localize_boxes(StereoImages(left, right), boxes);
 }
 
 LanBLocFix LanBLocFrontEnd::localize(const StereoPixels& pixels, const SearchPlan& plan) const {
@@ -303,12 +333,21 @@ LanBLocFix LanBLocFrontEnd::localize(const StereoPixels& pixels, const SearchPla
     fix.reason = "no landmark recognised in the left image";
     return fix;
   }
-  std::map<int, Marker> in_right;
-  for (const Marker& m : whole ? I.detect_along_rows(pixels, dets) : I.detect(pixels, plan, true))
-    in_right.emplace(m.id, m);
-  for (const Marker& d : dets) {
-    auto it = in_right.find(d.id);
-    fix.observations.push_back(I.observe(d, it == in_right.end() ? nullptr : &it->second, ""));
+  if (I.settings.ranging == LanBLocRanging::Sgbm) {
+    std::vector<LandmarkBox> boxes;
+    for (const Marker& d : dets)
+      boxes.push_back({d.id, Box{d.corners.col(0).minCoeff(), d.corners.col(1).minCoeff(), d.corners.col(0).maxCoeff(),
+                                 d.corners.col(1).maxCoeff()}});
+    I.range_boxes(pixels, boxes, fix);
+    for (std::size_t i = 0; i < dets.size(); ++i) fix.observations[i].corners_left = dets[i].corners;
+  } else {
+    std::map<int, Marker> in_right;
+    for (const Marker& m : whole ? I.detect_along_rows(pixels, dets) : I.detect(pixels, plan, true))
+      in_right.emplace(m.id, m);
+    for (const Marker& d : dets) {
+      auto it = in_right.find(d.id);
+      fix.observations.push_back(I.observe(d, it == in_right.end() ? nullptr : &it->second, ""));
+    }
   }
   if (edit) edit(fix.observations);
   I.solve(fix);
@@ -323,6 +362,8 @@ LandmarkSighting LanBLocFrontEnd::Impl::observe(const Marker& left, const Marker
   o.landmark_id = left.id;
   o.anchor = anchor.at(left.id);
   o.corners_left = left.corners;
+  o.box = {left.corners.col(0).minCoeff(), left.corners.col(1).minCoeff(), left.corners.col(0).maxCoeff(),
+           left.corners.col(1).maxCoeff()};
   o.centre = marker_centre(left.corners);
   const RectifiedCamera& cam = rig.camera;
   o.bearing_sigma = settings.bearing_sigma_px / cam.f;
@@ -357,7 +398,8 @@ LandmarkSighting LanBLocFrontEnd::Impl::observe(const Marker& left, const Marker
   return o;
 }
 
-void LanBLocFrontEnd::Impl::sighting(LandmarkSighting& o, double depth, double sigma_z) const {
+void LanBLocFrontEnd::Impl::sighting(LandmarkSighting& o, double depth, double sigma_z,
+                                     const std::optional<Eigen::Vector3d>& point) const {
   // LandmarkRanging.sighting: the centre's ray in the world at heading 0, ray = R₀ᵀ·((u − cx)/f,
   // (v − cy)/f, 1), bearing = atan2(ray_y, ray_x) (counter-clockwise from the heading).
   const RectifiedCamera& cam = rig.camera;
@@ -367,7 +409,7 @@ void LanBLocFrontEnd::Impl::sighting(LandmarkSighting& o, double depth, double s
   if (!std::isfinite(depth)) return;
   // Slant range s = ‖P‖ of the centre's point P = Z·xn, σ_s = σ_Z·s/Z; horizontal range
   // ρ = sqrt(s² − (z_ℓ − h)²), σ_ρ = σ_s·s/ρ (safenav.vision.localization.horizontal_range).
-  const double s = depth * xn.norm();
+  const double s = point ? point->norm() : depth * xn.norm();
   const double sigma_s = sigma_z * s / depth;
   const double dh = o.anchor.z() - rig.camera_height_m;
   const double rho = std::sqrt(std::max(s * s - dh * dh, 0.0));

@@ -1,9 +1,11 @@
 // Private parts of the LanBLoc front end (safenav/lanbloc.hpp), shared by
-// lanbloc.cpp (ranging, trilateration) and lanbloc_detect.cpp (ArUco
-// detection, search windows).  OpenCV appears only here and in those files.
+// lanbloc.cpp (corner ranging, trilateration), lanbloc_sgbm.cpp (SGBM ranging)
+// and lanbloc_detect.cpp (ArUco detection, search windows).  OpenCV appears
+// only here and in those files.
 #pragma once
 
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -97,3 +99,40 @@ std::vector<SearchWindow> predicted_windows(const LanBLocRig& rig, const LanBLoc
                                             const PosePrediction& prediction);
 
 }  // namespace safenav::lanbloc_detail
+
+namespace safenav {
+
+/// The front end's state (LanBLocFrontEnd); const after construction.
+struct LanBLocFrontEnd::Impl {
+  LanBLocRig rig;
+  LanBLocSettings settings;
+  std::vector<LanBLocLandmark> landmarks;
+  std::map<int, Eigen::Vector3d> anchor;  // id → map position
+  cv::Ptr<cv::aruco::Dictionary> dict;
+  cv::Ptr<cv::aruco::DetectorParameters> params;
+  lanbloc_detail::CornerRefinement refine;  // relative_win_size 0: ArUco refines (or nothing does)
+  StereoMatcher matcher;  // the depth model Z = f·B/(d + doffs), and box_range
+  SgbmParams sgbm;        // settings.sgbm with its disparity search resolved
+
+  Impl(const LanBLocRig& r, std::vector<LanBLocLandmark> lms, const LanBLocSettings& s);
+
+  /// The dictionary's marker side in bits; std::invalid_argument without a dictionary.
+  int marker_bits() const;
+
+  std::vector<lanbloc_detail::Marker> detect(const StereoPixels& px, const SearchPlan& plan, bool right) const;
+  std::vector<lanbloc_detail::Marker> detect_along_rows(const StereoPixels& px,
+                                                        const std::vector<lanbloc_detail::Marker>& left) const;
+  LandmarkSighting observe(const lanbloc_detail::Marker& left, const lanbloc_detail::Marker* right,
+                           const std::string& why) const;
+  /// Bearing from o.centre; with a finite depth, slant and horizontal ranges from the centre's
+  /// point (`point`, or depth·((u − cx)/f, (v − cy)/f, 1) without one).
+  void sighting(LandmarkSighting& o, double depth, double sigma_z,
+                const std::optional<Eigen::Vector3d>& point = std::nullopt) const;
+  /// SGBM ranging (lanbloc_sgbm.cpp): the mapped boxes' sightings into fix.observations, the
+  /// others' ids into fix.unmapped.
+  void range_boxes(const StereoPixels& px, const std::vector<LandmarkBox>& boxes, LanBLocFix& fix) const;
+  void solve(LanBLocFix& fix) const;
+  bool bearings_agree(const LocalizationResult& loc, const std::vector<const LandmarkSighting*>& obs) const;
+};
+
+}  // namespace safenav

@@ -160,6 +160,40 @@ void SgbmParams::validate() const {
   if (!os.str().empty()) fail(os.str());
 }
 
+SgbmParams disparity_search(const RectifiedCamera& cam, double near_m, double far_m, const SgbmParams& base,
+                            int margin_px) {
+  cam.validate();
+  std::ostringstream os;
+  if (!(std::isfinite(near_m) && near_m > 0.0))
+    os << "near_m = " << near_m << " must be finite and > 0";
+  else if (!(far_m > near_m))
+    os << "far_m = " << far_m << " must be > near_m = " << near_m << " (inf for no far limit)";
+  else if (margin_px < 0)
+    os << "margin_px = " << margin_px << " must be an integer >= 0";
+  else if (base.block_size < 1 || base.block_size % 2 == 0)
+    os << "block_size = " << base.block_size << " must be odd";
+  if (!os.str().empty()) fail(os.str());
+  const double fb = cam.f * cam.baseline;
+  const double d_far = std::isinf(far_m) ? -cam.doffs : fb / far_m - cam.doffs;
+  double d_near = fb / near_m - cam.doffs;
+  const double r = std::nearbyint(d_near);  // within round-off of an integer: that integer
+  if (std::abs(d_near - r) <= 1e-9 * std::max(1.0, std::abs(d_near))) d_near = r;
+  // In doubles: a near depth of 1e-300 m must not overflow an int.
+  const double lo = std::floor(d_far) + 0.0, hi = std::ceil(d_near) + margin_px;  // + 0.0: no "-0"
+  const double num = std::ceil((hi - lo + 1.0) / 16.0) * 16.0;
+  const double columns = cam.width + std::min(lo, 0.0) - std::max(lo + num, 0.0);
+  if (!(columns >= base.block_size)) {
+    os << "near_m = " << near_m << " needs disparities " << lo << ".." << hi << " px (num_disparities = " << num
+       << "), which leaves " << std::max(columns, 0.0) << " of the image's " << cam.width
+       << " columns to match (block_size = " << base.block_size << "); raise near_m (f·B = " << fb << ")";
+    fail(os.str());
+  }
+  SgbmParams out = base;
+  out.min_disparity = static_cast<int>(lo);
+  out.num_disparities = static_cast<int>(num);
+  return out;
+}
+
 void BoxRangeOptions::validate() const { param_set<BoxRangeOptions>().check(*this); }
 
 // --------------------------------------------------------------------------

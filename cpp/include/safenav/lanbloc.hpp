@@ -22,6 +22,13 @@
 //  4. trilateration (safenav::trilaterate) and the mirror ambiguity settled
 //     by the bearings (a χ² test, 99.9 %).
 //
+// With ranging = Sgbm (the paper's dense stereo) step 2 is instead: SGBM
+// (StereoMatcher) over the band of rows that holds the markers' boxes, and
+// the median depth inside each box shrunk by box_shrink per side
+// (StereoMatcher::box_range; safenav.vision.full_frame with ranging="sgbm").
+// localize_boxes() ranges boxes that the caller's own detector found (a YOLO
+// model for natural landmarks) the same way.
+//
 // Where to search (ours): with a predicted pose, each mapped landmark's board
 // is projected from the prediction into both images and its box grown by the
 // projection's 3σ (the pose covariance propagated to pixels through the
@@ -66,11 +73,24 @@ struct LanBLocRig {
   void validate() const;  ///< std::invalid_argument naming the field at fault
 };
 
+/// How the front end measures a landmark's range.
+enum class LanBLocRanging {
+  Corners,  ///< ours: the fiducial's refined corners found in both images (corner_disparity)
+  Sgbm,     ///< the paper's: the median SGBM depth inside the landmark's box in the left image
+};
+const char* to_string(LanBLocRanging ranging);  ///< "corners", "sgbm", as LanBLoc's ranging=
+
+/// The pipeline's SGBM parameters (safenav.vision.ranging.PIPELINE_SGBM: 3-way, block 5,
+/// uniqueness 10, speckle window 100 and range 2) with num_disparities = 0: the search then
+/// covers the depths from min_range_m to infinity (LanBLocSettings::sgbm).
+SgbmParams pipeline_sgbm();
+
 /// The front end's settings; the defaults are the Python pipeline's
 /// (LanBLoc(..., ranging="corners") with FiducialDetector's defaults).
 struct LanBLocSettings {
   /// OpenCV ArUco dictionary name ("DICT_4X4_100", "DICT_6X6_250",
-  /// "APRILTAG_36h11", …).
+  /// "APRILTAG_36h11", …); empty: no fiducial detection (the front end ranges
+  /// the boxes of the caller's detector, localize_boxes; a landmark id is then any integer).
   std::string dictionary = "DICT_4X4_100";
   // --- detection (FiducialDetector)
   double min_perimeter_rate = 0.02;     ///< ArUco minMarkerPerimeterRate (of the larger side of the searched image)
@@ -110,6 +130,17 @@ struct LanBLocSettings {
   double corner_square_sigmas = 6.0;
   double bearing_sigma_px = 1.0;        ///< [px] σ of the centre, bearing σ = σ_px / f
   double max_range_m = std::numeric_limits<double>::infinity();  ///< [m] depths beyond: no range
+  LanBLocRanging ranging = LanBLocRanging::Corners;  ///< corners (ours) or SGBM (the paper's)
+  // --- SGBM ranging (ranging = Sgbm, and localize_boxes; LandmarkRanging.observe)
+  /// SGBM's parameters; num_disparities = 0: min_disparity and num_disparities from
+  /// disparity_search for the depths from min_range_m (at the image's edge: min_range_m·cos of
+  /// the half field of view) to infinity, with a 2 px margin.
+  SgbmParams sgbm = pipeline_sgbm();
+  double min_range_m = 2.5;     ///< [m] the nearest landmark SGBM must range (num_disparities = 0)
+  double sgbm_sigma_d = 0.5;    ///< [px] σ_d of a box's median disparity, σ_Z = Z²·σ_d/(f·B)
+  double box_shrink = 0.1;      ///< each side of a box moves in by this share of its size before the median
+  bool row_band = true;         ///< match only the rows that hold the boxes (16-row grid), not the whole image
+  int band_margin_px = 24;      ///< [px] rows above and below the boxes in that band
   // --- trilateration (LandmarkRanging.solve)
   int min_landmarks = 3;                ///< ranges needed to trilaterate (the paper: at least 3)
   bool resolve_ambiguity = true;        ///< settle a mirror ambiguity by the bearings
@@ -250,6 +281,8 @@ struct LandmarkSighting {
   MarkerCorners corners_left = MarkerCorners::Constant(kNaN);
   MarkerCorners corners_right = MarkerCorners::Constant(kNaN);  ///< NaN when not found
   int corners_used = 0;  ///< corners the disparity came from (corner_disparity): 4, 3, or 0 without
+  Box box;               ///< the landmark's box in the left image (the corners' bounding box for a marker)
+  int n_valid = 0;       ///< SGBM: valid disparities in the shrunk box (StereoMatcher::box_range)
   std::string reason;  ///< why there is no range (empty when ok)
   /// Landmark faults applied to this sighting (LandmarkFaults::Fault flags;
   /// 0 without a SightingEdit that applies them, e.g. the simulator's).
@@ -265,6 +298,14 @@ struct LandmarkSighting {
 /// (Navigator's camera loop), or a vehicle's exclusion of landmarks it knows
 /// to be moved.  An empty function changes nothing.
 using SightingEdit = std::function<void(std::vector<LandmarkSighting>&)>;
+
+/// A landmark that the caller's own detector recognised in the rectified
+/// left image (e.g. a YOLO model for natural landmarks): its id in the map
+/// and its box [px].
+struct LandmarkBox {
+  int landmark_id = 0;
+  Box box;
+};
 
 /// A frame's result: status and reason, the fix (NaN unless ok), every
 /// detected landmark's observation (by id), the search mode and windows.
@@ -360,6 +401,20 @@ class LanBLocFrontEnd {
   LanBLocFix localize(const StereoPixels& pixels, const SearchPlan& plan) const;
   /// The same with `edit` applied to the sightings before trilateration.
   LanBLocFix localize(const StereoPixels& pixels, const SearchPlan& plan, const SightingEdit& edit) const;
+
+  /// The paper's SGBM ranging of landmarks that the caller's detector found
+  /// (ranging = Sgbm whatever settings.ranging says): SGBM over the band of
+  /// rows that holds the boxes, each box's median depth (box_shrink, sgbm_sigma_d,
+  /// max_range_m), the bearing of its centre, then trilateration as localize().
+  /// Ids not in the map are listed in LanBLocFix::unmapped and skipped; the
+  /// first box of an id is kept.  Throws std::invalid_argument on images of
+  /// the wrong size or channels, or a box that is not finite or is empty.
+  LanBLocFix localize_boxes(const ImageView& left, const ImageView& right,
+                            const std::vector<LandmarkBox>& boxes) const;
+  /// The same on pixels read on demand (the band's rows of both images at
+  /// full resolution), with `edit` applied to the sightings before trilateration.
+  LanBLocFix localize_boxes(const StereoPixels& pixels, const std::vector<LandmarkBox>& boxes,
+                            const SightingEdit& edit = SightingEdit()) const;
 
   /// Where localize(…, prediction) searches: search_windows for a prediction
   /// (WholeFrame with the reason when too uncertain), merged into each

@@ -76,6 +76,22 @@ struct SgbmParams {
   void validate() const;
 };
 
+/// SGBM's disparity search for the depths [near_m, far_m] of `camera`
+/// (safenav.vision.stereo.disparity_range calls this).  A depth Z is seen at
+/// d(Z) = f·B/Z − doffs (d(∞) = −doffs), and SGBM searches the integer
+/// disparities min_disparity ≤ d < min_disparity + num_disparities, so
+///   min_disparity   = ⌊d(far_m)⌋,
+///   num_disparities = 16·⌈(⌈d(near_m)⌉ + margin_px − min_disparity + 1)/16⌉
+/// (d(near_m) snapped to an integer within 1e-9 relative of it first, so that a
+/// depth on an exact disparity does not open one more).  Only those two fields
+/// of `base` change.  Throws std::invalid_argument naming the value when
+/// near_m is not finite and > 0, far_m is not > near_m, margin_px < 0,
+/// block_size is not odd and >= 1, or the search leaves fewer than block_size
+/// of the image's columns to match (SGBM leaves the first min_disparity +
+/// num_disparities columns, and the last −min_disparity, without a disparity).
+SgbmParams disparity_search(const RectifiedCamera& camera, double near_m, double far_m, const SgbmParams& base,
+                            int margin_px = 2);
+
 /// A borrowed 8-bit image (row-major, interleaved channels: 1 or 3).
 struct ImageView {
   const std::uint8_t* data = nullptr;

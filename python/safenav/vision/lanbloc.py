@@ -164,17 +164,18 @@ class LanBLoc:
         rectified camera): the top of the disparity search.
     backend:
         ``"auto"`` (default), ``"python"`` or ``"core"``.  ``"core"``: whole
-        pairs with ``ranging="corners"`` through the C++ front end
-        (:class:`~safenav.vision.core_pipeline.CorePipeline`: detection,
-        refinement and corner ranging in the core, then the shared last
-        step).  ``"auto"``: the core where it serves, that is with
-        ``ranging="corners"`` and the default detector (a ``detector`` given
-        here keeps its own settings, which the core does not read, so it
-        keeps the Python pipeline); the Python pipeline otherwise (SGBM
-        ranging has no core path).  The two agree up to the OpenCV versions'
-        detectors (:mod:`~safenav.vision.core_pipeline`).  :attr:`backend`
-        is the one chosen.  :meth:`localize_frame` is the Python region
-        pipeline whatever the backend.
+        pairs through the C++ front end
+        (:class:`~safenav.vision.core_pipeline.CorePipeline`): with a
+        fiducial detector, detection, refinement and ranging (corners or
+        SGBM) in the core, then the shared last step; with another detector
+        (a YOLO model) and ``ranging="sgbm"``, its boxes ranged in the core
+        (the Python pipeline's SGBM ranging, bit for bit).  ``"auto"``: the
+        core with the default detector (a ``detector`` given here keeps its
+        own settings, which the core does not read, so it keeps the Python
+        pipeline); the Python pipeline otherwise.  The two agree up to the
+        OpenCV versions' detectors (:mod:`~safenav.vision.core_pipeline`).
+        :attr:`backend` is the one chosen.  :meth:`localize_frame` is the
+        Python region pipeline whatever the backend.
     trilateration:
         Keyword arguments for :func:`~safenav.vision.localization.trilaterate`.
     ranging:
@@ -220,7 +221,7 @@ class LanBLoc:
         if backend not in ("auto", "python", "core"):
             raise ValueError(f"backend = {backend!r}: must be 'auto', 'python' or 'core'")
         if backend == "auto":
-            backend = "core" if ranging == "corners" and detector is None else "python"
+            backend = "core" if detector is None else "python"
         if detector is None:
             detector = FiducialDetector(landmarks if isinstance(landmarks, World) else
                                         {k: k for k in self.ranger.landmarks})
@@ -231,10 +232,10 @@ class LanBLoc:
                                       detect_side_px=detect_side_px, region_margin_px=region_margin_px,
                                       min_correlation=min_correlation)}
         if backend == "core":
-            if ranging != "corners":
-                raise ValueError(f"backend = 'core' needs ranging = 'corners', got {ranging!r}")
             from .core_pipeline import CorePipeline
-            self.pipelines["core"] = CorePipeline(self.ranger, detector, self.pipelines["full"].check_pair)
+            self.pipelines["core"] = CorePipeline(self.ranger, detector, self.pipelines["full"].check_pair,
+                                                  ranging=self.pipelines["full"].ranging, row_band=row_band,
+                                                  band_margin_px=band_margin_px)
         self.backend = backend
 
     #: The settings read through from the parts, by part.

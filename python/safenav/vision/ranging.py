@@ -301,7 +301,9 @@ class LandmarkRanging:
         if not ok:
             return LandmarkSighting(ok=False, range=math.nan, sigma=math.nan, slant_range=math.nan,
                                     depth=math.nan, reason=reason, **common)
-        s = float(np.linalg.norm(point))
+        # ‖P‖ summed left to right, as the core's front end sums it (Eigen), so that the two agree bit for bit
+        s = math.sqrt(float(point[0]) * float(point[0]) + float(point[1]) * float(point[1])
+                      + float(point[2]) * float(point[2]))
         sigma_s = sigma_z * s / depth
         rho, sigma_rho = horizontal_range(s, anchor[2], self.camera_height_m, sigma=sigma_s)
         if not rho > 0:

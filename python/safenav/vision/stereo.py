@@ -133,15 +133,6 @@ def _int_arg(name: str, v, lo: int) -> int:
     return int(v)
 
 
-def _snap(x: float) -> float:
-    """``x`` snapped to the nearest integer when within float round-off of it,
-    so that a near depth on an exact disparity boundary (``f·B/Z − doffs =
-    48``) does not open one more disparity through ``48.000000000001``.  Used
-    for the near end only: the far end's floor errs wide without it."""
-    r = round(x)
-    return float(r) if abs(x - r) <= 1e-9 * max(1.0, abs(x)) else x
-
-
 def _rectified_camera(camera, alpha: float) -> "RectifiedCamera":
     if isinstance(camera, RectifiedCamera):
         return camera
@@ -184,6 +175,9 @@ def disparity_range(camera, near_m, far_m=math.inf, *, block_size: int = SGBM_DE
     range that leaves fewer than ``block_size`` columns of the image raises
     ``ValueError`` (raise ``near_m``).
 
+    The core computes it (``_core.disparity_search``, which the C++ LanBLoc
+    front end's SGBM ranging uses too).
+
     ``camera`` is a :class:`RectifiedCamera`, a :class:`StereoMatcher` (its
     ``camera``) or a :class:`StereoCalibration` (the rectified rig that
     ``StereoMatcher(calibration, alpha=alpha)`` uses: ``doffs = 0`` there,
@@ -203,19 +197,10 @@ def disparity_range(camera, near_m, far_m=math.inf, *, block_size: int = SGBM_DE
     block = _int_arg("block_size", block_size, 1)
     if block % 2 == 0:
         raise ValueError(f"block_size = {block_size!r} must be odd")
-    cam = _rectified_camera(camera, alpha)
-    fb = cam.f * cam.baseline
-    d_far = -cam.doffs if math.isinf(far) else fb / far - cam.doffs
-    d_near = fb / near - cam.doffs
-    lo = math.floor(d_far)
-    hi = math.ceil(_snap(d_near)) + margin
-    num = -(-(hi - lo + 1) // 16) * 16
-    columns = cam.width + min(lo, 0) - max(lo + num, 0)
-    if columns < block:
-        raise ValueError(f"near_m = {near_m!r} needs disparities {lo}..{hi} px (num_disparities = {num}), which "
-                         f"leaves {max(columns, 0)} of the image's {cam.width} columns to match "
-                         f"(block_size = {block}); raise near_m (f·B = {fb:g})")
-    return int(lo), int(num)
+    base = _core.SgbmParams()
+    base.block_size = block
+    p = _core.disparity_search(_rectified_camera(camera, alpha)._core(), near, far, base, margin)
+    return int(p.min_disparity), int(p.num_disparities)
 
 
 # ---------------------------------------------------------------------------
