@@ -333,6 +333,36 @@ def test_example_reads_pgm_pairs_and_prints_the_fix(example_exe, tmp_path, k):
         assert int(fix["ranges"]) == len(placements)
 
 
+def test_example_ranges_with_sgbm_and_ranges_boxes_of_ones_own(example_exe, tmp_path):
+    """``ranging sgbm``: the core's markers ranged by SGBM box medians; ``box`` lines: a detector of
+    one's own, its boxes ranged the same way (no marker detection); both equal the binding."""
+    pose, placements = SCENES[0]
+    world = _scene(pose, placements)
+    left, right = _pair(world, pose)
+    _write_pgm(tmp_path / "left.pgm", left)
+    _write_pgm(tmp_path / "right.pgm", right)
+    fe = _front_end(world, ranging=_core.LanBLocRanging.SGBM)
+    ref = fe.localize(left, right)
+    boxes = [(o.landmark_id, o.box) for o in ref.observations]
+    for extra, want in (("ranging sgbm\n", ref),
+                        ("".join(f"box {i} {b[0]!r} {b[1]!r} {b[2]!r} {b[3]!r}\n" for i, b in boxes),
+                         _front_end(world).localize_boxes(left, right, boxes))):
+        (tmp_path / "rig.txt").write_text(_config(world) + extra)
+        proc = subprocess.run([str(example_exe), str(tmp_path / "rig.txt"), str(tmp_path / "left.pgm"),
+                               str(tmp_path / "right.pgm")], capture_output=True, text=True)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        lines = proc.stdout.splitlines()
+        fix = _fields(next(line for line in lines if line.startswith("fix ")))
+        assert fix["status"] == "ok"
+        np.testing.assert_allclose([float(fix["x"]), float(fix["y"])], want.position, atol=2e-6)
+        obs = [_fields(line) for line in lines if line.startswith("observation ")]
+        np.testing.assert_allclose([float(o["range"]) for o in obs], [o.range for o in want.observations], atol=2e-6)
+    (tmp_path / "rig.txt").write_text(_config(world) + "ranging dense\n")
+    proc = subprocess.run([str(example_exe), str(tmp_path / "rig.txt"), str(tmp_path / "left.pgm"),
+                           str(tmp_path / "right.pgm")], capture_output=True, text=True)
+    assert proc.returncode == 2 and "'ranging'" in proc.stderr
+
+
 def test_example_reports_bad_input(example_exe, tmp_path):
     pose, placements = SCENES[1]
     world = _scene(pose, placements)

@@ -13,6 +13,9 @@
 //   marker_size_m 1.5                            # optional
 //   landmark ID X Y Z                            # one per mapped landmark [m]
 //   prediction X Y THETA SIGMA_XY SIGMA_THETA    # optional: search where the estimate predicts
+//   ranging sgbm                                 # optional: the paper's SGBM box median (default corners)
+//   box ID X0 Y0 X1 Y1                           # optional: boxes of a detector of your own (a YOLO
+//                                                # model): SGBM-ranged, no marker detection
 //
 // Prints one line per detected landmark and one line with the fix:
 //   observation id=3 ok=1 range=9.871 sigma=0.0123 bearing=0.2012 reason=""
@@ -73,6 +76,7 @@ struct Config {
   safenav::LanBLocSettings settings;
   std::vector<safenav::LanBLocLandmark> landmarks;
   std::optional<safenav::PosePrediction> prediction;
+  std::vector<safenav::LandmarkBox> boxes;  // given: ranged by SGBM (localize_boxes)
 };
 
 Config read_config(const std::string& path) {
@@ -101,6 +105,14 @@ Config read_config(const std::string& path) {
       safenav::LanBLocLandmark lm;
       ok = static_cast<bool>(ls >> lm.id >> lm.position.x() >> lm.position.y() >> lm.position.z());
       c.landmarks.push_back(lm);
+    } else if (key == "ranging") {
+      std::string r;
+      ok = static_cast<bool>(ls >> r) && (r == "sgbm" || r == "corners");
+      c.settings.ranging = r == "sgbm" ? safenav::LanBLocRanging::Sgbm : safenav::LanBLocRanging::Corners;
+    } else if (key == "box") {
+      safenav::LandmarkBox b;
+      ok = static_cast<bool>(ls >> b.landmark_id >> b.box.x_min >> b.box.y_min >> b.box.x_max >> b.box.y_max);
+      c.boxes.push_back(b);
     } else if (key == "prediction") {
       safenav::PosePrediction p;
       double sxy = 0, sth = 0;
@@ -130,7 +142,7 @@ int main(int argc, char** argv) {
     const safenav::LanBLocFrontEnd front_end(cfg.rig, cfg.landmarks, cfg.settings);
     const safenav::ImageView l{left.pixels.data(), left.height, left.width, 1, left.width};
     const safenav::ImageView r{right.pixels.data(), right.height, right.width, 1, right.width};
-    fix = front_end.localize(l, r, cfg.prediction);
+    fix = cfg.boxes.empty() ? front_end.localize(l, r, cfg.prediction) : front_end.localize_boxes(l, r, cfg.boxes);
   } catch (const std::exception& e) {  // std::invalid_argument from the core names the bad value
     std::cerr << "error: " << e.what() << "\n";
     return 2;
