@@ -77,12 +77,26 @@ def _levels(world, rig, pose, ren, left, right, P, d, t, found) -> None:
         d["fix_pyr"].append(np.linalg.norm(pyr.position - full.position))
 
 
+def bench_rig(scenario_camera: bool):
+    """The tests' 640×480 rig, or the default scenario's camera (2560×1440)."""
+    if not scenario_camera:
+        return RIG
+    import safenav
+    from safenav.vision.lanbloc import scenario_camera as camera
+    return camera(safenav.default_scenario(), None, None, 1.5, {})[0]
+
+
+def cli(main, doc: str) -> None:
+    """``main(frames, scenario_camera)`` from the command line (``--frames``, ``--scenario-camera``)."""
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
+    ap.add_argument("--frames", type=int, default=100)
+    ap.add_argument("--scenario-camera", action="store_true")
+    a = ap.parse_args()
+    main(a.frames, a.scenario_camera)
+
+
 def main(frames: int, scenario_camera: bool) -> None:
-    rig = RIG
-    if scenario_camera:
-        import safenav
-        from safenav.vision.lanbloc import scenario_camera as camera
-        rig = camera(safenav.default_scenario(), None, None, 1.5, {})[0]
+    rig = bench_rig(scenario_camera)
     rng = np.random.default_rng(0)
     same = {"cpp": 0, "cpp46": 0}
     d = {k: [] for k in ("range", "range46", "bearing", "fix", "fix46", "windows", "err_py", "err_cpp", "err_win",
@@ -138,8 +152,4 @@ def main(frames: int, scenario_camera: bool) -> None:
 
 
 if __name__ == "__main__":
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--frames", type=int, default=100)
-    ap.add_argument("--scenario-camera", action="store_true")
-    a = ap.parse_args()
-    main(a.frames, a.scenario_camera)
+    cli(main, __doc__)

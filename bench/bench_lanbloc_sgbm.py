@@ -24,7 +24,6 @@ median time per frame with the ratios.
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
@@ -32,15 +31,12 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from test_lanbloc_cpp import RIG, _front_end, random_frame  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_lanbloc_cpp import _q, bench_rig, cli  # noqa: E402
+from test_lanbloc_cpp import _front_end, random_frame  # noqa: E402
 
 from safenav import _core  # noqa: E402
 from safenav.vision.lanbloc import LanBLoc  # noqa: E402
-
-
-def _q(v) -> str:
-    v = np.asarray(v)
-    return f"n={len(v)} median={np.median(v):.2e} p95={np.percentile(v, 95):.2e} max={v.max():.2e}" if len(v) else "n=0"
 
 
 def _bitwise(a, b) -> bool:
@@ -49,11 +45,7 @@ def _bitwise(a, b) -> bool:
 
 
 def main(frames: int, scenario_camera: bool) -> None:
-    rig = RIG
-    if scenario_camera:
-        import safenav
-        from safenav.vision.lanbloc import scenario_camera as camera
-        rig = camera(safenav.default_scenario(), None, None, 1.5, {})[0]
+    rig = bench_rig(scenario_camera)
     rng = np.random.default_rng(0)
     t = {k: [] for k in ("python", "core", "core_boxes")}
     d = {k: [] for k in ("fix_core", "err_python", "err_core", "err_boxes")}
@@ -90,8 +82,4 @@ def main(frames: int, scenario_camera: bool) -> None:
 
 
 if __name__ == "__main__":
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--frames", type=int, default=100)
-    ap.add_argument("--scenario-camera", action="store_true")
-    a = ap.parse_args()
-    main(a.frames, a.scenario_camera)
+    cli(main, __doc__)
