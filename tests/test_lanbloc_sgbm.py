@@ -160,3 +160,7 @@ def test_bad_boxes_unmapped_ids_and_no_dictionary_are_named():
     s.sgbm.block_size = 4
     with pytest.raises(ValueError, match="sgbm.block_size = 4 must be odd"):
         s.validate()
+    s = _core.LanBLocSettings()
+    s.box_shrink = 0.5
+    with pytest.raises(ValueError, match="box_shrink = 0.5: must be < 0.5"):
+        s.validate()

@@ -77,7 +77,7 @@ const ParamSet<LanBLocSettings>& param_set<LanBLocSettings>() {
           .real("max_range_m", SN_REF(S, max_range_m), "m", above(0, kNone), "depths beyond this: no range; inf = none")
           .real("min_range_m", SN_REF(S, min_range_m), "m", above(0, kNone), "SGBM: the nearest landmark to range (the disparity search's near end when sgbm.num_disparities = 0)")
           .real("sgbm_sigma_d", SN_REF(S, sgbm_sigma_d), "px", above(0, 100), "SGBM: sigma of a box's median disparity; sigma_Z = Z^2 sigma / (f B)")
-          .real("box_shrink", SN_REF(S, box_shrink), "", closed(0, 0.49), "SGBM: each side of a box moves in by this share of its size before the median depth")
+          .real("box_shrink", SN_REF(S, box_shrink), "", closed(0, 0.5), "SGBM: each side of a box moves in by this share of its size before the median depth (< 0.5)")
           .flag("row_band", SN_REF(S, row_band), "SGBM: match only the band of rows that holds the boxes")
           .integer("band_margin_px", SN_REF(S, band_margin_px), closed(0, 1e5), "SGBM: rows above and below the boxes in the band [px]")
           .integer("min_landmarks", SN_REF(S, min_landmarks), closed(3, 1e6), "ranges needed to trilaterate (at least 3) [SafeNav-ext §IV-A]")
@@ -99,6 +99,7 @@ void LanBLocSettings::validate() const {
     detail::bad("detect_side_px = " + detail::num(detect_side_px) + ": must be 0 (full resolution) or >= 16 px");
   trilateration.validate();
   if (!dictionary.empty()) (void)lanbloc_detail::dictionary(dictionary);
+  if (!(box_shrink < 0.5)) detail::bad("box_shrink = " + detail::num(box_shrink) + ": must be < 0.5 (a box left)");
   if (ranging != LanBLocRanging::Corners && ranging != LanBLocRanging::Sgbm)
     detail::bad("ranging = " + std::to_string(static_cast<int>(ranging)) + ": must be Corners or Sgbm");
   SgbmParams p = sgbm;
@@ -210,6 +211,11 @@ cv::Mat as_gray_mat(const ImageView& v, const char* name) {
     detail::bad(std::string(name) + " image row_stride = " + std::to_string(stride) + " is below its width " +
                 std::to_string(v.cols));
   return cv::Mat(v.rows, v.cols, CV_8UC1, const_cast<std::uint8_t*>(v.data), static_cast<std::size_t>(stride));
+}
+
+/// A marker's box: its corners' bounding box (FiducialDetector's Detection.box).
+Box corner_box(const MarkerCorners& c) {
+  return {c.col(0).minCoeff(), c.col(1).minCoeff(), c.col(0).maxCoeff(), c.col(1).maxCoeff()};
 }
 
 void check_size(const ImageView& v, const RectifiedCamera& cam, const char* name) {
@@ -335,9 +341,7 @@ LanBLocFix LanBLocFrontEnd::localize(const StereoPixels& pixels, const SearchPla
   }
   if (I.settings.ranging == LanBLocRanging::Sgbm) {
     std::vector<LandmarkBox> boxes;
-    for (const Marker& d : dets)
-      boxes.push_back({d.id, Box{d.corners.col(0).minCoeff(), d.corners.col(1).minCoeff(), d.corners.col(0).maxCoeff(),
-                                 d.corners.col(1).maxCoeff()}});
+    for (const Marker& d : dets) boxes.push_back({d.id, corner_box(d.corners)});
     I.range_boxes(pixels, boxes, fix);
     for (std::size_t i = 0; i < dets.size(); ++i) fix.observations[i].corners_left = dets[i].corners;
   } else {
@@ -362,8 +366,7 @@ LandmarkSighting LanBLocFrontEnd::Impl::observe(const Marker& left, const Marker
   o.landmark_id = left.id;
   o.anchor = anchor.at(left.id);
   o.corners_left = left.corners;
-  o.box = {left.corners.col(0).minCoeff(), left.corners.col(1).minCoeff(), left.corners.col(0).maxCoeff(),
-           left.corners.col(1).maxCoeff()};
+  o.box = corner_box(left.corners);
   o.centre = marker_centre(left.corners);
   const RectifiedCamera& cam = rig.camera;
   o.bearing_sigma = settings.bearing_sigma_px / cam.f;
