@@ -2,6 +2,7 @@
 #include "common.hpp"
 #include "params.hpp"
 #include "safenav/lanbloc.hpp"
+#include "safenav/yolo.hpp"
 
 #include <array>
 #include <map>
@@ -177,8 +178,50 @@ std::optional<PosePrediction> prediction_of(const std::optional<Eigen::Vector3d>
 }
 }  // namespace
 
+void bind_yolo(py::module_& m) {
+  py::class_<YoloSettings>(m, "YoloSettings")
+      .def(py::init<>())
+      .def_readwrite("input_size", &YoloSettings::input_size)
+      .def_readwrite("conf_threshold", &YoloSettings::conf_threshold)
+      .def_readwrite("iou_threshold", &YoloSettings::iou_threshold)
+      .def_readwrite("max_detections", &YoloSettings::max_detections)
+      .def("validate", &YoloSettings::validate);
+  py::class_<YoloDetection>(m, "YoloDetection")
+      .def_readonly("class_id", &YoloDetection::class_id)
+      .def_readonly("score", &YoloDetection::score)
+      .def_property_readonly("box", [](const YoloDetection& d) { return box_tuple(d.box); });
+  m.def(
+      "decode_yolo",
+      [](const py::array_t<float, py::array::c_style | py::array::forcecast>& out, const YoloSettings& s) {
+        if (out.ndim() != 3 || out.shape(0) != 1)
+          throw std::invalid_argument("YOLO output must be (1, 4 + nc, N), got " + std::to_string(out.ndim()) +
+                                      " dimensions");
+        const std::vector<float> v(out.data(), out.data() + out.size());
+        return decode_yolo(v, static_cast<int>(out.shape(1)), static_cast<int>(out.shape(2)), s);
+      },
+      py::arg("output"), py::arg("settings") = YoloSettings(),
+      "Decode a YOLOv8/11 output (1, 4 + nc, N) with class-wise NMS: YoloDetections, best score first.");
+  py::class_<YoloDetector>(m, "YoloDetector")
+      .def(py::init<const std::string&, const YoloSettings&>(), py::arg("model_path"),
+           py::arg("settings") = YoloSettings())
+      .def_property_readonly("num_classes", &YoloDetector::num_classes)
+      .def_property_readonly("settings", &YoloDetector::settings)
+      .def(
+          "detect",
+          [](const YoloDetector& d, const py::array_t<std::uint8_t, py::array::c_style | py::array::forcecast>& a) {
+            if (a.ndim() != 2 && !(a.ndim() == 3 && a.shape(2) == 3))
+              throw std::invalid_argument("image must be (H, W) grey or (H, W, 3) BGR 8-bit");
+            const ImageView v{a.data(), static_cast<int>(a.shape(0)), static_cast<int>(a.shape(1)),
+                              a.ndim() == 3 ? 3 : 1, static_cast<std::ptrdiff_t>(a.strides(0))};
+            py::gil_scoped_release nogil;
+            return d.detect(v);
+          },
+          py::arg("image"), "Detections in a grey or BGR image, best score first (boxes in image pixels).");
+}
+
 void pybind_lanbloc(py::module_& m) {
   bind_types(m);
+  bind_yolo(m);
   m.def("marker_centre", [](const MarkerCorners& c) { return marker_centre(c); }, py::arg("corners"),
         "The image of a marker's centre: the intersection of the diagonals of its (4, 2) corners "
         "(TL, TR, BR, BL).");
