@@ -7,6 +7,8 @@ natural landmarks end to end in the core: its detections' boxes ranged by SGBM
 
 from __future__ import annotations
 
+import subprocess
+
 import numpy as np
 import pytest
 
@@ -18,7 +20,9 @@ from safenav import _core  # noqa: E402
 from safenav.vision.detect import FiducialDetector, YoloOnnxDetector, decode_yolo, letterbox  # noqa: E402
 from safenav.vision.lanbloc import LanBLoc  # noqa: E402
 from test_detect import IN, NC, _column, _save_model  # noqa: E402
-from test_lanbloc_cpp import RIG, SCENES, _front_end, _pair, _scene  # noqa: E402
+from test_cpp_example import example_build, installed_prefix  # noqa: E402,F401
+from test_lanbloc_cpp import (RIG, SCENES, _config, _fields, _front_end, _pair, _scene, _write_pgm,  # noqa: E402
+                              example_exe)  # noqa: F401
 
 
 def _model(path, const: np.ndarray, probe_entry: tuple | None, in_size: int = IN):
@@ -125,10 +129,11 @@ def test_model_errors_name_the_path_and_value(tmp_path, tiny_model):
         _core.decode_yolo(np.zeros((1, 4, 3), np.float32))
 
 
-def test_natural_landmarks_in_the_core_give_the_python_pipelines_fix(tmp_path):
+@pytest.fixture()
+def marker_model(tmp_path):
     """A 'model' that finds the markers of a rendered scene (its constant output holds their boxes in
-    letterboxed pixels, one class per landmark): the core's detector and SGBM ranging
-    (``localize_boxes``) give the fix of ``LanBLoc(YoloOnnxDetector, ranging="sgbm")``."""
+    letterboxed pixels, one class per landmark), and the Python pipeline's result with it
+    (``LanBLoc(YoloOnnxDetector, ranging="sgbm")``)."""
     pose, placements = SCENES[0]
     world = _scene(pose, placements)
     left, right = _pair(world, pose)
@@ -145,9 +150,14 @@ def test_natural_landmarks_in_the_core_give_the_python_pipelines_fix(tmp_path):
         cols.append(col)
     model = _model(tmp_path / "markers.onnx", np.stack(cols, axis=1)[None].astype(np.float32), None, size)
     classes = dict(enumerate(ids))
-    yolo = YoloOnnxDetector(model, classes, input_size=size)
-    ref = LanBLoc(world, RIG, yolo, ranging="sgbm").localize(left, right)
+    ref = LanBLoc(world, RIG, YoloOnnxDetector(model, classes, input_size=size), ranging="sgbm").localize(left, right)
     assert ref.status == "ok" and len(ref.observations) == len(ids)
+    return world, left, right, model, classes, size, ref
+
+
+def test_natural_landmarks_in_the_core_give_the_python_pipelines_fix(marker_model):
+    """The core's detector and SGBM ranging (``localize_boxes``) give the Python pipeline's fix."""
+    world, left, right, model, classes, size, ref = marker_model
     core = _core.YoloDetector(str(model), _settings(input_size=size))
     fe = _front_end(world, ranging=_core.LanBLocRanging.SGBM, dictionary="")
     fix = fe.localize_boxes(left, right, [(classes[d.class_id], d.box) for d in core.detect(left)])
@@ -155,3 +165,26 @@ def test_natural_landmarks_in_the_core_give_the_python_pipelines_fix(tmp_path):
     assert [o.landmark_id for o in fix.observations] == [o.landmark_id for o in ref.observations]
     np.testing.assert_allclose([o.range for o in fix.observations], [o.range for o in ref.observations], atol=1e-9)
     np.testing.assert_allclose(fix.position, ref.position, atol=1e-9)
+
+
+def test_the_cpp_example_runs_natural_landmarks(marker_model, example_exe, tmp_path):
+    """``lanbloc_frames`` with ``yolo`` and ``class`` lines: the model's detections, SGBM-ranged in a
+    program that links safenav::core alone, give the Python pipeline's fix."""
+    world, left, right, model, classes, size, ref = marker_model
+    _write_pgm(tmp_path / "left.pgm", left)
+    _write_pgm(tmp_path / "right.pgm", right)
+    extra = f"yolo {model} {size}\n" + "".join(f"class {c} {lid}\n" for c, lid in classes.items() if c != 0)
+    (tmp_path / "rig.txt").write_text(_config(world) + extra)
+    proc = subprocess.run([str(example_exe), str(tmp_path / "rig.txt"), str(tmp_path / "left.pgm"),
+                           str(tmp_path / "right.pgm")], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    lines = proc.stdout.splitlines()
+    assert sum(line.startswith("detection ") for line in lines) == len(classes)
+    obs = [_fields(line) for line in lines if line.startswith("observation ")]
+    # class 0 is not mapped: not a landmark, the other detections are ranged
+    assert [int(o["id"]) for o in obs] == [o.landmark_id for o in ref.observations if o.landmark_id != classes[0]]
+    assert _fields(next(line for line in lines if line.startswith("fix ")))["status"] == "ok"
+    (tmp_path / "bad.txt").write_text(_config(world) + f"yolo {tmp_path / 'missing.onnx'} {size}\n")
+    proc = subprocess.run([str(example_exe), str(tmp_path / "bad.txt"), str(tmp_path / "left.pgm"),
+                           str(tmp_path / "right.pgm")], capture_output=True, text=True)
+    assert proc.returncode == 2 and "YOLO model file not found" in proc.stderr

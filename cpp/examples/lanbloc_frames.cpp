@@ -16,6 +16,9 @@
 //   ranging sgbm                                 # optional: the paper's SGBM box median (default corners)
 //   box ID X0 Y0 X1 Y1                           # optional: boxes of a detector of your own (a YOLO
 //                                                # model): SGBM-ranged, no marker detection
+//   yolo MODEL.onnx INPUT_SIZE                   # optional: natural landmarks found by a YOLO model
+//   class CLASS_ID LANDMARK_ID                   #   (safenav/yolo.hpp), its classes mapped to landmarks,
+//                                                #   SGBM-ranged
 //
 // Prints one line per detected landmark and one line with the fix:
 //   observation id=3 ok=1 range=9.871 sigma=0.0123 bearing=0.2012 reason=""
@@ -23,6 +26,7 @@
 // Exit status: 0 with a fix, 1 without one, 2 on bad input.
 #include <cstdio>
 #include <fstream>
+#include <map>
 #include <iostream>
 #include <optional>
 #include <sstream>
@@ -31,6 +35,7 @@
 #include <vector>
 
 #include "safenav/lanbloc.hpp"
+#include "safenav/yolo.hpp"
 
 namespace {
 
@@ -77,6 +82,9 @@ struct Config {
   std::vector<safenav::LanBLocLandmark> landmarks;
   std::optional<safenav::PosePrediction> prediction;
   std::vector<safenav::LandmarkBox> boxes;  // given: ranged by SGBM (localize_boxes)
+  std::string yolo_model;                   // given: its detections ranged by SGBM
+  safenav::YoloSettings yolo;
+  std::map<int, int> landmark_of_class;
 };
 
 Config read_config(const std::string& path) {
@@ -113,6 +121,13 @@ Config read_config(const std::string& path) {
       safenav::LandmarkBox b;
       ok = static_cast<bool>(ls >> b.landmark_id >> b.box.x_min >> b.box.y_min >> b.box.x_max >> b.box.y_max);
       c.boxes.push_back(b);
+    } else if (key == "yolo") {
+      ok = static_cast<bool>(ls >> c.yolo_model >> c.yolo.input_size);
+      c.settings.dictionary = "";  // no markers: a landmark id is any integer
+    } else if (key == "class") {
+      int cls = 0, id = 0;
+      ok = static_cast<bool>(ls >> cls >> id);
+      c.landmark_of_class[cls] = id;
     } else if (key == "prediction") {
       safenav::PosePrediction p;
       double sxy = 0, sth = 0;
@@ -142,7 +157,18 @@ int main(int argc, char** argv) {
     const safenav::LanBLocFrontEnd front_end(cfg.rig, cfg.landmarks, cfg.settings);
     const safenav::ImageView l{left.pixels.data(), left.height, left.width, 1, left.width};
     const safenav::ImageView r{right.pixels.data(), right.height, right.width, 1, right.width};
-    fix = cfg.boxes.empty() ? front_end.localize(l, r, cfg.prediction) : front_end.localize_boxes(l, r, cfg.boxes);
+    std::vector<safenav::LandmarkBox> boxes = cfg.boxes;
+    if (!cfg.yolo_model.empty()) {
+      const safenav::YoloDetector yolo(cfg.yolo_model, cfg.yolo);
+      for (const safenav::YoloDetection& d : yolo.detect(l)) {
+        std::printf("detection class=%d score=%.4f box=%.3f,%.3f,%.3f,%.3f\n", d.class_id, d.score, d.box.x_min,
+                    d.box.y_min, d.box.x_max, d.box.y_max);
+        const auto it = cfg.landmark_of_class.find(d.class_id);
+        if (it != cfg.landmark_of_class.end()) boxes.push_back({it->second, d.box});  // other classes: not landmarks
+      }
+    }
+    fix = boxes.empty() && cfg.yolo_model.empty() ? front_end.localize(l, r, cfg.prediction)
+                                                  : front_end.localize_boxes(l, r, boxes);
   } catch (const std::exception& e) {  // std::invalid_argument from the core names the bad value
     std::cerr << "error: " << e.what() << "\n";
     return 2;
