@@ -379,6 +379,28 @@ def test_scattered_outliers_never_agree_and_a_fix_through_the_gate_does_not_forg
     assert loc.fix(0.9, 5.0, 0.0, R).status == gd.InputStatus.RESET
 
 
+def test_a_rejected_fix_that_agrees_with_the_position_before_a_reset_undoes_it():
+    """Three fixes 5 m off that agree reset the position (one landmark's outlier repeated over a few
+    frames looks like that where three ranges cannot show it); the next fix, rejected by the reset
+    filter but agreeing with the position it held before, undoes the reset at once.  An undone
+    reset is not undone again, and a fix through the gate confirms a reset: no undo after it."""
+    R = np.eye(2) * 0.01
+    loc = _lost_localizer(3)
+    for i in range(2):
+        assert loc.fix(0.1 * (i + 1), 5.0, 0.0, R).status == gd.InputStatus.REJECTED
+    assert loc.fix(0.3, 5.0, 0.0, R).status == gd.InputStatus.RESET and loc.x[0] == pytest.approx(5.0)
+    assert loc.fix(0.4, 0.05, 0.0, R).status == gd.InputStatus.RESET     # undone: back at (0, 0)
+    assert abs(loc.x[0]) < 1e-9 and loc.counts.resets == 2
+    assert loc.P[0, 0] == pytest.approx(0.01, rel=0.5)                  # the covariance it held, grown
+    assert loc.fix(0.5, 5.0, 0.0, R).status == gd.InputStatus.REJECTED  # not undone again
+    loc = _lost_localizer(3)
+    for i in range(3):
+        loc.fix(0.1 * (i + 1), 5.0, 0.0, R)
+    assert loc.fix(0.4, 5.01, 0.0, R).status == gd.InputStatus.APPLIED  # the reset confirmed
+    assert loc.fix(0.5, 0.05, 0.0, R).status == gd.InputStatus.REJECTED
+    assert loc.counts.resets == 1
+
+
 def test_agreement_counts_the_predicted_motion_between_the_rejected_fixes():
     """Fixes 5 m off that move with the vehicle agree; fixes that stay put
     while the filter predicts 1 m of motion between them do not."""

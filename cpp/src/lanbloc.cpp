@@ -460,9 +460,21 @@ bool LanBLocFrontEnd::Impl::bearings_agree(const LocalizationResult& loc,
 void LanBLocFrontEnd::Impl::solve(LanBLocFix& fix) const {
   // LandmarkRanging.solve: trilateration of the usable ranges [SafeNav §IV-A], the mirror
   // ambiguity settled by the bearings.
+  std::vector<LandmarkSighting*> usable;
+  for (LandmarkSighting& o : fix.observations)
+    if (o.ok) usable.push_back(&o);
+  const std::vector<char> twice = repeated_landmarks(usable, [](const LandmarkSighting* o) { return o->landmark_id; });
   std::vector<const LandmarkSighting*> ok;
-  for (const LandmarkSighting& o : fix.observations)
-    if (o.ok) ok.push_back(&o);
+  for (std::size_t i = 0; i < usable.size(); ++i) {
+    if (!twice[i]) {
+      ok.push_back(usable[i]);
+      continue;
+    }
+    usable[i]->ok = false;  // e.g. another landmark relabelled as this one (a SightingEdit's misassociation)
+    usable[i]->range = usable[i]->sigma = LandmarkSighting::kNaN;
+    usable[i]->reason = "landmark " + std::to_string(usable[i]->landmark_id) +
+                        " seen twice in one frame: neither range is used";
+  }
   if (static_cast<int>(ok.size()) < settings.min_landmarks) {
     fix.status = LanBLocStatus::TooFewRanges;
     std::ostringstream os;

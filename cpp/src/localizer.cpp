@@ -238,6 +238,7 @@ InputResult Localizer::Impl::apply_fix(double t, const Eigen::Vector2d& z, const
   const double gate = -2.0 * std::log1p(-I.settings.filter.gate_probability);  // χ²₂ quantile
   if (r.status != InputStatus::Rejected) {
     rej.in_a_row = 0;
+    rej.has_undo = false;  // the position the last reset gave is confirmed
     if (++rej.passed >= std::max(k, 1)) rej.n = 0;  // the filter agrees with the fixes again
     // A fix through the gate that contradicts a kept rejected one discredits it: rejected fixes
     // that agree with each other but not with the fixes the filter takes (a repeated wrong
@@ -247,17 +248,25 @@ InputResult Localizer::Impl::apply_fix(double t, const Eigen::Vector2d& z, const
     return r;
   }
   const int n = I.settings.reset_after_rejections;
+  // A rejected fix that agrees with the position before the last reset undoes it: the fixes that
+  // reset it agreed with each other but were wrong (one landmark's outlier repeated over a few
+  // frames, where three ranges cannot show it), and the fixes since agree with what the filter
+  // held before.  Until a fix passes the gate, one such fix is evidence enough.
+  const bool undo = rej.has_undo && Rejections::agree(rej.undo, z, R, gate);
   const bool in_a_row = n > 0 && ++rej.in_a_row > n;
   const bool consistent = k > 0 && rej.agrees(z, R, k - 1, gate);
   rej.keep(z, R);
-  if (in_a_row || consistent) {
+  if (undo || in_a_row || consistent) {
     check_covariance(R, "fix R");
+    const Rejections::Kept before{I.filter->x().head<2>(), Eigen::Vector2d::Zero(),
+                                  I.filter->P().topLeftCorner<2, 2>(), Eigen::Matrix2d::Zero()};
     State x = I.filter->x();
-    x.head<2>() = z;
+    x.head<2>() = undo ? Eigen::Vector2d(rej.undo.z + rej.undo.moved) : z;
     StateCov P = I.filter->P();
     P.topRows<2>().setZero();
     P.leftCols<2>().setZero();
-    P.topLeftCorner<2, 2>() = R;
+    P.topLeftCorner<2, 2>() = undo ? Eigen::Matrix2d(rej.undo.R + 0.5 * (rej.undo.grown + rej.undo.grown.transpose()))
+                                   : R;
     // The restart keeps what the motion input still owes (start() clears it)
     // and gives a particle filter fresh draws.
     const double owed_d = I.owed_distance, owed_h = I.owed_heading;
@@ -265,6 +274,8 @@ InputResult Localizer::Impl::apply_fix(double t, const Eigen::Vector2d& z, const
     I.start(I.t_f, x, P, derive_seed(I.settings.filter.seed, static_cast<std::uint64_t>(I.counts.resets)));
     I.owed_distance = owed_d;
     I.owed_heading = owed_h;
+    I.fix_rejections.has_undo = !undo;  // an undone reset is not undone again
+    I.fix_rejections.undo = before;
     r.status = InputStatus::Reset;
   }
   return r;

@@ -82,21 +82,36 @@ struct Rejections {
   int passed = 0;    // fixes in a row that passed the gate since the newest kept one
   int n = 0;         // kept fixes, oldest first
   std::array<Kept, kKeep> kept;
+  /// The position before the last reset (its estimate and P_xy, moved and grown by the
+  /// predictions since), until a fix passes the gate: a rejected fix that agrees with it undoes
+  /// the reset.
+  bool has_undo = false;
+  Kept undo;
 
+  bool watching() const { return n > 0 || has_undo; }
   /// A prediction moved the estimate's position by d and P_xy by dC.
   void predicted(const Eigen::Vector2d& d, const Eigen::Matrix2d& dC) {
     for (int i = 0; i < n; ++i) {
       kept[i].moved += d;
       kept[i].grown += dC;
     }
+    if (has_undo) {
+      undo.moved += d;
+      undo.grown += dC;
+    }
+  }
+  /// Whether (z, R) agrees with `k`: χ² of z − (k.z + its displacement since) on R + k.R + the
+  /// P_xy growth since, within `gate`.
+  static bool agree(const Kept& k, const Eigen::Vector2d& z, const Eigen::Matrix2d& R, double gate) {
+    const Eigen::Vector2d e = z - k.z - k.moved;
+    const Eigen::Matrix2d S = R + k.R + 0.5 * (k.grown + k.grown.transpose());
+    const Eigen::LLT<Eigen::Matrix2d> llt(S);
+    return llt.info() == Eigen::Success && e.dot(llt.solve(e)) <= gate;
   }
   /// Whether (z, R) agrees with kept fix i: χ² of z − (z_i + its predicted
   /// displacement since) on R + R_i + the P_xy growth since, within `gate`.
   bool agrees_with(int i, const Eigen::Vector2d& z, const Eigen::Matrix2d& R, double gate) const {
-    const Eigen::Vector2d e = z - kept[i].z - kept[i].moved;
-    const Eigen::Matrix2d S = R + kept[i].R + 0.5 * (kept[i].grown + kept[i].grown.transpose());
-    const Eigen::LLT<Eigen::Matrix2d> llt(S);
-    return llt.info() == Eigen::Success && e.dot(llt.solve(e)) <= gate;
+    return agree(kept[i], z, R, gate);
   }
   /// Whether (z, R) agrees with each of the newest `k` kept fixes (χ² bound `gate`).
   bool agrees(const Eigen::Vector2d& z, const Eigen::Matrix2d& R, int k, double gate) const {
@@ -212,7 +227,7 @@ struct Localizer::Impl {
   /// (smoother.cpp); without one this is the filter's predict alone.
   void predict(const Control& u, double dt, bool motion = false) {
     // While rejected fixes are kept, their displacement since (reset_after_consistent).
-    const bool watch = fix_rejections.n > 0;
+    const bool watch = fix_rejections.watching();
     Eigen::Vector2d p0;
     Eigen::Matrix2d C0;
     if (watch) {

@@ -62,6 +62,7 @@ bool Trial::range_fix(const State& x, Eigen::Vector2d& z, Eigen::Matrix2d& R) {
     res.outliers += (o.faults & LandmarkFaults::kOutlier) != 0;
     res.misassociated += (o.faults & LandmarkFaults::kMisassociated) != 0;
   }
+  res.ranges_rejected += drop_repeated_landmarks(obs_, [](const auto& o) { return o.row; });
   if (static_cast<int>(obs_.size()) < std::max(3, se_.min_landmarks)) return false;
   const Eigen::Index n = static_cast<Eigen::Index>(obs_.size());
   Anchors anchors(n, 2);

@@ -194,7 +194,7 @@ struct TrialResult {
   int dropped = 0;               ///< missed by a dropout fault
   int outliers = 0;              ///< outlier faults injected
   int misassociated = 0;         ///< misassociation faults injected
-  int ranges_rejected = 0;       ///< ranges rejected by the trilateration's outlier test
+  int ranges_rejected = 0;       ///< ranges rejected by the trilateration's outlier test, or with a landmark seen twice in one frame (drop_repeated_landmarks)
   int faults_through = 0;        ///< faulty ranges that the filter accepted: inside a fix, or alone (camera loop)
   // Guard (guidance.hpp): steps on which it acted.
   int guard_slow = 0;            ///< slowed down

@@ -93,4 +93,35 @@ LocalizationResult triangulate_bearings(const Eigen::Ref<const Anchors>& anchors
                                         const Eigen::Ref<const Eigen::VectorXd>& sigmas,
                                         const LocalizationOptions& options = LocalizationOptions());
 
+/// Which of `ranges` share their landmark (`key(element)`) with another one
+/// (ours): a landmark seen twice in one frame means that at least one of the
+/// two sightings is another landmark's (a wrong match), and nothing in the
+/// frame tells which, so neither may be used.  Two ranges to one anchor also
+/// leave trilateration a mirror ambiguity that its fit cannot see.
+template <class T, class Key>
+std::vector<char> repeated_landmarks(const std::vector<T>& ranges, Key key) {
+  const std::size_t n = ranges.size();
+  std::vector<char> repeated(n, 0);
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t j = i + 1; j < n; ++j)
+      if (key(ranges[i]) == key(ranges[j])) repeated[i] = repeated[j] = 1;
+  return repeated;
+}
+
+/// Removes the repeated_landmarks() of `ranges`, the others in their order;
+/// returns how many were removed.
+template <class T, class Key>
+int drop_repeated_landmarks(std::vector<T>& ranges, Key key) {
+  const std::vector<char> repeated = repeated_landmarks(ranges, key);
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < ranges.size(); ++i) {
+    if (repeated[i]) continue;
+    if (kept != i) ranges[kept] = std::move(ranges[i]);
+    ++kept;
+  }
+  const int removed = static_cast<int>(ranges.size() - kept);
+  ranges.resize(kept);
+  return removed;
+}
+
 }  // namespace safenav
