@@ -138,16 +138,22 @@ def _reference_decode(out, conf, iou):
     return keep
 
 
-def test_decode_matches_brute_force_nms():
-    rng = np.random.default_rng(3)
-    nc, n = 5, 400
+def clustered_output(rng, nc: int, n: int, min_side: float = 20.0) -> np.ndarray:
+    """A YOLO output (1, 4 + nc, n): clusters of jittered boxes (so that NMS has work to do), sides
+    from ``min_side`` to 60 px, scores cubed uniforms."""
     out = np.zeros((1, 4 + nc, n), np.float32)
-    # clusters of jittered boxes so that NMS has work to do
     centres = rng.uniform(50, 590, (12, 2))
     k = rng.integers(0, 12, n)
     out[0, 0:2] = (centres[k] + rng.normal(0, 6, (n, 2))).T
-    out[0, 2:4] = rng.uniform(20, 60, (2, n))
+    out[0, 2:4] = rng.uniform(min_side, 60, (2, n))
     out[0, 4:] = rng.uniform(0, 1, (nc, n)) ** 3
+    return out
+
+
+def test_decode_matches_brute_force_nms():
+    rng = np.random.default_rng(3)
+    nc, n = 5, 400
+    out = clustered_output(rng, nc, n)
     boxes, scores, classes = decode_yolo(out, conf_threshold=0.3, iou_threshold=0.5)
     ref = _reference_decode(out, 0.3, 0.5)
     assert len(ref) > 20 and len(ref) < (out[0, 4:].max(axis=0) > 0.3).sum()  # NMS removed some

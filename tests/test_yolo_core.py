@@ -19,7 +19,7 @@ from onnx import numpy_helper, helper  # noqa: E402
 from safenav import _core  # noqa: E402
 from safenav.vision.detect import FiducialDetector, YoloOnnxDetector, decode_yolo, letterbox  # noqa: E402
 from safenav.vision.lanbloc import LanBLoc  # noqa: E402
-from test_detect import IN, NC, _column, _save_model  # noqa: E402
+from test_detect import IN, NC, _column, _save_model, clustered_output  # noqa: E402
 from test_cpp_example import example_build, installed_prefix  # noqa: E402,F401
 from test_lanbloc_cpp import (RIG, SCENES, _config, _fields, _front_end, _pair, _scene, _write_pgm,  # noqa: E402
                               example_exe)  # noqa: F401
@@ -65,12 +65,7 @@ def _settings(**kw) -> _core.YoloSettings:
 def test_decode_is_pythons_bit_for_bit(seed):
     rng = np.random.default_rng(seed)
     nc, n = int(rng.integers(1, 6)), int(rng.integers(1, 500))
-    out = np.zeros((1, 4 + nc, n), np.float32)
-    centres = rng.uniform(50, 590, (12, 2))
-    k = rng.integers(0, 12, n)
-    out[0, 0:2] = (centres[k] + rng.normal(0, 6, (n, 2))).T
-    out[0, 2:4] = rng.uniform(0, 60, (2, n))
-    out[0, 4:] = rng.uniform(0, 1, (nc, n)) ** 3
+    out = clustered_output(rng, nc, n, min_side=0.0)
     out[0, 4:, rng.integers(0, n, 3)] = 0.5          # ties between classes and columns
     if n > 5:
         out[0, 0, 2], out[0, 4, 4] = np.nan, np.inf    # non-finite columns are dropped
