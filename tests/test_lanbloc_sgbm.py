@@ -22,7 +22,7 @@ from safenav.vision.detect import Detection, Detector, FiducialDetector
 from safenav.vision.lanbloc import LanBLoc
 from test_lanbloc_cpp import RIG, SCENES, _front_end, _pair, _scene, random_frame
 
-SGBM = _core.LanBLocRanging.SGBM
+SGBM = _core.LanBLocRanging.SGBM   # (the front ends below take the rig's max_range_m, as LanBLoc does)
 
 
 class BoxesOnly(Detector):
@@ -59,7 +59,7 @@ def test_the_cores_sgbm_ranging_is_the_python_pipelines_on_the_same_boxes(frames
         lb = LanBLoc(world, RIG, ranging="sgbm", backend="python", row_band=row_band, band_margin_px=margin)
         dets = lb.ranger.known(lb.detector.detect(left))
         assert dets
-        fe = _front_end(world, ranging=SGBM, row_band=row_band, band_margin_px=margin)
+        fe = _front_end(world, ranging=SGBM, max_range_m=RIG.max_range_m, row_band=row_band, band_margin_px=margin)
         fix = fe.localize_boxes(left, right, [(d.landmark_id, d.box) for d in dets])
         disparity = lb.disparity(left, right, [d.box for d in dets])
         py = [lb.observe(d, disparity) for d in dets]
@@ -88,7 +88,7 @@ def test_any_boxes_range_as_the_python_pipeline_ranges_them(frames, data):
         w, h = data.draw(st.floats(1.0, 700.0)), data.draw(st.floats(1.0, 300.0))
         boxes.append((lid, (x0, y0, x0 + w, y0 + h)))
     lb = LanBLoc(world, RIG, ranging="sgbm", backend="python")
-    fix = _front_end(world, ranging=SGBM).localize_boxes(left, right, boxes)
+    fix = _front_end(world, ranging=SGBM, max_range_m=RIG.max_range_m).localize_boxes(left, right, boxes)
     disparity = lb.disparity(left, right, [b for _, b in boxes])
     for c, (lid, b) in zip(fix.observations, boxes):
         _same(c, lb.observe(Detection(lid, "m", b, 1.0), disparity))
@@ -101,7 +101,7 @@ def test_the_cores_own_detection_finds_the_python_pipelines_landmarks_and_fix(k)
     left, right = _pair(world, pose)
     py = LanBLoc(world, RIG, ranging="sgbm", backend="python").localize(left, right)
     core = LanBLoc(world, RIG, ranging="sgbm").localize(left, right)   # auto: the core
-    fe = _front_end(world, ranging=SGBM).localize(left, right)
+    fe = _front_end(world, ranging=SGBM, max_range_m=RIG.max_range_m).localize(left, right)
     assert core.status == str(fe.status) == py.status == "ok"
     assert [o.landmark_id for o in core.observations] == [o.landmark_id for o in py.observations]
     assert [o.range for o in core.observations] == [o.range for o in fe.observations]
@@ -136,7 +136,7 @@ def test_bad_boxes_unmapped_ids_and_no_dictionary_are_named():
     pose, placements = SCENES[0]
     world = _scene(pose, placements)
     left, right = _pair(world, pose)
-    fe = _front_end(world, ranging=SGBM)
+    fe = _front_end(world, ranging=SGBM, max_range_m=RIG.max_range_m)
     for box in [(10.0, 10.0, 10.0, 50.0), (10.0, math.nan, 30.0, 50.0), (10.0, 60.0, 30.0, 50.0)]:
         with pytest.raises(ValueError, match=r"box of landmark 1 \(.*\) must be finite with x_min < x_max"):
             fe.localize_boxes(left, right, [(1, box)])
@@ -145,7 +145,7 @@ def test_bad_boxes_unmapped_ids_and_no_dictionary_are_named():
     with pytest.raises(ValueError, match="right image is 639x480 px but the rig is 640x480 px"):
         fe.localize_boxes(left, right[:, 1:], [(1, (10.0, 10.0, 50.0, 50.0))])
     # no dictionary: boxes only, any integer id; detection is refused, naming why
-    boxes_only = _front_end(world, ranging=SGBM, dictionary="")
+    boxes_only = _front_end(world, ranging=SGBM, max_range_m=RIG.max_range_m, dictionary="")
     world_ids = {lm.id: (*lm.position[:2], lm.height) for lm in world.landmarks}
     big = _core.LanBLocFrontEnd(boxes_only.rig, {k + 5000: v for k, v in world_ids.items()}, boxes_only.settings)
     dets = FiducialDetector(world).detect(left)

@@ -50,6 +50,8 @@ void bind_types(py::module_& m) {
       .value("CORNERS", LanBLocRanging::Corners)
       .value("SGBM", LanBLocRanging::Sgbm)
       .def("__str__", [](LanBLocRanging r) { return std::string(to_string(r)); });
+  m.def("ranging_near_depth", &ranging_near_depth, py::arg("camera"), py::arg("min_range_m"),
+        "The nearest depth SGBM must search to range a landmark min_range_m away anywhere in the image");
   m.def("pipeline_sgbm", &pipeline_sgbm,
         "The pipeline's SGBM parameters (3-way, block 5, ...) with num_disparities = 0 (the search from min_range_m)");
 

@@ -36,6 +36,10 @@ const char* to_string(LanBLocStatus s) {
 
 const char* to_string(LanBLocRanging r) { return r == LanBLocRanging::Sgbm ? "sgbm" : "corners"; }
 
+double ranging_near_depth(const RectifiedCamera& c, double min_range_m) {
+  return min_range_m * std::cos(std::atan2(std::max(c.cx, c.width - 1 - c.cx), c.f));
+}
+
 SgbmParams pipeline_sgbm() {
   SgbmParams p;  // block 5, uniqueness 10, speckle window 100 and range 2: OpenCV's names, our defaults
   p.mode = SgbmParams::Mode::SGBM3Way;
@@ -116,13 +120,9 @@ void LanBLocSettings::validate() const {
 
 LanBLocFrontEnd::Impl::Impl(const LanBLocRig& r, std::vector<LanBLocLandmark> lms, const LanBLocSettings& s)
     : rig(r), settings(s), landmarks(std::move(lms)), matcher(r.camera), sgbm(s.sgbm) {
-  if (sgbm.num_disparities == 0) {
-    // LandmarkRanging's search: from min_range_m at the image's edge (its depth there is
-    // min_range_m·cos of the angle off the axis) to infinity.
-    const RectifiedCamera& c = r.camera;
-    const double near = s.min_range_m * std::cos(std::atan2(std::max(c.cx, c.width - 1 - c.cx), c.f));
-    sgbm = disparity_search(c, near, std::numeric_limits<double>::infinity(), s.sgbm);
-  }
+  if (sgbm.num_disparities == 0)  // LandmarkRanging's search: from min_range_m anywhere in the image to infinity
+    sgbm = disparity_search(r.camera, ranging_near_depth(r.camera, s.min_range_m),
+                            std::numeric_limits<double>::infinity(), s.sgbm);
 }
 
 int LanBLocFrontEnd::Impl::marker_bits() const {

@@ -58,8 +58,14 @@ FrameResult Localizer::observe_frame(double t, const ImageView& left, const Imag
 
 FrameResult Localizer::observe_frame(double t, const StereoPixels& pixels, FrameUpdate how,
                                      const SightingEdit& edit) {
+  return observe_frame(t, pixels, frame_plan(t), how, edit);
+}
+
+FrameResult Localizer::observe_frame(double t, const StereoPixels& pixels, const SearchPlan& plan, FrameUpdate how,
+                                     const SightingEdit& edit) {
+  if (!front_end_) detail::bad("observe_frame: no front end (set_front_end first)");
   FrameResult out;
-  out.plan = frame_plan(t);
+  out.plan = plan;
   out.fix = front_end_->localize(pixels, out.plan, edit);
   const std::size_t n = out.fix.observations.size();
   out.update.status = InputStatus::Ignored;

@@ -140,27 +140,22 @@ bool Trial::first_frame(Eigen::Vector2d& z, Eigen::Matrix2d& R) {
 /// the filter's prediction), then localized and applied by the localizer (observe_frame, gated).
 bool Trial::frame(int step, double t, Eigen::Vector2d& z) {
   Localizer& loc = guidance_.localizer();
-  const std::shared_ptr<const StereoPixels> pixels = (*frames_)(truth_, step, loc.frame_plan(t));
+  const SearchPlan plan = loc.frame_plan(t);
+  const std::shared_ptr<const StereoPixels> pixels = (*frames_)(truth_, step, plan);
   if (!pixels) {
     ++res_.dropouts;
     return false;
   }
-  const FrameResult r = loc.observe_frame(t, *pixels, FrameUpdate::Fix, frame_faults(step));
+  // Without a fix (fewer whole markers than a fix needs) each ranged landmark's range and bearing
+  // still updates the filter through its gate (FixOrLandmarks: Localizer::observe, eq. 10's models);
+  // the front end and the localizer name landmarks by the same ids (check_front_end_ids).
+  const FrameResult r = loc.observe_frame(t, *pixels, plan, FrameUpdate::FixOrLandmarks, frame_faults(step));
   if (!r.fix.ok()) {
     ++res_.dropouts;
-    // Without a fix (fewer whole markers than a fix needs) each ranged landmark's range and bearing
-    // still updates the filter through its gate (Localizer::observe, eq. 10's models); the front end
-    // and the localizer name landmarks by the same ids (check_front_end_ids).
-    for (const LandmarkSighting& o : r.fix.observations) {
-      if (!o.ok) continue;
-      LandmarkObservation obs;
-      obs.id = o.landmark_id;
-      obs.range = o.range;
-      obs.bearing = o.bearing;
-      obs.range_std = o.sigma;
-      obs.bearing_std = o.bearing_sigma;
-      if (!loc.observe(t, obs).applied()) ++res_.rejected;
-      else if (o.faults) ++res_.faults_through;
+    for (std::size_t i = 0; i < r.fix.observations.size(); ++i) {
+      if (!r.fix.observations[i].ok) continue;
+      if (!r.landmarks[i].applied()) ++res_.rejected;
+      else if (r.fix.observations[i].faults) ++res_.faults_through;
     }
     return false;
   }

@@ -85,6 +85,12 @@ const char* to_string(LanBLocRanging ranging);  ///< "corners", "sgbm", as LanBL
 /// covers the depths from min_range_m to infinity (LanBLocSettings::sgbm).
 SgbmParams pipeline_sgbm();
 
+/// The nearest depth SGBM must search to range a landmark min_range_m away
+/// anywhere in the image: the depth of a point at that distance on the
+/// image's farther side edge, min_range_m·cos(atan(max(cx, W − 1 − cx)/f))
+/// (LandmarkRanging's matcher in Python calls this too).
+double ranging_near_depth(const RectifiedCamera& camera, double min_range_m);
+
 /// The front end's settings; the defaults are the Python pipeline's
 /// (LanBLoc(..., ranging="corners") with FiducialDetector's defaults).
 struct LanBLocSettings {

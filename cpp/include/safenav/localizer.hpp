@@ -286,6 +286,11 @@ class Localizer {
   /// sightings before trilateration (LanBLocFrontEnd::localize).
   FrameResult observe_frame(double t, const StereoPixels& pixels, FrameUpdate how = FrameUpdate::Fix,
                             const SightingEdit& edit = SightingEdit());
+  /// The same with the plan given: `plan` must be frame_plan(t) with no input
+  /// given to the localizer since (a camera loop that rendered its regions),
+  /// so that it is not computed twice.
+  FrameResult observe_frame(double t, const StereoPixels& pixels, const SearchPlan& plan, FrameUpdate how,
+                            const SightingEdit& edit = SightingEdit());
 
   /// The estimate predicted to t > time() as a measurement at t would be
   /// predicted to (eq. 11 at the last motion input's rates), on a copy of the

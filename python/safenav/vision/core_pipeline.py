@@ -80,17 +80,19 @@ class CorePipeline:
         t["rectify"] = t1 - t0
         if self.detect_in_core:
             fix = self.front_end.localize(left, right)
-            names = {}
+            given = {}
         else:
             dets = self.ranger.known(self.detector.detect(left))
             t["detect"] = time.perf_counter() - t1
             if not dets:
                 return self.ranger.no_landmarks(t)
             fix = self.front_end.localize_boxes(left, right, [(d.landmark_id, d.box) for d in dets])
-            names = {d.landmark_id: d for d in dets}
+            given = {d.landmark_id: d for d in dets}   # the detector's own, with class names and scores
         t3 = time.perf_counter()
-        t.setdefault("detect", t3 - t1)
-        t["disparity"] = t3 - t1 - t["detect"] if not self.detect_in_core else 0.0
+        if self.detect_in_core:
+            t["detect"], t["disparity"] = t3 - t1, 0.0
+        else:
+            t["disparity"] = t3 - t1 - t["detect"]
         if self.ranger.unknown_landmark == "error" and fix.unmapped:
             raise ValueError(f"detected landmark id {fix.unmapped[0]} is not in the landmark map (known ids: "
                              f"{sorted(self.ranger.landmarks)})")
@@ -98,7 +100,7 @@ class CorePipeline:
             return self.ranger.no_landmarks(t)
         dets, obs = [], []
         for o in fix.observations:
-            d = names.get(o.landmark_id)
+            d = given.get(o.landmark_id)
             if d is None:
                 c = np.asarray(o.corners_left)
                 _, name = self.ranger.landmarks[o.landmark_id]

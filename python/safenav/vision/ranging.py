@@ -127,7 +127,7 @@ def _matcher(camera, min_range_m: float, sgbm: Mapping | None) -> StereoMatcher:
     if isinstance(camera, (RectifiedCamera, StereoCalibration)):
         near = min_range_m
         if isinstance(camera, RectifiedCamera):   # the depth of a landmark at min_range_m on the image's edge
-            near *= math.cos(math.atan2(max(camera.cx, camera.width - 1 - camera.cx), camera.f))
+            near = _core.ranging_near_depth(camera._core(), min_range_m)
         # The search reaches disparity 0 (depth ∞), not f·B/max_range: a landmark beyond the range
         # keeps its true, small disparity and is rejected as too far, instead of being matched at
         # the search's floor to a false depth inside the range.
