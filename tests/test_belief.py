@@ -77,34 +77,66 @@ def reference_covariances(prof, bmm, se, P0, bearing_std=0.0, checker=None):
     return np.array(out)
 
 
+class _TrackedKF(kalman.KalmanFilter):
+    """FilterPy's filter that also keeps T, the product of its updates'
+    I - K H since T was last reset: the map of its mean error over a stage."""
+
+    def update(self, z, R=None, H=None):
+        super().update(z, R=R, H=H)
+        self.T = (np.eye(4) - self.K @ H) @ self.T
+
+
 def reference_mixture(prof, bmm, se, P0, bearing_std=0.0, checker=None):
-    """BeliefSettings.deviation_mixture by its specification: 9 FilterPy filters, one per 3x3
-    Gauss-Hermite node z of N(0, I) (nodes -sqrt(3), 0, sqrt(3), weights 1/6, 2/3, 1/6), each seeing
-    from the nominal pose deviated by (lateral, dtheta) = L z across the leg (to its left) and in
-    heading, L the Cholesky factor of its own covariance of those two at the stage's start; the
-    mixture sum_i w_i P_i per stage."""
+    """BeliefSettings.deviation_mixture by its specification: the error
+    stratified on (lateral, heading) u = J e at the 3x3 Gauss-Hermite nodes z
+    of N(0, I) (nodes -sqrt(3), 0, sqrt(3), weights 1/6, 2/3, 1/6): stratum i
+    has mean m_i = M J^T L^-T z_i and second moment C + m_i m_i^T, C = M - M
+    J^T (J M J^T)^-1 J M, L L^T = J M J^T, M the mixture's second moment.
+    One FilterPy filter per stratum: its x is m_i (predict x = F x, update
+    with z = 0: x = (I - K H) x), its P the filter's; the vehicles of stratum
+    i see from the nominal pose moved by -m_i across the leg and in heading.
+    N_i = second moment - P_i moves as T F N_i F^T T^T (T = prod (I - K H) of
+    FilterPy's gains).  The strata are stratified anew before a stage when
+    at the previous one all saw the same landmarks and their P agreed within
+    1 % (Frobenius).  The mixture per stage: sum_i w_i (P_i + N_i)."""
     nodes, weights = np.array([-np.sqrt(3.0), 0.0, np.sqrt(3.0)]), np.array([1, 4, 1]) / 6.0
-    kfs = []
+    w = np.outer(weights, weights).ravel()
+    z = np.array([[a, b] for a in nodes for b in nodes])
+    kfs, N = [], [np.zeros((4, 4)) for _ in range(9)]
     for _ in range(9):
-        kf = kalman.KalmanFilter(dim_x=4, dim_z=1)
+        kf = _TrackedKF(dim_x=4, dim_z=1)
         kf.x, kf.P = np.zeros((4, 1)), P0.copy()
         kfs.append(kf)
-    w = np.outer(weights, weights).ravel()
-    out = [P0.copy()]
+    out, merged = [P0.copy()], True
     for k in range(1, len(prof.time)):
+        h = prof.headings[k]
+        J = np.array([[-np.sin(h), np.cos(h), 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]])  # lateral, heading
+        if merged:
+            M = sum(wi * (kf.P + Ni) for wi, kf, Ni in zip(w, kfs, N))
+            M = 0.5 * (M + M.T)
+            G = M @ J.T
+            L = np.linalg.cholesky(J @ G)
+            C = M - G @ np.linalg.solve(J @ G, G.T)
+            for i, kf in enumerate(kfs):
+                kf.x = (G @ np.linalg.solve(L.T, z[i])).reshape(4, 1)
+                N[i] = C - kf.P + kf.x @ kf.x.T
+        seen = []
         for i, kf in enumerate(kfs):
-            h = prof.headings[k]
-            J = np.array([[-np.sin(h), np.cos(h), 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]])  # lateral, heading
-            lat, dth = np.linalg.cholesky(J @ kf.P @ J.T) @ np.array([nodes[i // 3], nodes[i % 3]])
-            _reference_stage(kf, prof, k, prof.positions[k] + lat * J[0, :2], bmm, se, bearing_std, checker,
-                             dtheta=dth)
-        out.append(sum(wi * kf.P for wi, kf in zip(w, kfs)))
+            lat, dth = -(J @ kf.x).ravel()
+            kf.T = np.eye(4)
+            seen.append(_reference_stage(kf, prof, k, prof.positions[k] + lat * J[0, :2], bmm, se, bearing_std,
+                                         checker, dtheta=dth))
+            N[i] = kf.T @ kf.F @ N[i] @ kf.F.T @ kf.T.T
+        out.append(sum(wi * (kf.P + Ni) for wi, kf, Ni in zip(w, kfs, N)))
+        merged = all(s == seen[0] for s in seen) and all(
+            np.linalg.norm(kf.P - kfs[0].P) <= 1e-2 * np.linalg.norm(kfs[0].P) for kf in kfs)
     return np.array(out)
 
 
 def _reference_stage(kf, prof, k, p, bmm, se, bearing_std, checker, dtheta=0.0):
     """Stage k of the recursion: predict along the nominal, then the ML updates of what is in view
-    from p, with the camera turned by dtheta from the leg's heading."""
+    from p, with the camera turned by dtheta from the leg's heading.  Returns which updates it took:
+    (a fix, ranges, the landmarks ranged or beared)."""
     sig2 = np.array([bmm.position_noise, bmm.position_noise, bmm.speed_noise, bmm.heading_noise]) ** 2
     R_fix = se.position.reported_cov()
     lms = np.asarray(se.landmarks)
@@ -132,6 +164,9 @@ def _reference_stage(kf, prof, k, p, bmm, se, bearing_std, checker, dtheta=0.0):
     if se.imu:
         kf.update(np.zeros((2, 1)), R=np.diag([se.imu_speed_std ** 2, se.imu_heading_std ** 2]) / n,
                   H=np.array([[0.0, 0, 1, 0], [0, 0, 0, 1]]))
+    range_fix = ranges and len(seen) >= max(3, se.min_landmarks)
+    fix = not ranges and len(seen) >= se.min_landmarks
+    return fix, range_fix, tuple(seen) if range_fix or bearing_std > 0 else ()
 
 
 def _visible(se, landmark, p, theta, checker):
@@ -203,7 +238,8 @@ def test_deviation_mixture_is_the_recursion_when_every_component_sees_alike():
     kw = dict(sensors=se, map=open_map(upper=(100, 100)), start_cov=np.diag([0.3, 0.1, 0.003, 0.001]),
               speed=SPEED)
     np.testing.assert_allclose(profile_cov(P.propagate_belief(path, **kw)),
-                               profile_cov(P.propagate_belief(path, **kw, deviation_mixture=False)), rtol=1e-13)
+                               profile_cov(P.propagate_belief(path, **kw, deviation_mixture=False)), rtol=1e-13,
+                               atol=1e-30)
 
 
 @settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -401,7 +437,11 @@ def test_the_expected_belief_sees_with_the_vehicles_camera_and_the_robust_one_na
 def test_the_robust_belief_is_never_below_the_expected_one():
     """The robust camera sees a subset of the vehicle's landmarks at every
     stage; the covariance recursion is monotone, so P_robust ⪰ P_expected
-    stage by stage (smallest eigenvalue of the difference ≥ 0)."""
+    stage by stage (smallest eigenvalue of the difference ≥ 0), up to 10⁻⁶ of
+    the stage's scale: the expected belief is the mixture of its strata's
+    errors (deviation_mixture), and a stratum's update can raise its error a
+    little where its filter trusts a fix more than its own, smaller error
+    warrants (parts in 10⁸ here, during transitions)."""
     from safenav.belief import robust_sight
 
     rng = np.random.default_rng(11)
@@ -412,8 +452,10 @@ def test_the_robust_belief_is_never_below_the_expected_one():
     narrow = P.propagate_belief(path, sensors=se, map=m, speed=SPEED, **robust_sight())
     assert (np.asarray(narrow.landmarks) <= np.asarray(own.landmarks)).all()
     assert (np.asarray(narrow.landmarks) < np.asarray(own.landmarks)).any()
-    d = np.asarray(narrow.covariance).reshape(-1, 4, 4) - np.asarray(own.covariance).reshape(-1, 4, 4)
-    assert np.linalg.eigvalsh(0.5 * (d + d.transpose(0, 2, 1))).min() >= -1e-12
+    expected = np.asarray(own.covariance).reshape(-1, 4, 4)
+    d = np.asarray(narrow.covariance).reshape(-1, 4, 4) - expected
+    scale = np.linalg.eigvalsh(expected).max(axis=1)
+    assert (np.linalg.eigvalsh(0.5 * (d + d.transpose(0, 2, 1))).min(axis=1) >= -1e-6 * scale).all()
     assert (np.asarray(narrow.sigma) >= np.asarray(own.sigma) - 1e-12).all()
 
 

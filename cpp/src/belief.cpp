@@ -131,52 +131,110 @@ void collision_probability(belief::Model& model, std::vector<belief::Step>& step
   out.union_bound = std::min(1.0, sum);
 }
 
-/// The Cholesky factor L (lower, L Lᵀ = S) of a 2×2 covariance: unique and continuous in S, so a
-/// component's deviation L z moves smoothly from stage to stage (an eigenvector's sign or order
-/// could flip it to another node's side).  S not positive definite: L from its diagonal, clipped at 0.
-Eigen::Matrix2d cholesky_2x2(const Eigen::Matrix2d& S) {
-  const Eigen::LLT<Eigen::Matrix2d> llt(0.5 * (S + S.transpose()));
-  if (llt.info() == Eigen::Success) return llt.matrixL();
-  return S.diagonal().cwiseMax(0.0).cwiseSqrt().asDiagonal();
+/// The strata of deviation_mixture (below) anew from the mixture's error
+/// covariance M = Σ w_i (P_i + N_i): stratum i's mean error m_i and its N_i
+/// (its error's second moment less its filter covariance P_i, which stays).
+void stratify(const Eigen::Matrix<double, 2, 4>& H, const double (&node)[3], const double (&weight)[3],
+              const std::vector<StateCov>& Pi, std::vector<StateCov>& N, std::vector<Eigen::Vector4d>& m) {
+  StateCov M = StateCov::Zero();
+  for (std::size_t i = 0; i < Pi.size(); ++i) M += weight[i / 3] * weight[i % 3] * (Pi[i] + N[i]);
+  M = 0.5 * (M + M.transpose());
+  const Eigen::Matrix<double, 4, 2> G = M * H.transpose();
+  const Eigen::Matrix2d S = H * G;
+  const Eigen::LLT<Eigen::Matrix2d> llt(S);
+  const bool ok = llt.info() == Eigen::Success && S.determinant() > 1e-12 * S.trace() * S.trace();
+  // The error given u: mean G S⁻¹ L z_i = G L⁻ᵀ z_i, covariance M − G S⁻¹ Gᵀ.
+  const StateCov C = ok ? StateCov(M - G * llt.solve(G.transpose())) : M;
+  for (std::size_t i = 0; i < Pi.size(); ++i) {
+    const Eigen::Vector2d z(node[i / 3], node[i % 3]);
+    m[i] = ok ? Eigen::Vector4d(G * llt.matrixU().solve(z)) : Eigen::Vector4d::Zero();
+    N[i] = C - Pi[i] + m[i] * m[i].transpose();
+  }
 }
 
-/// BeliefSettings::deviation_mixture: 9 components, one per 3×3
-/// Gauss–Hermite node z_i of N(0, I₂) (per axis −√3, 0, √3 with weights 1/6,
-/// 2/3, 1/6).  A vehicle at a given arc position along the path deviates from
-/// it across the path and in heading (along the path it is, by definition,
-/// at that arc position): component i's deviation (lateral, Δθ) = L_i z_i,
-/// L_i the Cholesky factor of the covariance of its own error across the leg
-/// (n = the leg's left normal: nᵀ P_xy n) and in heading at the step's start
-/// (a deviation that persists while it is blind, and shrinks once it sees).
-/// It takes the updates of what is in view from there.  P[k] and P⁻ are the
-/// mixture's (Σ w_i P_i); A[k−1] = P[k] (P⁻)⁻¹ F as in the single recursion
-/// (P[k] ⪯ P⁻ holds for each component, so for the mixture, and Cov w_k ⪰ 0).
+/// Whether the strata are one Gaussian again: every one took the same
+/// updates (landmarks in view, fix) and their filter covariances agree to
+/// within 1 % of their norm (Frobenius).  Mid-transition, when some have
+/// seen a landmark and some not, the mixture is far from Gaussian, and
+/// stratifying it anew would move the late strata's error toward the rest.
+bool same_updates(const std::vector<belief::Step>& seen, const std::vector<StateCov>& Pi) {
+  constexpr double tol = 1e-2;
+  for (std::size_t i = 1; i < seen.size(); ++i) {
+    if (seen[i].seen != seen[0].seen || seen[i].fix != seen[0].fix || seen[i].ranges != seen[0].ranges) return false;
+    if ((Pi[i] - Pi[0]).norm() > tol * Pi[0].norm()) return false;
+  }
+  return true;
+}
+
+/// A, scaled down where needed so that A P_prev Aᵀ ⪯ P_next: Patil's
+/// recursion needs Cov w = P_next − A P_prev Aᵀ ⪰ 0.  A stratum's update
+/// can raise its error (its filter trusts a fix more than its own, smaller
+/// error warrants), so the mixture's update need not shrink it in every
+/// direction.  The scale keeps the marginals and lowers the correlation of
+/// the errors between stages only, which moves the path's collision
+/// probability toward the union bound, never below the exact recursion's.
+Eigen::Matrix4d within_marginals(const Eigen::Matrix4d& A, const StateCov& P_prev, const StateCov& P_next) {
+  const StateCov X = A * P_prev * A.transpose();
+  const Eigen::GeneralizedSelfAdjointEigenSolver<StateCov> ges(0.5 * (X + X.transpose()), P_next,
+                                                               Eigen::EigenvaluesOnly);
+  if (ges.info() != Eigen::Success) return Eigen::Matrix4d::Zero();
+  const double lambda = ges.eigenvalues().maxCoeff();
+  return lambda > 1.0 ? Eigen::Matrix4d(A / std::sqrt(lambda * (1.0 + 1e-12))) : A;
+}
+
+/// BeliefSettings::deviation_mixture: the vehicle's error, stratified on its
+/// part across the leg and in heading, u = H e (H's rows: the leg's left
+/// normal n and the heading), at the 3×3 Gauss–Hermite nodes z_i of N(0, I₂)
+/// (per axis −√3, 0, √3 with weights 1/6, 2/3, 1/6).  Stratum i is the
+/// error given u = L z_i (L Lᵀ = H M Hᵀ, M the error's covariance): mean
+/// m_i = M Hᵀ L⁻ᵀ z_i and covariance M − M Hᵀ (H M Hᵀ)⁻¹ H M.  The vehicle
+/// drives its estimate along the path, so stratum i's vehicles are off it by
+/// −m_i: they see from the nominal pose moved by −n·m_i across the leg and
+/// turned by −m_i,θ, and their filter takes the updates of what is in view
+/// from there.  Each stratum's filter covariance P_i follows the filter's
+/// recursion; its error's second moment is P_i + N_i, where N_i, the part
+/// the stratum's selection adds, moves with the filter's error dynamics:
+/// N_i ← T_i F N_i Fᵀ T_iᵀ, m_i ← T_i F m_i, T_i = P_i (P_i⁻)⁻¹ = I − K_i H_i
+/// (the optimal gain's).  So the strata that see a landmark late are the
+/// ones whose error lies on that side, and the reported covariance
+/// Σ w_i (P_i + N_i) keeps their larger error until they see it.  While the
+/// strata are one Gaussian (same_updates), they are stratified anew from its
+/// covariance each step, so the deviation follows the current error.
+/// A[k−1] = M[k] (M⁻)⁻¹ F as in the single recursion, M⁻ the mixture's prior,
+/// within_marginals.
 void mixture_recursion(const belief::Model& model, const std::vector<belief::Step>& steps, std::vector<StateCov>& P,
                        std::vector<Eigen::Matrix4d>& A) {
-  constexpr int kNodes = 9;
+  constexpr std::size_t kNodes = 9;
   const double node[3] = {-std::sqrt(3.0), 0.0, std::sqrt(3.0)};
   const double weight[3] = {1.0 / 6.0, 2.0 / 3.0, 1.0 / 6.0};
-  std::vector<StateCov> Pi(kNodes, P[0]);
+  std::vector<StateCov> Pi(kNodes, P[0]), N(kNodes, StateCov::Zero());
+  std::vector<Eigen::Vector4d> m(kNodes, Eigen::Vector4d::Zero());
+  std::vector<belief::Step> seen(kNodes);
+  bool merged = true;
   for (std::size_t k = 1; k < steps.size(); ++k) {
     const double h = steps[k].x[kTheta];
-    const Eigen::Vector4d n(-std::sin(h), std::cos(h), 0.0, 0.0), t(0.0, 0.0, 0.0, 1.0);
+    Eigen::Matrix<double, 2, 4> H;  // across the leg (its left normal) and heading
+    H << -std::sin(h), std::cos(h), 0.0, 0.0, 0.0, 0.0, 0.0, 1.0;
+    if (merged) stratify(H, node, weight, Pi, N, m);
     StateCov mix = StateCov::Zero(), mix_m = StateCov::Zero();
     Eigen::Matrix4d F;
-    for (int i = 0; i < kNodes; ++i) {
+    for (std::size_t i = 0; i < kNodes; ++i) {
       const double w = weight[i / 3] * weight[i % 3];
-      Eigen::Matrix2d S;
-      S << n.dot(Pi[i] * n), n.dot(Pi[i] * t), t.dot(Pi[i] * n), t.dot(Pi[i] * t);
-      const Eigen::Vector2d d = cholesky_2x2(S) * Eigen::Vector2d(node[i / 3], node[i % 3]);
+      const Eigen::Vector2d d = -(H * m[i]);  // the vehicle is off the path by minus its error
+      seen[i] = d.squaredNorm() > 0.0 ? model.offset(steps[k], d.x(), d.y()) : steps[k];
       StateCov Pm;
-      if (d.squaredNorm() > 0.0)
-        model.step(model.offset(steps[k], d.x(), d.y()), Pi[i], &Pm, &F);
-      else
-        model.step(steps[k], Pi[i], &Pm, &F);
-      mix += w * Pi[i];
-      mix_m += w * Pm;
+      model.step(seen[i], Pi[i], &Pm, &F);
+      const Eigen::Matrix4d T = Pm.ldlt().solve(Pi[i].transpose()).transpose();  // P_i (P_i⁻)⁻¹ = I − K_i H_i
+      N[i] = F * N[i] * F.transpose();
+      mix_m += w * (Pm + N[i]);
+      N[i] = T * N[i] * T.transpose();
+      N[i] = 0.5 * (N[i] + N[i].transpose());
+      m[i] = T * (F * m[i]);
+      mix += w * (Pi[i] + N[i]);
     }
     P[k] = 0.5 * (mix + mix.transpose());
-    A[k - 1] = mix_m.ldlt().solve(P[k].transpose()).transpose() * F;
+    A[k - 1] = within_marginals(mix_m.ldlt().solve(P[k].transpose()).transpose() * F, P[k - 1], P[k]);
+    merged = same_updates(seen, Pi);
   }
 }
 

@@ -121,8 +121,8 @@ def propagate_belief(path, *, sensors, map, bmm=None, start_cov=None, settings: 
     and ``sight_range_fraction`` (default 0 and 1: the vehicle's own camera,
     the expected belief; :func:`robust_sight` gives the planner's and the
     certificate's narrower one), ``deviation_mixture`` (default on: the
-    expected belief over the vehicle's deviation from the path, a mixture of
-    9 Gauss–Hermite components; ``BeliefSettings.deviation_mixture``)."""
+    expected belief over the vehicle's deviation from the path, its error
+    stratified at 9 Gauss–Hermite nodes; ``BeliefSettings.deviation_mixture``)."""
     p = as_array("path", path, (None, 2))
     bmm = bmm if bmm is not None else _core.BmmParams()
     s = _belief_settings(kwargs, settings)

@@ -73,18 +73,19 @@ struct BeliefSettings {
   /// The expected belief over the vehicle's deviation from the nominal path
   /// (ours): the vehicle drives its estimate along the path, so at a given
   /// arc position its true position is off the path, and its heading off the
-  /// leg's, by about its own error, and a landmark comes into view (or leaves
+  /// leg's, by minus its own error, and a landmark comes into view (or leaves
   /// it) a little earlier or later than from the nominal pose.  With this on,
-  /// the covariance is a mixture of 9 components, one per 3×3 Gauss–Hermite
-  /// node z_i (weights 1/36, 4/36, 16/36): component i sees from the nominal
-  /// pose deviated by L_i z_i across the leg and in heading, L_i the Cholesky
-  /// factor of its own covariance of those two, and steps with what it sees;
-  /// each stage reports the mixture's covariance Σ w_i P_i.  Off, a
-  /// transition is a step at the nominal pose, and the first fix after a
-  /// blind stretch lowers σ before half the vehicles get it
-  /// (docs/belief_planning.md, "Calibration").  On by default (the expected
-  /// belief); the planner's and the certificate's robust camera turn it off:
-  /// it is narrowed for the deviations already.
+  /// the error is stratified on its lateral and heading parts at the 3×3
+  /// Gauss–Hermite nodes (weights 1/36, 4/36, 16/36): each stratum sees from
+  /// the nominal pose moved by minus its mean error, takes the filter's
+  /// updates of what it sees, and carries its actual error's second moment,
+  /// so the strata that see late keep their larger error until they see;
+  /// each stage reports the mixture's second moment (docs/belief_planning.md,
+  /// "The model" and "Calibration").  Off, a transition is a step at the
+  /// nominal pose, and the first fix after a blind stretch lowers σ before
+  /// half the vehicles get it.  On by default (the expected belief); the
+  /// planner's and the certificate's robust camera turn it off: it is
+  /// narrowed for the deviations already.
   bool deviation_mixture = true;
   Inflation inflation;       ///< vehicle radius (collision) and margin (kept beyond it by the planner)
   void validate() const;     ///< throws std::invalid_argument naming the bad value
