@@ -13,6 +13,7 @@ import pytest
 
 from safenav.navigation import LandmarkFaults
 from safenav.vision.lanbloc import MISASSOCIATED, OUTLIER, CameraLoopSource, LanBLoc
+from safenav.vision.sighting import REPEATED
 from safenav.vision.render import StereoRenderer, StereoRig
 from safenav.world import Landmark, World
 
@@ -98,38 +99,52 @@ def test_every_fault_reaches_the_camera_loop_at_its_rate():
     assert within(fs["dropped"], fs["observations"], p_drop)
     assert within(fs["misassociated"], kept, p_mis)
     assert within(fs["outliers"], kept, p_out)
-    # the per-frame records add up to the counts
+    # the per-frame records add up to the counts; a range whose landmark another range of its
+    # frame names too (a misassociation to a landmark in view) is not used, and counts as rejected
     assert sum(r.dropped for r in results) == fs["dropped"]
-    assert sum(r.n_ranges for r in results) == kept
-    assert sum(len(r.rejected) for r in results) == fs["ranges_rejected"] > 0
+    repeated = sum(len(r.repeated) for r in results)
+    assert sum(r.n_ranges for r in results) == kept - repeated and repeated > 0
+    assert sum(len(r.rejected) for r in results) + repeated == fs["ranges_rejected"]
     assert sum(len(r.faults_in_fix) for r in results) == fs["faults_in_fix"]
 
 
 def test_a_misassociation_uses_the_wrong_landmarks_position_and_an_outlier_moves_the_range(clean):
     both = _frames(CameraLoopSource(WORLD, seed=7, faults=LandmarkFaults(
-        misassociation_probability=1.0, outlier_probability=1.0, outlier_magnitude=2.5)), 3)
-    for c, m in zip(clean, both):
+        misassociation_probability=1.0, outlier_probability=1.0, outlier_magnitude=2.5)), 8)
+    unique = 0
+    for c, m in zip(clean + _frames(CameraLoopSource(WORLD, seed=7), 5, start=3), both):
         ranges = {ob.landmark_id: ob.range for ob in c.observations}
         assert len(m.observations) == 5
+        names = [ob.landmark_id for ob in m.observations]
         for ob in m.observations:
             assert ob.faults == MISASSOCIATED | OUTLIER and ob.true_landmark_id in IN_VIEW
             # another landmark near the vehicle (never the far one): its id, class and map position
             assert ob.landmark_id in IN_VIEW - {ob.true_landmark_id}
             assert ob.class_name == f"class{ob.landmark_id}"
             np.testing.assert_array_equal(ob.anchor[:2], MAP[ob.landmark_id])
+            if names.count(ob.landmark_id) > 1:
+                # two ranges name one landmark: neither is used (the core front end's rule)
+                assert not ob.ok and math.isnan(ob.range) and ob.reason.endswith(REPEATED), ob
+                assert ob in m.repeated
+                continue
+            unique += 1
             # the range is still to the landmark seen, off by the outlier magnitude
             assert abs(ob.range - ranges[ob.true_landmark_id]) == pytest.approx(2.5, abs=1e-12)
-        # the filter-facing measurements carry the corrupted observations
+        # the filter-facing measurements carry the corrupted observations that were used
         ids, anchors, _, _ = m.range_measurements()
-        np.testing.assert_array_equal(anchors, [MAP[i] for i in ids])
+        assert sorted(ids) == sorted(i for i in names if names.count(i) == 1)
+        np.testing.assert_array_equal(anchors.reshape(-1, 2), np.array([MAP[i] for i in ids]).reshape(-1, 2))
+    assert unique > 0
 
 
 @pytest.mark.parametrize("faults, flag", [(LandmarkFaults(outlier_probability=0.2, outlier_magnitude=5.0), OUTLIER),
                                           (LandmarkFaults(misassociation_probability=0.2), MISASSOCIATED)])
 def test_a_single_faulty_range_among_five_is_rejected_by_the_outlier_test(faults, flag):
     """Frames with exactly one faulty range of five: trilateration's outlier
-    consensus rejects it and the fix stays within a metre (clean fixes here
-    are 0.1-0.3 m off)."""
+    consensus rejects an outlier, and the fix stays within a metre (clean
+    fixes here are 0.1-0.3 m off).  A misassociation names another landmark
+    in view, which a clean range names too: neither is used, and the fix
+    comes from the other three."""
     src = CameraLoopSource(WORLD, seed=3, faults=faults)
     seen = 0
     for k in range(12):
@@ -138,12 +153,16 @@ def test_a_single_faulty_range_among_five_is_rejected_by_the_outlier_test(faults
         z = src(STATE, k)
         res = src.last
         bad = [o for o in res.observations if o.faults]
-        if res.n_ranges != 5 or len(bad) != 1:
+        if res.n_ranges + len(res.repeated) != 5 or len(bad) != 1:
             continue
         seen += 1
         assert bad[0].faults == flag
         assert res.ok and z is not None, res.reason
-        assert [o.landmark_id for o in res.rejected] == [bad[0].landmark_id]
+        if flag == OUTLIER:
+            assert [o.landmark_id for o in res.rejected] == [bad[0].landmark_id]
+        else:
+            assert res.rejected == () and res.n_ranges == 3
+            assert [o.landmark_id for o in res.repeated] == [bad[0].landmark_id] * 2
         assert res.faults_in_fix == ()
         assert np.linalg.norm(z[0] - STATE[:2]) < 1.0
     assert seen >= 2

@@ -40,4 +40,13 @@ void pybind_trilateration(py::module_& m) {
         py::arg("options") = LocalizationOptions(), release_gil());
   m.def("triangulate_bearings", &triangulate_bearings, py::arg("anchors"), py::arg("bearings"), py::arg("sigmas"),
         py::arg("options") = LocalizationOptions(), release_gil());
+  m.def(
+      "repeated_landmarks",
+      [](const std::vector<long long>& ids) {
+        const std::vector<char> twice = repeated_landmarks(ids, [](long long id) { return id; });
+        return std::vector<bool>(twice.begin(), twice.end());
+      },
+      py::arg("landmark_ids"),
+      "Per range, whether its landmark id is another range's too (a landmark seen twice in one frame: "
+      "neither range may be used; safenav::repeated_landmarks).");
 }

@@ -351,7 +351,8 @@ class CameraLoopSource:
     FAULT_STREAM), step)``.  :attr:`fault_stats` counts, over all frames, the
     ranged ``observations`` (before faults), the ``dropped``, ``outliers`` and
     ``misassociated`` ones, the ``ranges_rejected`` by the trilateration's
-    outlier test in the fixes, and the faulty ranges that fixes used
+    outlier test in the fixes or left unused because another range of the
+    frame named their landmark too, and the faulty ranges that fixes used
     (``faults_in_fix``); the last fix's are ``last.faults_in_fix``.
     """
 
@@ -445,11 +446,11 @@ class CameraLoopSource:
         self.stats["calls"] += 1
         self.stats[res.status] = self.stats.get(res.status, 0) + 1
         fs = self.fault_stats
-        fs["observations"] += res.n_ranges + res.dropped
+        fs["observations"] += res.n_ranges + len(res.repeated) + res.dropped
         fs["dropped"] += res.dropped
         fs["outliers"] += sum(bool(o.faults & OUTLIER) for o in res.observations)
         fs["misassociated"] += sum(bool(o.faults & MISASSOCIATED) for o in res.observations)
-        fs["ranges_rejected"] += len(res.rejected)
+        fs["ranges_rejected"] += len(res.rejected) + len(res.repeated)
         fs["faults_in_fix"] += len(res.faults_in_fix)
         if not res.ok:
             return None

@@ -36,7 +36,7 @@ from ..world import Landmark, World
 from .detect import Detection, Detector
 from .localization import LocalizationResult, horizontal_range, trilaterate
 from .rig import StereoRig, camera_rotation
-from .sighting import STATUSES, LandmarkSighting, LanBLocResult
+from .sighting import REPEATED, STATUSES, LandmarkSighting, LanBLocResult
 from .stereo import RectifiedCamera, StereoCalibration, StereoMatcher
 
 __all__ = ["LandmarkRanging", "PIPELINE_SGBM", "check_ranging", "check_faults", "check_finite"]
@@ -357,6 +357,22 @@ class LandmarkRanging:
             out.append(dataclasses.replace(o, **changes))
         return tuple(out), dropped
 
+    @staticmethod
+    def drop_repeated(obs: Sequence[LandmarkSighting]) -> tuple[LandmarkSighting, ...]:
+        """The sightings with every usable range whose landmark another usable
+        range names too marked unusable (``_core.repeated_landmarks``, the
+        core front end's rule): one of the two is a wrong match, and nothing
+        in the frame says which."""
+        ok = [i for i, o in enumerate(obs) if o.ok]
+        twice = _core.repeated_landmarks([obs[i].landmark_id for i in ok])
+        out = list(obs)
+        for i, rep in zip(ok, twice):
+            if rep:
+                out[i] = dataclasses.replace(
+                    obs[i], ok=False, range=math.nan, sigma=math.nan,
+                    reason=f"landmark {obs[i].landmark_id} {REPEATED}")
+        return tuple(out)
+
     def bearings_agree(self, loc: LocalizationResult, obs: Sequence[LandmarkSighting]) -> bool:
         """Whether the bearings fit the fix ``loc`` with one common heading (χ² test, 99.9 %).
 
@@ -420,6 +436,7 @@ class LandmarkRanging:
         """Steps after ranging: landmark faults, trilateration, the mirror ambiguity, the result."""
         nan2, nan22 = np.full(2, np.nan), np.full((2, 2), np.nan)
         obs, dropped = self.apply_faults(obs, faults, position, seed)
+        obs = self.drop_repeated(obs)
         t4 = time.perf_counter()
         t["range"] = t4 - t3
         ok = [o for o in obs if o.ok]

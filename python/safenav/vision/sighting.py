@@ -17,7 +17,7 @@ import numpy as np
 from .detect import Detection
 from .localization import LocalizationResult
 
-__all__ = ["LandmarkSighting", "LanBLocResult", "STATUSES", "MISASSOCIATED", "OUTLIER"]
+__all__ = ["LandmarkSighting", "LanBLocResult", "STATUSES", "MISASSOCIATED", "OUTLIER", "REPEATED"]
 
 #: Result statuses, in the order the pipeline can stop.
 STATUSES = ("ok", "no_landmarks", "too_few_ranges", "degenerate", "did_not_converge")
@@ -25,6 +25,8 @@ STATUSES = ("ok", "no_landmarks", "too_few_ranges", "degenerate", "did_not_conve
 #: Landmark fault flags of :attr:`LandmarkSighting.faults` (the core's ``LandmarkFaults`` flags).
 MISASSOCIATED = 2
 OUTLIER = 4
+#: the reason's end for a range whose landmark another range of its frame names too (the core's words)
+REPEATED = "seen twice in one frame: neither range is used"
 
 
 @dataclass(frozen=True)
@@ -72,6 +74,12 @@ class LanBLocResult:
     @property
     def n_ranges(self) -> int:
         return sum(o.ok for o in self.observations)
+
+    @property
+    def repeated(self) -> tuple[LandmarkSighting, ...]:
+        """The ranges left unused because another range of the frame names
+        their landmark too (``LandmarkRanging.drop_repeated``)."""
+        return tuple(o for o in self.observations if not o.ok and o.reason.endswith(REPEATED))
 
     @property
     def rejected(self) -> tuple[LandmarkSighting, ...]:
