@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import optimize, stats
 
 from safenav.vision.localization import horizontal_range, triangulate_bearings, trilaterate
@@ -294,3 +296,13 @@ def test_horizontal_range_feeds_2d_trilateration_of_3d_landmarks():
     assert horizontal_range(1.0, 3.0, 1.0) == 0.0  # noisy slant shorter than the height difference
     with pytest.raises(ValueError, match="slant_range"):
         horizontal_range(np.nan, 1.0)
+
+
+@settings(max_examples=200, deadline=None)
+@given(ids=st.lists(st.integers(-3, 6), max_size=9))
+def test_repeated_landmarks_marks_every_range_whose_id_another_one_has(ids):
+    """The core's rule for a landmark seen twice in one frame (both pipelines
+    call it): brute force over the ids, the empty frame and one id included."""
+    from safenav import _core
+
+    assert _core.repeated_landmarks(ids) == [ids.count(i) > 1 for i in ids]
