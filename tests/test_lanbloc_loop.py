@@ -173,6 +173,24 @@ def test_camera_frames_run_the_loop_deterministically():
     assert a.position_fixes + a.dropouts <= a.steps // 40 <= a.position_fixes + a.dropouts + a.rejected
 
 
+def test_the_scenarios_camera_ranging_selects_the_front_ends_ranging():
+    """``camera.ranging = "sgbm"``: the camera loop's front end ranges each marker by the
+    paper's SGBM box median; the default keeps the corners; a keyword overrides the scenario."""
+    sc = safenav.default_scenario()
+    d = sc.to_dict()
+    d["camera"]["ranging"] = "sgbm"
+    sgbm = safenav.Scenario.from_dict(d)
+    assert CameraFrames.from_scenario(sc, 640).front_end.settings.ranging == _core.LanBLocRanging.CORNERS
+    src = CameraFrames.from_scenario(sgbm, 640, seed=5)
+    assert src.front_end.settings.ranging == _core.LanBLocRanging.SGBM
+    assert CameraFrames.from_scenario(sgbm, 640, ranging=_core.LanBLocRanging.CORNERS).front_end.settings.ranging \
+        == _core.LanBLocRanging.CORNERS
+    path = np.asarray(nv.plan_safe_path(sc, "P3", iterations=1500).path)
+    nav = nv.make_navigator(sgbm, path, method="centroid", position_every=40, record=False)
+    r = src.run(nav, 5)
+    assert r.success and r.position_fixes > 0, r.reason
+
+
 def test_the_loops_localizer_names_landmarks_as_the_front_end_does():
     """The navigator's localizer carries the world's ids (1 … 39 in the default scenario, not the
     map's rows), so a landmark sighting updates the landmark it names; a front end whose ids or

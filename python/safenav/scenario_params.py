@@ -19,7 +19,8 @@ from . import validation
 from .validation import Range
 
 __all__ = ["CameraParams", "DetectionParams", "BmmConfig", "NoiseParams", "PlannerParams", "BufferParams", "Seeds",
-           "SECTIONS", "MAX_STEPS", "MAX_ITERATIONS", "MAX_PATH_TYPES", "MAX_DESCRIPTION", "FIX_MODELS", "GUARD_MODES"]
+           "SECTIONS", "MAX_STEPS", "MAX_ITERATIONS", "MAX_PATH_TYPES", "MAX_DESCRIPTION", "FIX_MODELS", "GUARD_MODES",
+           "RANGINGS"]
 
 
 def _r(lo, hi, lo_open=False):
@@ -91,10 +92,17 @@ class CameraParams(_Params):
     image_width_px: int = 2560
     image_height_px: int = 1440
     field_of_view_deg: float = 85.0   #: horizontal field of view [deg]
+    #: how the camera loop's front end ranges a marker: "corners" (ours: its refined corners
+    #: triangulated) or "sgbm" (the paper's SGBM box median, [SafeNav §IV-A])
+    ranging: str = "corners"
 
     RANGES = {"focal_length_px": _r(0, 1e5, True), "baseline_m": _r(0, 10, True),
               "image_width_px": _n(1, 100_000), "image_height_px": _n(1, 100_000),
               "field_of_view_deg": _r(0, 360, True)}
+
+    def __post_init__(self):
+        _Params.__post_init__(self)
+        object.__setattr__(self, "ranging", validation.choice("ranging", self.ranging, RANGINGS))
 
 
 def _core_section(name: str, doc: str, keys, *, defaults=None, extra=None, own=()) -> type:
@@ -150,6 +158,7 @@ DetectionParams = _core_section(
      (_core.SensorSettings, "occlusion")])
 
 FIX_MODELS = {"profile": "profile", "ranges": "ranges"}
+RANGINGS = {"corners": "corners", "sgbm": "sgbm"}   #: camera.ranging: the camera loop's LanBLocRanging
 GUARD_MODES = {"on": "on", "off": "off"}
 
 

@@ -136,10 +136,13 @@ class CameraFrames:
     def from_scenario(cls, scenario, width: int | None = None, height: int | None = None, *,
                       camera_height_m: float = 1.5, **kwargs) -> "CameraFrames":
         """From a :class:`~safenav.scenario.Scenario`: its world, its camera (at its own resolution, or
-        scaled to ``width`` px), detection range, minimum landmark count and occlusion setting."""
+        scaled to ``width`` px), detection range, minimum landmark count, occlusion setting and
+        ranging (``camera.ranging``: the core's ``LanBLocRanging``)."""
         from .lanbloc import scenario_camera
 
         rig, kwargs = scenario_camera(scenario, width, height, camera_height_m, kwargs)
+        kwargs.setdefault("ranging", {"corners": _core.LanBLocRanging.CORNERS,
+                                      "sgbm": _core.LanBLocRanging.SGBM}[scenario.camera.ranging])
         return cls(scenario.world, rig, **kwargs)
 
     def run(self, navigator, seed: int):
