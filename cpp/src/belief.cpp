@@ -170,9 +170,9 @@ bool same_updates(const std::vector<belief::Step>& seen, const std::vector<State
 /// recursion needs Cov w = P_next − A P_prev Aᵀ ⪰ 0.  A stratum's update
 /// can raise its error (its filter trusts a fix more than its own, smaller
 /// error warrants), so the mixture's update need not shrink it in every
-/// direction.  The scale keeps the marginals and lowers the correlation of
-/// the errors between stages only, which moves the path's collision
-/// probability toward the union bound, never below the exact recursion's.
+/// direction.  The scale keeps the marginals and lowers only the correlation
+/// of the errors between stages: toward independent stages, whose product
+/// of survivals is close to the union bound for small probabilities.
 Eigen::Matrix4d within_marginals(const Eigen::Matrix4d& A, const StateCov& P_prev, const StateCov& P_next) {
   const StateCov X = A * P_prev * A.transpose();
   const Eigen::GeneralizedSelfAdjointEigenSolver<StateCov> ges(0.5 * (X + X.transpose()), P_next,
