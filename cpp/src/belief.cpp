@@ -157,7 +157,7 @@ void stratify(const Eigen::Matrix<double, 2, 4>& H, const double (&node)[3], con
 /// within 1 % of their norm (Frobenius).  Mid-transition, when some have
 /// seen a landmark and some not, the mixture is far from Gaussian, and
 /// stratifying it anew would move the late strata's error toward the rest.
-bool same_updates(const std::vector<belief::Step>& seen, const std::vector<StateCov>& Pi) {
+bool one_gaussian(const std::vector<belief::Step>& seen, const std::vector<StateCov>& Pi) {
   constexpr double tol = 1e-2;
   for (std::size_t i = 1; i < seen.size(); ++i) {
     if (seen[i].seen != seen[0].seen || seen[i].fix != seen[0].fix || seen[i].ranges != seen[0].ranges) return false;
@@ -198,7 +198,7 @@ Eigen::Matrix4d within_marginals(const Eigen::Matrix4d& A, const StateCov& P_pre
 /// (the optimal gain's).  So the strata that see a landmark late are the
 /// ones whose error lies on that side, and the reported covariance
 /// Σ w_i (P_i + N_i) keeps their larger error until they see it.  While the
-/// strata are one Gaussian (same_updates), they are stratified anew from its
+/// strata are one Gaussian (one_gaussian), they are stratified anew from its
 /// covariance each step, so the deviation follows the current error.
 /// A[k−1] = M[k] (M⁻)⁻¹ F as in the single recursion, M⁻ the mixture's prior,
 /// within_marginals.
@@ -234,7 +234,7 @@ void mixture_recursion(const belief::Model& model, const std::vector<belief::Ste
     }
     P[k] = 0.5 * (mix + mix.transpose());
     A[k - 1] = within_marginals(mix_m.ldlt().solve(P[k].transpose()).transpose() * F, P[k - 1], P[k]);
-    merged = same_updates(seen, Pi);
+    merged = one_gaussian(seen, Pi);
   }
 }
 

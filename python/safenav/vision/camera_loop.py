@@ -141,8 +141,7 @@ class CameraFrames:
         from .lanbloc import scenario_camera
 
         rig, kwargs = scenario_camera(scenario, width, height, camera_height_m, kwargs)
-        kwargs.setdefault("ranging", {"corners": _core.LanBLocRanging.CORNERS,
-                                      "sgbm": _core.LanBLocRanging.SGBM}[scenario.camera.ranging])
+        kwargs.setdefault("ranging", getattr(_core.LanBLocRanging, scenario.camera.ranging.upper()))
         return cls(scenario.world, rig, **kwargs)
 
     def run(self, navigator, seed: int):
