@@ -172,6 +172,7 @@ for n in (1, 3, 6, 1000, 1001):
     r = safenav.filter_trajectory(u, [0.0, 0.0, 2.0, 0.2], np.diag([0.04, 0.04, 0.01, 0.0025]), filter="pf",
                                   position=truth[1:, :2], position_cov=np.eye(2) * 0.01,
                                   ranges=np.hypot(d[..., 0], d[..., 1]), range_std=0.3, landmarks=lm,
+                                  speed_heading=truth[1:, 2:], speed_heading_cov=np.diag([0.01, 0.0004]),
                                   n_particles=n, seed=n)
     for a in (r.states, r.covariances, r.nis):
         h.update(np.ascontiguousarray(a).tobytes())

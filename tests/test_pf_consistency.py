@@ -286,3 +286,39 @@ def test_estimate_follows_the_kalman_filter_on_a_near_linear_problem():
     t_pf = np.trace(pf.covariances[1:, :2, :2], axis1=1, axis2=2)
     t_ekf = np.trace(ekf.covariances[1:, :2, :2], axis1=1, axis2=2)
     assert 0.8 < np.median(t_pf / t_ekf) < 1.3, np.median(t_pf / t_ekf)
+
+
+def _imu_pf(seed=8):
+    pf = safenav.ParticleFilter(PARAMS, X0_TRUE, P0, n_particles=400, seed=seed)
+    for uk in controls(10):
+        pf.predict(uk)
+    return pf
+
+
+def test_imu_update_takes_the_heading_modulo_a_turn():
+    """The IMU's heading is an angle: z_θ and z_θ ± 2π update alike (the
+    residual wraps), to rounding."""
+    imu = MeasurementModel.speed_heading(R_IMU)
+    z = np.array([X0_TRUE[2] + 0.05, X0_TRUE[3] - 0.02])
+    runs = []
+    for turn in (0.0, 2 * np.pi, -4 * np.pi):
+        pf = _imu_pf()
+        pf.update(imu, z + [0.0, turn])
+        runs.append((pf.particles, pf.x))
+    for X, m in runs[1:]:
+        np.testing.assert_allclose(X, runs[0][0], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(m, runs[0][1], rtol=0, atol=1e-12)
+
+
+def test_a_large_imu_turn_keeps_the_headings_cosines_exact():
+    """An IMU heading far from the cloud's (2 rad, far past the small-turn
+    series) moves every particle's θ by more than the series covers: those
+    are redone exactly, so the filter's circular mean of θ (from its cached
+    cos θ and sin θ) equals the one computed here from the headings."""
+    imu = MeasurementModel.speed_heading(np.diag([0.05**2, 0.001**2]))
+    pf = _imu_pf()
+    pf.update(imu, np.array([X0_TRUE[2], X0_TRUE[3] + 2.0]))
+    X, w = pf.particles, pf.weights
+    assert abs(X[:, 3].mean() - (X0_TRUE[3] + 2.0)) < 0.05  # the turn happened
+    theta = np.arctan2(w @ np.sin(X[:, 3]), w @ np.cos(X[:, 3]))
+    assert abs(pf.x[3] - theta) < 1e-12

@@ -141,8 +141,11 @@ void ParticleFilter::set_gate(double probability) {
 
 double ParticleFilter::gate() const { return impl_->gate_probability; }
 
-UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z) {
-  model.check(z);
+UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::Ref<const Eigen::VectorXd>& z_in) {
+  model.check(z_in);
+  // The IMU's heading wrapped once here, so that each residual wraps in one step (imu_moments).
+  Eigen::VectorXd z = z_in;
+  if (model.kind() == MeasurementKind::SpeedHeading) z[1] = wrap_angle(z[1]);
   auto& I = *impl_;
   const int m = model.dim();
   const int N = I.n();
@@ -175,7 +178,7 @@ UpdateResult ParticleFilter::update(const MeasurementModel& model, const Eigen::
     throw std::invalid_argument(os.str());
   }
   if (regularised && model.kind() == MeasurementKind::SpeedHeading && I.ess > 16.0) {
-    I.ensemble_update(R);  // the IMU does not see the position: no reweighting (see the class comment)
+    I.ensemble_update(z, R);  // the IMU does not see the position: no reweighting (see the class comment)
     return res;
   }
   // The SIR weights, unless they would fall below the resampling threshold

@@ -56,7 +56,7 @@ struct ParticleFilter::Impl {
   Eigen::VectorXd ybar;               // weighted mean residual
   Eigen::MatrixXd Yraw;               // residuals of a general model (before whitening)
   Eigen::MatrixXd U;                  // y_i − ȳ of a kernel update
-  Eigen::Matrix<double, Eigen::Dynamic, 4> Dev;  // weighted-centred deviations (deviations())
+  State m_lik = State::Zero();        // the weighted mean of the last likelihood() of an IMU update
   mutable Eigen::SelfAdjointEigenSolver<Eigen::Matrix4d> es;
 
   Impl(const BmmParams& p, std::uint64_t seed, double thr, int n, double bandwidth_scale)
@@ -203,6 +203,22 @@ struct ParticleFilter::Impl {
       Cyy << ps[2] - s0 * s0, ps[3] - s0 * s1, ps[3] - s0 * s1, ps[4] - s1 * s1;
       return innovation(R);
     }
+    if (model.kind() == MeasurementKind::SpeedHeading && z[1] > -kPi && z[1] <= kPi) {
+      // Fast path: the IMU's (v, θ), every moment in one pass (imu_moments), C_xy always.
+      const Eigen::Matrix2d Ri = R.inverse();
+      m_lik = mean();
+      const ImuParams a{z[0], z[1], 0.5 * Ri(0, 0), Ri(0, 1), 0.5 * Ri(1, 1), {m_lik[0], m_lik[1], m_lik[2], m_lik[3]}};
+      const Sums17 t = detail::dispatch<imu_moments<32>, imu_moments<16>>(N, col(kX), col(kY), col(kV), col(kTheta),
+                                                                          w(), gain, &a);
+      const double* q = t.s;
+      ybar = Eigen::Vector2d(q[0], q[1]);
+      Cyy.resize(2, 2);
+      Cyy << q[2] - q[0] * q[0], q[3] - q[0] * q[1], q[3] - q[0] * q[1], q[4] - q[1] * q[1];
+      Cxy.resize(4, 2);
+      for (int k = 0; k < 4; ++k)
+        for (int j = 0; j < 2; ++j) Cxy(k, j) = q[9 + 4 * j + k] - q[5 + k] * ybar[j];
+      return innovation(R);
+    }
     // Residual of every particle, y_i = z ⊖ h(x_i), one per column.
     Y.resize(m, N);
     model.residuals(z, states(), Y);
@@ -234,9 +250,11 @@ struct ParticleFilter::Impl {
   }
 
   /// Residual y_i = z ⊖ h(x_i) of particle i (Yraw holds a general model's).
-  void residual_of(bool position, const Eigen::Ref<const Eigen::VectorXd>& z, int i, Eigen::VectorXd& y) const {
-    if (position) {
+  void residual_of(MeasurementKind kind, const Eigen::Ref<const Eigen::VectorXd>& z, int i, Eigen::VectorXd& y) const {
+    if (kind == MeasurementKind::Position) {
       y << z[0] - col(kX)[i], z[1] - col(kY)[i];
+    } else if (kind == MeasurementKind::SpeedHeading) {  // as likelihood() computed it (both kinds of path)
+      y << z[0] - col(kV)[i], wrap_angle(z[1] - col(kTheta)[i]);
     } else {
       y = Yraw.col(i);
     }
@@ -300,7 +318,7 @@ struct ParticleFilter::Impl {
     U.resize(model.dim(), N);
     Eigen::VectorXd y(model.dim());
     for (int i = 0; i < N; ++i) {
-      residual_of(position, z, i, y);
+      residual_of(model.kind(), z, i, y);
       U.col(i) = y - ybar;
     }
     const double hu = adaptive_bandwidth(R);
@@ -387,41 +405,95 @@ struct ParticleFilter::Impl {
     }
   }
 
-  /// The particles' weighted-centred deviations (θ wrapped), N × 4, into Dev.
-  void deviations() {
-    const State m = mean();
-    Dev.resize(N, 4);
-    for (int k = 0; k < 4; ++k) Dev.col(k) = Eigen::Map<const Eigen::ArrayXd>(col(k), N) - m[k];
-    for (int i = 0; i < N; ++i) Dev(i, kTheta) = wrap_angle(Dev(i, kTheta));
+  /// Moment matching of Kc columns of standard normal draws e (one row per
+  /// particle) against the particles' deviations d about m: the draws
+  ///   e ← T (e − ē − Bᵀ(d − d̄)),  B = G⁻¹ C_de,  T = L⁻¹,  L Lᵀ = C_ee − C_deᵀ B
+  /// (G, C_de, C_ee the weighted covariances of d and e; ē, d̄ their weighted
+  /// means) have weighted mean 0, weighted covariance I and no weighted
+  /// covariance with the state, exactly up to rounding: sampled noise then
+  /// adds exactly its covariance to the cloud and no spurious correlation
+  /// with the state (with N draws the sample cross-covariance of a state
+  /// component with a noise column is ~σ/√N, which a later update on that
+  /// noise's component would read as information about the state).  From
+  /// one pass of sums (draw_moments; G from covariance_sums).  B = 0 when G
+  /// is not positive definite; returns false, with T = I, when the residual
+  /// draws' covariance is not.  Writes the map e ← T e + Q d + c.
+  template <int Kc>
+  bool match(const DrawSums<Kc>& t, const State& m, Eigen::Matrix<double, Kc, Kc>& T,
+             Eigen::Matrix<double, Kc, 4>& Q, Eigen::Matrix<double, Kc, 1>& c) {
+    using MatK = Eigen::Matrix<double, Kc, Kc>;
+    const Eigen::Map<const Eigen::Vector4d> dbar(t.d);
+    const Eigen::Map<const Eigen::Matrix<double, Kc, 1>> ebar(t.e);
+    const Eigen::Matrix<double, 4, Kc> Cde =
+        Eigen::Map<const Eigen::Matrix<double, 4, Kc, Eigen::RowMajor>>(&t.de[0][0]) - dbar * ebar.transpose();
+    MatK Cee;
+    for (int j = 0, q = 0; j < Kc; ++j)
+      for (int l = j; l < Kc; ++l, ++q) Cee(j, l) = Cee(l, j) = t.ee[q] - ebar[j] * ebar[l];
+    const Eigen::Matrix4d G = covariance(m) - dbar * dbar.transpose();
+    Eigen::Matrix<double, 4, Kc> B = Eigen::Matrix<double, 4, Kc>::Zero();
+    const Eigen::LDLT<Eigen::Matrix4d> gd(G);
+    if (gd.info() == Eigen::Success && (gd.vectorD().array() > 0.0).all()) B = gd.solve(Cde);
+    const MatK C = Cee - Cde.transpose() * B;
+    const Eigen::LLT<MatK> lc(C);
+    const bool whitened = lc.info() == Eigen::Success;
+    T = whitened ? MatK(lc.matrixL().solve(MatK::Identity())) : MatK(MatK::Identity());
+    Q = -T * B.transpose();
+    c = -T * ebar - Q * dbar;
+    return whitened;
+  }
+
+  /// The draws and their moments for match(): Kc columns of noise filled with N(0, 1).
+  template <int Kc>
+  DrawSums<Kc> draws(const State& m) {
+    rng.fill_normal(noise.col(0), long(Kc) * noise.stride());
+    DrawColumns<Kc> a{{col(kX), col(kY), col(kV), col(kTheta), w()}, {m[0], m[1], m[2], m[3]}};
+    for (int j = 0; j < Kc; ++j) a.p[5 + j] = noise.col(j);
+    return detail::dispatch<draw_moments<32, Kc>, draw_moments<16, Kc>>(N, &a);
   }
 
   /// The ensemble Kalman update with perturbed observations [Burgers, van
   /// Leeuwen & Evensen 1998] for a linear model that does not see the
-  /// position (the IMU's (v, θ)): x_i ← x_i + K(y_i + η_i), K = C_xh S⁻¹,
-  /// S = C_yy + R, η_i drawn from N(0, R) and moment-matched (match_draws):
-  /// the weighted mean moves by Kȳ and the weighted covariance becomes
-  /// exactly Σ − C_xh S⁻¹ C_hx, the Gaussian update of the cloud's own
-  /// moments; the weights stay, nothing is resampled, and the cloud keeps
-  /// its shape.  Needs likelihood() with `cross` (ȳ, C_yy, C_xy, Yraw).
-  void ensemble_update(const Eigen::MatrixXd& R) {
-    const int m = static_cast<int>(R.rows());
-    const Eigen::MatrixXd K = (-Cxy) * (Cyy + R).llt().solve(Eigen::MatrixXd::Identity(m, m));
-    deviations();
-    Eigen::MatrixXd eta(N, m);
-    rng.fill_normal(eta.data(), static_cast<long>(N) * m);
-    const Eigen::Map<const Eigen::VectorXd> wv(w(), N);
-    if (!match_draws(eta, Dev, wv)) eta.rowwise() -= (wv.transpose() * eta).eval();
-    const Eigen::MatrixXd Lr = R.llt().matrixL();
-    const Eigen::MatrixXd dx = (Yraw + Lr * eta.transpose()).transpose() * K.transpose();  // N × 4
-    const double vmin = bmm.params().min_speed(), vmax = bmm.params().max_speed;
+  /// position (the IMU's (v, θ)): x_i ← x_i + K(y_i + L_R η_i), K = C_xh S⁻¹,
+  /// S = C_yy + R, L_R L_Rᵀ = R, η_i drawn from N(0, I) and moment-matched
+  /// (match): the weighted mean moves by Kȳ and the weighted covariance
+  /// becomes exactly Σ − C_xh S⁻¹ C_hx, the Gaussian update of the cloud's
+  /// own moments; the weights stay, nothing is resampled, and the cloud keeps
+  /// its shape.  Needs likelihood() of the model first (ȳ, C_yy, C_xy about
+  /// m_lik, z_θ in (−π, π]); one pass (imu_apply) after the draws' moments.
+  void ensemble_update(const Eigen::Ref<const Eigen::VectorXd>& z, const Eigen::MatrixXd& R) {
+    const Eigen::Matrix<double, 4, 2> K = (-Cxy) * (Cyy + R).llt().solve(Eigen::MatrixXd::Identity(2, 2));
+    const State m = m_lik;
+    Eigen::Matrix2d T;
+    Eigen::Matrix<double, 2, 4> Q;
+    Eigen::Vector2d c;
+    match<2>(draws<2>(m), m, T, Q, c);  // T = I when not whitened: centred and regressed only
+    const Eigen::Matrix2d Lr = Eigen::Matrix2d(R).llt().matrixL();
+    const Eigen::Matrix<double, 4, 2> A = K * Lr * T;  // K L_R η_i = A e_i + (K L_R Q) d_i + K L_R c
+    const Eigen::Matrix4d AQ = K * Lr * Q;
+    const Eigen::Vector4d Ac = K * Lr * c;
+    ImuApply p{z[0], z[1], {m[0], m[1], m[2], m[3]}, {}, {}, {}, {}, bmm.params().min_speed(), bmm.params().max_speed};
+    for (int k = 0; k < 4; ++k) {
+      for (int j = 0; j < 2; ++j) p.K[k][j] = K(k, j), p.A[k][j] = A(k, j);
+      for (int j = 0; j < 4; ++j) p.Q[k][j] = AQ(k, j);
+      p.c[k] = Ac[k];
+    }
+    double* dth = noise.col(2);
+    const long n_big = detail::dispatch<imu_apply>(N, col(kX), col(kY), col(kV), col(kTheta), col(kCos), col(kSin),
+                                                   static_cast<const double*>(noise.col(0)),
+                                                   static_cast<const double*>(noise.col(1)), dth, &p);
+    if (n_big > 0) exact_turns(dth);
+  }
+
+  /// Heading and (cos θ, sin θ) recomputed exactly for the particles whose
+  /// heading moved by more than kSmallTurn (dth: each one's move).
+  void exact_turns(const double* dth) {
+    double* th = col(kTheta);
     for (int i = 0; i < N; ++i) {
-      col(kX)[i] += dx(i, 0);
-      col(kY)[i] += dx(i, 1);
-      col(kV)[i] = std::clamp(col(kV)[i] + dx(i, 2), vmin, vmax);
-      const double t = wrap_angle(col(kTheta)[i] + dx(i, 3));  // a local: cos and sin share one sincos
-      col(kTheta)[i] = t;
-      col(kCos)[i] = std::cos(t);
-      col(kSin)[i] = std::sin(t);
+      if (dth[i] > kSmallTurn || dth[i] < -kSmallTurn) {
+        th[i] = wrap_angle(th[i]);
+        col(kCos)[i] = std::cos(th[i]);
+        col(kSin)[i] = std::sin(th[i]);
+      }
     }
   }
 
@@ -432,13 +504,27 @@ struct ParticleFilter::Impl {
   void predict(double desired_speed, double heading_step) {
     const auto& p = bmm.params();
     const double k = p.terrain_factor() * p.dt;
-    rng.fill_normal(noise.col(0), 4L * noise.stride());  // all four columns (and their padding)
-    if (h > 0.0 && ess > 16.0) {  // regularised: moment-matched process noise (match_draws)
-      deviations();
-      Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, 4>, 0, Eigen::OuterStride<>> E(
-          noise.col(0), N, 4, Eigen::OuterStride<>(noise.stride()));
-      Eigen::Matrix<double, Eigen::Dynamic, 4> e = E;
-      if (match_draws(e, Dev, Eigen::Map<const Eigen::VectorXd>(w(), N))) E = e;
+    if (h > 0.0 && ess > 16.0) {  // regularised: moment-matched process noise (match)
+      const State m = mean();
+      const DrawSums<4> t = draws<4>(m);  // all four columns (and their padding)
+      Eigen::Matrix4d T, Q;
+      Eigen::Vector4d c;
+      if (match<4>(t, m, T, Q, c)) {  // else the draws stay as they are
+        NoiseMap a{};
+        for (int k = 0; k < 4; ++k) {
+          for (int j = 0; j < 4; ++j) a.T[k][j] = T(k, j), a.Q[k][j] = Q(k, j);
+          a.c[k] = c[k];
+          a.m[k] = m[k];
+        }
+        detail::dispatch<map_noise<32>, map_noise<16>>(N, static_cast<const double*>(col(kX)),
+                                                       static_cast<const double*>(col(kY)),
+                                                       static_cast<const double*>(col(kV)),
+                                                       static_cast<const double*>(col(kTheta)), noise.col(0),
+                                                       noise.col(1), noise.col(2), noise.col(3),
+                                                       static_cast<const NoiseMap*>(&a));
+      }
+    } else {
+      rng.fill_normal(noise.col(0), 4L * noise.stride());  // all four columns (and their padding)
     }
     double* x = col(kX);
     double* y = col(kY);

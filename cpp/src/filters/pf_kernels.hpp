@@ -123,6 +123,23 @@ SAFENAV_ALWAYS_INLINE void store_lanes(const D4<Bytes>& a, double* p, int n) {
 /// it needs -fno-trapping-math to if-convert the clamps.  (Kernels take their
 /// arrays as __restrict parameters: GCC honours restrict there, through
 /// inlining, and not on local copies.)
+/// (cos(θ + δ), sin(θ + δ)) from (c, s) = (cos θ, sin θ) for a small turn δ
+/// (|δ| ≤ kSmallTurn): sin δ = δ Σ_k s_k u^k, cos δ = Σ_k c_k u^k (u = δ²) in
+/// Estrin's form (a short dependency chain, which is what bounds the loops
+/// that call this), the rotation, and one Newton step back onto the unit
+/// circle.
+SAFENAV_ALWAYS_INLINE void turn_small(double d, double c, double s, double& c_out, double& s_out) {
+  const double u = d * d, u2 = u * u, u4 = u2 * u2;
+  const double sd = d * (((1 + kSin[1] * u) + (kSin[2] + kSin[3] * u) * u2) + (kSin[4] + kSin[5] * u) * u4);
+  const double cd =
+      ((1 + kCos[1] * u) + (kCos[2] + kCos[3] * u) * u2) + ((kCos[4] + kCos[5] * u) + kCos[6] * u2) * u4;
+  const double c1 = c * cd - s * sd;
+  const double s1 = s * cd + c * sd;
+  const double r = 1.5 - 0.5 * (c1 * c1 + s1 * s1);  // keep (c, s) on the unit circle
+  c_out = c1 * r;
+  s_out = s1 * r;
+}
+
 struct StepParams {
   double vdes, heading_step, up_step, down_step, vmin, vmax, k, sv, st, sp;
 };
@@ -154,16 +171,8 @@ SAFENAV_ALWAYS_INLINE long particles_step(int N, double* __restrict x, double* _
     // eq. 4 + ε_θ: θ moves by δ; rotate (cos θ, sin θ) by δ.
     const double d = heading_step + st * et[i];
     n_big += (d > kSmallTurn) | (d < -kSmallTurn);
-    // sin δ = δ Σ_k s_k u^k, cos δ = Σ_k c_k u^k (u = δ²) in Estrin's form: a
-    // short dependency chain, which is what bounds this loop
-    const double u = d * d, u2 = u * u, u4 = u2 * u2;
-    const double sd = d * (((1 + kSin[1] * u) + (kSin[2] + kSin[3] * u) * u2) + (kSin[4] + kSin[5] * u) * u4);
-    const double cd =
-        ((1 + kCos[1] * u) + (kCos[2] + kCos[3] * u) * u2) + ((kCos[4] + kCos[5] * u) + kCos[6] * u2) * u4;
-    const double c1 = cs[i] * cd - sn[i] * sd;
-    const double s1 = sn[i] * cd + cs[i] * sd;
-    const double r = 1.5 - 0.5 * (c1 * c1 + s1 * s1);  // keep (c, s) on the unit circle
-    const double c2 = c1 * r, s2 = s1 * r;
+    double c2, s2;
+    turn_small(d, cs[i], sn[i], c2, s2);
     cs[i] = c2;
     sn[i] = s2;
     double t = th[i] + d;  // wrap to (−π, π]; exact for |δ| < π
@@ -346,6 +355,194 @@ inline void copy_selected(int N, const int* __restrict start, const double* __re
     t4[j] = f4[src];
     t5[j] = f5[src];
   }
+}
+
+/// d wrapped to (−π, π] for d in (−2π, 2π) (a difference of two angles in
+/// (−π, π]), lane-wise: one comparison each way, as wrap_angle there.
+template <int Bytes>
+SAFENAV_ALWAYS_INLINE D4<Bytes> wrap_difference(D4<Bytes> d) {
+  using D = D4<Bytes>;
+  d = D::add_if_gt(d, D::splat(kPi), D::splat(-2.0 * kPi));
+  return D::add_if_le(d, D::splat(-kPi), D::splat(2.0 * kPi));
+}
+
+/// The deviations (x − m, y − m, v − m, θ − m wrapped) of four particles.
+template <int Bytes>
+SAFENAV_ALWAYS_INLINE void deviations4(const D4<Bytes>* in, const double* m, D4<Bytes> (&d)[4]) {
+  using D = D4<Bytes>;
+  for (int k = 0; k < 3; ++k) d[k] = in[k] - D::splat(m[k]);
+  d[3] = wrap_difference<Bytes>(in[3] - D::splat(m[3]));
+}
+
+/// The moments of an update by h(x) = (v, θ) (the IMU's speed and heading)
+/// in one pass: with y_i = (z_v − v_i, z_θ − θ_i wrapped) (z_θ in (−π, π]) and
+/// d_i the deviations about m, the sums Σw y0, Σw y1, Σw y0², Σw y0 y1,
+/// Σw y1², Σw d_k (k = 0..3), Σw d_k y0, Σw d_k y1; and the log-likelihood
+/// −½ y_iᵀR⁻¹y_i of every particle into `gain`.
+struct ImuParams {
+  double zv, zt, r00, r01, r11;  // r = ½ R⁻¹ (r01 doubled)
+  double m[4];
+};
+struct Sums17 {
+  double s[17];
+};
+template <int Bytes>
+SAFENAV_ALWAYS_INLINE Sums17 imu_moments(int N, const double* __restrict x, const double* __restrict y,
+                                         const double* __restrict v, const double* __restrict th,
+                                         const double* __restrict w, double* __restrict gain, const ImuParams* a) {
+  using D = D4<Bytes>;
+  const D zv = D::splat(a->zv), zt = D::splat(a->zt), r00 = D::splat(a->r00), r01 = D::splat(a->r01),
+          r11 = D::splat(a->r11);
+  D acc[17];
+  for (D& t : acc) t = D::splat(0);
+  const double* const cols[5] = {x, y, v, th, w};
+  blocks_of_four<Bytes>(N, cols, [&](int i, const D* in, int n) __attribute__((always_inline)) {
+    D d[4];
+    deviations4<Bytes>(in, a->m, d);
+    const D y0 = zv - in[2], y1 = wrap_difference<Bytes>(zt - in[3]);
+    const D w0 = in[4] * y0, w1 = in[4] * y1;
+    acc[0] += w0;
+    acc[1] += w1;
+    acc[2] += w0 * y0;
+    acc[3] += w0 * y1;
+    acc[4] += w1 * y1;
+    for (int k = 0; k < 4; ++k) {
+      const D wd = in[4] * d[k];
+      acc[5 + k] += wd;
+      acc[9 + k] += wd * y0;
+      acc[13 + k] += wd * y1;
+    }
+    store_lanes(D::splat(0) - (r00 * y0 * y0 + r01 * y0 * y1 + r11 * y1 * y1), gain + i, n);
+  });
+  Sums17 r;
+  for (int k = 0; k < 17; ++k) r.s[k] = acc[k].sum();
+  return r;
+}
+
+/// The weighted moments of Kc columns of standard normal draws e (one row
+/// per particle) and of the particles' deviations d about m, for matching
+/// the draws (see ParticleFilter::Impl::match): Σw d_k, Σw e_j, Σw d_k e_j
+/// and Σw e_j e_l (j ≤ l, row by row).
+template <int Kc>
+struct DrawSums {
+  double d[4], e[Kc], de[4][Kc], ee[Kc * (Kc + 1) / 2];
+};
+template <int Kc>
+struct DrawColumns {
+  const double* p[5 + Kc];  // x, y, v, θ, w, e_0 .. e_{Kc−1}
+  double m[4];
+};
+template <int Bytes, int Kc>
+SAFENAV_ALWAYS_INLINE DrawSums<Kc> draw_moments(int N, const DrawColumns<Kc>* a) {
+  using D = D4<Bytes>;
+  D sd[4], se[Kc], sde[4][Kc], see[Kc * (Kc + 1) / 2];
+  for (D& t : sd) t = D::splat(0);
+  for (D& t : se) t = D::splat(0);
+  for (auto& row : sde)
+    for (D& t : row) t = D::splat(0);
+  for (D& t : see) t = D::splat(0);
+  const double* const(&cols)[5 + Kc] = a->p;
+  blocks_of_four<Bytes>(N, cols, [&](int, const D* in, int) __attribute__((always_inline)) {
+    D d[4];
+    deviations4<Bytes>(in, a->m, d);
+    const D* e = in + 5;
+    D we[Kc];
+    for (int j = 0; j < Kc; ++j) {
+      we[j] = in[4] * e[j];
+      se[j] += we[j];
+    }
+    for (int k = 0; k < 4; ++k) {
+      sd[k] += in[4] * d[k];
+      for (int j = 0; j < Kc; ++j) sde[k][j] += we[j] * d[k];
+    }
+    for (int j = 0, q = 0; j < Kc; ++j)
+      for (int l = j; l < Kc; ++l, ++q) see[q] += we[j] * e[l];
+  });
+  DrawSums<Kc> r;
+  for (int k = 0; k < 4; ++k) r.d[k] = sd[k].sum();
+  for (int j = 0; j < Kc; ++j) r.e[j] = se[j].sum();
+  for (int k = 0; k < 4; ++k)
+    for (int j = 0; j < Kc; ++j) r.de[k][j] = sde[k][j].sum();
+  for (int q = 0; q < Kc * (Kc + 1) / 2; ++q) r.ee[q] = see[q].sum();
+  return r;
+}
+
+/// Matched process noise in place: e_i ← T e_i + Q d_i + c for the four
+/// noise columns (d_i the deviations about m; see ParticleFilter::Impl::match).
+struct NoiseMap {
+  double T[4][4], Q[4][4], c[4], m[4];
+};
+template <int Bytes>
+SAFENAV_ALWAYS_INLINE void map_noise(int N, const double* __restrict x, const double* __restrict y,
+                                     const double* __restrict v, const double* __restrict th, double* __restrict e0,
+                                     double* __restrict e1, double* __restrict e2, double* __restrict e3,
+                                     const NoiseMap* a) {
+  using D = D4<Bytes>;
+  const double* const cols[8] = {x, y, v, th, e0, e1, e2, e3};
+  double* const out[4] = {e0, e1, e2, e3};
+  blocks_of_four<Bytes>(N, cols, [&](int i, const D* in, int n) __attribute__((always_inline)) {
+    D d[4];
+    deviations4<Bytes>(in, a->m, d);
+    for (int k = 0; k < 4; ++k) {
+      D r = D::splat(a->c[k]);
+      for (int j = 0; j < 4; ++j) r += D::splat(a->T[k][j]) * in[4 + j];
+      for (int j = 0; j < 4; ++j) r += D::splat(a->Q[k][j]) * d[j];
+      store_lanes(r, out[k] + i, n);
+    }
+  });
+}
+
+/// The ensemble update of an IMU measurement (ParticleFilter::Impl::
+/// ensemble_update), applied: with y_i the residual (as imu_moments), e_i
+/// the two draws and d_i the deviations about m,
+///   Δx_i = K y_i + A e_i + Q d_i + c,
+/// v clamped to [v_min, v_max], θ wrapped, (cos θ, sin θ) turned by Δθ_i
+/// (turn_small), Δθ_i kept in `dth`; returns how many |Δθ_i| exceed
+/// kSmallTurn (the caller redoes those exactly).
+struct ImuApply {
+  double zv, zt, m[4], K[4][2], A[4][2], Q[4][4], c[4], vmin, vmax;
+};
+SAFENAV_ALWAYS_INLINE long imu_apply(int N, double* __restrict x, double* __restrict y, double* __restrict v,
+                                     double* __restrict th, double* __restrict cs, double* __restrict sn,
+                                     const double* __restrict e0, const double* __restrict e1,
+                                     double* __restrict dth, const ImuApply* a) {
+  constexpr double two_pi = 2.0 * kPi;
+  const ImuApply p = *a;
+  long n_big = 0;
+  for (int i = 0; i < N; ++i) {
+    const double t0 = th[i];
+    double d3 = t0 - p.m[3];
+    d3 = d3 > kPi ? d3 - two_pi : d3;
+    d3 = d3 <= -kPi ? d3 + two_pi : d3;
+    const double d[4] = {x[i] - p.m[0], y[i] - p.m[1], v[i] - p.m[2], d3};
+    double y1 = p.zt - t0;
+    y1 = y1 > kPi ? y1 - two_pi : y1;
+    y1 = y1 <= -kPi ? y1 + two_pi : y1;
+    const double y0 = p.zv - v[i];
+    double dx[4];
+    for (int k = 0; k < 4; ++k)
+      dx[k] = (((p.K[k][0] * y0 + p.K[k][1] * y1) + (p.A[k][0] * e0[i] + p.A[k][1] * e1[i])) +
+               ((p.Q[k][0] * d[0] + p.Q[k][1] * d[1]) + (p.Q[k][2] * d[2] + p.Q[k][3] * d[3]))) +
+              p.c[k];
+    x[i] += dx[0];
+    y[i] += dx[1];
+    double v1 = v[i] + dx[2];
+    v1 = v1 > p.vmin ? v1 : p.vmin;
+    v1 = v1 < p.vmax ? v1 : p.vmax;
+    v[i] = v1;
+    const double dt = dx[3];
+    dth[i] = dt;
+    n_big += (dt > kSmallTurn) | (dt < -kSmallTurn);
+    double c2, s2;
+    turn_small(dt, cs[i], sn[i], c2, s2);
+    cs[i] = c2;
+    sn[i] = s2;
+    double t = t0 + dt;  // exact wrap for |Δθ| < π; larger turns are redone by the caller
+    t = t > kPi ? t - two_pi : t;
+    t = t <= -kPi ? t + two_pi : t;
+    th[i] = t;
+  }
+  return n_big;
 }
 
 }  // namespace safenav::detail

@@ -12,8 +12,6 @@
 //               2011 update a member / a kernel
 //  excess       E = Σ_x|h·tr(A C_hh)/n: what a sampled gain takes beyond
 //               the Gaussian update (gain_sampling_excess)
-//  matching     draws with weighted mean 0, covariance I and no covariance
-//               with the state (match_draws)
 //  factor       L Lᵀ = P₊ for the kernel draws
 //  floor        P_reported = P̂ + (h² C_u − P̂)₊ ⪰ P̂ and ⪰ h² C_u, with P̂ the
 //               weighted and C_u the unweighted covariance of the particles
@@ -94,32 +92,6 @@ MatN gain_sampling_excess(const MatN& Sigma, const MatNM& Cxh, const MatM& Chh, 
   MatN cond = Sigma - Cxh * ch.solve(Cxh.transpose());
   cond = 0.5 * (cond + cond.transpose()).eval();
   return (tr / n) * cond;
-}
-
-/// Moment-matched draws: the columns of E (N × k, one row per particle) are
-/// made to have weighted mean 0, weighted covariance I_k and no weighted
-/// covariance with the columns of D (N × q, the particles' deviations from
-/// their mean), exactly: E ← E − 1ε̄ᵀ, then minus its weighted regression on
-/// D, then whitened.  Sampled noise then adds exactly its covariance to the
-/// cloud and no spurious correlation with the state (with N draws the
-/// sample cross-covariance of a state component with a noise column is
-/// ~σ/√N, which a later update on that noise's component would read as
-/// information about the state).  Returns false (E centred only) when the
-/// weighted covariance of the residual draws is not positive definite.
-template <class MatE, class MatD>
-bool match_draws(MatE& E, const MatD& D, const Eigen::Ref<const Eigen::VectorXd>& w) {
-  E.rowwise() -= (w.transpose() * E).eval();
-  Eigen::MatrixXd Dc = D;  // centred exactly (a circular mean leaves θ's deviations off by O(σ³))
-  Dc.rowwise() -= (w.transpose() * Dc).eval();
-  const Eigen::MatrixXd G = Dc.transpose() * w.asDiagonal() * Dc;
-  const Eigen::LDLT<Eigen::MatrixXd> gd(G);
-  if (gd.info() == Eigen::Success && (gd.vectorD().array() > 0.0).all())
-    E -= Dc * gd.solve(Eigen::MatrixXd(Dc.transpose() * w.asDiagonal() * E));
-  const Eigen::MatrixXd C = E.transpose() * w.asDiagonal() * E;
-  const Eigen::LLT<Eigen::MatrixXd> lc(C);
-  if (lc.info() != Eigen::Success) return false;
-  E = lc.matrixU().template solve<Eigen::OnTheRight>(E).eval();  // E U⁻¹: weighted covariance Uᵀ⁻¹ C U⁻¹ = I
-  return true;
 }
 
 /// L with L Lᵀ = A₊ (A symmetric; its negative eigenvalues, from rounding,
