@@ -243,6 +243,23 @@ def test_bad_input_names_the_value(call, match):
         call(localizer())
 
 
+@pytest.mark.parametrize("filter", ["ekf", "pf"])
+def test_a_fix_covariance_symmetric_to_rounding_is_taken(filter):
+    """A trilaterated fix's off-diagonal can cancel to ~1e-11 of its
+    diagonal and carry the diagonal's rounding: R01 and R10 then differ in
+    their own leading digits, by far less than the matrix's own rounding
+    (such a fix stopped a certified PF trial).  Symmetry is judged against
+    the largest entry, as for every other covariance: that fix is taken, and
+    one whose off-diagonals differ by more than 1e-9 of it is refused."""
+    R = np.array([[0.00116454, -2.28529e-11], [-2.28529e-11 * (1 + 1e-6), 0.00293006]])
+    loc = localizer(filter=filter, gate=0.0)
+    assert loc.fix(0.1, X0[0] + 0.01, X0[1] - 0.01, R).status == gd.InputStatus.APPLIED
+    bad = R.copy()
+    bad[1, 0] += 2e-9 * R.max()
+    with pytest.raises(ValueError, match="symmetric"):
+        localizer(filter=filter, gate=0.0).fix(0.1, X0[0], X0[1], bad)
+
+
 def test_bad_construction():
     with pytest.raises(ValueError, match="appears twice"):
         gd.Localizer(gd.LocalizerSettings(), LANDMARKS[:2], [3, 3])

@@ -15,6 +15,20 @@ namespace safenav {
 template <>
 const ParamSet<FilterOptions>& param_set<FilterOptions>();  // defined below
 
+namespace {
+
+/// Symmetric to rounding: no entry differs from its transpose by more than
+/// 1e-9 of the matrix's largest entry.  (Relative to the matrix, not to the
+/// entry: an off-diagonal that cancels to ~1e-11 of the diagonal, as a
+/// trilaterated fix's can, carries the diagonal's rounding.)
+template <class M>
+bool symmetric_to_rounding(const M& P) {
+  const double scale = std::max(1e-300, P.cwiseAbs().maxCoeff());
+  return (P - P.transpose()).cwiseAbs().maxCoeff() <= 1e-9 * scale;
+}
+
+}  // namespace
+
 void check_covariance(const Eigen::MatrixXd& P, const char* what) {
   std::ostringstream os;
   if (P.rows() != P.cols()) {
@@ -25,8 +39,7 @@ void check_covariance(const Eigen::MatrixXd& P, const char* what) {
     os << what << " has non-finite entries:\n" << P;
     throw std::invalid_argument(os.str());
   }
-  const double scale = std::max(1e-300, P.cwiseAbs().maxCoeff());
-  if ((P - P.transpose()).cwiseAbs().maxCoeff() > 1e-9 * scale) {
+  if (!symmetric_to_rounding(P)) {
     os << what << " is not symmetric:\n" << P;
     throw std::invalid_argument(os.str());
   }
@@ -69,8 +82,7 @@ void check_prior(const State& x0, const StateCov& P0, const char* xname, const c
 }
 
 void check_cov2(const Eigen::Matrix2d& R, const char* what) {
-  const bool symmetric = std::abs(R(0, 1) - R(1, 0)) <= 1e-9 * (std::abs(R(0, 1)) + std::abs(R(1, 0)) + 1e-300);
-  if (!(R.allFinite() && symmetric && R(0, 0) > 0.0 && R(0, 0) * R(1, 1) - R(0, 1) * R(1, 0) > 0.0)) {
+  if (!(R.allFinite() && symmetric_to_rounding(R) && R(0, 0) > 0.0 && R(0, 0) * R(1, 1) - R(0, 1) * R(1, 0) > 0.0)) {
     std::ostringstream os;
     os << what << " R = [[" << R(0, 0) << ", " << R(0, 1) << "], [" << R(1, 0) << ", " << R(1, 1)
        << "]]: must be finite, symmetric and positive definite";
