@@ -123,6 +123,15 @@ SAFENAV_ALWAYS_INLINE void store_lanes(const D4<Bytes>& a, double* p, int n) {
 /// it needs -fno-trapping-math to if-convert the clamps.  (Kernels take their
 /// arrays as __restrict parameters: GCC honours restrict there, through
 /// inlining, and not on local copies.)
+/// a wrapped to (−π, π] for a in (−3π, 3π] (an angle in (−π, π] moved by
+/// less than 2π): one comparison each way, as wrap_angle there, branch-free
+/// so that the loops calling it vectorise.
+SAFENAV_ALWAYS_INLINE double wrap_once(double a) {
+  constexpr double two_pi = 2.0 * kPi;
+  a = a > kPi ? a - two_pi : a;
+  return a <= -kPi ? a + two_pi : a;
+}
+
 /// (cos(θ + δ), sin(θ + δ)) from (c, s) = (cos θ, sin θ) for a small turn δ
 /// (|δ| ≤ kSmallTurn): sin δ = δ Σ_k s_k u^k, cos δ = Σ_k c_k u^k (u = δ²) in
 /// Estrin's form (a short dependency chain, which is what bounds the loops
@@ -149,7 +158,6 @@ SAFENAV_ALWAYS_INLINE long particles_step(int N, double* __restrict x, double* _
                                           const double* __restrict ex, const double* __restrict ey,
                                           const double* __restrict ev, const double* __restrict et,
                                           const StepParams* a) {
-  constexpr double two_pi = 2.0 * kPi;
   const double vdes = a->vdes, heading_step = a->heading_step, up_step = a->up_step, down_step = a->down_step,
                vmin = a->vmin, vmax = a->vmax, k = a->k, sv = a->sv, st = a->st, sp = a->sp;
   long n_big = 0;  // turns with |δ| > kSmallTurn (64-bit, like the doubles, so that the loop vectorises)
@@ -175,10 +183,7 @@ SAFENAV_ALWAYS_INLINE long particles_step(int N, double* __restrict x, double* _
     turn_small(d, cs[i], sn[i], c2, s2);
     cs[i] = c2;
     sn[i] = s2;
-    double t = th[i] + d;  // wrap to (−π, π]; exact for |δ| < π
-    t = t > kPi ? t - two_pi : t;
-    t = t <= -kPi ? t + two_pi : t;
-    th[i] = t;
+    th[i] = wrap_once(th[i] + d);  // exact for |δ| < π
     // eq. 7/9 + (ε_x, ε_y): position moves with the updated v and θ
     x[i] += k * v1 * c2 + sp * ex[i];
     y[i] += k * v1 * s2 + sp * ey[i];
@@ -300,6 +305,23 @@ SAFENAV_ALWAYS_INLINE Sums5 mean_sums(int N, const double* __restrict x, const d
   return {{s0.sum(), s1.sum(), s2.sum(), s3.sum(), s4.sum()}};
 }
 
+/// d wrapped to (−π, π] for d in (−2π, 2π) (a difference of two angles in
+/// (−π, π]), lane-wise: one comparison each way, as wrap_angle there.
+template <int Bytes>
+SAFENAV_ALWAYS_INLINE D4<Bytes> wrap_difference(D4<Bytes> d) {
+  using D = D4<Bytes>;
+  d = D::add_if_gt(d, D::splat(kPi), D::splat(-2.0 * kPi));
+  return D::add_if_le(d, D::splat(-kPi), D::splat(2.0 * kPi));
+}
+
+/// The deviations (x − m, y − m, v − m, θ − m wrapped) of four particles.
+template <int Bytes>
+SAFENAV_ALWAYS_INLINE void deviations4(const D4<Bytes>* in, const double* m, D4<Bytes> (&d)[4]) {
+  using D = D4<Bytes>;
+  for (int k = 0; k < 3; ++k) d[k] = in[k] - D::splat(m[k]);
+  d[3] = wrap_difference<Bytes>(in[3] - D::splat(m[3]));
+}
+
 /// Weighted second moments Σ w_i d_i d_iᵀ about m, θ deviations wrapped (θ_i
 /// and m[3] are both in (−π, π]: one wrap suffices); the upper triangle, row
 /// by row.
@@ -311,16 +333,12 @@ SAFENAV_ALWAYS_INLINE Sums10 covariance_sums(int N, const double* __restrict x, 
                                              const double* __restrict v, const double* __restrict th,
                                              const double* __restrict w, const State* m) {
   using D = D4<Bytes>;
-  const D m0 = D::splat((*m)[0]), m1 = D::splat((*m)[1]), m2 = D::splat((*m)[2]), m3 = D::splat((*m)[3]);
-  const D pi = D::splat(kPi), minus_pi = D::splat(-kPi), two_pi = D::splat(2.0 * kPi),
-          minus_two_pi = D::splat(-2.0 * kPi);
   D a0 = D::splat(0), a1 = a0, a2 = a0, a3 = a0, a4 = a0, a5 = a0, a6 = a0, a7 = a0, a8 = a0, a9 = a0;
   const double* const cols[5] = {x, y, v, th, w};
   blocks_of_four<Bytes>(N, cols, [&](int, const D* in, int) __attribute__((always_inline)) {
-    D d3 = in[3] - m3;
-    d3 = D::add_if_gt(d3, pi, minus_two_pi);
-    d3 = D::add_if_le(d3, minus_pi, two_pi);
-    const D d0 = in[0] - m0, d1 = in[1] - m1, d2 = in[2] - m2;
+    D d[4];
+    deviations4<Bytes>(in, m->data(), d);
+    const D &d0 = d[0], &d1 = d[1], &d2 = d[2], &d3 = d[3];
     const D wi = in[4];
     const D w0 = wi * d0, w1 = wi * d1, w2 = wi * d2, w3 = wi * d3;
     a0 += w0 * d0;
@@ -355,23 +373,6 @@ inline void copy_selected(int N, const int* __restrict start, const double* __re
     t4[j] = f4[src];
     t5[j] = f5[src];
   }
-}
-
-/// d wrapped to (−π, π] for d in (−2π, 2π) (a difference of two angles in
-/// (−π, π]), lane-wise: one comparison each way, as wrap_angle there.
-template <int Bytes>
-SAFENAV_ALWAYS_INLINE D4<Bytes> wrap_difference(D4<Bytes> d) {
-  using D = D4<Bytes>;
-  d = D::add_if_gt(d, D::splat(kPi), D::splat(-2.0 * kPi));
-  return D::add_if_le(d, D::splat(-kPi), D::splat(2.0 * kPi));
-}
-
-/// The deviations (x − m, y − m, v − m, θ − m wrapped) of four particles.
-template <int Bytes>
-SAFENAV_ALWAYS_INLINE void deviations4(const D4<Bytes>* in, const double* m, D4<Bytes> (&d)[4]) {
-  using D = D4<Bytes>;
-  for (int k = 0; k < 3; ++k) d[k] = in[k] - D::splat(m[k]);
-  d[3] = wrap_difference<Bytes>(in[3] - D::splat(m[3]));
 }
 
 /// The moments of an update by h(x) = (v, θ) (the IMU's speed and heading)
@@ -506,19 +507,12 @@ SAFENAV_ALWAYS_INLINE long imu_apply(int N, double* __restrict x, double* __rest
                                      double* __restrict th, double* __restrict cs, double* __restrict sn,
                                      const double* __restrict e0, const double* __restrict e1,
                                      double* __restrict dth, const ImuApply* a) {
-  constexpr double two_pi = 2.0 * kPi;
   const ImuApply p = *a;
   long n_big = 0;
   for (int i = 0; i < N; ++i) {
     const double t0 = th[i];
-    double d3 = t0 - p.m[3];
-    d3 = d3 > kPi ? d3 - two_pi : d3;
-    d3 = d3 <= -kPi ? d3 + two_pi : d3;
-    const double d[4] = {x[i] - p.m[0], y[i] - p.m[1], v[i] - p.m[2], d3};
-    double y1 = p.zt - t0;
-    y1 = y1 > kPi ? y1 - two_pi : y1;
-    y1 = y1 <= -kPi ? y1 + two_pi : y1;
-    const double y0 = p.zv - v[i];
+    const double d[4] = {x[i] - p.m[0], y[i] - p.m[1], v[i] - p.m[2], wrap_once(t0 - p.m[3])};
+    const double y0 = p.zv - v[i], y1 = wrap_once(p.zt - t0);
     double dx[4];
     for (int k = 0; k < 4; ++k)
       dx[k] = (((p.K[k][0] * y0 + p.K[k][1] * y1) + (p.A[k][0] * e0[i] + p.A[k][1] * e1[i])) +
@@ -537,10 +531,7 @@ SAFENAV_ALWAYS_INLINE long imu_apply(int N, double* __restrict x, double* __rest
     turn_small(dt, cs[i], sn[i], c2, s2);
     cs[i] = c2;
     sn[i] = s2;
-    double t = t0 + dt;  // exact wrap for |Δθ| < π; larger turns are redone by the caller
-    t = t > kPi ? t - two_pi : t;
-    t = t <= -kPi ? t + two_pi : t;
-    th[i] = t;
+    th[i] = wrap_once(t0 + dt);  // exact for |Δθ| < π; larger turns are redone by the caller
   }
   return n_big;
 }
