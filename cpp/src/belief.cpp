@@ -43,11 +43,7 @@ StateCov start_covariance(const SensorSettings& sensors, const PlanningMap& map,
   if (!start.allFinite() || !std::isfinite(heading))
     bad("start_covariance: start (" + num(start.x()) + ", " + num(start.y()) + ") and heading " + num(heading) +
         " must be finite");
-  const ObstacleChecker checker(map);
-  const State x0(start.x(), start.y(), 0.0, heading);
-  const bool fix = !sensors.position.needs_landmarks || sensors.landmarks_in_view(x0, &checker) >= sensors.min_landmarks;
-  const Eigen::Matrix2d R = sensors.position.reported_cov();
-  return sensors.start_covariance(fix ? &R : nullptr);  // the simulator's rule (navigation.cpp's Trial)
+  return belief::Model(BmmParams{}, sensors, map, BeliefSettings{}).start_covariance(start, heading);
 }
 
 namespace {
@@ -195,7 +191,9 @@ Eigen::Matrix4d within_marginals(const Eigen::Matrix4d& A, const StateCov& P_pre
 /// recursion; its error's second moment is P_i + N_i, where N_i, the part
 /// the stratum's selection adds, moves with the filter's error dynamics:
 /// N_i ← T_i F N_i Fᵀ T_iᵀ, m_i ← T_i F m_i, T_i = P_i (P_i⁻)⁻¹ = I − K_i H_i
-/// (the optimal gain's).  So the strata that see a landmark late are the
+/// (the optimal gain's); a step whose fix may not arrive (belief::StepOutcome)
+/// moves N_i by each branch's factor, weighted by the branch's probability,
+/// and m_i by their mean.  So the strata that see a landmark late are the
 /// ones whose error lies on that side, and the reported covariance
 /// Σ w_i (P_i + N_i) keeps their larger error until they see it.  While the
 /// strata are one Gaussian (one_gaussian), they are stratified anew from its
@@ -222,14 +220,21 @@ void mixture_recursion(const belief::Model& model, const std::vector<belief::Ste
       const double w = weight[i / 3] * weight[i % 3];
       const Eigen::Vector2d d = -(H * m[i]);  // the vehicle is off the path by minus its error
       seen[i] = d.squaredNorm() > 0.0 ? model.offset(steps[k], d.x(), d.y()) : steps[k];
-      StateCov Pm;
-      model.step(seen[i], Pi[i], &Pm, &F);
-      const Eigen::Matrix4d T = Pm.ldlt().solve(Pi[i].transpose()).transpose();  // P_i (P_i⁻)⁻¹ = I − K_i H_i
+      belief::StepOutcome o;
+      model.step(seen[i], Pi[i], &o);
+      F = o.F;
       N[i] = F * N[i] * F.transpose();
-      mix_m += w * (Pm + N[i]);
-      N[i] = T * N[i] * T.transpose();
+      mix_m += w * (o.Pm + N[i]);
+      if (o.p_fix < 1.0) {  // a fix that may not arrive: each branch moves the error by its own factor
+        const StateCov X = N[i];
+        N[i] = o.p_fix * o.T_fix * X * o.T_fix.transpose() + (1.0 - o.p_fix) * o.T_none * X * o.T_none.transpose();
+        m[i] = (o.p_fix * o.T_fix + (1.0 - o.p_fix) * o.T_none) * (F * m[i]);
+      } else {
+        const Eigen::Matrix4d T = o.Pm.ldlt().solve(Pi[i].transpose()).transpose();  // P_i (P_i⁻)⁻¹ = I − K_i H_i
+        N[i] = T * N[i] * T.transpose();
+        m[i] = T * (F * m[i]);
+      }
       N[i] = 0.5 * (N[i] + N[i].transpose());
-      m[i] = T * (F * m[i]);
       mix += w * (Pi[i] + N[i]);
     }
     P[k] = 0.5 * (mix + mix.transpose());
@@ -270,12 +275,12 @@ BeliefProfile propagate_belief(const Eigen::Ref<const Points2>& path, const BmmP
     mixture_recursion(model, steps, P, A);
   } else {
     for (std::size_t k = 1; k < n; ++k) {
-      StateCov Pm;
-      Eigen::Matrix4d F;
+      belief::StepOutcome o;
       P[k] = P[k - 1];
-      model.step(steps[k], P[k], &Pm, &F);
-      // A = (I − K H) F: the product of the update factors is P (P⁻)⁻¹.
-      A[k - 1] = Pm.ldlt().solve(P[k].transpose()).transpose() * F;
+      model.step(steps[k], P[k], &o);
+      // A = (I − K H) F: the product of the update factors is P (P⁻)⁻¹
+      // (with a fix that may not arrive, the branches' mean factor).
+      A[k - 1] = o.Pm.ldlt().solve(P[k].transpose()).transpose() * o.F;
     }
   }
   BeliefProfile out;

@@ -6,6 +6,9 @@
 #include <algorithm>
 #include <cmath>
 
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
+
 #include "errors.hpp"
 #include "filters/kalman_update.hpp"
 #include "safenav/localizer.hpp"
@@ -125,44 +128,79 @@ void Model::leg(const Eigen::Vector2d& a, const Eigen::Vector2d& b, std::vector<
   }
 }
 
-void Model::step(const Step& s, StateCov& P, StateCov* Pm, Eigen::Matrix4d* Fout) const {
-  // Eq. 11 about the nominal: P⁻ = F P Fᵀ + G Σ_ε Gᵀ (the BMM over the step's dt).
-  const Bmm bmm = bmm_.with_step(s.dt);
-  const Control u(settings_.speed, 0.0);
-  Eigen::Matrix4d F, G;
-  bmm.linearize(s.x, u, &F, &G);
-  P = F * P * F.transpose() + G * bmm.noise_cov() * G.transpose();
-  P = 0.5 * (P + P.transpose());
-  if (Pm) *Pm = P;
-  if (Fout) *Fout = F;
-  // How many filter steps this belief step stands for: each measurement's
-  // information is that many times one's (R divided by the count).
-  const double n = s.dt / bmm_.params().dt;
-  if (s.fix) {
-    const double fixes = n / sensors_.position_every * (1.0 - sensors_.position.dropout_probability);
-    if (fixes > 0.0) ml_update<2>(P, H_fix_, R_fix_ / fixes, MeasurementKind::Position);
+Model::FixOdds Model::fix_odds(const Step& s, double n) const {
+  FixOdds o;
+  const double a = n / sensors_.position_every;  // fix attempts in the step
+  // 1 − (1 − q)^a: at least one of a attempts succeeds, each with probability q.
+  const auto any = [a](double q) { return q < 1.0 ? -std::expm1(a * std::log1p(-q)) : 1.0; };
+  if (s.fix) {  // FixModel::Profile: a fix is lost with the profile's dropout_probability
+    const double q = 1.0 - sensors_.position.dropout_probability;
+    o.p = any(q);
+    o.count = o.p > 0.0 ? a * q / o.p : 0.0;
+  } else if (s.ranges) {
+    // FixModel::Ranges (navigation_sensors.cpp, Trial::range_fix): a range
+    // survives the dropout fault and is sound (neither an outlier nor
+    // misassociated) with probability q.  A fix needs m = max(3,
+    // min_landmarks) sound ranges: with exactly three, one faulty range fails
+    // the fix's χ² test; with more, the outlier test drops it and the sound
+    // ones remain.  So a fix forms with P(Bin(in view, q) ≥ m), and a sound
+    // range is in it when at least m − 1 of the others are sound too:
+    // q·P(Bin(in view − 1, q) ≥ m − 1) per attempt.
+    const LandmarkFaults& f = sensors_.faults;
+    const double q = (1.0 - f.dropout_probability) * (1.0 - f.outlier_probability) *
+                     (1.0 - f.misassociation_probability);
+    const int m = std::max(3, sensors_.min_landmarks);
+    const int k = static_cast<int>(s.seen.size());
+    o.p = any(binomial_tail(k, q, m));
+    o.count = o.p > 0.0 ? a * q * binomial_tail(k - 1, q, m - 1) / o.p : 0.0;
   }
+  return o;
+}
+
+StateCov Model::start_covariance(const Eigen::Vector2d& start, double heading) const {
+  Step s;
+  s.x << start.x(), start.y(), 0.0, heading;
+  s.end = start;
+  observe(s);
+  const FixOdds odds = fix_odds(s, sensors_.position_every);  // one attempt
+  const StateCov none = sensors_.start_covariance(nullptr);
+  if (!(s.fix || s.ranges) || !(odds.p > 0.0)) return none;
+  Eigen::Matrix2d R = R_fix_;
+  if (s.ranges) {  // Gauss–Newton's covariance of the trilateration: (Σ c u uᵀ / σ_r²)⁻¹
+    Eigen::Matrix2d info = Eigen::Matrix2d::Zero();
+    for (int row : s.seen) {
+      const LandmarkGeometry g = landmark_geometry(start.x(), start.y(), sensors_.landmarks(row, 0), sensors_.landmarks(row, 1));
+      if (!g.defined()) continue;
+      LandmarkJacobian J;
+      predict_range(g, 0.0, 0.0, &J);
+      const Eigen::Vector2d u(J.x, J.y);
+      info += odds.count / (sensors_.range_std * sensors_.range_std) * u * u.transpose();
+    }
+    const Eigen::LLT<Eigen::Matrix2d> llt(info);
+    if (llt.info() != Eigen::Success || !(info.determinant() > 1e-12 * info.trace() * info.trace()))
+      return none;  // the ranges do not fix the position: the trilateration refuses
+    R = llt.solve(Eigen::Matrix2d::Identity());
+    R = 0.5 * (R + R.transpose());
+  }
+  const StateCov fix = sensors_.start_covariance(&R);
+  if (odds.p == 1.0) return fix;
+  return odds.p * fix + (1.0 - odds.p) * none;
+}
+
+void Model::update(const Step& s, double n, double fix_count, bool with_fix, StateCov& P) const {
+  if (with_fix && s.fix && fix_count > 0.0) ml_update<2>(P, H_fix_, R_fix_ / fix_count, MeasurementKind::Position);
   if (!s.seen.empty()) {
     State at = s.x;
     at.head<2>() = s.end;
-    // FixModel::Ranges: the simulator builds a fix only from at least
-    // m = max(3, min_landmarks) ranges left after the dropout fault
-    // (navigation.cpp, Trial::range_fix).  A range is kept with q = 1 − dropout
-    // and is in a fix when at least m − 1 of the other ranges in view are
-    // kept too: its expected count per fix step is q·P(Bin(in view − 1, q) ≥ m − 1).
-    const double q = 1.0 - sensors_.faults.dropout_probability;
-    const int m = std::max(3, sensors_.min_landmarks);
-    const double fixes = n / sensors_.position_every * q *
-                         binomial_tail(static_cast<int>(s.seen.size()) - 1, q, m - 1);
     for (int row : s.seen) {
       const LandmarkGeometry g = landmark_geometry(at[kX], at[kY], sensors_.landmarks(row, 0), sensors_.landmarks(row, 1));
       if (!g.defined()) continue;
       LandmarkJacobian J;
       Eigen::Matrix<double, 1, 4> H;
-      if (s.ranges && fixes > 0.0) {  // FixModel::Ranges: a range to each landmark in view (eq. 10)
+      if (with_fix && s.ranges && fix_count > 0.0) {  // FixModel::Ranges: a range to each landmark in view (eq. 10)
         predict_range(g, 0.0, 0.0, &J);
         H << J.x, J.y, 0.0, J.theta;
-        const Eigen::Matrix<double, 1, 1> R(sensors_.range_std * sensors_.range_std / fixes);
+        const Eigen::Matrix<double, 1, 1> R(sensors_.range_std * sensors_.range_std / fix_count);
         ml_update<1>(P, H, R, MeasurementKind::Range);
       }
       if (settings_.bearing_std > 0.0) {  // a bearing to each landmark in view [Placement §III-A]
@@ -174,6 +212,41 @@ void Model::step(const Step& s, StateCov& P, StateCov* Pm, Eigen::Matrix4d* Fout
     }
   }
   if (sensors_.imu) ml_update<2>(P, H_imu_, R_imu_ / n, MeasurementKind::SpeedHeading);
+}
+
+void Model::step(const Step& s, StateCov& P, StepOutcome* out) const {
+  // Eq. 11 about the nominal: P⁻ = F P Fᵀ + G Σ_ε Gᵀ (the BMM over the step's dt).
+  const Bmm bmm = bmm_.with_step(s.dt);
+  const Control u(settings_.speed, 0.0);
+  Eigen::Matrix4d F, G;
+  bmm.linearize(s.x, u, &F, &G);
+  P = F * P * F.transpose() + G * bmm.noise_cov() * G.transpose();
+  P = 0.5 * (P + P.transpose());
+  if (out) {
+    out->Pm = P;
+    out->F = F;
+    out->p_fix = 1.0;
+  }
+  // How many filter steps this belief step stands for: each measurement's
+  // information is that many times one's (R divided by the count).
+  const double n = s.dt / bmm_.params().dt;
+  const FixOdds odds = fix_odds(s, n);
+  if (!(odds.p > 0.0 && odds.p < 1.0)) {  // the updates are certain
+    update(s, n, odds.count, odds.p > 0.0, P);
+    return;
+  }
+  const StateCov Pm = P;
+  StateCov P_fix = Pm, P_none = Pm;
+  update(s, n, odds.count, true, P_fix);
+  update(s, n, odds.count, false, P_none);
+  P = odds.p * P_fix + (1.0 - odds.p) * P_none;
+  P = 0.5 * (P + P.transpose());
+  if (out) {
+    const Eigen::LDLT<StateCov> ldlt(Pm);
+    out->p_fix = odds.p;
+    out->T_fix = ldlt.solve(P_fix.transpose()).transpose();
+    out->T_none = ldlt.solve(P_none.transpose()).transpose();
+  }
 }
 
 void Model::direction(Step& s) const {

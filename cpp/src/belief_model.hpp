@@ -34,6 +34,20 @@ struct Step {
   Eigen::Vector2d toward = Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
 };
 
+/// What one belief step did (Model::step).  A step whose fix arrives only
+/// with probability p_fix < 1 (dropouts, faulty ranges) has two branches,
+/// with the fix and without it, and its P is their mean, weighted by p_fix:
+/// the expected covariance of a Kalman filter with intermittent observations
+/// given the step's prior (Sinopoli et al. 2004, the modified Riccati
+/// recursion).  T_fix and T_none are the branches' update factors
+/// P_b (P⁻)⁻¹ (set only when 0 < p_fix < 1).
+struct StepOutcome {
+  StateCov Pm = StateCov::Zero();        ///< P⁻
+  Eigen::Matrix4d F = Eigen::Matrix4d::Zero();
+  double p_fix = 1.0;                    ///< probability that the step's fix arrives (1: its updates are certain)
+  Eigen::Matrix4d T_fix = Eigen::Matrix4d::Identity(), T_none = Eigen::Matrix4d::Identity();
+};
+
 /// The sensors, the motion model and the map, ready to step beliefs.
 class Model {
  public:
@@ -41,14 +55,23 @@ class Model {
 
   /// The steps of the leg a → b, appended to `out` (none when a == b).
   void leg(const Eigen::Vector2d& a, const Eigen::Vector2d& b, std::vector<Step>& out) const;
-  /// P ← one belief step (predict, then the expected updates).  Pm and F,
-  /// when given, receive P⁻ and the step's F.
-  void step(const Step& s, StateCov& P, StateCov* Pm = nullptr, Eigen::Matrix4d* F = nullptr) const;
+  /// P ← one belief step (predict, then the expected updates; StepOutcome
+  /// for a fix that may not arrive).  `out`, when given, receives P⁻, F and
+  /// the branches.
+  void step(const Step& s, StateCov& P, StepOutcome* out = nullptr) const;
   /// `s` seen by a vehicle `lateral` metres to the left of the leg and
   /// turned by `dtheta` (BeliefSettings::deviation_mixture): the landmarks in
   /// view and the measurements from there; the motion (s.x) and the
   /// clearance stay the nominal ones.
   Step offset(const Step& s, double lateral, double dtheta) const;
+  /// The expected prior of a trial that starts at `start` heading `heading`:
+  /// the simulator's first fix attempt (navigation.cpp, Trial::initialize)
+  /// succeeds with the step's fix probability p, and the localizer then
+  /// starts from that fix's R (FixModel::Ranges: the trilateration's
+  /// covariance from the ranges in view, each counted as in a fix), else
+  /// from SensorSettings::unfixed_start_std(); the mean of the two, weighted
+  /// by p (SensorSettings::start_covariance for each).
+  StateCov start_covariance(const Eigen::Vector2d& start, double heading) const;
   /// Fills s.toward (central differences of the keep-out distance).
   void direction(Step& s) const;
   /// σ toward s.toward (filled first), or √λ_max where that is undefined.
@@ -60,6 +83,17 @@ class Model {
 
  private:
   void observe(Step& s) const;
+  /// The step's fix: the probability p that one arrives in the step's n
+  /// filter steps, and the expected count of each measurement of it given
+  /// that one does (R is divided by it).
+  struct FixOdds {
+    double p = 1.0;
+    double count = 0.0;
+  };
+  FixOdds fix_odds(const Step& s, double n) const;
+  /// The step's updates on P (after its prediction): the fix's when
+  /// `with_fix`, each counted `fix_count` times, then bearings and the IMU.
+  void update(const Step& s, double n, double fix_count, bool with_fix, StateCov& P) const;
   Bmm bmm_;
   SensorSettings sensors_;
   // sensors_ with one landmark: the visibility of each in turn (scratch: a

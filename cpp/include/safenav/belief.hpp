@@ -113,11 +113,15 @@ struct BeliefProfile {
 };
 
 /// The prior the navigation loop starts from (its Trial::initialize, in
-/// navigation.cpp) for a vehicle at `start` heading `heading` [rad]: the
-/// fix's reported covariance when a fix is expected there (at least
-/// min_landmarks in view, or a source that needs none), else a start known
-/// to σ = max(1 m, the source's largest σ) in x and y; the IMU's speed and
-/// heading variances.
+/// navigation.cpp) for a vehicle at `start` heading `heading` [rad], in
+/// expectation over its first fix: with the fix (at least min_landmarks in
+/// view, or a source that needs none; for FixModel::Ranges at least
+/// max(3, min_landmarks) ranges that survive the dropout fault and are
+/// sound), the fix's covariance (the source's reported one, or the
+/// trilateration's from the ranges in view); without it, a start known to
+/// σ = max(1 m, the source's largest σ) in x and y; their mean weighted by
+/// the fix's probability (1 without dropouts and faults).  The IMU's speed
+/// and heading variances.
 StateCov start_covariance(const SensorSettings& sensors, const PlanningMap& map, const Eigen::Vector2d& start,
                           double heading);
 
