@@ -60,16 +60,26 @@ def test_sigma_calibration_matches_a_direct_computation():
         tr[bin_of(s)] += c[0] + c[3]
         ns[bin_of(s)] += 1
     sq, n, hit = np.zeros(nb), np.zeros(nb), np.zeros(nb)
-    for x, xh in zip(truths, estimates):
+    per_sq, per_n = np.zeros((len(truths), nb)), np.zeros((len(truths), nb))
+    for i, (x, xh) in enumerate(zip(truths, estimates)):
         seen = set()
         for a, b in zip(x, xh):
             j = bin_of(arc_position(PATH, a[None, :2])[0])
             sq[j] += np.sum((b[:2] - a[:2]) ** 2)
             n[j] += 1
+            per_sq[i, j] += np.sum((b[:2] - a[:2]) ** 2)
+            per_n[i, j] += 1
             seen.add(j)
         for j in seen:
             hit[j] += 1
     assert np.array_equal(cal.samples, n) and np.array_equal(cal.trials, hit)
+    w = np.argmax(per_sq, axis=0)                     # the trial with the largest squared error per bin
+    cols = np.arange(nb)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        assert np.allclose(cal.worst_share, per_sq[w, cols] / sq, equal_nan=True)
+        assert np.allclose(cal.observed_without_worst, np.sqrt((sq - per_sq[w, cols]) / (n - per_n[w, cols])),
+                           equal_nan=True)
+    assert np.nanmax(cal.worst_share) <= 1.0 and np.nanmin(cal.worst_share) >= 1.0 / len(truths) - 1e-12
     assert np.allclose(cal.predicted, np.sqrt(tr / ns), equal_nan=True)
     with np.errstate(invalid="ignore", divide="ignore"):
         assert np.allclose(cal.observed, np.sqrt(sq / n), equal_nan=True)

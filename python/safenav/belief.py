@@ -203,12 +203,18 @@ class SigmaCalibration:
     sqrt(mean over the bin's stages of trace P_xy) (the RMS position error
     the belief predicts), ``observed`` = sqrt(mean over the bin's recorded
     steps of |x̂_xy − x_xy|²) (NaN where none), ``samples`` (steps) and
-    ``trials`` (trials with a step in the bin)."""
+    ``trials`` (trials with a step in the bin).  ``worst_share`` is the
+    largest share of a bin's squared error that one trial holds, and
+    ``observed_without_worst`` the RMS error without that trial (NaN where
+    no other trial reached the bin): a bin whose RMS is one trial's is a rare
+    event's, which a few dozen trials cannot resolve."""
     edges: np.ndarray
     predicted: np.ndarray
     observed: np.ndarray
     samples: np.ndarray
     trials: np.ndarray
+    worst_share: np.ndarray
+    observed_without_worst: np.ndarray
 
     @property
     def ratio(self) -> np.ndarray:
@@ -236,18 +242,26 @@ def sigma_calibration(profile, truths, estimates, *, bin_m: float = 10.0) -> Sig
     tr = np.bincount(stage_bin, cov[:, 0] + cov[:, 3], n_bins)
     n_stage = np.bincount(stage_bin, minlength=n_bins)
     sq, n, hit = np.zeros(n_bins), np.zeros(n_bins, dtype=int), np.zeros(n_bins, dtype=int)
+    worst_sq, worst_n = np.zeros(n_bins), np.zeros(n_bins, dtype=int)
     for i, (x, xh) in enumerate(zip(truths, estimates)):
         x, xh = np.asarray(x, dtype=float)[:, :2], np.asarray(xh, dtype=float)[:, :2]
         if x.shape != xh.shape:
             raise ValueError(f"trial {i}: truth {x.shape} and estimate {xh.shape} differ in shape")
         b = np.clip(np.searchsorted(edges, arc_position(path, x), side="right") - 1, 0, n_bins - 1)
-        sq += np.bincount(b, np.sum((xh - x) ** 2, axis=1), n_bins)
-        n += np.bincount(b, minlength=n_bins)
+        trial_sq = np.bincount(b, np.sum((xh - x) ** 2, axis=1), n_bins)
+        trial_n = np.bincount(b, minlength=n_bins)
+        sq += trial_sq
+        n += trial_n
         hit += np.bincount(np.unique(b), minlength=n_bins)
+        worse = trial_sq > worst_sq
+        worst_sq, worst_n = np.where(worse, trial_sq, worst_sq), np.where(worse, trial_n, worst_n)
     with np.errstate(divide="ignore", invalid="ignore"):
         pred = np.where(n_stage > 0, np.sqrt(tr / n_stage), np.nan)
         obs = np.where(n > 0, np.sqrt(sq / n), np.nan)
-    return SigmaCalibration(edges=edges, predicted=pred, observed=obs, samples=n, trials=hit)
+        share = np.where(sq > 0, worst_sq / sq, np.nan)
+        rest = np.where(n > worst_n, np.sqrt(np.maximum(sq - worst_sq, 0.0) / (n - worst_n)), np.nan)
+    return SigmaCalibration(edges=edges, predicted=pred, observed=obs, samples=n, trials=hit, worst_share=share,
+                            observed_without_worst=rest)
 
 
 def clopper_pearson(k: int, n: int, confidence: float = 0.95) -> tuple[float, float]:

@@ -21,9 +21,12 @@
 // A belief step longer than the BMM's Δt covers n = step/Δt filter steps:
 // Bmm::with_step(step) scales the process noise, and each measurement's R is
 // divided by the number of times it would have been made in the step
-// (n/position_every fixes, n IMU readings; scaled up by 1/(1 − dropout)),
-// which keeps the information rate.  With step = Δt and position_every = 1
-// the recursion is the EKF's, step for step.
+// (n/position_every fix attempts, n IMU readings), which keeps the
+// information rate.  With step = Δt and position_every = 1 the recursion is
+// the EKF's, step for step.  A fix that may not arrive (dropouts, faulty
+// ranges) makes two branches, with it and without it, and P is their mean
+// weighted by the fix's probability (Sinopoli et al. 2004's expected
+// covariance for intermittent observations; docs/belief_planning.md).
 //
 // Collision probability (Patil, van den Berg & Alterovitz, ICRA 2012): the
 // estimation error e_k evolves as e_{k+1} = A_k e_k + w_k with
