@@ -283,6 +283,16 @@ def test_other_bad_options():
         MeasurementModel.range([[1.0, 2.0]], 0.0)
 
 
+def test_a_measurement_covariance_is_symmetric_to_the_rounding_of_its_largest_entry():
+    """The one symmetry rule of every covariance check: entries may differ
+    from their transposes by 1e-9 of the largest entry, whatever its scale
+    (a small R gets no absolute allowance)."""
+    MeasurementModel.position([[1e3, 1e-7], [1.5e-7, 2e3]])                # 5e-8 < 1e-9 · 2e3: rounding
+    MeasurementModel.position([[1e-6, 1e-16], [1.5e-16, 2e-6]])            # 5e-17 < 1e-9 · 2e-6
+    with pytest.raises(ValueError, match=r"R is not symmetric: \[1, 0\] = 0 but \[0, 1\] = 1e-13"):
+        MeasurementModel.position([[1e-6, 1e-13], [0.0, 1e-6]])         # 1e-13 = 1e-7 of the largest entry
+
+
 # ---------------------------------------------------------------------------
 # landmark at the vehicle position: range and bearing undefined
 # ---------------------------------------------------------------------------

@@ -6,6 +6,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "filters/checks.hpp"
+
 namespace safenav {
 
 const char* to_string(MeasurementKind kind) {
@@ -35,9 +37,9 @@ void GaussianNoise::add_block(const Eigen::MatrixXd& R, const char* what) {
         os << what << "[" << dim_ + i << ", " << dim_ + j << "] = " << R(i, j) << " is not finite";
         throw std::invalid_argument(os.str());
       }
-  const double scale = std::max(1.0, R.cwiseAbs().maxCoeff());
-  Eigen::Index i, j;
-  if ((R - R.transpose()).cwiseAbs().maxCoeff(&i, &j) > 1e-9 * scale) {
+  if (!symmetric_to_rounding(R)) {
+    Eigen::Index i, j;
+    (R - R.transpose()).cwiseAbs().maxCoeff(&i, &j);
     os << what << " is not symmetric: [" << dim_ + i << ", " << dim_ + j << "] = " << R(i, j) << " but ["
        << dim_ + j << ", " << dim_ + i << "] = " << R(j, i);
     throw std::invalid_argument(os.str());

@@ -15,20 +15,6 @@ namespace safenav {
 template <>
 const ParamSet<FilterOptions>& param_set<FilterOptions>();  // defined below
 
-namespace {
-
-/// Symmetric to rounding: no entry differs from its transpose by more than
-/// 1e-9 of the matrix's largest entry.  (Relative to the matrix, not to the
-/// entry: an off-diagonal that cancels to ~1e-11 of the diagonal, as a
-/// trilaterated fix's can, carries the diagonal's rounding.)
-template <class M>
-bool symmetric_to_rounding(const M& P) {
-  const double scale = std::max(1e-300, P.cwiseAbs().maxCoeff());
-  return (P - P.transpose()).cwiseAbs().maxCoeff() <= 1e-9 * scale;
-}
-
-}  // namespace
-
 void check_covariance(const Eigen::MatrixXd& P, const char* what) {
   std::ostringstream os;
   if (P.rows() != P.cols()) {

@@ -1,6 +1,7 @@
 // Private: argument and result checks shared by the filters in this folder.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 
 #include <string>
@@ -22,6 +23,16 @@ template <class Diagonal>
 inline double log_det_from_cholesky(const Diagonal& d) {
   const double p = d.prod();
   return 2.0 * ((p > 1e-300 && p < 1e300) ? std::log(p) : d.array().log().sum());
+}
+/// Symmetric to rounding: no entry differs from its transpose by more than
+/// 1e-9 of the matrix's largest entry.  (Relative to the matrix, not to the
+/// entry: an off-diagonal that cancels to ~1e-11 of the diagonal, as a
+/// trilaterated fix's can, carries the diagonal's rounding.)  The one rule of
+/// every covariance check (check_covariance, check_cov2, GaussianNoise).
+template <class M>
+inline bool symmetric_to_rounding(const M& P) {
+  const double scale = std::max(1e-300, P.cwiseAbs().maxCoeff());
+  return (P - P.transpose()).cwiseAbs().maxCoeff() <= 1e-9 * scale;
 }
 /// A 2×2 noise covariance: finite, symmetric, positive definite, checked
 /// without allocating; the message starts with `what`.
