@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from safenav import _core
 from safenav import planning as P
@@ -183,3 +185,27 @@ def test_an_intermittent_fix_bounds_the_expected_covariance_from_above():
     # The bound is tight where it matters: half the vehicles have no fix yet after the first step.
     np.testing.assert_allclose(np.trace(belief[1:K + 1, :2, :2], axis1=1, axis2=2),
                                np.trace(mean[:, :2, :2], axis1=1, axis2=2), rtol=0.15)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(d=st.lists(st.floats(0.0, 0.95), min_size=2, max_size=2, unique=True), ranges=st.booleans())
+def test_more_dropout_never_predicts_a_smaller_covariance(d, ranges):
+    """The two-branch step is monotone in the fix's probability (P_fix ⪯
+    P_none, and the Riccati maps are monotone), so a fix that comes more
+    rarely gives a larger covariance at every stage, in the psd order."""
+    lms = np.array([[20.0 + 6 * np.cos(a), 20.0 + 6 * np.sin(a)] for a in np.linspace(0, 2 * np.pi, 5)[:-1]])
+    path = np.array([[14.0, 19.0], [22.0, 19.0], [22.0, 24.0]])
+    m, bmm = open_map(upper=(60, 40)), _core.BmmParams()
+    P0 = np.diag([1.0, 1.0, 1e-2, 1e-2])
+    covs = []
+    for dropout in sorted(d):
+        se = sensors(lms, ranges=ranges, occlusion=False, max_range=7.5)
+        if ranges:
+            se.faults.dropout_probability = dropout
+        else:
+            se.position.dropout_probability = dropout
+        covs.append(profile_cov(P.propagate_belief(path, sensors=se, map=m, bmm=bmm, start_cov=P0, speed=SPEED,
+                                                   deviation_mixture=False)))
+    diff = covs[1] - covs[0]
+    scale = np.abs(covs[1]).max(axis=(1, 2))
+    assert (np.linalg.eigvalsh(0.5 * (diff + diff.transpose(0, 2, 1))).min(axis=1) >= -1e-9 * scale).all()
