@@ -19,7 +19,9 @@
    first ``--record`` trials per cell, per arc-length bin (target: ratio
    within ±25 %), and the same for the certificate's robust camera
    (``robust_sight``) for comparison; per bin also the predicted and the
-   observed share of steps with a fix; (b) the predicted path collision
+   observed share of steps with a fix, and for the bins outside the band
+   how many hold more than half their squared error in one trial (a rare
+   event) and their ratios without it; (b) the predicted path collision
    probability (the certificate's robust belief, and the expected one)
    against the observed collision rate with its one-sided 95 %
    Clopper–Pearson bounds (target: observed not significantly above
