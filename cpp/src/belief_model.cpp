@@ -7,11 +7,11 @@
 #include <cmath>
 
 #include <Eigen/Cholesky>
-#include <Eigen/LU>
 
 #include "errors.hpp"
 #include "filters/kalman_update.hpp"
 #include "safenav/localizer.hpp"
+#include "safenav/trilateration.hpp"
 
 namespace safenav::belief {
 
@@ -166,21 +166,21 @@ StateCov Model::start_covariance(const Eigen::Vector2d& start, double heading) c
   const StateCov none = sensors_.start_covariance(nullptr);
   if (!(s.fix || s.ranges) || !(odds.p > 0.0)) return none;
   Eigen::Matrix2d R = R_fix_;
-  if (s.ranges) {  // Gauss–Newton's covariance of the trilateration: (Σ c u uᵀ / σ_r²)⁻¹
-    Eigen::Matrix2d info = Eigen::Matrix2d::Zero();
-    for (int row : s.seen) {
-      const LandmarkGeometry g = landmark_geometry(start.x(), start.y(), sensors_.landmarks(row, 0), sensors_.landmarks(row, 1));
-      if (!g.defined()) continue;
-      LandmarkJacobian J;
-      predict_range(g, 0.0, 0.0, &J);
-      const Eigen::Vector2d u(J.x, J.y);
-      info += odds.count / (sensors_.range_std * sensors_.range_std) * u * u.transpose();
+  if (s.ranges) {
+    // The simulator's trilateration (Trial::range_fix) of the noise-free
+    // ranges, each σ_r/√c: its covariance (Jᵀ W J)⁻¹, W = c/σ_r², and its
+    // refusals (too few, degenerate or ambiguous geometry: no fix).
+    const Eigen::Index n = static_cast<Eigen::Index>(s.seen.size());
+    Anchors anchors(n, 2);
+    Eigen::VectorXd ranges(n);
+    for (Eigen::Index i = 0; i < n; ++i) {
+      anchors.row(i) = sensors_.landmarks.row(s.seen[static_cast<std::size_t>(i)]);
+      ranges[i] = (anchors.row(i).transpose() - start).norm();
     }
-    const Eigen::LLT<Eigen::Matrix2d> llt(info);
-    if (llt.info() != Eigen::Success || !(info.determinant() > 1e-12 * info.trace() * info.trace()))
-      return none;  // the ranges do not fix the position: the trilateration refuses
-    R = llt.solve(Eigen::Matrix2d::Identity());
-    R = 0.5 * (R + R.transpose());
+    const LocalizationResult lr = trilaterate(
+        anchors, ranges, Eigen::VectorXd::Constant(n, sensors_.range_std / std::sqrt(odds.count)), LocalizationOptions{});
+    if (!lr.ok()) return none;
+    R = lr.covariance;
   }
   const StateCov fix = sensors_.start_covariance(&R);
   if (odds.p == 1.0) return fix;

@@ -67,8 +67,8 @@ class Model {
   /// The expected prior of a trial that starts at `start` heading `heading`:
   /// the simulator's first fix attempt (navigation.cpp, Trial::initialize)
   /// succeeds with the step's fix probability p, and the localizer then
-  /// starts from that fix's R (FixModel::Ranges: the trilateration's
-  /// covariance from the ranges in view, each counted as in a fix), else
+  /// starts from that fix's R (FixModel::Ranges: trilaterate()'s covariance
+  /// of the noise-free ranges in view, each counted as in a fix), else
   /// from SensorSettings::unfixed_start_std(); the mean of the two, weighted
   /// by p (SensorSettings::start_covariance for each).
   StateCov start_covariance(const Eigen::Vector2d& start, double heading) const;

@@ -115,14 +115,6 @@ SAFENAV_ALWAYS_INLINE void store_lanes(const D4<Bytes>& a, double* p, int n) {
   }
 }
 
-/// One noisy BMM step (eqs. 3, 4, 6, 7/9, as Bmm::transition) for every
-/// particle.  θ moves by δ_i; (cos θ, sin θ) is rotated by δ_i with sin δ and
-/// cos δ from their Taylor series (truncation error < 1e-17 for |δ| ≤
-/// kSmallTurn, rounding within 1.5 eps; larger turns are redone exactly by
-/// the caller, which is told how many there were).  Element-wise, so left to the auto-vectoriser;
-/// it needs -fno-trapping-math to if-convert the clamps.  (Kernels take their
-/// arrays as __restrict parameters: GCC honours restrict there, through
-/// inlining, and not on local copies.)
 /// a wrapped to (−π, π] for a in (−3π, 3π] (an angle in (−π, π] moved by
 /// less than 2π): one comparison each way, as wrap_angle there, branch-free
 /// so that the loops calling it vectorise.
@@ -149,6 +141,14 @@ SAFENAV_ALWAYS_INLINE void turn_small(double d, double c, double s, double& c_ou
   s_out = s1 * r;
 }
 
+/// One noisy BMM step (eqs. 3, 4, 6, 7/9, as Bmm::transition) for every
+/// particle.  θ moves by δ_i; (cos θ, sin θ) is rotated by δ_i with sin δ and
+/// cos δ from their Taylor series (truncation error < 1e-17 for |δ| ≤
+/// kSmallTurn, rounding within 1.5 eps; larger turns are redone exactly by
+/// the caller, which is told how many there were).  Element-wise, so left to the auto-vectoriser;
+/// it needs -fno-trapping-math to if-convert the clamps.  (Kernels take their
+/// arrays as __restrict parameters: GCC honours restrict there, through
+/// inlining, and not on local copies.)
 struct StepParams {
   double vdes, heading_step, up_step, down_step, vmin, vmax, k, sv, st, sp;
 };
