@@ -34,6 +34,7 @@ void bind_settings(py::module_& m) {
       .def_readwrite("dominance_tolerance", &S::dominance_tolerance)
       .def_readwrite("max_expansions", &S::max_expansions)
       .def_readwrite("shortcut", &S::shortcut)
+      .def_readwrite("max_turn", &S::max_turn)
       .def("validate", &S::validate);
 
   py::class_<BeliefProblem>(m, "BeliefProblem", "Map, start, goal, motion model, sensors, start covariance, guide paths.")

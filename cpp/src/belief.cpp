@@ -400,6 +400,7 @@ const ParamSet<BeliefPlannerSettings>& param_set<BeliefPlannerSettings>() {
           .real("dominance_tolerance", SN_REF(S, dominance_tolerance), "", closed(0, 1), "relative epsilon of the belief partial order (Bry & Roy)")
           .integer64("max_expansions", SN_REF(S, max_expansions), closed(1, 1e9), "belief expansions before giving up")
           .flag("shortcut", SN_REF(S, shortcut), "shorten the found path where the chance constraint allows")
+          .real("max_turn", SN_REF(S, max_turn), "rad", above(0, kPi), "sharpest turn of the path at a vertex")
           .set;
   return s;
 }

@@ -158,9 +158,18 @@ bool feasible_along(const belief::Model& model, const BeliefPlannerSettings& st,
   return true;
 }
 
+/// The turn at b between the legs a → b and b → c [rad, 0..π]; 0 where a
+/// leg has no length.
+double turn_at(const Vec2& a, const Vec2& b, const Vec2& c) {
+  const Vec2 u = b - a, w = c - b;
+  if (u.squaredNorm() == 0.0 || w.squaredNorm() == 0.0) return 0.0;
+  return std::atan2(std::abs(u.x() * w.y() - u.y() * w.x()), u.dot(w));
+}
+
 /// Greedy shortcuts of a feasible path: from each vertex in turn, the
-/// farthest later vertex joined by a free segment such that the belief along
-/// it and along the rest of the path still meets the chance constraint.
+/// farthest later vertex joined by a free segment, without a turn sharper
+/// than max_turn at either end, such that the belief along it and along the
+/// rest of the path still meets the chance constraint.
 std::vector<Vec2> shortcut(std::vector<Vec2> pts, const StateCov& P0, const belief::Model& model,
                            const ObstacleChecker& free, const BeliefPlannerSettings& st) {
   StateCov P = P0;  // the belief at pts[i]
@@ -168,6 +177,8 @@ std::vector<Vec2> shortcut(std::vector<Vec2> pts, const StateCov& P0, const beli
   for (std::size_t i = 0; i + 2 < pts.size(); ++i) {
     for (std::size_t j = pts.size() - 1; j >= i + 2; --j) {
       if (!free.segment_free(pts[i], pts[j])) continue;
+      if (i > 0 && turn_at(pts[i - 1], pts[i], pts[j]) > st.max_turn) continue;
+      if (j + 1 < pts.size() && turn_at(pts[i], pts[j], pts[j + 1]) > st.max_turn) continue;
       std::vector<Vec2> trial{pts[i]};
       trial.insert(trial.end(), pts.begin() + static_cast<std::ptrdiff_t>(j), pts.end());
       if (!feasible_along(model, st, trial, 0, P)) continue;
@@ -183,20 +194,12 @@ std::vector<Vec2> shortcut(std::vector<Vec2> pts, const StateCov& P0, const beli
 
 struct Belief {
   int vertex;
+  int from;  ///< the vertex it came from (−1 at the start): the turns it may take next
   int parent;
   double cost;
   StateCov P;
   bool alive;
 };
-
-/// a ≺ b in Bry & Roy's partial order, relaxed by ε: c_a ≤ (1+ε)c_b and
-/// (1+ε)P_b − P_a ⪰ 0.
-bool dominates(const Belief& a, const Belief& b, double eps) {
-  if (a.cost > (1.0 + eps) * b.cost + 1e-12) return false;
-  const StateCov D = (1.0 + eps) * b.P - a.P;
-  const double scale = std::max(1e-300, b.P.diagonal().maxCoeff());
-  return Eigen::SelfAdjointEigenSolver<StateCov>(D, Eigen::EigenvaluesOnly).eigenvalues()(0) >= -1e-12 * scale;
-}
 
 class Search {
  public:
@@ -216,6 +219,24 @@ class Search {
       ready_[static_cast<std::size_t>(e)] = 1;
     }
     return s;
+  }
+  /// Whether belief b may turn toward vertex w: no sharper than max_turn.
+  bool may_turn(const Belief& b, int w) const {
+    if (b.from < 0) return true;
+    const auto at = [this](int i) -> const Vec2& { return g_.v[static_cast<std::size_t>(i)]; };
+    return turn_at(at(b.from), at(b.vertex), at(w)) <= st_.max_turn;
+  }
+  /// a ≺ b in Bry & Roy's partial order, relaxed by ε: c_a ≤ (1+ε)c_b and
+  /// (1+ε)P_b − P_a ⪰ 0, and a may turn toward every vertex that b may (the
+  /// turn limit makes those depend on the edge a belief came along).
+  bool dominates(const Belief& a, const Belief& b, double eps) const {
+    if (a.cost > (1.0 + eps) * b.cost + 1e-12) return false;
+    if (a.from != b.from)
+      for (const auto& [w, e] : g_.adj[static_cast<std::size_t>(b.vertex)])
+        if (may_turn(b, w) && !may_turn(a, w)) return false;
+    const StateCov D = (1.0 + eps) * b.P - a.P;
+    const double scale = std::max(1e-300, b.P.diagonal().maxCoeff());
+    return Eigen::SelfAdjointEigenSolver<StateCov>(D, Eigen::EigenvaluesOnly).eigenvalues()(0) >= -1e-12 * scale;
   }
   /// Inserts b at its vertex unless a belief there dominates it; retires the ones it dominates.
   bool insert(Belief b, BeliefPlanResult& res);
@@ -258,7 +279,7 @@ bool Search::insert(Belief b, BeliefPlanResult& res) {
 }
 
 int Search::run(BeliefPlanResult& res) {
-  insert(Belief{0, -1, 0.0, pb_.start_cov, true}, res);
+  insert(Belief{0, -1, -1, 0.0, pb_.start_cov, true}, res);
   while (!open_.empty()) {
     const int id = open_.top().second;
     open_.pop();
@@ -267,8 +288,8 @@ int Search::run(BeliefPlanResult& res) {
     if (cur.vertex == 1) return id;
     if (++res.expansions > st_.max_expansions) return -2;
     for (const auto& [w, e] : g_.adj[static_cast<std::size_t>(cur.vertex)]) {
-      if (cur.parent >= 0 && w == nodes_[static_cast<std::size_t>(cur.parent)].vertex) continue;
-      Belief next{w, id, cur.cost, cur.P, true};
+      if (w == cur.from || !may_turn(cur, w)) continue;
+      Belief next{w, cur.vertex, id, cur.cost, cur.P, true};
       bool ok = true;
       for (belief::Step& s : edge_steps(e, cur.vertex, w)) {
         model_.step(s, next.P);

@@ -412,10 +412,11 @@ def plan_or_none(scenario, name: str, iterations: int | None = None):
         return None
 
 
-def plan_belief_path(scenario, raw_path, k: float, *, guides=()):
+def plan_belief_path(scenario, raw_path, k: float, *, guides=(), **settings):
     """The belief-aware plan (:func:`safenav.belief.plan_belief`, RRBT) from
     the RAw-RRT* path's start to its goal at k, with that path (and the
-    polylines ``guides``) as guide paths in the roadmap.  Returns the
+    polylines ``guides``) as guide paths in the roadmap; ``settings`` go to
+    ``plan_belief`` (``BeliefPlannerSettings`` fields).  Returns the
     ``BeliefPlan``."""
     from .belief import plan_belief
 
@@ -423,7 +424,7 @@ def plan_belief_path(scenario, raw_path, k: float, *, guides=()):
     kw = mission_inputs(scenario, raw_path)
     return plan_belief(kw.pop("map"), raw_path[0], raw_path[-1],
                        guide_paths=[raw_path, *(np.asarray(g, dtype=float) for g in guides)], k_sigma=max(k, 0.0),
-                       seed=int(scenario.seeds.planner), **kw)
+                       seed=int(scenario.seeds.planner), **kw, **settings)
 
 
 def replan_with_landmarks(scenario, cert: PathCertificate, raw_path, *, step: float = 0.0) -> PathCertificate:
