@@ -193,37 +193,58 @@ def turns(path) -> np.ndarray:
     return np.arctan2(np.abs(u[:, 0] * w[:, 1] - u[:, 1] * w[:, 0]), np.einsum("ij,ij->i", u, w))
 
 
-def test_a_planned_path_does_not_double_back_to_look_at_the_landmarks_behind():
-    """Generated world 23's P1 (a world no benchmark was tuned on) starts
-    blind with landmarks behind the start.  Without a turn limit the planner
-    drives 16 m, doubles back 1 m so that the belief's camera, which turns
-    with the leg at once, sees them, and goes on: turns of 160°.  The
-    corridor controllers never make that turn, so no driven vehicle got
-    that fix (bench_certified.py: RMS error 11× the predicted one).  With the
-    default limit no turn is sharper than 90°, and the plan holds its chance
-    constraint without the look."""
+def window_turns(path, window: float) -> np.ndarray:
+    """At each inner vertex, the sum of the turns there and at the later
+    vertices less than ``window`` metres of path after it."""
+    t = turns(path)
+    legs = np.linalg.norm(np.diff(np.asarray(path, dtype=float), axis=0), axis=1)
+    out = t.copy()
+    for i in range(len(t)):
+        run = 0.0
+        for j in range(i + 1, len(t)):
+            run += legs[j]  # from vertex i+1 (turn i) to vertex j+1 (turn j)
+            if run >= window:
+                break
+            out[i] += t[j]
+    return out
+
+
+@pytest.mark.parametrize("world, loose", [(23, dict(max_turn=np.pi, turn_window=0.0)), (29, dict(turn_window=0.0))],
+                         ids=["doubles-back", "two-turns"])
+def test_a_planned_path_does_not_turn_around_to_look_at_the_landmarks_behind(world, loose):
+    """Generated worlds 23 and 29 (no benchmark was tuned on them) start
+    blind with landmarks behind the start on P1.  Without the turn limit the
+    planner turns the belief's camera, which turns with each leg at once, to
+    them: world 23's path drives 16 m and doubles back 1 m (turns of 160°);
+    with the limit at single vertices only, world 29's turns by 57° and 88°
+    within 2.9 m.  The controllers aim 5 m ahead and cut both, so no driven
+    vehicle got those fixes (bench_certified.py: RMS error 9–11× the
+    predicted).  With the defaults no 5 m of the path turns by more than
+    90° in all, and the plan holds its chance constraint without the look."""
     from safenav import certify as C
     from safenav.generate import generate_scenario
 
-    sc = generate_scenario(23)
+    sc = generate_scenario(world)
     raw = np.asarray(C.plan_or_none(sc, "P1").path)
     k, _ = C.risk_k(sc, raw)
-    loose = C.plan_belief_path(sc, raw, k, max_turn=np.pi)
-    assert loose.success and turns(loose.path).max() > np.deg2rad(150)
+    window = sc.navigation.lookahead
+    res = C.plan_belief_path(sc, raw, k, **loose)
+    assert res.success and window_turns(res.path, window).max() > np.deg2rad(130)
     res = C.plan_belief_path(sc, raw, k)
     assert res.success, res.detail
-    assert turns(res.path).max() <= np.pi / 2 + 1e-12
+    assert window_turns(res.path, window).max() <= np.pi / 2 + 1e-12
     kw = C.mission_inputs(sc, raw)
     need = np.asarray(res.profile.clearance) - kw["vehicle_radius"] - kw["margin"]
     assert np.all(k * np.asarray(res.profile.sigma_toward) <= need + 1e-9)
 
 
 @settings(max_examples=8, deadline=None)
-@given(max_turn=st.floats(np.deg2rad(20), np.pi), seed=st.integers(0, 3))
-def test_no_turn_of_a_planned_path_is_sharper_than_max_turn(max_turn, seed):
+@given(max_turn=st.floats(np.deg2rad(20), np.pi), window=st.sampled_from([0.0, 5.0, 12.0]),
+       seed=st.integers(0, 3))
+def test_no_stretch_of_a_planned_path_turns_more_than_max_turn(max_turn, window, seed):
     m, bmm, se = corridor_world()
-    res = plan(m, bmm, se, k_sigma=3.0, max_turn=max_turn, seed=seed)
+    res = plan(m, bmm, se, k_sigma=3.0, max_turn=max_turn, turn_window=window, seed=seed)
     if res.success:
-        assert turns(res.path).max(initial=0.0) <= max_turn + 1e-12
+        assert window_turns(res.path, window).max(initial=0.0) <= max_turn + 1e-12
     else:
         assert res.status in (P.BeliefPlanStatus.INFEASIBLE, P.BeliefPlanStatus.NO_PATH), res.detail

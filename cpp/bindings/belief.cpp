@@ -35,6 +35,7 @@ void bind_settings(py::module_& m) {
       .def_readwrite("max_expansions", &S::max_expansions)
       .def_readwrite("shortcut", &S::shortcut)
       .def_readwrite("max_turn", &S::max_turn)
+      .def_readwrite("turn_window", &S::turn_window)
       .def("validate", &S::validate);
 
   py::class_<BeliefProblem>(m, "BeliefProblem", "Map, start, goal, motion model, sensors, start covariance, guide paths.")

@@ -400,7 +400,8 @@ const ParamSet<BeliefPlannerSettings>& param_set<BeliefPlannerSettings>() {
           .real("dominance_tolerance", SN_REF(S, dominance_tolerance), "", closed(0, 1), "relative epsilon of the belief partial order (Bry & Roy)")
           .integer64("max_expansions", SN_REF(S, max_expansions), closed(1, 1e9), "belief expansions before giving up")
           .flag("shortcut", SN_REF(S, shortcut), "shorten the found path where the chance constraint allows")
-          .real("max_turn", SN_REF(S, max_turn), "rad", above(0, kPi), "sharpest turn of the path at a vertex")
+          .real("max_turn", SN_REF(S, max_turn), "rad", above(0, kPi), "most the path turns at a vertex and within turn_window")
+          .real("turn_window", SN_REF(S, turn_window), "m", closed(0, 1e6), "turns closer together than this add up (the controllers' lookahead)")
           .set;
   return s;
 }

@@ -166,10 +166,26 @@ double turn_at(const Vec2& a, const Vec2& b, const Vec2& c) {
   return std::atan2(std::abs(u.x() * w.y() - u.y() * w.x()), u.dot(w));
 }
 
+/// Whether the polyline turns by at most max_turn in all within any stretch
+/// of turn_window metres: the sum of the turns at the vertices that lie
+/// closer together than that (BeliefPlannerSettings::max_turn).
+bool turns_ok(const std::vector<Vec2>& pts, const BeliefPlannerSettings& st) {
+  for (std::size_t i = 1; i + 1 < pts.size(); ++i) {
+    double total = turn_at(pts[i - 1], pts[i], pts[i + 1]), run = 0.0;
+    for (std::size_t j = i + 1; j + 1 < pts.size(); ++j) {
+      run += (pts[j] - pts[j - 1]).norm();
+      if (run >= st.turn_window) break;
+      total += turn_at(pts[j - 1], pts[j], pts[j + 1]);
+    }
+    if (total > st.max_turn) return false;
+  }
+  return true;
+}
+
 /// Greedy shortcuts of a feasible path: from each vertex in turn, the
-/// farthest later vertex joined by a free segment, without a turn sharper
-/// than max_turn at either end, such that the belief along it and along the
-/// rest of the path still meets the chance constraint.
+/// farthest later vertex joined by a free segment, such that the path still
+/// keeps the turn limit (turns_ok) and the belief along the new segment and
+/// along the rest of the path still meets the chance constraint.
 std::vector<Vec2> shortcut(std::vector<Vec2> pts, const StateCov& P0, const belief::Model& model,
                            const ObstacleChecker& free, const BeliefPlannerSettings& st) {
   StateCov P = P0;  // the belief at pts[i]
@@ -177,8 +193,9 @@ std::vector<Vec2> shortcut(std::vector<Vec2> pts, const StateCov& P0, const beli
   for (std::size_t i = 0; i + 2 < pts.size(); ++i) {
     for (std::size_t j = pts.size() - 1; j >= i + 2; --j) {
       if (!free.segment_free(pts[i], pts[j])) continue;
-      if (i > 0 && turn_at(pts[i - 1], pts[i], pts[j]) > st.max_turn) continue;
-      if (j + 1 < pts.size() && turn_at(pts[i], pts[j], pts[j + 1]) > st.max_turn) continue;
+      std::vector<Vec2> whole(pts.begin(), pts.begin() + static_cast<std::ptrdiff_t>(i + 1));
+      whole.insert(whole.end(), pts.begin() + static_cast<std::ptrdiff_t>(j), pts.end());
+      if (!turns_ok(whole, st)) continue;
       std::vector<Vec2> trial{pts[i]};
       trial.insert(trial.end(), pts.begin() + static_cast<std::ptrdiff_t>(j), pts.end());
       if (!feasible_along(model, st, trial, 0, P)) continue;
@@ -220,11 +237,22 @@ class Search {
     }
     return s;
   }
-  /// Whether belief b may turn toward vertex w: no sharper than max_turn.
+  /// Whether belief b may turn toward vertex w: the turn there and the turns
+  /// of its path within turn_window metres before it add up to at most
+  /// max_turn (turns_ok).
   bool may_turn(const Belief& b, int w) const {
     if (b.from < 0) return true;
     const auto at = [this](int i) -> const Vec2& { return g_.v[static_cast<std::size_t>(i)]; };
-    return turn_at(at(b.from), at(b.vertex), at(w)) <= st_.max_turn;
+    double total = turn_at(at(b.from), at(b.vertex), at(w));
+    double back = (at(b.vertex) - at(b.from)).norm();  // from the turn at c.from to b.vertex
+    for (const Belief* c = &b; back < st_.turn_window && c->parent >= 0;) {
+      const Belief& p = nodes_[static_cast<std::size_t>(c->parent)];  // at c->from
+      if (p.from < 0) break;
+      total += turn_at(at(p.from), at(p.vertex), at(c->vertex));
+      back += (at(p.vertex) - at(p.from)).norm();
+      c = &p;
+    }
+    return total <= st_.max_turn;
   }
   /// a ≺ b in Bry & Roy's partial order, relaxed by ε: c_a ≤ (1+ε)c_b and
   /// (1+ε)P_b − P_a ⪰ 0, and a may turn toward every vertex that b may (the

@@ -424,7 +424,7 @@ def plan_belief_path(scenario, raw_path, k: float, *, guides=(), **settings):
     kw = mission_inputs(scenario, raw_path)
     return plan_belief(kw.pop("map"), raw_path[0], raw_path[-1],
                        guide_paths=[raw_path, *(np.asarray(g, dtype=float) for g in guides)], k_sigma=max(k, 0.0),
-                       seed=int(scenario.seeds.planner), **kw, **settings)
+                       seed=int(scenario.seeds.planner), **{"turn_window": scenario.navigation.lookahead, **kw, **settings})
 
 
 def replan_with_landmarks(scenario, cert: PathCertificate, raw_path, *, step: float = 0.0) -> PathCertificate:

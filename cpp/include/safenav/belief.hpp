@@ -174,14 +174,18 @@ struct BeliefPlannerSettings {
   int max_beliefs = 24;        ///< non-dominated beliefs kept per vertex, ≥ 1
   double dominance_tolerance = 1e-3;  ///< relative ε of the partial order (Bry & Roy's ε), ≥ 0
   std::int64_t max_expansions = 200000;  ///< belief expansions before giving up, ≥ 1
-  /// The sharpest turn a path may make at a vertex [rad], in (0, π] (ours).
-  /// The belief turns the camera with the leg at once, and the controllers
-  /// follow a path only within its corridor and turn ahead of corners, so a
-  /// path that doubles back (forward, then a short leg back to look at the
-  /// landmarks behind) is credited with fixes the vehicle never gets, and is
-  /// one the corridor controllers cannot follow.  90° keeps every turn one
-  /// that the vehicle takes while still looking ahead.
+  /// The most a path may turn [rad], in (0, π], at a vertex and in all
+  /// within any stretch of turn_window metres (ours).  The belief turns the
+  /// camera with each leg at once, while the controllers aim lookahead metres
+  /// ahead on the path (NavigationSettings::lookahead) and cut what turns
+  /// within it.  A path that doubles back (on to a vertex, then a short leg
+  /// back, or two sharp turns a few metres apart) to look at the landmarks
+  /// behind is credited with fixes the vehicle never gets, and the corridor
+  /// controllers cannot follow it.  90° keeps every turn one that the
+  /// vehicle makes while still looking ahead.  π and a turn_window of 0 are
+  /// the unconstrained search.
   double max_turn = kPi / 2.0;
+  double turn_window = 5.0;  ///< [m], ≥ 0: the controllers' lookahead
   /// Shorten the found path greedily: from each vertex, the farthest later
   /// vertex joined by a free segment along which (and after which) the chance
   /// constraint still holds.
