@@ -244,7 +244,7 @@ class Search {
     if (b.from < 0) return true;
     const auto at = [this](int i) -> const Vec2& { return g_.v[static_cast<std::size_t>(i)]; };
     double total = turn_at(at(b.from), at(b.vertex), at(w));
-    double back = (at(b.vertex) - at(b.from)).norm();  // from the turn at c.from to b.vertex
+    double back = (at(b.vertex) - at(b.from)).norm();  // from the turn at c->from to b.vertex
     for (const Belief* c = &b; back < st_.turn_window && c->parent >= 0;) {
       const Belief& p = nodes_[static_cast<std::size_t>(c->parent)];  // at c->from
       if (p.from < 0) break;

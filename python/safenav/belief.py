@@ -155,9 +155,10 @@ def plan_belief(map, start, goal, *, sensors, bmm=None, start_cov=None, guide_pa
     ``max_expansions``, ``max_turn`` and ``turn_window`` (no more than
     ``max_turn``, default 90°, of turning at a vertex or in all over any
     ``turn_window`` metres, default 5), and the belief's ``speed``,
-    ``step``, ``bearing_std``, ``vehicle_radius``, ``margin``.  ``guide_paths``: polylines whose vertices
-    and edges join the roadmap (a RAw-RRT* path, say).  ``start_cov``
-    defaults to the navigation loop's prior heading toward the goal
+    ``step``, ``bearing_std``, ``vehicle_radius``, ``margin``.
+    ``guide_paths``: polylines whose vertices and edges join the roadmap
+    (a RAw-RRT* path, say).  ``start_cov`` defaults to the navigation
+    loop's prior heading toward the goal
     (:func:`start_covariance`).  An infeasible problem
     returns ``success = False`` with the status (INFEASIBLE, NO_PATH, BUDGET)
     and why in ``detail``."""

@@ -422,9 +422,10 @@ def plan_belief_path(scenario, raw_path, k: float, *, guides=(), **settings):
 
     raw_path = np.asarray(raw_path, dtype=float)
     kw = mission_inputs(scenario, raw_path)
+    kw = {"turn_window": float(scenario.navigation.lookahead), **kw, **settings}  # the controllers' lookahead
     return plan_belief(kw.pop("map"), raw_path[0], raw_path[-1],
                        guide_paths=[raw_path, *(np.asarray(g, dtype=float) for g in guides)], k_sigma=max(k, 0.0),
-                       seed=int(scenario.seeds.planner), **{"turn_window": scenario.navigation.lookahead, **kw, **settings})
+                       seed=int(scenario.seeds.planner), **kw)
 
 
 def replan_with_landmarks(scenario, cert: PathCertificate, raw_path, *, step: float = 0.0) -> PathCertificate:
