@@ -134,6 +134,11 @@ def test_infeasible_and_unreachable_problems_say_why():
     ({"speed": 0.0}, ValueError, "speed"),
     ({"seed": -1}, ValueError, "seed"),
     ({"max_beliefs": 0}, ValueError, "max_beliefs"),
+    ({"max_turn": 0.0}, ValueError, "max_turn"),
+    ({"max_turn": 3.2}, ValueError, "max_turn"),
+    ({"max_turn": float("nan")}, ValueError, "max_turn"),
+    ({"turn_window": -1.0}, ValueError, "turn_window"),
+    ({"turn_window": float("inf")}, ValueError, "turn_window"),
     ({"frobnicate": 1}, TypeError, "frobnicate"),
 ])
 def test_bad_settings_name_the_value(kwargs, err, match):
