@@ -217,12 +217,12 @@ def window_turns(path, window: float) -> np.ndarray:
 @pytest.mark.parametrize("world, loose", [(23, dict(max_turn=np.pi, turn_window=0.0)), (29, dict(turn_window=0.0))],
                          ids=["doubles-back", "two-turns"])
 def test_a_planned_path_does_not_turn_around_to_look_at_the_landmarks_behind(world, loose):
-    """Generated worlds 23 and 29 (no benchmark was tuned on them) start
-    blind with landmarks behind the start on P1.  Without the turn limit the
+    """Generated worlds 23 and 29 (no benchmark was tuned on them): P1 runs
+    blind with landmarks behind or beside it.  Without the turn limit the
     planner turns the belief's camera, which turns with each leg at once, to
     them: world 23's path drives 16 m and doubles back 1 m (turns of 160°);
-    with the limit at single vertices only, world 29's turns by 57° and 88°
-    within 2.9 m.  The controllers aim 5 m ahead and cut both, so no driven
+    with the limit at single vertices only, world 29's turns 57° one way and
+    88° the other within 2.9 m, a glance aside.  The controllers aim 5 m ahead and cut both, so no driven
     vehicle got those fixes (bench_certified.py: RMS error 9–11× the
     predicted).  With the defaults no 5 m of the path turns by more than
     90° in all, and the plan holds its chance constraint without the look."""

@@ -179,9 +179,9 @@ struct BeliefPlannerSettings {
   /// camera with each leg at once, while the controllers aim lookahead metres
   /// ahead on the path (NavigationSettings::lookahead) and cut what turns
   /// within it.  A path that doubles back (on to a vertex, then a short leg
-  /// back, or two sharp turns a few metres apart) to look at the landmarks
-  /// behind is credited with fixes the vehicle never gets, and the corridor
-  /// controllers cannot follow it.  90° keeps every turn one that the
+  /// back) or glances aside (two sharp turns a few metres apart) to see
+  /// landmarks behind or beside it is credited with fixes the vehicle never
+  /// gets, and the corridor controllers cannot follow it.  90° keeps every turn one that the
   /// vehicle makes while still looking ahead.  π and a turn_window of 0 are
   /// the unconstrained search.
   double max_turn = kPi / 2.0;
