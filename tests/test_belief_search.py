@@ -248,8 +248,56 @@ def test_a_planned_path_does_not_turn_around_to_look_at_the_landmarks_behind(wor
        seed=st.integers(0, 3))
 def test_no_stretch_of_a_planned_path_turns_more_than_max_turn(max_turn, window, seed):
     m, bmm, se = corridor_world()
+    assert plan(m, bmm, se, k_sigma=3.0, max_turn=np.pi, turn_window=0.0, seed=seed).success
     res = plan(m, bmm, se, k_sigma=3.0, max_turn=max_turn, turn_window=window, seed=seed)
     if res.success:
         assert window_turns(res.path, window).max(initial=0.0) <= max_turn + 1e-12
     else:
         assert res.status in (P.BeliefPlanStatus.INFEASIBLE, P.BeliefPlanStatus.NO_PATH), res.detail
+
+
+def test_guides_that_meet_at_a_point_do_not_hide_a_hairpin():
+    """Around the wall's end the roadmap turns by 172° at P, or by 86° twice
+    within a few metres, both beyond the 90° limit, however the guides
+    reach P: through one guide, a guide that repeats P, or two guides that
+    meet there.  Coincident guide points are one roadmap vertex, so no edge has
+    zero length (a leg of no length has no heading to turn from)."""
+    wall = np.array([[0.0, 21.5], [20.0, 21.5], [20.0, 22.5], [0.0, 22.5]])
+    m = P.make_map(upper=(60.0, 40.0), polygons=[wall])
+    xs = np.arange(0.0, 61.0, 5.0)
+    _, bmm, se = corridor_world()
+    se.landmarks = np.r_[np.c_[xs, np.full_like(xs, 39.5)], np.c_[xs, np.full_like(xs, 0.5)]]
+    s, g, apex = (5.0, 19.0), (5.0, 25.0), (50.0, 22.0)
+    for guides in ([np.array([s, apex, g])], [np.array([s, apex, apex, g])], [np.array([s, apex]), np.array([apex, g])]):
+        kw = dict(sensors=se, bmm=bmm, vehicle_radius=0.2, margin=0.05, seed=3, start_cov=P0, samples=0,
+                  k_sigma=0.0, guide_paths=guides, shortcut=False)
+        assert P.plan_belief(m, s, g, max_turn=np.pi, turn_window=0.0, **kw).success
+        res = P.plan_belief(m, s, g, **kw)
+        assert res.status == P.BeliefPlanStatus.INFEASIBLE and "max_turn" in res.detail, res.path
+
+
+def test_pruning_keeps_a_belief_that_can_still_make_the_next_turn():
+    """Two guide routes reach f: A, shorter, turning by 44° at f; B straight.
+    Beyond f the path turns by 60° at v, 30 m on, so within a 50 m window
+    only B may take it (44 + 60 > 90).  A's belief is cheaper and as
+    certain; it must not prune B's (they came along different edges)."""
+    d = lambda deg: np.array([np.cos(np.deg2rad(deg)), np.sin(np.deg2rad(deg))])
+    f = np.array([100.0, 80.0])
+    v, y = f + 30 * d(0), f - 30 * d(0)
+    u = v + 40 * d(60)
+    goal, w1 = u + 40 * d(60), y - 40 * d(40)
+    start = w1 - 40 * d(80)
+    a_dir = (f - start) / np.linalg.norm(f - start)
+    route_b = np.array([start, w1, y, f, v, u, goal])
+    route_a = np.array([start, 0.5 * (start + f), f - 1e-3 * a_dir])
+    gx, gy = np.meshgrid(np.arange(0, 221, 20.0), np.arange(0, 181, 20.0))
+    _, bmm, se = corridor_world()
+    se.landmarks = np.c_[gx.ravel(), gy.ravel()]
+    m = P.make_map(upper=(220.0, 180.0))
+    kw = dict(sensors=se, bmm=bmm, vehicle_radius=0.2, margin=0.05, start_cov=P0, samples=0, k_sigma=0.0,
+              max_edge=1.0, guide_spacing=1000.0, turn_window=50.0, shortcut=False)
+    only_b = P.plan_belief(m, start, goal, guide_paths=[route_b], **kw)
+    assert only_b.success
+    both = P.plan_belief(m, start, goal, guide_paths=[route_b, route_a], **kw)
+    assert both.success, both.detail
+    assert window_turns(both.path, 50.0).max() <= np.pi / 2 + 1e-12

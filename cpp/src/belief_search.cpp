@@ -62,6 +62,15 @@ struct Roadmap {
     adj.emplace_back();
     return static_cast<int>(v.size()) - 1;
   }
+  /// The vertex at p: an existing one at exactly p (a guide's end on the
+  /// start or goal, guides that share a point), else a new one.  So no edge
+  /// has zero length: such a leg has no heading, and would hide the turn at
+  /// its ends from the turn limit.
+  int vertex_at(const Vec2& p) {
+    for (std::size_t i = 0; i < v.size(); ++i)
+      if (v[i] == p) return static_cast<int>(i);
+    return add_vertex(p);
+  }
   void add_edge(int i, int j, const ObstacleChecker& free) {
     if (i == j) return;
     const auto a = static_cast<std::uint64_t>(std::min(i, j)), b = static_cast<std::uint64_t>(std::max(i, j));
@@ -104,7 +113,7 @@ Roadmap build_roadmap(const BeliefProblem& pb, const BeliefPlannerSettings& st, 
           prev = -1;
           continue;
         }
-        const int id = g.add_vertex(p);
+        const int id = g.vertex_at(p);
         if (prev >= 0) g.add_edge(prev, id, free);
         prev = id;
       }
@@ -192,7 +201,7 @@ std::vector<Vec2> shortcut(std::vector<Vec2> pts, const StateCov& P0, const beli
   std::vector<belief::Step> steps;
   for (std::size_t i = 0; i + 2 < pts.size(); ++i) {
     for (std::size_t j = pts.size() - 1; j >= i + 2; --j) {
-      if (!free.segment_free(pts[i], pts[j])) continue;
+      if (pts[j] == pts[i] || !free.segment_free(pts[i], pts[j])) continue;
       std::vector<Vec2> whole(pts.begin(), pts.begin() + static_cast<std::ptrdiff_t>(i + 1));
       whole.insert(whole.end(), pts.begin() + static_cast<std::ptrdiff_t>(j), pts.end());
       if (!turns_ok(whole, st)) continue;
@@ -254,14 +263,28 @@ class Search {
     }
     return total <= st_.max_turn;
   }
+  /// Whether a and b came along the same vertices over the last turn_window
+  /// metres (at least the last edge): then every turn the limit lets one of
+  /// them take later, it lets the other take too.
+  bool same_recent_path(const Belief& a, const Belief& b) const {
+    double back = 0.0;
+    for (const Belief *ca = &a, *cb = &b;;) {
+      if (ca->from != cb->from) return false;
+      if (ca->from < 0) return true;
+      back += (g_.v[static_cast<std::size_t>(ca->vertex)] - g_.v[static_cast<std::size_t>(ca->from)]).norm();
+      if (back >= st_.turn_window) return true;
+      ca = &nodes_[static_cast<std::size_t>(ca->parent)];
+      cb = &nodes_[static_cast<std::size_t>(cb->parent)];
+    }
+  }
   /// a ≺ b in Bry & Roy's partial order, relaxed by ε: c_a ≤ (1+ε)c_b and
-  /// (1+ε)P_b − P_a ⪰ 0, and a may turn toward every vertex that b may (the
-  /// turn limit makes those depend on the edge a belief came along).
+  /// (1+ε)P_b − P_a ⪰ 0; with the turn limit on, only between beliefs that
+  /// came the same way over the turn window (same_recent_path), since the
+  /// edges a belief may take next depend on it.
   bool dominates(const Belief& a, const Belief& b, double eps) const {
     if (a.cost > (1.0 + eps) * b.cost + 1e-12) return false;
-    if (a.from != b.from)
-      for (const auto& [w, e] : g_.adj[static_cast<std::size_t>(b.vertex)])
-        if (may_turn(b, w) && !may_turn(a, w)) return false;
+    const bool limit = st_.max_turn < kPi || st_.turn_window > 0.0;
+    if (limit && !same_recent_path(a, b)) return false;
     const StateCov D = (1.0 + eps) * b.P - a.P;
     const double scale = std::max(1e-300, b.P.diagonal().maxCoeff());
     return Eigen::SelfAdjointEigenSolver<StateCov>(D, Eigen::EigenvaluesOnly).eigenvalues()(0) >= -1e-12 * scale;
@@ -371,8 +394,11 @@ BeliefPlanResult plan_belief(const BeliefProblem& problem, const BeliefPlannerSe
     if (!g.connected(0, 1))
       return done(BeliefPlanStatus::NoPath, "the roadmap (" + std::to_string(res.vertices) + " vertices, " +
                                                 std::to_string(res.edges) + " edges) does not join start and goal");
-    return done(BeliefPlanStatus::Infeasible, "no roadmap path keeps clearance >= " + num(settings.k_sigma) +
-                                                  "*sigma + " + num(settings.belief.inflation.clearance()) + " m");
+    return done(BeliefPlanStatus::Infeasible,
+                "no roadmap path keeps clearance >= " + num(settings.k_sigma) + "*sigma + " +
+                    num(settings.belief.inflation.clearance()) + " m and turns by at most max_turn = " +
+                    num(settings.max_turn) + " rad at a vertex and within turn_window = " +
+                    num(settings.turn_window) + " m");
   }
   std::vector<Vec2> pts;
   for (int i = found; i >= 0; i = search.beliefs()[static_cast<std::size_t>(i)].parent)
