@@ -175,18 +175,29 @@ double turn_at(const Vec2& a, const Vec2& b, const Vec2& c) {
   return std::atan2(std::abs(u.x() * w.y() - u.y() * w.x()), u.dot(w));
 }
 
-/// Whether the polyline turns by at most max_turn in all within any stretch
-/// of turn_window metres: the sum of the turns at the vertices that lie
-/// closer together than that (BeliefPlannerSettings::max_turn).
+/// Whether the turns that end pts (its last inner vertex, and the inner
+/// vertices less than turn_window metres of path before it) add up to at
+/// most max_turn (BeliefPlannerSettings::max_turn).  The one rule of the
+/// turn limit: turns_ok applies it at every vertex, Search::may_turn at the
+/// vertex a belief turns at.
+bool last_turns_ok(const std::vector<Vec2>& pts, const BeliefPlannerSettings& st) {
+  const std::size_t last = pts.size() - 2;
+  double total = turn_at(pts[last - 1], pts[last], pts[last + 1]), back = 0.0;
+  for (std::size_t k = last - 1; k >= 1; --k) {
+    back += (pts[k + 1] - pts[k]).norm();
+    if (back >= st.turn_window) break;
+    total += turn_at(pts[k - 1], pts[k], pts[k + 1]);
+  }
+  return total <= st.max_turn;
+}
+
+/// Whether every stretch of the polyline keeps the turn limit (last_turns_ok
+/// at each inner vertex).
 bool turns_ok(const std::vector<Vec2>& pts, const BeliefPlannerSettings& st) {
-  for (std::size_t i = 1; i + 1 < pts.size(); ++i) {
-    double total = turn_at(pts[i - 1], pts[i], pts[i + 1]), run = 0.0;
-    for (std::size_t j = i + 1; j + 1 < pts.size(); ++j) {
-      run += (pts[j] - pts[j - 1]).norm();
-      if (run >= st.turn_window) break;
-      total += turn_at(pts[j - 1], pts[j], pts[j + 1]);
-    }
-    if (total > st.max_turn) return false;
+  std::vector<Vec2> head;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    head.push_back(pts[i]);
+    if (head.size() >= 3 && !last_turns_ok(head, st)) return false;
   }
   return true;
 }
@@ -246,22 +257,22 @@ class Search {
     }
     return s;
   }
-  /// Whether belief b may turn toward vertex w: the turn there and the turns
-  /// of its path within turn_window metres before it add up to at most
-  /// max_turn (turns_ok).
+  /// Whether belief b may turn toward vertex w: last_turns_ok on its path's
+  /// vertices within turn_window metres before the turn, then w.
   bool may_turn(const Belief& b, int w) const {
     if (b.from < 0) return true;
     const auto at = [this](int i) -> const Vec2& { return g_.v[static_cast<std::size_t>(i)]; };
-    double total = turn_at(at(b.from), at(b.vertex), at(w));
-    double back = (at(b.vertex) - at(b.from)).norm();  // from the turn at c->from to b.vertex
+    recent_.assign({at(w), at(b.vertex), at(b.from)});  // backward; reversed below
+    double back = (at(b.vertex) - at(b.from)).norm();
     for (const Belief* c = &b; back < st_.turn_window && c->parent >= 0;) {
       const Belief& p = nodes_[static_cast<std::size_t>(c->parent)];  // at c->from
       if (p.from < 0) break;
-      total += turn_at(at(p.from), at(p.vertex), at(c->vertex));
+      recent_.push_back(at(p.from));
       back += (at(p.vertex) - at(p.from)).norm();
       c = &p;
     }
-    return total <= st_.max_turn;
+    std::reverse(recent_.begin(), recent_.end());
+    return last_turns_ok(recent_, st_);
   }
   /// Whether a and b came along the same vertices over the last turn_window
   /// metres (at least the last edge): then every turn the limit lets one of
@@ -300,6 +311,7 @@ class Search {
   std::vector<char> ready_;
   std::vector<std::vector<int>> at_;  // live beliefs per vertex
   std::vector<Belief> nodes_;
+  mutable std::vector<Vec2> recent_;  // may_turn's scratch
   using Entry = std::pair<double, int>;
   std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> open_;
 };
