@@ -62,8 +62,8 @@ from bench_safety import SHORT, Cell, faulty, run_cell, verdict  # noqa: E402  (
 from safenav import certify as C  # noqa: E402
 from safenav import navigation as nav  # noqa: E402
 from safenav import results, runner  # noqa: E402
-from safenav.belief import (arc_position, clopper_pearson, propagate_belief, robust_sight,  # noqa: E402
-                             sigma_calibration)
+from safenav.belief import (arc_position, clopper_pearson, propagate_belief,  # noqa: E402
+                            propagate_belief_along, robust_sight, sigma_calibration)
 from safenav.generate import DEFAULT_SEED, generate_scenario  # noqa: E402
 from safenav.scenario import Scenario, default_scenario  # noqa: E402
 
@@ -161,12 +161,15 @@ class DriveJob:
     blind_check: int           # step-limit trials rerun with a record to see where they ended
 
 
-def _profiles(sc, path):
-    """(expected, robust): the belief along ``path`` with ``sc``'s sensors,
-    seen with the vehicle's own camera (what it will get) and with the
-    certificate's robust camera."""
+def _profiles(sc, path, navigator):
+    """(expected, robust, nominal): the belief along ``path`` with ``sc``'s
+    sensors, seen with the vehicle's own camera (what it will get) and with
+    the certificate's robust camera; and the expected belief along the
+    method's nominal trajectory (``navigator.nominal_trajectory()``)."""
     kw = C.mission_inputs(sc, path)
-    return propagate_belief(path, **kw), propagate_belief(path, **robust_sight(), **kw)
+    along = {k: v for k, v in kw.items() if k != "speed"}
+    return (propagate_belief(path, **kw), propagate_belief(path, **robust_sight(), **kw),
+            propagate_belief_along(navigator.nominal_trajectory(), **along))
 
 
 def _fix_shares(profiles, needs: int, edges: np.ndarray, truths, measured) -> list[np.ndarray]:
@@ -213,8 +216,8 @@ def drive(job: DriveJob) -> dict:
     cpu = time.thread_time()              # run_many runs on this thread: its CPU time, whatever else runs
     out = run_cell(c)
     cpu_trials = time.thread_time() - cpu
-    prof, robust = _profiles(c.scenario, c.path)
     rec = nav.make_navigator(c.scenario, c.path, method=c.method, filter=c.filter, record=True)
+    prof, robust, nominal = _profiles(c.scenario, c.path, rec)
     truths, estimates, measured = [], [], []
     for seed in out["seeds"][:job.record]:
         r = rec.run(seed)
@@ -223,6 +226,7 @@ def drive(job: DriveJob) -> dict:
         measured.append(np.asarray(r.measured))
     cal = sigma_calibration(prof, truths, estimates, bin_m=job.bin_m)
     cal_robust = sigma_calibration(robust, truths, estimates, bin_m=job.bin_m)
+    cal_nominal = sigma_calibration(nominal, truths, estimates, bin_m=job.bin_m)
     needs = C.fix_needs(rec.sensors)
     fix_expected, fix_robust, fix_observed = _fix_shares([prof, robust], needs, cal.edges, truths, measured)
     d = out["trials"]
@@ -233,7 +237,8 @@ def drive(job: DriveJob) -> dict:
                holds=float(np.mean(d["guard_hold"])), held_trials=int(np.sum(np.asarray(d["guard_hold"]) > 0)),
                step_limit=n_sl, step_limit_checked=n_checked, step_limit_blind=n_blind, cpu_s=cpu_trials,
                extra_cpu_s=cpu_extra)
-    return dict(row=row, calibration=cal, calibration_robust=cal_robust, crashes=out["crashes"],
+    return dict(row=row, calibration=cal, calibration_robust=cal_robust, calibration_nominal=cal_nominal,
+                crashes=out["crashes"],
                 fix_shares=(fix_expected, fix_robust, fix_observed))
 
 
@@ -296,8 +301,8 @@ def print_calibration(df: pd.DataFrame, outs: list, record: int) -> None:
           "fix = mean |predicted − observed share of steps with a fix| per bin")
     groups = {}
     for (_, r), o in zip(df.iterrows(), outs):
-        g = groups.setdefault((r.measurement, r.filt), {"expected": [], "robust": [], "fix_e": [], "fix_r": [],
-                                                         "out_share": [], "out_rest": []})
+        g = groups.setdefault((r.measurement, r.filt), {"expected": [], "robust": [], "nominal": [], "fix_e": [],
+                                                         "fix_r": [], "out_share": [], "out_rest": []})
         cal = o["calibration"]
         keep = _kept_bins(cal, record)
         fe, fr, fo = o["fix_shares"]
@@ -306,6 +311,7 @@ def print_calibration(df: pd.DataFrame, outs: list, record: int) -> None:
         g["out_share"].append(cal.worst_share[out_band])
         g["out_rest"].append(cal.observed_without_worst[out_band] / cal.predicted[out_band])
         g["robust"].append(o["calibration_robust"].ratio[_kept_bins(o["calibration_robust"], record)])
+        g["nominal"].append(o["calibration_nominal"].ratio[_kept_bins(o["calibration_nominal"], record)])
         g["fix_e"].append(np.abs(fe - fo)[keep])
         g["fix_r"].append(np.abs(fr - fo)[keep])
     for (m, f), g in groups.items():
@@ -320,6 +326,7 @@ def print_calibration(df: pd.DataFrame, outs: list, record: int) -> None:
                   + (f"; without that trial their ratios are {np.nanmin(rest):.2f}–{np.nanmax(rest):.2f}"
                      if np.isfinite(rest).any() else ""))
         print(_ratio_line(f"{m:6} {f:3} robust  ", v["robust"]))
+        print(_ratio_line(f"{m:6} {f:3} nominal ", v["nominal"]))
         if v["fix_e"].size:
             print(f"     {m:6} {f:3} fix share |predicted − observed| per bin: expected mean "
                   f"{np.mean(v['fix_e']):.3f} "

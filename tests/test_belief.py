@@ -65,14 +65,15 @@ def belief_camera(se, settings=None):
     return fov, se.max_range * s.sight_range_fraction
 
 
-def reference_covariances(prof, bmm, se, P0, bearing_std=0.0, checker=None):
-    """FilterPy's KalmanFilter over the profile's stages (ML observations: z = H x)."""
+def reference_covariances(prof, bmm, se, P0, bearing_std=0.0, checker=None, stage=None):
+    """FilterPy's KalmanFilter over the profile's stages (ML observations: z = H x).
+    ``stage(k)`` -> (F, G, camera heading) of stage k; default: the leg's at cruise (np_jacobians)."""
     kf = kalman.KalmanFilter(dim_x=4, dim_z=1)
     kf.x = np.zeros((4, 1))
     kf.P = P0.copy()
     out = [kf.P.copy()]
     for k in range(1, len(prof.time)):
-        _reference_stage(kf, prof, k, prof.positions[k], bmm, se, bearing_std, checker)
+        _reference_stage(kf, prof, k, prof.positions[k], bmm, se, bearing_std, checker, stage=stage)
         out.append(kf.P.copy())
     return np.array(out)
 
@@ -86,7 +87,7 @@ class _TrackedKF(kalman.KalmanFilter):
         self.T = (np.eye(4) - self.K @ H) @ self.T
 
 
-def reference_mixture(prof, bmm, se, P0, bearing_std=0.0, checker=None):
+def reference_mixture(prof, bmm, se, P0, bearing_std=0.0, checker=None, stage=None):
     """BeliefSettings.deviation_mixture by its specification: the error
     stratified on (lateral, heading) u = J e at the 3x3 Gauss-Hermite nodes z
     of N(0, I) (nodes -sqrt(3), 0, sqrt(3), weights 1/6, 2/3, 1/6): stratum i
@@ -125,7 +126,7 @@ def reference_mixture(prof, bmm, se, P0, bearing_std=0.0, checker=None):
             lat, dth = -(J @ kf.x).ravel()
             kf.T = np.eye(4)
             seen.append(_reference_stage(kf, prof, k, prof.positions[k] + lat * J[0, :2], bmm, se, bearing_std,
-                                         checker, dtheta=dth))
+                                         checker, dtheta=dth, stage=stage))
             N[i] = kf.T @ kf.F @ N[i] @ kf.F.T @ kf.T.T
         out.append(sum(wi * (kf.P + Ni) for wi, kf, Ni in zip(w, kfs, N)))
         merged = all(s == seen[0] for s in seen) and all(
@@ -133,17 +134,21 @@ def reference_mixture(prof, bmm, se, P0, bearing_std=0.0, checker=None):
     return np.array(out)
 
 
-def _reference_stage(kf, prof, k, p, bmm, se, bearing_std, checker, dtheta=0.0):
+def _reference_stage(kf, prof, k, p, bmm, se, bearing_std, checker, dtheta=0.0, stage=None):
     """Stage k of the recursion: predict along the nominal, then the ML updates of what is in view
-    from p, with the camera turned by dtheta from the leg's heading.  Returns which updates it took:
+    from p, with the camera turned by dtheta from the nominal camera heading (the leg's, or
+    ``stage(k)``'s with its F and G).  Returns which updates it took:
     (a fix, ranges, the landmarks ranged or beared)."""
     sig2 = np.array([bmm.position_noise, bmm.position_noise, bmm.speed_noise, bmm.heading_noise]) ** 2
     R_fix = se.position.reported_cov()
     lms = np.asarray(se.landmarks)
     dt = prof.time[k] - prof.time[k - 1]
     n = dt / bmm.dt
-    theta = prof.headings[k]
-    F, G = np_jacobians(SPEED, theta, dt)
+    if stage is None:
+        theta = prof.headings[k]
+        F, G = np_jacobians(SPEED, theta, dt)
+    else:
+        F, G, theta = stage(k)
     kf.F, kf.Q = F, G @ np.diag(sig2 * n) @ G.T
     kf.predict()
     seen = [i for i in range(len(lms)) if _visible(se, lms[i], p, theta + dtheta, checker)]

@@ -101,6 +101,8 @@ void pybind_belief(py::module_& m) {
         py::arg("heading"));
   m.def("propagate_belief", &propagate_belief, py::arg("path"), py::arg("bmm"), py::arg("sensors"), py::arg("map"),
         py::arg("start_cov"), py::arg("settings") = BeliefSettings{}, release_gil());
+  m.def("propagate_belief_along", &propagate_belief_along, py::arg("states"), py::arg("bmm"), py::arg("sensors"),
+        py::arg("map"), py::arg("start_cov"), py::arg("settings") = BeliefSettings{}, release_gil());
   m.def("collision_monte_carlo", &collision_monte_carlo, py::arg("profile"), py::arg("samples") = 10000,
         py::arg("seed") = 0, release_gil());
   m.def("plan_belief", &plan_belief, py::arg("problem"), py::arg("settings") = BeliefPlannerSettings{},

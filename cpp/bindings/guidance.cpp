@@ -308,6 +308,9 @@ void bind_guidance(py::module_& m) {
                              py::return_value_policy::reference_internal)
       .def("command", &Guidance::command, py::arg("t"))
       .def_property_readonly("status", &Guidance::status)
+      .def("nominal_trajectory", &Guidance::nominal_trajectory, py::arg("max_steps"),
+           "The states (rows x, y, v, theta) of the vehicle driven by the method without noise, from the safe "
+           "path's start to arrival or max_steps (no guard, no detours).")
       .def_property_readonly("safe_path", &Guidance::safe_path, py::return_value_policy::reference_internal)
       .def_property_readonly(
           "path", [](const Guidance& g) { return Points2(g.path().corridor().path()); },

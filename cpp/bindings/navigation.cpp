@@ -193,6 +193,9 @@ void bind_navigator(py::module_& m) {
       .def_property_readonly("sensors", &Navigator::sensors)
       .def_property_readonly("segments", &Navigator::segments, py::return_value_policy::reference_internal)
       .def_property_readonly("max_steps", &Navigator::max_steps)
+      .def("nominal_trajectory", &Navigator::nominal_trajectory,
+           "The states (rows x, y, v, theta at t = 0, dt, 2 dt, ...) of the vehicle driven by the method without "
+           "noise, from a trial's true start to arrival (Guidance.nominal_trajectory; no guard, no detours).")
       .def(
           "run",
           [](const Navigator& nav, std::uint64_t seed, py::object position) {

@@ -245,28 +245,11 @@ void mixture_recursion(const belief::Model& model, const std::vector<belief::Ste
 
 }  // namespace
 
-BeliefProfile propagate_belief(const Eigen::Ref<const Points2>& path, const BmmParams& bmm,
-                               const SensorSettings& sensors, const PlanningMap& map, const StateCov& P0,
-                               const BeliefSettings& settings) {
-  check_path(path);
-  check_prior(State::Zero(), P0, "x0", "start_cov");
-  belief::Model model(bmm, sensors, map, settings);
-  // Stage 0 is the start; stage k the end of belief step k.
-  std::vector<belief::Step> steps(1);
-  steps[0].end = path.row(0).transpose();
-  steps[0].x << path(0, 0), path(0, 1), settings.speed, 0.0;
-  steps[0].clearance = model.clearance_at(steps[0].end);
-  double length = 0.0;
-  for (Eigen::Index i = 0; i + 1 < path.rows(); ++i) {
-    const Eigen::Vector2d a = path.row(i).transpose(), b = path.row(i + 1).transpose();
-    model.leg(a, b, steps);
-    length += (b - a).norm();
-  }
-  if (steps.size() > 1) steps[0].x[kTheta] = steps[1].x[kTheta];
-  {
-    State at = steps[0].x;
-    steps[0].in_view = sensors.landmarks_in_view(at, &model.checker());
-  }
+namespace {
+/// The belief over `steps` (stage 0 the start, stage k the end of step k)
+/// from P0, and its collision probability.
+BeliefProfile profile_of(belief::Model& model, std::vector<belief::Step>& steps, const StateCov& P0, double length) {
+  const BeliefSettings& settings = model.settings();
   const std::size_t n = steps.size();
   std::vector<StateCov> P(n);
   std::vector<Eigen::Matrix4d> A(n, Eigen::Matrix4d::Zero());
@@ -316,6 +299,50 @@ BeliefProfile propagate_belief(const Eigen::Ref<const Points2>& path, const BmmP
   out.vehicle_radius = settings.inflation.vehicle_radius;
   collision_probability(model, steps, P, A, out);
   return out;
+}
+}  // namespace
+
+BeliefProfile propagate_belief(const Eigen::Ref<const Points2>& path, const BmmParams& bmm,
+                               const SensorSettings& sensors, const PlanningMap& map, const StateCov& P0,
+                               const BeliefSettings& settings) {
+  check_path(path);
+  check_prior(State::Zero(), P0, "x0", "start_cov");
+  belief::Model model(bmm, sensors, map, settings);
+  // Stage 0 is the start; stage k the end of belief step k.
+  std::vector<belief::Step> steps(1);
+  steps[0].end = path.row(0).transpose();
+  steps[0].x << path(0, 0), path(0, 1), settings.speed, 0.0;
+  steps[0].clearance = model.clearance_at(steps[0].end);
+  double length = 0.0;
+  for (Eigen::Index i = 0; i + 1 < path.rows(); ++i) {
+    const Eigen::Vector2d a = path.row(i).transpose(), b = path.row(i + 1).transpose();
+    model.leg(a, b, steps);
+    length += (b - a).norm();
+  }
+  if (steps.size() > 1) steps[0].x[kTheta] = steps[1].x[kTheta];
+  steps[0].in_view = sensors.landmarks_in_view(steps[0].x, &model.checker());
+  return profile_of(model, steps, P0, length);
+}
+
+BeliefProfile propagate_belief_along(const Eigen::Ref<const RowMatrixX4>& states, const BmmParams& bmm,
+                                     const SensorSettings& sensors, const PlanningMap& map, const StateCov& P0,
+                                     const BeliefSettings& settings) {
+  if (states.rows() < 2) bad("belief trajectory has " + std::to_string(states.rows()) + " states: needs >= 2");
+  for (Eigen::Index i = 0; i < states.rows(); ++i)
+    if (!states.row(i).allFinite())
+      bad("belief trajectory state " + std::to_string(i) + " = (" + num(states(i, 0)) + ", " + num(states(i, 1)) +
+          ", " + num(states(i, 2)) + ", " + num(states(i, 3)) + ") is not finite");
+  check_prior(State::Zero(), P0, "x0", "start_cov");
+  belief::Model model(bmm, sensors, map, settings);
+  std::vector<belief::Step> steps(1);
+  steps[0].x = states.row(0).transpose();
+  steps[0].end = steps[0].x.head<2>();
+  steps[0].clearance = model.clearance_at(steps[0].end);
+  steps[0].in_view = sensors.landmarks_in_view(steps[0].x, &model.checker());
+  model.trajectory(states, steps);
+  double length = 0.0;
+  for (std::size_t k = 1; k < steps.size(); ++k) length += steps[k].length;
+  return profile_of(model, steps, P0, length);
 }
 
 namespace {

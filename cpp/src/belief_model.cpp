@@ -103,7 +103,7 @@ void Model::observe(Step& s) const {
 Step Model::offset(const Step& s, double lateral, double dtheta) const {
   Step m = s;
   m.end += lateral * Eigen::Vector2d(-std::sin(s.x[kTheta]), std::cos(s.x[kTheta]));
-  m.view_dtheta = dtheta;
+  m.view_dtheta = s.view_dtheta + dtheta;
   observe(m);
   return m;
 }
@@ -119,12 +119,34 @@ void Model::leg(const Eigen::Vector2d& a, const Eigen::Vector2d& b, std::vector<
     Step s;
     const Eigen::Vector2d p = a + (b - a) * (static_cast<double>(j) / static_cast<double>(n));
     s.x << p.x(), p.y(), settings_.speed, heading;
+    s.u = Control(settings_.speed, 0.0);
     s.end = a + (b - a) * (static_cast<double>(j + 1) / static_cast<double>(n));
     s.length = L / static_cast<double>(n);
     s.dt = s.length / settings_.speed;
     observe(s);
     s.clearance = clearance_at(s.end);
     out.push_back(std::move(s));
+  }
+}
+
+void Model::trajectory(const Eigen::Ref<const RowMatrixX4>& states, std::vector<Step>& out) const {
+  const double dt = bmm_.params().dt;
+  const Eigen::Index every = std::max<Eigen::Index>(1, std::llround(step_ / dt));
+  const Eigen::Index last = states.rows() - 1;
+  for (Eigen::Index i = 0; i < last;) {
+    const Eigen::Index j = std::min(last, i + every);
+    Step s;
+    s.x = states.row(i).transpose();
+    const double turn = wrap_angle(states(j, kTheta) - states(i, kTheta));
+    s.u = Control(states(j, kV), turn);
+    s.end = states.row(j).head<2>().transpose();
+    s.view_dtheta = turn;  // the camera looks along the end's heading
+    s.dt = static_cast<double>(j - i) * dt;
+    s.length = (s.end - s.x.head<2>()).norm();
+    observe(s);
+    s.clearance = clearance_at(s.end);
+    out.push_back(std::move(s));
+    i = j;
   }
 }
 
@@ -217,9 +239,8 @@ void Model::update(const Step& s, double n, double fix_count, bool with_fix, Sta
 void Model::step(const Step& s, StateCov& P, StepOutcome* out) const {
   // Eq. 11 about the nominal: P⁻ = F P Fᵀ + G Σ_ε Gᵀ (the BMM over the step's dt).
   const Bmm bmm = bmm_.with_step(s.dt);
-  const Control u(settings_.speed, 0.0);
   Eigen::Matrix4d F, G;
-  bmm.linearize(s.x, u, &F, &G);
+  bmm.linearize(s.x, s.u, &F, &G);
   P = F * P * F.transpose() + G * bmm.noise_cov() * G.transpose();
   P = 0.5 * (P + P.transpose());
   if (out) {

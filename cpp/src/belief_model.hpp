@@ -20,6 +20,9 @@ namespace safenav::belief {
 /// it lasts, the landmarks in view at its end, and the clearance there.
 struct Step {
   State x = State::Zero();
+  /// The control over the step (eq. 11's linearization point with x): the
+  /// cruise speed and no turn along a leg; the trajectory's own (Model::trajectory).
+  Control u = Control(0.0, 0.0);
   Eigen::Vector2d end = Eigen::Vector2d::Zero();
   double dt = 0.0;
   double length = 0.0;     ///< metres covered
@@ -55,6 +58,13 @@ class Model {
 
   /// The steps of the leg a → b, appended to `out` (none when a == b).
   void leg(const Eigen::Vector2d& a, const Eigen::Vector2d& b, std::vector<Step>& out) const;
+  /// The steps along a trajectory of states at the BMM's Δt (rows x, y, v,
+  /// θ; Guidance::nominal_trajectory), appended to `out`: one step per
+  /// BeliefSettings::step (rounded to a whole number of rows, the last step
+  /// to the last row), from the state at its start with the control that
+  /// takes it to the state at its end (the speed reached, the heading
+  /// change), seen from the end's pose.
+  void trajectory(const Eigen::Ref<const RowMatrixX4>& states, std::vector<Step>& out) const;
   /// P ← one belief step (predict, then the expected updates; StepOutcome
   /// for a fix that may not arrive).  `out`, when given, receives P⁻, F and
   /// the branches.

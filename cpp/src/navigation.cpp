@@ -305,6 +305,7 @@ const NavigationSettings& Navigator::settings() const { return impl_->guidance.s
 const SensorSettings& Navigator::sensors() const { return impl_->sensors; }
 const PathSegments& Navigator::segments() const { return impl_->guidance.safe_path(); }
 int Navigator::max_steps() const { return impl_->max_steps; }
+RowMatrixX4 Navigator::nominal_trajectory() const { return impl_->guidance.nominal_trajectory(impl_->max_steps); }
 
 TrialResult Navigator::run(std::uint64_t seed, const PositionCallback& position) const {
   return run_trial(seed, position, impl_->guidance.settings().record);

@@ -47,7 +47,7 @@ collision_monte_carlo = _core.collision_monte_carlo
 
 __all__ = ["BeliefSettings", "BeliefPlannerSettings", "BeliefProblem", "BeliefProfile", "BeliefPlanStatus",
            "BeliefPlanResult", "BeliefPlan", "start_covariance", "collision_monte_carlo", "propagate_belief",
-           "plan_belief", "robust_sight", "arc_position", "SigmaCalibration", "sigma_calibration", "clopper_pearson"]
+           "propagate_belief_along", "plan_belief", "robust_sight", "arc_position", "SigmaCalibration", "sigma_calibration", "clopper_pearson"]
 
 # Keyword names of plan_belief / propagate_belief -> declared parameter names.
 _BELIEF_KEYS = {"speed": "speed", "step": "step", "bearing_std": "bearing_std",
@@ -129,6 +129,27 @@ def propagate_belief(path, *, sensors, map, bmm=None, start_cov=None, settings: 
     k = int(np.argmax(np.any(p[1:] != p[0], axis=1))) + 1 if len(p) > 1 else 0
     P0 = _start_cov(start_cov, sensors, map, p[0], p[min(k, len(p) - 1)])
     return _core.propagate_belief(p, bmm, sensors, map, P0, s)
+
+
+def propagate_belief_along(states, *, sensors, map, bmm=None, start_cov=None,
+                           settings: BeliefSettings | None = None, **kwargs) -> BeliefProfile:
+    """The belief along a trajectory of ``states`` ((N, 4): x, y, v, theta at
+    the BMM's dt, start first), e.g. ``Navigator.nominal_trajectory()``: the
+    method's own noise-free run, LQG-MP's nominal.  As
+    :func:`propagate_belief`, but each step is linearized at the
+    trajectory's state and sees along its heading, so the camera turns as
+    the controller turns the vehicle.  ``start_cov`` defaults to the loop's
+    prior at the first state's position and heading."""
+    x = as_array("states", states, (None, 4))
+    bmm = bmm if bmm is not None else _core.BmmParams()
+    s = _belief_settings(kwargs, settings)
+    if len(x) < 2:
+        raise ValueError(f"states has {len(x)} rows: a trajectory needs >= 2")
+    if start_cov is None:
+        P0 = start_covariance(sensors, map, x[0, :2], float(x[0, 3]))
+    else:
+        P0 = as_array("start_cov", start_cov, (4, 4))
+    return _core.propagate_belief_along(x, bmm, sensors, map, P0, s)
 
 
 @dataclass(frozen=True)

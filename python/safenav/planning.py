@@ -211,4 +211,5 @@ def unavoidable_exposure(start, goal, map: PlanningMap) -> float:
 
 
 # Belief-aware planning (ours), beside RAw-RRT*: see safenav.belief.
-from .belief import BeliefPlan, BeliefPlanStatus, collision_monte_carlo, plan_belief, propagate_belief  # noqa: E402,F401
+from .belief import (BeliefPlan, BeliefPlanStatus, collision_monte_carlo, plan_belief,  # noqa: E402,F401
+                     propagate_belief, propagate_belief_along)

@@ -136,6 +136,19 @@ BeliefProfile propagate_belief(const Eigen::Ref<const Points2>& path, const BmmP
                                const SensorSettings& sensors, const PlanningMap& map, const StateCov& P0,
                                const BeliefSettings& settings = {});
 
+/// The belief and collision probability along a trajectory of states (N×4,
+/// N ≥ 2, rows x, y, v, θ at the BMM's Δt, start first), typically the
+/// method's nominal trajectory (Guidance::nominal_trajectory): LQG-MP's
+/// nominal is the controlled trajectory, not the geometric path.  The
+/// recursion is propagate_belief's; each step is linearized at the
+/// trajectory's state with the control that reaches the next one, and sees
+/// from the next one's pose, so the camera turns as the controller turns the
+/// vehicle (it cuts corners and settles on a new leg over a few metres)
+/// instead of with each leg at once.  BeliefSettings::speed plays no part.
+BeliefProfile propagate_belief_along(const Eigen::Ref<const RowMatrixX4>& states, const BmmParams& bmm,
+                                     const SensorSettings& sensors, const PlanningMap& map, const StateCov& P0,
+                                     const BeliefSettings& settings = {});
+
 /// The collision probability of `profile` by Monte Carlo of the same linear
 /// error model (e_0 ~ N(0, P_0), e_{k+1} = A_k e_k + w_k) and the same
 /// half-planes aₖᵀe_k > clearance_k − vehicle_radius: the reference that

@@ -180,6 +180,17 @@ class Guidance {
   Command command(double t);
   /// The status from the latest estimate, without planning or a control.
   GuidanceStatus status() const;
+  /// The nominal trajectory (ours; LQG-MP's nominal is the controlled one,
+  /// van den Berg et al. 2011, §IV): the method's control [SafeNav Algs. 1–2]
+  /// applied to the state itself, which moves by the BMM's noise-free
+  /// transition f(x, u) [SafeNav eqs. 3–9], from the true start of a trial
+  /// (the safe path's first vertex, at rest, heading along its first edge)
+  /// until the state is within arrival_radius of the destination, or for
+  /// `max_steps` steps.  No guard, no obstacle check, no detours: the path a
+  /// vehicle that knew its state would drive.  Rows: the states at t = 0, Δt,
+  /// 2Δt, …  The belief along it (propagate_belief_along, belief.hpp) sees
+  /// with the heading the controller gives the vehicle after a turn.
+  RowMatrixX4 nominal_trajectory(int max_steps) const;
 
   const NavigationProblem& problem() const;
   /// The settings, with guard.k resolved (k = 0 given: from collision_probability).

@@ -231,6 +231,9 @@ class Navigator {
   const SensorSettings& sensors() const;
   const PathSegments& segments() const;
   int max_steps() const;
+  /// Guidance::nominal_trajectory over max_steps(): the trajectory a trial's
+  /// vehicle would drive without noise.
+  RowMatrixX4 nominal_trajectory() const;
 
   /// One trial with its own seed (process noise, measurement noise, PF,
   /// planner).  A position callback, when given, replaces the
