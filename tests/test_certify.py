@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from safenav import certify as C
+from safenav import certify_report
 from safenav import cli
 from safenav import navigation as nv
 from safenav import placement as P
@@ -230,7 +231,7 @@ def test_replanning_after_proposed_landmarks(gap, tmp_path, capsys):
     assert c.k == pytest.approx(norm.ppf(1 - eps / c.exposures), rel=1e-9)
     d = c.to_dict()
     assert d["replanned"] and np.allclose(d["proposed_for_path"], path.round(4))
-    assert "the landmarks were proposed for" in "\n".join(C.report_lines([c]))
+    assert "the landmarks were proposed for" in "\n".join(certify_report.report_lines([c]))
 
 
 def test_replanning_that_fails_keeps_the_path(gap, monkeypatch):
@@ -256,3 +257,39 @@ def test_plan_command_replans_with_the_belief_planner(tmp_path, capsys):
     proposed = load_scenario(out / "proposed_scenario.toml")
     again = C.certify_path(proposed, "A", np.asarray(c["path"]), propose=False)
     assert again.status == C.CERTIFIED
+
+
+def test_a_path_that_looks_back_is_certified_along_the_controllers_runs():
+    """World 23's P1, planned without the turn limit, drives 16 m from a
+    blind start and doubles back 1.1 m to look at the landmarks behind it:
+    the belief along the path turns the camera with the legs and credits
+    that fix; the controllers aim lookahead metres ahead and never turn to
+    it.  The path passes both checks on its own; along each method's
+    nominal run the collision probability exceeds ε, so it is not certified
+    as given, and the landmarks proposed where the runs fail certify it.
+    With the turn limit the planned path is certified as given, runs
+    included."""
+    from safenav.generate import generate_scenario
+
+    sc = generate_scenario(23)
+    eps = sc.navigation.collision_probability
+    raw = np.asarray(C.plan_or_none(sc, "P1").path)
+    k, _ = C.risk_k(sc, raw)
+    looks_back = np.asarray(C.plan_belief_path(sc, raw, k, max_turn=np.pi, turn_window=0.0).path)
+    cert = C.certify_path(sc, "P1", looks_back, propose=False)
+    c = cert.given
+    for own in (c, c.expected):
+        assert own.collision_probability <= eps and own.min_room > 0
+    assert cert.status == C.CANNOT and cert.reason.startswith("along ")
+    assert set(c.along) == {"chull", "centroid"}
+    for method, run in c.along.items():
+        assert not run.certified and run.collision_probability > eps
+        np.testing.assert_array_equal(run.profile.positions, C.nominal_trajectory(sc, looks_back, method)[:, :2])
+    assert cert.to_dict()["as_given"]["along_nominal"]["chull"]["collision_probability"] > eps
+    assert "along chull's nominal run" in "\n".join(certify_report.report_lines([cert]))
+    placed = C.certify_path(sc, "P1", looks_back)
+    assert placed.status == C.NEEDS_LANDMARKS and placed.n_added > 0
+    assert all(run.certified for run in placed.final.along.values())
+    limited = C.certify_path(sc, "P1", C.plan_belief_path(sc, raw, k).path, propose=False)
+    assert limited.status == C.CERTIFIED
+    assert all(run.collision_probability <= eps for run in limited.given.along.values())

@@ -16,7 +16,12 @@ the two:
   position σ toward the nearest obstacle (``BeliefProfile.sigma_toward``,
   the direction of the half-plane bound in docs/safety.md) and
   k = Φ⁻¹(1 − ε/N) (``guard_k_for_risk``), N the path's exposures
-  (``path_exposures``, as the guard counts them).
+  (``path_exposures``, as the guard counts them);
+
+and, along each method's nominal run (:func:`check_nominal`: the belief
+along ``Navigator.nominal_trajectory()``, the trajectory the controller
+drives, which cuts corners and turns the camera as it turns the vehicle),
+the collision probability with either camera is at most ε as well.
 
 Where a path fails, landmarks are proposed along the stretches where it
 fails: each run of failing stages (or of stages that carry more than ε/n of
@@ -32,17 +37,18 @@ docs/belief_planning.md, "Certified missions".
 
 from __future__ import annotations
 
-import argparse
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from . import console
 
-__all__ = ["PathCertificate", "Check", "mission_inputs", "risk_k", "check_profile", "blind_stretches",
+__all__ = ["PathCertificate", "Check", "mission_inputs", "risk_k", "check_profile", "check_nominal", "nominal_trajectory", "blind_stretches",
            "placement_camera", "cover_stretch", "propose_landmarks", "certify_path", "certify_paths", "with_landmarks",
-           "plan_or_none", "plan_belief_path", "replan_with_landmarks", "proposed_scenario",
-           "add_arguments", "plan_certificates"]
+           "plan_or_none", "plan_belief_path", "replan_with_landmarks", "proposed_scenario"]
+
+#: The guidance methods [SafeNav Algs. 1-2] whose nominal trajectories a certificate also checks.
+METHODS = ("chull", "centroid")
 
 #: Statuses of a path's certificate.
 CERTIFIED, NEEDS_LANDMARKS, CANNOT = "certified", "needs landmarks", "cannot be certified"
@@ -99,8 +105,11 @@ class Check:
     failing: np.ndarray               #: stages where clearance − r − margin ≤ k·σ_a
     risky: np.ndarray                 #: failing, or p_k > ε / stages
     profile: object = None
+    epsilon: float = float("nan")     #: the ε it was checked against
     #: the check of the expected belief (the vehicle's own camera) beside this one (the robust camera's)
     expected: "Check | None" = None
+    #: {method: the same checks along that method's nominal trajectory} (:func:`check_nominal`)
+    along: dict = field(default_factory=dict)
 
     def summary(self) -> dict:
         x, y = self.sigma_max_xy
@@ -112,6 +121,8 @@ class Check:
                "failing_stages": int(self.failing.sum()), "stages": int(len(self.failing))}
         if self.expected is not None:
             out["expected"] = self.expected.summary()
+        if self.along:
+            out["along_nominal"] = {m: c.summary() for m, c in self.along.items()}
         return out
 
 
@@ -136,19 +147,23 @@ def check_profile(prof, k: float, epsilon: float, vehicle_radius: float, margin:
     risky = failing | (np.asarray(prof.stage_probability) > epsilon / len(sigma))
     i, j = int(np.argmax(sigma)), int(np.argmin(room))
     pc = float(prof.collision_probability)
-    return Check(certified=bool(pc <= epsilon and not failing.any()), collision_probability=pc,
-                 union_bound=float(prof.union_bound), sigma_max=float(sigma[i]), sigma_max_s=float(s[i]),
-                 sigma_max_xy=(float(pos[i, 0]), float(pos[i, 1])), min_room=float(room[j]),
-                 min_room_s=float(s[j]), min_room_xy=(float(pos[j, 0]), float(pos[j, 1])), room=room, failing=failing,
-                 risky=risky, profile=prof)
+    c = Check(certified=False, collision_probability=pc, epsilon=float(epsilon),
+              union_bound=float(prof.union_bound), sigma_max=float(sigma[i]), sigma_max_s=float(s[i]),
+              sigma_max_xy=(float(pos[i, 0]), float(pos[i, 1])), min_room=float(room[j]),
+              min_room_s=float(s[j]), min_room_xy=(float(pos[j, 0]), float(pos[j, 1])), room=room, failing=failing,
+              risky=risky, profile=prof)
+    c.certified = _meets(c)
+    return c
 
 
-def blind_stretches(prof, risky: np.ndarray, needs: int) -> list[tuple[float, float]]:
+def blind_stretches(prof, risky: np.ndarray, needs: int, arc=None) -> list[tuple[float, float]]:
     """Arc-length stretches [s0, s1] to cover with landmarks: each run of
     ``risky`` stages that has a stage without a fix in view (fewer than
     ``needs`` landmarks), overlapping ones merged.  A run with a fix in view
-    throughout gives none: more landmarks would not add a fix there."""
-    s = _arc(np.asarray(prof.positions))
+    throughout gives none: more landmarks would not add a fix there.
+    ``arc``: the stages' arc positions (default: along the profile's own
+    positions)."""
+    s = _arc(np.asarray(prof.positions)) if arc is None else np.asarray(arc, dtype=float)
     seen = np.asarray(prof.landmarks) >= needs
     out: list[list[float]] = []
     idx = np.flatnonzero(risky)
@@ -291,19 +306,85 @@ class PathCertificate:
 def _evaluate(scenario, path, k: float, step: float) -> Check:
     """The certificate's check of ``path``: the robust camera's belief
     (:func:`safenav.belief.robust_sight`), with the expected belief's check
-    (the vehicle's own camera) in ``.expected``; certified when both pass.
-    The robust camera sees a subset of what the vehicle's sees, so its
-    covariance is the larger at every stage (the Riccati recursion is
-    monotone) and its check decides in practice; the expected one is the σ
-    profile the vehicle will get."""
+    (the vehicle's own camera) in ``.expected`` and each method's nominal
+    run in ``.along`` (:func:`check_nominal`).  Certified when both checks of
+    the path pass and the collision probability along every method's run,
+    with either camera, is at most ε.  The robust camera sees a subset of
+    what the vehicle's sees, so its covariance is the larger at every stage
+    (the Riccati recursion is monotone) and its check decides in practice;
+    the expected one is the σ profile the vehicle will get."""
     from .belief import propagate_belief, robust_sight
 
     kw = mission_inputs(scenario, path)
     eps, r, m = scenario.navigation.collision_probability, kw["vehicle_radius"], kw["margin"]
     robust = check_profile(propagate_belief(path, step=step, **robust_sight(), **kw), k, eps, r, m)
     robust.expected = check_profile(propagate_belief(path, step=step, **kw), k, eps, r, m)
-    robust.certified = robust.certified and robust.expected.certified
+    robust.along = check_nominal(scenario, path, k, step)
+    robust.certified = (_passes(robust) and all(_within(a, eps) for a in robust.along.values()))
     return robust
+
+
+def _meets(c: Check) -> bool:
+    """The certificate's two conditions on one belief: P(collision) ≤ ε, and room at every stage."""
+    return bool(c.collision_probability <= c.epsilon and not c.failing.any())
+
+
+def _passes(c: Check) -> bool:
+    """Both conditions on the path itself, for both cameras (``c`` the robust camera's check)."""
+    return _meets(c) and _meets(c.expected)
+
+
+def _within(c: Check, eps: float) -> bool:
+    """A method's run: the collision probability with either camera is at most ε."""
+    return c.collision_probability <= eps and c.expected.collision_probability <= eps
+
+
+def _deciding(c: Check, path: np.ndarray) -> tuple[Check, str, np.ndarray | None]:
+    """The check that makes ``c`` fail: the path's own, else the method's
+    run with the largest collision probability; with a label for the reason
+    and, for a run, its stages' arc positions along ``path`` (None: the
+    path's own stages)."""
+    from .belief import arc_position
+
+    if _passes(c):
+        method, run = max(((m, a) for m, a in c.along.items() if not _within(a, c.epsilon)),
+                          key=lambda ma: ma[1].collision_probability)
+        return run, f"along {method}'s nominal run: ", arc_position(path, np.asarray(run.profile.positions))
+    return c, "", None
+
+
+def nominal_trajectory(scenario, path, method: str) -> np.ndarray:
+    """(N, 4): the states of a vehicle that ``method`` drives along ``path``
+    in ``scenario`` without noise (``Navigator.nominal_trajectory``: the
+    method's control on the state itself, no guard)."""
+    from . import navigation as nv
+
+    navigator = nv.make_navigator(scenario, np.asarray(path, dtype=float), method=method, record=False)
+    return np.asarray(navigator.nominal_trajectory())
+
+
+def check_nominal(scenario, path, k: float, step: float = 0.0, methods=METHODS) -> dict:
+    """{method: the certificate's checks (robust camera, with ``.expected``)
+    of the belief along ``method``'s nominal trajectory}
+    (:func:`safenav.belief.propagate_belief_along`).  The controllers do not
+    drive the path's legs: they aim ``lookahead`` metres ahead and cut
+    corners, and the camera turns as they turn the vehicle.  A run's
+    ``certified`` is its collision probability, with either camera, at most
+    ε, which the certificate requires; its room is reported, not required
+    (docs/belief_planning.md, "Along the controllers' runs")."""
+    from .belief import propagate_belief_along, robust_sight
+
+    kw = mission_inputs(scenario, path)
+    eps, r, m = scenario.navigation.collision_probability, kw["vehicle_radius"], kw["margin"]
+    along = {key: v for key, v in kw.items() if key != "speed"}
+    out = {}
+    for method in methods:
+        x = nominal_trajectory(scenario, path, method)
+        c = check_profile(propagate_belief_along(x, step=step, **robust_sight(), **along), k, eps, r, m)
+        c.expected = check_profile(propagate_belief_along(x, step=step, **along), k, eps, r, m)
+        c.certified = _within(c, eps)
+        out[method] = c
+    return out
 
 
 def _floor(c: Check, needs: int) -> float:
@@ -377,12 +458,13 @@ def certify_path(scenario, name: str, path, *, planner: str = "RAw-RRT*", propos
     needs = fix_needs(mission_inputs(scenario, path)["sensors"])
     current, added = scenario, np.zeros((0, 2))
     for _ in range(rounds if propose else 0):
-        j = _hopeless(c, k, needs)
+        f, label, arc = _deciding(c, path)
+        j = _hopeless(f, k, needs)
         if j is not None:
             cert.status, cert.final, cert.added = CANNOT, (c if cert.rounds else None), added
-            cert.reason = _why(c, k, eps, needs, cert.rounds, j)
+            cert.reason = label + _why(f, k, eps, needs, cert.rounds, j)
             return cert
-        stretches = blind_stretches(c.profile, c.risky, needs)
+        stretches = blind_stretches(f.profile, f.risky, needs, arc)
         new = propose_landmarks(current, path, stretches, needs, spacing=spacing) if stretches else np.zeros((0, 2))
         if not len(new):
             break
@@ -395,7 +477,8 @@ def certify_path(scenario, name: str, path, *, planner: str = "RAw-RRT*", propos
             cert.reason = f"certified with {len(added)} landmark(s) added in {cert.rounds} round(s)"
             return cert
     cert.status, cert.final, cert.added = CANNOT, (c if cert.rounds else None), added
-    cert.reason = _why(c, k, eps, needs, cert.rounds if propose else -1)
+    f, label, _ = _deciding(c, path)
+    cert.reason = label + _why(f, k, eps, needs, cert.rounds if propose else -1)
     return cert
 
 
@@ -492,101 +575,3 @@ def proposed_scenario(scenario, certs: list):
         return None
     uniq = np.unique(np.round(np.asarray(added), 6), axis=0)
     return with_landmarks(scenario, uniq, name=f"{scenario.name}+landmarks")
-
-
-def report_lines(certs: list) -> list[str]:
-    """One paragraph per path and a total line."""
-    lines = []
-    for c in certs:
-        head = f"{c.name}: {c.status.upper()}"
-        if c.status == NEEDS_LANDMARKS:
-            head += f" ({c.n_added} landmark(s))"
-        lines.append(f"{head}; ε = {c.epsilon:g}" if not len(c.path) else
-                     f"{head}; {c.planner} path, {_arc(c.path)[-1]:.1f} m, ε = {c.epsilon:g}, k = {c.k:.3g} "
-                     f"(N = {c.exposures:g})")
-        given = "as given" if c.proposed_for is None else \
-            f"as given (the {_arc(c.proposed_for)[-1]:.1f} m path the landmarks were proposed for)"
-        for label, ch in ((given, c.given), (f"with {c.n_added} added", c.final)):
-            if ch is not None:
-                lines.append(f"  {label}: σ max {ch.sigma_max:.3g} m at s = {ch.sigma_max_s:.1f} m "
-                             f"({ch.sigma_max_xy[0]:.1f}, {ch.sigma_max_xy[1]:.1f}), P(collision) "
-                             f"{ch.collision_probability:.3g} (union bound {ch.union_bound:.3g}), min room "
-                             f"{ch.min_room:.3g} m at s = {ch.min_room_s:.1f} m (robust camera)")
-                if ch.expected is not None:
-                    e = ch.expected
-                    lines.append(f"  {' ' * len(label)}  expected (the vehicle's camera): σ max {e.sigma_max:.3g} "
-                                 f"m at s = {e.sigma_max_s:.1f} m, P(collision) {e.collision_probability:.3g}, "
-                                 f"min room {e.min_room:.3g} m")
-        lines.append(f"  {c.reason}")
-    n = {s: sum(c.status == s for c in certs) for s in (CERTIFIED, NEEDS_LANDMARKS, CANNOT)}
-    lines.append(f"certificate: {n[CERTIFIED]} certified as given, {n[NEEDS_LANDMARKS]} need landmarks "
-                 f"({sum(c.n_added for c in certs if c.status == NEEDS_LANDMARKS)} landmarks in all), "
-                 f"{n[CANNOT]} cannot be certified")
-    return lines
-
-
-def _markdown(certs: list, proposed_file: str | None) -> str:
-    rows = ["| path | status | planner | landmarks added | σ max [m] (at s) | expected σ max [m] | P(collision) | "
-            "expected P(collision) | min room [m] | reason |",
-            "|---|---|---|---|---|---|---|---|---|---|"]
-    for c in certs:
-        ch = c.final or c.given
-        e = ch.expected if ch is not None and ch.expected is not None else None
-        cells = ("–", "–", "–", "–", "–") if ch is None else (
-            f"{ch.sigma_max:.3g} ({ch.sigma_max_s:.1f} m)", f"{e.sigma_max:.3g}" if e else "–",
-            f"{ch.collision_probability:.3g}", f"{e.collision_probability:.3g}" if e else "–", f"{ch.min_room:.3g}")
-        given = "" if c.given is None or c.final is None else \
-            f" (as given: σ max {c.given.sigma_max:.3g} m, P {c.given.collision_probability:.3g})"
-        rows.append(f"| {c.name} | {c.status} | {c.planner} | {c.n_added} | {' | '.join(cells)} | {c.reason}{given} |")
-    text = ("# Mission certificate\n\nσ max, P(collision) and min room: the robust camera's belief, which the "
-            "certificate checks; expected: the vehicle's own camera, the σ the vehicle will get.\n\n"
-            + "\n".join(rows) + "\n")
-    if proposed_file:
-        text += f"\nThe scenario with the proposed landmarks: `{proposed_file}`.\n"
-    return text
-
-
-# --------------------------------------------------------------------------- command line
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """``safenav plan``'s certificate options (called by the command line's parser)."""
-    from .validation import arg_at_least, arg_positive
-
-    parser.add_argument("--planner", choices=["raw", "belief"], default="raw",
-                        help="raw: the paper's RAw-RRT* (default); belief: the belief-aware RRBT planner at "
-                             "k(ε), with the RAw-RRT* path as a guide")
-    parser.add_argument("--no-landmarks", action="store_true",
-                        help="certify only; propose no landmarks for the paths that fail")
-    parser.add_argument("--landmark-spacing", type=arg_positive, default=2.0,
-                        help="candidate grid spacing for proposed landmarks [m] (default 2)")
-    parser.add_argument("--landmark-rounds", type=arg_at_least(1), default=3,
-                        help="placement rounds at most per path (default 3)")
-
-
-def plan_certificates(args, scenario, raw_paths: dict, out) -> list:
-    """``safenav plan``: certify the paths, print the report, write
-    ``certificate.json``, ``certificate.md`` and, when landmarks were
-    proposed, ``proposed_scenario.toml`` in ``out`` (through
-    :mod:`safenav.results`' atomic writers)."""
-    from pathlib import Path
-
-    from .results import write_json, write_text
-    from .scenario import save_scenario
-
-    out = Path(out)
-    with console.task(f"certifying {len(raw_paths)} path(s) against ε = "
-                      f"{scenario.navigation.collision_probability:g}"):
-        certs, proposed = certify_paths(scenario, raw_paths, planner=args.planner, propose=not args.no_landmarks,
-                                        rounds=args.landmark_rounds, spacing=args.landmark_spacing)
-    file = None
-    if proposed is not None:
-        file = "proposed_scenario.toml"
-        save_scenario(proposed, out / file)
-    print("\n".join(report_lines(certs)))
-    if file:
-        print(f"proposed scenario: {out / file} (safenav run --scenario {out / file})")
-    write_json(out / "certificate.json", {"scenario": scenario.name,
-                                          "epsilon": scenario.navigation.collision_probability,
-                                          "proposed_scenario": file, "paths": [c.to_dict() for c in certs]})
-    write_text(out / "certificate.md", _markdown(certs, file))
-    return certs

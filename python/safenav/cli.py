@@ -171,7 +171,7 @@ def _navigation(args, *, demo: bool) -> int:
 
 
 def _plan(args) -> int:
-    from . import certify
+    from . import certify, certify_report
     from . import navigation as nv
     from .metrics import path_length
     from .experiments.figures import plot_navigation
@@ -212,7 +212,7 @@ def _plan(args) -> int:
         if trials:
             plot_navigation(scenario, trials, out / "safe_paths.png", title=f"{scenario.name}: safe paths (RAw-RRT*)")
         foxglove.plan_view(args.view, scenario, trials)
-        certify.plan_certificates(args, scenario, paths, out)
+        certify_report.plan_certificates(args, scenario, paths, out)
         _wrote(run)
     return 0
 
@@ -420,7 +420,7 @@ def _add_experiment_commands(sub, common, scenario) -> None:
                    help="RAw-RRT* iterations (default: the scenario's)")
     s.add_argument("--out", default="out/plan")
     foxglove.add_view_argument(s)
-    from .certify import add_arguments as add_certify_arguments
+    from .certify_report import add_arguments as add_certify_arguments
     add_certify_arguments(s)
     s.set_defaults(func=_plan)
 
