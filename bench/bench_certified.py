@@ -336,7 +336,7 @@ def print_calibration(df: pd.DataFrame, outs: list, record: int) -> None:
         print(_ratio_line(f"{m:6} {f:3} path    ", v["path"]))
         print(_ratio_line(f"{m:6} {f:3} robust  ", v["robust"]))
         if v["fix_e"].size:
-            print(f"     {m:6} {f:3} fix share |predicted − observed| per bin: expected mean "
+            print(f"     {m:6} {f:3} fix share |predicted − observed| per bin: path mean "
                   f"{np.mean(v['fix_e']):.3f} "
                   f"max {np.max(v['fix_e']):.2f}; robust mean {np.mean(v['fix_r']):.3f} max {np.max(v['fix_r']):.2f}")
     print("   (b) predicted path collision probability (belief with the cell's sensors: the certificate's robust "

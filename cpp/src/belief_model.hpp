@@ -63,7 +63,7 @@ class Model {
   /// BeliefSettings::step (rounded to a whole number of rows, the last step
   /// to the last row), from the state at its start with the control that
   /// takes it to the state at its end (the speed reached, the heading
-  /// change), seen from the end's pose.
+  /// change; exact for one row per step), seen from the end's pose.
   void trajectory(const Eigen::Ref<const RowMatrixX4>& states, std::vector<Step>& out) const;
   /// P ← one belief step (predict, then the expected updates; StepOutcome
   /// for a fix that may not arrive).  `out`, when given, receives P⁻, F and

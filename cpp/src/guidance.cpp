@@ -398,13 +398,18 @@ double Guidance::guard_k() const { return impl_->settings.guard.k; }
 double Guidance::guard_exposures() const { return impl_->shared->exposures; }
 GuidanceStatus Guidance::status() const { return impl_->status(); }
 
+State Guidance::start_state() const {
+  const Corridor& safe = impl_->shared->safe->corridor();
+  const Eigen::Vector2d t = safe.tangent_at(0.0);
+  State x;
+  x << safe.path()(0, 0), safe.path()(0, 1), 0.0, std::atan2(t.y(), t.x());
+  return x;
+}
+
 RowMatrixX4 Guidance::nominal_trajectory(int max_steps) const {
   if (max_steps < 0) bad("nominal_trajectory: max_steps = " + std::to_string(max_steps) + ": must be >= 0");
   const Impl& im = *impl_;
-  const Corridor& safe = im.shared->safe->corridor();
-  const Eigen::Vector2d t = safe.tangent_at(0.0);
-  State x;  // the true start of a trial (navigation_trial.hpp)
-  x << safe.path()(0, 0), safe.path()(0, 1), 0.0, std::atan2(t.y(), t.x());
+  State x = start_state();
   std::vector<State> rows{x};
   Command c;
   for (int k = 0; k < max_steps && (x.head<2>() - im.destination()).norm() > im.settings.arrival_radius; ++k) {

@@ -47,9 +47,7 @@ class Trial {
         source_R_(se_.position.reported_cov()),
         gate_(st_.filter.gate_probability),
         score_(static_cast<Eigen::Index>(max_steps) + 1) {
-    // True start: first path vertex, at rest, heading along the first edge.
-    const Eigen::Vector2d t = safe_.tangent_at(0.0);
-    truth_ << safe_.path()(0, 0), safe_.path()(0, 1), 0.0, std::atan2(t.y(), t.x());
+    truth_ = guidance_.start_state();  // the first path vertex, at rest, heading along the first edge
     obs_.reserve(static_cast<std::size_t>(se_.landmarks.rows()));
     trilateration_.seed = derive_seed(seed, 3);
     frame_fault_seed_ = derive_seed(seed, 4);

@@ -191,6 +191,9 @@ class Guidance {
   /// 2Δt, …  The belief along it (propagate_belief_along, belief.hpp) sees
   /// with the heading the controller gives the vehicle after a turn.
   RowMatrixX4 nominal_trajectory(int max_steps) const;
+  /// The true state a trial's vehicle starts in: the safe path's first
+  /// vertex, at rest, heading along its first edge.
+  State start_state() const;
 
   const NavigationProblem& problem() const;
   /// The settings, with guard.k resolved (k = 0 given: from collision_probability).
