@@ -4,7 +4,9 @@
    then with the belief planner and certified (``certify_paths(...,
    planner="belief")``); where landmarks are proposed they are added and the
    path replanned with them.  Per path: status, planner, landmarks added,
-   predicted P(collision), planning times.  Missions that cannot be
+   predicted P(collision), the largest P(collision) and the least room along
+   the methods' nominal runs (which the certificate also checks), planning
+   times.  Missions that cannot be
    certified are reported apart and not driven.
 2. Driving: each certified mission (the world with every proposed landmark,
    as ``safenav plan`` writes it) × method (CHull, Centroid) × measurements
@@ -14,12 +16,14 @@
    trials and how many of them end where the belief predicts no fix (a blind
    gap), NEES.  Targets: 0 collisions, arrival >= 99.9 %.
 3. Calibration: (a) the predicted RMS position error sqrt(trace P_xy) of the
-   expected belief (the vehicle's own camera, ``propagate_belief``'s
-   default) along the driven path against the Monte Carlo RMS error of the
+   expected belief (the vehicle's own camera) along the cell's method's
+   nominal run (``propagate_belief_along`` of the navigator's
+   ``nominal_trajectory()``) against the Monte Carlo RMS error of the
    first ``--record`` trials per cell, per arc-length bin (target: ratio
-   within ±25 %), and the same for the certificate's robust camera
-   (``robust_sight``) for comparison; per bin also the predicted and the
-   observed share of steps with a fix, and for the bins outside the band
+   within ±25 %), and for comparison the same along the path's legs
+   (``propagate_belief``) and with the certificate's robust camera
+   (``robust_sight``); per bin also the share of steps with a fix predicted
+   along the legs and observed, and for the bins outside the band
    how many hold more than half their squared error in one trial (a rare
    event) and their ratios without it; (b) the predicted path collision
    probability (the certificate's robust belief, and the expected one)

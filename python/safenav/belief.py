@@ -47,7 +47,8 @@ collision_monte_carlo = _core.collision_monte_carlo
 
 __all__ = ["BeliefSettings", "BeliefPlannerSettings", "BeliefProblem", "BeliefProfile", "BeliefPlanStatus",
            "BeliefPlanResult", "BeliefPlan", "start_covariance", "collision_monte_carlo", "propagate_belief",
-           "propagate_belief_along", "plan_belief", "robust_sight", "arc_position", "SigmaCalibration", "sigma_calibration", "clopper_pearson"]
+           "propagate_belief_along", "plan_belief", "robust_sight", "arc_position", "SigmaCalibration",
+           "sigma_calibration", "clopper_pearson"]
 
 # Keyword names of plan_belief / propagate_belief -> declared parameter names.
 _BELIEF_KEYS = {"speed": "speed", "step": "step", "bearing_std": "bearing_std",
