@@ -48,7 +48,7 @@ __all__ = ["PathCertificate", "Check", "mission_inputs", "risk_k", "check_profil
            "certify_path", "certify_paths", "with_landmarks",
            "plan_or_none", "plan_belief_path", "replan_with_landmarks", "proposed_scenario"]
 
-#: The guidance methods [SafeNav Algs. 1-2] whose nominal trajectories a certificate also checks.
+#: The guidance methods [SafeNav Algs. 1–2] whose nominal trajectories a certificate also checks.
 METHODS = ("chull", "centroid")
 
 #: Statuses of a path's certificate.

@@ -7,7 +7,8 @@ from __future__ import annotations
 import argparse
 
 from . import console
-from .certify import CANNOT, CERTIFIED, NEEDS_LANDMARKS, _arc, certify_paths
+from .certify import CANNOT, CERTIFIED, NEEDS_LANDMARKS, certify_paths
+from .metrics import path_length
 
 __all__ = ["report_lines", "add_arguments", "plan_certificates"]
 
@@ -20,10 +21,10 @@ def report_lines(certs: list) -> list[str]:
         if c.status == NEEDS_LANDMARKS:
             head += f" ({c.n_added} landmark(s))"
         lines.append(f"{head}; ε = {c.epsilon:g}" if not len(c.path) else
-                     f"{head}; {c.planner} path, {_arc(c.path)[-1]:.1f} m, ε = {c.epsilon:g}, k = {c.k:.3g} "
+                     f"{head}; {c.planner} path, {path_length(c.path):.1f} m, ε = {c.epsilon:g}, k = {c.k:.3g} "
                      f"(N = {c.exposures:g})")
         given = "as given" if c.proposed_for is None else \
-            f"as given (the {_arc(c.proposed_for)[-1]:.1f} m path the landmarks were proposed for)"
+            f"as given (the {path_length(c.proposed_for):.1f} m path the landmarks were proposed for)"
         for label, ch in ((given, c.given), (f"with {c.n_added} added", c.final)):
             if ch is not None:
                 lines.append(f"  {label}: σ max {ch.sigma_max:.3g} m at s = {ch.sigma_max_s:.1f} m "
