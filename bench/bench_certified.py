@@ -258,8 +258,8 @@ def cell_table(df: pd.DataFrame) -> str:
                                                                  df.step_limit_checked)],
         "held": df.held_trials, "holds/tr": df.holds.map("{:.2f}".format),
         "NEES": df.nees.map("{:.3g}".format), "out3s": df.outside_3sigma.map("{:.3f}".format),
-        "clr_min": df.min_clearance_min.map("{:.2f}".format), "ratio min/med/max": df.ratios,
-        "path": df.ratios_path,
+        "clr_min": df.min_clearance_min.map("{:.2f}".format), "run min/med/max": df.ratios,
+        "legs min/med/max": df.ratios_path,
         "P pred": df.predicted_pc.map("{:.2g}".format), "wall_s": (df.time_ms / 1e3).map("{:.1f}".format),
     })
     return show.to_string(index=False)
@@ -430,8 +430,8 @@ def main() -> None:
     df["ratios"] = [spread(_ratio_bins(o["calibration_nominal"], args.record)) for o in out]
     df["ratios_path"] = [spread(_ratio_bins(c, args.record)) for c in cals]
     print("   other: " + ", ".join(f"{v} {k}" for k, v in SHORT.items()) + "; sl(blind/chk) = step-limit trials "
-          "(in a blind gap / of those rerun);\n   held = trials with a guard hold; ratio = Monte Carlo / predicted RMS "
-          "error per bin")
+          "(in a blind gap / of those rerun);\n   held = trials with a guard hold; run, legs = Monte Carlo / predicted RMS "
+          "error per bin, the belief along the method's nominal run and along the path's legs")
     print(cell_table(df))
     for o in out:
         for i, seed, clr, reason in o["crashes"]:
