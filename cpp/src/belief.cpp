@@ -329,9 +329,7 @@ BeliefProfile propagate_belief_along(const Eigen::Ref<const RowMatrixX4>& states
                                      const BeliefSettings& settings) {
   if (states.rows() < 2) bad("belief trajectory has " + std::to_string(states.rows()) + " states: needs >= 2");
   for (Eigen::Index i = 0; i < states.rows(); ++i)
-    if (!states.row(i).allFinite())
-      bad("belief trajectory state " + std::to_string(i) + " = (" + num(states(i, 0)) + ", " + num(states(i, 1)) +
-          ", " + num(states(i, 2)) + ", " + num(states(i, 3)) + ") is not finite");
+    check_finite_state(states.row(i).transpose(), ("belief trajectory state " + std::to_string(i)).c_str());
   check_prior(State::Zero(), P0, "x0", "start_cov");
   belief::Model model(bmm, sensors, map, settings);
   std::vector<belief::Step> steps(1);

@@ -320,8 +320,8 @@ def _evaluate(scenario, path, k: float, step: float) -> Check:
     eps, r, m = scenario.navigation.collision_probability, kw["vehicle_radius"], kw["margin"]
     robust = check_profile(propagate_belief(path, step=step, **robust_sight(), **kw), k, eps, r, m)
     robust.expected = check_profile(propagate_belief(path, step=step, **kw), k, eps, r, m)
-    robust.along = check_nominal(scenario, path, k, step)
-    robust.certified = (_passes(robust) and all(_within(a, eps) for a in robust.along.values()))
+    robust.along = check_nominal(scenario, path, k, step, inputs=kw)
+    robust.certified = _passes(robust) and all(_within(a) for a in robust.along.values())
     return robust
 
 
@@ -335,9 +335,9 @@ def _passes(c: Check) -> bool:
     return _meets(c) and _meets(c.expected)
 
 
-def _within(c: Check, eps: float) -> bool:
+def _within(c: Check) -> bool:
     """A method's run: the collision probability with either camera is at most ε."""
-    return c.collision_probability <= eps and c.expected.collision_probability <= eps
+    return c.collision_probability <= c.epsilon and c.expected.collision_probability <= c.epsilon
 
 
 def _deciding(c: Check, path: np.ndarray) -> tuple[Check, str, np.ndarray | None]:
@@ -348,7 +348,7 @@ def _deciding(c: Check, path: np.ndarray) -> tuple[Check, str, np.ndarray | None
     from .belief import arc_position
 
     if _passes(c):
-        method, run = max(((m, a) for m, a in c.along.items() if not _within(a, c.epsilon)),
+        method, run = max(((m, a) for m, a in c.along.items() if not _within(a)),
                           key=lambda ma: ma[1].collision_probability)
         return run, f"along {method}'s nominal run: ", arc_position(path, np.asarray(run.profile.positions))
     return c, "", None
@@ -364,7 +364,7 @@ def nominal_trajectory(scenario, path, method: str) -> np.ndarray:
     return np.asarray(navigator.nominal_trajectory())
 
 
-def check_nominal(scenario, path, k: float, step: float = 0.0, methods=METHODS) -> dict:
+def check_nominal(scenario, path, k: float, step: float = 0.0, methods=METHODS, inputs=None) -> dict:
     """{method: the certificate's checks (robust camera, with ``.expected``)
     of the belief along ``method``'s nominal trajectory}
     (:func:`safenav.belief.propagate_belief_along`).  The controllers do not
@@ -372,10 +372,11 @@ def check_nominal(scenario, path, k: float, step: float = 0.0, methods=METHODS) 
     corners, and the camera turns as they turn the vehicle.  A run's
     ``certified`` is its collision probability, with either camera, at most
     ε, which the certificate requires; its room is reported, not required
-    (docs/belief_planning.md, "Along the controllers' runs")."""
+    (docs/belief_planning.md, "Along the controllers' runs").  ``inputs``:
+    :func:`mission_inputs` of ``path``, when the caller has them."""
     from .belief import propagate_belief_along, robust_sight
 
-    kw = mission_inputs(scenario, path)
+    kw = mission_inputs(scenario, path) if inputs is None else inputs
     eps, r, m = scenario.navigation.collision_probability, kw["vehicle_radius"], kw["margin"]
     along = {key: v for key, v in kw.items() if key != "speed"}
     out = {}
@@ -383,7 +384,7 @@ def check_nominal(scenario, path, k: float, step: float = 0.0, methods=METHODS) 
         x = nominal_trajectory(scenario, path, method)
         c = check_profile(propagate_belief_along(x, step=step, **robust_sight(), **along), k, eps, r, m)
         c.expected = check_profile(propagate_belief_along(x, step=step, **along), k, eps, r, m)
-        c.certified = _within(c, eps)
+        c.certified = _within(c)
         out[method] = c
     return out
 

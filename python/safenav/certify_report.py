@@ -70,7 +70,7 @@ def _markdown(certs: list, proposed_file: str | None) -> str:
             f" (as given: σ max {c.given.sigma_max:.3g} m, P {c.given.collision_probability:.3g})"
         runs = "; ".join(_nominal_line(m, a) for m, a in ch.along.items()) if ch is not None else ""
         rows.append(f"| {c.name} | {c.status} | {c.planner} | {c.n_added} | {' | '.join(cells)} | {c.reason}{given}"
-                    + (f". {runs[0].upper()}{runs[1:]}" if runs else "") + " |")
+                    + (f"; {runs}" if runs else "") + " |")
     text = ("# Mission certificate\n\nσ max, P(collision) and min room: the robust camera's belief, which the "
             "certificate checks; expected: the vehicle's own camera, the σ the vehicle will get.\n\n"
             + "\n".join(rows) + "\n")
