@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from scipy import stats
 
 from safenav import _core
@@ -32,6 +34,40 @@ def test_arc_position_is_the_nearest_point_of_a_dense_sampling():
         near = dense_s[d <= d.min() + 1e-9]
         assert np.min(np.abs(near - s)) < 0.02          # the dense grid's spacing is below 0.01 m
     assert arc_position(PATH, PATH) == pytest.approx(s0)
+
+
+def _all_legs(path, points):
+    """The nearest point over every leg, in leg order (the first of equal
+    distances): the search arc_position prunes."""
+    a, d = path[:-1], np.diff(path, axis=0)
+    s0 = np.r_[0.0, np.cumsum(np.hypot(*d.T))]
+    dd = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
+    t = np.clip(np.einsum("mij,ij->mi", points[:, None, :] - a[None], d) / dd, 0.0, 1.0)
+    gap = points[:, None, :] - (a[None] + t[..., None] * d[None])
+    leg = np.argmin(np.einsum("mij,mij->mi", gap, gap), axis=1)
+    return s0[leg] + t[np.arange(len(points)), leg] * np.sqrt(dd[leg])
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**32 - 1), legs=st.integers(65, 400), step=st.sampled_from([0.0, 0.01, 0.1, 1.0]),
+       grid=st.booleans(), far=st.sampled_from([0.0, 10.0, 1e6]))
+def test_arc_position_on_a_long_polyline_is_the_all_legs_search(seed, legs, step, grid, far):
+    """A long polyline (more than 64 legs: the pruned search) gives the
+    all-legs search's arc bit for bit: random walks with zero-length legs,
+    legs that double back over each other (ties), points on its vertices and
+    midpoints, on a grid, and far away (where the pruning cannot decide)."""
+    rng = np.random.default_rng(seed)
+    turns = rng.choice([0.0, np.pi / 2, np.pi, -np.pi / 2], size=legs) if grid else rng.uniform(-np.pi, np.pi, legs)
+    lengths = rng.choice([0.0, step, 2 * step + 0.5], size=legs)
+    heading = np.cumsum(turns)
+    path = np.vstack([[0.0, 0.0], np.cumsum(lengths[:, None] * np.c_[np.cos(heading), np.sin(heading)], axis=0)])
+    if grid:
+        path = np.round(path * 2) / 2
+    mids = 0.5 * (path[:-1] + path[1:])
+    lo, hi = path.min(axis=0) - 2.0, path.max(axis=0) + 2.0
+    pts = np.vstack([path, mids, rng.uniform(lo, hi, (200, 2)), np.round(rng.uniform(lo, hi, (50, 2))),
+                     rng.uniform(lo, hi, (20, 2)) + far])
+    np.testing.assert_array_equal(arc_position(path, pts), _all_legs(path, pts))
 
 
 def test_sigma_calibration_matches_a_direct_computation():

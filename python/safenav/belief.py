@@ -203,10 +203,36 @@ def plan_belief(map, start, goal, *, sensors, bmm=None, start_cov=None, guide_pa
 
 # --------------------------------------------------------------------------- calibration against Monte Carlo
 
+def _nearest_legs(q, a, d, dd, legs=None):
+    """(leg, t) of the nearest point of each leg ``legs[m]`` (all legs when
+    None) to ``q[m]``: t in [0, 1] along the leg; ties go to the earlier
+    column, so ``legs`` rows must be ascending."""
+    if legs is None:
+        t = np.clip(np.einsum("mij,ij->mi", q[:, None, :] - a[None], d) / dd, 0.0, 1.0)
+        gap = q[:, None, :] - (a[None] + t[..., None] * d[None])
+        col = np.argmin(np.einsum("mij,mij->mi", gap, gap), axis=1)
+        rows = np.arange(len(q))
+        return col, t[rows, col], None
+    al, dl, ddl = a[legs], d[legs], dd[legs]
+    t = np.clip(np.einsum("mij,mij->mi", q[:, None, :] - al, dl) / ddl, 0.0, 1.0)
+    gap = q[:, None, :] - (al + t[..., None] * dl)
+    sq = np.einsum("mij,mij->mi", gap, gap)
+    col = np.argmin(sq, axis=1)
+    rows = np.arange(len(q))
+    return legs[rows, col], t[rows, col], sq[rows, col]
+
+
 def arc_position(path, points) -> np.ndarray:
     """The arc length along the polyline ``path`` ((N, 2)) of the nearest
     point of ``path`` to each of ``points`` ((M, 2)); ties go to the earlier
-    leg."""
+    leg.
+
+    A long polyline (a nominal run has a leg per step) is searched among the
+    legs whose midpoints are nearest (scipy's cKDTree), and exactly: a leg
+    j at midpoint distance r_j is no nearer than r_j − L_max/2, so when
+    the k-th nearest midpoint's r_k − L_max/2 exceeds the best candidate's
+    distance, no other leg can be nearer or tie; points where it does not
+    are searched among all legs.  The result is the all-legs search's."""
     p = as_array("path", path, (None, 2))
     q = as_array("points", points, (None, 2))
     a, d = p[:-1], np.diff(p, axis=0)                                    # legs: a + t·d, t in [0, 1]
@@ -214,11 +240,21 @@ def arc_position(path, points) -> np.ndarray:
     if len(d) == 0:
         return np.zeros(len(q))
     dd = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
-    t = np.clip(np.einsum("mij,ij->mi", q[:, None, :] - a[None], d) / dd, 0.0, 1.0)   # (M, legs)
-    gap = q[:, None, :] - (a[None] + t[..., None] * d[None])
-    leg = np.argmin(np.einsum("mij,mij->mi", gap, gap), axis=1)
-    rows = np.arange(len(q))
-    return s0[leg] + t[rows, leg] * np.sqrt(dd[leg])
+    k = 16
+    if len(d) <= 4 * k:
+        leg, t, _ = _nearest_legs(q, a, d, dd)
+        return s0[leg] + t * np.sqrt(dd[leg])
+    from scipy.spatial import cKDTree
+
+    r, cand = cKDTree(a + 0.5 * d).query(q, k=k)
+    leg, t, sq = _nearest_legs(q, a, d, dd, np.sort(cand, axis=1))
+    half = 0.5 * float(np.sqrt(dd.max()))
+    # complete: every other leg is farther than the best candidate (margin for rounding)
+    ok = r[:, -1] - half > np.sqrt(sq) * (1.0 + 1e-9) + 1e-12
+    if not ok.all():
+        bad = ~ok
+        leg[bad], t[bad], _ = _nearest_legs(q[bad], a, d, dd)
+    return s0[leg] + t * np.sqrt(dd[leg])
 
 
 @dataclass(frozen=True)
