@@ -203,18 +203,12 @@ def plan_belief(map, start, goal, *, sensors, bmm=None, start_cov=None, guide_pa
 
 # --------------------------------------------------------------------------- calibration against Monte Carlo
 
-def _nearest_legs(q, a, d, dd, legs=None):
-    """(leg, t) of the nearest point of each leg ``legs[m]`` (all legs when
-    None) to ``q[m]``: t in [0, 1] along the leg; ties go to the earlier
-    column, so ``legs`` rows must be ascending."""
-    if legs is None:
-        t = np.clip(np.einsum("mij,ij->mi", q[:, None, :] - a[None], d) / dd, 0.0, 1.0)
-        gap = q[:, None, :] - (a[None] + t[..., None] * d[None])
-        col = np.argmin(np.einsum("mij,mij->mi", gap, gap), axis=1)
-        rows = np.arange(len(q))
-        return col, t[rows, col], None
-    al, dl, ddl = a[legs], d[legs], dd[legs]
-    t = np.clip(np.einsum("mij,mij->mi", q[:, None, :] - al, dl) / ddl, 0.0, 1.0)
+def _nearest_legs(q, a, d, dd, legs):
+    """(leg, t, squared distance) of the nearest of the legs ``legs[m]``
+    (rows ascending) to ``q[m]``: t in [0, 1] along the leg; ties go to the
+    earlier leg."""
+    al, dl = a[legs], d[legs]
+    t = np.clip(np.einsum("mij,mij->mi", q[:, None, :] - al, dl) / dd[legs], 0.0, 1.0)
     gap = q[:, None, :] - (al + t[..., None] * dl)
     sq = np.einsum("mij,mij->mi", gap, gap)
     col = np.argmin(sq, axis=1)
@@ -240,9 +234,10 @@ def arc_position(path, points) -> np.ndarray:
     if len(d) == 0:
         return np.zeros(len(q))
     dd = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
+    every = lambda m: np.broadcast_to(np.arange(len(d)), (m, len(d)))  # noqa: E731  (all legs, for m points)
     k = 16
     if len(d) <= 4 * k:
-        leg, t, _ = _nearest_legs(q, a, d, dd)
+        leg, t, _ = _nearest_legs(q, a, d, dd, every(len(q)))
         return s0[leg] + t * np.sqrt(dd[leg])
     from scipy.spatial import cKDTree
 
@@ -253,7 +248,7 @@ def arc_position(path, points) -> np.ndarray:
     ok = r[:, -1] - half > np.sqrt(sq) * (1.0 + 1e-9) + 1e-12
     if not ok.all():
         bad = ~ok
-        leg[bad], t[bad], _ = _nearest_legs(q[bad], a, d, dd)
+        leg[bad], t[bad], _ = _nearest_legs(q[bad], a, d, dd, every(int(bad.sum())))
     return s0[leg] + t * np.sqrt(dd[leg])
 
 
