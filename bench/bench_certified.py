@@ -44,7 +44,7 @@ Generated worlds 13 and 17 are used by no test or other benchmark (those use
 0–5, 7 and 11).
 
     python bench/bench_certified.py [--trials 50] [--worlds 13 17] [--no-gap] [--filters ekf pf]
-                                    [--record 20] [--bin-m 10] [--blind-check 10] [--workers 2]
+                                    [--record 200] [--bin-m 10] [--blind-check 10] [--workers 2]
                                     [--full 100000] [--first-trial 0] [--out DIR]
 """
 
@@ -376,7 +376,8 @@ def main() -> None:
     ap.add_argument("--worlds", type=int, nargs="*", default=[13, 17], help="seeds of the generated worlds")
     ap.add_argument("--no-gap", action="store_true", help="leave out the blind-gap world")
     ap.add_argument("--filters", nargs="+", choices=["ekf", "pf"], default=["ekf", "pf"])
-    ap.add_argument("--record", type=int, default=20, help="trials per cell recorded for the calibration")
+    ap.add_argument("--record", type=int, default=200,
+                    help="trials per cell recorded for the calibration (the first ones; at most --trials)")
     ap.add_argument("--bin-m", type=float, default=10.0, help="arc-length bin of the calibration [m]")
     ap.add_argument("--blind-check", type=int, default=10,
                     help="step-limit trials per cell rerun with a record to see whether they ended in a blind gap")
