@@ -1,6 +1,6 @@
 """Benchmark ``safenav.belief.arc_position`` (the arc of each recorded
 position along a belief profile: the calibration's binning) against the
-search over every leg, which it prunes exactly.
+search over every leg (``all_legs=True``), which it prunes exactly.
 
 The polyline is the expected belief's stages along CHull's nominal run on the
 default scenario's belief-planned P1 (a leg per BMM step, about 2 300), the
@@ -27,17 +27,6 @@ from safenav.belief import arc_position, propagate_belief_along
 from safenav.scenario import default_scenario
 
 
-def all_legs(path: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """The nearest point over every leg (the first of equal distances)."""
-    a, d = path[:-1], np.diff(path, axis=0)
-    s0 = np.r_[0.0, np.cumsum(np.hypot(*d.T))]
-    dd = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
-    t = np.clip(np.einsum("mij,ij->mi", points[:, None, :] - a[None], d) / dd, 0.0, 1.0)
-    gap = points[:, None, :] - (a[None] + t[..., None] * d[None])
-    leg = np.argmin(np.einsum("mij,mij->mi", gap, gap), axis=1)
-    return s0[leg] + t[np.arange(len(points)), leg] * np.sqrt(dd[leg])
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--trials", type=int, default=10, help="recorded trials whose positions are binned")
@@ -54,9 +43,9 @@ def main() -> None:
     points = np.vstack([np.asarray(navigator.run(int(s)).truth)[:, :2] for s in seeds])
     times = {"arc_position": [], "all legs": []}
     for _ in range(args.repeats):
-        for name, f in (("arc_position", arc_position), ("all legs", all_legs)):
+        for name, every in (("arc_position", False), ("all legs", True)):
             t0 = time.perf_counter()
-            out = f(stages, points)
+            out = arc_position(stages, points, all_legs=every)
             times[name].append(time.perf_counter() - t0)
             if name == "arc_position":
                 ours = out

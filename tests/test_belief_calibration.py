@@ -67,7 +67,9 @@ def test_arc_position_on_a_long_polyline_is_the_all_legs_search(seed, legs, step
     lo, hi = path.min(axis=0) - 2.0, path.max(axis=0) + 2.0
     pts = np.vstack([path, mids, rng.uniform(lo, hi, (200, 2)), np.round(rng.uniform(lo, hi, (50, 2))),
                      rng.uniform(lo, hi, (20, 2)) + far])
-    np.testing.assert_array_equal(arc_position(path, pts), _all_legs(path, pts))
+    ref = _all_legs(path, pts)
+    np.testing.assert_array_equal(arc_position(path, pts), ref)
+    np.testing.assert_array_equal(arc_position(path, pts, all_legs=True), ref)
 
 
 def test_sigma_calibration_matches_a_direct_computation():

@@ -216,10 +216,11 @@ def _nearest_legs(q, a, d, dd, legs):
     return legs[rows, col], t[rows, col], sq[rows, col]
 
 
-def arc_position(path, points) -> np.ndarray:
+def arc_position(path, points, *, all_legs: bool = False) -> np.ndarray:
     """The arc length along the polyline ``path`` ((N, 2)) of the nearest
     point of ``path`` to each of ``points`` ((M, 2)); ties go to the earlier
-    leg.
+    leg.  ``all_legs`` searches every leg of a long polyline too (the
+    reference the pruned search below equals; bench/bench_arc_position.py).
 
     A long polyline (a nominal run has a leg per step) is searched among the
     legs whose midpoints are nearest (scipy's cKDTree), and exactly: a leg
@@ -236,7 +237,7 @@ def arc_position(path, points) -> np.ndarray:
     dd = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
     every = lambda m: np.broadcast_to(np.arange(len(d)), (m, len(d)))  # noqa: E731  (all legs, for m points)
     k = 16
-    if len(d) <= 4 * k:
+    if all_legs or len(d) <= 4 * k:
         leg, t, _ = _nearest_legs(q, a, d, dd, every(len(q)))
         return s0[leg] + t * np.sqrt(dd[leg])
     from scipy.spatial import cKDTree
