@@ -87,10 +87,11 @@ class _TrackedKF(kalman.KalmanFilter):
         self.T = (np.eye(4) - self.K @ H) @ self.T
 
 
-def reference_mixture(prof, bmm, se, P0, bearing_std=0.0, checker=None, stage=None):
+def reference_mixture(prof, bmm, se, P0, bearing_std=0.0, checker=None, stage=None, nodes=3):
     """BeliefSettings.deviation_mixture by its specification: the error
-    stratified on (lateral, heading) u = J e at the 3x3 Gauss-Hermite nodes z
-    of N(0, I) (nodes -sqrt(3), 0, sqrt(3), weights 1/6, 2/3, 1/6): stratum i
+    stratified on (lateral, heading) u = J e at the nodes x nodes
+    Gauss-Hermite nodes z of N(0, I) (numpy's hermegauss; with 3, nodes
+    -sqrt(3), 0, sqrt(3) and weights 1/6, 2/3, 1/6): stratum i
     has mean m_i = M J^T L^-T z_i and second moment C + m_i m_i^T, C = M - M
     J^T (J M J^T)^-1 J M, L L^T = J M J^T, M the mixture's second moment.
     One FilterPy filter per stratum: its x is m_i (predict x = F x, update
@@ -100,11 +101,12 @@ def reference_mixture(prof, bmm, se, P0, bearing_std=0.0, checker=None, stage=No
     FilterPy's gains).  The strata are stratified anew before a stage when
     at the previous one all saw the same landmarks and their P agreed within
     1 % (Frobenius).  The mixture per stage: sum_i w_i (P_i + N_i)."""
-    nodes, weights = np.array([-np.sqrt(3.0), 0.0, np.sqrt(3.0)]), np.array([1, 4, 1]) / 6.0
+    x, weights = np.polynomial.hermite_e.hermegauss(nodes)
+    weights = weights / np.sqrt(2 * np.pi)
     w = np.outer(weights, weights).ravel()
-    z = np.array([[a, b] for a in nodes for b in nodes])
-    kfs, N = [], [np.zeros((4, 4)) for _ in range(9)]
-    for _ in range(9):
+    z = np.array([[a, b] for a in x for b in x])
+    kfs, N = [], [np.zeros((4, 4)) for _ in range(nodes * nodes)]
+    for _ in range(nodes * nodes):
         kf = _TrackedKF(dim_x=4, dim_z=1)
         kf.x, kf.P = np.zeros((4, 1)), P0.copy()
         kfs.append(kf)
@@ -207,8 +209,9 @@ def test_covariance_equals_filterpy_ekf_recursion(ranges, bearing_std):
     np.testing.assert_array_equal(np.asarray(prof.cov_xy).reshape(-1, 2, 2), profile_cov(prof)[:, :2, :2])
 
 
-@pytest.mark.parametrize("ranges, bearing_std", [(False, 0.0), (True, 0.0), (False, 0.05)])
-def test_deviation_mixture_equals_nine_filterpy_filters(ranges, bearing_std):
+@pytest.mark.parametrize("ranges, bearing_std, nodes", [(False, 0.0, 3), (True, 0.0, 3), (False, 0.05, 3),
+                                                        (False, 0.0, 5), (True, 0.05, 7)])
+def test_deviation_mixture_equals_nodes_squared_filterpy_filters(ranges, bearing_std, nodes):
     # A blind stretch (σ grows to about 0.5 m), then landmarks come into view one by one.
     path = np.array([[0.0, 0.0], [40.0, 0.0], [40.0, 12.0]])
     lms = [[44.0, 4.0], [46.0, -3.0], [48.0, 6.0], [52.0, 0.5]]
@@ -217,9 +220,9 @@ def test_deviation_mixture_equals_nine_filterpy_filters(ranges, bearing_std):
     m = open_map(upper=(100, 100))
     P0 = np.diag([0.2, 0.1, 0.003, 0.001])
     kw = dict(sensors=se, map=m, bmm=bmm, start_cov=P0, speed=SPEED, bearing_std=bearing_std)
-    prof = P.propagate_belief(path, **kw)
+    prof = P.propagate_belief(path, **kw, deviation_nodes=nodes)
     nominal = P.propagate_belief(path, **kw, deviation_mixture=False)
-    ref = reference_mixture(prof, bmm, se, P0, bearing_std, _core.ObstacleChecker(m))
+    ref = reference_mixture(prof, bmm, se, P0, bearing_std, _core.ObstacleChecker(m), nodes=nodes)
     np.testing.assert_allclose(profile_cov(prof), ref, rtol=1e-9, atol=1e-15)
     # It differs from the nominal recursion where landmarks come into view: there the nominal
     # drops at once, the mixture over the stages where part of its components see.
@@ -235,14 +238,15 @@ def test_deviation_mixture_equals_nine_filterpy_filters(ranges, bearing_std):
         assert np.linalg.eigvalsh(0.5 * (W + W.T)).min() > -1e-12
 
 
-def test_deviation_mixture_is_the_recursion_when_every_component_sees_alike():
+@pytest.mark.parametrize("nodes", [3, 5, 7])
+def test_deviation_mixture_is_the_recursion_when_every_component_sees_alike(nodes):
     # An all-round camera of long range: every component sees every landmark; with the fix
     # model's constant H every component steps alike, and the mixture is the single recursion.
     path = np.array([[0.0, 0.0], [20.0, 0.0], [20.0, 15.0]])
     se = sensors([[10.0, 5.0], [12.0, -4.0], [8.0, 3.0]], max_range=1e4, occlusion=False)
     kw = dict(sensors=se, map=open_map(upper=(100, 100)), start_cov=np.diag([0.3, 0.1, 0.003, 0.001]),
               speed=SPEED)
-    np.testing.assert_allclose(profile_cov(P.propagate_belief(path, **kw)),
+    np.testing.assert_allclose(profile_cov(P.propagate_belief(path, **kw, deviation_nodes=nodes)),
                                profile_cov(P.propagate_belief(path, **kw, deviation_mixture=False)), rtol=1e-13,
                                atol=1e-30)
 
@@ -402,6 +406,9 @@ def test_no_obstacles_no_collision():
     ({"vehicle_radius": -1.0}, "vehicle_radius"),
     ({"start_cov": -np.eye(4)}, "start_cov"),
     ({"start_cov": np.eye(3)}, "start_cov"),
+    ({"deviation_nodes": 4}, "deviation_nodes = 4"),
+    ({"deviation_nodes": 9}, "deviation_nodes"),
+    ({"deviation_nodes": 1}, "deviation_nodes"),
 ])
 def test_bad_input_names_the_value(kwargs, match):
     args = {"path": [[0.0, 0.0], [5.0, 0.0]], "sensors": sensors([[1.0, 1.0]]), "map": open_map(),

@@ -15,6 +15,7 @@ void bind_settings(py::module_& m) {
       .def_readwrite("sight_fov_margin", &BeliefSettings::sight_fov_margin)
       .def_readwrite("sight_range_fraction", &BeliefSettings::sight_range_fraction)
       .def_readwrite("deviation_mixture", &BeliefSettings::deviation_mixture)
+      .def_readwrite("deviation_nodes", &BeliefSettings::deviation_nodes)
       .def_readwrite("inflation", &BeliefSettings::inflation)
       .def("validate", &BeliefSettings::validate);
 

@@ -28,6 +28,8 @@ const ParamSet<BeliefPlannerSettings>& param_set<BeliefPlannerSettings>();
 void BeliefSettings::validate() const {
   if (!(std::isfinite(speed) && speed > 0.0)) bad("BeliefSettings.speed = " + num(speed) + ": must be finite and > 0");
   param_set<BeliefSettings>().check(*this, "BeliefSettings");
+  if (deviation_nodes % 2 == 0)
+    bad("BeliefSettings.deviation_nodes = " + std::to_string(deviation_nodes) + ": must be 3, 5 or 7");
   inflation.validate();
 }
 
@@ -127,13 +129,36 @@ void collision_probability(belief::Model& model, std::vector<belief::Step>& step
   out.union_bound = std::min(1.0, sum);
 }
 
+/// The Gauss–Hermite rule of N(0, 1) with n = 3, 5 or 7 nodes
+/// (numpy.polynomial.hermite_e.hermegauss, weights over √(2π)).
+struct Quadrature {
+  std::vector<double> node, weight;
+  explicit Quadrature(int n) {
+    if (n == 3) {
+      node = {-std::sqrt(3.0), 0.0, std::sqrt(3.0)};
+      weight = {1.0 / 6.0, 2.0 / 3.0, 1.0 / 6.0};
+    } else if (n == 5) {
+      node = {-2.8569700138728056, -1.355626179974266, 0.0, 1.355626179974266, 2.8569700138728056};
+      weight = {0.011257411327720677, 0.22207592200561257, 8.0 / 15.0, 0.22207592200561257, 0.011257411327720677};
+    } else if (n == 7) {
+      node = {-3.7504397177257425, -2.366759410734541, -1.1544053947399682, 0.0,
+              1.1544053947399682,  2.366759410734541,  3.7504397177257425};
+      weight = {0.0005482688559722169, 0.030757123967586515, 0.24012317860501264, 16.0 / 35.0,
+                0.24012317860501264,   0.030757123967586515, 0.0005482688559722169};
+    } else {
+      bad("deviation_nodes = " + std::to_string(n) + ": must be 3, 5 or 7");
+    }
+  }
+};
+
 /// The strata of deviation_mixture (below) anew from the mixture's error
 /// covariance M = Σ w_i (P_i + N_i): stratum i's mean error m_i and its N_i
 /// (its error's second moment less its filter covariance P_i, which stays).
-void stratify(const Eigen::Matrix<double, 2, 4>& H, const double (&node)[3], const double (&weight)[3],
-              const std::vector<StateCov>& Pi, std::vector<StateCov>& N, std::vector<Eigen::Vector4d>& m) {
+void stratify(const Eigen::Matrix<double, 2, 4>& H, const Quadrature& q, const std::vector<StateCov>& Pi,
+              std::vector<StateCov>& N, std::vector<Eigen::Vector4d>& m) {
+  const std::size_t n = q.node.size();
   StateCov M = StateCov::Zero();
-  for (std::size_t i = 0; i < Pi.size(); ++i) M += weight[i / 3] * weight[i % 3] * (Pi[i] + N[i]);
+  for (std::size_t i = 0; i < Pi.size(); ++i) M += q.weight[i / n] * q.weight[i % n] * (Pi[i] + N[i]);
   M = 0.5 * (M + M.transpose());
   const Eigen::Matrix<double, 4, 2> G = M * H.transpose();
   const Eigen::Matrix2d S = H * G;
@@ -142,7 +167,7 @@ void stratify(const Eigen::Matrix<double, 2, 4>& H, const double (&node)[3], con
   // The error given u: mean G S⁻¹ L z_i = G L⁻ᵀ z_i, covariance M − G S⁻¹ Gᵀ.
   const StateCov C = ok ? StateCov(M - G * llt.solve(G.transpose())) : M;
   for (std::size_t i = 0; i < Pi.size(); ++i) {
-    const Eigen::Vector2d z(node[i / 3], node[i % 3]);
+    const Eigen::Vector2d z(q.node[i / n], q.node[i % n]);
     m[i] = ok ? Eigen::Vector4d(G * llt.matrixU().solve(z)) : Eigen::Vector4d::Zero();
     N[i] = C - Pi[i] + m[i] * m[i].transpose();
   }
@@ -180,8 +205,9 @@ Eigen::Matrix4d within_marginals(const Eigen::Matrix4d& A, const StateCov& P_pre
 
 /// BeliefSettings::deviation_mixture: the vehicle's error, stratified on its
 /// part across the leg and in heading, u = H e (H's rows: the leg's left
-/// normal n and the heading), at the 3×3 Gauss–Hermite nodes z_i of N(0, I₂)
-/// (per axis −√3, 0, √3 with weights 1/6, 2/3, 1/6).  Stratum i is the
+/// normal n and the heading), at the n×n Gauss–Hermite nodes z_i of N(0, I₂)
+/// (n = BeliefSettings::deviation_nodes; with 3, per axis −√3, 0, √3 with
+/// weights 1/6, 2/3, 1/6).  Stratum i is the
 /// error given u = L z_i (L Lᵀ = H M Hᵀ, M the error's covariance): mean
 /// m_i = M Hᵀ L⁻ᵀ z_i and covariance M − M Hᵀ (H M Hᵀ)⁻¹ H M.  The vehicle
 /// drives its estimate along the path, so stratum i's vehicles are off it by
@@ -202,9 +228,8 @@ Eigen::Matrix4d within_marginals(const Eigen::Matrix4d& A, const StateCov& P_pre
 /// within_marginals.
 void mixture_recursion(const belief::Model& model, const std::vector<belief::Step>& steps, std::vector<StateCov>& P,
                        std::vector<Eigen::Matrix4d>& A) {
-  constexpr std::size_t kNodes = 9;
-  const double node[3] = {-std::sqrt(3.0), 0.0, std::sqrt(3.0)};
-  const double weight[3] = {1.0 / 6.0, 2.0 / 3.0, 1.0 / 6.0};
+  const Quadrature q(model.settings().deviation_nodes);
+  const std::size_t n = q.node.size(), kNodes = n * n;
   std::vector<StateCov> Pi(kNodes, P[0]), N(kNodes, StateCov::Zero());
   std::vector<Eigen::Vector4d> m(kNodes, Eigen::Vector4d::Zero());
   std::vector<belief::Step> seen(kNodes);
@@ -213,11 +238,11 @@ void mixture_recursion(const belief::Model& model, const std::vector<belief::Ste
     const double h = steps[k].x[kTheta];
     Eigen::Matrix<double, 2, 4> H;  // across the leg (its left normal) and heading
     H << -std::sin(h), std::cos(h), 0.0, 0.0, 0.0, 0.0, 0.0, 1.0;
-    if (merged) stratify(H, node, weight, Pi, N, m);
+    if (merged) stratify(H, q, Pi, N, m);
     StateCov mix = StateCov::Zero(), mix_m = StateCov::Zero();
     Eigen::Matrix4d F;
     for (std::size_t i = 0; i < kNodes; ++i) {
-      const double w = weight[i / 3] * weight[i % 3];
+      const double w = q.weight[i / n] * q.weight[i % n];
       const Eigen::Vector2d d = -(H * m[i]);  // the vehicle is off the path by minus its error
       seen[i] = d.squaredNorm() > 0.0 ? model.offset(steps[k], d.x(), d.y()) : steps[k];
       belief::StepOutcome o;
@@ -402,7 +427,9 @@ const ParamSet<BeliefSettings>& param_set<BeliefSettings>() {
           .real("sight_range_fraction", SN_REF(BeliefSettings, sight_range_fraction), "", above(0, 1),
                 "the belief sees landmarks only within this share of the detection range")
           .flag("deviation_mixture", SN_REF(BeliefSettings, deviation_mixture),
-                "the expected belief over the vehicle's deviation from the path (9 Gauss-Hermite components)")
+                "the expected belief over the vehicle's deviation from the path (Gauss-Hermite strata)")
+          .integer("deviation_nodes", SN_REF(BeliefSettings, deviation_nodes), closed(3, 7),
+                   "Gauss-Hermite nodes per axis of the deviation mixture: 3, 5 or 7")
           .nested("inflation.", param_set<Inflation>(), SN_REF(BeliefSettings, inflation))
           .set;
   return s;

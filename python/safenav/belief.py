@@ -53,7 +53,8 @@ __all__ = ["BeliefSettings", "BeliefPlannerSettings", "BeliefProblem", "BeliefPr
 # Keyword names of plan_belief / propagate_belief -> declared parameter names.
 _BELIEF_KEYS = {"speed": "speed", "step": "step", "bearing_std": "bearing_std",
                 "sight_fov_margin": "sight_fov_margin", "sight_range_fraction": "sight_range_fraction",
-                "deviation_mixture": "deviation_mixture", "vehicle_radius": "inflation.vehicle_radius",
+                "deviation_mixture": "deviation_mixture", "deviation_nodes": "deviation_nodes",
+                "vehicle_radius": "inflation.vehicle_radius",
                 "margin": "inflation.margin"}
 
 
@@ -123,7 +124,8 @@ def propagate_belief(path, *, sensors, map, bmm=None, start_cov=None, settings: 
     the expected belief; :func:`robust_sight` gives the planner's and the
     certificate's narrower one), ``deviation_mixture`` (default on: the
     expected belief over the vehicle's deviation from the path, its error
-    stratified at 9 Gauss–Hermite nodes; ``BeliefSettings.deviation_mixture``)."""
+    stratified at 3×3 Gauss–Hermite nodes, or 5×5 or 7×7 with ``deviation_nodes``;
+    ``BeliefSettings.deviation_mixture``)."""
     p = as_array("path", path, (None, 2))
     bmm = bmm if bmm is not None else _core.BmmParams()
     s = _belief_settings(kwargs, settings)

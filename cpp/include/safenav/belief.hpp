@@ -78,8 +78,9 @@ struct BeliefSettings {
   /// arc position its true position is off the path, and its heading off the
   /// leg's, by minus its own error, and a landmark comes into view (or leaves
   /// it) a little earlier or later than from the nominal pose.  With this on,
-  /// the error is stratified on its lateral and heading parts at the 3×3
-  /// Gauss–Hermite nodes (weights 1/36, 4/36, 16/36): each stratum sees from
+  /// the error is stratified on its lateral and heading parts at the n×n
+  /// Gauss–Hermite nodes (deviation_nodes; with 3, weights 1/36, 4/36,
+  /// 16/36): each stratum sees from
   /// the nominal pose moved by minus its mean error, takes the filter's
   /// updates of what it sees, and carries its actual error's second moment,
   /// so the strata that see late keep their larger error until they see;
@@ -90,6 +91,9 @@ struct BeliefSettings {
   /// planner's and the certificate's robust camera turn it off: it is
   /// narrowed for the deviations already.
   bool deviation_mixture = true;
+  /// Gauss–Hermite nodes per axis of the deviation mixture (3, 5 or 7: 9, 25
+  /// or 49 strata); more nodes reach further into the deviation's tails.
+  int deviation_nodes = 3;
   Inflation inflation;       ///< vehicle radius (collision) and margin (kept beyond it by the planner)
   void validate() const;     ///< throws std::invalid_argument naming the bad value
 };
