@@ -168,17 +168,19 @@ class DriveJob:
     bin_m: float
     blind_check: int           # step-limit trials rerun with a record to see where they ended
     nodes: int = 3             # Gauss-Hermite nodes per axis of the expected belief's deviation mixture
+    along: bool = False        # the mixture stratifies the deviation along the path too
 
 
-def _profiles(sc, path, navigator, nodes: int = 3):
+def _profiles(sc, path, navigator, nodes: int = 3, along: bool = False):
     """(expected, robust, nominal): the belief along ``path`` with ``sc``'s
     sensors, seen with the vehicle's own camera (what it will get) and with
     the certificate's robust camera; and the expected belief along the
     method's nominal trajectory (``navigator.nominal_trajectory()``)."""
     kw = C.mission_inputs(sc, path)
-    along = {k: v for k, v in kw.items() if k != "speed"}
-    return (propagate_belief(path, deviation_nodes=nodes, **kw), propagate_belief(path, **robust_sight(), **kw),
-            propagate_belief_along(navigator.nominal_trajectory(), deviation_nodes=nodes, **along))
+    dev = {"deviation_nodes": nodes, "deviation_along": along}
+    run_kw = {k: v for k, v in kw.items() if k != "speed"}
+    return (propagate_belief(path, **dev, **kw), propagate_belief(path, **robust_sight(), **kw),
+            propagate_belief_along(navigator.nominal_trajectory(), **dev, **run_kw))
 
 
 def _fix_shares(profiles, needs: int, edges: np.ndarray, truths, measured) -> list[np.ndarray]:
@@ -226,7 +228,7 @@ def drive(job: DriveJob) -> dict:
     out = run_cell(c)
     cpu_trials = time.thread_time() - cpu
     rec = nav.make_navigator(c.scenario, c.path, method=c.method, filter=c.filter, record=True)
-    prof, robust, nominal = _profiles(c.scenario, c.path, rec, job.nodes)
+    prof, robust, nominal = _profiles(c.scenario, c.path, rec, job.nodes, job.along)
     truths, estimates, measured = [], [], []
     for seed in out["seeds"][:job.record]:
         r = rec.run(seed)
@@ -387,6 +389,8 @@ def main() -> None:
                          "can be split into parts whose trials add up to one run's (default 0)")
     ap.add_argument("--deviation-nodes", type=int, default=3, choices=[3, 5, 7],
                     help="Gauss-Hermite nodes per axis of the expected belief's deviation mixture (default 3)")
+    ap.add_argument("--deviation-along", action="store_true",
+                    help="stratify the expected belief's deviation along the path too (n^3 strata)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--full", type=int, default=100_000, help="total trials of the run to estimate the time of")
     ap.add_argument("--out", type=Path, default=None, help="write the per-cell table (CSV) here")
@@ -425,7 +429,8 @@ def main() -> None:
         return o
 
     print(f"\n2. driving {len(cells)} cells x {args.trials} trials", flush=True)
-    drive_jobs = [DriveJob(c, args.record, args.bin_m, args.blind_check, args.deviation_nodes) for c in cells]
+    drive_jobs = [DriveJob(c, args.record, args.bin_m, args.blind_check, args.deviation_nodes,
+                           args.deviation_along) for c in cells]
     out = runner.map_ordered(run_and_report, drive_jobs, workers=args.workers)
     wall = time.perf_counter() - t
     df = pd.DataFrame([o["row"] for o in out])

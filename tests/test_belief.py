@@ -9,6 +9,8 @@ et al. against a Monte Carlo of the same linear-Gaussian error dynamics and
 against the union bound."""
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -87,26 +89,44 @@ class _TrackedKF(kalman.KalmanFilter):
         self.T = (np.eye(4) - self.K @ H) @ self.T
 
 
-def reference_mixture(prof, bmm, se, P0, bearing_std=0.0, checker=None, stage=None, nodes=3):
+def equal_cells(k):
+    """k cells of N(0, 1) of equal probability (scipy's quantiles): each
+    cell's conditional mean and variance, by numerical integration."""
+    from scipy import integrate, stats
+    edges = stats.norm.ppf(np.linspace(0.0, 1.0, k + 1))
+    mean = np.array([integrate.quad(lambda u: u * stats.norm.pdf(u), a, b)[0] * k for a, b in zip(edges, edges[1:])])
+    sq = np.array([integrate.quad(lambda u: u * u * stats.norm.pdf(u), a, b)[0] * k for a, b in zip(edges, edges[1:])])
+    return mean, np.full(k, 1.0 / k), sq - mean ** 2
+
+
+def reference_mixture(prof, bmm, se, P0, bearing_std=0.0, checker=None, stage=None, nodes=3, along=False,
+                      cells=0):
     """BeliefSettings.deviation_mixture by its specification: the error
-    stratified on (lateral, heading) u = J e at the nodes x nodes
-    Gauss-Hermite nodes z of N(0, I) (numpy's hermegauss; with 3, nodes
+    stratified on (lateral, heading) u = J e (with ``along``: (along the leg,
+    lateral, heading)) at the product of nodes-point
+    Gauss-Hermite rules z of N(0, I) (numpy's hermegauss; with 3, nodes
     -sqrt(3), 0, sqrt(3) and weights 1/6, 2/3, 1/6): stratum i
     has mean m_i = M J^T L^-T z_i and second moment C + m_i m_i^T, C = M - M
     J^T (J M J^T)^-1 J M, L L^T = J M J^T, M the mixture's second moment.
     One FilterPy filter per stratum: its x is m_i (predict x = F x, update
     with z = 0: x = (I - K H) x), its P the filter's; the vehicles of stratum
-    i see from the nominal pose moved by -m_i across the leg and in heading.
+    i see from the nominal pose moved by -m_i across the leg (and along it)
+    and in heading.
     N_i = second moment - P_i moves as T F N_i F^T T^T (T = prod (I - K H) of
     FilterPy's gains).  The strata are stratified anew before a stage when
     at the previous one all saw the same landmarks and their P agreed within
     1 % (Frobenius).  The mixture per stage: sum_i w_i (P_i + N_i)."""
-    x, weights = np.polynomial.hermite_e.hermegauss(nodes)
-    weights = weights / np.sqrt(2 * np.pi)
-    w = np.outer(weights, weights).ravel()
-    z = np.array([[a, b] for a in x for b in x])
-    kfs, N = [], [np.zeros((4, 4)) for _ in range(nodes * nodes)]
-    for _ in range(nodes * nodes):
+    if cells:
+        x, weights, var = equal_cells(cells)
+    else:
+        x, weights = np.polynomial.hermite_e.hermegauss(nodes)
+        weights, var = weights / np.sqrt(2 * np.pi), np.zeros(nodes)
+    axes = 3 if along else 2
+    z = np.array(list(itertools.product(x, repeat=axes)))
+    v = np.array(list(itertools.product(var, repeat=axes)))
+    w = np.array([np.prod(c) for c in itertools.product(weights, repeat=axes)])
+    kfs, N = [], [np.zeros((4, 4)) for _ in range(len(w))]
+    for _ in range(len(w)):
         kf = _TrackedKF(dim_x=4, dim_z=1)
         kf.x, kf.P = np.zeros((4, 1)), P0.copy()
         kfs.append(kf)
@@ -114,21 +134,24 @@ def reference_mixture(prof, bmm, se, P0, bearing_std=0.0, checker=None, stage=No
     for k in range(1, len(prof.time)):
         h = prof.headings[k]
         J = np.array([[-np.sin(h), np.cos(h), 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]])  # lateral, heading
+        if along:
+            J = np.vstack([[np.cos(h), np.sin(h), 0.0, 0.0], J])
         if merged:
             M = sum(wi * (kf.P + Ni) for wi, kf, Ni in zip(w, kfs, N))
             M = 0.5 * (M + M.T)
             G = M @ J.T
             L = np.linalg.cholesky(J @ G)
             C = M - G @ np.linalg.solve(J @ G, G.T)
+            B = G @ np.linalg.inv(L.T)
             for i, kf in enumerate(kfs):
-                kf.x = (G @ np.linalg.solve(L.T, z[i])).reshape(4, 1)
-                N[i] = C - kf.P + kf.x @ kf.x.T
+                kf.x = (B @ z[i]).reshape(4, 1)
+                N[i] = C - kf.P + kf.x @ kf.x.T + B @ np.diag(v[i]) @ B.T
         seen = []
         for i, kf in enumerate(kfs):
-            lat, dth = -(J @ kf.x).ravel()
+            d = -(J @ kf.x).ravel()
             kf.T = np.eye(4)
-            seen.append(_reference_stage(kf, prof, k, prof.positions[k] + lat * J[0, :2], bmm, se, bearing_std,
-                                         checker, dtheta=dth, stage=stage))
+            p = prof.positions[k] + d[-2] * J[-2, :2] + (d[0] * J[0, :2] if along else 0.0)
+            seen.append(_reference_stage(kf, prof, k, p, bmm, se, bearing_std, checker, dtheta=d[-1], stage=stage))
             N[i] = kf.T @ kf.F @ N[i] @ kf.F.T @ kf.T.T
         out.append(sum(wi * (kf.P + Ni) for wi, kf, Ni in zip(w, kfs, N)))
         merged = all(s == seen[0] for s in seen) and all(
@@ -209,9 +232,11 @@ def test_covariance_equals_filterpy_ekf_recursion(ranges, bearing_std):
     np.testing.assert_array_equal(np.asarray(prof.cov_xy).reshape(-1, 2, 2), profile_cov(prof)[:, :2, :2])
 
 
-@pytest.mark.parametrize("ranges, bearing_std, nodes", [(False, 0.0, 3), (True, 0.0, 3), (False, 0.05, 3),
-                                                        (False, 0.0, 5), (True, 0.05, 7)])
-def test_deviation_mixture_equals_nodes_squared_filterpy_filters(ranges, bearing_std, nodes):
+@pytest.mark.parametrize("ranges, bearing_std, nodes, along, cells", [
+    (False, 0.0, 3, False, 0), (True, 0.0, 3, False, 0), (False, 0.05, 3, False, 0), (False, 0.0, 5, False, 0),
+    (True, 0.05, 7, False, 0), (False, 0.0, 3, True, 0), (True, 0.05, 3, True, 0), (False, 0.0, 5, True, 0),
+    (False, 0.0, 3, False, 4), (True, 0.05, 3, True, 3), (False, 0.0, 3, False, 1)])
+def test_deviation_mixture_equals_nodes_squared_filterpy_filters(ranges, bearing_std, nodes, along, cells):
     # A blind stretch (σ grows to about 0.5 m), then landmarks come into view one by one.
     path = np.array([[0.0, 0.0], [40.0, 0.0], [40.0, 12.0]])
     lms = [[44.0, 4.0], [46.0, -3.0], [48.0, 6.0], [52.0, 0.5]]
@@ -220,14 +245,18 @@ def test_deviation_mixture_equals_nodes_squared_filterpy_filters(ranges, bearing
     m = open_map(upper=(100, 100))
     P0 = np.diag([0.2, 0.1, 0.003, 0.001])
     kw = dict(sensors=se, map=m, bmm=bmm, start_cov=P0, speed=SPEED, bearing_std=bearing_std)
-    prof = P.propagate_belief(path, **kw, deviation_nodes=nodes)
+    prof = P.propagate_belief(path, **kw, deviation_nodes=nodes, deviation_along=along, deviation_cells=cells)
     nominal = P.propagate_belief(path, **kw, deviation_mixture=False)
-    ref = reference_mixture(prof, bmm, se, P0, bearing_std, _core.ObstacleChecker(m), nodes=nodes)
+    ref = reference_mixture(prof, bmm, se, P0, bearing_std, _core.ObstacleChecker(m), nodes=nodes, along=along,
+                            cells=cells)
     np.testing.assert_allclose(profile_cov(prof), ref, rtol=1e-9, atol=1e-15)
     # It differs from the nominal recursion where landmarks come into view: there the nominal
     # drops at once, the mixture over the stages where part of its components see.
     tr = lambda p: profile_cov(p)[:, 0, 0] + profile_cov(p)[:, 1, 1]  # noqa: E731
     ratio = tr(prof) / tr(nominal)
+    if cells == 1:  # one cell is the whole Gaussian: the nominal recursion
+        np.testing.assert_allclose(ratio, 1.0, rtol=1e-12)
+        return
     assert ratio.max() > 1.05
     np.testing.assert_allclose(ratio[:50], 1.0, rtol=1e-12)  # blind: every component steps alike
     # Patil's error dynamics stay valid: Cov w_k = P_k+1 − A_k P_k A_kᵀ ⪰ 0.
@@ -238,17 +267,18 @@ def test_deviation_mixture_equals_nodes_squared_filterpy_filters(ranges, bearing
         assert np.linalg.eigvalsh(0.5 * (W + W.T)).min() > -1e-12
 
 
-@pytest.mark.parametrize("nodes", [3, 5, 7])
-def test_deviation_mixture_is_the_recursion_when_every_component_sees_alike(nodes):
+@pytest.mark.parametrize("nodes, along", [(3, False), (5, False), (7, False), (3, True), (5, True)])
+def test_deviation_mixture_is_the_recursion_when_every_component_sees_alike(nodes, along):
     # An all-round camera of long range: every component sees every landmark; with the fix
     # model's constant H every component steps alike, and the mixture is the single recursion.
     path = np.array([[0.0, 0.0], [20.0, 0.0], [20.0, 15.0]])
     se = sensors([[10.0, 5.0], [12.0, -4.0], [8.0, 3.0]], max_range=1e4, occlusion=False)
     kw = dict(sensors=se, map=open_map(upper=(100, 100)), start_cov=np.diag([0.3, 0.1, 0.003, 0.001]),
               speed=SPEED)
-    np.testing.assert_allclose(profile_cov(P.propagate_belief(path, **kw, deviation_nodes=nodes)),
+    np.testing.assert_allclose(profile_cov(P.propagate_belief(path, **kw, deviation_nodes=nodes,
+                                                              deviation_along=along)),
                                profile_cov(P.propagate_belief(path, **kw, deviation_mixture=False)), rtol=1e-13,
-                               atol=1e-30)
+                               atol=1e-18 if along else 1e-30)  # conditioning on the whole position rounds zeros
 
 
 @settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])

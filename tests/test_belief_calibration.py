@@ -72,11 +72,14 @@ def test_arc_position_on_a_long_polyline_is_the_all_legs_search(seed, legs, step
     np.testing.assert_array_equal(arc_position(path, pts, all_legs=True), ref)
 
 
-def test_sigma_calibration_matches_a_direct_computation():
+@pytest.mark.parametrize("along", [False, True])
+def test_sigma_calibration_matches_a_direct_computation(along):
+    # A start 1.5 m off (σ), landmarks from the second leg on: the strata spread over bins.
     se = _core.SensorSettings()
-    se.landmarks = np.array([[20.0, 0.0], [25.0, 0.0], [22.0, 10.0]])
-    se.field_of_view = 2 * np.pi
-    prof = propagate_belief(PATH, sensors=se, map=P.make_map(upper=(40.0, 40.0)), speed=2.0)
+    se.landmarks = np.array([[34.0, 14.0], [36.0, 20.0], [24.0, 22.0]])
+    se.max_range = 15.0
+    prof = propagate_belief(PATH, sensors=se, map=P.make_map(upper=(40.0, 40.0)), speed=2.0,
+                            start_cov=np.diag([2.25, 2.25, 0.003, 0.002]), deviation_along=along)
     rng = np.random.default_rng(5)
     pos = np.asarray(prof.positions)
     truths, estimates = [], []
@@ -85,18 +88,21 @@ def test_sigma_calibration_matches_a_direct_computation():
         truths.append(np.c_[x, np.zeros((n, 2))])
         estimates.append(np.c_[x + rng.normal(0, 0.3, (n, 2)), np.zeros((n, 2))])
     cal = sigma_calibration(prof, truths, estimates, bin_m=7.0)
-    cov = np.asarray(prof.cov_xy)
-    stage_s = arc_position(PATH, pos)
     nb = len(cal.edges) - 1
     assert cal.edges[0] == 0.0 and cal.edges[-1] >= prof.length and np.allclose(np.diff(cal.edges), 7.0)
 
     def bin_of(s):
         return min(int(s // 7.0), nb - 1)
 
+    # The prediction: each stratum of each stage at the arc of its own position, with its weight.
+    w = np.asarray(prof.strata_weight)
+    spos = np.asarray(prof.strata_positions).reshape(len(pos), len(w), 2)
     tr, ns = np.zeros(nb), np.zeros(nb)
-    for s, c in zip(stage_s, cov):
-        tr[bin_of(s)] += c[0] + c[3]
-        ns[bin_of(s)] += 1
+    for k in range(len(pos)):
+        for i in range(len(w)):
+            j = bin_of(arc_position(PATH, spos[k, i][None])[0])
+            tr[j] += w[i] * prof.strata_msq[k, i]
+            ns[j] += w[i]
     sq, n, hit = np.zeros(nb), np.zeros(nb), np.zeros(nb)
     per_sq, per_n = np.zeros((len(truths), nb)), np.zeros((len(truths), nb))
     for i, (x, xh) in enumerate(zip(truths, estimates)):
@@ -118,7 +124,13 @@ def test_sigma_calibration_matches_a_direct_computation():
         assert np.allclose(cal.observed_without_worst, np.sqrt((sq - per_sq[w, cols]) / (n - per_n[w, cols])),
                            equal_nan=True)
     assert np.nanmax(cal.worst_share) <= 1.0 and np.nanmin(cal.worst_share) >= 1.0 / len(truths) - 1e-12
-    assert np.allclose(cal.predicted, np.sqrt(tr / ns), equal_nan=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        assert np.allclose(cal.predicted, np.sqrt(tr / ns), equal_nan=True)
+    # Binned at the nominal stages instead, the strata along the leg would count where they are not.
+    stage_bins = np.minimum(arc_position(PATH, pos) // 7.0, nb - 1).astype(int)
+    cov = np.asarray(prof.cov_xy)
+    at_stages = np.sqrt(np.bincount(stage_bins, cov[:, 0] + cov[:, 3], nb) / np.bincount(stage_bins, minlength=nb))
+    assert (np.nanmax(np.abs(cal.predicted / at_stages - 1)) > 0.02) == along
     with np.errstate(invalid="ignore", divide="ignore"):
         assert np.allclose(cal.observed, np.sqrt(sq / n), equal_nan=True)
         assert np.allclose(cal.ratio, np.sqrt(sq / n) / np.sqrt(tr / ns), equal_nan=True)
@@ -126,6 +138,40 @@ def test_sigma_calibration_matches_a_direct_computation():
         sigma_calibration(prof, truths, estimates, bin_m=0)
     with pytest.raises(ValueError, match="trial 0"):
         sigma_calibration(prof, truths[:1], [estimates[0][:-1]])
+
+
+@pytest.mark.parametrize("along", [False, True])
+def test_strata_are_where_their_error_puts_them(along):
+    """BeliefProfile.strata_*: a blind stretch, so the strata stay one
+    Gaussian and are stratified anew from the previous stage's P each step.
+    Their weights sum to 1; their offsets from the nominal position have mean
+    0 and second moment the error's along the stratified axes (across the
+    leg: n n^T (n^T P_xy n); along and across: P_xy); their second moments
+    average to the reported trace P_xy.  Without the mixture there are none."""
+    se = _core.SensorSettings()
+    se.landmarks = np.array([[500.0, 500.0]])
+    kw = dict(sensors=se, map=P.make_map(upper=(40.0, 40.0)), speed=2.0,
+              start_cov=np.diag([0.4, 0.1, 0.003, 0.002]))
+    prof = propagate_belief(PATH, deviation_along=along, **kw)
+    w = np.asarray(prof.strata_weight)
+    assert len(w) == (27 if along else 9) and np.isclose(w.sum(), 1.0, rtol=1e-14)
+    pos = np.asarray(prof.positions)
+    cov = np.asarray(prof.cov_xy).reshape(-1, 2, 2)
+    d = np.asarray(prof.strata_positions).reshape(len(pos), len(w), 2) - pos[:, None, :]
+    np.testing.assert_array_equal(d[0], 0.0)
+    msq = np.asarray(prof.strata_msq)
+    np.testing.assert_allclose(msq @ w, np.trace(cov, axis1=1, axis2=2), rtol=1e-12)
+    h = np.asarray(prof.headings)
+    for k in range(1, len(pos)):
+        np.testing.assert_allclose(w @ d[k], 0.0, atol=1e-12)
+        second = np.einsum("i,ij,ik->jk", w, d[k], d[k])
+        if along:
+            expected = cov[k - 1]
+        else:
+            n = np.array([-np.sin(h[k]), np.cos(h[k])])
+            expected = np.outer(n, n) * (n @ cov[k - 1] @ n)
+        np.testing.assert_allclose(second, expected, rtol=1e-9, atol=1e-12)
+    assert len(np.asarray(propagate_belief(PATH, deviation_mixture=False, **kw).strata_weight)) == 0
 
 
 @pytest.mark.parametrize("k, n", [(0, 10), (0, 100000), (3, 50), (7, 7), (1, 2)])

@@ -16,6 +16,8 @@ void bind_settings(py::module_& m) {
       .def_readwrite("sight_range_fraction", &BeliefSettings::sight_range_fraction)
       .def_readwrite("deviation_mixture", &BeliefSettings::deviation_mixture)
       .def_readwrite("deviation_nodes", &BeliefSettings::deviation_nodes)
+      .def_readwrite("deviation_along", &BeliefSettings::deviation_along)
+      .def_readwrite("deviation_cells", &BeliefSettings::deviation_cells)
       .def_readwrite("inflation", &BeliefSettings::inflation)
       .def("validate", &BeliefSettings::validate);
 
@@ -70,7 +72,10 @@ void bind_results(py::module_& m) {
       .def_readonly("collision_probability", &P::collision_probability)
       .def_readonly("union_bound", &P::union_bound)
       .def_readonly("length", &P::length)
-      .def_readonly("vehicle_radius", &P::vehicle_radius);
+      .def_readonly("vehicle_radius", &P::vehicle_radius)
+      .def_readonly("strata_weight", &P::strata_weight)
+      .def_readonly("strata_positions", &P::strata_positions)
+      .def_readonly("strata_msq", &P::strata_msq);
 
   py::enum_<BeliefPlanStatus>(m, "BeliefPlanStatus")
       .value("EXACT", BeliefPlanStatus::Exact)

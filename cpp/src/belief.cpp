@@ -3,6 +3,7 @@
 #include "safenav/belief.hpp"
 
 #include <Eigen/Cholesky>
+#include <boost/math/distributions/normal.hpp>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
@@ -129,11 +130,38 @@ void collision_probability(belief::Model& model, std::vector<belief::Step>& step
   out.union_bound = std::min(1.0, sum);
 }
 
-/// The Gauss–Hermite rule of N(0, 1) with n = 3, 5 or 7 nodes
-/// (numpy.polynomial.hermite_e.hermegauss, weights over √(2π)).
+/// A rule for N(0, 1): nodes, weights, and each node's variance within its
+/// cell (0 for a point rule).
+///   * The Gauss–Hermite rule with n = 3, 5 or 7 nodes
+///     (numpy.polynomial.hermite_e.hermegauss, weights over √(2π)).
+///   * `cells` > 0: the line cut into `cells` cells of equal probability at
+///     the normal quantiles a_j = Φ⁻¹(j/cells); each node is its cell's
+///     conditional mean cells·(φ(a_j) − φ(a_j+1)), its weight 1/cells, and
+///     its variance the cell's conditional variance
+///     1 + cells·(a_j φ(a_j) − a_j+1 φ(a_j+1)) − mean².  The nodes and
+///     variances together keep the first two moments exactly; a step in the
+///     node's response moves at most one cell's weight.
 struct Quadrature {
-  std::vector<double> node, weight;
-  explicit Quadrature(int n) {
+  std::vector<double> node, weight, var;
+  Quadrature(int n, int cells) {
+    if (cells > 0) {
+      const boost::math::normal_distribution<double> nd;
+      auto edge = [&](int j) {
+        return j == 0 ? -std::numeric_limits<double>::infinity()
+                      : j == cells ? std::numeric_limits<double>::infinity()
+                                   : boost::math::quantile(nd, static_cast<double>(j) / cells);
+      };
+      auto phi = [](double a) { return std::isfinite(a) ? normal_pdf(a) : 0.0; };
+      auto aphi = [](double a) { return std::isfinite(a) ? a * normal_pdf(a) : 0.0; };
+      for (int j = 0; j < cells; ++j) {
+        const double a = edge(j), b = edge(j + 1);
+        const double mean = cells * (phi(a) - phi(b));
+        node.push_back(mean);
+        weight.push_back(1.0 / cells);
+        var.push_back(std::max(0.0, 1.0 + cells * (aphi(a) - aphi(b)) - mean * mean));
+      }
+      return;
+    }
     if (n == 3) {
       node = {-std::sqrt(3.0), 0.0, std::sqrt(3.0)};
       weight = {1.0 / 6.0, 2.0 / 3.0, 1.0 / 6.0};
@@ -148,29 +176,84 @@ struct Quadrature {
     } else {
       bad("deviation_nodes = " + std::to_string(n) + ": must be 3, 5 or 7");
     }
+    var.assign(node.size(), 0.0);
   }
 };
 
-/// The strata of deviation_mixture (below) anew from the mixture's error
-/// covariance M = Σ w_i (P_i + N_i): stratum i's mean error m_i and its N_i
-/// (its error's second moment less its filter covariance P_i, which stays).
-void stratify(const Eigen::Matrix<double, 2, 4>& H, const Quadrature& q, const std::vector<StateCov>& Pi,
+/// The strata of deviation_mixture (below): the product rule of `axes`
+/// copies of the one-axis rule, stratum i's node z_i, its within-cell
+/// variances v_i (axes × S each; v = 0 for a point rule) and weight.
+struct Strata {
+  Eigen::MatrixXd z, v;
+  std::vector<double> w;
+  bool cells = false;
+  Strata(const Quadrature& q, int axes) {
+    const std::size_t n = q.node.size();
+    std::size_t count = 1;
+    for (int a = 0; a < axes; ++a) count *= n;
+    z.resize(axes, static_cast<Eigen::Index>(count));
+    v.resize(axes, static_cast<Eigen::Index>(count));
+    w.assign(count, 1.0);
+    for (std::size_t i = 0; i < count; ++i) {
+      std::size_t rest = i;  // the last axis varies fastest
+      for (int a = axes - 1; a >= 0; --a) {
+        z(a, static_cast<Eigen::Index>(i)) = q.node[rest % n];
+        v(a, static_cast<Eigen::Index>(i)) = q.var[rest % n];
+        w[i] *= q.weight[rest % n];
+        rest /= n;
+      }
+    }
+    cells = v.size() > 0 && v.maxCoeff() > 0.0;
+  }
+  std::size_t size() const { return w.size(); }
+};
+
+/// The strata anew from the mixture's error covariance
+/// M = Σ w_i (P_i + N_i): stratum i's mean error m_i and its N_i (its
+/// error's second moment less its filter covariance P_i, which stays).
+/// K = 2 or 3 axes (H's rows).
+template <int K>
+void stratify(const Eigen::Matrix<double, K, 4>& H, const Strata& st, const std::vector<StateCov>& Pi,
               std::vector<StateCov>& N, std::vector<Eigen::Vector4d>& m) {
-  const std::size_t n = q.node.size();
+  using MatK = Eigen::Matrix<double, K, K>;
   StateCov M = StateCov::Zero();
-  for (std::size_t i = 0; i < Pi.size(); ++i) M += q.weight[i / n] * q.weight[i % n] * (Pi[i] + N[i]);
+  for (std::size_t i = 0; i < Pi.size(); ++i) M += st.w[i] * (Pi[i] + N[i]);
   M = 0.5 * (M + M.transpose());
-  const Eigen::Matrix<double, 4, 2> G = M * H.transpose();
-  const Eigen::Matrix2d S = H * G;
-  const Eigen::LLT<Eigen::Matrix2d> llt(S);
-  const bool ok = llt.info() == Eigen::Success && S.determinant() > 1e-12 * S.trace() * S.trace();
-  // The error given u: mean G S⁻¹ L z_i = G L⁻ᵀ z_i, covariance M − G S⁻¹ Gᵀ.
+  const Eigen::Matrix<double, 4, K> G = M * H.transpose();
+  const MatK S = H * G;
+  const Eigen::LLT<MatK> llt(S);
+  double floor = 1e-12;  // 1e-12 tr(S)^K: the determinant's units
+  for (int a = 0; a < K; ++a) floor *= S.trace();
+  const bool ok = llt.info() == Eigen::Success && S.determinant() > floor;
+  // The error given u: mean G S⁻¹ L z_i = G L⁻ᵀ z_i, covariance M − G S⁻¹ Gᵀ;
+  // given u in a cell, the cell's variance in u adds B diag(v_i) Bᵀ, B = G L⁻ᵀ.
   const StateCov C = ok ? StateCov(M - G * llt.solve(G.transpose())) : M;
+  Eigen::Matrix<double, 4, K> B = Eigen::Matrix<double, 4, K>::Zero();
+  if (ok && st.cells) B = llt.matrixL().solve(G.transpose()).transpose();
   for (std::size_t i = 0; i < Pi.size(); ++i) {
-    const Eigen::Vector2d z(q.node[i / n], q.node[i % n]);
+    const auto col = static_cast<Eigen::Index>(i);
+    const Eigen::Matrix<double, K, 1> z = st.z.col(col);
     m[i] = ok ? Eigen::Vector4d(G * llt.matrixU().solve(z)) : Eigen::Vector4d::Zero();
     N[i] = C - Pi[i] + m[i] * m[i].transpose();
+    if (st.cells) {
+      const Eigen::Matrix<double, K, 1> vi = st.v.col(col);
+      N[i] += B * vi.asDiagonal() * B.transpose();
+    }
   }
+}
+
+/// u = H e at heading h: across the leg (its left normal) and the heading.
+Eigen::Matrix<double, 2, 4> lateral_axes(double h) {
+  Eigen::Matrix<double, 2, 4> H;
+  H << -std::sin(h), std::cos(h), 0.0, 0.0, 0.0, 0.0, 0.0, 1.0;
+  return H;
+}
+
+/// u = H e at heading h: along the leg, across it and the heading.
+Eigen::Matrix<double, 3, 4> full_axes(double h) {
+  Eigen::Matrix<double, 3, 4> H;
+  H << std::cos(h), std::sin(h), 0.0, 0.0, -std::sin(h), std::cos(h), 0.0, 0.0, 0.0, 0.0, 0.0, 1.0;
+  return H;
 }
 
 /// Whether the strata are one Gaussian again: every one took the same
@@ -203,17 +286,24 @@ Eigen::Matrix4d within_marginals(const Eigen::Matrix4d& A, const StateCov& P_pre
   return lambda > 1.0 ? Eigen::Matrix4d(A / std::sqrt(lambda * (1.0 + 1e-12))) : A;
 }
 
+/// Each stratum's true position and second moment per stage
+/// (BeliefProfile::strata_*).
+struct StrataTrace {
+  Eigen::MatrixXd positions, msq;
+};
+
 /// BeliefSettings::deviation_mixture: the vehicle's error, stratified on its
 /// part across the leg and in heading, u = H e (H's rows: the leg's left
-/// normal n and the heading), at the n×n Gauss–Hermite nodes z_i of N(0, I₂)
+/// normal n and the heading; K = 3 with deviation_along: the leg's direction
+/// first), at the n^K Gauss–Hermite nodes z_i of N(0, I_K)
 /// (n = BeliefSettings::deviation_nodes; with 3, per axis −√3, 0, √3 with
 /// weights 1/6, 2/3, 1/6).  Stratum i is the
 /// error given u = L z_i (L Lᵀ = H M Hᵀ, M the error's covariance): mean
 /// m_i = M Hᵀ L⁻ᵀ z_i and covariance M − M Hᵀ (H M Hᵀ)⁻¹ H M.  The vehicle
 /// drives its estimate along the path, so stratum i's vehicles are off it by
-/// −m_i: they see from the nominal pose moved by −n·m_i across the leg and
-/// turned by −m_i,θ, and their filter takes the updates of what is in view
-/// from there.  Each stratum's filter covariance P_i follows the filter's
+/// −m_i: they see from the nominal pose moved by −n·m_i across the leg (and
+/// by −t·m_i along it, K = 3) and turned by −m_i,θ, and their filter takes
+/// the updates of what is in view from there.  Each stratum's filter covariance P_i follows the filter's
 /// recursion; its error's second moment is P_i + N_i, where N_i, the part
 /// the stratum's selection adds, moves with the filter's error dynamics:
 /// N_i ← T_i F N_i Fᵀ T_iᵀ, m_i ← T_i F m_i, T_i = P_i (P_i⁻)⁻¹ = I − K_i H_i
@@ -225,26 +315,38 @@ Eigen::Matrix4d within_marginals(const Eigen::Matrix4d& A, const StateCov& P_pre
 /// strata are one Gaussian (one_gaussian), they are stratified anew from its
 /// covariance each step, so the deviation follows the current error.
 /// A[k−1] = M[k] (M⁻)⁻¹ F as in the single recursion, M⁻ the mixture's prior,
-/// within_marginals.
+/// within_marginals.  `trace` receives where each stratum saw from and its
+/// second moment.
+template <int K>
 void mixture_recursion(const belief::Model& model, const std::vector<belief::Step>& steps, std::vector<StateCov>& P,
-                       std::vector<Eigen::Matrix4d>& A) {
-  const Quadrature q(model.settings().deviation_nodes);
-  const std::size_t n = q.node.size(), kNodes = n * n;
-  std::vector<StateCov> Pi(kNodes, P[0]), N(kNodes, StateCov::Zero());
-  std::vector<Eigen::Vector4d> m(kNodes, Eigen::Vector4d::Zero());
-  std::vector<belief::Step> seen(kNodes);
+                       std::vector<Eigen::Matrix4d>& A, const Strata& st, StrataTrace& trace) {
+  const std::size_t S = st.size();
+  std::vector<StateCov> Pi(S, P[0]), N(S, StateCov::Zero());
+  std::vector<Eigen::Vector4d> m(S, Eigen::Vector4d::Zero());
+  std::vector<belief::Step> seen(S);
+  const auto S_ = static_cast<Eigen::Index>(S);
+  trace.positions.resize(static_cast<Eigen::Index>(steps.size()), 2 * S_);
+  trace.msq.resize(static_cast<Eigen::Index>(steps.size()), S_);
+  for (Eigen::Index i = 0; i < S_; ++i) {
+    trace.positions.block<1, 2>(0, 2 * i) = (steps.empty() ? Eigen::Vector2d::Zero() : steps[0].end).transpose();
+    trace.msq(0, i) = P[0](0, 0) + P[0](1, 1);
+  }
   bool merged = true;
   for (std::size_t k = 1; k < steps.size(); ++k) {
     const double h = steps[k].x[kTheta];
-    Eigen::Matrix<double, 2, 4> H;  // across the leg (its left normal) and heading
-    H << -std::sin(h), std::cos(h), 0.0, 0.0, 0.0, 0.0, 0.0, 1.0;
-    if (merged) stratify(H, q, Pi, N, m);
+    Eigen::Matrix<double, K, 4> H;
+    if constexpr (K == 2) H = lateral_axes(h); else H = full_axes(h);
+    if (merged) stratify<K>(H, st, Pi, N, m);
     StateCov mix = StateCov::Zero(), mix_m = StateCov::Zero();
     Eigen::Matrix4d F;
-    for (std::size_t i = 0; i < kNodes; ++i) {
-      const double w = q.weight[i / n] * q.weight[i % n];
-      const Eigen::Vector2d d = -(H * m[i]);  // the vehicle is off the path by minus its error
-      seen[i] = d.squaredNorm() > 0.0 ? model.offset(steps[k], d.x(), d.y()) : steps[k];
+    for (std::size_t i = 0; i < S; ++i) {
+      const double w = st.w[i];
+      // The vehicle is off the path by minus its error.
+      const Eigen::Matrix<double, K, 1> d = -(H * m[i]);
+      if (d.squaredNorm() > 0.0)
+        seen[i] = K == 3 ? model.offset(steps[k], d[0], d[1], d[K - 1]) : model.offset(steps[k], 0.0, d[0], d[K - 1]);
+      else
+        seen[i] = steps[k];
       belief::StepOutcome o;
       model.step(seen[i], Pi[i], &o);
       F = o.F;
@@ -261,6 +363,9 @@ void mixture_recursion(const belief::Model& model, const std::vector<belief::Ste
       }
       N[i] = 0.5 * (N[i] + N[i].transpose());
       mix += w * (Pi[i] + N[i]);
+      const auto row = static_cast<Eigen::Index>(k), col = static_cast<Eigen::Index>(i);
+      trace.positions.block<1, 2>(row, 2 * col) = seen[i].end.transpose();
+      trace.msq(row, col) = Pi[i](0, 0) + N[i](0, 0) + Pi[i](1, 1) + N[i](1, 1);
     }
     P[k] = 0.5 * (mix + mix.transpose());
     A[k - 1] = within_marginals(mix_m.ldlt().solve(P[k].transpose()).transpose() * F, P[k - 1], P[k]);
@@ -279,8 +384,16 @@ BeliefProfile profile_of(belief::Model& model, std::vector<belief::Step>& steps,
   std::vector<StateCov> P(n);
   std::vector<Eigen::Matrix4d> A(n, Eigen::Matrix4d::Zero());
   P[0] = P0;
+  StrataTrace trace;
+  std::vector<double> strata_weight;
   if (settings.deviation_mixture) {
-    mixture_recursion(model, steps, P, A);
+    const Quadrature q(settings.deviation_nodes, settings.deviation_cells);
+    const Strata st(q, settings.deviation_along ? 3 : 2);
+    if (settings.deviation_along)
+      mixture_recursion<3>(model, steps, P, A, st, trace);
+    else
+      mixture_recursion<2>(model, steps, P, A, st, trace);
+    strata_weight = st.w;
   } else {
     for (std::size_t k = 1; k < n; ++k) {
       belief::StepOutcome o;
@@ -322,6 +435,10 @@ BeliefProfile profile_of(belief::Model& model, std::vector<belief::Step>& steps,
   }
   out.length = length;
   out.vehicle_radius = settings.inflation.vehicle_radius;
+  out.strata_weight = Eigen::Map<const Eigen::VectorXd>(strata_weight.data(),
+                                                        static_cast<Eigen::Index>(strata_weight.size()));
+  out.strata_positions = std::move(trace.positions);
+  out.strata_msq = std::move(trace.msq);
   collision_probability(model, steps, P, A, out);
   return out;
 }
@@ -430,6 +547,10 @@ const ParamSet<BeliefSettings>& param_set<BeliefSettings>() {
                 "the expected belief over the vehicle's deviation from the path (Gauss-Hermite strata)")
           .integer("deviation_nodes", SN_REF(BeliefSettings, deviation_nodes), closed(3, 7),
                    "Gauss-Hermite nodes per axis of the deviation mixture: 3, 5 or 7")
+          .integer("deviation_cells", SN_REF(BeliefSettings, deviation_cells), closed(0, 9),
+                   "0: Gauss-Hermite nodes (deviation_nodes); k > 0: k cells of equal probability per axis of the deviation mixture")
+          .flag("deviation_along", SN_REF(BeliefSettings, deviation_along),
+                "stratify the deviation along the path too (n^3 strata, each reported at its own position)")
           .nested("inflation.", param_set<Inflation>(), SN_REF(BeliefSettings, inflation))
           .set;
   return s;

@@ -69,11 +69,12 @@ class Model {
   /// for a fix that may not arrive).  `out`, when given, receives P⁻, F and
   /// the branches.
   void step(const Step& s, StateCov& P, StepOutcome* out = nullptr) const;
-  /// `s` seen by a vehicle `lateral` metres to the left of the leg and
-  /// turned by `dtheta` (BeliefSettings::deviation_mixture): the landmarks in
-  /// view and the measurements from there; the motion (s.x) and the
-  /// clearance stay the nominal ones.
-  Step offset(const Step& s, double lateral, double dtheta) const;
+  /// `s` seen by a vehicle `along` metres ahead on the leg, `lateral`
+  /// metres to its left and turned by `dtheta`
+  /// (BeliefSettings::deviation_mixture): the landmarks in view and the
+  /// measurements from there; the motion (s.x) and the clearance stay the
+  /// nominal ones.
+  Step offset(const Step& s, double along, double lateral, double dtheta) const;
   /// The expected prior of a trial that starts at `start` heading `heading`:
   /// the simulator's first fix attempt (navigation.cpp, Trial::initialize)
   /// succeeds with the step's fix probability p, and the localizer then

@@ -54,6 +54,7 @@ __all__ = ["BeliefSettings", "BeliefPlannerSettings", "BeliefProblem", "BeliefPr
 _BELIEF_KEYS = {"speed": "speed", "step": "step", "bearing_std": "bearing_std",
                 "sight_fov_margin": "sight_fov_margin", "sight_range_fraction": "sight_range_fraction",
                 "deviation_mixture": "deviation_mixture", "deviation_nodes": "deviation_nodes",
+                "deviation_along": "deviation_along", "deviation_cells": "deviation_cells",
                 "vehicle_radius": "inflation.vehicle_radius",
                 "margin": "inflation.margin"}
 
@@ -125,7 +126,12 @@ def propagate_belief(path, *, sensors, map, bmm=None, start_cov=None, settings: 
     certificate's narrower one), ``deviation_mixture`` (default on: the
     expected belief over the vehicle's deviation from the path, its error
     stratified at 3×3 Gauss–Hermite nodes, or 5×5 or 7×7 with ``deviation_nodes``;
-    ``BeliefSettings.deviation_mixture``)."""
+    ``BeliefSettings.deviation_mixture``), ``deviation_along`` (stratify along
+    the path too: n³ strata).  With the mixture, ``.strata_weight``,
+    ``.strata_positions`` (each stratum's true position per stage, (N, 2S))
+    and ``.strata_msq`` (its mean square position error, (N, S)) say where
+    its vehicles are and how far off: :func:`sigma_calibration` bins each at
+    its own arc."""
     p = as_array("path", path, (None, 2))
     bmm = bmm if bmm is not None else _core.BmmParams()
     s = _belief_settings(kwargs, settings)
@@ -260,7 +266,9 @@ class SigmaCalibration:
     """The predicted position error along a path against Monte Carlo, per
     arc-length bin [``edges[i]``, ``edges[i + 1]``): ``predicted`` =
     sqrt(mean over the bin's stages of trace P_xy) (the RMS position error
-    the belief predicts), ``observed`` = sqrt(mean over the bin's recorded
+    the belief predicts; with the deviation mixture's strata, the mean over
+    the strata whose vehicles are in the bin, each weighted by its share),
+    ``observed`` = sqrt(mean over the bin's recorded
     steps of |x̂_xy − x_xy|²) (NaN where none), ``samples`` (steps) and
     ``trials`` (trials with a step in the bin).  ``worst_share`` is the
     largest share of a bin's squared error that one trial holds, and
@@ -282,10 +290,31 @@ class SigmaCalibration:
             return np.where(self.predicted > 0, self.observed / self.predicted, np.nan)
 
 
+def _predicted_per_bin(profile, path, edges):
+    """The belief's Σ trace P_xy per bin and the weight it was summed with.
+    Without strata each stage goes to the bin of its own arc (weight 1).
+    With the deviation mixture's strata each stratum of each stage goes to
+    the bin of the arc where its vehicles are, with its weight: the same
+    binning as the driven vehicles' (their true position), so a stratum
+    ahead of the nominal pose counts where it is, not where the nominal is."""
+    n_bins = len(edges) - 1
+    w = np.asarray(getattr(profile, "strata_weight", np.zeros(0)), dtype=float)
+    if w.size == 0:
+        cov = np.asarray(profile.cov_xy, dtype=float)
+        b = np.clip(np.searchsorted(edges, arc_position(path, path), side="right") - 1, 0, n_bins - 1)
+        return np.bincount(b, cov[:, 0] + cov[:, 3], n_bins), np.bincount(b, minlength=n_bins).astype(float)
+    pos = np.asarray(profile.strata_positions, dtype=float).reshape(-1, 2)
+    msq = np.asarray(profile.strata_msq, dtype=float).ravel()
+    ww = np.tile(w, len(path))
+    b = np.clip(np.searchsorted(edges, arc_position(path, pos), side="right") - 1, 0, n_bins - 1)
+    return np.bincount(b, ww * msq, n_bins), np.bincount(b, ww, n_bins)
+
+
 def sigma_calibration(profile, truths, estimates, *, bin_m: float = 10.0) -> SigmaCalibration:
     """Bin a ``BeliefProfile`` (the prediction) and recorded trials (``truths``
     and ``estimates``: one (T_i, >= 2) array per trial, x and y first) by arc
-    length along the profile's path: each stage and each true position goes
+    length along the profile's path: each stage (or each stratum of it, at
+    its own position: ``_predicted_per_bin``) and each true position goes
     to the bin of its :func:`arc_position` (the estimate is paired with the
     truth of its step).  See :class:`SigmaCalibration`."""
     if not (np.isfinite(bin_m) and bin_m > 0):
@@ -296,10 +325,7 @@ def sigma_calibration(profile, truths, estimates, *, bin_m: float = 10.0) -> Sig
     length = float(np.sum(np.hypot(*np.diff(path, axis=0).T)))
     edges = np.arange(0.0, length + bin_m, bin_m)
     n_bins = len(edges) - 1
-    cov = np.asarray(profile.cov_xy, dtype=float)
-    stage_bin = np.clip(np.searchsorted(edges, arc_position(path, path), side="right") - 1, 0, n_bins - 1)
-    tr = np.bincount(stage_bin, cov[:, 0] + cov[:, 3], n_bins)
-    n_stage = np.bincount(stage_bin, minlength=n_bins)
+    tr, n_stage = _predicted_per_bin(profile, path, edges)
     sq, n, hit = np.zeros(n_bins), np.zeros(n_bins, dtype=int), np.zeros(n_bins, dtype=int)
     worst_sq, worst_n = np.zeros(n_bins), np.zeros(n_bins, dtype=int)
     for i, (x, xh) in enumerate(zip(truths, estimates)):

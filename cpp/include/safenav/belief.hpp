@@ -94,6 +94,18 @@ struct BeliefSettings {
   /// Gauss–Hermite nodes per axis of the deviation mixture (3, 5 or 7: 9, 25
   /// or 49 strata); more nodes reach further into the deviation's tails.
   int deviation_nodes = 3;
+  /// 0: the Gauss–Hermite rule above.  k > 0: each axis is cut into k cells
+  /// of equal probability, each stratum is its cell's conditional mean with
+  /// weight 1/k per axis and keeps the cell's conditional variance, so a
+  /// landmark that comes into view for part of the vehicles moves the
+  /// prediction in steps of one cell's weight (k^2 or k^3 strata).
+  int deviation_cells = 0;
+  /// Stratify the deviation along the path too (n³ strata): a vehicle whose
+  /// error lies along the path is ahead of or behind the nominal pose at a
+  /// given time, sees from there, and reaches a turn early or late.  Each
+  /// stratum's position is reported (BeliefProfile::strata_positions), so a
+  /// calibration against driven vehicles can bin each at its own arc.
+  bool deviation_along = false;
   Inflation inflation;       ///< vehicle radius (collision) and margin (kept beyond it by the planner)
   void validate() const;     ///< throws std::invalid_argument naming the bad value
 };
@@ -117,6 +129,15 @@ struct BeliefProfile {
   double union_bound = 0.0;            ///< min(1, Σ marginal_probability)
   double length = 0.0;                 ///< path length [m]
   double vehicle_radius = 0.0;         ///< the radius the probabilities were computed for [m]
+  /// The deviation mixture's strata (BeliefSettings::deviation_mixture; empty
+  /// without it): each stratum's weight (S of them), and per stage its true
+  /// position (N×2S: x₀, y₀, x₁, y₁, …; the nominal position moved by minus
+  /// its mean error, from where it saw) and the trace of its error's second
+  /// moment in position, P_i + N_i (N×S) [m²].  Stage 0 puts every stratum
+  /// at the start with P0.
+  Eigen::VectorXd strata_weight;
+  Eigen::MatrixXd strata_positions;
+  Eigen::MatrixXd strata_msq;
 };
 
 /// The prior the navigation loop starts from (its Trial::initialize, in
