@@ -17,7 +17,6 @@ void bind_settings(py::module_& m) {
       .def_readwrite("deviation_mixture", &BeliefSettings::deviation_mixture)
       .def_readwrite("deviation_nodes", &BeliefSettings::deviation_nodes)
       .def_readwrite("deviation_along", &BeliefSettings::deviation_along)
-      .def_readwrite("deviation_cells", &BeliefSettings::deviation_cells)
       .def_readwrite("inflation", &BeliefSettings::inflation)
       .def("validate", &BeliefSettings::validate);
 

@@ -3,7 +3,6 @@
 #include "safenav/belief.hpp"
 
 #include <Eigen/Cholesky>
-#include <boost/math/distributions/normal.hpp>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
@@ -130,38 +129,11 @@ void collision_probability(belief::Model& model, std::vector<belief::Step>& step
   out.union_bound = std::min(1.0, sum);
 }
 
-/// A rule for N(0, 1): nodes, weights, and each node's variance within its
-/// cell (0 for a point rule).
-///   * The Gauss–Hermite rule with n = 3, 5 or 7 nodes
-///     (numpy.polynomial.hermite_e.hermegauss, weights over √(2π)).
-///   * `cells` > 0: the line cut into `cells` cells of equal probability at
-///     the normal quantiles a_j = Φ⁻¹(j/cells); each node is its cell's
-///     conditional mean cells·(φ(a_j) − φ(a_j+1)), its weight 1/cells, and
-///     its variance the cell's conditional variance
-///     1 + cells·(a_j φ(a_j) − a_j+1 φ(a_j+1)) − mean².  The nodes and
-///     variances together keep the first two moments exactly; a step in the
-///     node's response moves at most one cell's weight.
+/// The Gauss–Hermite rule of N(0, 1) with n = 3, 5 or 7 nodes
+/// (numpy.polynomial.hermite_e.hermegauss, weights over √(2π)).
 struct Quadrature {
-  std::vector<double> node, weight, var;
-  Quadrature(int n, int cells) {
-    if (cells > 0) {
-      const boost::math::normal_distribution<double> nd;
-      auto edge = [&](int j) {
-        return j == 0 ? -std::numeric_limits<double>::infinity()
-                      : j == cells ? std::numeric_limits<double>::infinity()
-                                   : boost::math::quantile(nd, static_cast<double>(j) / cells);
-      };
-      auto phi = [](double a) { return std::isfinite(a) ? normal_pdf(a) : 0.0; };
-      auto aphi = [](double a) { return std::isfinite(a) ? a * normal_pdf(a) : 0.0; };
-      for (int j = 0; j < cells; ++j) {
-        const double a = edge(j), b = edge(j + 1);
-        const double mean = cells * (phi(a) - phi(b));
-        node.push_back(mean);
-        weight.push_back(1.0 / cells);
-        var.push_back(std::max(0.0, 1.0 + cells * (aphi(a) - aphi(b)) - mean * mean));
-      }
-      return;
-    }
+  std::vector<double> node, weight;
+  explicit Quadrature(int n) {
     if (n == 3) {
       node = {-std::sqrt(3.0), 0.0, std::sqrt(3.0)};
       weight = {1.0 / 6.0, 2.0 / 3.0, 1.0 / 6.0};
@@ -176,34 +148,28 @@ struct Quadrature {
     } else {
       bad("deviation_nodes = " + std::to_string(n) + ": must be 3, 5 or 7");
     }
-    var.assign(node.size(), 0.0);
   }
 };
 
 /// The strata of deviation_mixture (below): the product rule of `axes`
-/// copies of the one-axis rule, stratum i's node z_i, its within-cell
-/// variances v_i (axes × S each; v = 0 for a point rule) and weight.
+/// copies of the n-node rule, stratum i's node z_i (axes × S) and weight.
 struct Strata {
-  Eigen::MatrixXd z, v;
+  Eigen::MatrixXd z;
   std::vector<double> w;
-  bool cells = false;
   Strata(const Quadrature& q, int axes) {
     const std::size_t n = q.node.size();
     std::size_t count = 1;
     for (int a = 0; a < axes; ++a) count *= n;
     z.resize(axes, static_cast<Eigen::Index>(count));
-    v.resize(axes, static_cast<Eigen::Index>(count));
     w.assign(count, 1.0);
     for (std::size_t i = 0; i < count; ++i) {
       std::size_t rest = i;  // the last axis varies fastest
       for (int a = axes - 1; a >= 0; --a) {
         z(a, static_cast<Eigen::Index>(i)) = q.node[rest % n];
-        v(a, static_cast<Eigen::Index>(i)) = q.var[rest % n];
         w[i] *= q.weight[rest % n];
         rest /= n;
       }
     }
-    cells = v.size() > 0 && v.maxCoeff() > 0.0;
   }
   std::size_t size() const { return w.size(); }
 };
@@ -225,20 +191,12 @@ void stratify(const Eigen::Matrix<double, K, 4>& H, const Strata& st, const std:
   double floor = 1e-12;  // 1e-12 tr(S)^K: the determinant's units
   for (int a = 0; a < K; ++a) floor *= S.trace();
   const bool ok = llt.info() == Eigen::Success && S.determinant() > floor;
-  // The error given u: mean G S⁻¹ L z_i = G L⁻ᵀ z_i, covariance M − G S⁻¹ Gᵀ;
-  // given u in a cell, the cell's variance in u adds B diag(v_i) Bᵀ, B = G L⁻ᵀ.
+  // The error given u: mean G S⁻¹ L z_i = G L⁻ᵀ z_i, covariance M − G S⁻¹ Gᵀ.
   const StateCov C = ok ? StateCov(M - G * llt.solve(G.transpose())) : M;
-  Eigen::Matrix<double, 4, K> B = Eigen::Matrix<double, 4, K>::Zero();
-  if (ok && st.cells) B = llt.matrixL().solve(G.transpose()).transpose();
   for (std::size_t i = 0; i < Pi.size(); ++i) {
-    const auto col = static_cast<Eigen::Index>(i);
-    const Eigen::Matrix<double, K, 1> z = st.z.col(col);
+    const Eigen::Matrix<double, K, 1> z = st.z.col(static_cast<Eigen::Index>(i));
     m[i] = ok ? Eigen::Vector4d(G * llt.matrixU().solve(z)) : Eigen::Vector4d::Zero();
     N[i] = C - Pi[i] + m[i] * m[i].transpose();
-    if (st.cells) {
-      const Eigen::Matrix<double, K, 1> vi = st.v.col(col);
-      N[i] += B * vi.asDiagonal() * B.transpose();
-    }
   }
 }
 
@@ -387,7 +345,7 @@ BeliefProfile profile_of(belief::Model& model, std::vector<belief::Step>& steps,
   StrataTrace trace;
   std::vector<double> strata_weight;
   if (settings.deviation_mixture) {
-    const Quadrature q(settings.deviation_nodes, settings.deviation_cells);
+    const Quadrature q(settings.deviation_nodes);
     const Strata st(q, settings.deviation_along ? 3 : 2);
     if (settings.deviation_along)
       mixture_recursion<3>(model, steps, P, A, st, trace);
@@ -547,8 +505,6 @@ const ParamSet<BeliefSettings>& param_set<BeliefSettings>() {
                 "the expected belief over the vehicle's deviation from the path (Gauss-Hermite strata)")
           .integer("deviation_nodes", SN_REF(BeliefSettings, deviation_nodes), closed(3, 7),
                    "Gauss-Hermite nodes per axis of the deviation mixture: 3, 5 or 7")
-          .integer("deviation_cells", SN_REF(BeliefSettings, deviation_cells), closed(0, 9),
-                   "0: Gauss-Hermite nodes (deviation_nodes); k > 0: k cells of equal probability per axis of the deviation mixture")
           .flag("deviation_along", SN_REF(BeliefSettings, deviation_along),
                 "stratify the deviation along the path too (n^3 strata, each reported at its own position)")
           .nested("inflation.", param_set<Inflation>(), SN_REF(BeliefSettings, inflation))

@@ -94,12 +94,6 @@ struct BeliefSettings {
   /// Gauss–Hermite nodes per axis of the deviation mixture (3, 5 or 7: 9, 25
   /// or 49 strata); more nodes reach further into the deviation's tails.
   int deviation_nodes = 3;
-  /// 0: the Gauss–Hermite rule above.  k > 0: each axis is cut into k cells
-  /// of equal probability, each stratum is its cell's conditional mean with
-  /// weight 1/k per axis and keeps the cell's conditional variance, so a
-  /// landmark that comes into view for part of the vehicles moves the
-  /// prediction in steps of one cell's weight (k^2 or k^3 strata).
-  int deviation_cells = 0;
   /// Stratify the deviation along the path too (n³ strata): a vehicle whose
   /// error lies along the path is ahead of or behind the nominal pose at a
   /// given time, sees from there, and reaches a turn early or late.  Each
