@@ -115,6 +115,8 @@ def reference_mixture(prof, bmm, se, P0, bearing_std=0.0, checker=None, stage=No
         kf = _TrackedKF(dim_x=4, dim_z=1)
         kf.x, kf.P = np.zeros((4, 1)), P0.copy()
         kfs.append(kf)
+    pos = np.asarray(prof.positions)
+    arc = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(pos, axis=0), axis=1))]
     out, merged = [P0.copy()], True
     for k in range(1, len(prof.time)):
         h = prof.headings[k]
@@ -134,13 +136,33 @@ def reference_mixture(prof, bmm, se, P0, bearing_std=0.0, checker=None, stage=No
         for i, kf in enumerate(kfs):
             d = -(J @ kf.x).ravel()
             kf.T = np.eye(4)
-            p = prof.positions[k] + d[-2] * J[-2, :2] + (d[0] * J[0, :2] if along else 0.0)
-            seen.append(_reference_stage(kf, prof, k, p, bmm, se, bearing_std, checker, dtheta=d[-1], stage=stage))
+            p, dth = prof.positions[k] + d[-2] * J[-2, :2], d[-1]
+            if along:
+                p, dth = _ahead_view(prof, arc, k, kf.x.ravel())
+            seen.append(_reference_stage(kf, prof, k, p, bmm, se, bearing_std, checker, dtheta=dth, stage=stage))
             N[i] = kf.T @ kf.F @ N[i] @ kf.F.T @ kf.T.T
         out.append(sum(wi * (kf.P + Ni) for wi, kf, Ni in zip(w, kfs, N)))
         merged = all(s == seen[0] for s in seen) and all(
             np.linalg.norm(kf.P - kfs[0].P) <= 1e-2 * np.linalg.norm(kfs[0].P) for kf in kfs)
     return np.array(out)
+
+
+def _ahead_view(prof, arc, k, e):
+    """With the along-track axis: the estimate runs t.e ahead of the nominal
+    (the vehicle's true progress keeps to the nominal's), so the vehicle sees
+    from the nominal pose that far along the stages (the nearest stage, then
+    the rest along its leg), moved by -e and turned by -e_theta.  Returns the
+    position and the camera's turn from stage k's heading."""
+    h = prof.headings[k]
+    target = arc[k] + np.cos(h) * e[0] + np.sin(h) * e[1]
+    j = min(int(np.searchsorted(arc[1:], target, side="left")) + 1, len(arc) - 1)
+    if j > 1 and target - arc[j - 1] < arc[j] - target:
+        j -= 1
+    seg = np.asarray(prof.positions[j]) - np.asarray(prof.positions[j - 1])
+    length = np.linalg.norm(seg)
+    rest = np.clip(target - arc[j], -length, arc[j + 1] - arc[j] if j + 1 < len(arc) else 0.0)
+    p = np.asarray(prof.positions[j]) + rest * seg / length - e[:2]
+    return p, prof.headings[j] - h - e[3]
 
 
 def _reference_stage(kf, prof, k, p, bmm, se, bearing_std, checker, dtheta=0.0, stage=None):

@@ -244,6 +244,30 @@ Eigen::Matrix4d within_marginals(const Eigen::Matrix4d& A, const StateCov& P_pre
   return lambda > 1.0 ? Eigen::Matrix4d(A / std::sqrt(lambda * (1.0 + 1e-12))) : A;
 }
 
+/// What a vehicle with mean error e (estimate − truth) sees at step k with
+/// the along-track axis (BeliefSettings::deviation_along).  Its speed
+/// follows the command, so its true progress along the path keeps to the
+/// nominal's, and it is its estimate that runs e_along = t·e ahead; the
+/// controller turns where the estimate is.  So it sees from the nominal
+/// pose e_along further along the steps (`arc`: metres at each stage),
+/// moved by −e in position and turned by −e_θ: on a straight leg that is
+/// the nominal's arc, at a turn it turns early or late.
+belief::Step ahead_view(const belief::Model& model, const std::vector<belief::Step>& steps,
+                        const std::vector<double>& arc, std::size_t k, const Eigen::Vector4d& e) {
+  const double h = steps[k].x[kTheta];
+  const double target = arc[k] + std::cos(h) * e[0] + std::sin(h) * e[1];
+  const auto it = std::lower_bound(arc.begin() + 1, arc.end(), target);
+  std::size_t j = static_cast<std::size_t>(it - arc.begin());
+  if (j >= arc.size()) j = arc.size() - 1;
+  if (j > 1 && target - arc[j - 1] < arc[j] - target) --j;  // the nearest stage
+  // The rest of the way along stage j's own step.
+  const belief::Step& v = steps[j];
+  const Eigen::Vector2d dir = v.length > 0.0 ? Eigen::Vector2d((v.end - v.x.head<2>()) / v.length)
+                                             : Eigen::Vector2d(std::cos(v.x[kTheta]), std::sin(v.x[kTheta]));
+  const double rest = std::clamp(target - arc[j], -v.length, j + 1 < arc.size() ? steps[j + 1].length : 0.0);
+  return model.seen_from(steps[k], v, rest * dir - e.head<2>(), -e[kTheta]);
+}
+
 /// Each stratum's true position and second moment per stage
 /// (BeliefProfile::strata_*).
 struct StrataTrace {
@@ -289,6 +313,8 @@ void mixture_recursion(const belief::Model& model, const std::vector<belief::Ste
     trace.positions.block<1, 2>(0, 2 * i) = (steps.empty() ? Eigen::Vector2d::Zero() : steps[0].end).transpose();
     trace.msq(0, i) = P[0](0, 0) + P[0](1, 1);
   }
+  std::vector<double> arc(steps.size(), 0.0);  // metres along the steps
+  for (std::size_t k = 1; k < steps.size(); ++k) arc[k] = arc[k - 1] + steps[k].length;
   bool merged = true;
   for (std::size_t k = 1; k < steps.size(); ++k) {
     const double h = steps[k].x[kTheta];
@@ -301,10 +327,12 @@ void mixture_recursion(const belief::Model& model, const std::vector<belief::Ste
       const double w = st.w[i];
       // The vehicle is off the path by minus its error.
       const Eigen::Matrix<double, K, 1> d = -(H * m[i]);
-      if (d.squaredNorm() > 0.0)
-        seen[i] = K == 3 ? model.offset(steps[k], d[0], d[1], d[K - 1]) : model.offset(steps[k], 0.0, d[0], d[K - 1]);
-      else
+      if (!(d.squaredNorm() > 0.0))
         seen[i] = steps[k];
+      else if constexpr (K == 3)
+        seen[i] = ahead_view(model, steps, arc, k, m[i]);
+      else
+        seen[i] = model.offset(steps[k], 0.0, d[0], d[K - 1]);
       belief::StepOutcome o;
       model.step(seen[i], Pi[i], &o);
       F = o.F;

@@ -110,6 +110,14 @@ Step Model::offset(const Step& s, double along, double lateral, double dtheta) c
   return m;
 }
 
+Step Model::seen_from(const Step& motion, const Step& view, const Eigen::Vector2d& shift, double dtheta) const {
+  Step m = motion;
+  m.end = view.end + shift;
+  m.view_dtheta = wrap_angle(view.x[kTheta] + view.view_dtheta - motion.x[kTheta]) + dtheta;
+  observe(m);
+  return m;
+}
+
 void Model::leg(const Eigen::Vector2d& a, const Eigen::Vector2d& b, std::vector<Step>& out) const {
   const double L = (b - a).norm();
   if (!(L > 0.0)) return;

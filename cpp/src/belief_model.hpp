@@ -75,6 +75,11 @@ class Model {
   /// measurements from there; the motion (s.x) and the clearance stay the
   /// nominal ones.
   Step offset(const Step& s, double along, double lateral, double dtheta) const;
+  /// `motion` (its prediction, clearance and timing) seen from another
+  /// step's end and camera, `view`, moved by `shift` [m] and turned by
+  /// `dtheta` (BeliefSettings::deviation_along: a vehicle whose estimate
+  /// runs ahead of the nominal turns where its estimate is).
+  Step seen_from(const Step& motion, const Step& view, const Eigen::Vector2d& shift, double dtheta) const;
   /// The expected prior of a trial that starts at `start` heading `heading`:
   /// the simulator's first fix attempt (navigation.cpp, Trial::initialize)
   /// succeeds with the step's fix probability p, and the localizer then
