@@ -94,11 +94,14 @@ struct BeliefSettings {
   /// Gauss–Hermite nodes per axis of the deviation mixture (3, 5 or 7: 9, 25
   /// or 49 strata); more nodes reach further into the deviation's tails.
   int deviation_nodes = 3;
-  /// Stratify the deviation along the path too (n³ strata): a vehicle whose
-  /// error lies along the path is ahead of or behind the nominal pose at a
-  /// given time, sees from there, and reaches a turn early or late.  Each
-  /// stratum's position is reported (BeliefProfile::strata_positions), so a
-  /// calibration against driven vehicles can bin each at its own arc.
+  /// Stratify the deviation along the path too (n³ strata).  A vehicle's
+  /// true progress along the path keeps to the nominal's (its speed follows
+  /// the command); it is its estimate that runs ahead or behind by the
+  /// error's along-track part, and the controller turns where the estimate
+  /// is.  So such a stratum sees from the nominal pose that far along the
+  /// path, moved by minus its whole error: at a turn it turns early or late.
+  /// Each stratum's position is reported (BeliefProfile::strata_positions),
+  /// so a calibration against driven vehicles can bin each at its own arc.
   bool deviation_along = false;
   Inflation inflation;       ///< vehicle radius (collision) and margin (kept beyond it by the planner)
   void validate() const;     ///< throws std::invalid_argument naming the bad value
