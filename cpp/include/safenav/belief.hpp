@@ -128,8 +128,9 @@ struct BeliefProfile {
   double vehicle_radius = 0.0;         ///< the radius the probabilities were computed for [m]
   /// The deviation mixture's strata (BeliefSettings::deviation_mixture; empty
   /// without it): each stratum's weight (S of them), and per stage its true
-  /// position (N×2S: x₀, y₀, x₁, y₁, …; the nominal position moved by minus
-  /// its mean error, from where it saw) and the trace of its error's second
+  /// position (N×2S: x₀, y₀, x₁, y₁, …; where it saw from: the nominal
+  /// position moved by minus its mean error, with deviation_along the
+  /// nominal's where its estimate is) and the trace of its error's second
   /// moment in position, P_i + N_i (N×S) [m²].  Stage 0 puts every stratum
   /// at the start with P0.
   Eigen::VectorXd strata_weight;
