@@ -138,7 +138,8 @@ def reference_mixture(prof, bmm, se, P0, bearing_std=0.0, checker=None, stage=No
             kf.T = np.eye(4)
             p, dth = prof.positions[k] + d[-2] * J[-2, :2], d[-1]
             if along:
-                p, dth = _ahead_view(prof, arc, k, kf.x.ravel())
+                camera = (lambda j: stage(j)[2]) if stage is not None else (lambda j: prof.headings[j])
+                p, dth = _ahead_view(prof, arc, k, kf.x.ravel(), camera)
             seen.append(_reference_stage(kf, prof, k, p, bmm, se, bearing_std, checker, dtheta=dth, stage=stage))
             N[i] = kf.T @ kf.F @ N[i] @ kf.F.T @ kf.T.T
         out.append(sum(wi * (kf.P + Ni) for wi, kf, Ni in zip(w, kfs, N)))
@@ -147,12 +148,13 @@ def reference_mixture(prof, bmm, se, P0, bearing_std=0.0, checker=None, stage=No
     return np.array(out)
 
 
-def _ahead_view(prof, arc, k, e):
+def _ahead_view(prof, arc, k, e, camera):
     """With the along-track axis: the estimate runs t.e ahead of the nominal
     (the vehicle's true progress keeps to the nominal's), so the vehicle sees
-    from the nominal pose that far along the stages (the nearest stage, then
-    the rest along its leg), moved by -e and turned by -e_theta.  Returns the
-    position and the camera's turn from stage k's heading."""
+    from the nominal pose that far along the stages (the nearest stage j,
+    then the rest along its leg), moved by -e, with stage j's camera
+    (``camera(j)``) turned by -e_theta.  Returns the position and the
+    camera's turn from stage k's."""
     h = prof.headings[k]
     target = arc[k] + np.cos(h) * e[0] + np.sin(h) * e[1]
     j = min(int(np.searchsorted(arc[1:], target, side="left")) + 1, len(arc) - 1)
@@ -162,7 +164,7 @@ def _ahead_view(prof, arc, k, e):
     length = np.linalg.norm(seg)
     rest = np.clip(target - arc[j], -length, arc[j + 1] - arc[j] if j + 1 < len(arc) else 0.0)
     p = np.asarray(prof.positions[j]) + rest * seg / length - e[:2]
-    return p, prof.headings[j] - h - e[3]
+    return p, camera(j) - camera(k) - e[3]
 
 
 def _reference_stage(kf, prof, k, p, bmm, se, bearing_std, checker, dtheta=0.0, stage=None):

@@ -108,14 +108,15 @@ def bend_world():
     return se, m
 
 
-@pytest.mark.parametrize("method, nodes", [(m, n) for m in METHODS for n in (0, 3)] + [("chull", 7)])
-def test_belief_along_the_trajectory_equals_filterpy(method, nodes):
+@pytest.mark.parametrize("method, nodes, along", [(m, n, False) for m in METHODS for n in (0, 3)]
+                         + [("chull", 7, False), ("chull", 3, True), ("centroid", 3, True)])
+def test_belief_along_the_trajectory_equals_filterpy(method, nodes, along):
     se, m = bend_world()
     x = np.asarray(build(BEND, method=method).nominal_trajectory())
     bmm = _core.BmmParams()
     P0 = np.diag([0.3, 0.2, 0.003, 0.001])
     prof = P.propagate_belief_along(x, sensors=se, map=m, bmm=bmm, start_cov=P0, deviation_mixture=nodes > 0,
-                                    deviation_nodes=max(nodes, 3))
+                                    deviation_nodes=max(nodes, 3), deviation_along=along)
     np.testing.assert_array_equal(prof.positions, x[:, :2])
     np.testing.assert_allclose(prof.time, np.arange(len(x)) * bmm.dt, rtol=1e-12)
     checker = _core.ObstacleChecker(m)
@@ -123,7 +124,7 @@ def test_belief_along_the_trajectory_equals_filterpy(method, nodes):
     np.testing.assert_array_equal(prof.landmarks, [se.landmarks_in_view(s, checker) for s in x])
     assert 0 < prof.landmarks.max() and prof.landmarks.min() == 0
     stage = trajectory_stage(x, bmm)
-    ref = (reference_mixture(prof, bmm, se, P0, 0.0, checker, stage=stage, nodes=nodes) if nodes
+    ref = (reference_mixture(prof, bmm, se, P0, 0.0, checker, stage=stage, nodes=nodes, along=along) if nodes
            else reference_covariances(prof, bmm, se, P0, 0.0, checker, stage=stage))
     np.testing.assert_allclose(profile_cov(prof), ref, rtol=1e-9, atol=1e-15)
 

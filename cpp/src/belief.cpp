@@ -332,7 +332,7 @@ void mixture_recursion(const belief::Model& model, const std::vector<belief::Ste
       else if constexpr (K == 3)
         seen[i] = ahead_view(model, steps, arc, k, m[i]);
       else
-        seen[i] = model.offset(steps[k], 0.0, d[0], d[K - 1]);
+        seen[i] = model.offset(steps[k], d[0], d[K - 1]);
       belief::StepOutcome o;
       model.step(seen[i], Pi[i], &o);
       F = o.F;

@@ -100,11 +100,9 @@ void Model::observe(Step& s) const {
   }
 }
 
-Step Model::offset(const Step& s, double along, double lateral, double dtheta) const {
+Step Model::offset(const Step& s, double lateral, double dtheta) const {
   Step m = s;
-  const double c = std::cos(s.x[kTheta]), sn = std::sin(s.x[kTheta]);
-  if (along != 0.0) m.end += along * Eigen::Vector2d(c, sn);
-  m.end += lateral * Eigen::Vector2d(-sn, c);
+  m.end += lateral * Eigen::Vector2d(-std::sin(s.x[kTheta]), std::cos(s.x[kTheta]));
   m.view_dtheta = s.view_dtheta + dtheta;
   observe(m);
   return m;

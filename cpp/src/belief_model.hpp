@@ -69,12 +69,11 @@ class Model {
   /// for a fix that may not arrive).  `out`, when given, receives P⁻, F and
   /// the branches.
   void step(const Step& s, StateCov& P, StepOutcome* out = nullptr) const;
-  /// `s` seen by a vehicle `along` metres ahead on the leg, `lateral`
-  /// metres to its left and turned by `dtheta`
-  /// (BeliefSettings::deviation_mixture): the landmarks in view and the
-  /// measurements from there; the motion (s.x) and the clearance stay the
-  /// nominal ones.
-  Step offset(const Step& s, double along, double lateral, double dtheta) const;
+  /// `s` seen by a vehicle `lateral` metres to the left of the leg and
+  /// turned by `dtheta` (BeliefSettings::deviation_mixture): the landmarks in
+  /// view and the measurements from there; the motion (s.x) and the
+  /// clearance stay the nominal ones.
+  Step offset(const Step& s, double lateral, double dtheta) const;
   /// `motion` (its prediction, clearance and timing) seen from another
   /// step's end and camera, `view`, moved by `shift` [m] and turned by
   /// `dtheta` (BeliefSettings::deviation_along: a vehicle whose estimate
