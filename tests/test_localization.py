@@ -274,6 +274,8 @@ def test_did_not_converge_is_reported():
     (dict(anchors=[[0, 0, 0]]), r"anchors must have shape \(N, 2\)"),
     (dict(outlier_threshold=-1), "outlier_threshold = -1"),
     (dict(seed=-1), "seed must be"),
+    (dict(profile_probability=1.0), "profile_probability = 1"),
+    (dict(profile_probability=-0.1), "profile_probability = -0.1"),
 ])
 def test_bad_input_names_the_value(kwargs, match):
     args = dict(anchors=[[0, 0], [10, 0], [0, 10]], ranges=[5.0, 7.0, 8.0], sigmas=0.1)
@@ -281,6 +283,89 @@ def test_bad_input_names_the_value(kwargs, match):
     a, r, s = args.pop("anchors"), args.pop("ranges"), args.pop("sigmas")
     with pytest.raises(ValueError, match=match):
         trilaterate(a, r, s, **args)
+
+
+# Three anchors nearly in line with the vehicle, the first 1.2–2.2 m from it (world 23's landmarks
+# 18–20 seen from its P1): the ranges' cost has a curved valley across that line.
+THIN = np.array([[81.7, 41.6], [85.0, 51.1], [90.7, 59.8]])
+CHI2_99 = -2.0 * np.log(0.01)  # χ²₂ at 0.99
+
+
+def _profile_rise(anchors, z, sig, p, cost0, point, other, span):
+    """Reference: the cost minimised over point + t·other, |t| ≤ span (2001-point grid, then a
+    bounded scalar minimisation around the best), less cost0."""
+    def cost(t):
+        q = point + t * other
+        return float(np.sum(((z - np.linalg.norm(anchors - q, axis=1)) / sig) ** 2))
+    ts = np.linspace(-span, span, 2001)
+    best = ts[np.argmin([cost(t) for t in ts])]
+    h = 2 * span / 2000
+    res = optimize.minimize_scalar(cost, bounds=(best - h, best + h), method="bounded", options={"xatol": 1e-12})
+    return min(res.fun, cost(best)) - cost0
+
+
+def test_profile_widening_makes_a_curved_valley_consistent():
+    """Monte Carlo: the linear covariance puts > 8 % of the fixes outside its 99 % ellipse here;
+    widened to the profile, < 3 %.  The position itself is the same."""
+    rng = np.random.default_rng(11)
+    for p in ([81.3, 40.1], [80.9, 39.6]):
+        p = np.asarray(p)
+        r0, sig = ranges_to(THIN, p), np.full(3, 0.05)
+        out_lin, out_wid, n = 0, 0, 0
+        for _ in range(1500):
+            z = r0 + sig * rng.standard_normal(3)
+            wid, lin = trilaterate(THIN, z, sig), trilaterate(THIN, z, sig, profile_probability=0)
+            if not wid.ok or wid.chi2 > stats.chi2.ppf(0.99, 1):
+                continue
+            np.testing.assert_array_equal(wid.position, lin.position)
+            e = wid.position - p
+            out_lin += e @ np.linalg.solve(lin.covariance, e) > CHI2_99
+            out_wid += e @ np.linalg.solve(wid.covariance, e) > CHI2_99
+            n += 1
+        assert n > 1000
+        assert out_lin / n > 0.08 and out_wid / n < 0.03, (p, out_lin / n, out_wid / n)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(3, 6), st.sampled_from(["spread", "thin", "close"]))
+def test_profile_widening_only_widens_along_the_linear_axes(seed, n, shape):
+    """Generated geometries (well spread, anchors nearly in line with the position, an anchor
+    within 2 m): the widened covariance keeps the linear one's eigenvectors and never narrows it.
+    An axis along which the reference profile rises by less than χ²₂(0.99)/1.1 at the linear
+    contour is widened; one along which it rises by more is left as it is, unless the other axis
+    was widened (a later round probes from the wider contour)."""
+    rng = np.random.default_rng(seed)
+    p = rng.uniform(-20, 20, 2)
+    if shape == "spread":
+        anchors = p + rng.uniform(8, 30, n)[:, None] * np.c_[np.cos(a := rng.uniform(0, 2 * np.pi, n)), np.sin(a)]
+    else:
+        d = rng.uniform(0, 2 * np.pi)
+        along = rng.uniform(1.2 if shape == "close" else 5, 30, n)
+        ang = d + rng.uniform(-0.15, 0.15, n)
+        anchors = p + along[:, None] * np.c_[np.cos(ang), np.sin(ang)]
+    sig = np.full(n, rng.uniform(0.02, 0.3))
+    z = np.abs(ranges_to(anchors, p) + sig * rng.standard_normal(n))
+    wid = trilaterate(anchors, z, sig, reject_outliers=False)
+    lin = trilaterate(anchors, z, sig, reject_outliers=False, profile_probability=0)
+    assert wid.status == lin.status
+    if not wid.ok:
+        return
+    lam, V = np.linalg.eigh(lin.covariance)
+    lam_w = np.diag(V.T @ wid.covariance @ V)
+    np.testing.assert_allclose(V.T @ wid.covariance @ V, np.diag(lam_w), atol=1e-9 * lam_w.max())
+    assert np.all(lam_w >= lam * (1 - 1e-9))
+    cost0 = float(np.sum(((z - ranges_to(anchors, wid.position)) / sig) ** 2))
+    for j in range(2):
+        rise = min(_profile_rise(anchors, z, sig, wid.position, cost0, wid.position + s * np.sqrt(CHI2_99 * lam[j]) * V[:, j],
+                                 V[:, 1 - j], 2 * np.sqrt(CHI2_99 * lam[1 - j])) for s in (-1, 1))
+        threshold = CHI2_99 / 1.1
+        if abs(rise / threshold - 1) < 0.03:
+            continue  # on the boundary: the stopping rule's 1 % and the search's grid decide
+        if rise < threshold:
+            assert lam_w[j] > lam[j] * 1.01, (j, rise)  # the first round widens it
+        else:
+            # left as it is, unless a later round (from the other axis's widened contour) widened it
+            assert lam_w[j] <= lam[j] * (1 + 1e-12) or lam_w[1 - j] > lam[1 - j] * 1.01, (j, rise)
 
 
 def test_horizontal_range_feeds_2d_trilateration_of_3d_landmarks():

@@ -20,6 +20,7 @@ void pybind_trilateration(py::module_& m) {
       .def_readwrite("tolerance", &LocalizationOptions::tolerance)
       .def_readwrite("max_gdop", &LocalizationOptions::max_gdop)
       .def_readwrite("ambiguity_margin", &LocalizationOptions::ambiguity_margin)
+      .def_readwrite("profile_probability", &LocalizationOptions::profile_probability)
       .def_readwrite("min_crossing_angle", &LocalizationOptions::min_crossing_angle)
       .def_readwrite("max_subsets", &LocalizationOptions::max_subsets)
       .def_readwrite("seed", &LocalizationOptions::seed)

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "rng.hpp"
+#include "trilateration_models.hpp"
 
 namespace safenav {
 
@@ -29,7 +30,7 @@ const char* to_string(LocalizationStatus status) {
 
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+using namespace trilateration_detail;
 
 void check_inputs(const Eigen::Ref<const Anchors>& anchors, const Eigen::Ref<const Eigen::VectorXd>& z,
                   const Eigen::Ref<const Eigen::VectorXd>& sigmas, const char* zname, bool nonnegative) {
@@ -60,78 +61,6 @@ void check_inputs(const Eigen::Ref<const Anchors>& anchors, const Eigen::Ref<con
          << "(about 1e-154 to 1e154)";
       throw std::invalid_argument(os.str());
     }
-  }
-}
-
-/// One measurement model over a set of anchors: residual z − h(p) and the
-/// Jacobian row ∂h/∂p.
-struct RangeModel {
-  static constexpr int kMinimal = 3;
-  static constexpr const char* kWhat = "ranges";
-  /// The landmark model (safenav/measurement.hpp) with k = b = 0 and the anchor as the landmark.
-  double residual(const Eigen::Vector2d& p, const Eigen::Vector2d& a, double z) const {
-    return z - predict_range(landmark_geometry(p.x(), p.y(), a.x(), a.y()), 0.0, 0.0);
-  }
-  Eigen::RowVector2d jacobian(const Eigen::Vector2d& p, const Eigen::Vector2d& a) const {
-    const LandmarkGeometry g = landmark_geometry(p.x(), p.y(), a.x(), a.y());
-    LandmarkJacobian J;
-    if (!(g.r > 0.0)) return Eigen::RowVector2d::Zero();
-    predict_range(g, 0.0, 0.0, &J);
-    return Eigen::RowVector2d(J.x, J.y);
-  }
-};
-
-/// Absolute bearings: the landmark model's relative bearing at heading 0.
-struct BearingModel {
-  static constexpr int kMinimal = 2;
-  static constexpr const char* kWhat = "bearings";
-  double residual(const Eigen::Vector2d& p, const Eigen::Vector2d& a, double z) const {
-    return wrap_angle(z - predict_bearing(landmark_geometry(p.x(), p.y(), a.x(), a.y()), 0.0));
-  }
-  Eigen::RowVector2d jacobian(const Eigen::Vector2d& p, const Eigen::Vector2d& a) const {
-    const LandmarkGeometry g = landmark_geometry(p.x(), p.y(), a.x(), a.y());
-    LandmarkJacobian J;
-    if (!(g.q > 0.0)) return Eigen::RowVector2d::Zero();
-    predict_bearing(g, 0.0, &J);
-    return Eigen::RowVector2d(J.x, J.y);
-  }
-};
-
-struct Problem {
-  const Eigen::Ref<const Anchors>& anchors;
-  const Eigen::Ref<const Eigen::VectorXd>& z;
-  const Eigen::Ref<const Eigen::VectorXd>& sigma;
-  Eigen::Vector2d a(int i) const { return anchors.row(i).transpose(); }
-};
-
-struct Fit {
-  Eigen::Vector2d p = Eigen::Vector2d::Constant(kNaN);
-  double cost = kNaN;
-  int iterations = 0;
-  bool converged = false;
-};
-
-template <class Model>
-double cost_at(const Model& m, const Problem& pr, const std::vector<int>& idx, const Eigen::Vector2d& p) {
-  double c = 0.0;
-  for (int i : idx) {
-    const double e = m.residual(p, pr.a(i), pr.z[i]) / pr.sigma[i];
-    c += e * e;
-  }
-  return c;
-}
-
-/// Weighted normal equations A = Jᵀ W J, g = Jᵀ W e at p.
-template <class Model>
-void normal_equations(const Model& m, const Problem& pr, const std::vector<int>& idx, const Eigen::Vector2d& p,
-                      Eigen::Matrix2d& A, Eigen::Vector2d& g) {
-  A.setZero();
-  g.setZero();
-  for (int i : idx) {
-    const double w = 1.0 / (pr.sigma[i] * pr.sigma[i]);
-    const Eigen::RowVector2d J = m.jacobian(p, pr.a(i));
-    A.noalias() += w * J.transpose() * J;
-    g.noalias() += (w * m.residual(p, pr.a(i), pr.z[i])) * J.transpose();
   }
 }
 
@@ -241,6 +170,90 @@ std::string point_str(const Eigen::Vector2d& p) {
   std::ostringstream os;
   os << "(" << p.x() << ", " << p.y() << ")";
   return os.str();
+}
+
+/// The cost minimised over the line y + t·b, |t| ≤ span (b a unit vector):
+/// the best of 33 points on it, then Gauss–Newton in t with step halving.
+/// The cost along the line can have two minima (the two arms of a curved
+/// valley), so a descent from t = 0 alone can stop in the shallower one.
+template <class Model>
+double profile_cost(const Model& m, const Problem& pr, const std::vector<int>& idx, Eigen::Vector2d y,
+                    const Eigen::Vector2d& b, double span) {
+  constexpr int kGrid = 16;
+  double c = cost_at(m, pr, idx, y);
+  double best_t = 0.0;
+  for (int i = -kGrid; i <= kGrid; ++i) {
+    const double t = span * i / kGrid;
+    const double ct = i == 0 ? c : cost_at(m, pr, idx, Eigen::Vector2d(y + t * b));
+    if (ct < c) {
+      c = ct;
+      best_t = t;
+    }
+  }
+  y += best_t * b;
+  for (int it = 0; it < 50; ++it) {
+    double a = 0.0, g = 0.0;
+    for (int i : idx) {
+      const double w = 1.0 / (pr.sigma[i] * pr.sigma[i]);
+      const double jb = m.jacobian(y, pr.a(i)).dot(b);
+      a += w * jb * jb;
+      g += w * m.residual(y, pr.a(i), pr.z[i]) * jb;
+    }
+    double t = g / a;
+    if (!std::isfinite(t)) break;
+    double decrease = -1.0;
+    for (int h = 0; h < 40 && decrease < 0.0; ++h, t *= 0.5) {
+      const double cn = cost_at(m, pr, idx, Eigen::Vector2d(y + t * b));
+      if (cn < c) {
+        y += t * b;
+        decrease = c - cn;
+        c = cn;
+      }
+    }
+    if (!(decrease > 1e-12 * (1.0 + c))) break;
+  }
+  return c;
+}
+
+/// The fix's covariance widened to its profile likelihood (ours; the
+/// likelihood-based confidence region of Bates & Watts, "Nonlinear Regression
+/// Analysis and Its Applications", 1988, ch. 6, in place of the linear one):
+/// along each principal axis v_j of (Jᵀ W J)⁻¹, σ_j² its eigenvalue, the cost
+/// minimised over the other axis (within twice that axis's contour) must rise by k² (χ²₂ at
+/// LocalizationOptions::profile_probability) at p ± k σ_j v_j, as the
+/// quadratic model says.  Where it rises by less than k²/1.1 — a curved or
+/// flat valley: anchors nearly in line with the position, an anchor close to
+/// it — σ_j² is scaled by k²/(1.1 · rise), and again from the new points, at
+/// most 4 rounds, so that the Gaussian's contour at that probability reaches
+/// out as far as the cost's does.  It never narrows, and a rise within 10 % of
+/// the quadratic model's leaves the covariance as it is.
+template <class Model>
+void widen_to_profile(const Model& m, const Problem& pr, const std::vector<int>& idx, const Eigen::Vector2d& p,
+                      double cost, const LocalizationOptions& opt, Eigen::Matrix2d& cov) {
+  if (!(opt.profile_probability > 0.0) || !cov.allFinite()) return;
+  const double k2 = -2.0 * std::log1p(-opt.profile_probability);
+  constexpr double kTolerance = 1.1;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(cov);
+  const Eigen::Matrix2d V = es.eigenvectors();
+  Eigen::Vector2d lambda = es.eigenvalues().cwiseMax(0.0);
+  for (int round = 0; round < 4; ++round) {
+    bool widened = false;
+    for (int j = 0; j < 2; ++j) {
+      const Eigen::Vector2d v = V.col(j), other = V.col(1 - j);
+      const double reach = std::sqrt(k2 * lambda[j]), span = 2.0 * std::sqrt(k2 * lambda[1 - j]);
+      double rise = std::numeric_limits<double>::infinity();
+      for (double sign : {-1.0, 1.0})
+        rise = std::min(rise, profile_cost(m, pr, idx, Eigen::Vector2d(p + sign * reach * v), other, span) - cost);
+      const double scale = k2 / (kTolerance * std::max(rise, 1e-12 * k2));
+      if (scale > 1.01) {
+        lambda[j] *= std::min(scale, 1e6);
+        widened = true;
+      }
+    }
+    if (!widened) break;
+  }
+  cov = V * lambda.asDiagonal() * V.transpose();
+  cov = 0.5 * (cov + cov.transpose());
 }
 
 /// GDOP and covariance at p over idx.
@@ -367,6 +380,7 @@ LocalizationResult solve_subset(const Model& m, const Problem& pr, const std::ve
       }
     }
   }
+  widen_to_profile(m, pr, idx, f.p, f.cost, opt, res.covariance);
   res.position = f.p;
   res.iterations = f.iterations;
   res.chi2 = f.cost;

@@ -34,6 +34,7 @@ const ParamSet<LocalizationOptions>& param_set<LocalizationOptions>() {
           .real("tolerance", SN_REF(O, tolerance), "", above(0, 1), "relative step tolerance of the iteration")
           .real("max_gdop", SN_REF(O, max_gdop), "", above(0, kNone), "GDOP above this is degenerate geometry; inf = never")
           .real("ambiguity_margin", SN_REF(O, ambiguity_margin), "", closed(0, 1e6), "a second solution within this chi-square margin of the best, more than 3 sigma away, makes the fix ambiguous")
+          .real("profile_probability", SN_REF(O, profile_probability), "", closed(0, 0.999999), "widen each principal axis of the covariance until the cost's profile rises by the chi-square (2 dof) quantile at this probability where the Gaussian's contour is; 0 = the linear covariance alone")
           .real("min_crossing_angle", SN_REF(O, min_crossing_angle), "rad", closed(0, kPi / 2), "bearing lines crossing at less than this are parallel (below pi/2)")
           .integer("max_subsets", SN_REF(O, max_subsets), closed(1, 1e7), "minimal sets tried for outlier rejection: all when at most this many, else this many drawn with the seed")
           .set;

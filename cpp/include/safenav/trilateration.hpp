@@ -6,7 +6,8 @@
 //  * trilateration from >= 3 ranges r_i = ‖p − a_i‖ + v_i, v_i ~ N(0, σ_i²):
 //    linear least squares start, then weighted Gauss–Newton with
 //    Levenberg–Marquardt damping; covariance (Jᵀ W J)⁻¹ of the normal
-//    equations; GDOP; outlier rejection (exhaustive or sampled minimal sets,
+//    equations, widened where the cost's profile is flatter than its
+//    quadratic model (profile_probability); GDOP; outlier rejection (exhaustive or sampled minimal sets,
 //    then consensus refit) when >= 4 ranges;
 //  * bearing triangulation from >= 2 absolute bearings
 //    β_i = atan2(a_iy − y, a_ix − x) + v_i (same machinery).
@@ -51,6 +52,13 @@ struct LocalizationOptions {
   /// the best one at a position more than 3σ away makes the fix ambiguous
   /// (degenerate).  0 keeps only exact ties ambiguous.
   double ambiguity_margin = 9.0;
+  /// The covariance's probability contour (ours): along each principal axis
+  /// of (Jᵀ W J)⁻¹ the cost minimised over the other axis (its profile) must
+  /// rise by the χ²₂ quantile at this probability where the Gaussian's
+  /// contour is; where it rises by less than that over 1.1 (a curved valley:
+  /// anchors nearly in line with the position, an anchor close to it) that
+  /// axis is widened until it does.  0 = the linear (Jᵀ W J)⁻¹ alone.
+  double profile_probability = 0.99;
   /// Bearings: lines that cross at less than this angle (rad) are parallel.
   double min_crossing_angle = 1e-2;
   /// Minimal sets tried for outlier rejection: all of them when there are at
