@@ -173,13 +173,13 @@ std::string point_str(const Eigen::Vector2d& p) {
 }
 
 /// The cost minimised over the line y + t·b, |t| ≤ span (b a unit vector):
-/// the best of 33 points on it, then Gauss–Newton in t with step halving.
+/// the best of 13 points on it, then Gauss–Newton in t with step halving.
 /// The cost along the line can have two minima (the two arms of a curved
 /// valley), so a descent from t = 0 alone can stop in the shallower one.
 template <class Model>
 double profile_cost(const Model& m, const Problem& pr, const std::vector<int>& idx, Eigen::Vector2d y,
                     const Eigen::Vector2d& b, double span) {
-  constexpr int kGrid = 16;
+  constexpr int kGrid = 6;
   double c = cost_at(m, pr, idx, y);
   double best_t = 0.0;
   for (int i = -kGrid; i <= kGrid; ++i) {
