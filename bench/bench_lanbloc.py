@@ -17,6 +17,8 @@ Run from the repository root::
    mirror-ambiguity check; outlier rejection off, since the peer has none) against ``scipy.optimize.least_squares`` (method "lm")
    started from the true position + 1 m on the same problem.  µs per fix,
    median over repeats, and the ratio.  The positions must agree to 1e-6 m.
+   Ours is also timed with ``profile_probability=0`` (the linear covariance
+   alone): the difference is what the profile check of the covariance costs.
 
 Each repeat alternates ours and the peer (order flipped every repeat).
 """
@@ -94,18 +96,22 @@ def bench_trilateration(repeats: int, fixes: int):
     def run_ours():
         return [trilaterate(anchors, z, sig, reject_outliers=False).position for z in problems]
 
+    def run_linear():
+        return [trilaterate(anchors, z, sig, reject_outliers=False, profile_probability=0).position for z in problems]
+
     def run_peer():
         return [optimize.least_squares(lambda q, z=z: (z - np.linalg.norm(anchors - q, axis=1)) / sig, p + 1.0,
                                        method="lm").x for z in problems]
 
     diff = np.max(np.abs(np.array(run_ours()) - np.array(run_peer())))
-    t_ours, t_peer = [], []
+    runs = (run_ours, run_peer, run_linear)
+    times = ([], [], [])
     for k in range(repeats):
-        for which in ((0, 1) if k % 2 == 0 else (1, 0)):
+        for which in ((0, 1, 2) if k % 2 == 0 else (2, 1, 0)):
             t0 = time.perf_counter()
-            (run_ours if which == 0 else run_peer)()
-            (t_ours if which == 0 else t_peer).append((time.perf_counter() - t0) / fixes * 1e6)
-    return _median(t_ours), _median(t_peer), diff
+            runs[which]()
+            times[which].append((time.perf_counter() - t0) / fixes * 1e6)
+    return _median(times[0]), _median(times[1]), diff, _median(times[2])[0]
 
 
 def main():
@@ -118,9 +124,10 @@ def main():
     (mo, lo, hi), (mp, lp, hp), same = bench_stereo(repeats, frames=5)
     print(f"rectify+SGBM 640x480   ours {mo:8.2f} ms [{lo:.2f}-{hi:.2f}]   cv2 remap+StereoSGBM {mp:8.2f} ms "
           f"[{lp:.2f}-{hp:.2f}]   ratio peer/ours {mp / mo:5.2f}   identical disparities {same:.4f}")
-    (mo, lo, hi), (mp, lp, hp), diff = bench_trilateration(repeats, fixes=300)
+    (mo, lo, hi), (mp, lp, hp), diff, ml = bench_trilateration(repeats, fixes=300)
     print(f"trilateration 6 ranges ours {mo:8.1f} us [{lo:.1f}-{hi:.1f}]   scipy least_squares(lm) {mp:8.1f} us "
-          f"[{lp:.1f}-{hp:.1f}]   ratio peer/ours {mp / mo:5.1f}   max |Δp| {diff:.1e} m")
+          f"[{lp:.1f}-{hp:.1f}]   ratio peer/ours {mp / mo:5.1f}   max |Δp| {diff:.1e} m   "
+          f"ours with the linear covariance alone {ml:8.1f} us")
 
 
 if __name__ == "__main__":
