@@ -210,7 +210,7 @@ double profile_cost(const Model& m, const Problem& pr, const std::vector<int>& i
         c = cn;
       }
     }
-    if (!(decrease > 1e-12 * (1.0 + c))) break;
+    if (!(decrease > 1e-6 * (1.0 + c))) break;  // the rise is wanted to ~1e-3 of k²
   }
   return c;
 }
