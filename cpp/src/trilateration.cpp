@@ -172,9 +172,9 @@ std::string point_str(const Eigen::Vector2d& p) {
   return os.str();
 }
 
-/// The cost minimised over the line y + t·b, |t| ≤ span (b a unit vector):
-/// the best of 13 points on it, then Gauss–Newton in t with step halving.
-/// The cost along the line can have two minima (the two arms of a curved
+/// The cost minimised over the line y + t·b (b a unit vector): Gauss–Newton
+/// in t with step halving from the best of 13 points with |t| ≤ span.  The
+/// cost along the line can have two minima (the two arms of a curved
 /// valley), so a descent from t = 0 alone can stop in the shallower one.
 template <class Model>
 double profile_cost(const Model& m, const Problem& pr, const std::vector<int>& idx, Eigen::Vector2d y,
