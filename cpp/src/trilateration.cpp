@@ -173,23 +173,25 @@ std::string point_str(const Eigen::Vector2d& p) {
 }
 
 /// The cost minimised over the line y + t·b (b a unit vector): Gauss–Newton
-/// in t with step halving from the best of 13 points with |t| ≤ span.  The
-/// cost along the line can have two minima (the two arms of a curved
-/// valley), so a descent from t = 0 alone can stop in the shallower one.
+/// in t with step halving from the best of 17 points, t = 0 and ±span·{1/64,
+/// 1/32, …, 1/2, 3/4, 1}.  The cost along the line can have two minima (the
+/// two arms of a curved valley) at any scale: a descent from t = 0 alone
+/// stops in the shallower one, or at t = 0 itself where the two are
+/// symmetric about it (a fold: anchors in line with the position).
 template <class Model>
 double profile_cost(const Model& m, const Problem& pr, const std::vector<int>& idx, Eigen::Vector2d y,
                     const Eigen::Vector2d& b, double span) {
-  constexpr int kGrid = 6;
+  static constexpr double kOffsets[] = {1.0 / 64, 1.0 / 32, 1.0 / 16, 1.0 / 8, 0.25, 0.5, 0.75, 1.0};
   double c = cost_at(m, pr, idx, y);
   double best_t = 0.0;
-  for (int i = -kGrid; i <= kGrid; ++i) {
-    const double t = span * i / kGrid;
-    const double ct = i == 0 ? c : cost_at(m, pr, idx, Eigen::Vector2d(y + t * b));
-    if (ct < c) {
-      c = ct;
-      best_t = t;
+  for (double f : kOffsets)
+    for (double t : {-f * span, f * span}) {
+      const double ct = cost_at(m, pr, idx, Eigen::Vector2d(y + t * b));
+      if (ct < c) {
+        c = ct;
+        best_t = t;
+      }
     }
-  }
   y += best_t * b;
   for (int it = 0; it < 50; ++it) {
     double a = 0.0, g = 0.0;
