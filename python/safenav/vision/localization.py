@@ -17,10 +17,11 @@ LanBLoc "utilizes the recognized landmarks as anchor nodes for trilateration
   contour at that probability is.  Where it rises by less than that over
   1.1 — anchors nearly in line with the position, an anchor close to it, so
   that the cost's valley curves — the axis is widened until it does.  With
-  three ranges 11–22 m and 1.2–2.2 m away from anchors nearly in line with
-  the position, the linear covariance put 10–32 % of the fixes outside its
-  99 % ellipse; the widened one 0.9–4.5 %.  Well-spread anchors keep
-  ``(Jᵀ W J)⁻¹`` exactly.  ``profile_probability=0`` turns it off.
+  three anchors nearly in line with the position, the nearest 1.2–2.2 m
+  away and the others 11–22 m, the linear covariance put 10–32 % of the
+  fixes outside its 99 % ellipse; the widened one 0.9–4.5 %.  Well-spread
+  anchors keep ``(Jᵀ W J)⁻¹`` exactly.  ``profile_probability=0`` turns it
+  off (docs/lanbloc.md).
 * :func:`triangulate_bearings` — absolute bearings
   ``β_i = atan2(a_iy − y, a_ix − x) + v_i`` (relative bearings plus a known
   heading), linear start from the bearing lines, same refinement.
