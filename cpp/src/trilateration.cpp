@@ -221,8 +221,8 @@ double profile_cost(const Model& m, const Problem& pr, const std::vector<int>& i
 /// likelihood-based confidence region of Bates & Watts, "Nonlinear Regression
 /// Analysis and Its Applications", 1988, ch. 6, in place of the linear one):
 /// along each principal axis v_j of (Jᵀ W J)⁻¹, σ_j² its eigenvalue, the cost
-/// minimised over the other axis (within twice that axis's contour) must rise by k² (χ²₂ at
-/// LocalizationOptions::profile_probability) at p ± k σ_j v_j, as the
+/// minimised over the other axis (within twice that axis's contour) must rise
+/// by k² (χ²₂ at LocalizationOptions::profile_probability) at p ± k σ_j v_j, as the
 /// quadratic model says.  Where it rises by less than k²/1.1 — a curved or
 /// flat valley: anchors nearly in line with the position, an anchor close to
 /// it — σ_j² is scaled by k²/(1.1 · rise), and again from the new points, at
@@ -238,6 +238,7 @@ void widen_to_profile(const Model& m, const Problem& pr, const std::vector<int>&
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(cov);
   const Eigen::Matrix2d V = es.eigenvectors();
   Eigen::Vector2d lambda = es.eigenvalues().cwiseMax(0.0);
+  bool any = false;
   for (int round = 0; round < 4; ++round) {
     bool widened = false;
     for (int j = 0; j < 2; ++j) {
@@ -253,7 +254,9 @@ void widen_to_profile(const Model& m, const Problem& pr, const std::vector<int>&
       }
     }
     if (!widened) break;
+    any = true;
   }
+  if (!any) return;  // (Jᵀ W J)⁻¹ as it was, bit for bit
   cov = V * lambda.asDiagonal() * V.transpose();
   cov = 0.5 * (cov + cov.transpose());
 }
