@@ -169,15 +169,16 @@ class DriveJob:
     blind_check: int           # step-limit trials rerun with a record to see where they ended
     nodes: int = 3             # Gauss-Hermite nodes per axis of the expected belief's deviation mixture
     along: bool = False        # the mixture stratifies the deviation along the path too
+    split: bool = False        # the mixture's strata are cells, cut where the view changes
 
 
-def _profiles(sc, path, navigator, nodes: int = 3, along: bool = False):
+def _profiles(sc, path, navigator, nodes: int = 3, along: bool = False, split: bool = False):
     """(expected, robust, nominal): the belief along ``path`` with ``sc``'s
     sensors, seen with the vehicle's own camera (what it will get) and with
     the certificate's robust camera; and the expected belief along the
     method's nominal trajectory (``navigator.nominal_trajectory()``)."""
     kw = C.mission_inputs(sc, path)
-    dev = {"deviation_nodes": nodes, "deviation_along": along}
+    dev = {"deviation_nodes": nodes, "deviation_along": along, "deviation_split": split}
     run_kw = {k: v for k, v in kw.items() if k != "speed"}
     return (propagate_belief(path, **dev, **kw), propagate_belief(path, **robust_sight(), **kw),
             propagate_belief_along(navigator.nominal_trajectory(), **dev, **run_kw))
@@ -228,7 +229,7 @@ def drive(job: DriveJob) -> dict:
     out = run_cell(c)
     cpu_trials = time.thread_time() - cpu
     rec = nav.make_navigator(c.scenario, c.path, method=c.method, filter=c.filter, record=True)
-    prof, robust, nominal = _profiles(c.scenario, c.path, rec, job.nodes, job.along)
+    prof, robust, nominal = _profiles(c.scenario, c.path, rec, job.nodes, job.along, job.split)
     truths, estimates, measured = [], [], []
     for seed in out["seeds"][:job.record]:
         r = rec.run(seed)
@@ -391,6 +392,8 @@ def main() -> None:
                     help="Gauss-Hermite nodes per axis of the expected belief's deviation mixture (default 3)")
     ap.add_argument("--deviation-along", action="store_true",
                     help="stratify the expected belief's deviation along the path too (n^3 strata)")
+    ap.add_argument("--deviation-split", action="store_true",
+                    help="the expected belief's strata are cells of the deviation, cut where the view changes")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--full", type=int, default=100_000, help="total trials of the run to estimate the time of")
     ap.add_argument("--out", type=Path, default=None, help="write the per-cell table (CSV) here")
@@ -430,7 +433,7 @@ def main() -> None:
 
     print(f"\n2. driving {len(cells)} cells x {args.trials} trials", flush=True)
     drive_jobs = [DriveJob(c, args.record, args.bin_m, args.blind_check, args.deviation_nodes,
-                           args.deviation_along) for c in cells]
+                           args.deviation_along, args.deviation_split) for c in cells]
     out = runner.map_ordered(run_and_report, drive_jobs, workers=args.workers)
     wall = time.perf_counter() - t
     df = pd.DataFrame([o["row"] for o in out])

@@ -96,13 +96,13 @@ def test_sigma_calibration_matches_a_direct_computation(along):
 
     # The prediction: each stratum of each stage at the arc of its own position, with its weight.
     w = np.asarray(prof.strata_weight)
-    spos = np.asarray(prof.strata_positions).reshape(len(pos), len(w), 2)
+    spos = np.asarray(prof.strata_positions).reshape(len(pos), w.shape[1], 2)
     tr, ns = np.zeros(nb), np.zeros(nb)
     for k in range(len(pos)):
-        for i in range(len(w)):
+        for i in range(w.shape[1]):
             j = bin_of(arc_position(pos, spos[k, i][None])[0])
-            tr[j] += w[i] * prof.strata_msq[k, i]
-            ns[j] += w[i]
+            tr[j] += w[k, i] * prof.strata_msq[k, i]
+            ns[j] += w[k, i]
     sq, n, hit = np.zeros(nb), np.zeros(nb), np.zeros(nb)
     per_sq, per_n = np.zeros((len(truths), nb)), np.zeros((len(truths), nb))
     for i, (x, xh) in enumerate(zip(truths, estimates)):
@@ -157,7 +157,9 @@ def test_strata_are_where_their_error_puts_them(along):
               start_cov=np.diag([0.4, 0.1, 0.003, 0.002]))
     prof = propagate_belief(path, deviation_along=along, **kw)
     w = np.asarray(prof.strata_weight)
-    assert len(w) == (27 if along else 9) and np.isclose(w.sum(), 1.0, rtol=1e-14)
+    assert w.shape == (len(prof.positions), 27 if along else 9) and np.all(w == w[0])
+    w = w[0]
+    assert np.isclose(w.sum(), 1.0, rtol=1e-14)
     pos = np.asarray(prof.positions)
     cov = np.asarray(prof.cov_xy).reshape(-1, 2, 2)
     d = np.asarray(prof.strata_positions).reshape(len(pos), len(w), 2) - pos[:, None, :]
@@ -263,3 +265,78 @@ def test_the_expected_belief_predicts_the_fixes_and_errors_the_vehicle_gets():
             after = (cal.edges[:-1] >= 30.0) & (cal.edges[:-1] < 60.0)   # dead reckoning from the cluster's fixes
             assert np.all(cal_r.ratio[after] < 0.7), cal_r.ratio
     assert shares[True] > 0.9 and shares[False] < 0.8, shares
+
+
+def _lateral_window(split, nodes=3):
+    """A straight path past one landmark that only vehicles within 1 m to the
+    right of the path come near enough to see (range 21 m, 20 m to the left
+    at x = 30), with the lateral σ 0.4 m at the start and next to no noise,
+    so a vehicle's offset stays what it started with."""
+    se = _core.SensorSettings()
+    se.landmarks = np.array([[30.0, 20.0]])
+    se.max_range, se.field_of_view, se.occlusion, se.min_landmarks = 21.0, 2 * np.pi, False, 1
+    bmm = _core.BmmParams()
+    bmm.position_noise, bmm.heading_noise, bmm.speed_noise = 1e-9, 1e-9, 1e-9
+    return propagate_belief(np.array([[0.0, 0.0], [60.0, 0.0]]), sensors=se, bmm=bmm,
+                            map=P.make_map(lower=(-10.0, -30.0), upper=(70.0, 30.0)), speed=2.0,
+                            start_cov=np.diag([0.01, 0.16, 1e-8, 1e-10]), deviation_split=split,
+                            deviation_nodes=nodes)
+
+
+@pytest.mark.parametrize("nodes", [3, 5])
+def test_split_strata_keep_the_vehicles_that_never_see_at_their_exact_share(nodes):
+    """BeliefSettings.deviation_split: a vehicle drives its estimate along the
+    path, so it is off the path by minus its error, e_y.  It sees the landmark
+    where (30, -e_y) is within 21 m of (30, 20): e_y <= 1.  The vehicles with
+    e_y > 1, a share P(N(0, 0.4^2) > 1) = 0.0062, never see it and keep
+    their start error; after the window their strata weigh that share, to
+    the bisection's resolution, and hold the truncated normal's second
+    moment.  The point nodes of the Gauss-Hermite rule (at most sqrt(3) σ =
+    0.69 m for 3 nodes, 2.86 σ = 1.14 m for 5) put the whole rule's
+    outermost node on one side: none, or 1.1 %, never see."""
+    prof = _lateral_window(True, nodes)
+    w, msq = np.asarray(prof.strata_weight), np.asarray(prof.strata_msq)
+    np.testing.assert_allclose(w.sum(axis=1), 1.0, rtol=1e-12)
+    end = -1                                          # x = 60: out of every vehicle's range since x = 40
+    blind = msq[end] > 0.5                            # e_y > 1: the start error, over 1 m^2
+    a = 1.0 / 0.4
+    share = stats.norm.sf(a)
+    np.testing.assert_allclose(w[end, blind].sum(), share, rtol=0.05)
+    # Their mean square error: E[e_y^2 | e_y > 1] + the other components' (0.01 and ~0).
+    lam = stats.norm.pdf(a) / share
+    second = 0.16 * (1.0 + a * lam)
+    np.testing.assert_allclose(w[end, blind] @ msq[end, blind] / w[end, blind].sum(), second + 0.01, rtol=0.05)
+    # The reported second moment is the strata's.
+    cov = np.asarray(prof.cov_xy)
+    np.testing.assert_allclose(np.einsum("ki,ki->k", w, msq), cov[:, 0] + cov[:, 3],
+                               rtol=1e-12)
+    gh = _lateral_window(False, nodes)
+    gw, gm = np.asarray(gh.strata_weight), np.asarray(gh.strata_msq)
+    assert gw[end, gm[end] > 0.5].sum() == pytest.approx(0.0 if nodes == 3 else 0.011257411327720677)
+
+
+@pytest.mark.parametrize("nodes", [3, 5, 7])
+def test_split_cells_are_the_gauss_hermite_weights_and_the_same_mixture_while_all_see_alike(nodes):
+    """The cells' masses are the n-node rule's weights (per axis, products
+    over the two axes), and while every vehicle sees alike (a blind path:
+    no split) the mixture's second moment is the point rule's: both are the
+    error's covariance M, C + B (V_i + z_i z_i^T) B^T averaged to C + B B^T."""
+    se = _core.SensorSettings()
+    se.landmarks = np.array([[500.0, 500.0]])
+    kw = dict(sensors=se, map=P.make_map(upper=(40.0, 40.0)), speed=2.0,
+              start_cov=np.diag([0.4, 0.1, 0.003, 0.002]), deviation_nodes=nodes)
+    split = propagate_belief(PATH, deviation_split=True, **kw)
+    points = propagate_belief(PATH, **kw)
+    x, gw = np.polynomial.hermite_e.hermegauss(nodes)
+    gw = gw / np.sqrt(2 * np.pi)
+    w = np.asarray(split.strata_weight)
+    assert w.shape == (len(split.positions), nodes * nodes)
+    np.testing.assert_allclose(w[0], np.outer(gw, gw).ravel(), rtol=1e-12)
+    np.testing.assert_allclose(np.asarray(split.covariance), np.asarray(points.covariance), rtol=1e-9, atol=1e-15)
+    # The strata are at their cells' means (u = L z, the lateral offset L_00 z_0 with the same L):
+    # the outermost at E[z | z > a], a the quantile that leaves the last weight, not at the last node.
+    a = stats.norm.isf(gw[-1])
+    d = np.asarray(split.strata_positions).reshape(len(split.positions), -1, 2) - np.asarray(split.positions)[:, None]
+    dp = np.asarray(points.strata_positions).reshape(len(split.positions), -1, 2) - np.asarray(points.positions)[:, None]
+    far = np.linalg.norm(d[1:], axis=2).max(axis=1) / np.linalg.norm(dp[1:], axis=2).max(axis=1)
+    np.testing.assert_allclose(far, stats.norm.pdf(a) / gw[-1] / x[-1], rtol=1e-9)

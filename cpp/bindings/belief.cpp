@@ -17,6 +17,7 @@ void bind_settings(py::module_& m) {
       .def_readwrite("deviation_mixture", &BeliefSettings::deviation_mixture)
       .def_readwrite("deviation_nodes", &BeliefSettings::deviation_nodes)
       .def_readwrite("deviation_along", &BeliefSettings::deviation_along)
+      .def_readwrite("deviation_split", &BeliefSettings::deviation_split)
       .def_readwrite("inflation", &BeliefSettings::inflation)
       .def("validate", &BeliefSettings::validate);
 

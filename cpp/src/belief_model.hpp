@@ -2,6 +2,7 @@
 // belief planner (belief_search.cpp).  See safenav/belief.hpp for the model.
 #pragma once
 
+#include <cmath>
 #include <limits>
 #include <vector>
 
@@ -50,6 +51,9 @@ struct StepOutcome {
   double p_fix = 1.0;                    ///< probability that the step's fix arrives (1: its updates are certain)
   Eigen::Matrix4d T_fix = Eigen::Matrix4d::Identity(), T_none = Eigen::Matrix4d::Identity();
 };
+
+inline double normal_sf(double z) { return 0.5 * std::erfc(z / std::sqrt(2.0)); }  ///< P(N(0,1) > z)
+inline double normal_pdf(double z) { return std::exp(-0.5 * z * z) / std::sqrt(2.0 * kPi); }
 
 /// The sensors, the motion model and the map, ready to step beliefs.
 class Model {
@@ -120,5 +124,17 @@ class Model {
   Eigen::Matrix<double, 2, 4> H_fix_, H_imu_;
   Eigen::Matrix2d R_fix_, R_imu_;
 };
+
+/// The deviation mixture's strata per stage (BeliefProfile::strata_*):
+/// each one's weight, where it saw from and its second moment.
+struct StrataTrace {
+  Eigen::MatrixXd weight, positions, msq;
+};
+
+/// BeliefSettings::deviation_mixture (belief_mixture.cpp): P[k] for k ≥ 1
+/// from P[0] along `steps`, and A[k − 1], the error's transition, for
+/// Patil et al.'s recursion.
+void deviation_mixture(const Model& model, const std::vector<Step>& steps, std::vector<StateCov>& P,
+                       std::vector<Eigen::Matrix4d>& A, StrataTrace& trace);
 
 }  // namespace safenav::belief

@@ -54,7 +54,7 @@ __all__ = ["BeliefSettings", "BeliefPlannerSettings", "BeliefProblem", "BeliefPr
 _BELIEF_KEYS = {"speed": "speed", "step": "step", "bearing_std": "bearing_std",
                 "sight_fov_margin": "sight_fov_margin", "sight_range_fraction": "sight_range_fraction",
                 "deviation_mixture": "deviation_mixture", "deviation_nodes": "deviation_nodes",
-                "deviation_along": "deviation_along",
+                "deviation_along": "deviation_along", "deviation_split": "deviation_split",
                 "vehicle_radius": "inflation.vehicle_radius",
                 "margin": "inflation.margin"}
 
@@ -127,7 +127,9 @@ def propagate_belief(path, *, sensors, map, bmm=None, start_cov=None, settings: 
     expected belief over the vehicle's deviation from the path, its error
     stratified at 3×3 Gauss–Hermite nodes, or 5×5 or 7×7 with ``deviation_nodes``;
     ``BeliefSettings.deviation_mixture``), ``deviation_along`` (stratify along
-    the path too: n³ strata).  With the mixture, ``.strata_weight``,
+    the path too: n³ strata), ``deviation_split`` (strata at cells of the
+    deviation, cut where the view changes).  With the mixture,
+    ``.strata_weight`` (each stratum's weight per stage, (N, S)),
     ``.strata_positions`` (each stratum's true position per stage, (N, 2S))
     and ``.strata_msq`` (its mean square position error, (N, S)) say where
     its vehicles are and how far off: :func:`sigma_calibration` bins each at
@@ -305,7 +307,7 @@ def _predicted_per_bin(profile, path, edges):
         return np.bincount(b, cov[:, 0] + cov[:, 3], n_bins), np.bincount(b, minlength=n_bins).astype(float)
     pos = np.asarray(profile.strata_positions, dtype=float).reshape(-1, 2)
     msq = np.asarray(profile.strata_msq, dtype=float).ravel()
-    ww = np.tile(w, len(path))
+    ww = w.ravel()
     b = np.clip(np.searchsorted(edges, arc_position(path, pos), side="right") - 1, 0, n_bins - 1)
     return np.bincount(b, ww * msq, n_bins), np.bincount(b, ww, n_bins)
 

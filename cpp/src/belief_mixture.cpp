@@ -1,0 +1,468 @@
+// The expected belief over the vehicle's deviation from the path
+// (BeliefSettings::deviation_mixture; docs/belief_planning.md, "The model").
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "belief_model.hpp"
+#include "errors.hpp"
+
+namespace safenav::belief {
+namespace {
+
+using detail::bad;
+
+/// The Gauss–Hermite rule of N(0, 1) with n = 3, 5 or 7 nodes
+/// (numpy.polynomial.hermite_e.hermegauss, weights over √(2π)).
+struct Quadrature {
+  std::vector<double> node, weight;
+  explicit Quadrature(int n) {
+    if (n == 3) {
+      node = {-std::sqrt(3.0), 0.0, std::sqrt(3.0)};
+      weight = {1.0 / 6.0, 2.0 / 3.0, 1.0 / 6.0};
+    } else if (n == 5) {
+      node = {-2.8569700138728056, -1.355626179974266, 0.0, 1.355626179974266, 2.8569700138728056};
+      weight = {0.011257411327720677, 0.22207592200561257, 8.0 / 15.0, 0.22207592200561257, 0.011257411327720677};
+    } else if (n == 7) {
+      node = {-3.7504397177257425, -2.366759410734541, -1.1544053947399682, 0.0,
+              1.1544053947399682,  2.366759410734541,  3.7504397177257425};
+      weight = {0.0005482688559722169, 0.030757123967586515, 0.24012317860501264, 16.0 / 35.0,
+                0.24012317860501264,   0.030757123967586515, 0.0005482688559722169};
+    } else {
+      bad("deviation_nodes = " + std::to_string(n) + ": must be 3, 5 or 7");
+    }
+  }
+};
+
+/// N(0, 1) restricted to [lo, hi] (either may be infinite): its mass, mean
+/// and variance (the truncated normal's moments).
+struct Interval {
+  double lo = 0.0, hi = 0.0, mass = 1.0, mean = 0.0, var = 0.0;
+};
+
+Interval interval(double lo, double hi) {
+  Interval c{lo, hi};
+  // Differences of the far tail, so a cell far out keeps its digits.
+  c.mass = lo >= 0.0 ? normal_sf(lo) - normal_sf(hi) : normal_sf(-hi) - normal_sf(-lo);
+  const auto xpdf = [](double z) { return std::isfinite(z) ? z * normal_pdf(z) : 0.0; };
+  const auto pdf = [](double z) { return std::isfinite(z) ? normal_pdf(z) : 0.0; };
+  c.mean = std::clamp((pdf(lo) - pdf(hi)) / c.mass, lo, hi);
+  c.var = std::max(0.0, 1.0 + (xpdf(lo) - xpdf(hi)) / c.mass - c.mean * c.mean);
+  return c;
+}
+
+/// z with P(N(0, 1) > z) = p, 0 < p < 1 (bisection to the last bit).
+double normal_isf(double p) {
+  double a = -40.0, b = 40.0;
+  for (int i = 0; i < 200 && b - a > 0.0; ++i) {
+    const double mid = 0.5 * (a + b);
+    if (mid == a || mid == b) break;
+    (normal_sf(mid) > p ? a : b) = mid;
+  }
+  return 0.5 * (a + b);
+}
+
+/// One stratum of the mixture: its share of the vehicles, the cell of the
+/// deviation z ~ N(0, I_K) it stands for (a Gauss–Hermite node is a cell of
+/// one point: lo = hi = mean, var 0), its filter covariance P, its error's
+/// mean m and second moment P + N, and B, how its error's mean moves with z
+/// across the cell (e = m + B (z − mean) + an error independent of z).
+template <int K>
+struct Stratum {
+  using VecK = Eigen::Matrix<double, K, 1>;
+  VecK lo, hi, mean, var;
+  double w = 1.0;
+  StateCov P = StateCov::Zero(), N = StateCov::Zero();
+  Eigen::Vector4d m = Eigen::Vector4d::Zero();
+  Eigen::Matrix<double, 4, K> B = Eigen::Matrix<double, 4, K>::Zero();
+  Step seen;  ///< what it sees this step
+};
+
+/// The strata of a fresh stratification: the product rule of K copies of
+/// the n-node rule.  Without `cells`, stratum i is the Gauss–Hermite node
+/// z_i with its weight; with them, it is the box of z whose per-axis
+/// intervals carry the nodes' weights as their mass (for 3 nodes, cut at
+/// ±0.967), at the box's mean and with its variance.
+template <int K>
+std::vector<Stratum<K>> rule(const Quadrature& q, bool cells) {
+  const std::size_t n = q.node.size();
+  std::vector<Interval> axis(n);
+  double below = 0.0, lo = -std::numeric_limits<double>::infinity();
+  for (std::size_t j = 0; j < n; ++j) {
+    below += q.weight[j];
+    const double hi = j + 1 < n ? normal_isf(1.0 - below) : std::numeric_limits<double>::infinity();
+    axis[j] = cells ? interval(lo, hi) : Interval{q.node[j], q.node[j], q.weight[j], q.node[j], 0.0};
+    lo = hi;
+  }
+  std::size_t count = 1;
+  for (int a = 0; a < K; ++a) count *= n;
+  std::vector<Stratum<K>> out(count);
+  for (std::size_t i = 0; i < count; ++i) {
+    std::size_t rest = i;  // the last axis varies fastest
+    for (int a = K - 1; a >= 0; --a) {
+      const Interval& c = axis[rest % n];
+      out[i].lo[a] = c.lo, out[i].hi[a] = c.hi, out[i].mean[a] = c.mean, out[i].var[a] = c.var;
+      out[i].w *= c.mass;
+      rest /= n;
+    }
+  }
+  return out;
+}
+
+/// The strata anew from the mixture's error covariance
+/// M = Σ w_i (P_i + N_i): stratum i is the error given z in its cell,
+/// u = H e = L z (L Lᵀ = H M Hᵀ): mean m_i = B z̄_i, B = M Hᵀ L⁻ᵀ, and
+/// second moment P_i + N_i = C + B (V_i + z̄_i z̄_iᵀ) Bᵀ, C = M − M Hᵀ (H M Hᵀ)⁻¹ H M.
+/// Each keeps its filter covariance P_i; with another count of strata than
+/// the rule's (cells split since the last stratification), each takes
+/// their weighted mean.
+template <int K>
+void stratify(const Eigen::Matrix<double, K, 4>& H, const std::vector<Stratum<K>>& fresh, std::vector<Stratum<K>>& st) {
+  using MatK = Eigen::Matrix<double, K, K>;
+  StateCov M = StateCov::Zero(), Pbar = StateCov::Zero();
+  for (const Stratum<K>& s : st) M += s.w * (s.P + s.N), Pbar += s.w * s.P;
+  M = 0.5 * (M + M.transpose());
+  if (st.size() != fresh.size()) {
+    st = fresh;
+    for (Stratum<K>& s : st) s.P = Pbar;
+  }
+  const Eigen::Matrix<double, 4, K> G = M * H.transpose();
+  const MatK S = H * G;
+  const Eigen::LLT<MatK> llt(S);
+  double floor = 1e-12;  // 1e-12 tr(S)^K: the determinant's units
+  for (int a = 0; a < K; ++a) floor *= S.trace();
+  const bool ok = llt.info() == Eigen::Success && S.determinant() > floor;
+  const StateCov C = ok ? StateCov(M - G * llt.solve(G.transpose())) : M;
+  const Eigen::Matrix<double, 4, K> B =
+      ok ? Eigen::Matrix<double, 4, K>(G * llt.matrixU().solve(MatK::Identity())) : Eigen::Matrix<double, 4, K>::Zero();
+  for (std::size_t i = 0; i < st.size(); ++i) {
+    Stratum<K>& s = st[i];
+    s.lo = fresh[i].lo, s.hi = fresh[i].hi, s.mean = fresh[i].mean, s.var = fresh[i].var, s.w = fresh[i].w;
+    s.m = ok ? Eigen::Vector4d(G * llt.matrixU().solve(s.mean)) : Eigen::Vector4d::Zero();
+    s.B = B;
+    s.N = C - s.P + s.m * s.m.transpose();
+    if (s.var.any()) s.N += B * s.var.asDiagonal() * B.transpose();
+  }
+}
+
+/// u = H e at heading h: across the leg (its left normal) and the heading.
+Eigen::Matrix<double, 2, 4> lateral_axes(double h) {
+  Eigen::Matrix<double, 2, 4> H;
+  H << -std::sin(h), std::cos(h), 0.0, 0.0, 0.0, 0.0, 0.0, 1.0;
+  return H;
+}
+
+/// u = H e at heading h: along the leg, across it and the heading.
+Eigen::Matrix<double, 3, 4> full_axes(double h) {
+  Eigen::Matrix<double, 3, 4> H;
+  H << std::cos(h), std::sin(h), 0.0, 0.0, -std::sin(h), std::cos(h), 0.0, 0.0, 0.0, 0.0, 0.0, 1.0;
+  return H;
+}
+
+/// Whether two views take the same updates (landmarks in view, fix, ranges).
+bool same_view(const Step& a, const Step& b) { return a.seen == b.seen && a.fix == b.fix && a.ranges == b.ranges; }
+
+/// Whether the strata are one Gaussian again: every one took the same
+/// updates and their filter covariances agree to within 1 % of their norm
+/// (Frobenius).  Mid-transition, when some have seen a landmark and some
+/// not, the mixture is far from Gaussian, and stratifying it anew would
+/// move the late strata's error toward the rest.
+template <int K>
+bool one_gaussian(const std::vector<Stratum<K>>& st) {
+  constexpr double tol = 1e-2;
+  for (std::size_t i = 1; i < st.size(); ++i) {
+    if (!same_view(st[i].seen, st[0].seen)) return false;
+    if ((st[i].P - st[0].P).norm() > tol * st[0].P.norm()) return false;
+  }
+  return true;
+}
+
+/// A, scaled down where needed so that A P_prev Aᵀ ⪯ P_next: Patil's
+/// recursion needs Cov w = P_next − A P_prev Aᵀ ⪰ 0.  A stratum's update
+/// can raise its error (its filter trusts a fix more than its own, smaller
+/// error warrants), so the mixture's update need not shrink it in every
+/// direction.  The scale keeps the marginals and lowers only the correlation
+/// of the errors between stages: toward independent stages, whose product
+/// of survivals is close to the union bound for small probabilities.
+Eigen::Matrix4d within_marginals(const Eigen::Matrix4d& A, const StateCov& P_prev, const StateCov& P_next) {
+  const StateCov X = A * P_prev * A.transpose();
+  const Eigen::GeneralizedSelfAdjointEigenSolver<StateCov> ges(0.5 * (X + X.transpose()), P_next,
+                                                               Eigen::EigenvaluesOnly);
+  if (ges.info() != Eigen::Success) return Eigen::Matrix4d::Zero();
+  const double lambda = ges.eigenvalues().maxCoeff();
+  return lambda > 1.0 ? Eigen::Matrix4d(A / std::sqrt(lambda * (1.0 + 1e-12))) : A;
+}
+
+/// What a vehicle with mean error e (estimate − truth) sees at step k with
+/// the along-track axis (BeliefSettings::deviation_along).  Its speed
+/// follows the command, so its true progress along the path keeps to the
+/// nominal's, and it is its estimate that runs e_along = t·e ahead; the
+/// controller turns where the estimate is.  So it sees from the nominal
+/// pose e_along further along the steps (`arc`: metres at each stage),
+/// moved by −e in position and turned by −e_θ: on a straight leg that is
+/// the nominal's arc, at a turn it turns early or late.
+Step ahead_view(const Model& model, const std::vector<Step>& steps, const std::vector<double>& arc, std::size_t k,
+                const Eigen::Vector4d& e) {
+  const double h = steps[k].x[kTheta];
+  const double target = arc[k] + std::cos(h) * e[0] + std::sin(h) * e[1];
+  const auto it = std::lower_bound(arc.begin() + 1, arc.end(), target);
+  std::size_t j = static_cast<std::size_t>(it - arc.begin());
+  if (j >= arc.size()) j = arc.size() - 1;
+  if (j > 1 && target - arc[j - 1] < arc[j] - target) --j;  // the nearest stage
+  // The rest of the way along stage j's own step.
+  const Step& v = steps[j];
+  const Eigen::Vector2d dir = v.length > 0.0 ? Eigen::Vector2d((v.end - v.x.head<2>()) / v.length)
+                                             : Eigen::Vector2d(std::cos(v.x[kTheta]), std::sin(v.x[kTheta]));
+  const double rest = std::clamp(target - arc[j], -v.length, j + 1 < arc.size() ? steps[j + 1].length : 0.0);
+  return model.seen_from(steps[k], v, rest * dir - e.head<2>(), -e[kTheta]);
+}
+
+/// The mixture's bounds on splitting: the most strata at once, and the
+/// room kept for the step's cuts (the closest strata are joined first); the
+/// least share a split may leave on either side, where an unbounded cell
+/// is probed (P(z > 3.09) = 10⁻³), the bisection's steps; and how close
+/// two adjacent strata's filter covariances must be to join again.
+constexpr std::size_t kMaxStrata = 64;
+constexpr std::size_t kRoom = 8;
+constexpr double kJoinTolerance = 0.1;
+constexpr double kMinShare = 1e-4;
+constexpr double kProbeTail = 3.090232306167813;
+constexpr int kBisections = 12;
+
+/// BeliefSettings::deviation_split: where stratum `i`'s cell holds vehicles
+/// that see otherwise than its mean (probed at the cell's ends along each
+/// axis, an unbounded end at ±kProbeTail), the cell is cut where the view
+/// changes (bisection between the mean and that end), and the part beyond
+/// becomes a stratum of its own, with its exact share of N(0, I), its mean
+/// and variance, and the same residual error: P + N − m mᵀ − B V Bᵀ.  At most
+/// one cut per stratum and step.  `view(s, z)` is what a vehicle at z of s sees.
+template <int K, typename View>
+void split_at_view_change(std::vector<Stratum<K>>& st, std::size_t i, const View& view) {
+  using VecK = Eigen::Matrix<double, K, 1>;
+  for (int a = 0; a < K; ++a)
+    for (const double side : {-1.0, 1.0}) {
+      const Stratum<K>& s = st[i];
+      double end = side < 0.0 ? s.lo[a] : s.hi[a];
+      if (!std::isfinite(end)) end = side * kProbeTail;
+      if (!((end - s.mean[a]) * side > 0.0)) continue;
+      VecK z = s.mean;
+      z[a] = end;
+      if (same_view(view(s, z), s.seen)) continue;
+      double in = s.mean[a], out = end;
+      for (int b = 0; b < kBisections; ++b) {
+        z[a] = 0.5 * (in + out);
+        (same_view(view(s, z), s.seen) ? in : out) = z[a];
+      }
+      const double cut = 0.5 * (in + out);
+      const Interval whole = interval(s.lo[a], s.hi[a]);
+      const Interval near = side < 0.0 ? interval(cut, s.hi[a]) : interval(s.lo[a], cut);
+      const Interval far = side < 0.0 ? interval(s.lo[a], cut) : interval(cut, s.hi[a]);
+      if (std::min(near.mass, far.mass) * s.w / whole.mass < kMinShare) continue;
+      const StateCov residual = s.N - s.m * s.m.transpose() - s.B * s.var.asDiagonal() * s.B.transpose();
+      Stratum<K> parts[2] = {s, s};
+      int p = 0;
+      for (const Interval* c : {&near, &far}) {
+        Stratum<K>& t = parts[p++];
+        t.lo[a] = c->lo, t.hi[a] = c->hi;
+        t.w = s.w * c->mass / whole.mass;
+        t.m = s.m + s.B.col(a) * (c->mean - s.mean[a]);
+        t.mean[a] = c->mean, t.var[a] = c->var;
+        t.N = residual + t.m * t.m.transpose() + t.B * t.var.asDiagonal() * t.B.transpose();
+        t.seen = view(t, t.mean);
+      }
+      st[i] = parts[0];
+      st.push_back(parts[1]);
+      return;
+    }
+}
+
+/// The axis on which the cells of strata a and b touch to make a box (the
+/// same interval on every other axis), or −1; also −1 unless they take the
+/// same updates this step.
+template <int K>
+int adjacent(const Stratum<K>& a, const Stratum<K>& b) {
+  int axis = -1;
+  for (int d = 0; d < K; ++d) {
+    if (a.lo[d] == b.lo[d] && a.hi[d] == b.hi[d]) continue;
+    if (axis >= 0 || !(a.hi[d] == b.lo[d] || b.hi[d] == a.lo[d])) return -1;
+    axis = d;
+  }
+  return axis >= 0 && same_view(a.seen, b.seen) ? axis : -1;
+}
+
+/// How far apart two strata's filter covariances are (Frobenius, relative).
+template <int K>
+double apart(const Stratum<K>& a, const Stratum<K>& b) {
+  return (a.P - b.P).norm() / std::max(a.P.norm(), b.P.norm());
+}
+
+/// Stratum j joined to stratum i on `axis`, moment for moment: the weights
+/// add; the error's mean, second moment, the filter covariance and B are
+/// the weighted means; the cell is their union.
+template <int K>
+void join(std::vector<Stratum<K>>& st, std::size_t i, std::size_t j, int axis) {
+  Stratum<K>& s = st[i];
+  const Stratum<K>& t = st[j];
+  const double w = s.w + t.w, u = s.w / w, v = t.w / w;
+  const StateCov moment = u * (s.P + s.N) + v * (t.P + t.N);
+  s.P = u * s.P + v * t.P;
+  s.N = moment - s.P;
+  s.m = u * s.m + v * t.m;
+  s.B = u * s.B + v * t.B;
+  const Interval c = interval(std::min(s.lo[axis], t.lo[axis]), std::max(s.hi[axis], t.hi[axis]));
+  s.lo[axis] = c.lo, s.hi[axis] = c.hi, s.mean[axis] = c.mean, s.var[axis] = c.var;
+  s.w = w;
+  st.erase(st.begin() + static_cast<std::ptrdiff_t>(j));
+}
+
+/// Cells cut at a view change that take the same updates again and whose
+/// filter covariances are within `tol` are joined (`join`).  Without this a
+/// boundary that moves across a cell step by step leaves a sliver behind
+/// each step.
+template <int K>
+void merge_alike(std::vector<Stratum<K>>& st, double tol) {
+  for (std::size_t i = 0; i < st.size(); ++i)
+    for (std::size_t j = i + 1; j < st.size();) {
+      const int a = adjacent(st[i], st[j]);
+      if (a >= 0 && apart(st[i], st[j]) <= tol)
+        join(st, i, j, a), j = i + 1;
+      else
+        ++j;
+    }
+}
+
+/// Joins the closest pair of adjacent strata that take the same updates
+/// (`apart`), to make room for a cut; false when there is none.
+template <int K>
+bool make_room(std::vector<Stratum<K>>& st) {
+  double best = std::numeric_limits<double>::infinity();
+  std::size_t bi = 0, bj = 0;
+  int axis = -1;
+  for (std::size_t i = 0; i < st.size(); ++i)
+    for (std::size_t j = i + 1; j < st.size(); ++j) {
+      const int a = adjacent(st[i], st[j]);
+      const double d = a >= 0 ? apart(st[i], st[j]) : best;
+      if (d < best) best = d, bi = i, bj = j, axis = a;
+    }
+  if (axis < 0) return false;
+  join(st, bi, bj, axis);
+  return true;
+}
+
+}  // namespace
+
+/// BeliefSettings::deviation_mixture: the vehicle's error, stratified on its
+/// part across the leg and in heading, u = H e (H's rows: the leg's left
+/// normal n and the heading; K = 3 with deviation_along: the leg's direction
+/// first), at the n^K Gauss–Hermite nodes z_i of N(0, I_K)
+/// (n = BeliefSettings::deviation_nodes; with 3, per axis −√3, 0, √3 with
+/// weights 1/6, 2/3, 1/6), or with deviation_split at cells of z (`rule`).
+/// Stratum i is the error given u = L z_i (L Lᵀ = H M Hᵀ, M the error's
+/// covariance): mean m_i = M Hᵀ L⁻ᵀ z_i and covariance M − M Hᵀ (H M Hᵀ)⁻¹ H M
+/// (`stratify`).  The vehicle drives its estimate along the path, so
+/// stratum i's vehicles are off it by −m_i: they see from the nominal pose
+/// moved by −n·m_i across the leg (and by −t·m_i along it, K = 3) and turned
+/// by −m_i,θ, and their filter takes the updates of what is in view from
+/// there.  Each stratum's filter covariance P_i follows the filter's
+/// recursion; its error's second moment is P_i + N_i, where N_i, the part
+/// the stratum's selection adds, moves with the filter's error dynamics:
+/// N_i ← T_i F N_i Fᵀ T_iᵀ, m_i ← T_i F m_i, T_i = P_i (P_i⁻)⁻¹ = I − K_i H_i
+/// (the optimal gain's); a step whose fix may not arrive (StepOutcome)
+/// moves N_i by each branch's factor, weighted by the branch's probability,
+/// and m_i (and B_i) by their mean.  So the strata that see a landmark late
+/// are the ones whose error lies on that side, and the reported covariance
+/// Σ w_i (P_i + N_i) keeps their larger error until they see it.  While the
+/// strata are one Gaussian (one_gaussian), they are stratified anew from
+/// its covariance each step, so the deviation follows the current error.
+/// A[k−1] = M[k] (M⁻)⁻¹ F as in the single recursion, M⁻ the mixture's
+/// prior, within_marginals.  `trace` receives each stratum's weight, where
+/// it saw from and its second moment.
+template <int K>
+void mixture_recursion(const Model& model, const std::vector<Step>& steps, std::vector<StateCov>& P,
+                       std::vector<Eigen::Matrix4d>& A, StrataTrace& trace) {
+  using VecK = Eigen::Matrix<double, K, 1>;
+  const BeliefSettings& settings = model.settings();
+  const std::vector<Stratum<K>> fresh = rule<K>(Quadrature(settings.deviation_nodes), settings.deviation_split);
+  std::vector<Stratum<K>> st = fresh;
+  for (Stratum<K>& s : st) s.P = P[0];
+  const auto n = static_cast<Eigen::Index>(steps.size());
+  const auto slots = static_cast<Eigen::Index>(settings.deviation_split ? kMaxStrata : st.size());
+  trace.weight = Eigen::MatrixXd::Zero(n, slots);
+  trace.positions = Eigen::MatrixXd::Zero(n, 2 * slots);
+  trace.msq = Eigen::MatrixXd::Zero(n, slots);
+  for (Eigen::Index i = 0; i < static_cast<Eigen::Index>(st.size()); ++i) {
+    trace.weight(0, i) = st[static_cast<std::size_t>(i)].w;
+    trace.positions.block<1, 2>(0, 2 * i) = (steps.empty() ? Eigen::Vector2d::Zero() : steps[0].end).transpose();
+    trace.msq(0, i) = P[0](0, 0) + P[0](1, 1);
+  }
+  std::vector<double> arc(steps.size(), 0.0);  // metres along the steps
+  for (std::size_t k = 1; k < steps.size(); ++k) arc[k] = arc[k - 1] + steps[k].length;
+  Eigen::Index used = static_cast<Eigen::Index>(st.size());
+  bool merged = true;
+  for (std::size_t k = 1; k < steps.size(); ++k) {
+    const double h = steps[k].x[kTheta];
+    Eigen::Matrix<double, K, 4> H;
+    if constexpr (K == 2) H = lateral_axes(h); else H = full_axes(h);
+    if (merged) stratify<K>(H, fresh, st);
+    // What the vehicles of stratum s at z see: they are off the path by minus their error.
+    const auto view = [&](const Stratum<K>& s, const VecK& z) {
+      const Eigen::Vector4d e = s.m + s.B * (z - s.mean);
+      const VecK d = -(H * e);
+      if (!(d.squaredNorm() > 0.0)) return steps[k];
+      if constexpr (K == 3) return ahead_view(model, steps, arc, k, e);
+      else return model.offset(steps[k], d[0], d[K - 1]);
+    };
+    for (Stratum<K>& s : st) s.seen = view(s, s.mean);
+    if (settings.deviation_split) {
+      while (st.size() + kRoom > kMaxStrata && make_room<K>(st)) {}
+      for (std::size_t i = 0, S0 = st.size(); i < S0 && st.size() < kMaxStrata; ++i) split_at_view_change<K>(st, i, view);
+    }
+    StateCov mix = StateCov::Zero(), mix_m = StateCov::Zero();
+    Eigen::Matrix4d F;
+    for (std::size_t i = 0; i < st.size(); ++i) {
+      Stratum<K>& s = st[i];
+      StepOutcome o;
+      model.step(s.seen, s.P, &o);
+      F = o.F;
+      s.N = F * s.N * F.transpose();
+      mix_m += s.w * (o.Pm + s.N);
+      Eigen::Matrix4d T;
+      if (o.p_fix < 1.0) {  // a fix that may not arrive: each branch moves the error by its own factor
+        const StateCov X = s.N;
+        s.N = o.p_fix * o.T_fix * X * o.T_fix.transpose() + (1.0 - o.p_fix) * o.T_none * X * o.T_none.transpose();
+        T = o.p_fix * o.T_fix + (1.0 - o.p_fix) * o.T_none;
+      } else {
+        T = o.Pm.ldlt().solve(s.P.transpose()).transpose();  // P_i (P_i⁻)⁻¹ = I − K_i H_i
+        s.N = T * s.N * T.transpose();
+      }
+      s.m = T * (F * s.m);
+      s.B = T * (F * s.B);
+      s.N = 0.5 * (s.N + s.N.transpose());
+      mix += s.w * (s.P + s.N);
+      const auto row = static_cast<Eigen::Index>(k), col = static_cast<Eigen::Index>(i);
+      trace.weight(row, col) = s.w;
+      trace.positions.block<1, 2>(row, 2 * col) = s.seen.end.transpose();
+      trace.msq(row, col) = s.P(0, 0) + s.N(0, 0) + s.P(1, 1) + s.N(1, 1);
+    }
+    used = std::max(used, static_cast<Eigen::Index>(st.size()));
+    P[k] = 0.5 * (mix + mix.transpose());
+    A[k - 1] = within_marginals(mix_m.ldlt().solve(P[k].transpose()).transpose() * F, P[k - 1], P[k]);
+    merged = one_gaussian(st);
+    if (settings.deviation_split && !merged) merge_alike<K>(st, kJoinTolerance);
+  }
+  trace.weight.conservativeResize(Eigen::NoChange, used);
+  trace.positions.conservativeResize(Eigen::NoChange, 2 * used);
+  trace.msq.conservativeResize(Eigen::NoChange, used);
+}
+
+void deviation_mixture(const Model& model, const std::vector<Step>& steps, std::vector<StateCov>& P,
+                       std::vector<Eigen::Matrix4d>& A, StrataTrace& trace) {
+  if (model.settings().deviation_along)
+    mixture_recursion<3>(model, steps, P, A, trace);
+  else
+    mixture_recursion<2>(model, steps, P, A, trace);
+}
+
+}  // namespace safenav::belief
