@@ -9,15 +9,18 @@ et al. against a Monte Carlo of the same linear-Gaussian error dynamics and
 against the union bound."""
 from __future__ import annotations
 
+import copy
 import itertools
 
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from scipy import stats
 
 from safenav import _core
 from safenav import planning as P
+from safenav.vision.localization import trilaterate
 
 kalman = pytest.importorskip("filterpy.kalman")
 
@@ -186,25 +189,55 @@ def _reference_stage(kf, prof, k, p, bmm, se, bearing_std, checker, dtheta=0.0, 
     kf.predict()
     seen = [i for i in range(len(lms)) if _visible(se, lms[i], p, theta + dtheta, checker)]
     ranges = se.fix_model == _core.FixModel.RANGES
-    if not ranges and len(seen) >= se.min_landmarks:
-        kf.update(np.zeros((2, 1)), R=R_fix / n, H=np.c_[np.eye(2), np.zeros((2, 2))])
-    for i in seen:
-        d = lms[i] - p
-        q = d @ d
-        if q < 1e-18:  # a landmark at the vehicle: no Jacobian, no update (measurement.hpp)
-            continue
-        if ranges and len(seen) >= max(3, se.min_landmarks):
-            kf.update(np.zeros((1, 1)), R=np.array([[se.range_std ** 2 / n]]),
-                      H=np.array([[-d[0] / np.sqrt(q), -d[1] / np.sqrt(q), 0.0, 0.0]]))
-        if bearing_std > 0:
-            kf.update(np.zeros((1, 1)), R=np.array([[bearing_std ** 2 / n]]),
-                      H=np.array([[d[1] / q, -d[0] / q, 0.0, -1.0]]))
-    if se.imu:
-        kf.update(np.zeros((2, 1)), R=np.diag([se.imu_speed_std ** 2, se.imu_heading_std ** 2]) / n,
-                  H=np.array([[0.0, 0, 1, 0], [0, 0, 0, 1]]))
     range_fix = ranges and len(seen) >= max(3, se.min_landmarks)
     fix = not ranges and len(seen) >= se.min_landmarks
+    # A range fix that the trilateration may refuse as ambiguous: two branches, as for a
+    # fix that may not arrive (test_belief_faults), the ranges counted a u / p times.
+    p_fix, count, without = 1.0, n, None
+    if range_fix:
+        u = unambiguous_share(se, lms[seen], p)
+        if u < 1.0:
+            assert not isinstance(kf, _TrackedKF), "the mixture references carry no branches"
+            p_fix = 1.0 - (1.0 - u) ** n
+            count = n * u / p_fix if p_fix > 0 else 0.0
+            without = copy.deepcopy(kf)
+    if fix:
+        kf.update(np.zeros((2, 1)), R=R_fix / n, H=np.c_[np.eye(2), np.zeros((2, 2))])
+    for i in seen if range_fix and p_fix > 0 else ():
+        d = lms[i] - p
+        q = d @ d
+        if q >= 1e-18:  # a landmark at the vehicle: no Jacobian, no update (measurement.hpp)
+            kf.update(np.zeros((1, 1)), R=np.array([[se.range_std ** 2 / count]]),
+                      H=np.array([[-d[0] / np.sqrt(q), -d[1] / np.sqrt(q), 0.0, 0.0]]))
+    for branch in (kf, without) if without is not None else (kf,):
+        for i in seen if bearing_std > 0 else ():
+            d = lms[i] - p
+            q = d @ d
+            if q >= 1e-18:
+                branch.update(np.zeros((1, 1)), R=np.array([[bearing_std ** 2 / n]]),
+                              H=np.array([[d[1] / q, -d[0] / q, 0.0, -1.0]]))
+        if se.imu:
+            branch.update(np.zeros((2, 1)), R=np.diag([se.imu_speed_std ** 2, se.imu_heading_std ** 2]) / n,
+                          H=np.array([[0.0, 0, 1, 0], [0, 0, 0, 1]]))
+    if without is not None:
+        kf.P = p_fix * kf.P + (1.0 - p_fix) * without.P
     return fix, range_fix, tuple(seen) if range_fix or bearing_std > 0 else ()
+
+
+def unambiguous_share(se, anchors, p):
+    """The share of range fixes from p to ``anchors`` that the trilateration
+    does not refuse, by its specification: 0 where the noise-free ranges
+    fail for their geometry; else, with Δ the noise-free χ² gap between the
+    solution and its mirror minimum, P(|N(Δ, 4 Δ)| > ambiguity_margin)."""
+    anchors = np.asarray(anchors, dtype=float)
+    r = trilaterate(anchors, np.hypot(*(anchors - p).T), se.range_std)
+    gap, M = r.ambiguity_gap, _core.LocalizationOptions().ambiguity_margin
+    if not r.ok and not gap <= M:
+        return 0.0
+    if np.isinf(gap):
+        return 1.0
+    sd = 2.0 * np.sqrt(gap)
+    return float(stats.norm.sf((M - gap) / sd) + stats.norm.sf((M + gap) / sd))
 
 
 def _visible(se, landmark, p, theta, checker):

@@ -209,3 +209,57 @@ def test_more_dropout_never_predicts_a_smaller_covariance(d, ranges):
     diff = covs[1] - covs[0]
     scale = np.abs(covs[1]).max(axis=(1, 2))
     assert (np.linalg.eigvalsh(0.5 * (diff + diff.transpose(0, 2, 1))).min(axis=1) >= -1e-9 * scale).all()
+
+
+def test_unambiguous_share_is_the_localizer_s_acceptance_rate():
+    """Model.unambiguous_share, by its specification (test_belief.unambiguous_share),
+    against the localizer itself: three landmarks nearly in line (world 37's,
+    where the vehicles' window of three in view mostly yields no fix), the
+    share of 2 000 noisy range sets (σ 0.05 m) that trilaterate() accepts.
+    The normal model of the χ² gap, N(Δ, 4Δ), holds to about 0.03 here."""
+    from safenav.vision.localization import trilaterate
+    from test_belief import unambiguous_share
+
+    se = sensors([[0.0, 0.0]], ranges=True)
+    se.range_std = 0.05
+    A = np.array([[152.198, 90.662], [147.784, 76.029], [149.839, 83.246]])
+    rng = np.random.default_rng(1)
+    shares = []
+    triangle = np.array([[0.0, 0.0], [10.0, 0.0], [0.0, 10.0]])
+    for anchors, p in [(A, [159.2, 62.5]), (A, [158.0, 66.0]), (A, [165.0, 55.0]), (A, [155.5, 75.0]),
+                       (A, [157.0, 80.0]), (A, [175.0, 85.0]), (triangle, [3.0, 3.0])]:
+        p = np.array(p)
+        d = np.hypot(*(anchors - p).T)
+        u = unambiguous_share(se, anchors, p)
+        ok = np.mean([trilaterate(anchors, d + 0.05 * rng.normal(size=3), 0.05).ok for _ in range(2000)])
+        assert abs(u - ok) < 0.06, (p, u, ok)
+        shares.append(u)
+    assert min(shares) < 0.3 and shares[-1] == 1.0      # mostly refused; a spread triangle never
+
+
+def test_belief_takes_a_range_fix_only_as_often_as_the_trilateration_accepts_it(monkeypatch):
+    """FixModel.RANGES past three landmarks nearly in line: the belief's range
+    fix arrives with the unambiguous share (intermittent branches, as for a
+    dropout), so it equals the branch reference (test_belief's
+    reference_covariances) and keeps a larger σ than full fixes would give."""
+    from test_belief import reference_covariances, unambiguous_share
+
+    A = np.array([[152.198, 90.662], [147.784, 76.029], [149.839, 83.246]]) - [100.0, 40.0]
+    path = np.array([[50.0, 5.0], [60.0, 25.0]])
+    se = sensors(A, ranges=True, max_range=40.0)
+    se.range_std = 0.05
+    bmm = _core.BmmParams()
+    m = open_map(upper=(100, 100))
+    P0 = np.diag([0.3, 0.3, 0.003, 0.001])
+    prof = P.propagate_belief(path, sensors=se, map=m, bmm=bmm, start_cov=P0, speed=SPEED, deviation_mixture=False)
+    pos = np.asarray(prof.positions)
+    u = np.array([unambiguous_share(se, A, q) for q in pos])
+    assert u.min() < 0.01 and u.max() < 0.5                    # every stage's fix is in doubt
+    np.testing.assert_allclose(profile_cov(prof), reference_covariances(prof, bmm, se, P0, 0.0,
+                                                                        _core.ObstacleChecker(m)),
+                               rtol=1e-9, atol=1e-15)
+    import test_belief
+    monkeypatch.setattr(test_belief, "unambiguous_share", lambda *a: 1.0)
+    full = reference_covariances(prof, bmm, se, P0, 0.0, _core.ObstacleChecker(m))
+    tr = lambda c: c[:, 0, 0] + c[:, 1, 1]                       # noqa: E731
+    assert tr(profile_cov(prof))[-1] > 1.5 * tr(full)[-1]

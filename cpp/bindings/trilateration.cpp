@@ -32,6 +32,7 @@ void pybind_trilateration(py::module_& m) {
       .def_readonly("covariance", &LocalizationResult::covariance)
       .def_readonly("gdop", &LocalizationResult::gdop)
       .def_readonly("chi2", &LocalizationResult::chi2)
+      .def_readonly("ambiguity_gap", &LocalizationResult::ambiguity_gap)
       .def_readonly("inliers", &LocalizationResult::inliers)
       .def_readonly("iterations", &LocalizationResult::iterations)
       .def_readonly("reason", &LocalizationResult::reason)

@@ -89,6 +89,7 @@ void Model::observe(Step& s) const {
   s.fix = !ranges && (!sensors_.position.needs_landmarks || s.in_view >= sensors_.min_landmarks);
   s.seen.clear();
   s.ranges = false;
+  s.unambiguous = 1.0;
   const bool range_fix = ranges && s.in_view >= std::max(3, sensors_.min_landmarks);
   if (s.in_view == 0 || !(range_fix || settings_.bearing_std > 0.0)) return;
   // The rows in view, each asked of the one visibility rule in turn.
@@ -98,6 +99,26 @@ void Model::observe(Step& s) const {
     one.landmarks.row(0) = sensors_.landmarks.row(i);
     if (one.landmarks_in_view(at, &checker_) == 1) s.seen.push_back(static_cast<int>(i));
   }
+  if (range_fix) s.unambiguous = unambiguous_share(at.head<2>(), s.seen);
+}
+
+double Model::unambiguous_share(const Eigen::Vector2d& p, const std::vector<int>& seen) const {
+  const auto n = static_cast<Eigen::Index>(seen.size());
+  Anchors anchors(n, 2);
+  Eigen::VectorXd ranges(n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    anchors.row(i) = sensors_.landmarks.row(seen[static_cast<std::size_t>(i)]);
+    ranges[i] = (anchors.row(i).transpose() - p).norm();
+  }
+  const LocalizationOptions opt;  // the simulator's (Trial::range_fix)
+  const LocalizationResult r = trilaterate(anchors, ranges, Eigen::VectorXd::Constant(n, sensors_.range_std), opt);
+  const double gap = r.ambiguity_gap;
+  if (!r.ok() && !(gap <= opt.ambiguity_margin)) return 0.0;  // refused for its geometry, not as ambiguous
+  if (!std::isfinite(gap)) return 1.0;
+  if (!(gap > 0.0)) return 0.0;
+  // Noise ε (whitened) moves the gap to Δ + 2 aᵀε, a the mirror's residuals (‖a‖² = Δ): N(Δ, 4Δ).
+  const double sd = 2.0 * std::sqrt(gap), M = opt.ambiguity_margin;
+  return normal_sf((M - gap) / sd) + normal_sf((M + gap) / sd);
 }
 
 Step Model::offset(const Step& s, double lateral, double dtheta) const {
@@ -181,8 +202,8 @@ Model::FixOdds Model::fix_odds(const Step& s, double n) const {
                      (1.0 - f.misassociation_probability);
     const int m = std::max(3, sensors_.min_landmarks);
     const int k = static_cast<int>(s.seen.size());
-    o.p = any(binomial_tail(k, q, m));
-    o.count = o.p > 0.0 ? a * q * binomial_tail(k - 1, q, m - 1) / o.p : 0.0;
+    o.p = any(binomial_tail(k, q, m) * s.unambiguous);
+    o.count = o.p > 0.0 ? a * q * binomial_tail(k - 1, q, m - 1) * s.unambiguous / o.p : 0.0;
   }
   return o;
 }

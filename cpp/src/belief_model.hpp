@@ -32,6 +32,9 @@ struct Step {
   int in_view = 0;         ///< landmarks in view
   bool fix = false;        ///< a LanBLoc fix (FixModel::Profile) is expected
   bool ranges = false;     ///< ranges to the landmarks in `seen` (FixModel::Ranges) are expected
+  /// With `ranges`: the probability that their trilateration is not refused
+  /// (Model::unambiguous_share).
+  double unambiguous = 1.0;
   double clearance = std::numeric_limits<double>::infinity();
   /// Unit direction toward the nearest keep-out area; (NaN, NaN) until asked
   /// (Model::direction), (0, 0) where it is undefined (equidistant walls).
@@ -102,6 +105,15 @@ class Model {
 
  private:
   void observe(Step& s) const;
+  /// The probability that the simulator's trilateration (Trial::range_fix)
+  /// of ranges from `p` to the landmarks `seen` is not refused: 0 where the
+  /// noise-free ranges fail for their geometry (GDOP), else the share of
+  /// noisy ranges whose mirror minimum does not fit within
+  /// LocalizationOptions::ambiguity_margin M of the solution.  The noise-free
+  /// gap Δ between the two minima's χ² moves with whitened noise ε to
+  /// Δ + 2 aᵀε (a the mirror's residuals, ‖a‖² = Δ), so the share is
+  /// P(|N(Δ, 4Δ)| > M).
+  double unambiguous_share(const Eigen::Vector2d& p, const std::vector<int>& seen) const;
   /// The step's fix: the probability p that one arrives in the step's n
   /// filter steps, and the expected count of each measurement of it given
   /// that one does (R is divided by it).

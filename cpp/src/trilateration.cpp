@@ -359,6 +359,7 @@ LocalizationResult solve_subset(const Model& m, const Problem& pr, const std::ve
       const double sep = (g.p - f.p).norm();
       const double sd = std::sqrt(std::max(0.0, res.covariance.trace()));
       if (g.converged && g.p.allFinite() && sep > std::max(3.0 * sd, 1e-6 * scale)) {
+        res.ambiguity_gap = std::abs(g.cost - f.cost);
         if (g.cost < f.cost - opt.ambiguity_margin) {
           f = g;  // the linear start fell into the worse minimum
           geometry_at(m, pr, idx, f.p, res.gdop, res.covariance, kBearings);

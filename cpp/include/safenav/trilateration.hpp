@@ -79,6 +79,10 @@ struct LocalizationResult {
   double chi2 = std::numeric_limits<double>::quiet_NaN();  ///< Σ (r_i/σ_i)² over inliers
   Eigen::Array<bool, Eigen::Dynamic, 1> inliers;             ///< one per measurement
   int iterations = 0;
+  /// Ranges: |χ²| between the solution and the second minimum (the
+  /// reflection across the anchors' line), +inf where none was found.  The
+  /// fix is refused as ambiguous where it is at most ambiguity_margin.
+  double ambiguity_gap = std::numeric_limits<double>::infinity();
   std::string reason;  ///< why it failed; when ok, empty or a note (outliers rejected)
 
   bool ok() const { return status == LocalizationStatus::Ok; }

@@ -71,6 +71,9 @@ class LocalizationResult:
     inliers: np.ndarray       #: (n,) bool
     iterations: int
     reason: str               #: why it failed; when ok, "" or a note (outliers rejected)
+    #: ranges: |χ²| between the solution and its mirror minimum, inf where none;
+    #: the fix is refused as ambiguous where it is at most ``ambiguity_margin``
+    ambiguity_gap: float = float("inf")
 
     @property
     def ok(self) -> bool:
@@ -103,7 +106,8 @@ def _inputs(anchors, z, zname, sigmas):
 def _result(r) -> LocalizationResult:
     return LocalizationResult(status=str(r.status), position=np.array(r.position), covariance=np.array(r.covariance),
                               gdop=float(r.gdop), chi2=float(r.chi2), inliers=np.array(r.inliers, dtype=bool),
-                              iterations=int(r.iterations), reason=r.reason)
+                              iterations=int(r.iterations), reason=r.reason,
+                              ambiguity_gap=float(r.ambiguity_gap))
 
 
 def trilaterate(anchors, ranges, sigmas=1.0, *, outlier_threshold: float = 3.0, reject_outliers: bool = True,
