@@ -169,10 +169,10 @@ class DriveJob:
     blind_check: int           # step-limit trials rerun with a record to see where they ended
     nodes: int = 3             # Gauss-Hermite nodes per axis of the expected belief's deviation mixture
     along: bool = False        # the mixture stratifies the deviation along the path too
-    split: bool = False        # the mixture's strata are cells, cut where the view changes
+    split: bool = True         # the mixture's strata are cells, cut where the view changes (False: the nodes)
 
 
-def _profiles(sc, path, navigator, nodes: int = 3, along: bool = False, split: bool = False):
+def _profiles(sc, path, navigator, nodes: int = 3, along: bool = False, split: bool = True):
     """(expected, robust, nominal): the belief along ``path`` with ``sc``'s
     sensors, seen with the vehicle's own camera (what it will get) and with
     the certificate's robust camera; and the expected belief along the
@@ -392,8 +392,8 @@ def main() -> None:
                     help="Gauss-Hermite nodes per axis of the expected belief's deviation mixture (default 3)")
     ap.add_argument("--deviation-along", action="store_true",
                     help="stratify the expected belief's deviation along the path too (n^3 strata)")
-    ap.add_argument("--deviation-split", action="store_true",
-                    help="the expected belief's strata are cells of the deviation, cut where the view changes")
+    ap.add_argument("--deviation-points", dest="deviation_split", action="store_false",
+                    help="the expected belief's strata at the Gauss-Hermite nodes, not at cells cut where the view changes")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--full", type=int, default=100_000, help="total trials of the run to estimate the time of")
     ap.add_argument("--out", type=Path, default=None, help="write the per-cell table (CSV) here")

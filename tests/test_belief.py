@@ -285,7 +285,7 @@ def test_deviation_mixture_equals_nodes_squared_filterpy_filters(ranges, bearing
     m = open_map(upper=(100, 100))
     P0 = np.diag([0.2, 0.1, 0.003, 0.001])
     kw = dict(sensors=se, map=m, bmm=bmm, start_cov=P0, speed=SPEED, bearing_std=bearing_std)
-    prof = P.propagate_belief(path, **kw, deviation_nodes=nodes, deviation_along=along)
+    prof = P.propagate_belief(path, **kw, deviation_nodes=nodes, deviation_along=along, deviation_split=False)
     nominal = P.propagate_belief(path, **kw, deviation_mixture=False)
     ref = reference_mixture(prof, bmm, se, P0, bearing_std, _core.ObstacleChecker(m), nodes=nodes, along=along)
     np.testing.assert_allclose(profile_cov(prof), ref, rtol=1e-9, atol=1e-15)

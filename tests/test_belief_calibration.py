@@ -79,7 +79,8 @@ def test_sigma_calibration_matches_a_direct_computation(along):
     se.landmarks = np.array([[34.0, 14.0], [36.0, 20.0], [24.0, 22.0]])
     se.max_range = 15.0
     prof = propagate_belief(PATH, sensors=se, map=P.make_map(upper=(40.0, 40.0)), speed=2.0,
-                            start_cov=np.diag([2.25, 2.25, 0.003, 0.002]), deviation_along=along)
+                            start_cov=np.diag([2.25, 2.25, 0.003, 0.002]), deviation_along=along,
+                            deviation_split=False)
     rng = np.random.default_rng(5)
     pos = np.asarray(prof.positions)
     truths, estimates = [], []
@@ -154,7 +155,7 @@ def test_strata_are_where_their_error_puts_them(along):
     se.landmarks = np.array([[500.0, 500.0]])
     path = np.array([[5.0, 5.0], [35.0, 5.0]]) if along else PATH
     kw = dict(sensors=se, map=P.make_map(upper=(40.0, 40.0)), speed=2.0,
-              start_cov=np.diag([0.4, 0.1, 0.003, 0.002]))
+              start_cov=np.diag([0.4, 0.1, 0.003, 0.002]), deviation_split=False)
     prof = propagate_belief(path, deviation_along=along, **kw)
     w = np.asarray(prof.strata_weight)
     assert w.shape == (len(prof.positions), 27 if along else 9) and np.all(w == w[0])
@@ -315,8 +316,8 @@ def test_split_strata_keep_the_vehicles_that_never_see_at_their_exact_share(node
     assert gw[end, gm[end] > 0.5].sum() == pytest.approx(0.0 if nodes == 3 else 0.011257411327720677)
 
 
-@pytest.mark.parametrize("nodes", [3, 5, 7])
-def test_split_cells_are_the_gauss_hermite_weights_and_the_same_mixture_while_all_see_alike(nodes):
+@pytest.mark.parametrize("nodes, along", [(3, False), (5, False), (7, False), (5, True), (7, True)])
+def test_split_cells_are_the_gauss_hermite_weights_and_the_same_mixture_while_all_see_alike(nodes, along):
     """The cells' masses are the n-node rule's weights (per axis, products
     over the two axes), and while every vehicle sees alike (a blind path:
     no split) the mixture's second moment is the point rule's: both are the
@@ -324,15 +325,18 @@ def test_split_cells_are_the_gauss_hermite_weights_and_the_same_mixture_while_al
     se = _core.SensorSettings()
     se.landmarks = np.array([[500.0, 500.0]])
     kw = dict(sensors=se, map=P.make_map(upper=(40.0, 40.0)), speed=2.0,
-              start_cov=np.diag([0.4, 0.1, 0.003, 0.002]), deviation_nodes=nodes)
-    split = propagate_belief(PATH, deviation_split=True, **kw)
-    points = propagate_belief(PATH, **kw)
+              start_cov=np.diag([0.4, 0.1, 0.003, 0.002]), deviation_nodes=nodes, deviation_along=along)
+    split = propagate_belief(PATH, **kw)
+    points = propagate_belief(PATH, deviation_split=False, **kw)
     x, gw = np.polynomial.hermite_e.hermegauss(nodes)
     gw = gw / np.sqrt(2 * np.pi)
     w = np.asarray(split.strata_weight)
-    assert w.shape == (len(split.positions), nodes * nodes)
-    np.testing.assert_allclose(w[0], np.outer(gw, gw).ravel(), rtol=1e-12)
+    rule = np.outer(np.outer(gw, gw).ravel(), gw).ravel() if along else np.outer(gw, gw).ravel()
+    assert w.shape == (len(split.positions), len(rule))
+    np.testing.assert_allclose(w[0], rule, rtol=1e-12)
     np.testing.assert_allclose(np.asarray(split.covariance), np.asarray(points.covariance), rtol=1e-9, atol=1e-15)
+    if along:                                         # the offsets below are the lateral axis's alone
+        return
     # The strata are at their cells' means (u = L z, the lateral offset L_00 z_0 with the same L):
     # the outermost at E[z | z > a], a the quantile that leaves the last weight, not at the last node.
     a = stats.norm.isf(gw[-1])

@@ -116,7 +116,7 @@ def test_belief_along_the_trajectory_equals_filterpy(method, nodes, along):
     bmm = _core.BmmParams()
     P0 = np.diag([0.3, 0.2, 0.003, 0.001])
     prof = P.propagate_belief_along(x, sensors=se, map=m, bmm=bmm, start_cov=P0, deviation_mixture=nodes > 0,
-                                    deviation_nodes=max(nodes, 3), deviation_along=along)
+                                    deviation_nodes=max(nodes, 3), deviation_along=along, deviation_split=False)
     np.testing.assert_array_equal(prof.positions, x[:, :2])
     np.testing.assert_allclose(prof.time, np.arange(len(x)) * bmm.dt, rtol=1e-12)
     checker = _core.ObstacleChecker(m)

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 
 #include "belief_model.hpp"
 #include "errors.hpp"
@@ -219,7 +220,8 @@ Step ahead_view(const Model& model, const std::vector<Step>& steps, const std::v
   return model.seen_from(steps[k], v, rest * dir - e.head<2>(), -e[kTheta]);
 }
 
-/// The mixture's bounds on splitting: the most strata at once, and the
+/// The mixture's bounds on splitting: the most strata at once (or twice the
+/// rule's, where that is more: 5³ and 7³ with deviation_along), and the
 /// room kept for the step's cuts (the closest strata are joined first); the
 /// least share a split may leave on either side, where an unbounded cell
 /// is probed (P(z > 3.09) = 10⁻³), the bisection's steps; and how close
@@ -388,7 +390,8 @@ void mixture_recursion(const Model& model, const std::vector<Step>& steps, std::
   std::vector<Stratum<K>> st = fresh;
   for (Stratum<K>& s : st) s.P = P[0];
   const auto n = static_cast<Eigen::Index>(steps.size());
-  const auto slots = static_cast<Eigen::Index>(settings.deviation_split ? kMaxStrata : st.size());
+  const std::size_t cap = settings.deviation_split ? std::max(kMaxStrata, 2 * fresh.size()) : fresh.size();
+  const auto slots = static_cast<Eigen::Index>(cap);
   trace.weight = Eigen::MatrixXd::Zero(n, slots);
   trace.positions = Eigen::MatrixXd::Zero(n, 2 * slots);
   trace.msq = Eigen::MatrixXd::Zero(n, slots);
@@ -416,8 +419,8 @@ void mixture_recursion(const Model& model, const std::vector<Step>& steps, std::
     };
     for (Stratum<K>& s : st) s.seen = view(s, s.mean);
     if (settings.deviation_split) {
-      while (st.size() + kRoom > kMaxStrata && make_room<K>(st)) {}
-      for (std::size_t i = 0, S0 = st.size(); i < S0 && st.size() < kMaxStrata; ++i) split_at_view_change<K>(st, i, view);
+      while (st.size() + kRoom > cap && make_room<K>(st)) {}
+      for (std::size_t i = 0, S0 = st.size(); i < S0 && st.size() < cap; ++i) split_at_view_change<K>(st, i, view);
     }
     StateCov mix = StateCov::Zero(), mix_m = StateCov::Zero();
     Eigen::Matrix4d F;
@@ -442,6 +445,7 @@ void mixture_recursion(const Model& model, const std::vector<Step>& steps, std::
       s.N = 0.5 * (s.N + s.N.transpose());
       mix += s.w * (s.P + s.N);
       const auto row = static_cast<Eigen::Index>(k), col = static_cast<Eigen::Index>(i);
+      if (col >= slots) throw std::logic_error("deviation mixture: more strata than the trace holds");
       trace.weight(row, col) = s.w;
       trace.positions.block<1, 2>(row, 2 * col) = s.seen.end.transpose();
       trace.msq(row, col) = s.P(0, 0) + s.N(0, 0) + s.P(1, 1) + s.N(1, 1);

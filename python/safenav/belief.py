@@ -125,10 +125,10 @@ def propagate_belief(path, *, sensors, map, bmm=None, start_cov=None, settings: 
     the expected belief; :func:`robust_sight` gives the planner's and the
     certificate's narrower one), ``deviation_mixture`` (default on: the
     expected belief over the vehicle's deviation from the path, its error
-    stratified at 3×3 Gauss–Hermite nodes, or 5×5 or 7×7 with ``deviation_nodes``;
+    stratified at 3×3 cells of the deviation, or 5×5 or 7×7 with ``deviation_nodes``;
     ``BeliefSettings.deviation_mixture``), ``deviation_along`` (stratify along
-    the path too: n³ strata), ``deviation_split`` (strata at cells of the
-    deviation, cut where the view changes).  With the mixture,
+    the path too: n³ strata), ``deviation_split`` (default on: a cell is cut
+    where the view changes; off: the Gauss–Hermite nodes).  With the mixture,
     ``.strata_weight`` (each stratum's weight per stage, (N, S)),
     ``.strata_positions`` (each stratum's true position per stage, (N, 2S))
     and ``.strata_msq`` (its mean square position error, (N, S)) say where

@@ -78,8 +78,9 @@ struct BeliefSettings {
   /// arc position its true position is off the path, and its heading off the
   /// leg's, by minus its own error, and a landmark comes into view (or leaves
   /// it) a little earlier or later than from the nominal pose.  With this on,
-  /// the error is stratified on its lateral and heading parts at the n×n
-  /// Gauss–Hermite nodes (deviation_nodes; with 3, weights 1/36, 4/36,
+  /// the error is stratified on its lateral and heading parts, at cells of
+  /// the deviation cut where the view changes (deviation_split) or at the
+  /// n×n Gauss–Hermite nodes (deviation_nodes; with 3, weights 1/36, 4/36,
   /// 16/36): each stratum sees from
   /// the nominal pose moved by minus its mean error, takes the filter's
   /// updates of what it sees, and carries its actual error's second moment,
@@ -104,7 +105,8 @@ struct BeliefSettings {
   /// so a calibration against driven vehicles can bin each at its own arc.
   bool deviation_along = false;
   /// Stratify at cells of the deviation instead of at points, and cut a
-  /// cell where its vehicles would see otherwise than its mean (ours;
+  /// cell where its vehicles would see otherwise than its mean (ours, on by
+  /// default; off, the Gauss–Hermite nodes;
   /// docs/belief_planning.md, "Strata cut where the view changes").  The
   /// n nodes' weights become the masses of n intervals per axis (for 3:
   /// z < −0.967, |z| ≤ 0.967, z > 0.967), each stratum at its cell's mean
@@ -113,8 +115,9 @@ struct BeliefSettings {
   /// changes, and the part beyond takes its exact share of the deviation:
   /// a vehicle 2.6 σ beside the path that misses a short window of
   /// landmarks then keeps its error in the belief, as it does in the
-  /// Monte Carlo.  At most 64 strata; no part under 10⁻⁴ of the vehicles.
-  bool deviation_split = false;
+  /// Monte Carlo.  At most 64 strata (twice the rule's where that is more);
+  /// no part under 10⁻⁴ of the vehicles.
+  bool deviation_split = true;
   Inflation inflation;       ///< vehicle radius (collision) and margin (kept beyond it by the planner)
   void validate() const;     ///< throws std::invalid_argument naming the bad value
 };
