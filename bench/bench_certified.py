@@ -167,7 +167,7 @@ class DriveJob:
     record: int                # trials recorded for the calibration (the cell's first ones)
     bin_m: float
     blind_check: int           # step-limit trials rerun with a record to see where they ended
-    nodes: int = 3             # Gauss-Hermite nodes per axis of the expected belief's deviation mixture
+    nodes: int = 3             # n of the n x n rule (cells, or nodes) of the expected belief's deviation mixture
     along: bool = False        # the mixture stratifies the deviation along the path too
     split: bool = True         # the mixture's strata are cells, cut where the view changes (False: the nodes)
 
@@ -389,7 +389,7 @@ def main() -> None:
                     help="drive trials [first, first + trials) of each cell's seed sequence, so that a long run "
                          "can be split into parts whose trials add up to one run's (default 0)")
     ap.add_argument("--deviation-nodes", type=int, default=3, choices=[3, 5, 7],
-                    help="Gauss-Hermite nodes per axis of the expected belief's deviation mixture (default 3)")
+                    help="cells (or Gauss-Hermite nodes) per axis of the expected belief's deviation mixture (default 3)")
     ap.add_argument("--deviation-along", action="store_true",
                     help="stratify the expected belief's deviation along the path too (n^3 strata)")
     ap.add_argument("--deviation-points", dest="deviation_split", action="store_false",
