@@ -89,7 +89,7 @@ void Model::observe(Step& s) const {
   s.fix = !ranges && (!sensors_.position.needs_landmarks || s.in_view >= sensors_.min_landmarks);
   s.seen.clear();
   s.ranges = false;
-  s.unambiguous = 1.0;
+  s.unambiguous = -1.0;
   const bool range_fix = ranges && s.in_view >= std::max(3, sensors_.min_landmarks);
   if (s.in_view == 0 || !(range_fix || settings_.bearing_std > 0.0)) return;
   // The rows in view, each asked of the one visibility rule in turn.
@@ -99,7 +99,6 @@ void Model::observe(Step& s) const {
     one.landmarks.row(0) = sensors_.landmarks.row(i);
     if (one.landmarks_in_view(at, &checker_) == 1) s.seen.push_back(static_cast<int>(i));
   }
-  if (range_fix) s.unambiguous = unambiguous_share(at.head<2>(), s.seen);
 }
 
 double Model::unambiguous_share(const Eigen::Vector2d& p, const std::vector<int>& seen) const {
@@ -202,6 +201,7 @@ Model::FixOdds Model::fix_odds(const Step& s, double n) const {
                      (1.0 - f.misassociation_probability);
     const int m = std::max(3, sensors_.min_landmarks);
     const int k = static_cast<int>(s.seen.size());
+    if (s.unambiguous < 0.0) s.unambiguous = unambiguous_share(s.end, s.seen);
     o.p = any(binomial_tail(k, q, m) * s.unambiguous);
     o.count = o.p > 0.0 ? a * q * binomial_tail(k - 1, q, m - 1) * s.unambiguous / o.p : 0.0;
   }

@@ -33,8 +33,9 @@ struct Step {
   bool fix = false;        ///< a LanBLoc fix (FixModel::Profile) is expected
   bool ranges = false;     ///< ranges to the landmarks in `seen` (FixModel::Ranges) are expected
   /// With `ranges`: the probability that their trilateration is not refused
-  /// (Model::unambiguous_share).
-  double unambiguous = 1.0;
+  /// (Model::unambiguous_share), asked only when the step is taken (the
+  /// mixture's probes compare views alone); < 0 until then.
+  mutable double unambiguous = -1.0;
   double clearance = std::numeric_limits<double>::infinity();
   /// Unit direction toward the nearest keep-out area; (NaN, NaN) until asked
   /// (Model::direction), (0, 0) where it is undefined (equidistant walls).
