@@ -3,12 +3,16 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <array>
+#include <initializer_list>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
 
+#include "belief_gate.hpp"
 #include "belief_model.hpp"
 #include "errors.hpp"
+#include "safenav/localizer.hpp"
 
 namespace safenav::belief {
 namespace {
@@ -69,7 +73,8 @@ double normal_isf(double p) {
 /// deviation z ~ N(0, I_K) it stands for (a Gauss–Hermite node is a cell of
 /// one point: lo = hi = mean, var 0), its filter covariance P, its error's
 /// mean m and second moment P + N, and B, how its error's mean moves with z
-/// across the cell (e = m + B (z − mean) + an error independent of z).
+/// across the cell (e = m + B (z − mean) + an error independent of z), and
+/// the fixes its filter has turned away in a row (BeliefSettings::gate_probability).
 template <int K>
 struct Stratum {
   using VecK = Eigen::Matrix<double, K, 1>;
@@ -79,6 +84,7 @@ struct Stratum {
   Eigen::Vector4d m = Eigen::Vector4d::Zero();
   Eigen::Matrix<double, 4, K> B = Eigen::Matrix<double, 4, K>::Zero();
   Step seen;  ///< what it sees this step
+  int rejections = 0;
 };
 
 /// The strata of a fresh stratification: the product rule of K copies of
@@ -232,6 +238,12 @@ constexpr double kJoinTolerance = 0.1;
 constexpr double kMinShare = 1e-4;
 constexpr double kProbeTail = 3.090232306167813;
 constexpr int kBisections = 12;
+/// The gate is stepped where the filter's prediction is this much less
+/// certain than the fix (tr P⁻_xy > 10 tr R, gate_step): a vehicle turned
+/// away there is turned away by its error, not by the fix's noise, and its
+/// next fix is turned away too.
+constexpr double kGatePersists = 10.0;
+constexpr double kMinCountShare = 1e-6;
 
 /// BeliefSettings::deviation_split: where stratum `i`'s cell holds vehicles
 /// that see otherwise than its mean (probed at the cell's ends along each
@@ -281,8 +293,9 @@ void split_at_view_change(std::vector<Stratum<K>>& st, std::size_t i, const View
 }
 
 /// The axis on which the cells of strata a and b touch to make a box (the
-/// same interval on every other axis), or −1; also −1 unless they take the
-/// same updates this step.
+/// same interval on every other axis), K where the cells are the same (the
+/// gate split a cell's vehicles, gate_step), or −1; also −1 unless they take
+/// the same updates this step.
 template <int K>
 int adjacent(const Stratum<K>& a, const Stratum<K>& b) {
   int axis = -1;
@@ -291,7 +304,8 @@ int adjacent(const Stratum<K>& a, const Stratum<K>& b) {
     if (axis >= 0 || !(a.hi[d] == b.lo[d] || b.hi[d] == a.lo[d])) return -1;
     axis = d;
   }
-  return axis >= 0 && same_view(a.seen, b.seen) ? axis : -1;
+  if (!same_view(a.seen, b.seen) || a.rejections != b.rejections) return -1;
+  return axis >= 0 ? axis : K;
 }
 
 /// How far apart two strata's filter covariances are (Frobenius, relative).
@@ -302,7 +316,8 @@ double apart(const Stratum<K>& a, const Stratum<K>& b) {
 
 /// Stratum j joined to stratum i on `axis`, moment for moment: the weights
 /// add; the error's mean, second moment, the filter covariance and B are
-/// the weighted means; the cell is their union.
+/// the weighted means; the cell is their union (the same cell: axis K); the
+/// heavier one's count of fixes turned away stays.
 template <int K>
 void join(std::vector<Stratum<K>>& st, std::size_t i, std::size_t j, int axis) {
   Stratum<K>& s = st[i];
@@ -313,8 +328,11 @@ void join(std::vector<Stratum<K>>& st, std::size_t i, std::size_t j, int axis) {
   s.N = moment - s.P;
   s.m = u * s.m + v * t.m;
   s.B = u * s.B + v * t.B;
-  const Interval c = interval(std::min(s.lo[axis], t.lo[axis]), std::max(s.hi[axis], t.hi[axis]));
-  s.lo[axis] = c.lo, s.hi[axis] = c.hi, s.mean[axis] = c.mean, s.var[axis] = c.var;
+  if (axis < K) {
+    const Interval c = interval(std::min(s.lo[axis], t.lo[axis]), std::max(s.hi[axis], t.hi[axis]));
+    s.lo[axis] = c.lo, s.hi[axis] = c.hi, s.mean[axis] = c.mean, s.var[axis] = c.var;
+  }
+  if (t.w > s.w) s.rejections = t.rejections;
   s.w = w;
   st.erase(st.begin() + static_cast<std::ptrdiff_t>(j));
 }
@@ -350,6 +368,89 @@ bool make_room(std::vector<Stratum<K>>& st) {
     }
   if (axis < 0) return false;
   join(st, bi, bj, axis);
+  return true;
+}
+
+/// The gate of the loop's filter: its χ² threshold on a position fix and
+/// the fix turned away in a row that restarts the position from it (the
+/// localizer's reset_after_consistent, or the one after
+/// reset_after_rejections, whichever comes first; 0 = never).
+struct Gate {
+  double gamma = 0.0;
+  int reset_after = 0;
+  explicit Gate(double probability) : gamma(-2.0 * std::log1p(-probability)) {
+    const LocalizerSettings loop;
+    for (int n : {loop.reset_after_consistent, loop.reset_after_rejections > 0 ? loop.reset_after_rejections + 1 : 0})
+      if (n > 0) reset_after = reset_after > 0 ? std::min(reset_after, n) : n;
+  }
+};
+
+/// BeliefSettings::gate_probability: stratum s's step where its fix may be
+/// turned away (gate_branches), after its prediction (s.N is F N Fᵀ, s.m
+/// and s.B are still the prior's).  Each branch that holds at least
+/// kMinShare of the vehicles becomes a stratum of its own, with its own
+/// filter covariance and error (the same cell): the vehicles whose fix has
+/// not come yet, those whose fix passed, those turned away.  Joined in one,
+/// the turned-away vehicles' error would look like a tail of the updated
+/// ones', and the updated ones' covariance would make the gate turn away
+/// vehicles still waiting for their first fix.  A branch under kMinShare, or
+/// one with no `room` left, is joined, moment for moment, to the kept
+/// branch whose filter covariance is closest.  The first kept branch stays
+/// in s, the others go to `away`.  False, and s untouched, where the filter
+/// trusts the fix more than its prediction (tr P⁻_xy ≤ tr R): there a
+/// turned-away vehicle is one whose fix's noise was large, and its next fix
+/// passes (the caller steps s as without the gate).
+template <int K>
+bool gate_step(const Gate& gate, const StepOutcome& o, std::size_t room, Stratum<K>& s,
+               std::vector<Stratum<K>>& away) {
+  if (!(o.R.allFinite() && o.R.determinant() > 0.0 && o.Pm.topLeftCorner<2, 2>().trace() > kGatePersists * o.R.trace()))
+    return false;
+  const auto br = gate_branches(o, o.F * s.m, s.N, s.rejections, gate.reset_after, gate.gamma);
+  constexpr int B = static_cast<int>(std::tuple_size<decltype(br)>::value);
+  // Which kept branch each joins (−1: none yet); the heaviest is kept first.
+  std::array<int, B> into, order;
+  into.fill(-1);
+  for (int b = 0; b < B; ++b) order[static_cast<std::size_t>(b)] = b;
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return br[a].share > br[b].share; });
+  std::size_t kept = 0;
+  for (int b : order) {
+    if (!(br[b].share > 0.0)) continue;
+    // A branch that moves on the localizer's reset count is kept however
+    // small (joined, the count would never reach the reset); merge_alike
+    // joins it to the last step's with the same count.
+    const double floor = br[b].rejections != s.rejections ? kMinCountShare : kMinShare;
+    if (kept == 0 || (br[b].share * s.w >= floor && kept <= room)) {
+      into[b] = b, ++kept;
+      continue;
+    }
+    double best = std::numeric_limits<double>::infinity();
+    for (int c : order)
+      if (into[c] == c && (br[b].P - br[c].P).norm() < best) best = (br[b].P - br[c].P).norm(), into[b] = c;
+  }
+  const Eigen::Matrix<double, 4, K> FB = o.F * s.B;
+  const Stratum<K> prior = s;
+  bool first = true;
+  for (int c : order) {
+    if (into[c] != c) continue;
+    Stratum<K> t = prior;
+    double total = 0.0, heaviest = -1.0;
+    StateCov P = StateCov::Zero(), M = StateCov::Zero();
+    Eigen::Vector4d m = Eigen::Vector4d::Zero();
+    Eigen::Matrix4d T = Eigen::Matrix4d::Zero();
+    for (int b = 0; b < B; ++b) {
+      if (into[b] != c) continue;
+      const GateBranch& g = br[b];
+      total += g.share, P += g.share * g.P, M += g.share * g.M, m += g.share * g.m, T += g.share * g.T;
+      if (g.share > heaviest) heaviest = g.share, t.rejections = g.rejections;
+    }
+    t.w = prior.w * total;
+    t.P = P / total, t.m = m / total, t.B = (T / total) * FB;
+    t.P = 0.5 * (t.P + t.P.transpose());
+    t.N = M / total - t.P;
+    t.N = 0.5 * (t.N + t.N.transpose());
+    if (first) s = t, first = false;
+    else away.push_back(t);
+  }
   return true;
 }
 
@@ -404,6 +505,8 @@ void mixture_recursion(const Model& model, const std::vector<Step>& steps, std::
   for (std::size_t k = 1; k < steps.size(); ++k) arc[k] = arc[k - 1] + steps[k].length;
   Eigen::Index used = static_cast<Eigen::Index>(st.size());
   bool merged = true;
+  const Gate gate(settings.gate_probability);
+  std::vector<Stratum<K>> away;  // a step's strata whose fix the gate turned away
   for (std::size_t k = 1; k < steps.size(); ++k) {
     const double h = steps[k].x[kTheta];
     Eigen::Matrix<double, K, 4> H;
@@ -424,13 +527,16 @@ void mixture_recursion(const Model& model, const std::vector<Step>& steps, std::
     }
     StateCov mix = StateCov::Zero(), mix_m = StateCov::Zero();
     Eigen::Matrix4d F;
-    for (std::size_t i = 0; i < st.size(); ++i) {
+    away.clear();
+    const std::size_t stepped = st.size();
+    for (std::size_t i = 0; i < stepped; ++i) {
       Stratum<K>& s = st[i];
       StepOutcome o;
-      model.step(s.seen, s.P, &o);
+      model.step(s.seen, s.P, &o, true);
       F = o.F;
       s.N = F * s.N * F.transpose();
       mix_m += s.w * (o.Pm + s.N);
+      if (o.gated && gate_step<K>(gate, o, cap - std::min(cap, stepped + away.size()), s, away)) continue;
       Eigen::Matrix4d T;
       if (o.p_fix < 1.0) {  // a fix that may not arrive: each branch moves the error by its own factor
         const StateCov X = s.N;
@@ -443,6 +549,10 @@ void mixture_recursion(const Model& model, const std::vector<Step>& steps, std::
       s.m = T * (F * s.m);
       s.B = T * (F * s.B);
       s.N = 0.5 * (s.N + s.N.transpose());
+    }
+    st.insert(st.end(), away.begin(), away.end());
+    for (std::size_t i = 0; i < st.size(); ++i) {
+      const Stratum<K>& s = st[i];
       mix += s.w * (s.P + s.N);
       const auto row = static_cast<Eigen::Index>(k), col = static_cast<Eigen::Index>(i);
       if (col >= slots) throw std::logic_error("deviation mixture: more strata than the trace holds");

@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include <Eigen/Cholesky>
+#include <Eigen/LU>
 
 #include "errors.hpp"
 #include "filters/kalman_update.hpp"
@@ -265,7 +266,7 @@ void Model::update(const Step& s, double n, double fix_count, bool with_fix, Sta
   if (sensors_.imu) ml_update<2>(P, H_imu_, R_imu_ / n, MeasurementKind::SpeedHeading);
 }
 
-void Model::step(const Step& s, StateCov& P, StepOutcome* out) const {
+void Model::step(const Step& s, StateCov& P, StepOutcome* out, bool gate) const {
   // Eq. 11 about the nominal: P⁻ = F P Fᵀ + G Σ_ε Gᵀ (the BMM over the step's dt).
   const Bmm bmm = bmm_.with_step(s.dt);
   Eigen::Matrix4d F, G;
@@ -281,7 +282,9 @@ void Model::step(const Step& s, StateCov& P, StepOutcome* out) const {
   // information is that many times one's (R divided by the count).
   const double n = s.dt / bmm_.params().dt;
   const FixOdds odds = fix_odds(s, n);
-  if (!(odds.p > 0.0 && odds.p < 1.0)) {  // the updates are certain
+  // The mixture's strata branch on the gate (belief_gate.hpp) where a fix may arrive.
+  const bool gated = gate && out && settings_.gate_probability > 0.0 && odds.p > 0.0 && (s.fix || s.ranges);
+  if (!(odds.p > 0.0 && odds.p < 1.0) && !gated) {  // the updates are certain
     update(s, n, odds.count, odds.p > 0.0, P);
     return;
   }
@@ -289,14 +292,38 @@ void Model::step(const Step& s, StateCov& P, StepOutcome* out) const {
   StateCov P_fix = Pm, P_none = Pm;
   update(s, n, odds.count, true, P_fix);
   update(s, n, odds.count, false, P_none);
-  P = odds.p * P_fix + (1.0 - odds.p) * P_none;
-  P = 0.5 * (P + P.transpose());
+  if (odds.p < 1.0) {
+    P = odds.p * P_fix + (1.0 - odds.p) * P_none;
+    P = 0.5 * (P + P.transpose());
+  } else {
+    P = P_fix;
+  }
   if (out) {
     const Eigen::LDLT<StateCov> ldlt(Pm);
     out->p_fix = odds.p;
     out->T_fix = ldlt.solve(P_fix.transpose()).transpose();
     out->T_none = ldlt.solve(P_none.transpose()).transpose();
+    if (gated) {
+      out->gated = true;
+      out->P_fix = P_fix;
+      out->P_none = P_none;
+      out->R = fix_information(s, odds.count).inverse();
+    }
   }
+}
+
+Eigen::Matrix2d Model::fix_information(const Step& s, double count) const {
+  if (s.fix) return (R_fix_ / count).inverse();
+  Eigen::Matrix2d Y = Eigen::Matrix2d::Zero();
+  for (int row : s.seen) {  // the ranges of update(), as one position fix
+    const LandmarkGeometry g = landmark_geometry(s.end.x(), s.end.y(), sensors_.landmarks(row, 0), sensors_.landmarks(row, 1));
+    if (!g.defined()) continue;
+    LandmarkJacobian J;
+    predict_range(g, 0.0, 0.0, &J);
+    const Eigen::Vector2d d(J.x, J.y);
+    Y += d * d.transpose() * (count / (sensors_.range_std * sensors_.range_std));
+  }
+  return Y;
 }
 
 void Model::direction(Step& s) const {

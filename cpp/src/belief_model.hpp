@@ -54,6 +54,13 @@ struct StepOutcome {
   Eigen::Matrix4d F = Eigen::Matrix4d::Zero();
   double p_fix = 1.0;                    ///< probability that the step's fix arrives (1: its updates are certain)
   Eigen::Matrix4d T_fix = Eigen::Matrix4d::Identity(), T_none = Eigen::Matrix4d::Identity();
+  /// The filter gates the step's fix (BeliefSettings::gate_probability):
+  /// T_fix and T_none are set whatever p_fix, with the branches' covariances
+  /// and the fix's noise R (its position block; FixModel::Ranges: the
+  /// ranges' information inverted, the trilateration's linear covariance).
+  bool gated = false;
+  StateCov P_fix = StateCov::Zero(), P_none = StateCov::Zero();
+  Eigen::Matrix2d R = Eigen::Matrix2d::Identity();
 };
 
 inline double normal_sf(double z) { return 0.5 * std::erfc(z / std::sqrt(2.0)); }  ///< P(N(0,1) > z)
@@ -75,8 +82,9 @@ class Model {
   void trajectory(const Eigen::Ref<const RowMatrixX4>& states, std::vector<Step>& out) const;
   /// P ← one belief step (predict, then the expected updates; StepOutcome
   /// for a fix that may not arrive).  `out`, when given, receives P⁻, F and
-  /// the branches.
-  void step(const Step& s, StateCov& P, StepOutcome* out = nullptr) const;
+  /// the branches; with `gate` (the mixture's strata) also those of a fix
+  /// the filter gates (StepOutcome::gated).
+  void step(const Step& s, StateCov& P, StepOutcome* out = nullptr, bool gate = false) const;
   /// `s` seen by a vehicle `lateral` metres to the left of the leg and
   /// turned by `dtheta` (BeliefSettings::deviation_mixture): the landmarks in
   /// view and the measurements from there; the motion (s.x) and the
@@ -123,6 +131,9 @@ class Model {
     double count = 0.0;
   };
   FixOdds fix_odds(const Step& s, double n) const;
+  /// The information of the step's fix on the position, each measurement
+  /// counted `count` times (R⁻¹; FixModel::Ranges: Σ gᵢ gᵢᵀ count / σ_r²).
+  Eigen::Matrix2d fix_information(const Step& s, double count) const;
   /// The step's updates on P (after its prediction): the fix's when
   /// `with_fix`, each counted `fix_count` times, then bearings and the IMU.
   void update(const Step& s, double n, double fix_count, bool with_fix, StateCov& P) const;

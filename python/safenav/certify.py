@@ -60,7 +60,8 @@ def mission_inputs(scenario, path) -> dict:
     ``scenario``: its planning ``map`` (hazards of risk ≥ the planner's
     ``forbidden_risk`` are keep-out areas), ``bmm``, the ``sensors`` of its
     navigation loop (as :func:`safenav.navigation.make_navigator` builds
-    them), the cruise ``speed``, ``vehicle_radius`` and ``margin``."""
+    them), the cruise ``speed``, ``vehicle_radius``, ``margin`` and the
+    filter's ``gate_probability``."""
     from . import navigation as nv
     from . import planning as P
 
@@ -68,7 +69,8 @@ def mission_inputs(scenario, path) -> dict:
     navigator = nv.make_navigator(scenario, np.asarray(path, dtype=float), record=False)
     return {"map": P.map_from_world(scenario.world, forbidden_risk=scenario.planner.forbidden_risk),
             "bmm": scenario.bmm_params(), "sensors": navigator.sensors, "speed": float(n.cruise_speed),
-            "vehicle_radius": float(n.vehicle_radius), "margin": float(n.clearance_margin)}
+            "vehicle_radius": float(n.vehicle_radius), "margin": float(n.clearance_margin),
+            "gate_probability": float(n.gate_probability)}
 
 
 def risk_k(scenario, path) -> tuple[float, float]:

@@ -118,6 +118,18 @@ struct BeliefSettings {
   /// Monte Carlo.  At most 64 strata (twice the rule's where that is more);
   /// no part under 10⁻⁴ of the vehicles.
   bool deviation_split = true;
+  /// The filter's χ² gate on position fixes (NavigationSettings::filter's
+  /// gate_probability; 0 = none, the papers' loop).  With the deviation
+  /// mixture, a stratum whose filter trusts its prediction less than the
+  /// fix (its P⁻'s position variance above the fix's) splits where a fix
+  /// arrives: the vehicles whose innovation fails the gate keep their error
+  /// and their filter covariance in a stratum of their own, until they pass
+  /// it or the localizer resets its position from the fixes it turned away
+  /// (LocalizerSettings' defaults, as the loop's).  A vehicle that starts
+  /// 3σ off gets its first fix turned away, and stays off, as in the Monte
+  /// Carlo (docs/belief_planning.md, "A fix the gate turns away").  Off by
+  /// default; safenav.certify.mission_inputs passes the scenario's.
+  double gate_probability = 0.0;
   Inflation inflation;       ///< vehicle radius (collision) and margin (kept beyond it by the planner)
   void validate() const;     ///< throws std::invalid_argument naming the bad value
 };

@@ -1,0 +1,163 @@
+// The filter's χ² gate in the expected belief (belief_gate.hpp).
+#include "belief_gate.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace safenav::belief {
+namespace {
+
+/// Antiderivatives in r of r e^{−r²/2} times 1, r and r² (the radial
+/// density of N(0, I₂) in polar coordinates, times 2π), with their limits at
+/// r = ∞; at r = 0 they are −1, 0 and −2.
+struct Radial {
+  double f0, f1, f2;
+  explicit Radial(double r) {
+    if (!std::isfinite(r)) {
+      f0 = 0.0, f1 = std::sqrt(kPi / 2.0), f2 = 0.0;
+      return;
+    }
+    const double g = std::exp(-0.5 * r * r);
+    f0 = -g;
+    f1 = -r * g + std::sqrt(kPi / 2.0) * std::erf(r / std::sqrt(2.0));
+    f2 = -(r * r + 2.0) * g;
+  }
+};
+
+}  // namespace
+
+GateParts gate_parts(const Eigen::Vector2d& c, const Eigen::Matrix2d& C, const Eigen::Matrix2d& S, double gamma,
+                     int angles) {
+  // In the gate's whitened coordinates (L Lᵀ = S) the test is |b + A w|² ≤ γ.
+  const Eigen::LLT<Eigen::Matrix2d> llt(S);
+  const Eigen::Vector2d b = llt.matrixL().solve(c);
+  const Eigen::Matrix2d A = llt.matrixL().solve(C);
+  const double inf = std::numeric_limits<double>::infinity();
+  const Radial zero(0.0), end(inf);
+  constexpr int P = 1 + kGateSectors;
+  std::array<double, P> mass{};
+  std::array<Eigen::Vector2d, P> first;
+  std::array<Eigen::Matrix2d, P> second;
+  first.fill(Eigen::Vector2d::Zero());
+  second.fill(Eigen::Matrix2d::Zero());
+  const auto add = [&](int part, const Eigen::Vector2d& d, const Radial& from, const Radial& to) {
+    mass[part] += to.f0 - from.f0;
+    first[part] += (to.f1 - from.f1) * d;
+    second[part] += (to.f2 - from.f2) * (d * d.transpose());
+  };
+  for (int j = 0; j < angles; ++j) {
+    const double phi = 2.0 * kPi * (j + 0.5) / angles;
+    const Eigen::Vector2d d(std::cos(phi), std::sin(phi));
+    const Eigen::Vector2d a = A * d;
+    // |b + r a|² − γ = qa r² + 2 qb r + qc: inside between its roots.
+    const double qa = a.squaredNorm(), qb = b.dot(a), qc = b.squaredNorm() - gamma;
+    const double disc = qb * qb - qa * qc;
+    double r1 = 0.0, r2 = 0.0;  // the passing stretch (empty when equal)
+    if (!(qa > 0.0)) {
+      r2 = qc <= 0.0 ? inf : 0.0;
+    } else if (disc > 0.0) {
+      const double root = std::sqrt(disc);
+      r1 = std::max(0.0, (-qb - root) / qa);
+      r2 = std::max(0.0, (-qb + root) / qa);
+    }
+    const Radial in1(r1), in2(r2);
+    const int sector = 1 + j * kGateSectors / angles;
+    add(0, d, in1, in2);
+    add(sector, d, zero, in1);
+    add(sector, d, in2, end);
+  }
+  GateParts out;
+  for (int p = 0; p < P; ++p) {
+    out.mass[p] = mass[p] / angles;
+    if (!(out.mass[p] > 0.0)) continue;
+    out.mean[p] = first[p] / (angles * out.mass[p]);
+    out.second[p] = second[p] / (angles * out.mass[p]);
+  }
+  return out;
+}
+
+std::array<GateBranch, 2 + kGateSectors> gate_branches(const StepOutcome& o, const Eigen::Vector4d& mu, const StateCov& Nm,
+                                        int rejections, int reset_after, double gamma) {
+  std::array<GateBranch, 2 + kGateSectors> br;
+  // [0] No fix: the step's other updates only.
+  GateBranch& none = br[0];
+  none.share = 1.0 - o.p_fix;
+  none.P = o.P_none;
+  none.T = o.T_none;
+  none.m = o.T_none * mu;
+  none.M = o.P_none + o.T_none * Nm * o.T_none.transpose();
+  none.rejections = rejections;
+  // The innovation ν = v − H e = c + C w, w ~ N(0, I₂); the error given it,
+  // e = μ + U w + η, U = −Σ Hᵀ C⁻ᵀ, η ~ N(0, Σ − U Uᵀ) independent of w.
+  StateCov Sigma = o.Pm + Nm - mu * mu.transpose();
+  Sigma = 0.5 * (Sigma + Sigma.transpose());
+  const Eigen::Vector2d c = -mu.head<2>();
+  const Eigen::Matrix2d G = Sigma.topLeftCorner<2, 2>() + o.R;
+  const Eigen::Matrix2d C = Eigen::LLT<Eigen::Matrix2d>(G).matrixL();
+  const Eigen::Matrix<double, 4, 2> U =
+      -C.triangularView<Eigen::Lower>().solve(Sigma.topRows<2>()).transpose();
+  const StateCov eta = Sigma - U * U.transpose();
+  const Eigen::Matrix2d S = o.Pm.topLeftCorner<2, 2>() + o.R;
+  // A stratum turned away before is turned away again: its error lay
+  // outside the gate, and where the filter trusts its prediction more than
+  // the fix (the caller's condition) the fix's noise moves it by little.
+  GateParts parts;
+  if (rejections > 0)
+    parts.mass[1] = 1.0;
+  else
+    parts = gate_parts(c, C, S, gamma);
+  // E[a + β w][a + β w]ᵀ over a part, plus `rest`.
+  const auto moments = [&](int p, const Eigen::Vector4d& a, const Eigen::Matrix<double, 4, 2>& beta,
+                           const StateCov& rest, Eigen::Vector4d& mean, StateCov& M) {
+    const Eigen::Vector4d shift = beta * parts.mean[p];
+    mean = a + shift;
+    M = a * a.transpose() + a * shift.transpose() + shift * a.transpose() +
+        beta * parts.second[p] * beta.transpose() + rest;
+    M = 0.5 * (M + M.transpose());
+  };
+  // [1] Through the gate: e⁺ = T e + K_f v + (the other updates' noise)
+  //     = D e + K_f ν + …, D = T + K_f H, K_f = P_fix Hᵀ R⁻¹ (the fix's gain in
+  //     the step's joint update), the other noise's covariance
+  //     P_fix − T P⁻ Tᵀ − K_f R K_fᵀ (the Joseph form's parts).
+  GateBranch& pass = br[1];
+  pass.share = o.p_fix * parts.mass[0];
+  pass.P = o.P_fix;
+  pass.T = o.T_fix;
+  const Eigen::Matrix<double, 4, 2> Kf = o.P_fix.leftCols<2>() * o.R.inverse();
+  Eigen::Matrix4d D = o.T_fix;
+  D.leftCols<2>() += Kf;
+  const StateCov other = o.P_fix - o.T_fix * o.Pm * o.T_fix.transpose() - Kf * o.R * Kf.transpose();
+  moments(0, D * mu + Kf * c, D * U + Kf * C, D * eta * D.transpose() + other, pass.m, pass.M);
+  // [2 …] Turned away: e keeps its prediction, then the other updates.
+  for (int sector = 1; sector <= kGateSectors; ++sector) {
+    GateBranch& away = br[static_cast<std::size_t>(1 + sector)];
+    away.share = o.p_fix * parts.mass[static_cast<std::size_t>(sector)];
+    away.P = o.P_none;
+    away.T = o.T_none;
+    away.rejections = rejections + 1;
+    Eigen::Vector4d e_mean;
+    StateCov e_M;
+    moments(sector, mu, U, eta, e_mean, e_M);
+    away.m = o.T_none * e_mean;
+    away.M = o.T_none * e_M * o.T_none.transpose() + o.P_none - o.T_none * o.Pm * o.T_none.transpose();
+    if (reset_after > 0 && away.rejections >= reset_after) {
+      // The localizer restarts its position from this fix: its error is the fix's.
+      away.rejections = 0;
+      away.P.topLeftCorner<2, 2>() = o.R;
+      away.P.topRightCorner<2, 2>().setZero();
+      away.P.bottomLeftCorner<2, 2>().setZero();
+      away.M.topLeftCorner<2, 2>() = o.R;
+      away.M.topRightCorner<2, 2>().setZero();
+      away.M.bottomLeftCorner<2, 2>().setZero();
+      away.m.head<2>().setZero();
+      away.T.topRows<2>().setZero();
+    }
+    away.M = 0.5 * (away.M + away.M.transpose());
+  }
+  return br;
+}
+
+}  // namespace safenav::belief
