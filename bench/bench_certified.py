@@ -316,13 +316,16 @@ def print_calibration(df: pd.DataFrame, outs: list, record: int) -> None:
     groups = {}
     for (_, r), o in zip(df.iterrows(), outs):
         g = groups.setdefault((r.measurement, r.filt), {"expected": [], "robust": [], "path": [], "fix_e": [],
-                                                         "fix_r": [], "out_share": [], "out_rest": []})
+                                                         "fix_r": [], "out_share": [], "out_rest": [],
+                                                         "out_meets": []})
         cal = o["calibration_nominal"]
         keep = _kept_bins(cal, record)
         g["expected"].append(cal.ratio[keep])
         out_band = keep & (np.abs(cal.ratio - 1) > TARGET_RATIO)
         g["out_share"].append(cal.worst_share[out_band])
         g["out_rest"].append(cal.observed_without_worst[out_band] / cal.predicted[out_band])
+        g["out_meets"].append((cal.observed_low[out_band] <= (1 + TARGET_RATIO) * cal.predicted[out_band])
+                              & (cal.observed_high[out_band] >= (1 - TARGET_RATIO) * cal.predicted[out_band]))
         g["robust"].append(o["calibration_robust"].ratio[_kept_bins(o["calibration_robust"], record)])
         on_path = o["calibration"]
         keep = _kept_bins(on_path, record)
@@ -341,6 +344,9 @@ def print_calibration(df: pd.DataFrame, outs: list, record: int) -> None:
                   "than half their squared error in one trial (a rare event that this many trials cannot resolve)"
                   + (f"; without that trial their ratios are {np.nanmin(rest):.2f}–{np.nanmax(rest):.2f}"
                      if np.isfinite(rest).any() else ""))
+            print(f"     {m:6} {f:3} of the {v['out_share'].size} bins outside the band, "
+                  f"{int(np.sum(v['out_meets']))} have a 95 % trial-bootstrap interval of the observed RMS that "
+                  "meets the band (the prediction within the Monte Carlo's own sampling error)")
         print(_ratio_line(f"{m:6} {f:3} path    ", v["path"]))
         print(_ratio_line(f"{m:6} {f:3} robust  ", v["robust"]))
         if v["fix_e"].size:

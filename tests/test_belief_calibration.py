@@ -344,3 +344,31 @@ def test_split_cells_are_the_gauss_hermite_weights_and_the_same_mixture_while_al
     dp = np.asarray(points.strata_positions).reshape(len(split.positions), -1, 2) - np.asarray(points.positions)[:, None]
     far = np.linalg.norm(d[1:], axis=2).max(axis=1) / np.linalg.norm(dp[1:], axis=2).max(axis=1)
     np.testing.assert_allclose(far, stats.norm.pdf(a) / gw[-1] / x[-1], rtol=1e-9)
+
+
+def test_the_bootstrap_interval_of_the_observed_rms_covers_the_truth_95_percent_of_the_time():
+    """SigmaCalibration.observed_low/high: percentile bootstrap over trials.
+    Trials of 30 steps each, every step's error 2-D normal with σ = 0.3 and a
+    per-trial bias (so steps of a trial are not independent): the bounds hold
+    the true RMS at close to their 95 %, and the same trials give the same bounds."""
+    from safenav.belief import _bootstrap_rms
+    rng = np.random.default_rng(11)
+    true_rms = np.sqrt(2 * 0.3 ** 2 + 2 * 0.2 ** 2)
+    covered = 0
+    for _ in range(300):
+        bias = rng.normal(0.0, 0.2, (60, 1, 2))
+        e = bias + rng.normal(0.0, 0.3, (60, 30, 2))
+        per_sq = np.sum(e ** 2, axis=(1, 2))[:, None]
+        per_n = np.full((60, 1), 30.0)
+        lo, hi = _bootstrap_rms(per_sq, per_n)
+        obs = np.sqrt(per_sq.sum() / per_n.sum())
+        assert lo[0] <= obs <= hi[0]
+        covered += lo[0] <= true_rms <= hi[0]
+    assert 0.89 <= covered / 300 <= 0.99, covered
+    again = _bootstrap_rms(per_sq, per_n)
+    assert np.array_equal(again[0], lo) and np.array_equal(again[1], hi)
+    # One trial far off: the interval reaches from the rest's RMS to well above the whole's.
+    per_sq[0] += 900.0
+    lo, hi = _bootstrap_rms(per_sq, per_n)
+    whole = np.sqrt(per_sq.sum() / per_n.sum())
+    assert lo[0] < 0.6 * whole and hi[0] > 1.2 * whole

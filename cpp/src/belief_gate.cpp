@@ -79,17 +79,41 @@ GateParts gate_parts(const Eigen::Vector2d& c, const Eigen::Matrix2d& C, const E
   return out;
 }
 
-std::array<GateBranch, 2 + kGateSectors> gate_branches(const StepOutcome& o, const Eigen::Vector4d& mu, const StateCov& Nm,
-                                        int rejections, int reset_after, double gamma) {
+namespace {
+
+/// The branch without the fix: the step's other updates only (P_none, T_none).
+GateBranch without_fix(const StepOutcome& o, const Eigen::Vector4d& mu, const StateCov& Nm) {
+  GateBranch b;
+  b.P = o.P_none;
+  b.T = o.T_none;
+  b.m = o.T_none * mu;
+  b.M = o.P_none + o.T_none * Nm * o.T_none.transpose();
+  return b;
+}
+
+/// The localizer's reset of `b` from the step's fix (Localizer, InputStatus::Reset):
+/// P_xy ← R, the position's cross-covariances 0, the position error the fix's.
+void restart_from_fix(GateBranch& b, const Eigen::Matrix2d& R) {
+  b.turned_away = false;
+  b.counts.fill(0.0);
+  b.P.topLeftCorner<2, 2>() = R;
+  b.P.topRightCorner<2, 2>().setZero();
+  b.P.bottomLeftCorner<2, 2>().setZero();
+  b.M.topLeftCorner<2, 2>() = R;
+  b.M.topRightCorner<2, 2>().setZero();
+  b.M.bottomLeftCorner<2, 2>().setZero();
+  b.m.head<2>().setZero();
+  b.T.topRows<2>().setZero();
+}
+
+}  // namespace
+
+std::array<GateBranch, 2 + kGateSectors> gate_branches(const StepOutcome& o, const Eigen::Vector4d& mu,
+                                                       const StateCov& Nm, int reset_after, double gamma) {
   std::array<GateBranch, 2 + kGateSectors> br;
   // [0] No fix: the step's other updates only.
-  GateBranch& none = br[0];
-  none.share = 1.0 - o.p_fix;
-  none.P = o.P_none;
-  none.T = o.T_none;
-  none.m = o.T_none * mu;
-  none.M = o.P_none + o.T_none * Nm * o.T_none.transpose();
-  none.rejections = rejections;
+  br[0] = without_fix(o, mu, Nm);
+  br[0].share = 1.0 - o.p_fix;
   // The innovation ν = v − H e = c + C w, w ~ N(0, I₂); the error given it,
   // e = μ + U w + η, U = −Σ Hᵀ C⁻ᵀ, η ~ N(0, Σ − U Uᵀ) independent of w.
   StateCov Sigma = o.Pm + Nm - mu * mu.transpose();
@@ -101,21 +125,14 @@ std::array<GateBranch, 2 + kGateSectors> gate_branches(const StepOutcome& o, con
       -C.triangularView<Eigen::Lower>().solve(Sigma.topRows<2>()).transpose();
   const StateCov eta = Sigma - U * U.transpose();
   const Eigen::Matrix2d S = o.Pm.topLeftCorner<2, 2>() + o.R;
-  // A stratum turned away before is turned away again: its error lay
-  // outside the gate, and where the filter trusts its prediction more than
-  // the fix (the caller's condition) the fix's noise moves it by little.
-  GateParts parts;
-  if (rejections > 0)
-    parts.mass[1] = 1.0;
-  else
-    parts = gate_parts(c, C, S, gamma);
+  const GateParts parts = gate_parts(c, C, S, gamma);
   // E[a + β w][a + β w]ᵀ over a part, plus `rest`.
   const auto moments = [&](int p, const Eigen::Vector4d& a, const Eigen::Matrix<double, 4, 2>& beta,
                            const StateCov& rest, Eigen::Vector4d& mean, StateCov& M) {
-    const Eigen::Vector4d shift = beta * parts.mean[p];
+    const Eigen::Vector4d shift = beta * parts.mean[static_cast<std::size_t>(p)];
     mean = a + shift;
     M = a * a.transpose() + a * shift.transpose() + shift * a.transpose() +
-        beta * parts.second[p] * beta.transpose() + rest;
+        beta * parts.second[static_cast<std::size_t>(p)] * beta.transpose() + rest;
     M = 0.5 * (M + M.transpose());
   };
   // [1] Through the gate: e⁺ = T e + K_f v + (the other updates' noise)
@@ -137,26 +154,37 @@ std::array<GateBranch, 2 + kGateSectors> gate_branches(const StepOutcome& o, con
     away.share = o.p_fix * parts.mass[static_cast<std::size_t>(sector)];
     away.P = o.P_none;
     away.T = o.T_none;
-    away.rejections = rejections + 1;
+    away.turned_away = true;
+    away.counts[0] = 1.0;
     Eigen::Vector4d e_mean;
     StateCov e_M;
     moments(sector, mu, U, eta, e_mean, e_M);
     away.m = o.T_none * e_mean;
     away.M = o.T_none * e_M * o.T_none.transpose() + o.P_none - o.T_none * o.Pm * o.T_none.transpose();
-    if (reset_after > 0 && away.rejections >= reset_after) {
-      // The localizer restarts its position from this fix: its error is the fix's.
-      away.rejections = 0;
-      away.P.topLeftCorner<2, 2>() = o.R;
-      away.P.topRightCorner<2, 2>().setZero();
-      away.P.bottomLeftCorner<2, 2>().setZero();
-      away.M.topLeftCorner<2, 2>() = o.R;
-      away.M.topRightCorner<2, 2>().setZero();
-      away.M.bottomLeftCorner<2, 2>().setZero();
-      away.m.head<2>().setZero();
-      away.T.topRows<2>().setZero();
-    }
     away.M = 0.5 * (away.M + away.M.transpose());
+    if (reset_after == 1) restart_from_fix(away, o.R);
   }
+  return br;
+}
+
+std::array<GateBranch, 2> turned_away_branches(const StepOutcome& o, const Eigen::Vector4d& mu, const StateCov& Nm,
+                                               const Counts& counts, int reset_after) {
+  std::array<GateBranch, 2> br{without_fix(o, mu, Nm), without_fix(o, mu, Nm)};
+  GateBranch &keep = br[0], &reset = br[1];
+  keep.turned_away = true;
+  // A fix moves count c to c + 1; from reset_after − 1 it restarts the position.
+  const int last = std::clamp(reset_after - 1, 0, kMaxCount);
+  const double p = o.p_fix;
+  reset.share = last > 0 ? p * counts[static_cast<std::size_t>(last - 1)] : 0.0;
+  keep.share = 1.0 - reset.share;
+  for (int c = last; c >= 1; --c) {
+    const auto i = static_cast<std::size_t>(c - 1);
+    keep.counts[i] = (1.0 - p) * counts[i] + (c > 1 ? p * counts[i - 1] : 0.0);
+  }
+  if (last == 0) keep.counts = counts;  // never reset: the count does not matter
+  if (keep.share > 0.0)
+    for (double& x : keep.counts) x /= keep.share;
+  restart_from_fix(reset, o.R);
   return br;
 }
 

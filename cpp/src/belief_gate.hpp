@@ -39,36 +39,50 @@ struct GateParts {
 GateParts gate_parts(const Eigen::Vector2d& c, const Eigen::Matrix2d& C, const Eigen::Matrix2d& S, double gamma,
                      int angles = 64);
 
+/// The most fixes turned away in a row that a stratum counts (the loop's
+/// localizer resets at the third).
+constexpr int kMaxCount = 8;
+/// A turned-away stratum's vehicles by the fixes turned away in a row:
+/// element c − 1 holds the share with c (c < the reset count).
+using Counts = std::array<double, kMaxCount>;
+
 /// One branch of a stratum's step under the gate: its share of the
 /// stratum, its filter covariance, its error's mean and second moment
 /// E[e eᵀ] after the step, the factor T that carries the error's mean from
-/// the prediction (m ← T m⁻: how B moves), and the fixes it has had turned
-/// away in a row since (the localizer's reset count).
+/// the prediction (m ← T m⁻: how B moves), and whether its vehicles' last
+/// fix was turned away (with `counts`).
 struct GateBranch {
   double share = 0.0;
   StateCov P = StateCov::Zero(), M = StateCov::Zero();
   Eigen::Vector4d m = Eigen::Vector4d::Zero();
   Eigen::Matrix4d T = Eigen::Matrix4d::Identity();
-  int rejections = 0;
+  bool turned_away = false;
+  Counts counts{};
 };
 
 /// A stratum's step with a position fix the filter gates (StepOutcome with
 /// `gated`): its error after the prediction has mean `mu` and second moment
 /// o.Pm + Nm.  Its branches: [0] no fix arrives (1 − p_fix); [1] the fix
 /// arrives and passes the gate; [2 …] it arrives and is turned away, one
-/// branch per sector of GateParts (a stratum turned away before: one, all
-/// of it; its error stays outside the gate while the filter trusts its
-/// prediction more than the fix, the caller's condition): the
-/// filter takes the step's other updates only, or, when this is the
-/// `reset_after`-th fix turned away in a row, restarts its position from
-/// the fix (Localizer's reset: P_xy ← R, the cross-covariances 0, the
-/// position error the fix's).  The innovation ν = v − H e of a vehicle of
-/// the stratum is Gaussian with mean −H μ and covariance H Σ Hᵀ + R (Σ its
+/// branch per sector of GateParts: the filter takes the step's other
+/// updates only (or, with `reset_after` 1, restarts its position from the
+/// fix: restart_from_fix).  The innovation ν = v − H e of a vehicle of the
+/// stratum is Gaussian with mean −H μ and covariance H Σ Hᵀ + R (Σ its
 /// error's covariance), the gate's S the filter's H P⁻ Hᵀ + R; given ν the
 /// error is Gaussian (its regression on ν), so each branch's moments follow
 /// from the gate's parts of ν (gate_parts).  With the gate open (γ = ∞) the
 /// branches are the intermittent fix's (Model::step), exactly.
-std::array<GateBranch, 2 + kGateSectors> gate_branches(const StepOutcome& o, const Eigen::Vector4d& mu, const StateCov& Nm,
-                                        int rejections, int reset_after, double gamma);
+std::array<GateBranch, 2 + kGateSectors> gate_branches(const StepOutcome& o, const Eigen::Vector4d& mu,
+                                                       const StateCov& Nm, int reset_after, double gamma);
+
+/// The step of a stratum whose last fix was turned away: its error lay
+/// outside the gate, and where the filter trusts its prediction more than
+/// the fix (the caller's condition) the fix's noise moves it by little, so
+/// each fix that arrives (p_fix) is turned away too and moves its vehicles'
+/// count on; at `reset_after` the localizer restarts the position from it.
+/// [0] the vehicles still turned away (the step's other updates only; their
+/// counts moved on), [1] those whose position restarts (restart_from_fix).
+std::array<GateBranch, 2> turned_away_branches(const StepOutcome& o, const Eigen::Vector4d& mu, const StateCov& Nm,
+                                               const Counts& counts, int reset_after);
 
 }  // namespace safenav::belief

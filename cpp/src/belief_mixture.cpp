@@ -74,7 +74,8 @@ double normal_isf(double p) {
 /// one point: lo = hi = mean, var 0), its filter covariance P, its error's
 /// mean m and second moment P + N, and B, how its error's mean moves with z
 /// across the cell (e = m + B (z − mean) + an error independent of z), and
-/// the fixes its filter has turned away in a row (BeliefSettings::gate_probability).
+/// whether its vehicles' last fix was turned away, with the shares of them
+/// by the fixes turned away in a row (BeliefSettings::gate_probability).
 template <int K>
 struct Stratum {
   using VecK = Eigen::Matrix<double, K, 1>;
@@ -84,7 +85,8 @@ struct Stratum {
   Eigen::Vector4d m = Eigen::Vector4d::Zero();
   Eigen::Matrix<double, 4, K> B = Eigen::Matrix<double, 4, K>::Zero();
   Step seen;  ///< what it sees this step
-  int rejections = 0;
+  bool turned_away = false;
+  Counts counts{};
 };
 
 /// The strata of a fresh stratification: the product rule of K copies of
@@ -304,7 +306,7 @@ int adjacent(const Stratum<K>& a, const Stratum<K>& b) {
     if (axis >= 0 || !(a.hi[d] == b.lo[d] || b.hi[d] == a.lo[d])) return -1;
     axis = d;
   }
-  if (!same_view(a.seen, b.seen) || a.rejections != b.rejections) return -1;
+  if (!same_view(a.seen, b.seen) || a.turned_away != b.turned_away) return -1;
   return axis >= 0 ? axis : K;
 }
 
@@ -316,8 +318,8 @@ double apart(const Stratum<K>& a, const Stratum<K>& b) {
 
 /// Stratum j joined to stratum i on `axis`, moment for moment: the weights
 /// add; the error's mean, second moment, the filter covariance and B are
-/// the weighted means; the cell is their union (the same cell: axis K); the
-/// heavier one's count of fixes turned away stays.
+/// the weighted means, and so are the shares by fixes turned away; the cell
+/// is their union (the same cell: axis K).
 template <int K>
 void join(std::vector<Stratum<K>>& st, std::size_t i, std::size_t j, int axis) {
   Stratum<K>& s = st[i];
@@ -332,7 +334,7 @@ void join(std::vector<Stratum<K>>& st, std::size_t i, std::size_t j, int axis) {
     const Interval c = interval(std::min(s.lo[axis], t.lo[axis]), std::max(s.hi[axis], t.hi[axis]));
     s.lo[axis] = c.lo, s.hi[axis] = c.hi, s.mean[axis] = c.mean, s.var[axis] = c.var;
   }
-  if (t.w > s.w) s.rejections = t.rejections;
+  for (std::size_t c = 0; c < s.counts.size(); ++c) s.counts[c] = u * s.counts[c] + v * t.counts[c];
   s.w = w;
   st.erase(st.begin() + static_cast<std::ptrdiff_t>(j));
 }
@@ -354,7 +356,9 @@ void merge_alike(std::vector<Stratum<K>>& st, double tol) {
 }
 
 /// Joins the closest pair of adjacent strata that take the same updates
-/// (`apart`), to make room for a cut; false when there is none.
+/// (`apart`), to make room for a cut; false when there is none.  Weights do
+/// not count: the slivers are the vehicles far off (cut off blind, turned
+/// away by the gate), whose error the mixture is there to keep.
 template <int K>
 bool make_room(std::vector<Stratum<K>>& st) {
   double best = std::numeric_limits<double>::infinity();
@@ -382,43 +386,56 @@ struct Gate {
     const LocalizerSettings loop;
     for (int n : {loop.reset_after_consistent, loop.reset_after_rejections > 0 ? loop.reset_after_rejections + 1 : 0})
       if (n > 0) reset_after = reset_after > 0 ? std::min(reset_after, n) : n;
+    reset_after = std::min(reset_after, kMaxCount + 1);  // the loop's: 3
   }
 };
 
 /// BeliefSettings::gate_probability: stratum s's step where its fix may be
-/// turned away (gate_branches), after its prediction (s.N is F N Fᵀ, s.m
-/// and s.B are still the prior's).  Each branch that holds at least
-/// kMinShare of the vehicles becomes a stratum of its own, with its own
-/// filter covariance and error (the same cell): the vehicles whose fix has
-/// not come yet, those whose fix passed, those turned away.  Joined in one,
-/// the turned-away vehicles' error would look like a tail of the updated
-/// ones', and the updated ones' covariance would make the gate turn away
-/// vehicles still waiting for their first fix.  A branch under kMinShare, or
-/// one with no `room` left, is joined, moment for moment, to the kept
-/// branch whose filter covariance is closest.  The first kept branch stays
-/// in s, the others go to `away`.  False, and s untouched, where the filter
-/// trusts the fix more than its prediction (tr P⁻_xy ≤ tr R): there a
+/// turned away (gate_branches; turned_away_branches for a stratum turned
+/// away already), after its prediction (s.N is F N Fᵀ, s.m and s.B are
+/// still the prior's).  Each branch that holds at least kMinShare of the
+/// vehicles becomes a stratum of its own, with its own filter covariance
+/// and error (the same cell): the vehicles whose fix has not come yet, those
+/// whose fix passed, those turned away (by sector), those whose position
+/// restarts.  Joined in one, the turned-away vehicles' error would look like
+/// a tail of the updated ones', and the updated ones' covariance would make
+/// the gate turn away vehicles still waiting for their first fix.  A branch
+/// under kMinShare (kMinCountShare where it changes between turned away and
+/// not), or one with no `room` left, is joined, moment for moment, to the
+/// kept branch whose filter covariance is closest.  The first kept branch
+/// stays in s, the others go to `away`.  False where the filter trusts the
+/// fix more than its prediction (tr P⁻_xy ≤ kGatePersists tr R): there a
 /// turned-away vehicle is one whose fix's noise was large, and its next fix
-/// passes (the caller steps s as without the gate).
+/// passes (the caller steps s as without the gate; s is no longer turned
+/// away).
 template <int K>
 bool gate_step(const Gate& gate, const StepOutcome& o, std::size_t room, Stratum<K>& s,
                std::vector<Stratum<K>>& away) {
-  if (!(o.R.allFinite() && o.R.determinant() > 0.0 && o.Pm.topLeftCorner<2, 2>().trace() > kGatePersists * o.R.trace()))
+  if (!(o.R.allFinite() && o.R.determinant() > 0.0 && o.Pm.topLeftCorner<2, 2>().trace() > kGatePersists * o.R.trace())) {
+    s.turned_away = false;  // its fixes pass: their noise, not its error, decides
+    s.counts.fill(0.0);
     return false;
-  const auto br = gate_branches(o, o.F * s.m, s.N, s.rejections, gate.reset_after, gate.gamma);
-  constexpr int B = static_cast<int>(std::tuple_size<decltype(br)>::value);
+  }
+  std::vector<GateBranch> br;
+  if (s.turned_away) {
+    const auto b = turned_away_branches(o, o.F * s.m, s.N, s.counts, gate.reset_after);
+    br.assign(b.begin(), b.end());
+  } else {
+    const auto b = gate_branches(o, o.F * s.m, s.N, gate.reset_after, gate.gamma);
+    br.assign(b.begin(), b.end());
+  }
+  const int B = static_cast<int>(br.size());
   // Which kept branch each joins (−1: none yet); the heaviest is kept first.
-  std::array<int, B> into, order;
-  into.fill(-1);
+  std::vector<int> into(br.size(), -1), order(br.size());
   for (int b = 0; b < B; ++b) order[static_cast<std::size_t>(b)] = b;
   std::sort(order.begin(), order.end(), [&](int a, int b) { return br[a].share > br[b].share; });
   std::size_t kept = 0;
   for (int b : order) {
     if (!(br[b].share > 0.0)) continue;
-    // A branch that moves on the localizer's reset count is kept however
-    // small (joined, the count would never reach the reset); merge_alike
-    // joins it to the last step's with the same count.
-    const double floor = br[b].rejections != s.rejections ? kMinCountShare : kMinShare;
+    // A branch whose vehicles change from seeing their fixes pass to having
+    // them turned away, or back, is kept however small (joined, their count
+    // would never reach the reset); merge_alike joins it to the last step's.
+    const double floor = br[b].turned_away != s.turned_away ? kMinCountShare : kMinShare;
     if (kept == 0 || (br[b].share * s.w >= floor && kept <= room)) {
       into[b] = b, ++kept;
       continue;
@@ -441,7 +458,7 @@ bool gate_step(const Gate& gate, const StepOutcome& o, std::size_t room, Stratum
       if (into[b] != c) continue;
       const GateBranch& g = br[b];
       total += g.share, P += g.share * g.P, M += g.share * g.M, m += g.share * g.m, T += g.share * g.T;
-      if (g.share > heaviest) heaviest = g.share, t.rejections = g.rejections;
+      if (g.share > heaviest) heaviest = g.share, t.turned_away = g.turned_away, t.counts = g.counts;
     }
     t.w = prior.w * total;
     t.P = P / total, t.m = m / total, t.B = (T / total) * FB;
