@@ -4,7 +4,6 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <array>
-#include <initializer_list>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -151,6 +150,8 @@ void stratify(const Eigen::Matrix<double, K, 4>& H, const std::vector<Stratum<K>
     s.lo = fresh[i].lo, s.hi = fresh[i].hi, s.mean = fresh[i].mean, s.var = fresh[i].var, s.w = fresh[i].w;
     s.m = ok ? Eigen::Vector4d(G * llt.matrixU().solve(s.mean)) : Eigen::Vector4d::Zero();
     s.B = B;
+    s.turned_away = false;
+    s.counts.fill(0.0);
     s.N = C - s.P + s.m * s.m.transpose();
     if (s.var.any()) s.N += B * s.var.asDiagonal() * B.transpose();
   }
@@ -245,6 +246,9 @@ constexpr int kBisections = 12;
 /// away there is turned away by its error, not by the fix's noise, and its
 /// next fix is turned away too.
 constexpr double kGatePersists = 10.0;
+/// The least share a branch that changes between turned away and not is
+/// kept at (gate_step): joined, its vehicles' count would never reach the
+/// reset.
 constexpr double kMinCountShare = 1e-6;
 
 /// BeliefSettings::deviation_split: where stratum `i`'s cell holds vehicles

@@ -120,14 +120,16 @@ struct BeliefSettings {
   bool deviation_split = true;
   /// The filter's χ² gate on position fixes (NavigationSettings::filter's
   /// gate_probability; 0 = none, the papers' loop).  With the deviation
-  /// mixture, a stratum whose filter trusts its prediction less than the
-  /// fix (its P⁻'s position variance above the fix's) splits where a fix
-  /// arrives: the vehicles whose innovation fails the gate keep their error
-  /// and their filter covariance in a stratum of their own, until they pass
-  /// it or the localizer resets its position from the fixes it turned away
-  /// (LocalizerSettings' defaults, as the loop's).  A vehicle that starts
-  /// 3σ off gets its first fix turned away, and stays off, as in the Monte
-  /// Carlo (docs/belief_planning.md, "A fix the gate turns away").  Off by
+  /// mixture, a stratum whose filter trusts its prediction far less than
+  /// the fix (tr P⁻_xy above 10 tr R) splits where a fix may arrive: the
+  /// vehicles still waiting for one, those whose fix passes, and those whose
+  /// innovation fails the gate (by quarter of directions) go on as strata of
+  /// their own, each with its own filter covariance; the turned-away ones
+  /// keep their error, and have their later fixes turned away too, until
+  /// the localizer resets the position from the third (LocalizerSettings'
+  /// defaults, as the loop's).  A vehicle that starts 3σ off gets its first
+  /// fix turned away and stays off, as in the Monte Carlo
+  /// (docs/belief_planning.md, "A fix the gate turns away").  Off by
   /// default; safenav.certify.mission_inputs passes the scenario's.
   double gate_probability = 0.0;
   Inflation inflation;       ///< vehicle radius (collision) and margin (kept beyond it by the planner)
