@@ -1,13 +1,24 @@
 // The filter's χ² gate in the expected belief (belief_gate.hpp).
 #include "belief_gate.hpp"
 
-#include <Eigen/Cholesky>
-#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <limits>
 
+#include <Eigen/Cholesky>
+#include <Eigen/LU>
+
+#include "safenav/localizer.hpp"
+
 namespace safenav::belief {
+
+Gate::Gate(double probability) : gamma(-2.0 * std::log1p(-probability)) {
+  const LocalizerSettings loop;
+  for (int n : {loop.reset_after_consistent, loop.reset_after_rejections > 0 ? loop.reset_after_rejections + 1 : 0})
+    if (n > 0) reset_after = reset_after > 0 ? std::min(reset_after, n) : n;
+  reset_after = std::min(reset_after, kMaxCount + 1);  // the loop's: 3
+}
+
 namespace {
 
 /// Antiderivatives in r of r e^{−r²/2} times 1, r and r² (the radial

@@ -11,6 +11,17 @@
 
 namespace safenav::belief {
 
+/// The gate of the loop's filter: its χ² threshold on a position fix and
+/// the fix turned away in a row that restarts the position from it (the
+/// localizer's reset_after_consistent, or the one after
+/// reset_after_rejections, whichever comes first, as LocalizerSettings'
+/// defaults give them: the loop's; 0 = never; at most kMaxCount + 1).
+struct Gate {
+  double gamma = 0.0;
+  int reset_after = 0;
+  explicit Gate(double probability);
+};
+
 /// The parts of w ~ N(0, I₂) split by a χ² gate on ν = c + C w: part 0
 /// passes it (νᵀ S⁻¹ ν ≤ γ); parts 1 … kGateSectors fail it, each in its
 /// quarter of directions of w (the vehicles turned away lie on a ring about

@@ -11,7 +11,6 @@
 #include "belief_gate.hpp"
 #include "belief_model.hpp"
 #include "errors.hpp"
-#include "safenav/localizer.hpp"
 
 namespace safenav::belief {
 namespace {
@@ -378,21 +377,6 @@ bool make_room(std::vector<Stratum<K>>& st) {
   join(st, bi, bj, axis);
   return true;
 }
-
-/// The gate of the loop's filter: its χ² threshold on a position fix and
-/// the fix turned away in a row that restarts the position from it (the
-/// localizer's reset_after_consistent, or the one after
-/// reset_after_rejections, whichever comes first; 0 = never).
-struct Gate {
-  double gamma = 0.0;
-  int reset_after = 0;
-  explicit Gate(double probability) : gamma(-2.0 * std::log1p(-probability)) {
-    const LocalizerSettings loop;
-    for (int n : {loop.reset_after_consistent, loop.reset_after_rejections > 0 ? loop.reset_after_rejections + 1 : 0})
-      if (n > 0) reset_after = reset_after > 0 ? std::min(reset_after, n) : n;
-    reset_after = std::min(reset_after, kMaxCount + 1);  // the loop's: 3
-  }
-};
 
 /// BeliefSettings::gate_probability: stratum s's step where its fix may be
 /// turned away (gate_branches; turned_away_branches for a stratum turned
