@@ -180,7 +180,8 @@ std::array<GateBranch, 2 + kGateSectors> gate_branches(const StepOutcome& o, con
 
 std::array<GateBranch, 2> turned_away_branches(const StepOutcome& o, const Eigen::Vector4d& mu, const StateCov& Nm,
                                                const Counts& counts, int reset_after) {
-  std::array<GateBranch, 2> br{without_fix(o, mu, Nm), without_fix(o, mu, Nm)};
+  std::array<GateBranch, 2> br;
+  br.fill(without_fix(o, mu, Nm));
   GateBranch &keep = br[0], &reset = br[1];
   keep.turned_away = true;
   // A fix moves count c to c + 1; from reset_after − 1 it restarts the position.

@@ -404,21 +404,24 @@ bool gate_step(const Gate& gate, const StepOutcome& o, std::size_t room, Stratum
     s.counts.fill(0.0);
     return false;
   }
-  std::vector<GateBranch> br;
+  std::array<GateBranch, 2 + kGateSectors> br;  // fixed room: no allocation per step
+  int B = static_cast<int>(br.size());
   if (s.turned_away) {
     const auto b = turned_away_branches(o, o.F * s.m, s.N, s.counts, gate.reset_after);
-    br.assign(b.begin(), b.end());
+    std::copy(b.begin(), b.end(), br.begin());
+    B = static_cast<int>(b.size());
   } else {
-    const auto b = gate_branches(o, o.F * s.m, s.N, gate.reset_after, gate.gamma);
-    br.assign(b.begin(), b.end());
+    br = gate_branches(o, o.F * s.m, s.N, gate.reset_after, gate.gamma);
   }
-  const int B = static_cast<int>(br.size());
   // Which kept branch each joins (−1: none yet); the heaviest is kept first.
-  std::vector<int> into(br.size(), -1), order(br.size());
+  std::array<int, 2 + kGateSectors> into, order;
+  into.fill(-1);
   for (int b = 0; b < B; ++b) order[static_cast<std::size_t>(b)] = b;
-  std::sort(order.begin(), order.end(), [&](int a, int b) { return br[a].share > br[b].share; });
+  std::sort(order.begin(), order.begin() + B, [&](int a, int b) { return br[a].share > br[b].share; });
   std::size_t kept = 0;
-  for (int b : order) {
+  const auto ranked = [&](int k) { return order[static_cast<std::size_t>(k)]; };  // the first B
+  for (int k = 0; k < B; ++k) {
+    const int b = ranked(k);
     if (!(br[b].share > 0.0)) continue;
     // A branch whose vehicles change from seeing their fixes pass to having
     // them turned away, or back, is kept however small (joined, their count
@@ -429,13 +432,15 @@ bool gate_step(const Gate& gate, const StepOutcome& o, std::size_t room, Stratum
       continue;
     }
     double best = std::numeric_limits<double>::infinity();
-    for (int c : order)
-      if (into[c] == c && (br[b].P - br[c].P).norm() < best) best = (br[b].P - br[c].P).norm(), into[b] = c;
+    for (int l = 0; l < B; ++l)
+      if (const int c = ranked(l); into[c] == c && (br[b].P - br[c].P).norm() < best)
+        best = (br[b].P - br[c].P).norm(), into[b] = c;
   }
   const Eigen::Matrix<double, 4, K> FB = o.F * s.B;
   const Stratum<K> prior = s;
   bool first = true;
-  for (int c : order) {
+  for (int k = 0; k < B; ++k) {
+    const int c = ranked(k);
     if (into[c] != c) continue;
     Stratum<K> t = prior;
     double total = 0.0, heaviest = -1.0;
