@@ -25,7 +25,10 @@
    (``robust_sight``); per bin also the share of steps with a fix predicted
    along the legs and observed, and for the bins outside the band
    how many hold more than half their squared error in one trial (a rare
-   event) and their ratios without it; (b) the predicted path collision
+   event) and their ratios without it, how many have a trial-bootstrap
+   interval that meets the band, and with ``--recheck N`` their ratios
+   with the cell's first N trials recorded (a bin whose prediction rests on
+   strata rarer than one in ``--record`` needs that many); (b) the predicted path collision
    probability (the certificate's robust belief, and the expected one)
    against the observed collision rate with its one-sided 95 %
    Clopper–Pearson bounds (target: observed not significantly above
@@ -45,7 +48,7 @@ Generated worlds 13 and 17 are used by no test or other benchmark (those use
 
     python bench/bench_certified.py [--trials 50] [--worlds 13 17] [--no-gap] [--filters ekf pf]
                                     [--record 200] [--bin-m 10] [--blind-check 10] [--workers 2]
-                                    [--full 100000] [--first-trial 0] [--out DIR]
+                                    [--full 100000] [--first-trial 0] [--recheck 0] [--out DIR]
 """
 
 from __future__ import annotations
@@ -67,7 +70,7 @@ from safenav import certify as C  # noqa: E402
 from safenav import navigation as nav  # noqa: E402
 from safenav import results, runner  # noqa: E402
 from safenav.belief import (arc_position, clopper_pearson, propagate_belief,  # noqa: E402
-                            propagate_belief_along, robust_sight, sigma_calibration)
+                            pool_calibrations, propagate_belief_along, robust_sight, sigma_calibration)
 from safenav.generate import DEFAULT_SEED, generate_scenario  # noqa: E402
 from safenav.scenario import Scenario, default_scenario  # noqa: E402
 
@@ -77,6 +80,8 @@ TARGET_ARRIVAL = 0.999
 TARGET_RATIO = 0.25
 #: A bin's ratio counts when at least this share of the recorded trials reached it.
 MIN_BIN_TRIALS = 0.5
+#: Recorded trials held at once by --recheck.
+RECHECK_BATCH = 500
 
 
 def blind_gap_world() -> Scenario:
@@ -170,6 +175,7 @@ class DriveJob:
     nodes: int = 3             # n of the n x n rule (cells, or nodes) of the expected belief's deviation mixture
     along: bool = False        # the mixture stratifies the deviation along the path too
     split: bool = True         # the mixture's strata are cells, cut where the view changes (False: the nodes)
+    recheck: int = 0           # recorded trials of a cell with a bin outside the band, to check that bin again
 
 
 def _profiles(sc, path, navigator, nodes: int = 3, along: bool = False, split: bool = True):
@@ -222,6 +228,25 @@ def _blind_step_limits(navigator_rec, prof, seeds, outcome, check: int) -> tuple
     return n_sl, len(sl), blind
 
 
+def _recheck(rec, nominal, cal, job: DriveJob):
+    """The expected belief's calibration with the cell's first ``job.recheck``
+    trials recorded (in batches: ``pool_calibrations``), where a bin is
+    outside the band with the first ``job.record``; else None.  The
+    bootstrap interval cannot show an event that no recorded trial met: a bin
+    whose prediction rests on rare strata needs more trials."""
+    c = job.cell
+    out = _kept_bins(cal, job.record) & (np.abs(cal.ratio - 1) > TARGET_RATIO)
+    if job.recheck <= job.record or not out.any():
+        return None
+    seeds = runner.trial_seeds(c.scenario.seeds.trials, c.stream, c.first + job.recheck)[c.first + job.record:]
+    parts = [cal]
+    for a in range(0, len(seeds), RECHECK_BATCH):
+        runs = [rec.run(int(s)) for s in seeds[a:a + RECHECK_BATCH]]
+        parts.append(sigma_calibration(nominal, [np.asarray(r.truth) for r in runs],
+                                       [np.asarray(r.estimate) for r in runs], bin_m=job.bin_m))
+    return pool_calibrations(parts)
+
+
 def drive(job: DriveJob) -> dict:
     """run_cell, then the calibration trials (record=True) and the step-limit analysis."""
     c = job.cell
@@ -239,6 +264,7 @@ def drive(job: DriveJob) -> dict:
     cal = sigma_calibration(prof, truths, estimates, bin_m=job.bin_m)
     cal_robust = sigma_calibration(robust, truths, estimates, bin_m=job.bin_m)
     cal_nominal = sigma_calibration(nominal, truths, estimates, bin_m=job.bin_m)
+    rechecked = _recheck(rec, nominal, cal_nominal, job)
     needs = C.fix_needs(rec.sensors)
     fix_expected, fix_robust, fix_observed = _fix_shares([prof, robust], needs, cal.edges, truths, measured)
     d = out["trials"]
@@ -250,7 +276,7 @@ def drive(job: DriveJob) -> dict:
                step_limit=n_sl, step_limit_checked=n_checked, step_limit_blind=n_blind, cpu_s=cpu_trials,
                extra_cpu_s=cpu_extra)
     return dict(row=row, calibration=cal, calibration_robust=cal_robust, calibration_nominal=cal_nominal,
-                crashes=out["crashes"],
+                rechecked=rechecked, crashes=out["crashes"],
                 fix_shares=(fix_expected, fix_robust, fix_observed))
 
 
@@ -307,6 +333,28 @@ def _ratio_line(label: str, v: np.ndarray) -> str:
             f"{np.mean(v > 1 + TARGET_RATIO):.0%} above")
 
 
+def _rechecked_bins(r, cal, rechecked, out_band) -> list[tuple]:
+    """(cell, bin, ratio with --record trials, ratio with --recheck, its 95 % bootstrap interval, trials) per
+    bin outside the band, where the cell was rechecked."""
+    if rechecked is None:
+        return []
+    cell = f"{r.world} {r.path_type} {r.method}"
+    n = len(rechecked.trial_sq)
+    return [(cell, f"{cal.edges[b]:.0f}-{cal.edges[b + 1]:.0f} m", cal.ratio[b], rechecked.ratio[b],
+             rechecked.observed_low[b] / rechecked.predicted[b], rechecked.observed_high[b] / rechecked.predicted[b],
+             n) for b in np.flatnonzero(out_band)]
+
+
+def _print_recheck(label: str, rows: list[tuple]) -> None:
+    if not rows:
+        return
+    inside = sum(abs(x[3] - 1) <= TARGET_RATIO for x in rows)
+    print(f"     {label} rechecked with more recorded trials (--recheck): {inside} of {len(rows)} within the band")
+    for cell, b, before, after, lo, hi, n in rows:
+        print(f"       {cell} {b}: {before:.2f} with the first trials -> {after:.2f} with {n} "
+              f"(95 % bootstrap {lo:.2f}-{hi:.2f})")
+
+
 def print_calibration(df: pd.DataFrame, outs: list, record: int) -> None:
     print(f"   (a) RMS position error, Monte Carlo / predicted sqrt(trace P_xy), per arc-length bin reached by "
           f">= {MIN_BIN_TRIALS:.0%} of the {record} recorded trials (target within ±{TARGET_RATIO:.0%}); "
@@ -317,7 +365,7 @@ def print_calibration(df: pd.DataFrame, outs: list, record: int) -> None:
     for (_, r), o in zip(df.iterrows(), outs):
         g = groups.setdefault((r.measurement, r.filt), {"expected": [], "robust": [], "path": [], "fix_e": [],
                                                          "fix_r": [], "out_share": [], "out_rest": [],
-                                                         "out_meets": []})
+                                                         "out_meets": [], "recheck": []})
         cal = o["calibration_nominal"]
         keep = _kept_bins(cal, record)
         g["expected"].append(cal.ratio[keep])
@@ -326,6 +374,7 @@ def print_calibration(df: pd.DataFrame, outs: list, record: int) -> None:
         g["out_rest"].append(cal.observed_without_worst[out_band] / cal.predicted[out_band])
         g["out_meets"].append((cal.observed_low[out_band] <= (1 + TARGET_RATIO) * cal.predicted[out_band])
                               & (cal.observed_high[out_band] >= (1 - TARGET_RATIO) * cal.predicted[out_band]))
+        g["recheck"] += _rechecked_bins(r, cal, o["rechecked"], out_band)
         g["robust"].append(o["calibration_robust"].ratio[_kept_bins(o["calibration_robust"], record)])
         on_path = o["calibration"]
         keep = _kept_bins(on_path, record)
@@ -334,7 +383,7 @@ def print_calibration(df: pd.DataFrame, outs: list, record: int) -> None:
         g["fix_e"].append(np.abs(fe - fo)[keep])
         g["fix_r"].append(np.abs(fr - fo)[keep])
     for (m, f), g in groups.items():
-        v = {k: np.concatenate(x) if x else np.zeros(0) for k, x in g.items()}
+        v = {k: np.concatenate(x) if x else np.zeros(0) for k, x in g.items() if k != "recheck"}
         inside = bool(v["expected"].size) and bool(np.all(np.abs(v["expected"] - 1) <= TARGET_RATIO))
         print(_ratio_line(f"{m:6} {f:3} expected", v["expected"]) + f": {verdict(inside)}")
         if v["out_share"].size:
@@ -347,6 +396,7 @@ def print_calibration(df: pd.DataFrame, outs: list, record: int) -> None:
             print(f"     {m:6} {f:3} of the {v['out_share'].size} bins outside the band, "
                   f"{int(np.sum(v['out_meets']))} have a 95 % trial-bootstrap interval of the observed RMS that "
                   "meets the band (the prediction within the Monte Carlo's own sampling error)")
+        _print_recheck(f"{m:6} {f:3}", g["recheck"])
         print(_ratio_line(f"{m:6} {f:3} path    ", v["path"]))
         print(_ratio_line(f"{m:6} {f:3} robust  ", v["robust"]))
         if v["fix_e"].size:
@@ -400,12 +450,15 @@ def main() -> None:
                     help="stratify the expected belief's deviation along the path too (n^3 strata)")
     ap.add_argument("--deviation-points", dest="deviation_split", action="store_false",
                     help="the expected belief's strata at the Gauss-Hermite nodes, not at cells cut where the view changes")
+    ap.add_argument("--recheck", type=int, default=0,
+                    help="record this many trials of each cell with a bin of the expected belief outside the band "
+                         "(the first --record included) and calibrate those bins again (default 0: none)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--full", type=int, default=100_000, help="total trials of the run to estimate the time of")
     ap.add_argument("--out", type=Path, default=None, help="write the per-cell table (CSV) here")
     args = ap.parse_args()
-    for name in ("trials", "record", "blind_check", "workers", "full", "first_trial"):
-        if getattr(args, name) < (0 if name in ("record", "blind_check", "first_trial") else 1):
+    for name in ("trials", "record", "blind_check", "workers", "full", "first_trial", "recheck"):
+        if getattr(args, name) < (0 if name in ("record", "blind_check", "first_trial", "recheck") else 1):
             ap.error(f"--{name} = {getattr(args, name)}: too small")
     t_all = time.perf_counter()
     scenarios = worlds(args.worlds, not args.no_gap)
@@ -439,7 +492,7 @@ def main() -> None:
 
     print(f"\n2. driving {len(cells)} cells x {args.trials} trials", flush=True)
     drive_jobs = [DriveJob(c, args.record, args.bin_m, args.blind_check, args.deviation_nodes,
-                           args.deviation_along, args.deviation_split) for c in cells]
+                           args.deviation_along, args.deviation_split, args.recheck) for c in cells]
     out = runner.map_ordered(run_and_report, drive_jobs, workers=args.workers)
     wall = time.perf_counter() - t
     df = pd.DataFrame([o["row"] for o in out])

@@ -1,11 +1,14 @@
 """Calibration statistics of the belief against Monte Carlo (safenav.belief:
-arc_position, sigma_calibration, clopper_pearson; bench/bench_certified.py).
+arc_position, sigma_calibration, pool_calibrations, clopper_pearson;
+bench/bench_certified.py).
 
 References: the arc position against a brute-force nearest point on a dense
 sampling of the polyline; the per-bin RMS errors against a direct loop over
 samples and stages; the Clopper–Pearson bounds against their definition
 through the binomial tail and scipy's exact one-sided interval."""
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 import pytest
@@ -15,7 +18,7 @@ from scipy import stats
 
 from safenav import _core
 from safenav import planning as P
-from safenav.belief import arc_position, clopper_pearson, propagate_belief, sigma_calibration
+from safenav.belief import arc_position, clopper_pearson, pool_calibrations, propagate_belief, sigma_calibration
 
 PATH = np.array([[5.0, 5.0], [30.0, 5.0], [30.0, 25.0], [10.0, 35.0]])
 
@@ -135,6 +138,16 @@ def test_sigma_calibration_matches_a_direct_computation(along):
     with np.errstate(invalid="ignore", divide="ignore"):
         assert np.allclose(cal.observed, np.sqrt(sq / n), equal_nan=True)
         assert np.allclose(cal.ratio, np.sqrt(sq / n) / np.sqrt(tr / ns), equal_nan=True)
+    # Batches of trials pooled are the one call with all of them, field for field.
+    pooled = pool_calibrations([sigma_calibration(prof, truths[:1], estimates[:1], bin_m=7.0),
+                                sigma_calibration(prof, truths[1:], estimates[1:], bin_m=7.0)])
+    for f in dataclasses.fields(cal):
+        np.testing.assert_array_equal(getattr(pooled, f.name), getattr(cal, f.name), err_msg=f.name)
+    assert np.array_equal(cal.trial_sq, per_sq) and np.array_equal(cal.trial_steps, per_n)
+    with pytest.raises(ValueError, match="calibration 1 has other bins"):
+        pool_calibrations([cal, sigma_calibration(prof, truths, estimates, bin_m=5.0)])
+    with pytest.raises(ValueError, match="no calibrations"):
+        pool_calibrations([])
     with pytest.raises(ValueError, match="bin_m = 0"):
         sigma_calibration(prof, truths, estimates, bin_m=0)
     with pytest.raises(ValueError, match="trial 0"):

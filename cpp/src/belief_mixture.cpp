@@ -240,11 +240,6 @@ constexpr double kJoinTolerance = 0.1;
 constexpr double kMinShare = 1e-4;
 constexpr double kProbeTail = 3.090232306167813;
 constexpr int kBisections = 12;
-/// The gate is stepped where the filter's prediction is this much less
-/// certain than the fix (tr P⁻_xy > 10 tr R, gate_step): a vehicle turned
-/// away there is turned away by its error, not by the fix's noise, and its
-/// next fix is turned away too.
-constexpr double kGatePersists = 10.0;
 /// The least share a branch that changes between turned away and not is
 /// kept at (gate_step): joined, its vehicles' count would never reach the
 /// reset.
@@ -391,19 +386,11 @@ bool make_room(std::vector<Stratum<K>>& st) {
 /// under kMinShare (kMinCountShare where it changes between turned away and
 /// not), or one with no `room` left, is joined, moment for moment, to the
 /// kept branch whose filter covariance is closest.  The first kept branch
-/// stays in s, the others go to `away`.  False where the filter trusts the
-/// fix more than its prediction (tr P⁻_xy ≤ kGatePersists tr R): there a
-/// turned-away vehicle is one whose fix's noise was large, and its next fix
-/// passes (the caller steps s as without the gate; s is no longer turned
-/// away).
+/// stays in s, the others go to `away`.  Only where o.gating is Branches
+/// (StepOutcome::Gating).
 template <int K>
-bool gate_step(const Gate& gate, const StepOutcome& o, std::size_t room, Stratum<K>& s,
+void gate_step(const Gate& gate, const StepOutcome& o, std::size_t room, Stratum<K>& s,
                std::vector<Stratum<K>>& away) {
-  if (!(o.R.allFinite() && o.R.determinant() > 0.0 && o.Pm.topLeftCorner<2, 2>().trace() > kGatePersists * o.R.trace())) {
-    s.turned_away = false;  // its fixes pass: their noise, not its error, decides
-    s.counts.fill(0.0);
-    return false;
-  }
   std::array<GateBranch, 2 + kGateSectors> br;  // fixed room: no allocation per step
   int B = static_cast<int>(br.size());
   if (s.turned_away) {
@@ -461,7 +448,6 @@ bool gate_step(const Gate& gate, const StepOutcome& o, std::size_t room, Stratum
     if (first) s = t, first = false;
     else away.push_back(t);
   }
-  return true;
 }
 
 }  // namespace
@@ -546,7 +532,14 @@ void mixture_recursion(const Model& model, const std::vector<Step>& steps, std::
       F = o.F;
       s.N = F * s.N * F.transpose();
       mix_m += s.w * (o.Pm + s.N);
-      if (o.gated && gate_step<K>(gate, o, cap - std::min(cap, stepped + away.size()), s, away)) continue;
+      if (o.gating == StepOutcome::Gating::Branches) {
+        gate_step<K>(gate, o, cap - std::min(cap, stepped + away.size()), s, away);
+        continue;
+      }
+      if (o.gating == StepOutcome::Gating::Passes) {  // its fixes pass: their noise, not its error, decides
+        s.turned_away = false;
+        s.counts.fill(0.0);
+      }
       Eigen::Matrix4d T;
       if (o.p_fix < 1.0) {  // a fix that may not arrive: each branch moves the error by its own factor
         const StateCov X = s.N;

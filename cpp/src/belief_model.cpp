@@ -42,6 +42,16 @@ Eigen::Matrix<double, 2, 4> constant_jacobian(const MeasurementModel& model) {
   return model.jacobian(State::Zero());
 }
 
+/// The Jacobian row of the range to a landmark (eq. 10, MeasurementModel's
+/// range): one row for update()'s ranges and fix_information().
+Eigen::Matrix<double, 1, 4> range_row(const LandmarkGeometry& g) {
+  LandmarkJacobian J;
+  predict_range(g, 0.0, 0.0, &J);
+  Eigen::Matrix<double, 1, 4> H;
+  H << J.x, J.y, 0.0, J.theta;
+  return H;
+}
+
 /// P(Bin(k, q) ≥ r): the probability that at least r of k independent
 /// observations, each kept with probability q, are kept.
 double binomial_tail(int k, double q, int r) {
@@ -247,16 +257,14 @@ void Model::update(const Step& s, double n, double fix_count, bool with_fix, Sta
     for (int row : s.seen) {
       const LandmarkGeometry g = landmark_geometry(at[kX], at[kY], sensors_.landmarks(row, 0), sensors_.landmarks(row, 1));
       if (!g.defined()) continue;
-      LandmarkJacobian J;
-      Eigen::Matrix<double, 1, 4> H;
       if (with_fix && s.ranges && fix_count > 0.0) {  // FixModel::Ranges: a range to each landmark in view (eq. 10)
-        predict_range(g, 0.0, 0.0, &J);
-        H << J.x, J.y, 0.0, J.theta;
         const Eigen::Matrix<double, 1, 1> R(sensors_.range_std * sensors_.range_std / fix_count);
-        ml_update<1>(P, H, R, MeasurementKind::Range);
+        ml_update<1>(P, range_row(g), R, MeasurementKind::Range);
       }
       if (settings_.bearing_std > 0.0) {  // a bearing to each landmark in view [Placement §III-A]
+        LandmarkJacobian J;
         predict_bearing(g, at[kTheta], &J);
+        Eigen::Matrix<double, 1, 4> H;
         H << J.x, J.y, 0.0, J.theta;
         const Eigen::Matrix<double, 1, 1> R(settings_.bearing_std * settings_.bearing_std / n);
         ml_update<1>(P, H, R, MeasurementKind::Bearing);
@@ -282,8 +290,15 @@ void Model::step(const Step& s, StateCov& P, StepOutcome* out, bool gate) const 
   // information is that many times one's (R divided by the count).
   const double n = s.dt / bmm_.params().dt;
   const FixOdds odds = fix_odds(s, n);
-  // The mixture's strata branch on the gate (belief_gate.hpp) where a fix may arrive.
-  const bool gated = gate && out && settings_.gate_probability > 0.0 && odds.p > 0.0 && (s.fix || s.ranges);
+  // The mixture's strata branch on the gate (belief_gate.hpp) where a fix may
+  // arrive and the filter's prediction is far less certain than the fix.
+  bool gated = false;
+  Eigen::Matrix2d R;
+  if (gate && out && settings_.gate_probability > 0.0 && odds.p > 0.0 && (s.fix || s.ranges)) {
+    R = fix_information(s, odds.count).inverse();
+    gated = R.allFinite() && R.determinant() > 0.0 && P.topLeftCorner<2, 2>().trace() > kGatePersists * R.trace();
+    out->gating = gated ? StepOutcome::Gating::Branches : StepOutcome::Gating::Passes;
+  }
   if (!(odds.p > 0.0 && odds.p < 1.0) && !gated) {  // the updates are certain
     update(s, n, odds.count, odds.p > 0.0, P);
     return;
@@ -304,10 +319,9 @@ void Model::step(const Step& s, StateCov& P, StepOutcome* out, bool gate) const 
     out->T_fix = ldlt.solve(P_fix.transpose()).transpose();
     out->T_none = ldlt.solve(P_none.transpose()).transpose();
     if (gated) {
-      out->gated = true;
       out->P_fix = P_fix;
       out->P_none = P_none;
-      out->R = fix_information(s, odds.count).inverse();
+      out->R = R;
     }
   }
 }
@@ -318,9 +332,7 @@ Eigen::Matrix2d Model::fix_information(const Step& s, double count) const {
   for (int row : s.seen) {  // the ranges of update(), as one position fix
     const LandmarkGeometry g = landmark_geometry(s.end.x(), s.end.y(), sensors_.landmarks(row, 0), sensors_.landmarks(row, 1));
     if (!g.defined()) continue;
-    LandmarkJacobian J;
-    predict_range(g, 0.0, 0.0, &J);
-    const Eigen::Vector2d d(J.x, J.y);
+    const Eigen::Vector2d d = range_row(g).head<2>().transpose();
     Y += d * d.transpose() * (count / (sensors_.range_std * sensors_.range_std));
   }
   return Y;

@@ -54,14 +54,25 @@ struct StepOutcome {
   Eigen::Matrix4d F = Eigen::Matrix4d::Zero();
   double p_fix = 1.0;                    ///< probability that the step's fix arrives (1: its updates are certain)
   Eigen::Matrix4d T_fix = Eigen::Matrix4d::Identity(), T_none = Eigen::Matrix4d::Identity();
-  /// The filter gates the step's fix (BeliefSettings::gate_probability):
-  /// T_fix and T_none are set whatever p_fix, with the branches' covariances
-  /// and the fix's noise R (its position block; FixModel::Ranges: the
-  /// ranges' information inverted, the trilateration's linear covariance).
-  bool gated = false;
+  /// How the filter's gate (BeliefSettings::gate_probability) meets the
+  /// step's fix.  None: no fix may arrive, or no gate.  Passes: the filter
+  /// trusts the fix more than its prediction (tr P⁻_xy ≤ kGatePersists tr R);
+  /// a fix turned away there is one whose noise was large, and the next
+  /// passes, so the step is the one without the gate.  Branches: the strata
+  /// branch on the gate (belief_gate.hpp); T_fix and T_none are set whatever
+  /// p_fix, with the branches' covariances and the fix's noise R (its
+  /// position block; FixModel::Ranges: the ranges' information inverted, the
+  /// trilateration's linear covariance).
+  enum class Gating { None, Passes, Branches } gating = Gating::None;
   StateCov P_fix = StateCov::Zero(), P_none = StateCov::Zero();
   Eigen::Matrix2d R = Eigen::Matrix2d::Identity();
 };
+
+/// The gate is stepped where the filter's prediction is this much less
+/// certain than the fix (tr P⁻_xy > 10 tr R, StepOutcome::Gating): a vehicle
+/// turned away there is turned away by its error, not by the fix's noise,
+/// and its next fix is turned away too.
+constexpr double kGatePersists = 10.0;
 
 inline double normal_sf(double z) { return 0.5 * std::erfc(z / std::sqrt(2.0)); }  ///< P(N(0,1) > z)
 inline double normal_pdf(double z) { return std::exp(-0.5 * z * z) / std::sqrt(2.0 * kPi); }

@@ -49,7 +49,7 @@ collision_monte_carlo = _core.collision_monte_carlo
 __all__ = ["BeliefSettings", "BeliefPlannerSettings", "BeliefProblem", "BeliefProfile", "BeliefPlanStatus",
            "BeliefPlanResult", "BeliefPlan", "start_covariance", "collision_monte_carlo", "propagate_belief",
            "propagate_belief_along", "plan_belief", "robust_sight", "arc_position", "SigmaCalibration",
-           "sigma_calibration", "clopper_pearson"]
+           "sigma_calibration", "pool_calibrations", "clopper_pearson"]
 
 # Keyword names of plan_belief / propagate_belief -> declared parameter names.
 _BELIEF_KEYS = {"speed": "speed", "step": "step", "bearing_std": "bearing_std",
@@ -281,7 +281,11 @@ class SigmaCalibration:
     event's, which a few dozen trials cannot resolve.  ``observed_low`` and
     ``observed_high`` bound ``observed`` by the percentile bootstrap over
     trials (95 %, 400 resamples, a fixed seed): how far the Monte Carlo
-    itself may be off.  An event that no recorded trial met moves neither."""
+    itself may be off.  An event that no recorded trial met moves neither:
+    where a bin's prediction rests on rare strata, more trials
+    (:func:`pool_calibrations`) are the check.  ``trial_sq`` and
+    ``trial_steps`` are each trial's squared-error sum and step count per
+    bin (rows: trials), from which the rest is computed."""
     edges: np.ndarray
     predicted: np.ndarray
     observed: np.ndarray
@@ -291,6 +295,8 @@ class SigmaCalibration:
     observed_without_worst: np.ndarray
     observed_low: np.ndarray
     observed_high: np.ndarray
+    trial_sq: np.ndarray
+    trial_steps: np.ndarray
 
     @property
     def ratio(self) -> np.ndarray:
@@ -335,30 +341,55 @@ def sigma_calibration(profile, truths, estimates, *, bin_m: float = 10.0) -> Sig
     edges = np.arange(0.0, length + bin_m, bin_m)
     n_bins = len(edges) - 1
     tr, n_stage = _predicted_per_bin(profile, path, edges)
-    sq, n, hit = np.zeros(n_bins), np.zeros(n_bins, dtype=int), np.zeros(n_bins, dtype=int)
-    worst_sq, worst_n = np.zeros(n_bins), np.zeros(n_bins, dtype=int)
-    per_sq, per_n = np.zeros((len(truths), n_bins)), np.zeros((len(truths), n_bins))
+    per_sq, per_n = np.zeros((len(truths), n_bins)), np.zeros((len(truths), n_bins), dtype=int)
     for i, (x, xh) in enumerate(zip(truths, estimates)):
         x, xh = np.asarray(x, dtype=float)[:, :2], np.asarray(xh, dtype=float)[:, :2]
         if x.shape != xh.shape:
             raise ValueError(f"trial {i}: truth {x.shape} and estimate {xh.shape} differ in shape")
         b = np.clip(np.searchsorted(edges, arc_position(path, x), side="right") - 1, 0, n_bins - 1)
-        trial_sq = np.bincount(b, np.sum((xh - x) ** 2, axis=1), n_bins)
-        trial_n = np.bincount(b, minlength=n_bins)
+        per_sq[i] = np.bincount(b, np.sum((xh - x) ** 2, axis=1), n_bins)
+        per_n[i] = np.bincount(b, minlength=n_bins)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        pred = np.where(n_stage > 0, np.sqrt(tr / n_stage), np.nan)
+    return _calibration(edges, pred, per_sq, per_n)
+
+
+def pool_calibrations(calibrations) -> SigmaCalibration:
+    """One :class:`SigmaCalibration` of the trials of several, of the same
+    prediction and bins (e.g. batches of recorded trials, so that many
+    trials need not be held at once): the same as one call of
+    :func:`sigma_calibration` with all their trials, in order."""
+    cals = list(calibrations)
+    if not cals:
+        raise ValueError("pool_calibrations: no calibrations to pool")
+    first = cals[0]
+    for i, c in enumerate(cals[1:], 1):
+        if not (np.array_equal(c.edges, first.edges) and np.array_equal(c.predicted, first.predicted, equal_nan=True)):
+            raise ValueError(f"pool_calibrations: calibration {i} has other bins or another prediction than "
+                             f"calibration 0 ({len(c.edges) - 1} bins against {len(first.edges) - 1})")
+    return _calibration(first.edges, first.predicted, np.concatenate([c.trial_sq for c in cals]),
+                        np.concatenate([c.trial_steps for c in cals]))
+
+
+def _calibration(edges, pred, per_sq, per_n) -> SigmaCalibration:
+    """The calibration from each trial's squared-error sums and step counts per bin (rows: trials)."""
+    n_bins = len(edges) - 1
+    sq, n, hit = np.zeros(n_bins), np.zeros(n_bins, dtype=int), np.zeros(n_bins, dtype=int)
+    worst_sq, worst_n = np.zeros(n_bins), np.zeros(n_bins, dtype=int)
+    for trial_sq, trial_n in zip(per_sq, per_n):  # in trial order: the sums do not depend on the batches
         sq += trial_sq
         n += trial_n
-        per_sq[i], per_n[i] = trial_sq, trial_n
-        hit += np.bincount(np.unique(b), minlength=n_bins)
+        hit += trial_n > 0
         worse = trial_sq > worst_sq
         worst_sq, worst_n = np.where(worse, trial_sq, worst_sq), np.where(worse, trial_n, worst_n)
     with np.errstate(divide="ignore", invalid="ignore"):
-        pred = np.where(n_stage > 0, np.sqrt(tr / n_stage), np.nan)
         obs = np.where(n > 0, np.sqrt(sq / n), np.nan)
         share = np.where(sq > 0, worst_sq / sq, np.nan)
         rest = np.where(n > worst_n, np.sqrt(np.maximum(sq - worst_sq, 0.0) / (n - worst_n)), np.nan)
     low, high = _bootstrap_rms(per_sq, per_n)
     return SigmaCalibration(edges=edges, predicted=pred, observed=obs, samples=n, trials=hit, worst_share=share,
-                            observed_without_worst=rest, observed_low=low, observed_high=high)
+                            observed_without_worst=rest, observed_low=low, observed_high=high, trial_sq=per_sq,
+                            trial_steps=per_n)
 
 
 def _bootstrap_rms(per_sq: np.ndarray, per_n: np.ndarray, resamples: int = 400, confidence: float = 0.95):
