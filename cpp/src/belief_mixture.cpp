@@ -231,18 +231,14 @@ Step ahead_view(const Model& model, const std::vector<Step>& steps, const std::v
 /// The mixture's bounds on splitting: the most strata at once (or twice the
 /// rule's, where that is more: 5³ and 7³ with deviation_along), and the
 /// room kept for the step's cuts (the closest strata are joined first); the
-/// least share a split may leave on either side, and where an unbounded
-/// cell is probed: as far as a cut can go and leave that share beyond it
-/// (P(z > 3.72) = 10⁻⁴); the bisection's steps; and how close two adjacent
-/// strata's filter covariances must be to join again.  Probed at 3.09σ
-/// (10⁻³), the cells missed the vehicles 3.1–3.7σ off that see no landmark
-/// for a long stretch: one in a thousand, with more squared error there than
-/// all the rest, whose fixes are regular.
+/// least share a split may leave on either side, where an unbounded cell
+/// is probed (P(z > 3.09) = 10⁻³), the bisection's steps; and how close
+/// two adjacent strata's filter covariances must be to join again.
 constexpr std::size_t kMaxStrata = 64;
 constexpr std::size_t kRoom = 8;
 constexpr double kJoinTolerance = 0.1;
 constexpr double kMinShare = 1e-4;
-constexpr double kProbeTail = 3.7190164854556804;
+constexpr double kProbeTail = 3.090232306167813;
 constexpr int kBisections = 12;
 /// The least share a branch that changes between turned away and not is
 /// kept at (gate_step): joined, its vehicles' count would never reach the
