@@ -235,8 +235,7 @@ def _recheck(rec, nominal, cal, job: DriveJob):
     bootstrap interval cannot show an event that no recorded trial met: a bin
     whose prediction rests on rare strata needs more trials."""
     c = job.cell
-    out = _kept_bins(cal, job.record) & (np.abs(cal.ratio - 1) > TARGET_RATIO)
-    if job.recheck <= job.record or not out.any():
+    if job.recheck <= job.record or not _out_of_band(cal, job.record).any():
         return None
     seeds = runner.trial_seeds(c.scenario.seeds.trials, c.stream, c.first + job.recheck)[c.first + job.record:]
     parts = [cal]
@@ -298,6 +297,11 @@ def cell_table(df: pd.DataFrame) -> str:
 def _kept_bins(cal, record: int) -> np.ndarray:
     """The bins that enough recorded trials reached and that have a ratio."""
     return (cal.trials >= max(1, math.ceil(MIN_BIN_TRIALS * record))) & np.isfinite(cal.ratio)
+
+
+def _out_of_band(cal, record: int) -> np.ndarray:
+    """The kept bins whose ratio lies outside ±TARGET_RATIO."""
+    return _kept_bins(cal, record) & (np.abs(cal.ratio - 1) > TARGET_RATIO)
 
 
 def _ratio_bins(cal, record: int) -> np.ndarray:
@@ -369,7 +373,7 @@ def print_calibration(df: pd.DataFrame, outs: list, record: int) -> None:
         cal = o["calibration_nominal"]
         keep = _kept_bins(cal, record)
         g["expected"].append(cal.ratio[keep])
-        out_band = keep & (np.abs(cal.ratio - 1) > TARGET_RATIO)
+        out_band = _out_of_band(cal, record)
         g["out_share"].append(cal.worst_share[out_band])
         g["out_rest"].append(cal.observed_without_worst[out_band] / cal.predicted[out_band])
         g["out_meets"].append((cal.observed_low[out_band] <= (1 + TARGET_RATIO) * cal.predicted[out_band])
