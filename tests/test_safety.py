@@ -28,7 +28,7 @@ from safenav.motion import BmmParams
 GAP_LANDMARKS = np.array([(75.0, 8.0), (75.0, -8.0), (90.0, 6.0), (90.0, -6.0), (100.0, 0.0)])
 
 
-def _gap_navigator(*, guard: bool, record: bool = False, obstacle=(30.0, 2.0, 0.8)):
+def _gap_navigator(*, guard: bool, record: bool = False, obstacle=(30.0, 2.0, 0.8), max_steps: int = 0):
     """An 80 m straight path whose first 45 m see no landmark (the vehicle
     starts with σ = 1 m and dead-reckons), with a boulder 1.2 m beside it."""
     p = _core.NavigationProblem()
@@ -41,6 +41,7 @@ def _gap_navigator(*, guard: bool, record: bool = False, obstacle=(30.0, 2.0, 0.
     if not guard:
         s.filter.gate_probability = 0.0   # the papers' loop
     s.record = record
+    s.max_steps = max_steps
     se = _core.SensorSettings()
     se.landmarks = GAP_LANDMARKS
     return _core.Navigator(p, s, se)
@@ -291,6 +292,51 @@ def test_nees_under_faults_stays_in_its_band_with_the_gate_and_not_without(p2):
     assert lo <= np.mean(ours["nees"]) <= hi
     assert np.mean(paper["nees"]) > 10 * hi
     assert np.mean(ours["outside_3sigma"]) < 0.03 < np.mean(paper["outside_3sigma"])
+
+
+def _start_fix_trials(*, gate: bool, off: float, seeds, steps: int = 4):
+    """Trials on the gap path whose camera's start fix lies `off` m beside the
+    start (R = 0.01 I) and whose later fixes are right."""
+    nav = _gap_navigator(guard=gate, record=True, max_steps=steps)   # no guard: the papers' loop, no gate
+    R = 0.01 * np.eye(2)
+
+    def camera(truth, step):
+        return truth[:2] + (np.array([0.0, off]) if step == 0 else 0.0), R
+
+    return [nav.run(seed=int(sd), position=camera) for sd in seeds], R
+
+
+def test_a_start_fix_that_disagrees_with_the_rough_start_starts_from_both():
+    # 7 m off (a faulty range fitting the start's reflection): the prior is the
+    # midpoint of the fix and the rough start, with a covariance that holds
+    # either, and the next fix passes the gate.
+    trials, R = _start_fix_trials(gate=True, off=7.0, seeds=range(20))
+    s0 = 1.0                                        # unfixed_start_std() of the default source
+    for t in trials:
+        z = t.truth[0, :2] + (0.0, 7.0)
+        rough = 2.0 * t.estimate[0, :2] - z         # the mixture's mean is (z + rough) / 2
+        assert t.start_disputed == 1
+        assert np.linalg.norm(rough - t.truth[0, :2]) < 5.0 * s0
+        d = z - rough
+        P = R + s0 ** 2 * np.eye(2) + 0.25 * np.outer(d, d)
+        assert t.position_std[0] == pytest.approx(math.sqrt(np.linalg.eigvalsh(P)[-1]), rel=1e-12)
+        assert t.rejected == 0 and t.resets == 0    # the right fixes after it pass the gate
+        assert np.linalg.norm(t.estimate[1:, :2] - t.truth[1:, :2], axis=1).max() < 0.5
+    # The papers' loop has no gate: it starts from the fix as it is.
+    trials, _ = _start_fix_trials(gate=False, off=7.0, seeds=range(3))
+    for t in trials:
+        assert t.start_disputed == 0
+        np.testing.assert_array_equal(t.estimate[0, :2], t.truth[0, :2] + (0.0, 7.0))
+
+
+def test_a_right_start_fix_is_disputed_at_the_gates_rate_and_else_kept_as_it_is():
+    # z = truth: d = truth - rough ~ N(0, σ0² I), tested on R + σ0² I: χ²₂ beyond
+    # its 0.99 quantile in 1 % of the trials (the rough start's own draw).
+    trials, _ = _start_fix_trials(gate=True, off=0.0, seeds=range(1500), steps=1)
+    disputed = np.array([t.start_disputed for t in trials])
+    assert within(int(disputed.sum()), len(trials), 0.01)
+    for t in (t for t, d in zip(trials, disputed) if not d):
+        np.testing.assert_array_equal(t.estimate[0, :2], t.truth[0, :2])
 
 
 def test_the_gate_rejects_an_injected_outlier_fix_and_a_run_of_them_resets_the_position():

@@ -39,6 +39,7 @@ constexpr CountField kCounts[] = {
     {"dropouts", &TrialResult::dropouts},
     {"rejected", &TrialResult::rejected},
     {"resets", &TrialResult::resets},
+    {"start_disputed", &TrialResult::start_disputed},
     {"chull_default", &TrialResult::chull_default},
     {"chull_corrective", &TrialResult::chull_corrective},
     {"chull_step_back", &TrialResult::chull_step_back},
@@ -159,6 +160,7 @@ void bind_trial_result(py::module_& m) {
       .def_readonly("chull_corrective", &TrialResult::chull_corrective)
       .def_readonly("chull_step_back", &TrialResult::chull_step_back)
       .def_readonly("resets", &TrialResult::resets)
+      .def_readonly("start_disputed", &TrialResult::start_disputed)
       .def_readonly("observations", &TrialResult::observations)
       .def_readonly("dropped", &TrialResult::dropped)
       .def_readonly("outliers", &TrialResult::outliers)

@@ -37,13 +37,39 @@ using detail::num;
 
 namespace navigation_detail {
 
-/// The initial estimate (the localizer's prior): a LanBLoc fix, if one is available, and the IMU.
+/// The start fix against the start point known roughly (ours: with the gate on).  Three ranges,
+/// one of them faulty, can fit the start's reflection across the other two landmarks' line: a fix
+/// 7 m off that passes its own χ² test (one range more than the unknowns).  The rough start
+/// s ~ N(truth, σ₀²I) (σ₀ = unfixed_start_std(), drawn from a stream of its own so that the
+/// sensor's draws stay as they were) and the fix fail the gate together where
+/// dᵀ(R + σ₀²I)⁻¹d > χ²₂ (d = z − s, the filter's gate probability).  Which of the two is wrong
+/// cannot be told then: the prior is their midpoint (z + s)/2 with a covariance that holds either
+/// one, R + σ₀²I + ddᵀ/4 (the equal-weight mixture's moments, (R + σ₀²I)/2 + ddᵀ/4, are narrower
+/// than the rough start's own σ₀ across d, and the next fix failed the gate there), so that the
+/// next fix, near either, passes the gate.
+void Trial::dispute_start_fix(Eigen::Vector2d& z, Eigen::Matrix2d& R) {
+  detail::Rng rng(start_seed_);
+  const double s0 = se_.unfixed_start_std();
+  Eigen::Vector2d rough = truth_.head<2>();
+  rough.x() += s0 * rng.normal();
+  rough.y() += s0 * rng.normal();
+  const Eigen::Vector2d d = z - rough;
+  const Eigen::Matrix2d S = R + s0 * s0 * Eigen::Matrix2d::Identity();
+  if (!(d.dot(S.ldlt().solve(d)) > fit_threshold(2))) return;
+  ++res_.start_disputed;
+  z = 0.5 * (z + rough);
+  R = S + 0.25 * d * d.transpose();
+}
+
+/// The initial estimate (the localizer's prior): a LanBLoc fix, if one is available (checked
+/// against the rough start: dispute_start_fix), and the IMU.
 void Trial::initialize() {
   State x0 = truth_;
   Eigen::Vector2d z;
   Eigen::Matrix2d R;
   const bool fixed = frames_ ? first_frame(z, R) : fix(truth_, 0, z, R);
   if (fixed) {
+    if (gate_ > 0.0) dispute_start_fix(z, R);
     x0.head<2>() = z;
   } else {
     // No fix at the start: the start point is known only roughly.

@@ -51,6 +51,7 @@ class Trial {
     obs_.reserve(static_cast<std::size_t>(se_.landmarks.rows()));
     trilateration_.seed = derive_seed(seed, 3);
     frame_fault_seed_ = derive_seed(seed, 4);
+    start_seed_ = derive_seed(seed, 5);
     if (frames_ && front_end) check_front_end_ids(*front_end);
     if (frames_) guidance_.localizer().set_front_end(std::move(front_end));
   }
@@ -64,6 +65,7 @@ class Trial {
   void check_front_end_ids(const LanBLocFrontEnd& fe) const;
   bool frame(int step, double t, Eigen::Vector2d& z);
   SightingEdit frame_faults(int step);
+  void dispute_start_fix(Eigen::Vector2d& z, Eigen::Matrix2d& R);
   void initialize();
   void start_recording();
   void record(int row, const Eigen::Vector2d& predicted, const Eigen::Vector2d* measured);
@@ -106,6 +108,7 @@ class Trial {
   std::vector<double> fit_thresholds_;
   int fix_faults_ = 0;  // faulty ranges inside the last fix
   std::uint64_t frame_fault_seed_ = 0;  // the camera frames' landmark faults (frame_faults)
+  std::uint64_t start_seed_ = 0;        // the rough start that a start fix is checked against
   TrialResult res_;
   // Metrics accumulate on the fly, so they need no recording.
   TrajectoryScore score_;

@@ -60,8 +60,8 @@ METRICS = ("path_ade", "goal_fde", "path_error_percent", "awrs", "awrs_true", "t
 #: filter knew its error; :func:`summarize` averages them over *all* trials.
 SAFETY = ("min_clearance", "hazard_time", "hazard_length", "exposure", "nees", "outside_3sigma")
 #: Per-trial counts: steps, updates, landmark observations and faults, guard events.
-COUNTS = ("steps", "replans", "position_fixes", "dropouts", "rejected", "resets", "observations", "dropped",
-          "outliers", "misassociated", "ranges_rejected", "faults_through", "guard_slow", "guard_steer",
+COUNTS = ("steps", "replans", "position_fixes", "dropouts", "rejected", "resets", "start_disputed", "observations",
+          "dropped", "outliers", "misassociated", "ranges_rejected", "faults_through", "guard_slow", "guard_steer",
           "guard_hold", "stale_input")
 
 
