@@ -137,6 +137,41 @@ def test_the_start_prior_is_the_mean_over_the_first_fix(faults):
     np.testing.assert_allclose(start_covariance(se, m, np.array([40.0, 20.0]), 0.0)[:2, :2], np.eye(2))
 
 
+@pytest.mark.parametrize("std", [(0.0142, 0.039), (0.6, 0.2)])
+def test_the_start_prior_with_the_gate_holds_the_starts_whose_fix_the_loop_disputes(std):
+    """With the gate on the loop tests the start fix z against the rough
+    start s ~ N(truth, σ₀²I) (navigation.cpp, Trial::dispute_start_fix) and
+    starts from (z + s)/2 where they fail it: the fix's part of the prior is
+    g R + (1 − g) E[eeᵀ | disputed], checked against that rule drawn."""
+    lms = np.array([[20.0 + 6 * np.cos(a), 20.0 + 6 * np.sin(a)] for a in np.linspace(0, 2 * np.pi, 5)[:-1]])
+    start, g = np.array([21.0, 19.5]), 0.99
+    se = sensors(lms, occlusion=False)
+    se.position.std = np.asarray(std)
+    m = open_map(upper=(60, 40))
+    base = start_covariance(se, m, start, 0.3)
+    got = start_covariance(se, m, start, 0.3, g)
+    R, s0 = base[:2, :2], max(1.0, max(std))
+    np.testing.assert_array_equal(got[2:], base[2:])
+    E = (got[:2, :2] - g * R) / (1.0 - g)
+    rng = np.random.default_rng(5)
+    n = 1_000_000
+    a = rng.multivariate_normal(np.zeros(2), R, n)
+    b = s0 * rng.standard_normal((n, 2))
+    d = a - b
+    q = np.einsum("ij,jk,ik->i", d, np.linalg.inv(R + s0 ** 2 * np.eye(2)), d)
+    out = q > -2.0 * np.log1p(-g)
+    assert abs(out.mean() - (1 - g)) < 4 * np.sqrt(g * (1 - g) / n)
+    e = 0.5 * (a + b)[out]
+    np.testing.assert_allclose(E, e.T @ e / len(e), rtol=0.05, atol=0.02 * np.trace(E))
+    # No fix at the start (heading away from the landmarks, a 90° camera): nothing to dispute.
+    se.field_of_view = np.pi / 2
+    np.testing.assert_array_equal(start_covariance(se, m, np.array([40.0, 20.0]), 0.0, g),
+                                  start_covariance(se, m, np.array([40.0, 20.0]), 0.0))
+    for bad in (1.0, -0.1, float("nan")):
+        with pytest.raises(ValueError, match="gate_probability"):
+            start_covariance(se, m, start, 0.3, bad)
+
+
 def test_an_intermittent_fix_bounds_the_expected_covariance_from_above():
     """Sinopoli et al. 2004: with fixes that arrive at random, the mean of
     the filter's covariance over the arrival sequences is concave in the

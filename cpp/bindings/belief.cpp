@@ -105,7 +105,7 @@ void pybind_belief(py::module_& m) {
   bind_settings(m);
   bind_results(m);
   m.def("start_covariance", &start_covariance, py::arg("sensors"), py::arg("map"), py::arg("start"),
-        py::arg("heading"));
+        py::arg("heading"), py::arg("gate_probability") = 0.0);
   m.def("propagate_belief", &propagate_belief, py::arg("path"), py::arg("bmm"), py::arg("sensors"), py::arg("map"),
         py::arg("start_cov"), py::arg("settings") = BeliefSettings{}, release_gil());
   m.def("propagate_belief_along", &propagate_belief_along, py::arg("states"), py::arg("bmm"), py::arg("sensors"),

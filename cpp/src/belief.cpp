@@ -39,13 +39,16 @@ void BeliefPlannerSettings::validate() const {
 }
 
 StateCov start_covariance(const SensorSettings& sensors, const PlanningMap& map, const Eigen::Vector2d& start,
-                          double heading) {
+                          double heading, double gate_probability) {
   sensors.validate();
   map.validate();
   if (!start.allFinite() || !std::isfinite(heading))
     bad("start_covariance: start (" + num(start.x()) + ", " + num(start.y()) + ") and heading " + num(heading) +
         " must be finite");
-  return belief::Model(BmmParams{}, sensors, map, BeliefSettings{}).start_covariance(start, heading);
+  BeliefSettings settings;
+  settings.gate_probability = gate_probability;
+  settings.validate();
+  return belief::Model(BmmParams{}, sensors, map, settings).start_covariance(start, heading);
 }
 
 namespace {

@@ -219,6 +219,23 @@ Model::FixOdds Model::fix_odds(const Step& s, double n) const {
   return o;
 }
 
+namespace {
+
+/// The expected error covariance of a start whose fix the loop disputes (Trial::dispute_start_fix,
+/// the gate on): a right fix z (error a ~ N(0, R)) and the rough start s (error b ~ N(0, σ₀²I))
+/// give d = z − s ~ N(0, S), S = R + σ₀²I, disputed where q = dᵀS⁻¹d > c (c = χ²₂ at the gate's
+/// probability).  The loop then starts from (z + s)/2, error e = (a + b)/2.  Given d, a + b is
+/// Gaussian with mean A S⁻¹ d and covariance S − A S⁻¹ A (A = R − σ₀²I); in two dimensions
+/// E[ddᵀ | q > c] = (1 + c/2) S; so E[eeᵀ | q > c] = ¼ (S + (c/2) A S⁻¹ A).
+Eigen::Matrix2d disputed_start_error(const Eigen::Matrix2d& R, double s0, double c) {
+  const Eigen::Matrix2d S = R + s0 * s0 * Eigen::Matrix2d::Identity();
+  const Eigen::Matrix2d A = R - s0 * s0 * Eigen::Matrix2d::Identity();
+  const Eigen::Matrix2d E = 0.25 * (S + 0.5 * c * A * S.ldlt().solve(A));
+  return 0.5 * (E + E.transpose());
+}
+
+}  // namespace
+
 StateCov Model::start_covariance(const Eigen::Vector2d& start, double heading) const {
   Step s;
   s.x << start.x(), start.y(), 0.0, heading;
@@ -243,6 +260,13 @@ StateCov Model::start_covariance(const Eigen::Vector2d& start, double heading) c
         anchors, ranges, Eigen::VectorXd::Constant(n, sensors_.range_std / std::sqrt(odds.count)), LocalizationOptions{});
     if (!lr.ok()) return none;
     R = lr.covariance;
+  }
+  const double g = settings_.gate_probability;
+  if (g > 0.0) {
+    // The loop disputes a right fix at 1 − g (its check against the rough start): the expected
+    // error of its start.  The fixes it keeps are taken at R (their selection by small d is left out).
+    const Eigen::Matrix2d E = disputed_start_error(R, sensors_.unfixed_start_std(), -2.0 * std::log1p(-g));
+    R = g * R + (1.0 - g) * E;
   }
   const StateCov fix = sensors_.start_covariance(&R);
   if (odds.p == 1.0) return fix;

@@ -88,12 +88,12 @@ def _planner_settings(kwargs: dict, settings=None) -> BeliefPlannerSettings:
     return s
 
 
-def _start_cov(start_cov, sensors, map, start, toward) -> np.ndarray:
+def _start_cov(start_cov, sensors, map, start, toward, gate_probability: float) -> np.ndarray:
     """The given start covariance, or the navigation loop's prior at ``start``
-    heading toward ``toward`` (:func:`start_covariance`)."""
+    heading toward ``toward`` with its gate (:func:`start_covariance`)."""
     if start_cov is None:
         d = np.asarray(toward, dtype=float) - start
-        return start_covariance(sensors, map, start, float(np.arctan2(d[1], d[0])))
+        return start_covariance(sensors, map, start, float(np.arctan2(d[1], d[0])), gate_probability)
     return as_array("start_cov", start_cov, (4, 4))
 
 
@@ -140,7 +140,7 @@ def propagate_belief(path, *, sensors, map, bmm=None, start_cov=None, settings: 
     bmm = bmm if bmm is not None else _core.BmmParams()
     s = _belief_settings(kwargs, settings)
     k = int(np.argmax(np.any(p[1:] != p[0], axis=1))) + 1 if len(p) > 1 else 0
-    P0 = _start_cov(start_cov, sensors, map, p[0], p[min(k, len(p) - 1)])
+    P0 = _start_cov(start_cov, sensors, map, p[0], p[min(k, len(p) - 1)], s.gate_probability)
     return _core.propagate_belief(p, bmm, sensors, map, P0, s)
 
 
@@ -159,7 +159,7 @@ def propagate_belief_along(states, *, sensors, map, bmm=None, start_cov=None,
     if len(x) < 2:
         raise ValueError(f"states has {len(x)} rows: a trajectory needs >= 2")
     if start_cov is None:
-        P0 = start_covariance(sensors, map, x[0, :2], float(x[0, 3]))
+        P0 = start_covariance(sensors, map, x[0, :2], float(x[0, 3]), s.gate_probability)
     else:
         P0 = as_array("start_cov", start_cov, (4, 4))
     return _core.propagate_belief_along(x, bmm, sensors, map, P0, s)
@@ -202,9 +202,10 @@ def plan_belief(map, start, goal, *, sensors, bmm=None, start_cov=None, guide_pa
     pb.goal = as_array("goal", goal, (2,))
     pb.bmm = bmm if bmm is not None else _core.BmmParams()
     pb.sensors = sensors
-    pb.start_cov = _start_cov(start_cov, sensors, map, pb.start, pb.goal)
+    ps = _planner_settings(kwargs, settings)
+    pb.start_cov = _start_cov(start_cov, sensors, map, pb.start, pb.goal, ps.belief.gate_probability)
     pb.guide_paths = [as_array(f"guide_paths[{i}]", g, (None, 2)) for i, g in enumerate(guide_paths)]
-    res = _core.plan_belief(pb, _planner_settings(kwargs, settings))
+    res = _core.plan_belief(pb, ps)
     prof = res.profile if res.success else None
     return BeliefPlan(status=res.status, success=res.success, detail=res.detail, path=np.asarray(res.path),
                       sigma=np.asarray(prof.sigma) if prof else np.zeros(0),

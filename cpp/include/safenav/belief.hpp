@@ -176,10 +176,13 @@ struct BeliefProfile {
 /// sound), the fix's covariance (the source's reported one, or the
 /// trilateration's from the ranges in view); without it, a start known to
 /// σ = max(1 m, the source's largest σ) in x and y; their mean weighted by
-/// the fix's probability (1 without dropouts and faults).  The IMU's speed
-/// and heading variances.
+/// the fix's probability (1 without dropouts and faults).  With the loop's
+/// gate (`gate_probability` > 0, ours) the fix's part holds the starts whose
+/// fix the loop disputes against the rough start (1 − gate_probability of
+/// the right fixes: navigation.cpp, Trial::dispute_start_fix).  The IMU's
+/// speed and heading variances.
 StateCov start_covariance(const SensorSettings& sensors, const PlanningMap& map, const Eigen::Vector2d& start,
-                          double heading);
+                          double heading, double gate_probability = 0.0);
 
 /// The belief and collision probability along `path` (N×2, N ≥ 2, start
 /// first) from the start covariance P0, in `map` (obstacles, forbidden
