@@ -189,7 +189,7 @@ struct TrialResult {
   int dropouts = 0;              ///< fix steps without a fix (no landmarks in view, failed callback, random loss)
   int rejected = 0;              ///< updates rejected by the NIS gate
   int resets = 0;                ///< position resets after consecutive rejected fixes (Localizer, InputStatus::Reset)
-  int start_disputed = 0;        ///< 1 where the start fix and the rough start failed the gate together (ours): the prior is their mixture
+  int start_disputed = 0;        ///< 1 where the start fix and the rough start failed the gate together (ours): the start is their midpoint, its covariance holds both
   // Landmark observations (FixModel::Ranges): counts over the trial.
   int observations = 0;          ///< landmark observations made (landmarks in view, before faults)
   int dropped = 0;               ///< missed by a dropout fault
