@@ -285,7 +285,7 @@ def cell_table(df: pd.DataFrame) -> str:
         "trials": df.trials, "coll": df.collisions, "arrive": df.arrival.map("{:.4f}".format), "other": df.other,
         "sl(blind/chk)": [f"{a}({b}/{c})" for a, b, c in zip(df.step_limit, df.step_limit_blind,
                                                                  df.step_limit_checked)],
-        "held": df.held_trials, "holds/tr": df.holds.map("{:.2f}".format),
+        "held": df.held_trials, "holds/tr": df.holds.map("{:.2f}".format), "disp": df.start_disputed,
         "NEES": df.nees.map("{:.3g}".format), "out3s": df.outside_3sigma.map("{:.3f}".format),
         "clr_min": df.min_clearance_min.map("{:.2f}".format), "run min/med/max": df.ratios,
         "legs min/med/max": df.ratios_path,
@@ -505,7 +505,8 @@ def main() -> None:
     df["ratios"] = [spread(_ratio_bins(o["calibration_nominal"], args.record)) for o in out]
     df["ratios_path"] = [spread(_ratio_bins(c, args.record)) for c in cals]
     print("   other: " + ", ".join(f"{v} {k}" for k, v in SHORT.items()) + "; sl(blind/chk) = step-limit trials "
-          "(in a blind gap / of those rerun);\n   held = trials with a guard hold; run, legs = Monte Carlo / predicted RMS "
+          "(in a blind gap / of those rerun);\n   held = trials with a guard hold; disp = trials whose start fix was disputed "
+          "against the rough start; run, legs = Monte Carlo / predicted RMS "
           "error per bin, the belief along the method's nominal run and along the path's legs")
     print(cell_table(df))
     for o in out:

@@ -156,6 +156,7 @@ def run_cell(c: Cell) -> dict:
         faults=float(np.mean(np.asarray(d["outliers"]) + np.asarray(d["misassociated"]))),
         faults_through=float(np.mean(d["faults_through"])),
         resets=float(np.mean(d["resets"])),
+        start_disputed=int(np.sum(d["start_disputed"])),
         guard_k=float(navigator.settings.guard.k) if navigator.settings.guard.enabled else np.nan,
         stale_input=float(np.mean(d["stale_input"])),
         time_ms=wall * 1e3,
