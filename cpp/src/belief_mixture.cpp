@@ -252,12 +252,13 @@ constexpr double kMinCountShare = 1e-6;
 /// becomes a stratum of its own, with its exact share of N(0, I), its mean
 /// and variance, and the same residual error: P + N − m mᵀ − B V Bᵀ.  At most
 /// one cut per stratum and step.  `view(s, z)` is what a vehicle at z of s sees.
+/// Returns false where no cut is made; else `parts` holds the near and the far
+/// part (the far one: the vehicles beyond the view change).
 template <int K, typename View>
-void split_at_view_change(std::vector<Stratum<K>>& st, std::size_t i, const View& view) {
+bool cut_at_view_change(const Stratum<K>& s, const View& view, Stratum<K> (&parts)[2]) {
   using VecK = Eigen::Matrix<double, K, 1>;
   for (int a = 0; a < K; ++a)
     for (const double side : {-1.0, 1.0}) {
-      const Stratum<K>& s = st[i];
       double end = side < 0.0 ? s.lo[a] : s.hi[a];
       if (!std::isfinite(end)) end = side * kProbeTail;
       if (!((end - s.mean[a]) * side > 0.0)) continue;
@@ -275,7 +276,7 @@ void split_at_view_change(std::vector<Stratum<K>>& st, std::size_t i, const View
       const Interval far = side < 0.0 ? interval(s.lo[a], cut) : interval(cut, s.hi[a]);
       if (std::min(near.mass, far.mass) * s.w / whole.mass < kMinShare) continue;
       const StateCov residual = s.N - s.m * s.m.transpose() - s.B * s.var.asDiagonal() * s.B.transpose();
-      Stratum<K> parts[2] = {s, s};
+      parts[0] = s, parts[1] = s;
       int p = 0;
       for (const Interval* c : {&near, &far}) {
         Stratum<K>& t = parts[p++];
@@ -286,10 +287,36 @@ void split_at_view_change(std::vector<Stratum<K>>& st, std::size_t i, const View
         t.N = residual + t.m * t.m.transpose() + t.B * t.var.asDiagonal() * t.B.transpose();
         t.seen = view(t, t.mean);
       }
-      st[i] = parts[0];
-      st.push_back(parts[1]);
-      return;
+      return true;
     }
+  return false;
+}
+
+/// The step's cuts (cut_at_view_change) of the strata there now, each the
+/// stratum's near part in its place and the far part appended, at most
+/// `room` of them.  Where more strata would be cut than there is room, the
+/// cuts that hold the most squared position error beyond the view change
+/// (the far part's share times its mean square, tr (P + N)_xy) are made:
+/// the far vehicles are those the mixture is there to keep, and in index
+/// order a tail cut late in the list found the room taken.
+template <int K, typename View>
+void split_at_view_changes(std::vector<Stratum<K>>& st, std::size_t room, const View& view) {
+  std::vector<std::pair<std::size_t, std::array<Stratum<K>, 2>>> cuts;
+  Stratum<K> parts[2];
+  for (std::size_t i = 0; i < st.size(); ++i)
+    if (cut_at_view_change<K>(st[i], view, parts)) cuts.push_back({i, {parts[0], parts[1]}});
+  if (cuts.size() > room) {
+    const auto weight = [](const std::array<Stratum<K>, 2>& c) {
+      return c[1].w * (c[1].P + c[1].N).template topLeftCorner<2, 2>().trace();
+    };
+    std::stable_sort(cuts.begin(), cuts.end(), [&](const auto& a, const auto& b) { return weight(a.second) > weight(b.second); });
+    cuts.resize(room);
+    std::sort(cuts.begin(), cuts.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  }
+  for (const auto& [i, c] : cuts) {
+    st[i] = c[0];
+    st.push_back(c[1]);
+  }
 }
 
 /// The axis on which the cells of strata a and b touch to make a box (the
@@ -519,7 +546,7 @@ void mixture_recursion(const Model& model, const std::vector<Step>& steps, std::
     for (Stratum<K>& s : st) s.seen = view(s, s.mean);
     if (settings.deviation_split) {
       while (st.size() + kRoom > cap && make_room<K>(st)) {}
-      for (std::size_t i = 0, S0 = st.size(); i < S0 && st.size() < cap; ++i) split_at_view_change<K>(st, i, view);
+      split_at_view_changes<K>(st, cap - std::min(cap, st.size()), view);
     }
     StateCov mix = StateCov::Zero(), mix_m = StateCov::Zero();
     Eigen::Matrix4d F;
