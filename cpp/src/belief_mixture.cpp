@@ -10,62 +10,13 @@
 
 #include "belief_gate.hpp"
 #include "belief_model.hpp"
+#include "belief_normal.hpp"
 #include "errors.hpp"
 
 namespace safenav::belief {
 namespace {
 
 using detail::bad;
-
-/// The Gauss–Hermite rule of N(0, 1) with n = 3, 5 or 7 nodes
-/// (numpy.polynomial.hermite_e.hermegauss, weights over √(2π)).
-struct Quadrature {
-  std::vector<double> node, weight;
-  explicit Quadrature(int n) {
-    if (n == 3) {
-      node = {-std::sqrt(3.0), 0.0, std::sqrt(3.0)};
-      weight = {1.0 / 6.0, 2.0 / 3.0, 1.0 / 6.0};
-    } else if (n == 5) {
-      node = {-2.8569700138728056, -1.355626179974266, 0.0, 1.355626179974266, 2.8569700138728056};
-      weight = {0.011257411327720677, 0.22207592200561257, 8.0 / 15.0, 0.22207592200561257, 0.011257411327720677};
-    } else if (n == 7) {
-      node = {-3.7504397177257425, -2.366759410734541, -1.1544053947399682, 0.0,
-              1.1544053947399682,  2.366759410734541,  3.7504397177257425};
-      weight = {0.0005482688559722169, 0.030757123967586515, 0.24012317860501264, 16.0 / 35.0,
-                0.24012317860501264,   0.030757123967586515, 0.0005482688559722169};
-    } else {
-      bad("deviation_nodes = " + std::to_string(n) + ": must be 3, 5 or 7");
-    }
-  }
-};
-
-/// N(0, 1) restricted to [lo, hi] (either may be infinite): its mass, mean
-/// and variance (the truncated normal's moments).
-struct Interval {
-  double lo = 0.0, hi = 0.0, mass = 1.0, mean = 0.0, var = 0.0;
-};
-
-Interval interval(double lo, double hi) {
-  Interval c{lo, hi};
-  // Differences of the far tail, so a cell far out keeps its digits.
-  c.mass = lo >= 0.0 ? normal_sf(lo) - normal_sf(hi) : normal_sf(-hi) - normal_sf(-lo);
-  const auto xpdf = [](double z) { return std::isfinite(z) ? z * normal_pdf(z) : 0.0; };
-  const auto pdf = [](double z) { return std::isfinite(z) ? normal_pdf(z) : 0.0; };
-  c.mean = std::clamp((pdf(lo) - pdf(hi)) / c.mass, lo, hi);
-  c.var = std::max(0.0, 1.0 + (xpdf(lo) - xpdf(hi)) / c.mass - c.mean * c.mean);
-  return c;
-}
-
-/// z with P(N(0, 1) > z) = p, 0 < p < 1 (bisection to the last bit).
-double normal_isf(double p) {
-  double a = -40.0, b = 40.0;
-  for (int i = 0; i < 200 && b - a > 0.0; ++i) {
-    const double mid = 0.5 * (a + b);
-    if (mid == a || mid == b) break;
-    (normal_sf(mid) > p ? a : b) = mid;
-  }
-  return 0.5 * (a + b);
-}
 
 /// One stratum of the mixture: its share of the vehicles, the cell of the
 /// deviation z ~ N(0, I_K) it stands for (a Gauss–Hermite node is a cell of
@@ -252,10 +203,9 @@ constexpr double kMinCountShare = 1e-6;
 /// becomes a stratum of its own, with its exact share of N(0, I), its mean
 /// and variance, and the same residual error: P + N − m mᵀ − B V Bᵀ.  At most
 /// one cut per stratum and step.  `view(s, z)` is what a vehicle at z of s sees.
-/// Returns false where no cut is made; else `parts` holds the near and the far
-/// part (the far one: the vehicles beyond the view change).
+/// False where no cut is made; else `parts` holds the near and the far part.
 template <int K, typename View>
-bool cut_at_view_change(const Stratum<K>& s, const View& view, Stratum<K> (&parts)[2]) {
+bool cut_at_view_change(const Stratum<K>& s, const View& view, std::array<Stratum<K>, 2>& parts) {
   using VecK = Eigen::Matrix<double, K, 1>;
   for (int a = 0; a < K; ++a)
     for (const double side : {-1.0, 1.0}) {
@@ -292,31 +242,25 @@ bool cut_at_view_change(const Stratum<K>& s, const View& view, Stratum<K> (&part
   return false;
 }
 
-/// The step's cuts (cut_at_view_change) of the strata there now, each the
-/// stratum's near part in its place and the far part appended, at most
-/// `room` of them.  Where more strata would be cut than there is room, the
-/// cuts that hold the most squared position error beyond the view change
-/// (the far part's share times its mean square, tr (P + N)_xy) are made:
-/// the far vehicles are those the mixture is there to keep, and in index
-/// order a tail cut late in the list found the room taken.
+/// The step's cuts (cut_at_view_change), at most `room`: each stratum's near part in its place,
+/// the far part appended.  With more cuts than room, those that hold the most squared position
+/// error beyond the view change (the far part's share times tr (P + N)_xy) are made: in the
+/// strata's order a tail's cut came late and found the room taken.
 template <int K, typename View>
 void split_at_view_changes(std::vector<Stratum<K>>& st, std::size_t room, const View& view) {
-  std::vector<std::pair<std::size_t, std::array<Stratum<K>, 2>>> cuts;
-  Stratum<K> parts[2];
+  using Cut = std::pair<std::size_t, std::array<Stratum<K>, 2>>;
+  std::vector<Cut> cuts;
   for (std::size_t i = 0; i < st.size(); ++i)
-    if (cut_at_view_change<K>(st[i], view, parts)) cuts.push_back({i, {parts[0], parts[1]}});
+    if (Cut c{i, {}}; cut_at_view_change<K>(st[i], view, c.second)) cuts.push_back(std::move(c));
   if (cuts.size() > room) {
-    const auto weight = [](const std::array<Stratum<K>, 2>& c) {
-      return c[1].w * (c[1].P + c[1].N).template topLeftCorner<2, 2>().trace();
+    const auto held = [](const Cut& c) {  // the far part's share times its mean square position error
+      return c.second[1].w * (c.second[1].P + c.second[1].N).block(0, 0, 2, 2).trace();
     };
-    std::stable_sort(cuts.begin(), cuts.end(), [&](const auto& a, const auto& b) { return weight(a.second) > weight(b.second); });
+    std::stable_sort(cuts.begin(), cuts.end(), [&](const Cut& a, const Cut& b) { return held(a) > held(b); });
     cuts.resize(room);
-    std::sort(cuts.begin(), cuts.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    std::sort(cuts.begin(), cuts.end(), [](const Cut& a, const Cut& b) { return a.first < b.first; });
   }
-  for (const auto& [i, c] : cuts) {
-    st[i] = c[0];
-    st.push_back(c[1]);
-  }
+  for (auto& [i, c] : cuts) st[i] = c[0], st.push_back(c[1]);
 }
 
 /// The axis on which the cells of strata a and b touch to make a box (the
