@@ -196,7 +196,7 @@ constexpr int kBisections = 12;
 /// reset.
 constexpr double kMinCountShare = 1e-6;
 
-/// BeliefSettings::deviation_split: where stratum `i`'s cell holds vehicles
+/// BeliefSettings::deviation_split: where stratum `s`'s cell holds vehicles
 /// that see otherwise than its mean (probed at the cell's ends along each
 /// axis, an unbounded end at ±kProbeTail), the cell is cut where the view
 /// changes (bisection between the mean and that end), and the part beyond
