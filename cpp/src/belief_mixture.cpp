@@ -248,6 +248,7 @@ bool cut_at_view_change(const Stratum<K>& s, const View& view, std::array<Stratu
 /// strata's order a tail's cut came late and found the room taken.
 template <int K, typename View>
 void split_at_view_changes(std::vector<Stratum<K>>& st, std::size_t room, const View& view) {
+  if (room == 0) return;
   using Cut = std::pair<std::size_t, std::array<Stratum<K>, 2>>;
   std::vector<Cut> cuts;
   for (std::size_t i = 0; i < st.size(); ++i)

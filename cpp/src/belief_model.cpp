@@ -11,6 +11,7 @@
 
 #include "errors.hpp"
 #include "filters/kalman_update.hpp"
+#include "safenav/filters.hpp"
 #include "safenav/localizer.hpp"
 #include "safenav/trilateration.hpp"
 
@@ -265,7 +266,7 @@ StateCov Model::start_covariance(const Eigen::Vector2d& start, double heading) c
   if (g > 0.0) {
     // The loop disputes a right fix at 1 − g (its check against the rough start): the expected
     // error of its start.  The fixes it keeps are taken at R (their selection by small d is left out).
-    const Eigen::Matrix2d E = disputed_start_error(R, sensors_.unfixed_start_std(), -2.0 * std::log1p(-g));
+    const Eigen::Matrix2d E = disputed_start_error(R, sensors_.unfixed_start_std(), chi2_quantile(g, 2));
     R = g * R + (1.0 - g) * E;
   }
   const StateCov fix = sensors_.start_covariance(&R);
