@@ -12,7 +12,7 @@
 
 namespace safenav::belief {
 
-Gate::Gate(double probability) : gamma(-2.0 * std::log1p(-probability)) {
+Gate::Gate(double probability) : gamma(probability > 0.0 ? chi2_quantile(probability, 2) : 0.0) {
   const LocalizerSettings loop;
   for (int n : {loop.reset_after_consistent, loop.reset_after_rejections > 0 ? loop.reset_after_rejections + 1 : 0})
     if (n > 0) reset_after = reset_after > 0 ? std::min(reset_after, n) : n;

@@ -235,7 +235,8 @@ InputResult Localizer::Impl::apply_fix(double t, const Eigen::Vector2d& z, const
   if (r.status == InputStatus::Late) return r;
   Rejections& rej = I.fix_rejections;
   const int k = I.settings.reset_after_consistent;
-  const double gate = -2.0 * std::log1p(-I.settings.filter.gate_probability);  // χ²₂ quantile
+  const double p_gate = I.settings.filter.gate_probability;
+  const double gate = p_gate > 0.0 ? chi2_quantile(p_gate, 2) : 0.0;
   if (r.status != InputStatus::Rejected) {
     rej.in_a_row = 0;
     rej.has_undo = false;  // the position the last reset gave is confirmed

@@ -1,4 +1,5 @@
 #include "safenav/trilateration.hpp"
+#include "safenav/filters.hpp"
 #include "safenav/measurement.hpp"
 
 #include <Eigen/Eigenvalues>
@@ -233,7 +234,7 @@ template <class Model>
 void widen_to_profile(const Model& m, const Problem& pr, const std::vector<int>& idx, const Eigen::Vector2d& p,
                       double cost, const LocalizationOptions& opt, Eigen::Matrix2d& cov) {
   if (!(opt.profile_probability > 0.0) || !cov.allFinite()) return;
-  const double k2 = -2.0 * std::log1p(-opt.profile_probability);
+  const double k2 = chi2_quantile(opt.profile_probability, 2);
   constexpr double kTolerance = 1.1;
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(cov);
   const Eigen::Matrix2d V = es.eigenvectors();
