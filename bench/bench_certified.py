@@ -172,22 +172,25 @@ class DriveJob:
     record: int                # trials recorded for the calibration (the cell's first ones)
     bin_m: float
     blind_check: int           # step-limit trials rerun with a record to see where they ended
-    nodes: int = 3             # n of the n x n rule (cells, or nodes) of the expected belief's deviation mixture
-    along: bool = False        # the mixture stratifies the deviation along the path too
+    nodes: int = 3             # n per axis of the rule (cells, or nodes) of the expected belief's deviation mixture
+    along: bool = C.NOMINAL_DEVIATION["deviation_along"]  # the nominal's mixture stratifies along the path too
     split: bool = True         # the mixture's strata are cells, cut where the view changes (False: the nodes)
     recheck: int = 0           # recorded trials of a cell with a bin outside the band, to check that bin again
 
 
-def _profiles(sc, path, navigator, nodes: int = 3, along: bool = False, split: bool = True):
+def _profiles(sc, path, navigator, nodes: int = 3, along: bool = C.NOMINAL_DEVIATION["deviation_along"],
+              split: bool = True):
     """(expected, robust, nominal): the belief along ``path`` with ``sc``'s
-    sensors, seen with the vehicle's own camera (what it will get) and with
-    the certificate's robust camera; and the expected belief along the
-    method's nominal trajectory (``navigator.nominal_trajectory()``)."""
+    sensors, seen with the vehicle's own camera (what it will get; the
+    lateral strata: the legs' turns are instant) and with the certificate's
+    robust camera; and the expected belief along the method's nominal
+    trajectory (``navigator.nominal_trajectory()``; ``along``: stratified
+    along the path too, as the certificate's)."""
     kw = C.mission_inputs(sc, path)
-    dev = {"deviation_nodes": nodes, "deviation_along": along, "deviation_split": split}
+    dev = {"deviation_nodes": nodes, "deviation_split": split}
     run_kw = {k: v for k, v in kw.items() if k != "speed"}
     return (propagate_belief(path, **dev, **kw), propagate_belief(path, **robust_sight(), **kw),
-            propagate_belief_along(navigator.nominal_trajectory(), **dev, **run_kw))
+            propagate_belief_along(navigator.nominal_trajectory(), deviation_along=along, **dev, **run_kw))
 
 
 def _fix_shares(profiles, needs: int, edges: np.ndarray, truths, measured) -> list[np.ndarray]:
@@ -450,8 +453,9 @@ def main() -> None:
                          "can be split into parts whose trials add up to one run's (default 0)")
     ap.add_argument("--deviation-nodes", type=int, default=3, choices=[3, 5, 7],
                     help="cells (or Gauss-Hermite nodes) per axis of the expected belief's deviation mixture (default 3)")
-    ap.add_argument("--deviation-along", action="store_true",
-                    help="stratify the expected belief's deviation along the path too (n^3 strata)")
+    ap.add_argument("--deviation-lateral", dest="deviation_along", action="store_false",
+                    help="stratify the nominal run's expected belief's deviation across the path and in heading "
+                         "only (n^2 strata; by default along the path too, n^3, as the certificate's)")
     ap.add_argument("--deviation-points", dest="deviation_split", action="store_false",
                     help="the expected belief's strata at the Gauss-Hermite nodes, not at cells cut where the view changes")
     ap.add_argument("--recheck", type=int, default=0,

@@ -179,13 +179,14 @@ Step ahead_view(const Model& model, const std::vector<Step>& steps, const std::v
   return model.seen_from(steps[k], v, rest * dir - e.head<2>(), -e[kTheta]);
 }
 
-/// The mixture's bounds on splitting: the most strata at once (or twice the
-/// rule's, where that is more: 5³ and 7³ with deviation_along), and the
+/// The mixture's bounds on splitting: the most strata at once, the rule's
+/// and kFreeStrata more for the cuts (64 for the 3 × 3 rule, 82 for 3³), or
+/// twice the rule's where that is more (5³ and 7³), and the
 /// room kept for the step's cuts (the closest strata are joined first); the
 /// least share a split may leave on either side, where an unbounded cell
 /// is probed (P(z > 3.09) = 10⁻³), the bisection's steps; and how close
 /// two adjacent strata's filter covariances must be to join again.
-constexpr std::size_t kMaxStrata = 64;
+constexpr std::size_t kFreeStrata = 55;
 constexpr std::size_t kRoom = 8;
 constexpr double kJoinTolerance = 0.1;
 constexpr double kMinShare = 1e-4;
@@ -459,7 +460,8 @@ void mixture_recursion(const Model& model, const std::vector<Step>& steps, std::
   std::vector<Stratum<K>> st = fresh;
   for (Stratum<K>& s : st) s.P = P[0];
   const auto n = static_cast<Eigen::Index>(steps.size());
-  const std::size_t cap = settings.deviation_split ? std::max(kMaxStrata, 2 * fresh.size()) : fresh.size();
+  const std::size_t cap =
+      settings.deviation_split ? std::max(fresh.size() + kFreeStrata, 2 * fresh.size()) : fresh.size();
   const auto slots = static_cast<Eigen::Index>(cap);
   trace.weight = Eigen::MatrixXd::Zero(n, slots);
   trace.positions = Eigen::MatrixXd::Zero(n, 2 * slots);

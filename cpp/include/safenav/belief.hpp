@@ -93,7 +93,8 @@ struct BeliefSettings {
   /// narrowed for the deviations already.
   bool deviation_mixture = true;
   /// Gauss–Hermite nodes per axis of the deviation mixture (3, 5 or 7: 9, 25
-  /// or 49 strata); more nodes reach further into the deviation's tails.
+  /// or 49 strata, n³ with deviation_along); more nodes reach further into
+  /// the deviation's tails.
   int deviation_nodes = 3;
   /// Stratify the deviation along the path too (n³ strata).  A vehicle's
   /// true progress along the path keeps to the nominal's (its speed follows
@@ -103,6 +104,10 @@ struct BeliefSettings {
   /// path, moved by minus its whole error: at a turn it turns early or late.
   /// Each stratum's position is reported (BeliefProfile::strata_positions),
   /// so a calibration against driven vehicles can bin each at its own arc.
+  /// Off by default: along a path's legs the turns are instant, and a
+  /// stratum ahead would see round a corner that no controller drives; the
+  /// expected belief along a method's nominal run turns it on
+  /// (safenav.certify.NOMINAL_DEVIATION).
   bool deviation_along = false;
   /// Stratify at cells of the deviation instead of at points, and cut a
   /// cell where its vehicles would see otherwise than its mean (ours, on by
