@@ -16,7 +16,7 @@ from safenav import certify_report
 from safenav import cli
 from safenav import navigation as nv
 from safenav import placement as P
-from safenav.belief import propagate_belief, robust_sight
+from safenav.belief import propagate_belief, propagate_belief_along, robust_sight
 from safenav.scenario import Scenario, load_scenario, save_scenario
 
 
@@ -293,3 +293,25 @@ def test_a_path_that_looks_back_is_certified_along_the_controllers_runs():
     limited = C.certify_path(sc, "P1", C.plan_belief_path(sc, raw, k).path, propose=False)
     assert limited.status == C.CERTIFIED
     assert all(run.collision_probability <= eps for run in limited.given.along.values())
+
+
+def test_the_runs_expected_belief_stratifies_the_deviation_along_the_path():
+    """Along a method's nominal run the expected belief stratifies the
+    deviation along the path too (NOMINAL_DEVIATION: the controller turns
+    where the estimate is): its profile is propagate_belief_along's with
+    deviation_along, 3³ strata at the start against the lateral rule's 3×3,
+    and the certificate's own check (the robust camera) has no mixture."""
+    from safenav.scenario import default_scenario
+
+    sc = default_scenario()
+    path = np.asarray(C.plan_or_none(sc, "P3").path)
+    inputs = C.mission_inputs(sc, path)
+    run = C.check_nominal(sc, path, 3.0, methods=("chull",), inputs=inputs)["chull"]
+    x = C.nominal_trajectory(sc, path, "chull")
+    kw = {key: v for key, v in inputs.items() if key != "speed"}
+    along = propagate_belief_along(x, deviation_along=True, **kw)
+    lateral = propagate_belief_along(x, deviation_along=False, **kw)
+    np.testing.assert_array_equal(run.expected.profile.covariance, along.covariance)
+    assert (np.asarray(along.strata_weight)[0] > 0).sum() == 27
+    assert (np.asarray(lateral.strata_weight)[0] > 0).sum() == 9
+    assert np.asarray(run.profile.strata_weight).size == 0
