@@ -120,8 +120,8 @@ struct BeliefSettings {
   /// changes, and the part beyond takes its exact share of the deviation:
   /// a vehicle 2.6 σ beside the path that misses a short window of
   /// landmarks then keeps its error in the belief, as it does in the
-  /// Monte Carlo.  At most 64 strata (twice the rule's where that is more);
-  /// no part under 10⁻⁴ of the vehicles.
+  /// Monte Carlo.  At most the rule's strata and 55 more (twice the rule's
+  /// where that is more); no part under 10⁻⁴ of the vehicles.
   bool deviation_split = true;
   /// The filter's χ² gate on position fixes (NavigationSettings::filter's
   /// gate_probability; 0 = none, the papers' loop).  With the deviation
