@@ -43,9 +43,9 @@ import numpy as np
 
 from . import console
 
-__all__ = ["PathCertificate", "Check", "NOMINAL_DEVIATION", "mission_inputs", "risk_k", "check_profile", "check_nominal",
-           "nominal_trajectory", "blind_stretches", "placement_camera", "cover_stretch", "propose_landmarks",
-           "certify_path", "certify_paths", "with_landmarks",
+__all__ = ["PathCertificate", "Check", "NOMINAL_DEVIATION", "mission_inputs", "risk_k", "check_profile",
+           "check_nominal", "nominal_trajectory", "blind_stretches", "placement_camera", "cover_stretch",
+           "propose_landmarks", "certify_path", "certify_paths", "with_landmarks",
            "plan_or_none", "plan_belief_path", "replan_with_landmarks", "proposed_scenario"]
 
 #: The guidance methods [SafeNav Algs. 1–2] whose nominal trajectories a certificate also checks.
