@@ -413,3 +413,42 @@ def test_the_camera_loop_applies_the_scenarios_landmark_faults_in_the_core():
     # outliers of 2 cm pass every test: the filter takes them, and faults_through counts them
     mild = _faulty_camera_trial(sc, path, 7, outlier_probability=0.5, outlier_magnitude=0.02)
     assert mild.outliers > 0 and 0 < mild.faults_through <= mild.outliers
+
+
+def test_the_camera_loop_disputes_a_start_frame_taken_elsewhere():
+    """The camera loop's start fix meets the measurement loop's check (ours, the gate on): a first
+    frame taken 9 m beside P1's start, with five markers close in front of it, gives a fix where it
+    was taken; the loop disputes it against the rough start and starts halfway between them, with
+    a covariance that holds both ends.  The papers' loop starts from the fix as it is."""
+    from dataclasses import replace
+
+    sc = safenav.default_scenario()
+    path = np.asarray(nv.plan_safe_path(sc, "P1", iterations=1500).path)
+    x0 = np.asarray(nv.make_navigator(sc, path, record=False, max_steps=1).nominal_trajectory())[0]
+    th = x0[3]
+    fwd, right = np.array([math.cos(th), math.sin(th)]), np.array([math.sin(th), -math.cos(th)])
+    taken = x0[:2] + (0.0, -9.0)
+    cluster = 1 + max(lm.cluster for lm in sc.world.landmarks)
+    near = tuple(Landmark(60 + k, (*(taken + z * fwd + lat * right), h), f"class{k}", cluster)
+                 for k, (z, lat, h) in PLACEMENTS.items())
+    sc = replace(sc, world=replace(sc.world, landmarks=sc.world.landmarks + near))
+    s0 = 1.0                                           # unfixed_start_std() of the LanBLoc source
+    for paper in (False, True):
+        nav = nv.make_navigator(sc, path, method="centroid", position_every=40, max_steps=2, paper=paper)
+        src = CameraFrames.from_scenario(sc, seed=3)
+
+        def frames(truth, step, plan):
+            t = np.asarray(truth, dtype=float)
+            return src(np.r_[taken, t[2:]] if step == 0 else t, step, plan)
+
+        r = nav.run_frames(3, src.front_end, frames)
+        start, est = r.truth[0, :2], r.estimate[0, :2]
+        if paper:
+            assert r.start_disputed == 0
+            assert np.linalg.norm(est - taken) < 0.1       # the fix, as it came
+            continue
+        assert r.start_disputed == 1
+        rough = 2.0 * est - taken                          # the prior's mean is (z + rough) / 2, z at `taken`
+        assert np.linalg.norm(rough - start) < 5.0 * s0 + 0.2
+        half = np.linalg.norm(taken - rough) / 2.0         # R + σ0² I + ddᵀ/4 holds both ends
+        assert r.position_std[0] >= math.hypot(half, s0) - 0.1
