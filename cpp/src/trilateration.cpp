@@ -4,7 +4,6 @@
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
-#include <Eigen/QR>
 #include <algorithm>
 #include <cfloat>
 #include <cmath>
@@ -114,42 +113,6 @@ Fit levenberg_marquardt(const Model& m, const Problem& pr, const std::vector<int
   f.p = p;
   f.cost = cost;
   return f;
-}
-
-/// Linear start for ranges: 2aᵢᵀp − s = |aᵢ|² − rᵢ² with s = |p|² (3 unknowns).
-bool linear_start(const RangeModel&, const Problem& pr, const std::vector<int>& idx, Eigen::Vector2d& p) {
-  const int k = static_cast<int>(idx.size());
-  Eigen::MatrixXd M(k, 3);
-  Eigen::VectorXd b(k);
-  for (int r = 0; r < k; ++r) {
-    const int i = idx[r];
-    const Eigen::Vector2d a = pr.a(i);
-    const double w = 1.0 / pr.sigma[i];
-    M.row(r) << 2.0 * a.x() * w, 2.0 * a.y() * w, -w;
-    b[r] = (a.squaredNorm() - pr.z[i] * pr.z[i]) * w;
-  }
-  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(M);
-  if (qr.rank() < 3) return false;
-  const Eigen::Vector3d sol = qr.solve(b);
-  p = sol.head<2>();
-  return p.allFinite();
-}
-
-/// Linear start for bearings: nᵢᵀp = nᵢᵀaᵢ with nᵢ = (−sin βᵢ, cos βᵢ).
-bool linear_start(const BearingModel&, const Problem& pr, const std::vector<int>& idx, Eigen::Vector2d& p) {
-  const int k = static_cast<int>(idx.size());
-  Eigen::MatrixXd M(k, 2);
-  Eigen::VectorXd b(k);
-  for (int r = 0; r < k; ++r) {
-    const int i = idx[r];
-    const Eigen::Vector2d nrm(-std::sin(pr.z[i]), std::cos(pr.z[i]));
-    M.row(r) = nrm.transpose();
-    b[r] = nrm.dot(pr.a(i));
-  }
-  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(M);
-  if (qr.rank() < 2) return false;
-  p = qr.solve(b);
-  return p.allFinite();
 }
 
 /// Centroid and unit normal of the anchors' best-fit line; ratio = spread
@@ -288,121 +251,135 @@ void geometry_at(const Model& m, const Problem& pr, const std::vector<int>& idx,
   }
 }
 
-/// Solve on the measurement subset idx with every degeneracy check.
+/// Why idx cannot give a fix before any is fitted (too few measurements,
+/// parallel bearing lines, collinear anchors), or Ok.
 template <class Model>
-LocalizationResult solve_subset(const Model& m, const Problem& pr, const std::vector<int>& idx,
-                                const LocalizationOptions& opt) {
-  LocalizationResult res;
+LocalizationStatus check_subset(const Problem& pr, const std::vector<int>& idx, const LocalizationOptions& opt,
+                                double ratio, std::string& reason) {
   constexpr bool kBearings = std::is_same<Model, BearingModel>::value;
   const int k = static_cast<int>(idx.size());
   std::ostringstream os;
   if (k < Model::kMinimal) {
-    res.status = LocalizationStatus::TooFew;
     os << Model::kMinimal << " " << Model::kWhat << " are needed, got " << k;
-    res.reason = os.str();
-    return res;
+    reason = os.str();
+    return LocalizationStatus::TooFew;
   }
-  Eigen::Vector2d c, normal;
-  double ratio = 0.0;
-  principal_line(pr, idx, c, normal, ratio);
   if (kBearings) {
     double best_sin = 0.0;
     for (int a = 0; a < k; ++a)
       for (int b = a + 1; b < k; ++b)
         best_sin = std::max(best_sin, std::abs(std::sin(pr.z[idx[a]] - pr.z[idx[b]])));
     if (best_sin < std::sin(opt.min_crossing_angle)) {
-      res.status = LocalizationStatus::Degenerate;
       os << "bearing lines are (nearly) parallel: widest crossing angle " << std::asin(std::min(1.0, best_sin))
          << " rad < min_crossing_angle " << opt.min_crossing_angle;
-      res.reason = os.str();
-      return res;
+      reason = os.str();
+      return LocalizationStatus::Degenerate;
     }
   } else if (ratio < 1e-9) {
-    res.status = LocalizationStatus::Degenerate;
-    res.reason = "anchors are collinear: the ranges fit two mirror-image positions";
-    return res;
+    reason = "anchors are collinear: the ranges fit two mirror-image positions";
+    return LocalizationStatus::Degenerate;
   }
-  Eigen::Vector2d p0;
-  if (!linear_start(m, pr, idx, p0)) {
-    res.status = LocalizationStatus::Degenerate;
-    res.reason = "the linear system for the starting point is rank deficient";
-    return res;
-  }
-  if (kBearings) {
-    // The bearing lines' intersection must lie behind every anchor's bearing.
-    for (int i : idx) {
-      if (std::abs(m.residual(p0, pr.a(i), pr.z[i])) > kPi / 2) {
-        res.status = LocalizationStatus::Degenerate;
-        os << "bearing " << i << " points away from anchor " << i << " at the lines' intersection " << point_str(p0);
-        res.reason = os.str();
-        return res;
-      }
+  return LocalizationStatus::Ok;
+}
+
+/// Whether every bearing of idx points toward p (the lines' intersection
+/// must lie behind every anchor's bearing); else why not, at `where`.
+template <class Model>
+bool bearings_face(const Model& m, const Problem& pr, const std::vector<int>& idx, const Eigen::Vector2d& p,
+                   const char* where, std::string& reason) {
+  for (int i : idx) {
+    if (std::abs(m.residual(p, pr.a(i), pr.z[i])) > kPi / 2) {
+      std::ostringstream os;
+      os << "bearing " << i << " points away from anchor " << i << " at " << where << " " << point_str(p);
+      reason = os.str();
+      return false;
     }
   }
+  return true;
+}
+
+/// Ranges: refit from f's mirror image across the anchors' principal line
+/// (c, normal).  A second minimum that fits better replaces f; one that
+/// fits about as well (within ambiguity_margin) makes the fix ambiguous,
+/// and `reason` says so (returns false).
+template <class Model>
+bool resolve_mirror(const Model& m, const Problem& pr, const std::vector<int>& idx, const LocalizationOptions& opt,
+                    const Eigen::Vector2d& c, const Eigen::Vector2d& normal, Fit& f, LocalizationResult& res) {
+  const Eigen::Vector2d pm = f.p - 2.0 * (f.p - c).dot(normal) * normal;
+  const double scale = 1.0 + f.p.norm();
+  if ((pm - f.p).norm() <= 1e-9 * scale) return true;
+  const Fit g = levenberg_marquardt(m, pr, idx, pm, opt);
+  const double sep = (g.p - f.p).norm();
+  const double sd = std::sqrt(std::max(0.0, res.covariance.trace()));
+  if (!(g.converged && g.p.allFinite() && sep > std::max(3.0 * sd, 1e-6 * scale))) return true;
+  res.ambiguity_gap = std::abs(g.cost - f.cost);
+  if (g.cost < f.cost - opt.ambiguity_margin) {
+    f = g;  // the linear start fell into the worse minimum
+    geometry_at(m, pr, idx, f.p, res.gdop, res.covariance, false);
+    return true;
+  }
+  if (std::abs(g.cost - f.cost) > opt.ambiguity_margin) return true;
+  std::ostringstream os;
+  os << "ambiguous geometry: " << point_str(f.p) << " (chi2 " << f.cost << ") and " << point_str(g.p) << " (chi2 "
+     << g.cost << ") fit the ranges within ambiguity_margin " << opt.ambiguity_margin;
+  res.reason = os.str();
+  return false;
+}
+
+/// Solve on the measurement subset idx with every degeneracy check.
+template <class Model>
+LocalizationResult solve_subset(const Model& m, const Problem& pr, const std::vector<int>& idx,
+                                const LocalizationOptions& opt) {
+  LocalizationResult res;
+  constexpr bool kBearings = std::is_same<Model, BearingModel>::value;
+  const auto fail = [&res](LocalizationStatus status, bool nan_covariance = false) {
+    res.status = status;
+    if (nan_covariance) res.covariance.setConstant(kNaN);
+    return res;
+  };
+  Eigen::Vector2d c, normal;
+  double ratio = 0.0;
+  if (static_cast<int>(idx.size()) >= Model::kMinimal) principal_line(pr, idx, c, normal, ratio);
+  res.status = check_subset<Model>(pr, idx, opt, ratio, res.reason);
+  if (res.status != LocalizationStatus::Ok) return res;
+  Eigen::Vector2d p0;
+  if (!linear_start(m, pr, idx, p0)) {
+    res.reason = "the linear system for the starting point is rank deficient";
+    return fail(LocalizationStatus::Degenerate);
+  }
+  if (kBearings && !bearings_face(m, pr, idx, p0, "the lines' intersection", res.reason))
+    return fail(LocalizationStatus::Degenerate);
   Fit f = levenberg_marquardt(m, pr, idx, p0, opt);
   if (!f.converged || !f.p.allFinite()) {
-    res.status = LocalizationStatus::DidNotConverge;
     res.position = f.p;
     res.iterations = f.iterations;
+    std::ostringstream os;
     os << "Levenberg-Marquardt did not converge in " << f.iterations << " iterations (max_iterations = "
        << opt.max_iterations << ")";
     res.reason = os.str();
-    return res;
+    return fail(LocalizationStatus::DidNotConverge);
   }
   geometry_at(m, pr, idx, f.p, res.gdop, res.covariance, kBearings);
-  if (!kBearings) {
-    // A second minimum (typically the reflection across the anchors' line)
-    // that fits about as well makes the fix ambiguous.
-    const Eigen::Vector2d pm = f.p - 2.0 * (f.p - c).dot(normal) * normal;
-    const double scale = 1.0 + f.p.norm();
-    if ((pm - f.p).norm() > 1e-9 * scale) {
-      const Fit g = levenberg_marquardt(m, pr, idx, pm, opt);
-      const double sep = (g.p - f.p).norm();
-      const double sd = std::sqrt(std::max(0.0, res.covariance.trace()));
-      if (g.converged && g.p.allFinite() && sep > std::max(3.0 * sd, 1e-6 * scale)) {
-        res.ambiguity_gap = std::abs(g.cost - f.cost);
-        if (g.cost < f.cost - opt.ambiguity_margin) {
-          f = g;  // the linear start fell into the worse minimum
-          geometry_at(m, pr, idx, f.p, res.gdop, res.covariance, kBearings);
-        } else if (std::abs(g.cost - f.cost) <= opt.ambiguity_margin) {
-          res.status = LocalizationStatus::Degenerate;
-          res.position = f.p;
-          res.iterations = f.iterations;
-          os << "ambiguous geometry: " << point_str(f.p) << " (chi2 " << f.cost << ") and " << point_str(g.p)
-             << " (chi2 " << g.cost << ") fit the ranges within ambiguity_margin " << opt.ambiguity_margin;
-          res.reason = os.str();
-          res.covariance.setConstant(kNaN);
-          return res;
-        }
-      }
-    }
-  } else {
-    for (int i : idx) {
-      if (std::abs(m.residual(f.p, pr.a(i), pr.z[i])) > kPi / 2) {
-        res.status = LocalizationStatus::Degenerate;
-        os << "bearing " << i << " points away from anchor " << i << " at the solution " << point_str(f.p);
-        res.reason = os.str();
-        res.covariance.setConstant(kNaN);
-        return res;
-      }
-    }
+  if (!kBearings && !resolve_mirror(m, pr, idx, opt, c, normal, f, res)) {
+    res.position = f.p;
+    res.iterations = f.iterations;
+    return fail(LocalizationStatus::Degenerate, true);
   }
+  if (kBearings && !bearings_face(m, pr, idx, f.p, "the solution", res.reason))
+    return fail(LocalizationStatus::Degenerate, true);
   widen_to_profile(m, pr, idx, f.p, f.cost, opt, res.covariance);
   res.position = f.p;
   res.iterations = f.iterations;
   res.chi2 = f.cost;
   if (!(res.gdop <= opt.max_gdop)) {
-    res.status = LocalizationStatus::Degenerate;
+    std::ostringstream os;
     os << "GDOP " << res.gdop << " exceeds max_gdop " << opt.max_gdop << " (anchors nearly in line with the position)";
     res.reason = os.str();
-    return res;
+    return fail(LocalizationStatus::Degenerate);
   }
   if (!res.covariance.allFinite()) {
-    res.status = LocalizationStatus::Degenerate;
-    os << "the position covariance is not finite (the weights 1/sigma^2 against the geometry overflow)";
-    res.reason = os.str();
-    res.covariance.setConstant(kNaN);
-    return res;
+    res.reason = "the position covariance is not finite (the weights 1/sigma^2 against the geometry overflow)";
+    return fail(LocalizationStatus::Degenerate, true);
   }
   res.status = LocalizationStatus::Ok;
   return res;

@@ -1,11 +1,14 @@
-// trilateration_models.hpp — the measurement models, the weighted cost and
-// the normal equations that trilateration.cpp's solvers share (ranges and
-// absolute bearings), kept apart from the solvers.
+// trilateration_models.hpp — the measurement models, the weighted cost, the
+// normal equations and each model's linear starting point that
+// trilateration.cpp's solvers share (ranges and absolute bearings), kept
+// apart from the solvers.
 #pragma once
 
 #include <limits>
 #include <vector>
 #include <Eigen/Core>
+#include <Eigen/QR>
+#include <cmath>
 
 #include "safenav/measurement.hpp"
 #include "safenav/trilateration.hpp"
@@ -84,6 +87,42 @@ void normal_equations(const Model& m, const Problem& pr, const std::vector<int>&
     A.noalias() += w * J.transpose() * J;
     g.noalias() += (w * m.residual(p, pr.a(i), pr.z[i])) * J.transpose();
   }
+}
+
+/// Linear start for ranges: 2aᵢᵀp − s = |aᵢ|² − rᵢ² with s = |p|² (3 unknowns).
+inline bool linear_start(const RangeModel&, const Problem& pr, const std::vector<int>& idx, Eigen::Vector2d& p) {
+  const int k = static_cast<int>(idx.size());
+  Eigen::MatrixXd M(k, 3);
+  Eigen::VectorXd b(k);
+  for (int r = 0; r < k; ++r) {
+    const int i = idx[r];
+    const Eigen::Vector2d a = pr.a(i);
+    const double w = 1.0 / pr.sigma[i];
+    M.row(r) << 2.0 * a.x() * w, 2.0 * a.y() * w, -w;
+    b[r] = (a.squaredNorm() - pr.z[i] * pr.z[i]) * w;
+  }
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(M);
+  if (qr.rank() < 3) return false;
+  const Eigen::Vector3d sol = qr.solve(b);
+  p = sol.head<2>();
+  return p.allFinite();
+}
+
+/// Linear start for bearings: nᵢᵀp = nᵢᵀaᵢ with nᵢ = (−sin βᵢ, cos βᵢ).
+inline bool linear_start(const BearingModel&, const Problem& pr, const std::vector<int>& idx, Eigen::Vector2d& p) {
+  const int k = static_cast<int>(idx.size());
+  Eigen::MatrixXd M(k, 2);
+  Eigen::VectorXd b(k);
+  for (int r = 0; r < k; ++r) {
+    const int i = idx[r];
+    const Eigen::Vector2d nrm(-std::sin(pr.z[i]), std::cos(pr.z[i]));
+    M.row(r) = nrm.transpose();
+    b[r] = nrm.dot(pr.a(i));
+  }
+  Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(M);
+  if (qr.rank() < 2) return false;
+  p = qr.solve(b);
+  return p.allFinite();
 }
 
 }  // namespace safenav::trilateration_detail
