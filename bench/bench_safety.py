@@ -52,6 +52,7 @@ TARGET_EXPOSURE_RATIO = 10.0
 TARGET_LENGTH_RATIO = 0.10
 #: The 95 % band of one step's 4-state NEES (chi-square, 4 dof): [0.48, 11.1].
 STEP_BAND = tuple(float(v) for v in stats.chi2.ppf([0.025, 0.975], 4))
+CELL_KEY = ["world", "path_type", "method", "measurement"]  # a cell of the grid, less its loop
 
 
 @dataclasses.dataclass(frozen=True)
@@ -191,7 +192,7 @@ def verdict(ok: bool) -> str:
     return "PASS" if ok else "MISS"
 
 
-def main() -> None:
+def _arguments() -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--trials", type=int, default=None, help="trials per cell (default 1000; --quick: 100)")
     ap.add_argument("--quick", action="store_true", help="100 trials, the default world and one generated world")
@@ -203,30 +204,11 @@ def main() -> None:
                     help="our loop's guard k (default: the scenario's, 0 = from navigation.collision_probability)")
     ap.add_argument("--collision-probability", type=float, default=None,
                     help="our loop's risk budget per mission (default: the scenario's, 1e-4)")
-    args = ap.parse_args()
-    trials = args.trials or (100 if args.quick else 1000)
-    t_all = time.perf_counter()
+    return ap.parse_args()
 
-    scenarios = worlds(args.quick, args.worlds)
-    budget = {k: v for k, v in (("guard_k", args.guard_k), ("collision_probability", args.collision_probability))
-              if v is not None}
-    if budget:
-        scenarios = {w: dataclasses.replace(sc, navigation=dataclasses.replace(sc.navigation, **budget))
-                     for w, sc in scenarios.items()}
-    print(f"worlds: {', '.join(scenarios)}; {trials} trials per cell; methods {', '.join(METHODS)}; "
-          f"loops paper (guard off, gate off) / ours (guard on, gate {default_scenario().navigation.gate_probability}); "
-          f"faulty = {FAULTS}; {args.workers} workers")
 
-    # Planning first: the hazard_weight 0 paths are the paper's safe paths, driven in section 1.
-    jobs = [PlanJob(w, sc, name, bh) for w, sc in scenarios.items() for _, name in path_types(sc)
-            for bh in [0.0, *args.weights]]
-    t = time.perf_counter()
-    plans = runner.map_ordered(plan_one, jobs, workers=args.workers)
-    print(f"planned {len(jobs)} paths (RAw-RRT*, {default_scenario().navigation.plan_iterations} iterations each) "
-          f"in {time.perf_counter() - t:.1f} s")
-    plan_of = {(p["world"], p["path_type"], p["hazard_weight"]): p for p in plans}
-
-    # 1. The navigation grid.
+def grid_cells(scenarios: dict, plan_of: dict, trials: int) -> list:
+    """The navigation grid's cells: every world's paths (its hazard_weight 0 plan), methods, measurements and loops."""
     cells = []
     for w, sc in scenarios.items():
         measured = {"clean": sc, "faulty": faulty(sc)}
@@ -239,36 +221,12 @@ def main() -> None:
                 for m in MEASUREMENTS:
                     for loop in LOOPS:
                         cells.append(Cell(w, measured[m], name, stream, base["path"], method, loop, m, trials))
-    t = time.perf_counter()
-    finished = []
+    return cells
 
-    def run_and_report(c: Cell) -> dict:
-        """run_cell, with a line as each cell finishes, so that a long run shows its progress."""
-        o = run_cell(c)
-        r = o["row"]
-        finished.append(c)
-        print(f"   [{len(finished):3d}/{len(cells)}] {c.world:12} {c.path_type:4} {c.method:9} {c.loop:5} "
-              f"{c.measurement:6} collisions {r['collisions']:4d} arrival {r['arrival']:.3f} "
-              f"mean steps {r['mean_steps']:6.0f} wall {r['time_ms'] / 1e3:6.1f} s", flush=True)
-        return o
 
-    print(f"\nrunning {len(cells)} cells x {trials} trials", flush=True)
-    out = runner.map_ordered(run_and_report, cells, workers=args.workers)
-    grid_wall = time.perf_counter() - t
-    df = pd.DataFrame([o["row"] for o in out])
-    key = ["world", "path_type", "method", "measurement"]
-    paper_steps = df[df.loop == "paper"].set_index(key).mean_steps
-    df["penalty"] = [r.mean_steps / paper_steps[tuple(r[k] for k in key)] - 1 if r.loop == "ours" else np.nan
-                     for _, r in df.iterrows()]
-
-    print(f"\n1. navigation safety grid: {len(cells)} cells x {trials} trials, {grid_wall:.1f} s wall")
-    print("   coll = collisions; other = other failures (lc left corridor, sl step limit, lost lost localization, "
-          "np no path); penalty = ours/paper mean steps - 1;\n   clr = min clearance of the true track [m] "
-          "(min over trials, 5th percentile); expo = mean exposure [m]; haz_s = mean hazard time [s];\n"
-          "   NEES = mean 4-state NEES over all steps of the cell; out3s = mean fraction of steps outside 3 sigma; "
-          "/tr = per trial; guard = slow+steer+hold events; faults = outliers+misassociated injected")
-    print(cell_table(df))
-
+def print_summary(df: pd.DataFrame, cells: list, out: list, default_world: str) -> None:
+    """The grid's collisions and arrival per loop and measurement, our loop's collisions one by one, and the time
+    penalty of ours over the paper's loop on the default world."""
     crashes = [(c, o["crashes"]) for c, o in zip(cells, out) if c.loop == "ours" and o["crashes"]]
     if crashes:
         print("\n   collisions of ours (trial index, seed, min clearance, reason):")
@@ -295,7 +253,6 @@ def main() -> None:
               f"; worst cell {worst.arrival:.1%} ({worst.world} {worst.path_type} {worst.method})")
 
     # Time penalty on the default scenario: the sum of ours' mean steps over its cells against the paper's.
-    default_world = next(iter(scenarios))
     for m in MEASUREMENTS:
         sel = (df.world == default_world) & (df.measurement == m)
         p = df[sel & (df.loop == "paper")].mean_steps.sum()
@@ -315,12 +272,16 @@ def main() -> None:
         print(f"   ours, {m}, {default_world}: time penalty {pen:+.1%} (target <= {TARGET_PENALTY:.0%}): "
               f"{verdict(pen <= TARGET_PENALTY)}; worst cell {worst:+.1%}; over trials arrived in both loops {paired:+.1%}")
 
+
+def print_nees(df: pd.DataFrame) -> None:
+    """The mean NEES of each of our loop's faulty cells against its bands, and of every loop pooled."""
     # NEES with faults for ours.  A consistent filter's NEES is chi-square with 4 dof each step; the mean of N
     # such values (N = the recorded steps of the cell) lies in chi2.ppf([0.025, 0.975], 4N) / N with 95 %
     # probability (treating the steps as independent, which they are not: a very tight band).  The simple
     # per-step band chi2.ppf([0.025, 0.975], 4) = [0.48, 11.1] is printed beside it.
     print(f"   NEES of ours with faults (tight band: mean of N chi2_4 steps, chi2.ppf([.025,.975], 4N)/N; "
           f"per-step band [{STEP_BAND[0]:.2f}, {STEP_BAND[1]:.1f}]):")
+    ours = df[df.loop == "ours"]
     o = ours[ours.measurement == "faulty"]
     in_tight = in_step = 0
     for _, r in o.iterrows():
@@ -342,8 +303,10 @@ def main() -> None:
         print(f"   (information) {loop}, {m}: mean NEES over all cells "
               f"{float((s.nees * s.nees_steps).sum() / s.nees_steps.sum()):.3g}")
 
-    # 2. Hazard-aware planning.
-    print(f"\n2. hazard-aware planning: hazard_weight 0 (paper) vs beta_h in {args.weights}")
+
+def hazard_table(plans: list, plan_of: dict, weights: list) -> pd.DataFrame:
+    """Hazard-aware planning against the paper's paths (hazard_weight 0), printed; the table."""
+    print(f"\n2. hazard-aware planning: hazard_weight 0 (paper) vs beta_h in {weights}")
     prow = []
     for p in plans:
         if p["hazard_weight"] == 0.0:
@@ -371,7 +334,7 @@ def main() -> None:
               f"{r.paper_exposure:10.2f} {r.exposure:8.2f} {r.paper_min_clearance:9.2f} {r.min_clearance:6.2f} "
               f"{r.paper_hazard_length:12.1f} {r.hazard_length:7.1f} {r.exposure_ratio:8.1f}x {r.length_ratio:+9.1%}")
     good = pdf[pdf.error == ""] if "error" in pdf else pdf
-    for bh in args.weights:
+    for bh in weights:
         s = good[good.hazard_weight == bh]
         if s.empty:
             print(f"   beta_h {bh:g}: no plans")
@@ -383,17 +346,91 @@ def main() -> None:
               f"total length ours/paper - 1 {lr:+.1%} (target <= {TARGET_LENGTH_RATIO:.0%}): "
               f"{verdict(er >= TARGET_EXPOSURE_RATIO and lr <= TARGET_LENGTH_RATIO)}; "
               f"{each}/{len(s)} paths meet both on their own")
+    return pdf
 
-    # 3. Timing.
-    print(f"\n3. timing: grid {grid_wall:.1f} s wall on {args.workers} workers (cell wall times: wall_s above)")
+
+def print_timing(df: pd.DataFrame, grid_wall: float, workers: int) -> None:
+    """Our loop's time per step against the paper's, per measurement."""
+    print(f"\n3. timing: grid {grid_wall:.1f} s wall on {workers} workers (cell wall times: wall_s above)")
     print(f"   {'measurement':12} {'paper us/step':>14} {'ours us/step':>13} {'ours/paper':>11}   "
           "(medians over cells of each cell's median over trials)")
     for m in MEASUREMENTS:
-        p = df[(df.loop == "paper") & (df.measurement == m)].set_index(key).time_per_step_us
-        q = df[(df.loop == "ours") & (df.measurement == m)].set_index(key).time_per_step_us
+        p = df[(df.loop == "paper") & (df.measurement == m)].set_index(CELL_KEY).time_per_step_us
+        q = df[(df.loop == "ours") & (df.measurement == m)].set_index(CELL_KEY).time_per_step_us
         ratio = float(np.median((q / p.reindex(q.index)).to_numpy()))
         print(f"   {m:12} {float(p.median()):14.2f} {float(q.median()):13.2f} {ratio:10.2f}x   "
               f"(median of per-cell ratios; ratio of medians {float(q.median() / p.median()):.2f}x)")
+
+
+def run_grid(cells: list, trials: int, workers: int):
+    """Every cell's trials (a line as each finishes, so that a long run shows its progress); the cells'
+    outputs, their table with our loop's time penalty per cell, and the wall time."""
+    t = time.perf_counter()
+    finished = []
+
+    def run_and_report(c: Cell) -> dict:
+        o = run_cell(c)
+        r = o["row"]
+        finished.append(c)
+        print(f"   [{len(finished):3d}/{len(cells)}] {c.world:12} {c.path_type:4} {c.method:9} {c.loop:5} "
+              f"{c.measurement:6} collisions {r['collisions']:4d} arrival {r['arrival']:.3f} "
+              f"mean steps {r['mean_steps']:6.0f} wall {r['time_ms'] / 1e3:6.1f} s", flush=True)
+        return o
+
+    print(f"\nrunning {len(cells)} cells x {trials} trials", flush=True)
+    out = runner.map_ordered(run_and_report, cells, workers=workers)
+    grid_wall = time.perf_counter() - t
+    df = pd.DataFrame([o["row"] for o in out])
+    paper_steps = df[df.loop == "paper"].set_index(CELL_KEY).mean_steps
+    df["penalty"] = [r.mean_steps / paper_steps[tuple(r[k] for k in CELL_KEY)] - 1 if r.loop == "ours" else np.nan
+                     for _, r in df.iterrows()]
+    return out, df, grid_wall
+
+
+def main() -> None:
+    args = _arguments()
+    trials = args.trials or (100 if args.quick else 1000)
+    t_all = time.perf_counter()
+
+    scenarios = worlds(args.quick, args.worlds)
+    budget = {k: v for k, v in (("guard_k", args.guard_k), ("collision_probability", args.collision_probability))
+              if v is not None}
+    if budget:
+        scenarios = {w: dataclasses.replace(sc, navigation=dataclasses.replace(sc.navigation, **budget))
+                     for w, sc in scenarios.items()}
+    print(f"worlds: {', '.join(scenarios)}; {trials} trials per cell; methods {', '.join(METHODS)}; "
+          f"loops paper (guard off, gate off) / ours (guard on, gate {default_scenario().navigation.gate_probability}); "
+          f"faulty = {FAULTS}; {args.workers} workers")
+
+    # Planning first: the hazard_weight 0 paths are the paper's safe paths, driven in section 1.
+    jobs = [PlanJob(w, sc, name, bh) for w, sc in scenarios.items() for _, name in path_types(sc)
+            for bh in [0.0, *args.weights]]
+    t = time.perf_counter()
+    plans = runner.map_ordered(plan_one, jobs, workers=args.workers)
+    print(f"planned {len(jobs)} paths (RAw-RRT*, {default_scenario().navigation.plan_iterations} iterations each) "
+          f"in {time.perf_counter() - t:.1f} s")
+    plan_of = {(p["world"], p["path_type"], p["hazard_weight"]): p for p in plans}
+
+    # 1. The navigation grid.
+    cells = grid_cells(scenarios, plan_of, trials)
+    out, df, grid_wall = run_grid(cells, trials, args.workers)
+
+    print(f"\n1. navigation safety grid: {len(cells)} cells x {trials} trials, {grid_wall:.1f} s wall")
+    print("   coll = collisions; other = other failures (lc left corridor, sl step limit, lost lost localization, "
+          "np no path); penalty = ours/paper mean steps - 1;\n   clr = min clearance of the true track [m] "
+          "(min over trials, 5th percentile); expo = mean exposure [m]; haz_s = mean hazard time [s];\n"
+          "   NEES = mean 4-state NEES over all steps of the cell; out3s = mean fraction of steps outside 3 sigma; "
+          "/tr = per trial; guard = slow+steer+hold events; faults = outliers+misassociated injected")
+    print(cell_table(df))
+
+    print_summary(df, cells, out, next(iter(scenarios)))
+    print_nees(df)
+
+    # 2. Hazard-aware planning.
+    pdf = hazard_table(plans, plan_of, args.weights)
+
+    # 3. Timing.
+    print_timing(df, grid_wall, args.workers)
 
     if args.out is not None:
         written = results.write_table(df, args.out / "safety_cells", parquet=False)

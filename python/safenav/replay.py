@@ -184,23 +184,12 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None,
     if prior is not None:
         t0, x0, P0 = prior
         loc.initialize(float(t0), np.asarray(x0, dtype=float), np.asarray(P0, dtype=float))
-    ev = log.events
-    kinds = ev["kind"].to_numpy()
-    t = ev["t"].to_numpy(float)
-    lm = ev["landmark"].fillna(-1).to_numpy(np.int64)
-    cols = {c: ev[c].to_numpy(float) for c in ("x", "y", "speed", "distance", "heading_change", "range", "bearing",
-                                                "range_std", "bearing_std", "std_x", "std_y")}
+    kinds, t, lm, cols, owed = _event_columns(log, odometry_heading)
     odo = kinds == "odometry"
-    owed = np.zeros(len(ev))  # heading change still owed at each odometry row's time ("mid")
-    if odometry_heading == "mid" and odo.any():
-        fed, half = odometry_heading_inputs(cols["heading_change"][odo])
-        cols["heading_change"] = cols["heading_change"].copy()
-        cols["heading_change"][odo] = fed
-        owed[odo] = half
     rows, inno = [], []
-    order = range(len(ev))
+    order = range(len(kinds))
     if delays is not None:
-        d = as_array("delays", delays, (len(ev),))
+        d = as_array("delays", delays, (len(kinds),))
         if not (np.isfinite(d).all() and (d >= 0).all()):
             bad = int(np.flatnonzero(~(np.isfinite(d) & (d >= 0)))[0])
             raise ValueError(f"delays[{bad}] = {float(d[bad])!r}: each delay must be finite and >= 0")
@@ -215,24 +204,12 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None,
         t_start = loc.time
         record()
     for i in order:
-        k = kinds[i]
-        if k == "odometry" or k == "motion":
-            if k == "odometry":
-                loc.odometry(t[i], cols["distance"][i], cols["heading_change"][i])
-            else:
-                loc.motion(t[i], cols["speed"][i], cols["heading_change"][i])
+        res = _feed(loc, kinds[i], t[i], int(lm[i]), cols, i)
+        if res is None:  # a motion input: the estimate after it
             if loc.initialized and not math.isnan(t_start):
                 record()
-        else:
-            if k == "fix":
-                R = np.diag([cols["std_x"][i] ** 2, cols["std_y"][i] ** 2])
-                res = loc.fix(t[i], cols["x"][i], cols["y"][i], R)
-            else:  # range, bearing, range_bearing
-                # read_log requires the σ of whatever a row measures; the other one is NaN and unused
-                res = loc.observe(t[i], int(lm[i]), cols["range"][i], cols["bearing"][i], cols["range_std"][i],
-                                  cols["bearing_std"][i])
-            if innovations:
-                inno.append((t[i], k, res.status.name.lower(), res.nis, res.dim, res.log_det_s))
+        elif innovations:
+            inno.append((t[i], kinds[i], res.status.name.lower(), res.nis, res.dim, res.log_det_s))
         if math.isnan(t_start) and loc.initialized:  # started from the data: its first estimate
             t_start = loc.time
             record()
@@ -245,12 +222,58 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None,
                                   "buffered": c.buffered, "ignored": c.ignored})
     if innovations:
         result.innovations = pd.DataFrame(inno, columns=list(INNOVATION_COLUMNS))
+    _score_into(result, loc, log, lag, smoother, (t[odo], owed[odo]) if odometry_heading == "mid" else None)
+    return result
+
+
+def _event_columns(log: Log, odometry_heading: str):
+    """The log's events as arrays: kinds, times, landmark ids (−1 for none),
+    the value columns, and the heading change still owed at each odometry
+    row's time (``"mid"``: the rows' heading changes are then the ones fed,
+    :func:`odometry_heading_inputs`)."""
+    ev = log.events
+    kinds = ev["kind"].to_numpy()
+    t = ev["t"].to_numpy(float)
+    lm = ev["landmark"].fillna(-1).to_numpy(np.int64)
+    cols = {c: ev[c].to_numpy(float) for c in ("x", "y", "speed", "distance", "heading_change", "range", "bearing",
+                                                "range_std", "bearing_std", "std_x", "std_y")}
+    odo = kinds == "odometry"
+    owed = np.zeros(len(ev))
+    if odometry_heading == "mid" and odo.any():
+        fed, half = odometry_heading_inputs(cols["heading_change"][odo])
+        cols["heading_change"] = cols["heading_change"].copy()
+        cols["heading_change"][odo] = fed
+        owed[odo] = half
+    return kinds, t, lm, cols, owed
+
+
+def _feed(loc, kind: str, t: float, landmark: int, cols: dict, i: int):
+    """Event row ``i`` (its values in ``cols``) into the localizer: None for
+    a motion input, else the measurement's ``InputResult``."""
+    if kind == "odometry":
+        loc.odometry(t, cols["distance"][i], cols["heading_change"][i])
+        return None
+    if kind == "motion":
+        loc.motion(t, cols["speed"][i], cols["heading_change"][i])
+        return None
+    if kind == "fix":
+        R = np.diag([cols["std_x"][i] ** 2, cols["std_y"][i] ** 2])
+        return loc.fix(t, cols["x"][i], cols["y"][i], R)
+    # range, bearing, range_bearing: read_log requires the σ of whatever a row measures; the other one is NaN and unused
+    return loc.observe(t, landmark, cols["range"][i], cols["bearing"][i], cols["range_std"][i], cols["bearing_std"][i])
+
+
+def _score_into(result: ReplayResult, loc, log: Log, lag, smoother: str, owed) -> None:
+    """The replay's scores against the log's truth (causal, and the smoothed
+    trajectory's at its lag), and the reason where it never started or
+    started after some truth poses."""
+    traj = result.trajectory
     if log.truth is not None and len(traj):
         result.metrics = score(traj, log.truth)
     if lag is not None:
         result.smoothed = _smoothed(loc)
-        if odometry_heading == "mid":
-            _add_owed_heading(result.smoothed, t[odo], owed[odo])
+        if owed is not None:
+            _add_owed_heading(result.smoothed, *owed)
         if log.truth is not None and len(result.smoothed):
             result.smoothed_metrics = score(result.smoothed, log.truth, label=lag_label(lag))
             result.smoothed_metrics["smoother"] = smoother
@@ -259,7 +282,6 @@ def replay(log: Log, settings: LocalizerSettings | None = None, *, prior=None,
     elif result.metrics and result.metrics["n_before_start"] > 0:
         n, m = result.metrics["n_before_start"], len(log.truth)
         result.reason = f"{n} of {m} truth poses lie before the start, unscored; {loc.reason()}"
-    return result
 
 
 def _add_owed_heading(trajectory: pd.DataFrame, t_odometry: np.ndarray, owed: np.ndarray) -> None:
