@@ -94,6 +94,19 @@ def test_any_boxes_range_as_the_python_pipeline_ranges_them(frames, data):
         _same(c, lb.observe(Detection(lid, "m", b, 1.0), disparity))
 
 
+def test_boxes_above_the_image_match_the_whole_frame(frames):
+    """Boxes that reach no row of the image (found by the property test above: a box 1 px tall at
+    y = -40) leave no band: both pipelines match the whole frame, and range the boxes alike."""
+    pose, world, _, (left, right) = frames[0]
+    lid = min(lm.id for lm in world.landmarks)
+    box = (10.0, -40.0, 50.0, -39.0)
+    lb = LanBLoc(world, RIG, ranging="sgbm", backend="python")
+    disparity = lb.disparity(left, right, [box])
+    np.testing.assert_array_equal(disparity, lb.disparity(left, right, []))
+    fix = _front_end(world, ranging=SGBM, max_range_m=RIG.max_range_m).localize_boxes(left, right, [(lid, box)])
+    _same(fix.observations[0], lb.observe(Detection(lid, "m", box, 1.0), disparity))
+
+
 @pytest.mark.parametrize("k", range(len(SCENES)))
 def test_the_cores_own_detection_finds_the_python_pipelines_landmarks_and_fix(k):
     pose, placements = SCENES[k]

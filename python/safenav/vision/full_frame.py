@@ -56,10 +56,10 @@ class FullFramePipeline:
         q = 16   # band edges on a 16-row grid, so that band matchers are reused
         y0 = max((int(math.floor(b[:, 1].min())) - self.band_margin_px) // q * q, 0)
         y1 = min(-(-(int(math.ceil(b[:, 3].max())) + 1 + self.band_margin_px) // q) * q, h)
-        if y1 - y0 >= 0.8 * h:
+        if y1 - y0 >= 0.8 * h or y1 <= y0:   # a band of most rows, or none (every box above or below the image)
             return self.ranger.matcher.disparity(left, right)
-        m = self.ranger.crop_matcher(0, y0, self.ranger.camera.width, y1)
         out = np.full((h, left.shape[1]), np.nan, np.float32)
+        m = self.ranger.crop_matcher(0, y0, self.ranger.camera.width, y1)
         out[y0:y1] = m.disparity(np.ascontiguousarray(left[y0:y1]), np.ascontiguousarray(right[y0:y1]))
         return out
 
