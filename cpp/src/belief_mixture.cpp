@@ -423,6 +423,58 @@ void gate_step(const Gate& gate, const StepOutcome& o, std::size_t room, Stratum
   }
 }
 
+/// Stratum s's step (Model::step at what it sees): its filter covariance,
+/// and its error's mean, B and second moment beyond P moved by the step's
+/// factors; where the gate branches (gate_step), the branches other than
+/// the first go to `away`, with `room` slots left.  Adds the stratum's
+/// prior second moment to mix_m and leaves the step's F in F.
+template <int K>
+void step_stratum(const Model& model, const Gate& gate, std::size_t room, Stratum<K>& s,
+                  std::vector<Stratum<K>>& away, StateCov& mix_m, Eigen::Matrix4d& F) {
+  StepOutcome o;
+  model.step(s.seen, s.P, &o, true);
+  F = o.F;
+  s.N = F * s.N * F.transpose();
+  mix_m += s.w * (o.Pm + s.N);
+  if (o.gating == StepOutcome::Gating::Branches) {
+    gate_step<K>(gate, o, room, s, away);
+    return;
+  }
+  if (o.gating == StepOutcome::Gating::Passes) {  // its fixes pass: their noise, not its error, decides
+    s.turned_away = false;
+    s.counts.fill(0.0);
+  }
+  Eigen::Matrix4d T;
+  if (o.p_fix < 1.0) {  // a fix that may not arrive: each branch moves the error by its own factor
+    const StateCov X = s.N;
+    s.N = o.p_fix * o.T_fix * X * o.T_fix.transpose() + (1.0 - o.p_fix) * o.T_none * X * o.T_none.transpose();
+    T = o.p_fix * o.T_fix + (1.0 - o.p_fix) * o.T_none;
+  } else {
+    T = o.Pm.ldlt().solve(s.P.transpose()).transpose();  // P_i (P_i⁻)⁻¹ = I − K_i H_i
+    s.N = T * s.N * T.transpose();
+  }
+  s.m = T * (F * s.m);
+  s.B = T * (F * s.B);
+  s.N = 0.5 * (s.N + s.N.transpose());
+}
+
+/// Row `row` of the trace: each stratum's weight, where it saw from and its
+/// second moment; returns the mixture's second moment Σ w_i (P_i + N_i).
+template <int K>
+StateCov record_stage(StrataTrace& trace, Eigen::Index row, const std::vector<Stratum<K>>& st) {
+  StateCov mix = StateCov::Zero();
+  for (std::size_t i = 0; i < st.size(); ++i) {
+    const Stratum<K>& s = st[i];
+    mix += s.w * (s.P + s.N);
+    const auto col = static_cast<Eigen::Index>(i);
+    if (col >= trace.weight.cols()) throw std::logic_error("deviation mixture: more strata than the trace holds");
+    trace.weight(row, col) = s.w;
+    trace.positions.block<1, 2>(row, 2 * col) = s.seen.end.transpose();
+    trace.msq(row, col) = s.P(0, 0) + s.N(0, 0) + s.P(1, 1) + s.N(1, 1);
+  }
+  return mix;
+}
+
 }  // namespace
 
 /// BeliefSettings::deviation_mixture: the vehicle's error, stratified on its
@@ -466,11 +518,9 @@ void mixture_recursion(const Model& model, const std::vector<Step>& steps, std::
   trace.weight = Eigen::MatrixXd::Zero(n, slots);
   trace.positions = Eigen::MatrixXd::Zero(n, 2 * slots);
   trace.msq = Eigen::MatrixXd::Zero(n, slots);
-  for (Eigen::Index i = 0; i < static_cast<Eigen::Index>(st.size()); ++i) {
-    trace.weight(0, i) = st[static_cast<std::size_t>(i)].w;
-    trace.positions.block<1, 2>(0, 2 * i) = (steps.empty() ? Eigen::Vector2d::Zero() : steps[0].end).transpose();
-    trace.msq(0, i) = P[0](0, 0) + P[0](1, 1);
-  }
+  // Row 0: every stratum at the start, with the prior (their views are taken at step 1).
+  for (Stratum<K>& s : st) s.seen.end = steps.empty() ? Eigen::Vector2d::Zero() : steps[0].end;
+  if (n > 0) record_stage<K>(trace, 0, st);
   std::vector<double> arc(steps.size(), 0.0);  // metres along the steps
   for (std::size_t k = 1; k < steps.size(); ++k) arc[k] = arc[k - 1] + steps[k].length;
   Eigen::Index used = static_cast<Eigen::Index>(st.size());
@@ -499,44 +549,10 @@ void mixture_recursion(const Model& model, const std::vector<Step>& steps, std::
     Eigen::Matrix4d F;
     away.clear();
     const std::size_t stepped = st.size();
-    for (std::size_t i = 0; i < stepped; ++i) {
-      Stratum<K>& s = st[i];
-      StepOutcome o;
-      model.step(s.seen, s.P, &o, true);
-      F = o.F;
-      s.N = F * s.N * F.transpose();
-      mix_m += s.w * (o.Pm + s.N);
-      if (o.gating == StepOutcome::Gating::Branches) {
-        gate_step<K>(gate, o, cap - std::min(cap, stepped + away.size()), s, away);
-        continue;
-      }
-      if (o.gating == StepOutcome::Gating::Passes) {  // its fixes pass: their noise, not its error, decides
-        s.turned_away = false;
-        s.counts.fill(0.0);
-      }
-      Eigen::Matrix4d T;
-      if (o.p_fix < 1.0) {  // a fix that may not arrive: each branch moves the error by its own factor
-        const StateCov X = s.N;
-        s.N = o.p_fix * o.T_fix * X * o.T_fix.transpose() + (1.0 - o.p_fix) * o.T_none * X * o.T_none.transpose();
-        T = o.p_fix * o.T_fix + (1.0 - o.p_fix) * o.T_none;
-      } else {
-        T = o.Pm.ldlt().solve(s.P.transpose()).transpose();  // P_i (P_i⁻)⁻¹ = I − K_i H_i
-        s.N = T * s.N * T.transpose();
-      }
-      s.m = T * (F * s.m);
-      s.B = T * (F * s.B);
-      s.N = 0.5 * (s.N + s.N.transpose());
-    }
+    for (std::size_t i = 0; i < stepped; ++i)
+      step_stratum<K>(model, gate, cap - std::min(cap, stepped + away.size()), st[i], away, mix_m, F);
     st.insert(st.end(), away.begin(), away.end());
-    for (std::size_t i = 0; i < st.size(); ++i) {
-      const Stratum<K>& s = st[i];
-      mix += s.w * (s.P + s.N);
-      const auto row = static_cast<Eigen::Index>(k), col = static_cast<Eigen::Index>(i);
-      if (col >= slots) throw std::logic_error("deviation mixture: more strata than the trace holds");
-      trace.weight(row, col) = s.w;
-      trace.positions.block<1, 2>(row, 2 * col) = s.seen.end.transpose();
-      trace.msq(row, col) = s.P(0, 0) + s.N(0, 0) + s.P(1, 1) + s.N(1, 1);
-    }
+    mix = record_stage<K>(trace, static_cast<Eigen::Index>(k), st);
     used = std::max(used, static_cast<Eigen::Index>(st.size()));
     P[k] = 0.5 * (mix + mix.transpose());
     A[k - 1] = within_marginals(mix_m.ldlt().solve(P[k].transpose()).transpose() * F, P[k - 1], P[k]);
