@@ -444,7 +444,8 @@ def print_timing(df: pd.DataFrame, wall: float, workers: int, full: int) -> None
           f"{est * workers / 3600:.2f} CPU hours: {est / 3600:.2f} h on {workers} otherwise idle cores")
 
 
-def main() -> None:
+def _arguments() -> argparse.Namespace:
+    """The command line, checked: a count below its least names the flag."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--trials", type=int, default=50, help="trials per cell (default 50)")
     ap.add_argument("--worlds", type=int, nargs="*", default=[13, 17], help="seeds of the generated worlds")
@@ -478,6 +479,11 @@ def main() -> None:
     for name in ("trials", "record", "blind_check", "workers", "full", "first_trial", "recheck"):
         if getattr(args, name) < (0 if name in ("record", "blind_check", "first_trial", "recheck") else 1):
             ap.error(f"--{name} = {getattr(args, name)}: too small")
+    return args
+
+
+def main() -> None:
+    args = _arguments()
     t_all = time.perf_counter()
     scenarios = worlds(args.worlds, not args.no_gap)
     print(f"worlds: {', '.join(scenarios)}; {args.trials} trials per cell from trial {args.first_trial}; "
