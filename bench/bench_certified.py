@@ -67,7 +67,7 @@ import numpy as np
 import pandas as pd
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_safety import SHORT, Cell, faulty, run_cell, verdict  # noqa: E402  (the grid's cell code)
+from bench_safety import SHORT, Cell, faulty, map_reporting, run_cell, verdict  # noqa: E402  (the grid's cell code)
 
 from safenav import certify as C  # noqa: E402
 from safenav import navigation as nav  # noqa: E402
@@ -503,21 +503,16 @@ def main() -> None:
              for name, meas in (("clean", driven[m.world]), ("faulty", faulty(driven[m.world])))
              for filt in args.filters]
     t = time.perf_counter()
-    done = []
 
-    def run_and_report(job: DriveJob) -> dict:
-        o = drive(job)
+    def line(job: DriveJob, o: dict) -> str:
         r = o["row"]
-        done.append(job)
-        print(f"   [{len(done):3d}/{len(cells)}] {r['world']:12} {r['path_type']:4} {r['method']:9} "
-              f"{r['measurement']:6} {r['filt']:3} collisions {r['collisions']} arrival {r['arrival']:.3f} "
-              f"wall {r['time_ms'] / 1e3:.1f} s", flush=True)
-        return o
+        return (f"{r['world']:12} {r['path_type']:4} {r['method']:9} {r['measurement']:6} {r['filt']:3} "
+                f"collisions {r['collisions']} arrival {r['arrival']:.3f} wall {r['time_ms'] / 1e3:.1f} s")
 
     print(f"\n2. driving {len(cells)} cells x {args.trials} trials", flush=True)
     drive_jobs = [DriveJob(c, args.record, args.bin_m, args.blind_check, args.deviation_nodes,
                            args.deviation_along, args.deviation_split, args.recheck, args.recheck_all) for c in cells]
-    out = runner.map_ordered(run_and_report, drive_jobs, workers=args.workers)
+    out = map_reporting(drive, drive_jobs, args.workers, line)
     wall = time.perf_counter() - t
     df = pd.DataFrame([o["row"] for o in out])
     cals = [o["calibration"] for o in out]

@@ -362,23 +362,33 @@ def print_timing(df: pd.DataFrame, grid_wall: float, workers: int) -> None:
               f"(median of per-cell ratios; ratio of medians {float(q.median() / p.median()):.2f}x)")
 
 
+def map_reporting(work, jobs: list, workers: int, line) -> list:
+    """``runner.map_ordered(work, jobs)``, with a line ``line(job, output)`` printed as each job
+    finishes (numbered in the order they finish), so that a long run shows its progress."""
+    done = []
+
+    def run_and_report(job):
+        o = work(job)
+        done.append(job)
+        print(f"   [{len(done):3d}/{len(jobs)}] {line(job, o)}", flush=True)
+        return o
+
+    return runner.map_ordered(run_and_report, jobs, workers=workers)
+
+
 def run_grid(cells: list, trials: int, workers: int):
     """Every cell's trials (a line as each finishes, so that a long run shows its progress); the cells'
     outputs, their table with our loop's time penalty per cell, and the wall time."""
     t = time.perf_counter()
-    finished = []
 
-    def run_and_report(c: Cell) -> dict:
-        o = run_cell(c)
+    def line(c: Cell, o: dict) -> str:
         r = o["row"]
-        finished.append(c)
-        print(f"   [{len(finished):3d}/{len(cells)}] {c.world:12} {c.path_type:4} {c.method:9} {c.loop:5} "
-              f"{c.measurement:6} collisions {r['collisions']:4d} arrival {r['arrival']:.3f} "
-              f"mean steps {r['mean_steps']:6.0f} wall {r['time_ms'] / 1e3:6.1f} s", flush=True)
-        return o
+        return (f"{c.world:12} {c.path_type:4} {c.method:9} {c.loop:5} {c.measurement:6} collisions "
+                f"{r['collisions']:4d} arrival {r['arrival']:.3f} mean steps {r['mean_steps']:6.0f} "
+                f"wall {r['time_ms'] / 1e3:6.1f} s")
 
     print(f"\nrunning {len(cells)} cells x {trials} trials", flush=True)
-    out = runner.map_ordered(run_and_report, cells, workers=workers)
+    out = map_reporting(run_cell, cells, workers, line)
     grid_wall = time.perf_counter() - t
     df = pd.DataFrame([o["row"] for o in out])
     paper_steps = df[df.loop == "paper"].set_index(CELL_KEY).mean_steps
