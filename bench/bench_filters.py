@@ -195,6 +195,42 @@ def ours_pf_batch(params, controls, position, x0, P0, R, n, seed, bandwidth_scal
 # Peer 2: vectorised NumPy particle filter with the same model
 # ---------------------------------------------------------------------------
 
+def _pf_particles(x0, P0, n, rng):
+    """The particles drawn from N(x0, P0) in one (6, n) array: x, y, v (>= 0), θ (wrapped), cos θ, sin θ."""
+    init = x0 + rng.standard_normal((n, 4)) @ np.linalg.cholesky(P0).T
+    S = np.empty((6, n))
+    S[:4] = init.T
+    np.maximum(S[2], 0.0, out=S[2])
+    S[3] = wrap(S[3])
+    np.cos(S[3], out=S[4])
+    np.sin(S[3], out=S[5])
+    return S
+
+
+def _pf_predict(S, eps, p, desired, dth):
+    """The noisy BMM (eqs. 3, 4, 6, 7/9) on the particles in place, as Bmm::transition;
+    ``eps`` holds the step's scaled noise (x, y, v, θ)."""
+    x, y, v, th, c, s = S
+    a_dt, d_dt, vmax = p.acceleration * p.dt, p.deceleration * p.dt, p.max_speed
+    lim = p.max_heading_rate * p.dt
+    v_up = np.clip(np.minimum(v + a_dt, desired), 0.0, vmax)
+    v_down = np.clip(np.maximum(v - d_dt, desired), 0.0, vmax)
+    v1 = np.where(desired > v, v_up, v_down)
+    v1 += eps[2]
+    np.clip(v1, 0.0, vmax, out=v)
+    th += min(max(dth, -lim), lim)
+    th += eps[3]
+    th[th > math.pi] -= TWO_PI
+    th[th <= -math.pi] += TWO_PI
+    np.cos(th, out=c)
+    np.sin(th, out=s)
+    kv = (p.dt / (1.0 + p.terrain_effect)) * v
+    x += kv * c
+    x += eps[0]
+    y += kv * s
+    y += eps[1]
+
+
 def numpy_pf(params, controls, position, x0, P0, R, n, seed, threshold=0.5):
     """Bootstrap PF on the noisy BMM; returns (states (N+1,4), covs (N+1,4,4), n_resampled).
 
@@ -204,21 +240,12 @@ def numpy_pf(params, controls, position, x0, P0, R, n, seed, threshold=0.5):
     a preallocated buffer and updates are in place where NumPy allows."""
     p = params
     rng = np.random.default_rng(seed)
-    init = x0 + rng.standard_normal((n, 4)) @ np.linalg.cholesky(P0).T
-    S = np.empty((6, n))
-    S[:4] = init.T
-    np.maximum(S[2], 0.0, out=S[2])
-    S[3] = wrap(S[3])
-    np.cos(S[3], out=S[4])
-    np.sin(S[3], out=S[5])
+    S = _pf_particles(x0, P0, n, rng)
     logw = np.full(n, -math.log(n))
     w = np.full(n, 1.0 / n)
     sig = np.array([p.position_noise, p.position_noise, p.speed_noise, p.heading_noise])[:, None]
     Ri = np.linalg.inv(R)
     ri00, ri01, ri11 = Ri[0, 0], 2.0 * Ri[0, 1], Ri[1, 1]
-    a_dt, d_dt, vmax = p.acceleration * p.dt, p.deceleration * p.dt, p.max_speed
-    lim = p.max_heading_rate * p.dt
-    k = p.dt / (1.0 + p.terrain_effect)
     steps = len(controls)
     states = np.empty((steps + 1, 4))
     covs = np.empty((steps + 1, 4, 4))
@@ -240,31 +267,14 @@ def numpy_pf(params, controls, position, x0, P0, R, n, seed, threshold=0.5):
 
     estimate(0, S, w)
     for i in range(steps):
-        x, y, v, th, c, s = S
         desired, dth = controls[i]
-        # Predict: noisy BMM (eqs. 3, 4, 6, 7/9), as Bmm::transition.
         rng.standard_normal(out=eps)
         eps *= sig
-        v_up = np.clip(np.minimum(v + a_dt, desired), 0.0, vmax)
-        v_down = np.clip(np.maximum(v - d_dt, desired), 0.0, vmax)
-        v1 = np.where(desired > v, v_up, v_down)
-        v1 += eps[2]
-        np.clip(v1, 0.0, vmax, out=v)
-        th += min(max(dth, -lim), lim)
-        th += eps[3]
-        th[th > math.pi] -= TWO_PI
-        th[th <= -math.pi] += TWO_PI
-        np.cos(th, out=c)
-        np.sin(th, out=s)
-        kv = k * v
-        x += kv * c
-        x += eps[0]
-        y += kv * s
-        y += eps[1]
+        _pf_predict(S, eps, p, desired, dth)
         # Update: Gaussian log-likelihood of the position fix.
         z = position[i]
         if np.isfinite(z[0]):
-            d0, d1 = z[0] - x, z[1] - y
+            d0, d1 = z[0] - S[0], z[1] - S[1]
             logw -= 0.5 * (ri00 * d0 * d0 + ri01 * d0 * d1 + ri11 * d1 * d1)
             mx = logw.max()
             e = np.exp(logw - mx)

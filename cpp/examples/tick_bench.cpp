@@ -107,117 +107,126 @@ double median(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
-}  // namespace
+/// One timed quantity over the repeats: ns per tick of each repeat, and the heap allocations.
+struct Timing {
+  std::vector<double> ns;
+  long long allocs = 0;
+  double med() const { return median(ns); }
+  double min() const { return *std::min_element(ns.begin(), ns.end()); }
+  double max() const { return *std::max_element(ns.begin(), ns.end()); }
+};
 
-int main(int argc, char** argv) {
-  const long ticks = argc > 1 ? std::atol(argv[1]) : 100000;
-  const int repeats = argc > 2 ? std::atoi(argv[2]) : 5;
-  if (ticks < 100 || repeats < 1) {
-    std::fprintf(stderr, "ticks must be >= 100 and repeats >= 1\n");
-    return 2;
-  }
-  const World w;
-  const safenav::State x0(30.0, 10.0, 2.0, 0.0);
+/// Runs body(j) for j = 0 … ticks − 1, timed and with its allocations counted, into `into`.
+template <typename Body>
+void timed(long ticks, Timing& into, Body&& body) {
+  const long long a0 = g_allocs.load();
+  const auto t0 = Clock::now();
+  for (long j = 0; j < ticks; ++j) body(j);
+  const auto t1 = Clock::now();
+  into.allocs += g_allocs.load() - a0;
+  into.ns.push_back(std::chrono::duration<double, std::nano>(t1 - t0).count() / static_cast<double>(ticks));
+}
+
+struct Setup {
+  World w;
+  safenav::State x0{30.0, 10.0, 2.0, 0.0};
   safenav::StateCov P0 = safenav::StateCov::Zero();
-  P0.diagonal() << 0.01, 0.01, 0.01, 0.001;
-  const long warm = 1000;
-  const Script script = make_script(w, x0, warm + ticks);
+  long warm = 1000, ticks = 0;
+  int repeats = 0;
+  Script script;
+};
 
-  // 1. Localizer only: motion + observe.
-  std::vector<double> loc_ns;
-  long long loc_allocs = 0;
+/// 1. The localizer only: motion + observe.  Returns how many observations it applied.
+int time_localizer(const Setup& s, Timing& loc) {
   int applied = 0;
-  for (int r = 0; r < repeats; ++r) {
-    safenav::Localizer loc(safenav::LocalizerSettings(), w.landmarks);
-    loc.initialize(0.0, x0, P0);
-    long k = 0;
-    for (; k < warm; ++k) {
-      const double t = (k + 1) * w.dt();
-      loc.motion(t, script.u[k]);
-      loc.observe(t, script.obs[k]);
-    }
-    const long long a0 = g_allocs.load();
-    const auto t0 = Clock::now();
-    for (; k < warm + ticks; ++k) {
-      const double t = (k + 1) * w.dt();
-      loc.motion(t, script.u[k]);
-      applied += loc.observe(t, script.obs[k]).applied();
-    }
-    const auto t1 = Clock::now();
-    loc_allocs += g_allocs.load() - a0;
-    loc_ns.push_back(std::chrono::duration<double, std::nano>(t1 - t0).count() / static_cast<double>(ticks));
+  for (int r = 0; r < s.repeats; ++r) {
+    safenav::Localizer l(safenav::LocalizerSettings(), s.w.landmarks);
+    l.initialize(0.0, s.x0, s.P0);
+    const auto tick = [&](long k) {
+      const double t = static_cast<double>(k + 1) * s.w.dt();
+      l.motion(t, s.script.u[k]);
+      return l.observe(t, s.script.obs[k]).applied();
+    };
+    for (long k = 0; k < s.warm; ++k) tick(k);
+    timed(s.ticks, loc, [&](long j) { applied += tick(s.warm + j); });
   }
+  return applied;
+}
 
-  // 2. Guidance: command + motion + observe (SafeNav-Centroid along a 170 m
-  // path round the landmark field, 10 m segments, no replanning), and
-  // command() alone.
+/// The guidance runs' problem: SafeNav-Centroid along a 170 m path round the
+/// landmark field, 10 m segments, no replanning.
+safenav::NavigationProblem guidance_problem() {
   safenav::NavigationProblem problem;
   problem.path.resize(5, 2);
   problem.path << 30, 10, 80, 10, 80, 50, 30, 50, 30, 20;
   problem.map.lower = Eigen::Vector2d(-200.0, -200.0);
   problem.map.upper = Eigen::Vector2d(300.0, 300.0);
+  return problem;
+}
+
+struct GuidanceTimings {
+  Timing tick, command, checked;
+  long long construction_allocs = 0;
+  unsigned events = 0;
+  int guiding = 0;
+};
+
+/// 2. Guidance: command + motion + observe, command() alone on a fixed
+/// estimate at its time (later, guidance would predict the estimate to the
+/// command's time, and after input_timeout stop), and command() with the
+/// obstacle check on (every 5th command; an obstacle off the path, so no detour).
+void time_guidance(const Setup& s, GuidanceTimings& out) {
+  const safenav::NavigationProblem problem = guidance_problem();
   safenav::NavigationSettings settings;
   settings.method = safenav::NavigationMethod::Centroid;
   settings.replan = false;
-  long long a_build = g_allocs.load();
-  const safenav::Guidance proto(problem, settings, safenav::LocalizerSettings(), w.landmarks, {}, 1);
-  a_build = g_allocs.load() - a_build;  // shows that the counter sees the library's allocations
-  // The same with the obstacle check on (every 5th command; an obstacle off the path, so no detour).
+  const long long a_build = g_allocs.load();
+  const safenav::Guidance proto(problem, settings, safenav::LocalizerSettings(), s.w.landmarks, {}, 1);
+  out.construction_allocs = g_allocs.load() - a_build;  // shows that the counter sees the library's allocations
   safenav::NavigationProblem checked = problem;
   checked.map.circles.push_back({Eigen::Vector2d(150.0, 150.0), 2.0});
   safenav::NavigationSettings check_settings = settings;
   check_settings.replan = true;
-  safenav::Guidance g3(checked, check_settings, safenav::LocalizerSettings(), w.landmarks, {}, 1);
-  g3.localizer().initialize(0.0, x0, P0);
-  std::vector<double> gui_ns, cmd_ns, chk_ns;
-  long long gui_allocs = 0, cmd_allocs = 0, chk_allocs = 0;
-  unsigned events = 0;
-  int guiding = 0;
-  for (int r = 0; r < repeats; ++r) {
-    safenav::Guidance g = proto.fresh(1);
-    safenav::Guidance g2 = proto.fresh(1);
-    g.localizer().initialize(0.0, x0, P0);
-    g2.localizer().initialize(0.0, x0, P0);
-    long k = 0;
-    for (; k < warm; ++k) {
-      const double t = (k + 1) * w.dt();
-      events |= g.command(k * w.dt()).events;
-      g.motion(t, script.u[k]);
-      g.observe(t, script.obs[k]);
-    }
-    long long a0 = g_allocs.load();
-    auto t0 = Clock::now();
-    for (; k < warm + ticks; ++k) {
-      const double t = (k + 1) * w.dt();
-      const safenav::Command c = g.command(k * w.dt());
-      guiding += c.status == safenav::GuidanceStatus::Guiding;
-      events |= c.events;
-      g.motion(t, script.u[k]);  // the script's control, so the truth is known
-      g.observe(t, script.obs[k]);
-    }
-    auto t1 = Clock::now();
-    gui_allocs += g_allocs.load() - a0;
-    gui_ns.push_back(std::chrono::duration<double, std::nano>(t1 - t0).count() / static_cast<double>(ticks));
-    // command() alone, on a fixed estimate, at its time (later, guidance would
-    // predict the estimate to the command's time, and after input_timeout stop).
-    for (long j = 0; j < warm; ++j) g2.command(0.0);
-    a0 = g_allocs.load();
-    t0 = Clock::now();
-    for (long j = 0; j < ticks; ++j) events |= g2.command(0.0).events;
-    t1 = Clock::now();
-    cmd_allocs += g_allocs.load() - a0;
-    cmd_ns.push_back(std::chrono::duration<double, std::nano>(t1 - t0).count() / static_cast<double>(ticks));
-    // command() with the obstacle check on.
-    for (long j = 0; j < warm; ++j) g3.command(0.0);
-    a0 = g_allocs.load();
-    t0 = Clock::now();
-    for (long j = 0; j < ticks; ++j) events |= g3.command(0.0).events;
-    t1 = Clock::now();
-    chk_allocs += g_allocs.load() - a0;
-    chk_ns.push_back(std::chrono::duration<double, std::nano>(t1 - t0).count() / static_cast<double>(ticks));
+  safenav::Guidance g3(checked, check_settings, safenav::LocalizerSettings(), s.w.landmarks, {}, 1);
+  g3.localizer().initialize(0.0, s.x0, s.P0);
+  for (int r = 0; r < s.repeats; ++r) {
+    safenav::Guidance g = proto.fresh(1), g2 = proto.fresh(1);
+    g.localizer().initialize(0.0, s.x0, s.P0);
+    g2.localizer().initialize(0.0, s.x0, s.P0);
+    const auto tick = [&](long k) {
+      const double t = static_cast<double>(k + 1) * s.w.dt();
+      const safenav::Command c = g.command(static_cast<double>(k) * s.w.dt());
+      out.events |= c.events;
+      g.motion(t, s.script.u[k]);  // the script's control, so the truth is known
+      g.observe(t, s.script.obs[k]);
+      return c.status == safenav::GuidanceStatus::Guiding;
+    };
+    for (long k = 0; k < s.warm; ++k) tick(k);
+    timed(s.ticks, out.tick, [&](long j) { out.guiding += tick(s.warm + j); });
+    for (long j = 0; j < s.warm; ++j) g2.command(0.0);
+    timed(s.ticks, out.command, [&](long) { out.events |= g2.command(0.0).events; });
+    for (long j = 0; j < s.warm; ++j) g3.command(0.0);
+    timed(s.ticks, out.checked, [&](long) { out.events |= g3.command(0.0).events; });
   }
+}
 
-  const double n = static_cast<double>(ticks) * repeats;
+}  // namespace
+
+int main(int argc, char** argv) {
+  Setup s;
+  s.ticks = argc > 1 ? std::atol(argv[1]) : 100000;
+  s.repeats = argc > 2 ? std::atoi(argv[2]) : 5;
+  if (s.ticks < 100 || s.repeats < 1) {
+    std::fprintf(stderr, "ticks must be >= 100 and repeats >= 1\n");
+    return 2;
+  }
+  s.P0.diagonal() << 0.01, 0.01, 0.01, 0.001;
+  s.script = make_script(s.w, s.x0, s.warm + s.ticks);
+  Timing loc;
+  const int applied = time_localizer(s, loc);
+  GuidanceTimings g;
+  time_guidance(s, g);
+  const double n = static_cast<double>(s.ticks) * s.repeats;
   std::printf(
       "{\"ticks\": %ld, \"repeats\": %d, \"localizer_ns_per_tick\": %.1f, \"localizer_ns_min\": %.1f, "
       "\"localizer_ns_max\": %.1f, \"localizer_allocs_per_tick\": %.6g, \"localizer_applied_fraction\": %.4f, "
@@ -225,10 +234,9 @@ int main(int argc, char** argv) {
       "\"guidance_allocs_per_tick\": %.6g, \"guidance_guiding_fraction\": %.4f, \"command_ns\": %.1f, "
       "\"command_allocs_per_call\": %.6g, \"command_checked_ns\": %.1f, \"command_checked_allocs_per_call\": %.6g, "
       "\"guidance_construction_allocs\": %lld, \"events\": %u}\n",
-      ticks, repeats, median(loc_ns), *std::min_element(loc_ns.begin(), loc_ns.end()),
-      *std::max_element(loc_ns.begin(), loc_ns.end()), static_cast<double>(loc_allocs) / n, applied / n,
-      median(gui_ns), *std::min_element(gui_ns.begin(), gui_ns.end()), *std::max_element(gui_ns.begin(), gui_ns.end()),
-      static_cast<double>(gui_allocs) / n, guiding / n, median(cmd_ns), static_cast<double>(cmd_allocs) / n, median(chk_ns),
-      static_cast<double>(chk_allocs) / n, a_build, events);
+      s.ticks, s.repeats, loc.med(), loc.min(), loc.max(), static_cast<double>(loc.allocs) / n, applied / n,
+      g.tick.med(), g.tick.min(), g.tick.max(), static_cast<double>(g.tick.allocs) / n, g.guiding / n, g.command.med(),
+      static_cast<double>(g.command.allocs) / n, g.checked.med(), static_cast<double>(g.checked.allocs) / n,
+      g.construction_allocs, g.events);
   return 0;
 }

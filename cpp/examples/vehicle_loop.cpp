@@ -88,6 +88,16 @@ void sense(safenav::Guidance& guidance, double t, const safenav::State& truth, c
   }
 }
 
+/// The localizer starts from a prior 0.5 m and a few degrees off the truth.
+void start_localizer(safenav::Guidance& guidance, const safenav::State& truth, std::mt19937_64& gen,
+                     std::normal_distribution<double>& n01) {
+  safenav::StateCov P0 = safenav::StateCov::Zero();
+  P0.diagonal() << 0.5 * 0.5, 0.5 * 0.5, 0.2 * 0.2, 0.05 * 0.05;
+  const safenav::State x0 = truth + P0.diagonal().cwiseSqrt().cwiseProduct(
+                                        safenav::State(n01(gen), n01(gen), n01(gen), n01(gen)));
+  guidance.localizer().initialize(0.0, safenav::State(x0[0], x0[1], std::max(0.0, x0[2]), x0[3]), P0);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -112,16 +122,11 @@ int main(int argc, char** argv) {
   true_map.clearance = 0.0;
   const safenav::ObstacleChecker obstacles(true_map);
 
-  // The true vehicle starts at rest at the path's start, heading east; the
-  // localizer starts from a prior 0.5 m and a few degrees off.
+  // The true vehicle starts at rest at the path's start, heading east.
   std::mt19937_64 gen(seed);
   std::normal_distribution<double> n01(0.0, 1.0);
   safenav::State truth(10.0, 30.0, 0.0, 0.0);
-  safenav::StateCov P0 = safenav::StateCov::Zero();
-  P0.diagonal() << 0.5 * 0.5, 0.5 * 0.5, 0.2 * 0.2, 0.05 * 0.05;
-  const safenav::State x0 = truth + P0.diagonal().cwiseSqrt().cwiseProduct(
-                                        safenav::State(n01(gen), n01(gen), n01(gen), n01(gen)));
-  guidance.localizer().initialize(0.0, safenav::State(x0[0], x0[1], std::max(0.0, x0[2]), x0[3]), P0);
+  start_localizer(guidance, truth, gen, n01);
 
   const Eigen::Vector4d sigma(bp.position_noise, bp.position_noise, bp.speed_noise, bp.heading_noise);
   bool detour = false, collided = false, arrived = false;

@@ -50,19 +50,7 @@ class StereoFrame:
         #: ``(left, right)`` full-resolution grey images that :meth:`patch` cuts from instead of
         #: drawing (e.g. a pair already rendered, to run the region pipeline on the same pixels as
         #: another detector); ``None``: drawn on demand
-        self.images = None
-        if images is not None:
-            try:
-                left, right = images
-            except (TypeError, ValueError):
-                raise ValueError(f"images = {images!r}: must be a pair (left, right)") from None
-            r = renderer.rig
-            ims = tuple(np.ascontiguousarray(a) for a in (left, right))
-            for name, a in zip(self.CAMERAS, ims):
-                if a.dtype != np.uint8 or a.shape != (r.height, r.width):
-                    raise ValueError(f"images: the {name} image is {a.dtype} {a.shape}, expected uint8 "
-                                     f"({r.height}, {r.width})")
-            self.images = ims
+        self.images = None if images is None else self._checked_images(renderer.rig, images)
         self._rng = renderer._rng if noise_seed is None else np.random.default_rng(noise_seed)
         self._offsets, self._next = None, 0   # noise-tile offsets, drawn 32 at a time
         r = self.rig = renderer.rig
@@ -74,7 +62,31 @@ class StereoFrame:
         idx = renderer.culled(self.pose)
         if len(idx) == 0:
             return
-        # every culled board at once (as StereoRenderer._board): centre, in-plane right axis, corners
+        boards = self._boards(renderer, idx)
+        hidden = renderer.hidden(self.pose)
+        ids = [renderer.landmarks[i].id for i in idx]
+        for cam, C in zip(self.CAMERAS, r.camera_centers(self.pose)):
+            self._drawn[cam] = [d for d in self._projected(boards, C, ids) if d.landmark_id not in hidden[cam]]
+
+    @classmethod
+    def _checked_images(cls, rig, images) -> tuple:
+        """``images`` as a pair of contiguous uint8 arrays of the rig's size, or a ValueError naming the bad one."""
+        try:
+            left, right = images
+        except (TypeError, ValueError):
+            raise ValueError(f"images = {images!r}: must be a pair (left, right)") from None
+        ims = tuple(np.ascontiguousarray(a) for a in (left, right))
+        for name, a in zip(cls.CAMERAS, ims):
+            if a.dtype != np.uint8 or a.shape != (rig.height, rig.width):
+                raise ValueError(f"images: the {name} image is {a.dtype} {a.shape}, expected uint8 "
+                                 f"({rig.height}, {rig.width})")
+        return ims
+
+    def _boards(self, renderer, idx) -> dict:
+        """Every culled board at once (as StereoRenderer._board): whether it faces the camera, its
+        corners and its pole's, in the world (n, 4, 3), and its bottom edge's height."""
+        x, y, th = self.pose
+        r = self.rig
         c = renderer._L[idx]
         if renderer._yaw is None:
             mid = np.array([x, y]) + 0.5 * r.baseline_m * np.array([math.sin(th), -math.cos(th)])
@@ -96,42 +108,41 @@ class StereoFrame:
         bottom = c[:, 2] - hb
         pole = np.stack([c + (bottom - c[:, 2])[:, None] * up - pw * a, c + (bottom - c[:, 2])[:, None] * up + pw * a,
                          c - c[:, 2:3] * up + pw * a, c - c[:, 2:3] * up - pw * a], axis=1)
-        R = camera_rotation(th, r.pitch_rad)
-        f, cx, cy = r.focal_length_px, r.cx, r.cy
-        hidden = renderer.hidden(self.pose)
-        ids = [renderer.landmarks[i].id for i in idx]
         cells = renderer.dictionary.markerSize + 2
-        inner = cells / (cells + 2)   # marker side / board side
-        for cam, C in zip(self.CAMERAS, r.camera_centers(self.pose)):
-            pc = (corners - C) @ R.T                       # (n, 4, 3)
-            pp = (pole - C) @ R.T
-            ok = facing & (pc[:, :, 2] > r.near_m).all(axis=1)
-            if not ok.any():
+        return dict(facing=facing, corners=corners, pole=pole, bottom=bottom, inner=cells / (cells + 2))
+
+    def _projected(self, boards: dict, C, ids) -> list[_Drawn]:
+        """The boards as the camera at centre ``C`` sees them, far first (painter's order)."""
+        r = self.rig
+        R = camera_rotation(self.pose[2], r.pitch_rad)
+        f, cx, cy = r.focal_length_px, r.cx, r.cy
+        pc = (boards["corners"] - C) @ R.T                       # (n, 4, 3)
+        pp = (boards["pole"] - C) @ R.T
+        ok = boards["facing"] & (pc[:, :, 2] > r.near_m).all(axis=1)
+        if not ok.any():
+            return []
+        uv = f * pc[:, :, :2] / np.where(ok[:, None, None], pc[:, :, 2:3], 1.0) + [cx, cy]
+        pole_ok = (boards["bottom"] > 0) & (pp[:, :, 2] > r.near_m).all(axis=1)
+        puv = f * pp[:, :, :2] / np.where(pole_ok[:, None, None], pp[:, :, 2:3], 1.0) + [cx, cy]
+        lo = np.floor(uv.min(axis=1)) - 1
+        hi = np.ceil(uv.max(axis=1)) + 2
+        side = np.linalg.norm(uv - np.roll(uv, 1, axis=1), axis=2)
+        depth = pc[:, :, 2].mean(axis=1)
+        # the marker inside the quiet zone (marker side / board side): a detector needs its four corners in the image
+        mc = pc.mean(axis=1, keepdims=True)
+        pm = mc + boards["inner"] * (pc - mc)
+        um = f * pm[:, :, :2] / np.where(ok[:, None, None], pm[:, :, 2:3], 1.0) + [cx, cy]
+        whole = ((um >= 0).all(axis=2) & (um[:, :, 0] <= r.width - 1) & (um[:, :, 1] <= r.height - 1)).all(axis=1)
+        items = []
+        for k in np.flatnonzero(ok):
+            box = (int(max(lo[k, 0], 0)), int(max(lo[k, 1], 0)), int(min(hi[k, 0], r.width)),
+                   int(min(hi[k, 1], r.height)))
+            if box[2] <= box[0] or box[3] <= box[1]:
                 continue
-            uv = f * pc[:, :, :2] / np.where(ok[:, None, None], pc[:, :, 2:3], 1.0) + [cx, cy]
-            pole_ok = (bottom > 0) & (pp[:, :, 2] > r.near_m).all(axis=1)
-            puv = f * pp[:, :, :2] / np.where(pole_ok[:, None, None], pp[:, :, 2:3], 1.0) + [cx, cy]
-            lo = np.floor(uv.min(axis=1)) - 1
-            hi = np.ceil(uv.max(axis=1)) + 2
-            side = np.linalg.norm(uv - np.roll(uv, 1, axis=1), axis=2)
-            depth = pc[:, :, 2].mean(axis=1)
-            # the marker inside the quiet zone: a detector needs its four corners in the image
-            mc = pc.mean(axis=1, keepdims=True)
-            pm = mc + inner * (pc - mc)
-            um = f * pm[:, :, :2] / np.where(ok[:, None, None], pm[:, :, 2:3], 1.0) + [cx, cy]
-            whole = ((um >= 0).all(axis=2) & (um[:, :, 0] <= r.width - 1) & (um[:, :, 1] <= r.height - 1)).all(axis=1)
-            items = []
-            for k in np.flatnonzero(ok):
-                if ids[k] in hidden[cam]:
-                    continue
-                box = (int(max(lo[k, 0], 0)), int(max(lo[k, 1], 0)), int(min(hi[k, 0], r.width)),
-                       int(min(hi[k, 1], r.height)))
-                if box[2] <= box[0] or box[3] <= box[1]:
-                    continue
-                items.append(_Drawn(float(depth[k]), ids[k], uv[k], puv[k] if pole_ok[k] else None, box,
-                                    float(side[k].min()), float(side[k].max()), bool(whole[k])))
-            items.sort(key=lambda t: -t.depth)   # far first
-            self._drawn[cam] = items
+            items.append(_Drawn(float(depth[k]), ids[k], uv[k], puv[k] if pole_ok[k] else None, box,
+                                float(side[k].min()), float(side[k].max()), bool(whole[k])))
+        items.sort(key=lambda t: -t.depth)   # far first
+        return items
 
     def _camera(self, camera: str) -> list[_Drawn]:
         if camera not in self.CAMERAS:
