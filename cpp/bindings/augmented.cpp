@@ -7,8 +7,9 @@
 
 using namespace safenav;
 
+namespace {
 
-void pybind_augmented(py::module_& m) {
+void bind_states(py::module_& m) {
   def_params<AugmentedStates>(py::class_<AugmentedStates>(
       m, "AugmentedStates",
       "Optional augmented states of the EKF (ours, not the paper's): range scale k (r = (1+k)|p-a| + b_j),\n"
@@ -28,7 +29,9 @@ void pybind_augmented(py::module_& m) {
       .def_readwrite("range_bias_walk", &AugmentedStates::range_bias_walk)
       .def("any", &AugmentedStates::any)
       .def("validate", &AugmentedStates::validate);
+}
 
+void bind_ekf(py::module_& m) {
   py::class_<AugmentedEkf>(m, "AugmentedEkf",
                            "EKF on the BMM (SafeNav eqs. 10-14, Joseph form) over (x, y, v, theta, [k], [beta], [b_j]).")
       .def(py::init<const BmmParams&, const AugmentedStates&, int, const State&, const StateCov&>(), py::arg("params"),
@@ -72,7 +75,9 @@ void pybind_augmented(py::module_& m) {
            py::arg("z"), py::arg("R"))
       .def("update_position", &AugmentedEkf::update_position, py::arg("z"), py::arg("R"))
       .def("update_speed_heading", &AugmentedEkf::update_speed_heading, py::arg("z"), py::arg("R"));
+}
 
+void bind_pf(py::module_& m) {
   py::class_<AugmentedParticleFilter>(
       m, "AugmentedParticleFilter",
       "Particle filter on the BMM over (x, y, v, theta, [k], [beta], [b_j]): the PF counterpart of AugmentedEkf.")
@@ -105,4 +110,12 @@ void pybind_augmented(py::module_& m) {
            py::arg("landmark"), py::arg("z"), py::arg("R"))
       .def("update_position", &AugmentedParticleFilter::update_position, py::arg("z"), py::arg("R"))
       .def("update_speed_heading", &AugmentedParticleFilter::update_speed_heading, py::arg("z"), py::arg("R"));
+}
+
+}  // namespace
+
+void pybind_augmented(py::module_& m) {
+  bind_states(m);
+  bind_ekf(m);
+  bind_pf(m);
 }

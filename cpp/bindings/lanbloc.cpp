@@ -36,7 +36,8 @@ py::list boxes(const std::vector<Box>& bs) {
   return out;
 }
 
-void bind_types(py::module_& m) {
+/// The rig, the ranging modes and the settings.
+void bind_settings(py::module_& m) {
   py::class_<LanBLocRig>(m, "LanBLocRig")
       .def(py::init<>())
       .def(py::init([](const RectifiedCamera& c, double h, double pitch) { return LanBLocRig{c, h, pitch}; }),
@@ -87,7 +88,10 @@ void bind_types(py::module_& m) {
       .def_readwrite("row_band", &LanBLocSettings::row_band)
       .def_readwrite("band_margin_px", &LanBLocSettings::band_margin_px)
       .def("validate", &LanBLocSettings::validate);
+}
 
+/// What a LanBLoc frame gives: statuses, search windows and the fix (bind_sightings: its sightings).
+void bind_results(py::module_& m) {
   py::enum_<LanBLocStatus>(m, "LanBLocStatus")
       .value("OK", LanBLocStatus::Ok)
       .value("NO_LANDMARKS", LanBLocStatus::NoLandmarks)
@@ -107,7 +111,10 @@ void bind_types(py::module_& m) {
                              "(x_min, y_min, x_max, y_max) [px], x_max and y_max exclusive")
       .def_readonly("predicted_centre", &SearchWindow::predicted_centre)
       .def_readonly("sigma_px", &SearchWindow::sigma_px);
+}
 
+/// One landmark's sighting, and the corners' disparity it was ranged from.
+void bind_sightings(py::module_& m) {
   py::class_<LandmarkSighting>(m, "LandmarkSighting")
       .def(py::init([](int landmark_id, double range, const Eigen::Vector3d& anchor) {
              LandmarkSighting s;
@@ -150,7 +157,9 @@ void bind_types(py::module_& m) {
       .def_readonly("side_px", &CornerDisparity::side_px)
       .def_readonly("corners_used", &CornerDisparity::corners_used)
       .def_readonly("dropped_corner", &CornerDisparity::dropped_corner);
+}
 
+void bind_fix(py::module_& m) {
   py::class_<LanBLocFix>(m, "LanBLocFix")
       .def_readonly("status", &LanBLocFix::status)
       .def_readonly("reason", &LanBLocFix::reason)
@@ -169,6 +178,13 @@ void bind_types(py::module_& m) {
                              "the right image's searched regions (windows mode)")
       .def_property_readonly("ok", &LanBLocFix::ok)
       .def_property_readonly("n_ranges", &LanBLocFix::n_ranges);
+}
+
+void bind_types(py::module_& m) {
+  bind_settings(m);
+  bind_results(m);
+  bind_sightings(m);
+  bind_fix(m);
 }
 
 std::optional<PosePrediction> prediction_of(const std::optional<Eigen::Vector3d>& pose,

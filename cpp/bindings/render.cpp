@@ -47,9 +47,9 @@ RenderView view_of(const py::tuple& t, const char* what) {
   }
   return v;
 }
-}  // namespace
 
-void pybind_render(py::module_& m) {
+/// StereoPixels, PixelRenderer (the scene) and RenderNoise.
+void bind_scene(py::module_& m) {
   py::class_<StereoPixels, std::shared_ptr<StereoPixels>>(
       m, "StereoPixels", "A rectified grey stereo pair whose pixels the front end reads on demand (C++ side).");
   py::class_<PixelRenderer, std::shared_ptr<PixelRenderer>>(
@@ -83,7 +83,10 @@ void pybind_render(py::module_& m) {
       .def(py::init<double, std::uint64_t, int>(), py::arg("sigma"), py::arg("seed"), py::arg("side") = 1024)
       .def_readonly("sigma", &RenderNoise::sigma)
       .def_readonly("side", &RenderNoise::side);
+}
 
+/// RenderedFrame and SimulatedCamera: what the camera sees and draws.
+void bind_camera(py::module_& m) {
   py::class_<RenderedFrame, StereoPixels, std::shared_ptr<RenderedFrame>>(
       m, "RenderedFrame",
       "One frame's pair drawn box by box at any pyramid level (StereoPixels); views are (theta, R, centre, boards), "
@@ -149,4 +152,11 @@ void pybind_render(py::module_& m) {
           "[left, right] views at pose: (theta, R, centre, boards far first: (id, corners (4, 3) in camera "
           "coordinates, pole (4, 3) or None, full-resolution box))")
       .def("frame", &SimulatedCamera::frame, py::arg("pose"), py::arg("noise"), py::arg("noise_seed"), release_gil());
+}
+
+}  // namespace
+
+void pybind_render(py::module_& m) {
+  bind_scene(m);
+  bind_camera(m);
 }
