@@ -3,6 +3,7 @@
 #pragma once
 
 #include <algorithm>
+#include <boost/math/distributions/normal.hpp>
 #include <cmath>
 #include <string>
 #include <vector>
@@ -51,15 +52,9 @@ inline Interval interval(double lo, double hi) {
   return c;
 }
 
-/// z with P(N(0, 1) > z) = p, 0 < p < 1 (bisection to the last bit).
+/// z with P(N(0, 1) > z) = p, 0 < p < 1 (Boost.Math's quantile, as the guard's k(ε)).
 inline double normal_isf(double p) {
-  double a = -40.0, b = 40.0;
-  for (int i = 0; i < 200 && b - a > 0.0; ++i) {
-    const double mid = 0.5 * (a + b);
-    if (mid == a || mid == b) break;
-    (normal_sf(mid) > p ? a : b) = mid;
-  }
-  return 0.5 * (a + b);
+  return boost::math::quantile(boost::math::complement(boost::math::normal_distribution<double>(), p));
 }
 
 }  // namespace safenav::belief
