@@ -208,39 +208,46 @@ constexpr double kMinCountShare = 1e-6;
 template <int K, typename View>
 bool cut_at_view_change(const Stratum<K>& s, const View& view, std::array<Stratum<K>, 2>& parts) {
   using VecK = Eigen::Matrix<double, K, 1>;
-  for (int a = 0; a < K; ++a)
-    for (const double side : {-1.0, 1.0}) {
-      double end = side < 0.0 ? s.lo[a] : s.hi[a];
-      if (!std::isfinite(end)) end = side * kProbeTail;
-      if (!((end - s.mean[a]) * side > 0.0)) continue;
+  // Of the axis ends that see otherwise, the one whose view changes nearest the mean (in z):
+  // the boundary's steepest axis, along which one cut follows it best.
+  int a = -1;
+  double side = 0.0, cut = 0.0, nearest = std::numeric_limits<double>::infinity();
+  for (int b = 0; b < K; ++b)
+    for (const double sd : {-1.0, 1.0}) {
+      double end = sd < 0.0 ? s.lo[b] : s.hi[b];
+      if (!std::isfinite(end)) end = sd * kProbeTail;
+      if (!((end - s.mean[b]) * sd > 0.0)) continue;
       VecK z = s.mean;
-      z[a] = end;
+      z[b] = end;
       if (same_view(view(s, z), s.seen)) continue;
-      double in = s.mean[a], out = end;
-      for (int b = 0; b < kBisections; ++b) {
-        z[a] = 0.5 * (in + out);
-        (same_view(view(s, z), s.seen) ? in : out) = z[a];
+      double in = s.mean[b], out = end;
+      for (int i = 0; i < kBisections; ++i) {
+        z[b] = 0.5 * (in + out);
+        (same_view(view(s, z), s.seen) ? in : out) = z[b];
       }
-      const double cut = 0.5 * (in + out);
-      const Interval whole = interval(s.lo[a], s.hi[a]);
-      const Interval near = side < 0.0 ? interval(cut, s.hi[a]) : interval(s.lo[a], cut);
-      const Interval far = side < 0.0 ? interval(s.lo[a], cut) : interval(cut, s.hi[a]);
-      if (std::min(near.mass, far.mass) * s.w / whole.mass < kMinShare) continue;
-      const StateCov residual = s.N - s.m * s.m.transpose() - s.B * s.var.asDiagonal() * s.B.transpose();
-      parts[0] = s, parts[1] = s;
-      int p = 0;
-      for (const Interval* c : {&near, &far}) {
-        Stratum<K>& t = parts[p++];
-        t.lo[a] = c->lo, t.hi[a] = c->hi;
-        t.w = s.w * c->mass / whole.mass;
-        t.m = s.m + s.B.col(a) * (c->mean - s.mean[a]);
-        t.mean[a] = c->mean, t.var[a] = c->var;
-        t.N = residual + t.m * t.m.transpose() + t.B * t.var.asDiagonal() * t.B.transpose();
-        t.seen = view(t, t.mean);
-      }
-      return true;
+      const double c = 0.5 * (in + out);
+      const Interval near = sd < 0.0 ? interval(c, s.hi[b]) : interval(s.lo[b], c);
+      const Interval far = sd < 0.0 ? interval(s.lo[b], c) : interval(c, s.hi[b]);
+      if (std::min(near.mass, far.mass) * s.w / interval(s.lo[b], s.hi[b]).mass < kMinShare) continue;
+      if (std::abs(c - s.mean[b]) < nearest) nearest = std::abs(c - s.mean[b]), a = b, side = sd, cut = c;
     }
-  return false;
+  if (a < 0) return false;
+  const Interval whole = interval(s.lo[a], s.hi[a]);
+  const Interval near = side < 0.0 ? interval(cut, s.hi[a]) : interval(s.lo[a], cut);
+  const Interval far = side < 0.0 ? interval(s.lo[a], cut) : interval(cut, s.hi[a]);
+  const StateCov residual = s.N - s.m * s.m.transpose() - s.B * s.var.asDiagonal() * s.B.transpose();
+  parts[0] = s, parts[1] = s;
+  int p = 0;
+  for (const Interval* c : {&near, &far}) {
+    Stratum<K>& t = parts[p++];
+    t.lo[a] = c->lo, t.hi[a] = c->hi;
+    t.w = s.w * c->mass / whole.mass;
+    t.m = s.m + s.B.col(a) * (c->mean - s.mean[a]);
+    t.mean[a] = c->mean, t.var[a] = c->var;
+    t.N = residual + t.m * t.m.transpose() + t.B * t.var.asDiagonal() * t.B.transpose();
+    t.seen = view(t, t.mean);
+  }
+  return true;
 }
 
 /// The step's cuts (cut_at_view_change), at most `room`: each stratum's near part in its place,
