@@ -200,9 +200,10 @@ constexpr double kMinCountShare = 1e-6;
 /// BeliefSettings::deviation_split: where stratum `s`'s cell holds vehicles
 /// that see otherwise than its mean (probed at the cell's ends along each
 /// axis, an unbounded end at ±kProbeTail), the cell is cut where the view
-/// changes (bisection between the mean and that end), and the part beyond
-/// becomes a stratum of its own, with its exact share of N(0, I), its mean
-/// and variance, and the same residual error: P + N − m mᵀ − B V Bᵀ.  At most
+/// changes (bisection between the mean and that end; of several such ends,
+/// the one whose change lies nearest the mean), and the part beyond becomes
+/// a stratum of its own, with its exact share of N(0, I), its mean and
+/// variance, and the same residual error: P + N − m mᵀ − B V Bᵀ.  At most
 /// one cut per stratum and step.  `view(s, z)` is what a vehicle at z of s sees.
 /// False where no cut is made; else `parts` holds the near and the far part.
 template <int K, typename View>
