@@ -212,7 +212,8 @@ bool cut_at_view_change(const Stratum<K>& s, const View& view, std::array<Stratu
   // Of the axis ends that see otherwise, the one whose view changes nearest the mean (in z):
   // the boundary's steepest axis, along which one cut follows it best.
   int a = -1;
-  double side = 0.0, cut = 0.0, nearest = std::numeric_limits<double>::infinity();
+  double nearest = std::numeric_limits<double>::infinity();
+  Interval near, far;
   for (int b = 0; b < K; ++b)
     for (const double sd : {-1.0, 1.0}) {
       double end = sd < 0.0 ? s.lo[b] : s.hi[b];
@@ -227,22 +228,21 @@ bool cut_at_view_change(const Stratum<K>& s, const View& view, std::array<Stratu
         (same_view(view(s, z), s.seen) ? in : out) = z[b];
       }
       const double c = 0.5 * (in + out);
-      const Interval near = sd < 0.0 ? interval(c, s.hi[b]) : interval(s.lo[b], c);
-      const Interval far = sd < 0.0 ? interval(s.lo[b], c) : interval(c, s.hi[b]);
-      if (std::min(near.mass, far.mass) * s.w / interval(s.lo[b], s.hi[b]).mass < kMinShare) continue;
-      if (std::abs(c - s.mean[b]) < nearest) nearest = std::abs(c - s.mean[b]), a = b, side = sd, cut = c;
+      if (!(std::abs(c - s.mean[b]) < nearest)) continue;
+      const Interval n = sd < 0.0 ? interval(c, s.hi[b]) : interval(s.lo[b], c);
+      const Interval f = sd < 0.0 ? interval(s.lo[b], c) : interval(c, s.hi[b]);
+      if (std::min(n.mass, f.mass) * s.w / interval(s.lo[b], s.hi[b]).mass < kMinShare) continue;
+      nearest = std::abs(c - s.mean[b]), a = b, near = n, far = f;
     }
   if (a < 0) return false;
-  const Interval whole = interval(s.lo[a], s.hi[a]);
-  const Interval near = side < 0.0 ? interval(cut, s.hi[a]) : interval(s.lo[a], cut);
-  const Interval far = side < 0.0 ? interval(s.lo[a], cut) : interval(cut, s.hi[a]);
+  const double whole = interval(s.lo[a], s.hi[a]).mass;  // the cell's along axis a
   const StateCov residual = s.N - s.m * s.m.transpose() - s.B * s.var.asDiagonal() * s.B.transpose();
   parts[0] = s, parts[1] = s;
   int p = 0;
   for (const Interval* c : {&near, &far}) {
     Stratum<K>& t = parts[p++];
     t.lo[a] = c->lo, t.hi[a] = c->hi;
-    t.w = s.w * c->mass / whole.mass;
+    t.w = s.w * c->mass / whole;
     t.m = s.m + s.B.col(a) * (c->mean - s.mean[a]);
     t.mean[a] = c->mean, t.var[a] = c->var;
     t.N = residual + t.m * t.m.transpose() + t.B * t.var.asDiagonal() * t.B.transpose();

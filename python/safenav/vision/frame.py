@@ -84,7 +84,8 @@ class StereoFrame:
 
     def _boards(self, renderer, idx) -> dict:
         """Every culled board at once (as StereoRenderer._board): whether it faces the camera, its
-        corners and its pole's, in the world (n, 4, 3), and its bottom edge's height."""
+        corners and its pole's, in the world (n, 4, 3), and its bottom edge's height; and the
+        cameras' rotation at the pose."""
         x, y, th = self.pose
         r = self.rig
         c = renderer._L[idx]
@@ -109,12 +110,13 @@ class StereoFrame:
         pole = np.stack([c + (bottom - c[:, 2])[:, None] * up - pw * a, c + (bottom - c[:, 2])[:, None] * up + pw * a,
                          c - c[:, 2:3] * up + pw * a, c - c[:, 2:3] * up - pw * a], axis=1)
         cells = renderer.dictionary.markerSize + 2
-        return dict(facing=facing, corners=corners, pole=pole, bottom=bottom, inner=cells / (cells + 2))
+        return dict(facing=facing, corners=corners, pole=pole, bottom=bottom, inner=cells / (cells + 2),
+                    R=camera_rotation(th, r.pitch_rad))
 
     def _projected(self, boards: dict, C, ids) -> list[_Drawn]:
         """The boards as the camera at centre ``C`` sees them, far first (painter's order)."""
         r = self.rig
-        R = camera_rotation(self.pose[2], r.pitch_rad)
+        R = boards["R"]
         f, cx, cy = r.focal_length_px, r.cx, r.cy
         pc = (boards["corners"] - C) @ R.T                       # (n, 4, 3)
         pp = (boards["pole"] - C) @ R.T
