@@ -18,6 +18,7 @@ void bind_settings(py::module_& m) {
       .def_readwrite("deviation_nodes", &BeliefSettings::deviation_nodes)
       .def_readwrite("deviation_along", &BeliefSettings::deviation_along)
       .def_readwrite("deviation_split", &BeliefSettings::deviation_split)
+      .def_readwrite("deviation_free_strata", &BeliefSettings::deviation_free_strata)
       .def_readwrite("gate_probability", &BeliefSettings::gate_probability)
       .def_readwrite("inflation", &BeliefSettings::inflation)
       .def("validate", &BeliefSettings::validate);

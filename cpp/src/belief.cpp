@@ -298,7 +298,9 @@ const ParamSet<BeliefSettings>& param_set<BeliefSettings>() {
           .flag("deviation_along", SN_REF(BeliefSettings, deviation_along),
                 "stratify the deviation along the path too (n^3 strata, each reported at its own position)")
           .flag("deviation_split", SN_REF(BeliefSettings, deviation_split),
-                "stratify at cells of the deviation, cut where the view changes (at most the rule's strata and 55 more)")
+                "stratify at cells of the deviation, cut where the view changes")
+          .integer("deviation_free_strata", SN_REF(BeliefSettings, deviation_free_strata), closed(0, 100000),
+                   "with deviation_split: the strata the mixture may hold beyond its rule's (at least twice the rule's)")
           .real("gate_probability", SN_REF(BeliefSettings, gate_probability), "", closed(0, 0.999999),
                 "the filter's chi-square gate on position fixes (the navigation's gate_probability); 0 = none")
           .nested("inflation.", param_set<Inflation>(), SN_REF(BeliefSettings, inflation))

@@ -56,6 +56,7 @@ _BELIEF_KEYS = {"speed": "speed", "step": "step", "bearing_std": "bearing_std",
                 "sight_fov_margin": "sight_fov_margin", "sight_range_fraction": "sight_range_fraction",
                 "deviation_mixture": "deviation_mixture", "deviation_nodes": "deviation_nodes",
                 "deviation_along": "deviation_along", "deviation_split": "deviation_split",
+                "deviation_free_strata": "deviation_free_strata",
                 "gate_probability": "gate_probability",
                 "vehicle_radius": "inflation.vehicle_radius",
                 "margin": "inflation.margin"}

@@ -120,9 +120,16 @@ struct BeliefSettings {
   /// changes, and the part beyond takes its exact share of the deviation:
   /// a vehicle 2.6 σ beside the path that misses a short window of
   /// landmarks then keeps its error in the belief, as it does in the
-  /// Monte Carlo.  At most the rule's strata and 55 more (twice the rule's
-  /// where that is more); no part under 10⁻⁴ of the vehicles.
+  /// Monte Carlo.  At most the rule's strata and deviation_free_strata more
+  /// (twice the rule's where that is more); no part under 10⁻⁴ of the vehicles.
   bool deviation_split = true;
+  /// With deviation_split: the strata the mixture may hold beyond its rule's
+  /// (it holds at least twice the rule's).  Where it is full, it joins the
+  /// closest adjacent pair that sees alike, moment for moment, to make room
+  /// for the step's cuts and the gate's branches, but never two whose filter
+  /// covariances differ by more than half (docs/belief_planning.md, "Room
+  /// made only among alike strata").
+  int deviation_free_strata = 55;
   /// The filter's χ² gate on position fixes (NavigationSettings::filter's
   /// gate_probability; 0 = none, the papers' loop).  With the deviation
   /// mixture, a stratum whose filter trusts its prediction far less than
