@@ -362,36 +362,66 @@ def test_blind_strata_keep_their_cells_while_a_few_vehicles_have_fixed():
 def test_room_is_made_only_among_strata_whose_filters_are_alike():
     """World 23's P1 with Centroid and landmark faults: a vehicle that misses
     the fixes before the first turn (about 0.5 % in 10 000 trials, 2 m or
-    more to the right) sees no landmark again for 140 m.  At the turn the
-    mixture is full (the gate's branches of its first fixes), so it joins
-    strata to make room; joined to a fixed neighbour that sees alike, the
-    blind stratum's error moved to their mean, saw at the turn, and the
-    blind share fell to 0.05 %, the σ from 60 m on to 0.43 of the mixture
-    with room for every stratum.  With room made only among strata whose
-    filters are within half of each other, the σ from 60 to 100 m is within
-    10 % of that mixture's, and the blind share is kept."""
+    more to the right) sees no landmark again for 140 m.  With room for 55
+    strata beyond the rule's (the default once), the mixture is full at the
+    turn (the gate's branches of its first fixes), so it joins strata to
+    make room; joined to a fixed neighbour that sees alike, the blind
+    stratum's error moved to their mean, saw at the turn, and the blind
+    share fell to 0.05 %, the σ from 60 m on to 0.43 of the mixture with
+    room for every stratum (the default).  With room made only among
+    strata whose filters are within half of each other, the σ from 60 to
+    100 m is within 10 % of that mixture's, and the blind share is kept."""
+    x, kw = _faulty_nominal(23, "P1", "centroid")
+    arc = np.r_[0.0, np.cumsum(np.hypot(*np.diff(x[:, :2], axis=0).T))]
+    after = (arc >= 60.0) & (arc < 100.0)
+    profiles = {free: propagate_belief_along(x, deviation_along=True, deviation_free_strata=free, **kw)
+                for free in (55, 1000)}
+    full, roomy = (np.asarray(profiles[f].cov_xy) for f in (55, 1000))
+    assert np.asarray(profiles[55].strata_weight).shape[1] == 82     # full: 27 + 55
+    w, msq = np.asarray(profiles[1000].strata_weight), np.asarray(profiles[1000].strata_msq)
+    assert (np.sum(w * (msq > 1.0), axis=1)[after] > 0.003).all()   # the case holds: a blind share after the turn
+    ratio = np.sqrt((full[:, 0] + full[:, 3]) / (roomy[:, 0] + roomy[:, 3]))[after]
+    assert np.all(np.abs(ratio - 1.0) < 0.1), (ratio.min(), ratio.max())
+
+
+def _faulty_nominal(world: int, name: str, method: str):
+    """The bench's mission (RAw-RRT*, then the belief planner's path) on a
+    generated world with landmark faults: the nominal run and the belief's
+    inputs."""
     from safenav import certify as C
     from safenav.generate import generate_scenario
 
-    sc = generate_scenario(23)
-    raw = np.asarray(C.plan_or_none(sc, "P1").path)
+    sc = generate_scenario(world)
+    raw = np.asarray(C.plan_or_none(sc, name).path)
     k, _ = C.risk_k(sc, raw)
     path = np.asarray(C.plan_belief_path(sc, raw, k).path)
     faults = dict(fix_model="ranges", dropout_probability=0.2, outlier_probability=0.05,
                   misassociation_probability=0.01)
     sc = dataclasses.replace(sc, noise=dataclasses.replace(sc.noise, **faults))
     kw = {key: v for key, v in C.mission_inputs(sc, path).items() if key != "speed"}
-    x = C.nominal_trajectory(sc, path, "centroid")
+    return C.nominal_trajectory(sc, path, method), kw
+
+
+def test_a_cut_keeps_each_part_s_error_covariance_positive():
+    """World 17's P1 with Centroid and faults: the gate's branches condition
+    a stratum's error on its innovation and keep its B, so B V Bᵀ can exceed
+    the error's spread; a cut that kept P + N − m mᵀ − B V Bᵀ left parts with
+    a negative error covariance, and the gate's next branches put vehicles
+    12 m off (second moments of 50–250 m² with 0.1 % of the weight; σ 0.38 m
+    at 40–50 m where 2 000 trials read 0.04 m).  With B scaled within the
+    spread, no stratum's mean square error exceeds 30 m² (the start's is
+    2 m², a vehicle turned away by the gate about 10–15 m²), and with room
+    for every stratum the σ at 40–60 m is within 10 % of a tight mixture's."""
+    x, kw = _faulty_nominal(17, "P1", "centroid")
+    roomy = propagate_belief_along(x, deviation_along=True, **kw)
+    tight = propagate_belief_along(x, deviation_along=True, deviation_free_strata=55, **kw)
+    assert np.asarray(roomy.strata_weight).shape[1] > 200               # the cuts and branches were kept
+    msq = np.asarray(roomy.strata_msq)[np.asarray(roomy.strata_weight) > 1e-7]
+    assert msq.max() < 30.0, msq.max()
     arc = np.r_[0.0, np.cumsum(np.hypot(*np.diff(x[:, :2], axis=0).T))]
-    after = (arc >= 60.0) & (arc < 100.0)
-    profiles = {free: propagate_belief_along(x, deviation_along=True, deviation_free_strata=free, **kw)
-                for free in (55, 1000)}
-    full, roomy = (np.asarray(profiles[f].cov_xy) for f in (55, 1000))
-    assert np.asarray(profiles[55].strata_weight).shape[1] == 82     # the default cap: 27 + 55
-    w, msq = np.asarray(profiles[1000].strata_weight), np.asarray(profiles[1000].strata_msq)
-    assert (np.sum(w * (msq > 1.0), axis=1)[after] > 0.003).all()   # the case holds: a blind share after the turn
-    ratio = np.sqrt((full[:, 0] + full[:, 3]) / (roomy[:, 0] + roomy[:, 3]))[after]
-    assert np.all(np.abs(ratio - 1.0) < 0.1), (ratio.min(), ratio.max())
+    sig = [np.sqrt(np.asarray(p.cov_xy)[:, [0, 3]].sum(axis=1)) for p in (roomy, tight)]
+    first = (arc >= 40.0) & (arc < 60.0)
+    np.testing.assert_allclose(sig[0][first], sig[1][first], rtol=0.1)
 
 
 @pytest.mark.parametrize("nodes, along", [(3, False), (5, False), (7, False), (5, True), (7, True)])

@@ -139,22 +139,6 @@ bool one_gaussian(const std::vector<Stratum<K>>& st) {
   return true;
 }
 
-/// A, scaled down where needed so that A P_prev Aᵀ ⪯ P_next: Patil's
-/// recursion needs Cov w = P_next − A P_prev Aᵀ ⪰ 0.  A stratum's update
-/// can raise its error (its filter trusts a fix more than its own, smaller
-/// error warrants), so the mixture's update need not shrink it in every
-/// direction.  The scale keeps the marginals and lowers only the correlation
-/// of the errors between stages: toward independent stages, whose product
-/// of survivals is close to the union bound for small probabilities.
-Eigen::Matrix4d within_marginals(const Eigen::Matrix4d& A, const StateCov& P_prev, const StateCov& P_next) {
-  const StateCov X = A * P_prev * A.transpose();
-  const Eigen::GeneralizedSelfAdjointEigenSolver<StateCov> ges(0.5 * (X + X.transpose()), P_next,
-                                                               Eigen::EigenvaluesOnly);
-  if (ges.info() != Eigen::Success) return Eigen::Matrix4d::Zero();
-  const double lambda = ges.eigenvalues().maxCoeff();
-  return lambda > 1.0 ? Eigen::Matrix4d(A / std::sqrt(lambda * (1.0 + 1e-12))) : A;
-}
-
 /// What a vehicle with mean error e (estimate − truth) sees at step k with
 /// the along-track axis (BeliefSettings::deviation_along).  Its speed
 /// follows the command, so its true progress along the path keeps to the
@@ -180,8 +164,8 @@ Step ahead_view(const Model& model, const std::vector<Step>& steps, const std::v
 }
 
 /// The mixture's bounds on splitting (the most strata at once are the
-/// rule's and BeliefSettings::deviation_free_strata more, 64 for the 3 × 3
-/// rule and 82 for 3³ by default, or twice the rule's where that is more):
+/// rule's and BeliefSettings::deviation_free_strata more, 1 009 for the
+/// 3 × 3 rule and 1 027 for 3³ by default, or twice the rule's where that is more):
 /// the room kept for the step's cuts (the closest strata are joined first,
 /// never two further apart than kRoomApart); the least share a split may
 /// leave on either side, where an unbounded cell is probed
@@ -237,14 +221,18 @@ bool cut_at_view_change(const Stratum<K>& s, const View& view, std::array<Stratu
     }
   if (a < 0) return false;
   const double whole = interval(s.lo[a], s.hi[a]).mass;  // the cell's along axis a
-  const StateCov residual = s.N - s.m * s.m.transpose() - s.B * s.var.asDiagonal() * s.B.transpose();
+  // The error's spread with z, held within its whole spread (consistent_scale).
+  const StateCov Sigma = s.P + s.N - s.m * s.m.transpose();
+  const Eigen::Matrix<double, 4, K> B = consistent_scale(Sigma, s.B * s.var.asDiagonal() * s.B.transpose()) * s.B;
+  const StateCov residual = s.N - s.m * s.m.transpose() - B * s.var.asDiagonal() * B.transpose();
   parts[0] = s, parts[1] = s;
   int p = 0;
   for (const Interval* c : {&near, &far}) {
     Stratum<K>& t = parts[p++];
+    t.B = B;
     t.lo[a] = c->lo, t.hi[a] = c->hi;
     t.w = s.w * c->mass / whole;
-    t.m = s.m + s.B.col(a) * (c->mean - s.mean[a]);
+    t.m = s.m + B.col(a) * (c->mean - s.mean[a]);
     t.mean[a] = c->mean, t.var[a] = c->var;
     t.N = residual + t.m * t.m.transpose() + t.B * t.var.asDiagonal() * t.B.transpose();
     t.seen = view(t, t.mean);
@@ -478,12 +466,21 @@ void step_stratum(const Model& model, const Gate& gate, std::size_t room, Stratu
 /// second moment; returns the mixture's second moment Σ w_i (P_i + N_i).
 template <int K>
 StateCov record_stage(StrataTrace& trace, Eigen::Index row, const std::vector<Stratum<K>>& st) {
+  if (const auto need = static_cast<Eigen::Index>(st.size()); need > trace.weight.cols()) {
+    // More strata than slots so far: twice the slots (zeros where no stratum was).
+    const Eigen::Index cols = std::max(need, 2 * trace.weight.cols());
+    const auto widen = [&](Eigen::MatrixXd& x, Eigen::Index c) {
+      Eigen::MatrixXd y = Eigen::MatrixXd::Zero(x.rows(), c);
+      y.leftCols(x.cols()) = x;
+      x.swap(y);
+    };
+    widen(trace.weight, cols), widen(trace.positions, 2 * cols), widen(trace.msq, cols);
+  }
   StateCov mix = StateCov::Zero();
   for (std::size_t i = 0; i < st.size(); ++i) {
     const Stratum<K>& s = st[i];
     mix += s.w * (s.P + s.N);
     const auto col = static_cast<Eigen::Index>(i);
-    if (col >= trace.weight.cols()) throw std::logic_error("deviation mixture: more strata than the trace holds");
     trace.weight(row, col) = s.w;
     trace.positions.block<1, 2>(row, 2 * col) = s.seen.end.transpose();
     trace.msq(row, col) = s.P(0, 0) + s.N(0, 0) + s.P(1, 1) + s.N(1, 1);
@@ -532,7 +529,7 @@ void mixture_recursion(const Model& model, const std::vector<Step>& steps, std::
       settings.deviation_split
           ? std::max(fresh.size() + static_cast<std::size_t>(settings.deviation_free_strata), 2 * fresh.size())
           : fresh.size();
-  const auto slots = static_cast<Eigen::Index>(cap);
+  const auto slots = static_cast<Eigen::Index>(std::min(cap, 2 * fresh.size() + kRoom));  // widened as needed
   trace.weight = Eigen::MatrixXd::Zero(n, slots);
   trace.positions = Eigen::MatrixXd::Zero(n, 2 * slots);
   trace.msq = Eigen::MatrixXd::Zero(n, slots);
