@@ -131,7 +131,9 @@ def propagate_belief(path, *, sensors, map, bmm=None, start_cov=None, settings: 
     stratified at 3×3 cells of the deviation, or 5×5 or 7×7 with ``deviation_nodes``;
     ``BeliefSettings.deviation_mixture``), ``deviation_along`` (stratify along
     the path too: n³ strata), ``deviation_split`` (default on: a cell is cut
-    where the view changes; off: the Gauss–Hermite nodes).  With the mixture,
+    where the view changes; off: the Gauss–Hermite nodes),
+    ``deviation_free_strata`` (the strata it may hold beyond the rule's,
+    1 000: room for every stratum on the missions measured).  With the mixture,
     ``.strata_weight`` (each stratum's weight per stage, (N, S)),
     ``.strata_positions`` (each stratum's true position per stage, (N, 2S))
     and ``.strata_msq`` (its mean square position error, (N, S)) say where
