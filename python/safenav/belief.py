@@ -263,9 +263,11 @@ def arc_position(path, points, *, all_legs: bool = False) -> np.ndarray:
     half = 0.5 * float(np.sqrt(dd.max()))
     # complete: every other leg is farther than the best candidate (margin for rounding)
     ok = r[:, -1] - half > np.sqrt(sq) * (1.0 + 1e-9) + 1e-12
-    if not ok.all():
-        bad = ~ok
-        leg[bad], t[bad], _ = _nearest_legs(q[bad], a, d, dd, every(int(bad.sum())))
+    bad = np.flatnonzero(~ok)
+    step = max(1, (1 << 22) // len(d))                                  # all legs, a few million entries at a time
+    for i in range(0, len(bad), step):
+        j = bad[i:i + step]
+        leg[j], t[j], _ = _nearest_legs(q[j], a, d, dd, every(len(j)))
     return s0[leg] + t * np.sqrt(dd[leg])
 
 
@@ -322,9 +324,10 @@ def _predicted_per_bin(profile, path, edges):
         cov = np.asarray(profile.cov_xy, dtype=float)
         b = np.clip(np.searchsorted(edges, arc_position(path, path), side="right") - 1, 0, n_bins - 1)
         return np.bincount(b, cov[:, 0] + cov[:, 3], n_bins), np.bincount(b, minlength=n_bins).astype(float)
-    pos = np.asarray(profile.strata_positions, dtype=float).reshape(-1, 2)
-    msq = np.asarray(profile.strata_msq, dtype=float).ravel()
-    ww = w.ravel()
+    held = w.ravel() > 0.0                                           # slots no stratum holds weigh nothing
+    pos = np.asarray(profile.strata_positions, dtype=float).reshape(-1, 2)[held]
+    msq = np.asarray(profile.strata_msq, dtype=float).ravel()[held]
+    ww = w.ravel()[held]
     b = np.clip(np.searchsorted(edges, arc_position(path, pos), side="right") - 1, 0, n_bins - 1)
     return np.bincount(b, ww * msq, n_bins), np.bincount(b, ww, n_bins)
 
