@@ -76,6 +76,18 @@ def test_arc_position_on_a_long_polyline_is_the_all_legs_search(seed, legs, step
     np.testing.assert_array_equal(arc_position(path, pts, all_legs=True), ref)
 
 
+def test_arc_position_searches_many_far_points_in_bounded_chunks():
+    """Points the pruning cannot decide go to the all-legs search a few
+    million entries at a time: 3 000 points far off a 4 000-leg polyline
+    (about 1 000 per chunk) give the reference's arcs, bit for bit."""
+    rng = np.random.default_rng(7)
+    heading = np.cumsum(rng.uniform(-0.3, 0.3, 4000))
+    path = np.vstack([[0.0, 0.0], np.cumsum(0.1 * np.c_[np.cos(heading), np.sin(heading)], axis=0)])
+    pts = rng.uniform(-1.0, 1.0, (3000, 2)) + 1e6
+    ref = np.concatenate([_all_legs(path, pts[i:i + 500]) for i in range(0, len(pts), 500)])
+    np.testing.assert_array_equal(arc_position(path, pts), ref)
+
+
 @pytest.mark.parametrize("along", [False, True])
 def test_sigma_calibration_matches_a_direct_computation(along):
     # A start 1.5 m off (σ), landmarks from the second leg on: the strata spread over bins.
