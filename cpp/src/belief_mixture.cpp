@@ -221,9 +221,11 @@ bool cut_at_view_change(const Stratum<K>& s, const View& view, std::array<Stratu
     }
   if (a < 0) return false;
   const double whole = interval(s.lo[a], s.hi[a]).mass;  // the cell's along axis a
-  // The error's spread with z, held within its whole spread (consistent_scale).
-  const StateCov Sigma = s.P + s.N - s.m * s.m.transpose();
-  const Eigen::Matrix<double, 4, K> B = consistent_scale(Sigma, s.B * s.var.asDiagonal() * s.B.transpose()) * s.B;
+  // The error's spread with z, B V Bᵀ, held within its whole spread Σ = P + N − m mᵀ: the gate's
+  // branches condition the error on its innovation and shrink Σ, but keep B (docs/belief_planning.md,
+  // "B within the error's spread").
+  const Eigen::Matrix<double, 4, K> B =
+      s.B / excess(s.B * s.var.asDiagonal() * s.B.transpose(), s.P + s.N - s.m * s.m.transpose());
   const StateCov residual = s.N - s.m * s.m.transpose() - B * s.var.asDiagonal() * B.transpose();
   parts[0] = s, parts[1] = s;
   int p = 0;

@@ -1,11 +1,12 @@
 // The pieces that the deviation mixture (belief_mixture.cpp) is built from: the standard
 // normal's (the Gauss–Hermite rule, the truncated normal's moments and its inverse survival
-// function) and the two scalings that keep its moments consistent.
+// function) and the scaling that keeps its moments consistent (`excess`).
 #pragma once
 
 #include <algorithm>
 #include <boost/math/distributions/normal.hpp>
 #include <cmath>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -60,6 +61,16 @@ inline double normal_isf(double p) {
   return boost::math::quantile(boost::math::complement(boost::math::normal_distribution<double>(), p));
 }
 
+/// The divisor d ≥ 1 with X / d² ⪯ Y, the least (to a margin of 10⁻¹²):
+/// √λ_max of X v = λ Y v where that exceeds 1, else 1; +∞ where Y is not
+/// positive definite (scaled by 1/d, the part is then dropped).
+inline double excess(const StateCov& X, const StateCov& Y) {
+  const Eigen::GeneralizedSelfAdjointEigenSolver<StateCov> ges(0.5 * (X + X.transpose()), Y, Eigen::EigenvaluesOnly);
+  if (ges.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
+  const double lambda = ges.eigenvalues().maxCoeff();
+  return lambda > 1.0 ? std::sqrt(lambda * (1.0 + 1e-12)) : 1.0;
+}
+
 /// A, scaled down where needed so that A P_prev Aᵀ ⪯ P_next: Patil's
 /// recursion needs Cov w = P_next − A P_prev Aᵀ ⪰ 0.  A stratum's update
 /// can raise its error (its filter trusts a fix more than its own, smaller
@@ -68,28 +79,8 @@ inline double normal_isf(double p) {
 /// of the errors between stages: toward independent stages, whose product
 /// of survivals is close to the union bound for small probabilities.
 inline Eigen::Matrix4d within_marginals(const Eigen::Matrix4d& A, const StateCov& P_prev, const StateCov& P_next) {
-  const StateCov X = A * P_prev * A.transpose();
-  const Eigen::GeneralizedSelfAdjointEigenSolver<StateCov> ges(0.5 * (X + X.transpose()), P_next,
-                                                               Eigen::EigenvaluesOnly);
-  if (ges.info() != Eigen::Success) return Eigen::Matrix4d::Zero();
-  const double lambda = ges.eigenvalues().maxCoeff();
-  return lambda > 1.0 ? Eigen::Matrix4d(A / std::sqrt(lambda * (1.0 + 1e-12))) : A;
-}
-
-/// The largest α in [0, 1] with Σ − α² G ⪰ 0 (bisection; G = B V Bᵀ, the
-/// error's spread with z across the cell): the error cannot move with z by
-/// more than it spreads.  Where the gate's branches condition the error on
-/// its innovation, they shrink its spread but keep B.
-inline double consistent_scale(const StateCov& Sigma, const StateCov& G) {
-  const auto fits = [&](double a) {
-    const StateCov D = Sigma - a * a * G;
-    return Eigen::SelfAdjointEigenSolver<StateCov>(0.5 * (D + D.transpose()), Eigen::EigenvaluesOnly).eigenvalues()[0] >=
-           -1e-9 * std::max(1.0, Sigma.trace());
-  };
-  if (fits(1.0)) return 1.0;
-  double lo = 0.0, hi = 1.0;
-  for (int i = 0; i < 30; ++i) (fits(0.5 * (lo + hi)) ? lo : hi) = 0.5 * (lo + hi);
-  return lo;
+  const double d = excess(A * P_prev * A.transpose(), P_next);
+  return d > 1.0 ? Eigen::Matrix4d(A / d) : A;
 }
 
 }  // namespace safenav::belief
