@@ -88,15 +88,15 @@ def test_arc_position_searches_many_far_points_in_bounded_chunks():
     np.testing.assert_array_equal(arc_position(path, pts), ref)
 
 
-@pytest.mark.parametrize("along", [False, True])
-def test_sigma_calibration_matches_a_direct_computation(along):
+@pytest.mark.parametrize("along, split", [(False, False), (True, False), (True, True)])
+def test_sigma_calibration_matches_a_direct_computation(along, split):
     # A start 1.5 m off (σ), landmarks from the second leg on: the strata spread over bins.
     se = _core.SensorSettings()
     se.landmarks = np.array([[34.0, 14.0], [36.0, 20.0], [24.0, 22.0]])
     se.max_range = 15.0
     prof = propagate_belief(PATH, sensors=se, map=P.make_map(upper=(40.0, 40.0)), speed=2.0,
                             start_cov=np.diag([2.25, 2.25, 0.003, 0.002]), deviation_along=along,
-                            deviation_split=False)
+                            deviation_split=split)
     rng = np.random.default_rng(5)
     pos = np.asarray(prof.positions)
     truths, estimates = [], []
@@ -111,15 +111,23 @@ def test_sigma_calibration_matches_a_direct_computation(along):
     def bin_of(s):
         return min(int(s // 7.0), nb - 1)
 
-    # The prediction: each stratum of each stage at the arc of its own position, with its weight.
+    # The prediction: each stratum of each stage spread over where its vehicles are, the unscented
+    # rule's centre (1/3 of its weight) and ±√3 along its position spread's axes (1/6 each), each
+    # point at the arc of its own position.
     w = np.asarray(prof.strata_weight)
     spos = np.asarray(prof.strata_positions).reshape(len(pos), w.shape[1], 2)
+    scov = np.asarray(prof.strata_position_cov).reshape(len(pos), w.shape[1], 3)
+    assert np.abs(scov).max() > 0.01                     # some strata's vehicles spread over several metres²
     tr, ns = np.zeros(nb), np.zeros(nb)
     for k in range(len(pos)):
         for i in range(w.shape[1]):
-            j = bin_of(arc_position(pos, spos[k, i][None])[0])
-            tr[j] += w[k, i] * prof.strata_msq[k, i]
-            ns[j] += w[k, i]
+            lam, vec = np.linalg.eigh([[scov[k, i, 0], scov[k, i, 1]], [scov[k, i, 1], scov[k, i, 2]]])
+            pts = [(spos[k, i], 1 / 3)] + [(spos[k, i] + sg * np.sqrt(3 * max(lam[a], 0.0)) * vec[:, a], 1 / 6)
+                                           for a in (0, 1) for sg in (1, -1)]
+            for q, share in pts:
+                j = bin_of(arc_position(pos, q[None])[0])
+                tr[j] += share * w[k, i] * prof.strata_msq[k, i]
+                ns[j] += share * w[k, i]
     sq, n, hit = np.zeros(nb), np.zeros(nb), np.zeros(nb)
     per_sq, per_n = np.zeros((len(truths), nb)), np.zeros((len(truths), nb))
     for i, (x, xh) in enumerate(zip(truths, estimates)):
@@ -168,20 +176,26 @@ def test_sigma_calibration_matches_a_direct_computation(along):
 
 
 @pytest.mark.parametrize("along", [False, True])
-def test_strata_are_where_their_error_puts_them(along):
+@pytest.mark.parametrize("split", [False, True])
+def test_strata_are_where_their_error_puts_them(along, split):
     """BeliefProfile.strata_*: a blind stretch, so the strata stay one
     Gaussian and are stratified anew from the previous stage's P each step.
     Their weights sum to 1 and their second moments average to the reported
-    trace P_xy.  Their offsets from the nominal position have mean 0 and
-    second moment n n^T (n^T P_xy n), n the leg's normal: the lateral part of
-    the error.  With the along-track axis too, since a vehicle's progress
-    keeps to the nominal's and only its estimate runs ahead (on a straight
-    path, away from its ends).  Without the mixture there are none."""
+    trace P_xy.  Their vehicles' offsets from the nominal position (each
+    stratum's mean offset, and its own spread ``strata_position_cov``) have
+    mean 0 and second moment n n^T (n^T P_xy n), n the leg's normal: the
+    lateral part of the error (the law of total variance; the unscented
+    transform is exact where the position is linear in the error).  With
+    the along-track axis too, since a vehicle's progress keeps to the
+    nominal's and only its estimate runs ahead (on a straight path, away
+    from its ends).  At the Gauss–Hermite nodes the lateral error is all in
+    the strata's means, so each stratum's own spread is 0; the cells carry
+    their share of it within.  Without the mixture there are none."""
     se = _core.SensorSettings()
     se.landmarks = np.array([[500.0, 500.0]])
     path = np.array([[5.0, 5.0], [35.0, 5.0]]) if along else PATH
     kw = dict(sensors=se, map=P.make_map(upper=(40.0, 40.0)), speed=2.0,
-              start_cov=np.diag([0.4, 0.1, 0.003, 0.002]), deviation_split=False)
+              start_cov=np.diag([0.4, 0.1, 0.003, 0.002]), deviation_split=split)
     prof = propagate_belief(path, deviation_along=along, **kw)
     w = np.asarray(prof.strata_weight)
     assert w.shape == (len(prof.positions), 27 if along else 9) and np.all(w == w[0])
@@ -190,7 +204,10 @@ def test_strata_are_where_their_error_puts_them(along):
     pos = np.asarray(prof.positions)
     cov = np.asarray(prof.cov_xy).reshape(-1, 2, 2)
     d = np.asarray(prof.strata_positions).reshape(len(pos), len(w), 2) - pos[:, None, :]
+    c = np.asarray(prof.strata_position_cov).reshape(len(pos), len(w), 3)
+    within = np.stack([np.stack([c[..., 0], c[..., 1]], -1), np.stack([c[..., 1], c[..., 2]], -1)], -2)
     np.testing.assert_array_equal(d[0], 0.0)
+    np.testing.assert_array_equal(c[0], 0.0)
     msq = np.asarray(prof.strata_msq)
     np.testing.assert_allclose(msq @ w, np.trace(cov, axis1=1, axis2=2), rtol=1e-12)
     h = np.asarray(prof.headings)
@@ -200,9 +217,59 @@ def test_strata_are_where_their_error_puts_them(along):
             continue
         np.testing.assert_allclose(w @ d[k], 0.0, atol=1e-12)
         n = np.array([-np.sin(h[k]), np.cos(h[k])])
+        lateral = np.outer(n, n) * (n @ cov[k - 1] @ n)
         second = np.einsum("i,ij,ik->jk", w, d[k], d[k])
-        np.testing.assert_allclose(second, np.outer(n, n) * (n @ cov[k - 1] @ n), rtol=1e-9, atol=1e-12)
+        inside = np.einsum("i,ijk->jk", w, within[k])
+        np.testing.assert_allclose(second + inside, lateral, rtol=1e-9, atol=1e-12)
+        if split:
+            assert np.trace(inside) > 0.05 * np.trace(lateral)
+        else:
+            np.testing.assert_allclose(within[k], 0.0, atol=1e-12)
     assert len(np.asarray(propagate_belief(PATH, deviation_mixture=False, **kw).strata_weight)) == 0
+
+
+def test_strata_spread_their_vehicles_round_a_turn_as_their_errors_do():
+    """At a turn a vehicle's true position is not linear in its error: its
+    estimate runs ahead by the error's along-track part, so it is at the
+    nominal pose that much further along the path, moved by minus its
+    error, and a lateral offset becomes an offset along the next leg.  A
+    blind 90° turn with the start's σ of 1 m: per stage within 2.5 m of the
+    corner, the arcs of the strata's vehicles (each stratum spread by
+    ``strata_position_cov``, as sigma_calibration bins it) against 20 000
+    errors drawn from the mixture's covariance and put where that rule puts
+    them.  Spread, the two distributions' Wasserstein distance is half of
+    what it is with each stratum at its mean position."""
+    from scipy.stats import wasserstein_distance
+    from safenav.belief import _SPREAD_WEIGHTS, _spread_points
+
+    se = _core.SensorSettings()
+    se.landmarks = np.array([[500.0, 500.0]])
+    path = np.array([[5.0, 5.0], [25.0, 5.0], [25.0, 25.0]])
+    prof = propagate_belief(path, sensors=se, map=P.make_map(upper=(40.0, 40.0)), speed=2.0,
+                            start_cov=np.diag([1.0, 1.0, 0.003, 0.002]), deviation_along=True)
+    pos, h = np.asarray(prof.positions), np.asarray(prof.headings)
+    w = np.asarray(prof.strata_weight)
+    at = np.asarray(prof.strata_positions).reshape(len(pos), w.shape[1], 2)
+    spread = np.asarray(prof.strata_position_cov).reshape(len(pos), w.shape[1], 3)
+    cov = np.asarray(prof.covariance).reshape(-1, 4, 4)
+    s = arc_position(path, pos)
+    ends = np.r_[0.0, np.cumsum(np.hypot(*np.diff(path, axis=0).T))]
+
+    def along(a):                                     # the path's point at arc a
+        a = np.clip(a, 0.0, ends[-1])
+        i = np.clip(np.searchsorted(ends, a, side="right") - 1, 0, len(path) - 2)
+        return path[i] + ((a - ends[i]) / np.diff(ends)[i])[:, None] * (path[i + 1] - path[i])
+
+    rng = np.random.default_rng(0)
+    spread_d, mean_d = [], []
+    for k in np.flatnonzero(np.abs(s - 20.0) < 2.5):
+        e = rng.multivariate_normal(np.zeros(4), cov[k - 1], 20_000)
+        ref = arc_position(path, along(s[k] + e[:, :2] @ [np.cos(h[k]), np.sin(h[k])]) - e[:, :2])
+        pts = _spread_points(at[k], spread[k]).reshape(-1, 2)
+        spread_d.append(wasserstein_distance(arc_position(path, pts), ref, np.outer(w[k], _SPREAD_WEIGHTS).ravel()))
+        mean_d.append(wasserstein_distance(arc_position(path, at[k]), ref, w[k]))
+    assert len(spread_d) > 10
+    assert np.mean(spread_d) < 0.15 and np.mean(spread_d) < 0.6 * np.mean(mean_d), (np.mean(spread_d), np.mean(mean_d))
 
 
 @pytest.mark.parametrize("k, n", [(0, 10), (0, 100000), (3, 50), (7, 7), (1, 2)])

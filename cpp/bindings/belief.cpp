@@ -77,7 +77,8 @@ void bind_results(py::module_& m) {
       .def_readonly("vehicle_radius", &P::vehicle_radius)
       .def_readonly("strata_weight", &P::strata_weight)
       .def_readonly("strata_positions", &P::strata_positions)
-      .def_readonly("strata_msq", &P::strata_msq);
+      .def_readonly("strata_msq", &P::strata_msq)
+      .def_readonly("strata_position_cov", &P::strata_position_cov);
 
   py::enum_<BeliefPlanStatus>(m, "BeliefPlanStatus")
       .value("EXACT", BeliefPlanStatus::Exact)

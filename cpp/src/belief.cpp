@@ -187,6 +187,7 @@ BeliefProfile profile_of(belief::Model& model, std::vector<belief::Step>& steps,
   out.strata_weight = std::move(trace.weight);
   out.strata_positions = std::move(trace.positions);
   out.strata_msq = std::move(trace.msq);
+  out.strata_position_cov = std::move(trace.position_cov);
   collision_probability(model, steps, P, A, out);
   return out;
 }

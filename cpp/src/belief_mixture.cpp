@@ -11,115 +11,13 @@
 #include "belief_gate.hpp"
 #include "belief_model.hpp"
 #include "belief_normal.hpp"
+#include "belief_strata.hpp"
 #include "errors.hpp"
 
 namespace safenav::belief {
 namespace {
 
 using detail::bad;
-
-/// One stratum of the mixture: its share of the vehicles, the cell of the
-/// deviation z ~ N(0, I_K) it stands for (a Gauss–Hermite node is a cell of
-/// one point: lo = hi = mean, var 0), its filter covariance P, its error's
-/// mean m and second moment P + N, and B, how its error's mean moves with z
-/// across the cell (e = m + B (z − mean) + an error independent of z), and
-/// whether its vehicles' last fix was turned away, with the shares of them
-/// by the fixes turned away in a row (BeliefSettings::gate_probability).
-template <int K>
-struct Stratum {
-  using VecK = Eigen::Matrix<double, K, 1>;
-  VecK lo, hi, mean, var;
-  double w = 1.0;
-  StateCov P = StateCov::Zero(), N = StateCov::Zero();
-  Eigen::Vector4d m = Eigen::Vector4d::Zero();
-  Eigen::Matrix<double, 4, K> B = Eigen::Matrix<double, 4, K>::Zero();
-  Step seen;  ///< what it sees this step
-  bool turned_away = false;
-  Counts counts{};
-};
-
-/// The strata of a fresh stratification: the product rule of K copies of
-/// the n-node rule.  Without `cells`, stratum i is the Gauss–Hermite node
-/// z_i with its weight; with them, it is the box of z whose per-axis
-/// intervals carry the nodes' weights as their mass (for 3 nodes, cut at
-/// ±0.967), at the box's mean and with its variance.
-template <int K>
-std::vector<Stratum<K>> rule(const Quadrature& q, bool cells) {
-  const std::size_t n = q.node.size();
-  std::vector<Interval> axis(n);
-  double below = 0.0, lo = -std::numeric_limits<double>::infinity();
-  for (std::size_t j = 0; j < n; ++j) {
-    below += q.weight[j];
-    const double hi = j + 1 < n ? normal_isf(1.0 - below) : std::numeric_limits<double>::infinity();
-    axis[j] = cells ? interval(lo, hi) : Interval{q.node[j], q.node[j], q.weight[j], q.node[j], 0.0};
-    lo = hi;
-  }
-  std::size_t count = 1;
-  for (int a = 0; a < K; ++a) count *= n;
-  std::vector<Stratum<K>> out(count);
-  for (std::size_t i = 0; i < count; ++i) {
-    std::size_t rest = i;  // the last axis varies fastest
-    for (int a = K - 1; a >= 0; --a) {
-      const Interval& c = axis[rest % n];
-      out[i].lo[a] = c.lo, out[i].hi[a] = c.hi, out[i].mean[a] = c.mean, out[i].var[a] = c.var;
-      out[i].w *= c.mass;
-      rest /= n;
-    }
-  }
-  return out;
-}
-
-/// The strata anew from the mixture's error covariance
-/// M = Σ w_i (P_i + N_i): stratum i is the error given z in its cell,
-/// u = H e = L z (L Lᵀ = H M Hᵀ): mean m_i = B z̄_i, B = M Hᵀ L⁻ᵀ, and
-/// second moment P_i + N_i = C + B (V_i + z̄_i z̄_iᵀ) Bᵀ, C = M − M Hᵀ (H M Hᵀ)⁻¹ H M.
-/// Each keeps its filter covariance P_i; with another count of strata than
-/// the rule's (cells split since the last stratification), each takes
-/// their weighted mean.
-template <int K>
-void stratify(const Eigen::Matrix<double, K, 4>& H, const std::vector<Stratum<K>>& fresh, std::vector<Stratum<K>>& st) {
-  using MatK = Eigen::Matrix<double, K, K>;
-  StateCov M = StateCov::Zero(), Pbar = StateCov::Zero();
-  for (const Stratum<K>& s : st) M += s.w * (s.P + s.N), Pbar += s.w * s.P;
-  M = 0.5 * (M + M.transpose());
-  if (st.size() != fresh.size()) {
-    st = fresh;
-    for (Stratum<K>& s : st) s.P = Pbar;
-  }
-  const Eigen::Matrix<double, 4, K> G = M * H.transpose();
-  const MatK S = H * G;
-  const Eigen::LLT<MatK> llt(S);
-  double floor = 1e-12;  // 1e-12 tr(S)^K: the determinant's units
-  for (int a = 0; a < K; ++a) floor *= S.trace();
-  const bool ok = llt.info() == Eigen::Success && S.determinant() > floor;
-  const StateCov C = ok ? StateCov(M - G * llt.solve(G.transpose())) : M;
-  const Eigen::Matrix<double, 4, K> B =
-      ok ? Eigen::Matrix<double, 4, K>(G * llt.matrixU().solve(MatK::Identity())) : Eigen::Matrix<double, 4, K>::Zero();
-  for (std::size_t i = 0; i < st.size(); ++i) {
-    Stratum<K>& s = st[i];
-    s.lo = fresh[i].lo, s.hi = fresh[i].hi, s.mean = fresh[i].mean, s.var = fresh[i].var, s.w = fresh[i].w;
-    s.m = ok ? Eigen::Vector4d(G * llt.matrixU().solve(s.mean)) : Eigen::Vector4d::Zero();
-    s.B = B;
-    s.turned_away = false;
-    s.counts.fill(0.0);
-    s.N = C - s.P + s.m * s.m.transpose();
-    if (s.var.any()) s.N += B * s.var.asDiagonal() * B.transpose();
-  }
-}
-
-/// u = H e at heading h: across the leg (its left normal) and the heading.
-Eigen::Matrix<double, 2, 4> lateral_axes(double h) {
-  Eigen::Matrix<double, 2, 4> H;
-  H << -std::sin(h), std::cos(h), 0.0, 0.0, 0.0, 0.0, 0.0, 1.0;
-  return H;
-}
-
-/// u = H e at heading h: along the leg, across it and the heading.
-Eigen::Matrix<double, 3, 4> full_axes(double h) {
-  Eigen::Matrix<double, 3, 4> H;
-  H << std::cos(h), std::sin(h), 0.0, 0.0, -std::sin(h), std::cos(h), 0.0, 0.0, 0.0, 0.0, 0.0, 1.0;
-  return H;
-}
 
 /// Whether two views take the same updates (landmarks in view, fix, ranges).
 bool same_view(const Step& a, const Step& b) { return a.seen == b.seen && a.fix == b.fix && a.ranges == b.ranges; }
@@ -137,30 +35,6 @@ bool one_gaussian(const std::vector<Stratum<K>>& st) {
     if ((st[i].P - st[0].P).norm() > tol * st[0].P.norm()) return false;
   }
   return true;
-}
-
-/// What a vehicle with mean error e (estimate − truth) sees at step k with
-/// the along-track axis (BeliefSettings::deviation_along).  Its speed
-/// follows the command, so its true progress along the path keeps to the
-/// nominal's, and it is its estimate that runs e_along = t·e ahead; the
-/// controller turns where the estimate is.  So it sees from the nominal
-/// pose e_along further along the steps (`arc`: metres at each stage),
-/// moved by −e in position and turned by −e_θ: on a straight leg that is
-/// the nominal's arc, at a turn it turns early or late.
-Step ahead_view(const Model& model, const std::vector<Step>& steps, const std::vector<double>& arc, std::size_t k,
-                const Eigen::Vector4d& e) {
-  const double h = steps[k].x[kTheta];
-  const double target = arc[k] + std::cos(h) * e[0] + std::sin(h) * e[1];
-  const auto it = std::lower_bound(arc.begin() + 1, arc.end(), target);
-  std::size_t j = static_cast<std::size_t>(it - arc.begin());
-  if (j >= arc.size()) j = arc.size() - 1;
-  if (j > 1 && target - arc[j - 1] < arc[j] - target) --j;  // the nearest stage
-  // The rest of the way along stage j's own step.
-  const Step& v = steps[j];
-  const Eigen::Vector2d dir = v.length > 0.0 ? Eigen::Vector2d((v.end - v.x.head<2>()) / v.length)
-                                             : Eigen::Vector2d(std::cos(v.x[kTheta]), std::sin(v.x[kTheta]));
-  const double rest = std::clamp(target - arc[j], -v.length, j + 1 < arc.size() ? steps[j + 1].length : 0.0);
-  return model.seen_from(steps[k], v, rest * dir - e.head<2>(), -e[kTheta]);
 }
 
 /// The mixture's bounds on splitting (the most strata at once are the
@@ -476,7 +350,7 @@ StateCov record_stage(StrataTrace& trace, Eigen::Index row, const std::vector<St
       y.leftCols(x.cols()) = x;
       x.swap(y);
     };
-    widen(trace.weight, cols), widen(trace.positions, 2 * cols), widen(trace.msq, cols);
+    widen(trace.weight, cols), widen(trace.positions, 2 * cols), widen(trace.msq, cols), widen(trace.position_cov, 3 * cols);
   }
   StateCov mix = StateCov::Zero();
   for (std::size_t i = 0; i < st.size(); ++i) {
@@ -484,8 +358,9 @@ StateCov record_stage(StrataTrace& trace, Eigen::Index row, const std::vector<St
     mix += s.w * (s.P + s.N);
     const auto col = static_cast<Eigen::Index>(i);
     trace.weight(row, col) = s.w;
-    trace.positions.block<1, 2>(row, 2 * col) = s.seen.end.transpose();
     trace.msq(row, col) = s.P(0, 0) + s.N(0, 0) + s.P(1, 1) + s.N(1, 1);
+    trace.positions.block<1, 2>(row, 2 * col) = s.at.transpose();
+    trace.position_cov.block<1, 3>(row, 3 * col) = s.at_cov.transpose();
   }
   return mix;
 }
@@ -535,8 +410,9 @@ void mixture_recursion(const Model& model, const std::vector<Step>& steps, std::
   trace.weight = Eigen::MatrixXd::Zero(n, slots);
   trace.positions = Eigen::MatrixXd::Zero(n, 2 * slots);
   trace.msq = Eigen::MatrixXd::Zero(n, slots);
+  trace.position_cov = Eigen::MatrixXd::Zero(n, 3 * slots);
   // Row 0: every stratum at the start, with the prior (their views are taken at step 1).
-  for (Stratum<K>& s : st) s.seen.end = steps.empty() ? Eigen::Vector2d::Zero() : steps[0].end;
+  for (Stratum<K>& s : st) s.seen.end = s.at = steps.empty() ? Eigen::Vector2d::Zero() : steps[0].end;
   if (n > 0) record_stage<K>(trace, 0, st);
   std::vector<double> arc(steps.size(), 0.0);  // metres along the steps
   for (std::size_t k = 1; k < steps.size(); ++k) arc[k] = arc[k - 1] + steps[k].length;
@@ -562,6 +438,16 @@ void mixture_recursion(const Model& model, const std::vector<Step>& steps, std::
       while (st.size() + kRoom > cap && make_room<K>(st)) {}
       split_at_view_changes<K>(st, cap - std::min(cap, st.size()), view);
     }
+    const auto where = [&](const Eigen::Vector4d& e) -> Eigen::Vector2d {
+      if constexpr (K == 3) {
+        const Ahead a = ahead_of(steps, arc, k, e);
+        return steps[a.j].end + a.shift;
+      } else {
+        const Eigen::Vector2d nrm(-std::sin(h), std::cos(h));
+        return steps[k].end - nrm * nrm.dot(e.head<2>());
+      }
+    };
+    for (Stratum<K>& s : st) locate<K>(s, where);
     StateCov mix = StateCov::Zero(), mix_m = StateCov::Zero();
     Eigen::Matrix4d F;
     away.clear();
@@ -579,6 +465,7 @@ void mixture_recursion(const Model& model, const std::vector<Step>& steps, std::
   trace.weight.conservativeResize(Eigen::NoChange, used);
   trace.positions.conservativeResize(Eigen::NoChange, 2 * used);
   trace.msq.conservativeResize(Eigen::NoChange, used);
+  trace.position_cov.conservativeResize(Eigen::NoChange, 3 * used);
 }
 
 void deviation_mixture(const Model& model, const std::vector<Step>& steps, std::vector<StateCov>& P,

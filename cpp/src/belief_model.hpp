@@ -163,7 +163,7 @@ class Model {
 /// The deviation mixture's strata per stage (BeliefProfile::strata_*):
 /// each one's weight, where it saw from and its second moment.
 struct StrataTrace {
-  Eigen::MatrixXd weight, positions, msq;
+  Eigen::MatrixXd weight, positions, position_cov, msq;
 };
 
 /// BeliefSettings::deviation_mixture (belief_mixture.cpp): P[k] for k ≥ 1

@@ -311,13 +311,33 @@ class SigmaCalibration:
             return np.where(self.predicted > 0, self.observed / self.predicted, np.nan)
 
 
+#: The unscented rule of N(0, I_2) that a stratum's vehicles are spread by (the core's, in
+#: record_stage): the centre with weight 1/3 and ±√3 along each axis with 1/6 each.
+_SPREAD_NODES = np.sqrt(3.0) * np.array([[0.0, 0.0], [1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
+_SPREAD_WEIGHTS = np.array([1.0, 0.5, 0.5, 0.5, 0.5]) / 3.0
+
+
+def _spread_points(mean: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """(S, 5, 2): the rule's points of N(mean_i, cov_i) per stratum; cov as (S, 3) xx, xy, yy."""
+    c = np.empty((len(mean), 2, 2))
+    c[:, 0, 0], c[:, 0, 1], c[:, 1, 0], c[:, 1, 1] = cov[:, 0], cov[:, 1], cov[:, 1], cov[:, 2]
+    lam, vec = np.linalg.eigh(c)
+    root = vec * np.sqrt(np.maximum(lam, 0.0))[:, None, :]            # root @ rootᵀ = cov
+    return mean[:, None, :] + np.einsum("sij,nj->sni", root, _SPREAD_NODES)
+
+
 def _predicted_per_bin(profile, path, edges):
     """The belief's Σ trace P_xy per bin and the weight it was summed with.
     Without strata each stage goes to the bin of its own arc (weight 1).
     With the deviation mixture's strata each stratum of each stage goes to
-    the bin of the arc where its vehicles are, with its weight: the same
+    the bins of the arcs where its vehicles are, with its weight: the same
     binning as the driven vehicles' (their true position), so a stratum
-    ahead of the nominal pose counts where it is, not where the nominal is."""
+    ahead of the nominal pose counts where it is, not where the nominal is.
+    A stratum's vehicles lie around its mean position (``strata_positions``)
+    as its position spread says (``strata_position_cov``, the unscented
+    transform of its error through where its vehicles see from): each of the
+    rule's five points takes its share of the stratum's weight, so a stratum
+    that straddles a bin's edge counts on both sides, as its vehicles do."""
     n_bins = len(edges) - 1
     w = np.asarray(getattr(profile, "strata_weight", np.zeros(0)), dtype=float)
     if w.size == 0:
@@ -326,9 +346,11 @@ def _predicted_per_bin(profile, path, edges):
         return np.bincount(b, cov[:, 0] + cov[:, 3], n_bins), np.bincount(b, minlength=n_bins).astype(float)
     held = w.ravel() > 0.0                                           # slots no stratum holds weigh nothing
     pos = np.asarray(profile.strata_positions, dtype=float).reshape(-1, 2)[held]
-    msq = np.asarray(profile.strata_msq, dtype=float).ravel()[held]
-    ww = w.ravel()[held]
-    b = np.clip(np.searchsorted(edges, arc_position(path, pos), side="right") - 1, 0, n_bins - 1)
+    spread = np.asarray(profile.strata_position_cov, dtype=float).reshape(-1, 3)[held]
+    points = _spread_points(pos, spread).reshape(-1, 2)
+    msq = np.repeat(np.asarray(profile.strata_msq, dtype=float).ravel()[held], len(_SPREAD_WEIGHTS))
+    ww = (w.ravel()[held][:, None] * _SPREAD_WEIGHTS).ravel()
+    b = np.clip(np.searchsorted(edges, arc_position(path, points), side="right") - 1, 0, n_bins - 1)
     return np.bincount(b, ww * msq, n_bins), np.bincount(b, ww, n_bins)
 
 

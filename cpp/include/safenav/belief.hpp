@@ -180,6 +180,7 @@ struct BeliefProfile {
   /// at the start with P0.
   Eigen::MatrixXd strata_weight;
   Eigen::MatrixXd strata_positions;
+  Eigen::MatrixXd strata_position_cov;
   Eigen::MatrixXd strata_msq;
 };
 
