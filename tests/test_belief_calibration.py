@@ -118,16 +118,17 @@ def test_sigma_calibration_matches_a_direct_computation(along, split):
     spos = np.asarray(prof.strata_positions).reshape(len(pos), w.shape[1], 2)
     scov = np.asarray(prof.strata_position_cov).reshape(len(pos), w.shape[1], 3)
     assert np.abs(scov).max() > 0.01                     # some strata's vehicles spread over several metres²
-    tr, ns = np.zeros(nb), np.zeros(nb)
+    points, weights, sqs = [], [], []
     for k in range(len(pos)):
         for i in range(w.shape[1]):
             lam, vec = np.linalg.eigh([[scov[k, i, 0], scov[k, i, 1]], [scov[k, i, 1], scov[k, i, 2]]])
-            pts = [(spos[k, i], 1 / 3)] + [(spos[k, i] + sg * np.sqrt(3 * max(lam[a], 0.0)) * vec[:, a], 1 / 6)
-                                           for a in (0, 1) for sg in (1, -1)]
-            for q, share in pts:
-                j = bin_of(arc_position(pos, q[None])[0])
-                tr[j] += share * w[k, i] * prof.strata_msq[k, i]
-                ns[j] += share * w[k, i]
+            for q, share in [(spos[k, i], 1 / 3)] + [(spos[k, i] + sg * np.sqrt(3 * max(lam[a], 0.0)) * vec[:, a], 1 / 6)
+                                                     for a in (0, 1) for sg in (1, -1)]:
+                points.append(q), weights.append(share * w[k, i]), sqs.append(share * w[k, i] * prof.strata_msq[k, i])
+    tr, ns = np.zeros(nb), np.zeros(nb)
+    for a, wt, sq_ in zip(arc_position(pos, np.array(points)), weights, sqs):
+        tr[bin_of(a)] += sq_
+        ns[bin_of(a)] += wt
     sq, n, hit = np.zeros(nb), np.zeros(nb), np.zeros(nb)
     per_sq, per_n = np.zeros((len(truths), nb)), np.zeros((len(truths), nb))
     for i, (x, xh) in enumerate(zip(truths, estimates)):
