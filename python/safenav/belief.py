@@ -135,10 +135,11 @@ def propagate_belief(path, *, sensors, map, bmm=None, start_cov=None, settings: 
     ``deviation_free_strata`` (the strata it may hold beyond the rule's,
     1 000: room for every stratum on the missions measured).  With the mixture,
     ``.strata_weight`` (each stratum's weight per stage, (N, S)),
-    ``.strata_positions`` (each stratum's true position per stage, (N, 2S))
-    and ``.strata_msq`` (its mean square position error, (N, S)) say where
-    its vehicles are and how far off: :func:`sigma_calibration` bins each at
-    its own arc."""
+    ``.strata_positions`` and ``.strata_position_cov`` (the mean, (N, 2S),
+    and covariance, (N, 3S) as xx, xy, yy, of its vehicles' true positions
+    per stage) and ``.strata_msq`` (its mean square position error, (N, S))
+    say where its vehicles are and how far off: :func:`sigma_calibration`
+    bins them at their own arcs."""
     p = as_array("path", path, (None, 2))
     bmm = bmm if bmm is not None else _core.BmmParams()
     s = _belief_settings(kwargs, settings)

@@ -102,8 +102,9 @@ struct BeliefSettings {
   /// error's along-track part, and the controller turns where the estimate
   /// is.  So such a stratum sees from the nominal pose that far along the
   /// path, moved by minus its whole error: at a turn it turns early or late.
-  /// Each stratum's position is reported (BeliefProfile::strata_positions),
-  /// so a calibration against driven vehicles can bin each at its own arc.
+  /// Where each stratum's vehicles are is reported (BeliefProfile::strata_positions
+  /// and strata_position_cov), so a calibration against driven vehicles can
+  /// bin them at their own arcs.
   /// Off by default: along a path's legs the turns are instant, and a
   /// stratum ahead would see round a corner that no controller drives; the
   /// expected belief along a method's nominal run turns it on
@@ -173,11 +174,14 @@ struct BeliefProfile {
   /// The deviation mixture's strata (BeliefSettings::deviation_mixture; empty
   /// without it), per stage (row): each stratum's weight (N×S; the rows sum
   /// to 1, a slot no stratum holds at that stage weighs 0: with
-  /// deviation_split the strata come and go), its true position (N×2S: x₀, y₀, x₁, y₁, …; where it saw from: the nominal
-  /// position moved by minus its mean error, with deviation_along the
-  /// nominal's where its estimate is) and the trace of its error's second
-  /// moment in position, P_i + N_i (N×S) [m²].  Stage 0 puts every stratum
-  /// at the start with P0.
+  /// deviation_split the strata come and go), where its vehicles are (they
+  /// see from the nominal position moved by minus their error, with
+  /// deviation_along the nominal's where their estimate is): the mean
+  /// (N×2S: x₀, y₀, x₁, y₁, …) and covariance (N×3S: xx₀, xy₀, yy₀, …) of
+  /// that position over the stratum's error, by the unscented transform of
+  /// the error's position part (centre 1/3, ±√3 along each axis 1/6 each),
+  /// and the trace of its error's second moment in position, P_i + N_i
+  /// (N×S) [m²].  Stage 0 puts every stratum at the start with P0.
   Eigen::MatrixXd strata_weight;
   Eigen::MatrixXd strata_positions;
   Eigen::MatrixXd strata_position_cov;
