@@ -161,7 +161,8 @@ class Model {
 };
 
 /// The deviation mixture's strata per stage (BeliefProfile::strata_*):
-/// each one's weight, where it saw from and its second moment.
+/// each one's weight, where its vehicles are (mean and covariance) and its
+/// second moment.
 struct StrataTrace {
   Eigen::MatrixXd weight, positions, position_cov, msq;
 };
