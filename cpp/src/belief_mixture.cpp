@@ -338,8 +338,8 @@ void step_stratum(const Model& model, const Gate& gate, std::size_t room, Stratu
   s.N = 0.5 * (s.N + s.N.transpose());
 }
 
-/// Row `row` of the trace: each stratum's weight, where it saw from and its
-/// second moment; returns the mixture's second moment Σ w_i (P_i + N_i).
+/// Row `row` of the trace: each stratum's weight, where its vehicles are
+/// (`locate`) and its second moment; returns the mixture's second moment Σ w_i (P_i + N_i).
 template <int K>
 StateCov record_stage(StrataTrace& trace, Eigen::Index row, const std::vector<Stratum<K>>& st) {
   if (const auto need = static_cast<Eigen::Index>(st.size()); need > trace.weight.cols()) {

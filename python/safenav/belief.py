@@ -313,7 +313,7 @@ class SigmaCalibration:
 
 
 #: The unscented rule of N(0, I_2) that a stratum's vehicles are spread by (the core's, in
-#: record_stage): the centre with weight 1/3 and ±√3 along each axis with 1/6 each.
+#: `locate`, belief_strata.hpp): the centre with weight 1/3 and ±√3 along each axis with 1/6 each.
 _SPREAD_NODES = np.sqrt(3.0) * np.array([[0.0, 0.0], [1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
 _SPREAD_WEIGHTS = np.array([1.0, 0.5, 0.5, 0.5, 0.5]) / 3.0
 
