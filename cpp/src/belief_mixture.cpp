@@ -8,6 +8,7 @@
 #include <limits>
 #include <stdexcept>
 
+#include "belief_cuts.hpp"
 #include "belief_gate.hpp"
 #include "belief_model.hpp"
 #include "belief_normal.hpp"
@@ -19,8 +20,6 @@ namespace {
 
 using detail::bad;
 
-/// Whether two views take the same updates (landmarks in view, fix, ranges).
-bool same_view(const Step& a, const Step& b) { return a.seen == b.seen && a.fix == b.fix && a.ranges == b.ranges; }
 
 /// Whether the strata are one Gaussian again: every one took the same
 /// updates and their filter covariances agree to within 1 % of their norm
@@ -41,92 +40,30 @@ bool one_gaussian(const std::vector<Stratum<K>>& st) {
 /// rule's and BeliefSettings::deviation_free_strata more, 1 009 for the
 /// 3 × 3 rule and 1 027 for 3³ by default, or twice the rule's where that is more):
 /// the room kept for the step's cuts (the closest strata are joined first,
-/// never two further apart than kRoomApart); the least share a split may
-/// leave on either side, where an unbounded cell is probed
-/// (P(z > 3.09) = 10⁻³), the bisection's steps; and how close two adjacent
-/// strata's filter covariances must be to join again.
+/// never two further apart than kRoomApart), and how close two adjacent
+/// strata's filter covariances must be to join again (the cuts' own bounds:
+/// belief_cuts.hpp).
 constexpr std::size_t kRoom = 8;
 constexpr double kRoomApart = 0.5;
 constexpr double kJoinTolerance = 0.1;
-constexpr double kMinShare = 1e-4;
-constexpr double kProbeTail = 3.090232306167813;
-constexpr int kBisections = 12;
 /// The least share a branch that changes between turned away and not is
 /// kept at (gate_step): joined, its vehicles' count would never reach the
 /// reset.
 constexpr double kMinCountShare = 1e-6;
 
-/// BeliefSettings::deviation_split: where stratum `s`'s cell holds vehicles
-/// that see otherwise than its mean (probed at the cell's ends along each
-/// axis, an unbounded end at ±kProbeTail), the cell is cut where the view
-/// changes (bisection between the mean and that end; of several such ends,
-/// the one whose change lies nearest the mean), and the part beyond becomes
-/// a stratum of its own, with its exact share of N(0, I), its mean and
-/// variance, and the same residual error: P + N − m mᵀ − B V Bᵀ.  At most
-/// one cut per stratum and step.  `view(s, z)` is what a vehicle at z of s sees.
-/// False where no cut is made; else `parts` holds the near and the far part.
-template <int K, typename View>
-bool cut_at_view_change(const Stratum<K>& s, const View& view, std::array<Stratum<K>, 2>& parts) {
-  using VecK = Eigen::Matrix<double, K, 1>;
-  // Of the axis ends that see otherwise, the one whose view changes nearest the mean (in z):
-  // the boundary's steepest axis, along which one cut follows it best.
-  int a = -1;
-  double nearest = std::numeric_limits<double>::infinity();
-  Interval near, far;
-  for (int b = 0; b < K; ++b)
-    for (const double sd : {-1.0, 1.0}) {
-      double end = sd < 0.0 ? s.lo[b] : s.hi[b];
-      if (!std::isfinite(end)) end = sd * kProbeTail;
-      if (!((end - s.mean[b]) * sd > 0.0)) continue;
-      VecK z = s.mean;
-      z[b] = end;
-      if (same_view(view(s, z), s.seen)) continue;
-      double in = s.mean[b], out = end;
-      for (int i = 0; i < kBisections; ++i) {
-        z[b] = 0.5 * (in + out);
-        (same_view(view(s, z), s.seen) ? in : out) = z[b];
-      }
-      const double c = 0.5 * (in + out);
-      if (!(std::abs(c - s.mean[b]) < nearest)) continue;
-      const Interval n = sd < 0.0 ? interval(c, s.hi[b]) : interval(s.lo[b], c);
-      const Interval f = sd < 0.0 ? interval(s.lo[b], c) : interval(c, s.hi[b]);
-      if (std::min(n.mass, f.mass) * s.w / interval(s.lo[b], s.hi[b]).mass < kMinShare) continue;
-      nearest = std::abs(c - s.mean[b]), a = b, near = n, far = f;
-    }
-  if (a < 0) return false;
-  const double whole = interval(s.lo[a], s.hi[a]).mass;  // the cell's along axis a
-  // The error's spread with z, B V Bᵀ, held within its whole spread Σ = P + N − m mᵀ: the gate's
-  // branches condition the error on its innovation and shrink Σ, but keep B (docs/belief_planning.md,
-  // "B within the error's spread").
-  const Eigen::Matrix<double, 4, K> B =
-      s.B / excess(s.B * s.var.asDiagonal() * s.B.transpose(), s.P + s.N - s.m * s.m.transpose());
-  const StateCov residual = s.N - s.m * s.m.transpose() - B * s.var.asDiagonal() * B.transpose();
-  parts[0] = s, parts[1] = s;
-  int p = 0;
-  for (const Interval* c : {&near, &far}) {
-    Stratum<K>& t = parts[p++];
-    t.B = B;
-    t.lo[a] = c->lo, t.hi[a] = c->hi;
-    t.w = s.w * c->mass / whole;
-    t.m = s.m + B.col(a) * (c->mean - s.mean[a]);
-    t.mean[a] = c->mean, t.var[a] = c->var;
-    t.N = residual + t.m * t.m.transpose() + t.B * t.var.asDiagonal() * t.B.transpose();
-    t.seen = view(t, t.mean);
-  }
-  return true;
-}
-
-/// The step's cuts (cut_at_view_change), at most `room`: each stratum's near part in its place,
+/// The step's cuts (cut_at_view_change, or where it cuts nothing, cut_at_heading with the
+/// step's heading noise `fresh`), at most `room`: each stratum's near part in its place,
 /// the far part appended.  With more cuts than room, those that hold the most squared position
 /// error beyond the view change (the far part's share times tr (P + N)_xy) are made: in the
 /// strata's order a tail's cut came late and found the room taken.
-template <int K, typename View>
-void split_at_view_changes(std::vector<Stratum<K>>& st, std::size_t room, const View& view) {
+template <int K, typename View, typename ViewE>
+void split_at_view_changes(std::vector<Stratum<K>>& st, std::size_t room, const View& view, const ViewE& view_e, double fresh) {
   if (room == 0) return;
   using Cut = std::pair<std::size_t, std::array<Stratum<K>, 2>>;
   std::vector<Cut> cuts;
   for (std::size_t i = 0; i < st.size(); ++i)
-    if (Cut c{i, {}}; cut_at_view_change<K>(st[i], view, c.second)) cuts.push_back(std::move(c));
+    if (Cut c{i, {}}; cut_at_view_change<K>(st[i], view, c.second) || cut_at_heading<K>(st[i], view_e, fresh, c.second))
+      cuts.push_back(std::move(c));
   if (cuts.size() > room) {
     const auto held = [](const Cut& c) {  // the far part's share times its mean square position error
       return c.second[1].w * (c.second[1].P + c.second[1].N).block(0, 0, 2, 2).trace();
@@ -426,17 +363,17 @@ void mixture_recursion(const Model& model, const std::vector<Step>& steps, std::
     if constexpr (K == 2) H = lateral_axes(h); else H = full_axes(h);
     if (merged) stratify<K>(H, fresh, st);
     // What the vehicles of stratum s at z see: they are off the path by minus their error.
-    const auto view = [&](const Stratum<K>& s, const VecK& z) {
-      const Eigen::Vector4d e = s.m + s.B * (z - s.mean);
+    const auto view_e = [&](const Eigen::Vector4d& e) {
       const VecK d = -(H * e);
       if (!(d.squaredNorm() > 0.0)) return steps[k];
       if constexpr (K == 3) return ahead_view(model, steps, arc, k, e);
       else return model.offset(steps[k], d[0], d[K - 1]);
     };
+    const auto view = [&](const Stratum<K>& s, const VecK& z) { return view_e(s.m + s.B * (z - s.mean)); };
     for (Stratum<K>& s : st) s.seen = view(s, s.mean);
     if (settings.deviation_split) {
       while (st.size() + kRoom > cap && make_room<K>(st)) {}
-      split_at_view_changes<K>(st, cap - std::min(cap, st.size()), view);
+      split_at_view_changes<K>(st, cap - std::min(cap, st.size()), view, view_e, model.process_noise(steps[k])(kTheta, kTheta));
     }
     const auto where = [&](const Eigen::Vector4d& e) -> Eigen::Vector2d {
       if constexpr (K == 3) {

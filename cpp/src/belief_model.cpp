@@ -299,6 +299,8 @@ void Model::update(const Step& s, double n, double fix_count, bool with_fix, Sta
   if (sensors_.imu) ml_update<2>(P, H_imu_, R_imu_ / n, MeasurementKind::SpeedHeading);
 }
 
+StateCov Model::process_noise(const Step& s) const { return bmm_.with_step(s.dt).process_cov(s.x, s.u); }
+
 void Model::step(const Step& s, StateCov& P, StepOutcome* out, bool gate) const {
   // Eq. 11 about the nominal: P⁻ = F P Fᵀ + G Σ_ε Gᵀ (the BMM over the step's dt).
   const Bmm bmm = bmm_.with_step(s.dt);

@@ -96,6 +96,8 @@ class Model {
   /// the branches; with `gate` (the mixture's strata) also those of a fix
   /// the filter gates (StepOutcome::gated).
   void step(const Step& s, StateCov& P, StepOutcome* out = nullptr, bool gate = false) const;
+  /// Q over step s (eq. 11's G Σ_ε Gᵀ): the process noise that the step adds to P.
+  StateCov process_noise(const Step& s) const;
   /// `s` seen by a vehicle `lateral` metres to the left of the leg and
   /// turned by `dtheta` (BeliefSettings::deviation_mixture): the landmarks in
   /// view and the measurements from there; the motion (s.x) and the
