@@ -8,6 +8,8 @@ samples and stages; the Clopper–Pearson bounds against their definition
 through the binomial tail and scipy's exact one-sided interval."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings

@@ -131,7 +131,8 @@ def propagate_belief(path, *, sensors, map, bmm=None, start_cov=None, settings: 
     stratified at 3×3 cells of the deviation, or 5×5 or 7×7 with ``deviation_nodes``;
     ``BeliefSettings.deviation_mixture``), ``deviation_along`` (stratify along
     the path too: n³ strata), ``deviation_split`` (default on: a cell is cut
-    where the view changes; off: the Gauss–Hermite nodes),
+    where the view changes, and a blind stratum along its heading where the
+    step's heading noise shows it a fix; off: the Gauss–Hermite nodes),
     ``deviation_free_strata`` (the strata it may hold beyond the rule's,
     1 000: room for every stratum on the missions measured).  With the mixture,
     ``.strata_weight`` (each stratum's weight per stage, (N, S)),
