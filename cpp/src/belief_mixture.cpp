@@ -309,7 +309,9 @@ StateCov record_stage(StrataTrace& trace, Eigen::Index row, const std::vector<St
 /// normal n and the heading; K = 3 with deviation_along: the leg's direction
 /// first), at the n^K Gauss–Hermite nodes z_i of N(0, I_K)
 /// (n = BeliefSettings::deviation_nodes; with 3, per axis −√3, 0, √3 with
-/// weights 1/6, 2/3, 1/6), or with deviation_split at cells of z (`rule`).
+/// weights 1/6, 2/3, 1/6), or with deviation_split at cells of z (`rule`),
+/// cut where the view changes (belief_cuts.hpp: by the cell, or for a blind
+/// stratum by the heading that the step's noise gives its vehicles afresh).
 /// Stratum i is the error given u = L z_i (L Lᵀ = H M Hᵀ, M the error's
 /// covariance): mean m_i = M Hᵀ L⁻ᵀ z_i and covariance M − M Hᵀ (H M Hᵀ)⁻¹ H M
 /// (`stratify`).  The vehicle drives its estimate along the path, so

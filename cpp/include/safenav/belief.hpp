@@ -121,8 +121,12 @@ struct BeliefSettings {
   /// changes, and the part beyond takes its exact share of the deviation:
   /// a vehicle 2.6 σ beside the path that misses a short window of
   /// landmarks then keeps its error in the belief, as it does in the
-  /// Monte Carlo.  At most the rule's strata and deviation_free_strata more
-  /// (twice the rule's where that is more); no part under 10⁻⁴ of the vehicles.
+  /// Monte Carlo.  A stratum that sees no fix and whose cell no cut divides
+  /// is cut along its viewed heading (its error's heading and the step's
+  /// heading noise, which each step draws anew) where that shows it a fix
+  /// (docs/belief_planning.md, "A fresh heading at each step").  At most the
+  /// rule's strata and deviation_free_strata more (twice the rule's where
+  /// that is more); no part under 10⁻⁴ of the vehicles.
   bool deviation_split = true;
   /// With deviation_split: the strata the mixture may hold beyond its rule's
   /// (it holds at least twice the rule's).  1 000 is room for every stratum
