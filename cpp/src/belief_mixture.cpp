@@ -20,7 +20,6 @@ namespace {
 
 using detail::bad;
 
-
 /// Whether the strata are one Gaussian again: every one took the same
 /// updates and their filter covariances agree to within 1 % of their norm
 /// (Frobenius).  Mid-transition, when some have seen a landmark and some
@@ -364,7 +363,8 @@ void mixture_recursion(const Model& model, const std::vector<Step>& steps, std::
     Eigen::Matrix<double, K, 4> H;
     if constexpr (K == 2) H = lateral_axes(h); else H = full_axes(h);
     if (merged) stratify<K>(H, fresh, st);
-    // What the vehicles of stratum s at z see: they are off the path by minus their error.
+    // What a vehicle with error e sees: it is off the path by minus its error (the vehicles of
+    // stratum s at z: e = m + B (z − z̄)).
     const auto view_e = [&](const Eigen::Vector4d& e) {
       const VecK d = -(H * e);
       if (!(d.squaredNorm() > 0.0)) return steps[k];
