@@ -24,6 +24,17 @@ constexpr double kMinShare = 1e-4;
 constexpr double kProbeTail = 3.090232306167813;
 constexpr int kBisections = 12;
 
+/// Where the view changes between `in` (seen as the mean sees) and `out` (seen otherwise),
+/// to kBisections halvings: `same(x)` says whether x is seen as the mean sees.
+template <typename Same>
+double bisect_change(double in, double out, const Same& same) {
+  for (int i = 0; i < kBisections; ++i) {
+    const double mid = 0.5 * (in + out);
+    (same(mid) ? in : out) = mid;
+  }
+  return 0.5 * (in + out);
+}
+
 /// BeliefSettings::deviation_split: where stratum `s`'s cell holds vehicles
 /// that see otherwise than its mean (probed at the cell's ends along each
 /// axis, an unbounded end at ±kProbeTail), the cell is cut where the view
@@ -49,12 +60,10 @@ bool cut_at_view_change(const Stratum<K>& s, const View& view, std::array<Stratu
       VecK z = s.mean;
       z[b] = end;
       if (same_view(view(s, z), s.seen)) continue;
-      double in = s.mean[b], out = end;
-      for (int i = 0; i < kBisections; ++i) {
-        z[b] = 0.5 * (in + out);
-        (same_view(view(s, z), s.seen) ? in : out) = z[b];
-      }
-      const double c = 0.5 * (in + out);
+      const double c = bisect_change(s.mean[b], end, [&](double x) {
+        z[b] = x;
+        return same_view(view(s, z), s.seen);
+      });
       if (!(std::abs(c - s.mean[b]) < nearest)) continue;
       const Interval n = sd < 0.0 ? interval(c, s.hi[b]) : interval(s.lo[b], c);
       const Interval f = sd < 0.0 ? interval(s.lo[b], c) : interval(c, s.hi[b]);
@@ -118,9 +127,7 @@ bool cut_at_heading(const Stratum<K>& s, const ViewE& view_e, double fresh, std:
   for (const double sg : {-1.0, 1.0}) {
     Step end = at(sg * kProbeTail);
     if (same_view(end, s.seen) || !(end.fix || end.ranges)) continue;
-    double in = 0.0, out = kProbeTail;
-    for (int b = 0; b < kBisections; ++b) (same_view(at(sg * 0.5 * (in + out)), s.seen) ? in : out) = 0.5 * (in + out);
-    const double c = 0.5 * (in + out);
+    const double c = bisect_change(0.0, kProbeTail, [&](double t) { return same_view(at(sg * t), s.seen); });
     if (!(c < nearest)) continue;
     const double inf = std::numeric_limits<double>::infinity();
     const Interval n = sg > 0.0 ? interval(-inf, c) : interval(-c, inf);
