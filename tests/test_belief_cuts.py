@@ -20,7 +20,7 @@ from safenav.belief import propagate_belief, propagate_belief_along
 PATH = np.array([[5.0, 5.0], [30.0, 5.0], [30.0, 25.0], [10.0, 35.0]])
 
 
-def _lateral_window(split, nodes=3, landmark_y=20.0):
+def _lateral_window(split, nodes=3, landmark_y=20.0, along=False):
     """A straight path past one landmark that only vehicles within 1 m to the
     right of the path come near enough to see (range 21 m, 20 m to the left
     at x = 30; at 22 m only those more than 1 m to the right), with the
@@ -34,7 +34,7 @@ def _lateral_window(split, nodes=3, landmark_y=20.0):
     return propagate_belief(np.array([[0.0, 0.0], [60.0, 0.0]]), sensors=se, bmm=bmm,
                             map=P.make_map(lower=(-10.0, -30.0), upper=(70.0, 30.0)), speed=2.0,
                             start_cov=np.diag([0.01, 0.16, 1e-8, 1e-10]), deviation_split=split,
-                            deviation_nodes=nodes)
+                            deviation_nodes=nodes, deviation_along=along)
 
 
 @pytest.mark.parametrize("nodes", [3, 5])
@@ -67,6 +67,27 @@ def test_split_strata_keep_the_vehicles_that_never_see_at_their_exact_share(node
     gh = _lateral_window(False, nodes)
     gw, gm = np.asarray(gh.strata_weight), np.asarray(gh.strata_msq)
     assert gw[end, gm[end] > 0.5].sum() == pytest.approx(0.0 if nodes == 3 else 0.011257411327720677)
+
+
+@pytest.mark.parametrize("along", [False, True])
+def test_the_tail_of_a_small_stratum_is_cut_too(along):
+    """The same window, the landmark at y = 19.8: the vehicles more than
+    1.2 m (3 σ) right of the path never see it, P(z > 3) = 1.35·10⁻³ of
+    them.  Each stratum of the right-hand cell (z > 0.967) holds a part of
+    them: 1.35·10⁻³ times the mass of its cells on the other axes.  With the
+    along axis the cell's corner strata (1/6 · 1/6 of it) hold 3.7·10⁻⁵, a
+    part that a least share of 10⁻⁴ left uncut, so that 11 % of the blind
+    vehicles saw in the belief (1.29·10⁻³), while their share decides a
+    tail-dominated bin's σ and lies within a risk budget of 10⁻⁴.  Every
+    stratum's part is cut, to the bisection's resolution, with or without
+    the along axis, and the blind vehicles keep the truncated normal's
+    second moment."""
+    prof = _lateral_window(True, landmark_y=19.8, along=along)
+    w, msq = np.asarray(prof.strata_weight), np.asarray(prof.strata_msq)
+    blind = msq[-1] > 0.5
+    np.testing.assert_allclose(w[-1, blind].sum(), stats.norm.sf(3.0), rtol=2e-3)
+    second = 0.16 * (1.0 + 3.0 * stats.norm.pdf(3.0) / stats.norm.sf(3.0))
+    np.testing.assert_allclose(w[-1, blind] @ msq[-1, blind] / w[-1, blind].sum(), second + 0.01, rtol=0.01)
 
 
 @pytest.mark.xfail(strict=True, reason="the mixture joins blind strata across the rule's cells "

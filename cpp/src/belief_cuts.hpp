@@ -17,13 +17,22 @@ namespace safenav::belief {
 /// Whether two views take the same updates (landmarks in view, fix, ranges).
 inline bool same_view(const Step& a, const Step& b) { return a.seen == b.seen && a.fix == b.fix && a.ranges == b.ranges; }
 
-/// The cuts' bounds: the least share a cut may leave on either side, where an
-/// unbounded cell (or the heading) is probed (P(z > 3.09) = 10⁻³), and the
-/// bisection's steps.
+/// The cuts' bounds: the least share of the vehicles a cut may leave on
+/// either side, where an unbounded cell (or the heading) is probed
+/// (P(z > 3.09) = 10⁻³), and the bisection's steps.  A part that takes a
+/// fix where the rest does not, or misses one that the rest takes, loses or
+/// keeps its whole error: it is cut down to kMinFixShare, a hundredth of the
+/// default risk budget ε = 10⁻⁴ (a bin whose σ a gate's or a view's tail
+/// decides holds 10⁻⁴–10⁻³ of the vehicles, in parts of a small stratum;
+/// docs/belief_planning.md, "The tail of a small stratum").  A part that
+/// sees other landmarks only changes its fix's covariance: kMinShare.
 constexpr double kMinShare = 1e-4;
+constexpr double kMinFixShare = 1e-6;
 constexpr double kProbeTail = 3.090232306167813;
 constexpr int kBisections = 12;
 
+/// Whether a view takes a position fix (a fix profile's, or one from ranges).
+inline bool takes_fix(const Step& v) { return v.fix || v.ranges; }
 /// Where the view changes between `in` (seen as the mean sees) and `out` (seen otherwise),
 /// to kBisections halvings: `same(x)` says whether x is seen as the mean sees.
 template <typename Same>
@@ -42,7 +51,9 @@ double bisect_change(double in, double out, const Same& same) {
 /// the one whose change lies nearest the mean), and the part beyond becomes
 /// a stratum of its own, with its exact share of N(0, I), its mean and
 /// variance, and the same residual error: P + N − m mᵀ − B V Bᵀ.  At most
-/// one cut per stratum and step.  `view(s, z)` is what a vehicle at z of s sees.
+/// one cut per stratum and step, none that leaves a part under kMinShare of
+/// the vehicles (kMinFixShare where the end takes a fix and the mean does
+/// not, or the reverse).  `view(s, z)` is what a vehicle at z of s sees.
 /// False where no cut is made; else `parts` holds the near and the far part.
 template <int K, typename View>
 bool cut_at_view_change(const Stratum<K>& s, const View& view, std::array<Stratum<K>, 2>& parts) {
@@ -59,7 +70,9 @@ bool cut_at_view_change(const Stratum<K>& s, const View& view, std::array<Stratu
       if (!((end - s.mean[b]) * sd > 0.0)) continue;
       VecK z = s.mean;
       z[b] = end;
-      if (same_view(view(s, z), s.seen)) continue;
+      const Step seen_end = view(s, z);
+      if (same_view(seen_end, s.seen)) continue;
+      const double least = takes_fix(seen_end) != takes_fix(s.seen) ? kMinFixShare : kMinShare;
       const double c = bisect_change(s.mean[b], end, [&](double x) {
         z[b] = x;
         return same_view(view(s, z), s.seen);
@@ -67,7 +80,7 @@ bool cut_at_view_change(const Stratum<K>& s, const View& view, std::array<Stratu
       if (!(std::abs(c - s.mean[b]) < nearest)) continue;
       const Interval n = sd < 0.0 ? interval(c, s.hi[b]) : interval(s.lo[b], c);
       const Interval f = sd < 0.0 ? interval(s.lo[b], c) : interval(c, s.hi[b]);
-      if (std::min(n.mass, f.mass) * s.w / interval(s.lo[b], s.hi[b]).mass < kMinShare) continue;
+      if (std::min(n.mass, f.mass) * s.w / interval(s.lo[b], s.hi[b]).mass < least) continue;
       nearest = std::abs(c - s.mean[b]), a = b, near = n, far = f;
     }
   if (a < 0) return false;
@@ -104,12 +117,13 @@ bool cut_at_view_change(const Stratum<K>& s, const View& view, std::array<Stratu
 /// sides that show a fix, the one whose change (bisected) lies nearest the mean is cut there.
 /// Each part is the stratum given h on its side, as a cut of the cell is given z: its exact
 /// share, mean m + a μ and spread S − a aᵀ (1 − v) (μ, v the truncated normal's); the far part
-/// sees the fix.  Both keep the cell, B (held within their spread) and the filter covariance.
+/// sees the fix; neither is under kMinFixShare of the vehicles.  Both keep the cell, B (held
+/// within their spread) and the filter covariance.
 /// A stratum that sees a fix at its mean is left whole: a vehicle that misses one fix of a run
 /// loses a step's dead reckoning, a blind one that takes its first loses its whole error.
 template <int K, typename ViewE>
 bool cut_at_heading(const Stratum<K>& s, const ViewE& view_e, double fresh, std::array<Stratum<K>, 2>& parts) {
-  if (s.seen.fix || s.seen.ranges) return false;
+  if (takes_fix(s.seen)) return false;
   StateCov S = s.P + s.N - s.m * s.m.transpose();
   S = 0.5 * (S + S.transpose());
   const double var = S(kTheta, kTheta) + fresh;
@@ -126,13 +140,13 @@ bool cut_at_heading(const Stratum<K>& s, const ViewE& view_e, double fresh, std:
   Step seen;
   for (const double sg : {-1.0, 1.0}) {
     Step end = at(sg * kProbeTail);
-    if (same_view(end, s.seen) || !(end.fix || end.ranges)) continue;
+    if (same_view(end, s.seen) || !takes_fix(end)) continue;
     const double c = bisect_change(0.0, kProbeTail, [&](double t) { return same_view(at(sg * t), s.seen); });
     if (!(c < nearest)) continue;
     const double inf = std::numeric_limits<double>::infinity();
     const Interval n = sg > 0.0 ? interval(-inf, c) : interval(-c, inf);
     const Interval f = sg > 0.0 ? interval(c, inf) : interval(-inf, -c);
-    if (std::min(n.mass, f.mass) * s.w < kMinShare) continue;
+    if (std::min(n.mass, f.mass) * s.w < kMinFixShare) continue;
     nearest = c, near = n, far = f, seen = std::move(end);
   }
   if (!std::isfinite(nearest)) return false;

@@ -126,7 +126,8 @@ struct BeliefSettings {
   /// heading noise, which each step draws anew) where that shows it a fix
   /// (docs/belief_planning.md, "A fresh heading at each step").  At most the
   /// rule's strata and deviation_free_strata more (twice the rule's where
-  /// that is more); no part under 10⁻⁴ of the vehicles.
+  /// that is more); no part under 10⁻⁴ of the vehicles, or 10⁻⁶ where the
+  /// part takes a fix and the rest of its stratum does not, or the reverse.
   bool deviation_split = true;
   /// With deviation_split: the strata the mixture may hold beyond its rule's
   /// (it holds at least twice the rule's).  1 000 is room for every stratum
