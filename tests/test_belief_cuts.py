@@ -75,10 +75,10 @@ def test_the_tail_of_a_small_stratum_is_cut_too(along):
     1.2 m (3 σ) right of the path never see it, P(z > 3) = 1.35·10⁻³ of
     them.  Each stratum of the right-hand cell (z > 0.967) holds a part of
     them: 1.35·10⁻³ times the mass of its cells on the other axes.  With the
-    along axis the cell's corner strata (1/6 · 1/6 of it) hold 3.7·10⁻⁵, a
-    part that a least share of 10⁻⁴ left uncut, so that 11 % of the blind
-    vehicles saw in the belief (1.29·10⁻³), while their share decides a
-    tail-dominated bin's σ and lies within a risk budget of 10⁻⁴.  Every
+    along axis the cell's corner strata (1/6 · 1/6 of it) hold 3.7·10⁻⁵ each,
+    a part that a least share of 10⁻⁴ left uncut (the belief then held
+    1.29·10⁻³ blind), while such a share decides a tail-dominated bin's σ
+    and lies within a risk budget of 10⁻⁴.  Every
     stratum's part is cut, to the bisection's resolution, with or without
     the along axis, and the blind vehicles keep the truncated normal's
     second moment."""

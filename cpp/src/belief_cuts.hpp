@@ -33,6 +33,7 @@ constexpr int kBisections = 12;
 
 /// Whether a view takes a position fix (a fix profile's, or one from ranges).
 inline bool takes_fix(const Step& v) { return v.fix || v.ranges; }
+
 /// Where the view changes between `in` (seen as the mean sees) and `out` (seen otherwise),
 /// to kBisections halvings: `same(x)` says whether x is seen as the mean sees.
 template <typename Same>
