@@ -18,17 +18,20 @@ namespace safenav::belief {
 inline bool same_view(const Step& a, const Step& b) { return a.seen == b.seen && a.fix == b.fix && a.ranges == b.ranges; }
 
 /// The cuts' bounds: the least share of the vehicles a cut may leave on
-/// either side, where an unbounded cell (or the heading) is probed
-/// (P(z > 3.09) = 10⁻³), and the bisection's steps.  A part that takes a
-/// fix where the rest does not, or misses one that the rest takes, loses or
-/// keeps its whole error: it is cut down to kMinFixShare, a hundredth of the
-/// default risk budget ε = 10⁻⁴ (a bin whose σ a gate's or a view's tail
-/// decides holds 10⁻⁴–10⁻³ of the vehicles, in parts of a small stratum;
-/// docs/belief_planning.md, "The tail of a small stratum").  A part that
-/// sees other landmarks only changes its fix's covariance: kMinShare.
+/// either side, where an unbounded cell (or the heading) is probed, and the
+/// bisection's steps.  A part that takes a fix where the rest does not, or
+/// misses one that the rest takes, loses or keeps its whole error: it is cut
+/// down to kMinFixShare, a hundredth of the default risk budget ε = 10⁻⁴ (a
+/// bin whose σ a gate's or a view's tail decides holds 10⁻⁴–10⁻³ of the
+/// vehicles, in parts of a small stratum).  A part that sees other landmarks
+/// only changes its fix's covariance: kMinShare.  The probe reaches where
+/// 10⁻⁵ of a cell's vehicles lie beyond (P(z > 4.26)), a tenth of ε: the
+/// vehicles that start 3.2–3.6 σ off, beyond the probe at 3.09 σ (10⁻³)
+/// before, are the tail that decides such a bin (docs/belief_planning.md,
+/// "The tail of a small stratum").
 constexpr double kMinShare = 1e-4;
 constexpr double kMinFixShare = 1e-6;
-constexpr double kProbeTail = 3.090232306167813;
+constexpr double kProbeTail = 4.264890793922825;
 constexpr int kBisections = 12;
 
 /// Whether a view takes a position fix (a fix profile's, or one from ranges).

@@ -117,7 +117,7 @@ struct BeliefSettings {
   /// n nodes' weights become the masses of n intervals per axis (for 3:
   /// z < −0.967, |z| ≤ 0.967, z > 0.967), each stratum at its cell's mean
   /// and with its variance.  Each step, a cell whose ends (an unbounded end
-  /// at z = ±3.09) see other landmarks than its mean is cut where the view
+  /// at z = ±4.26) see other landmarks than its mean is cut where the view
   /// changes, and the part beyond takes its exact share of the deviation:
   /// a vehicle 2.6 σ beside the path that misses a short window of
   /// landmarks then keeps its error in the belief, as it does in the
