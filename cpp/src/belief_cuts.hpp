@@ -55,12 +55,15 @@ double bisect_change(double in, double out, const Same& same) {
 /// the one whose change lies nearest the mean), and the part beyond becomes
 /// a stratum of its own, with its exact share of N(0, I), its mean and
 /// variance, and the same residual error: P + N − m mᵀ − B V Bᵀ.  At most
-/// one cut per stratum and step, none that leaves a part under kMinShare of
+/// one cut per stratum and call, none that leaves a part under kMinShare of
 /// the vehicles (kMinFixShare where the end takes a fix and the mean does
-/// not, or the reverse).  `view(s, z)` is what a vehicle at z of s sees.
+/// not, or the reverse); with `fix_only`, only ends whose vehicles take a fix
+/// where the mean does not, or the reverse, are cut (the step's second pass,
+/// split_at_view_changes).  `view(s, z)` is what a vehicle at z of s sees.
 /// False where no cut is made; else `parts` holds the near and the far part.
 template <int K, typename View>
-bool cut_at_view_change(const Stratum<K>& s, const View& view, std::array<Stratum<K>, 2>& parts) {
+bool cut_at_view_change(const Stratum<K>& s, const View& view, std::array<Stratum<K>, 2>& parts,
+                        bool fix_only = false) {
   using VecK = Eigen::Matrix<double, K, 1>;
   // Of the axis ends that see otherwise, the one whose view changes nearest the mean (in z):
   // the boundary's steepest axis, along which one cut follows it best.
@@ -75,7 +78,7 @@ bool cut_at_view_change(const Stratum<K>& s, const View& view, std::array<Stratu
       VecK z = s.mean;
       z[b] = end;
       const Step seen_end = view(s, z);
-      if (same_view(seen_end, s.seen)) continue;
+      if (same_view(seen_end, s.seen) || (fix_only && takes_fix(seen_end) == takes_fix(s.seen))) continue;
       const double least = takes_fix(seen_end) != takes_fix(s.seen) ? kMinFixShare : kMinShare;
       const double c = bisect_change(s.mean[b], end, [&](double x) {
         z[b] = x;

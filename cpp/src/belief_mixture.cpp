@@ -54,15 +54,25 @@ constexpr double kMinCountShare = 1e-6;
 /// step's heading noise `fresh`), at most `room`: each stratum's near part in its place,
 /// the far part appended.  With more cuts than room, those that hold the most squared position
 /// error beyond the view change (the far part's share times tr (P + N)_xy) are made: in the
-/// strata's order a tail's cut came late and found the room taken.
+/// strata's order a tail's cut came late and found the room taken.  `again`: the step's second
+/// pass, which cuts the cells once more where a fix still comes or goes within one (no heading
+/// cut): where a step brings many views at once, as at a turn toward a cluster, a cell can hold
+/// two changes of its fix, and one cut left the vehicles between the second change and the cell's
+/// end with the mean's view (docs/belief_planning.md, "Two cuts at a first fix").  A heading
+/// cut's far part, which sees as its heading and not as its mean, is left as it is.
 template <int K, typename View, typename ViewE>
-void split_at_view_changes(std::vector<Stratum<K>>& st, std::size_t room, const View& view, const ViewE& view_e, double fresh) {
+void split_at_view_changes(std::vector<Stratum<K>>& st, std::size_t room, const View& view, const ViewE& view_e,
+                           double fresh, bool again) {
   if (room == 0) return;
   using Cut = std::pair<std::size_t, std::array<Stratum<K>, 2>>;
   std::vector<Cut> cuts;
-  for (std::size_t i = 0; i < st.size(); ++i)
-    if (Cut c{i, {}}; cut_at_view_change<K>(st[i], view, c.second) || cut_at_heading<K>(st[i], view_e, fresh, c.second))
+  for (std::size_t i = 0; i < st.size(); ++i) {
+    // The second pass leaves a heading cut's far part: it sees as its heading, not its mean.
+    if (again && !same_view(view(st[i], st[i].mean), st[i].seen)) continue;
+    if (Cut c{i, {}}; cut_at_view_change<K>(st[i], view, c.second, again) ||
+                      (!again && cut_at_heading<K>(st[i], view_e, fresh, c.second)))
       cuts.push_back(std::move(c));
+  }
   if (cuts.size() > room) {
     const auto held = [](const Cut& c) {  // the far part's share times its mean square position error
       return c.second[1].w * (c.second[1].P + c.second[1].N).block(0, 0, 2, 2).trace();
@@ -373,10 +383,12 @@ void mixture_recursion(const Model& model, const std::vector<Step>& steps, std::
     };
     const auto view = [&](const Stratum<K>& s, const VecK& z) { return view_e(s.m + s.B * (z - s.mean)); };
     for (Stratum<K>& s : st) s.seen = view(s, s.mean);
-    if (settings.deviation_split) {
-      while (st.size() + kRoom > cap && make_room<K>(st)) {}
-      split_at_view_changes<K>(st, cap - std::min(cap, st.size()), view, view_e, model.process_noise(steps[k])(kTheta, kTheta));
-    }
+    if (settings.deviation_split)
+      for (const bool again : {false, true}) {
+        while (st.size() + kRoom > cap && make_room<K>(st)) {}
+        split_at_view_changes<K>(st, cap - std::min(cap, st.size()), view, view_e,
+                                 model.process_noise(steps[k])(kTheta, kTheta), again);
+      }
     const auto where = [&](const Eigen::Vector4d& e) -> Eigen::Vector2d {
       if constexpr (K == 3) {
         const Ahead a = ahead_of(steps, arc, k, e);
