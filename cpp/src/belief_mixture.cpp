@@ -59,19 +59,25 @@ constexpr double kMinCountShare = 1e-6;
 /// cut): where a step brings many views at once, as at a turn toward a cluster, a cell can hold
 /// two changes of its fix, and one cut left the vehicles between the second change and the cell's
 /// end with the mean's view (docs/belief_planning.md, "Two cuts at a first fix").  A heading
-/// cut's far part, which sees as its heading and not as its mean, is left as it is.
+/// cut's far part, which sees as its heading and not as its mean, is left as it is.  `settled`
+/// marks the strata in which the first pass found no cut: the second, which looks for fewer,
+/// finds none there either, so it skips them (the caller clears the marks where strata are
+/// joined between the passes).
 template <int K, typename View, typename ViewE>
 void split_at_view_changes(std::vector<Stratum<K>>& st, std::size_t room, const View& view, const ViewE& view_e,
-                           double fresh, bool again) {
+                           double fresh, bool again, std::vector<char>& settled) {
+  if (!again) settled.assign(st.size(), 0);
   if (room == 0) return;
   using Cut = std::pair<std::size_t, std::array<Stratum<K>, 2>>;
   std::vector<Cut> cuts;
   for (std::size_t i = 0; i < st.size(); ++i) {
     // The second pass leaves a heading cut's far part: it sees as its heading, not its mean.
-    if (again && !same_view(view(st[i], st[i].mean), st[i].seen)) continue;
+    if (again && (settled[i] || !same_view(view(st[i], st[i].mean), st[i].seen))) continue;
     if (Cut c{i, {}}; cut_at_view_change<K>(st[i], view, c.second, again) ||
                       (!again && cut_at_heading<K>(st[i], view_e, fresh, c.second)))
       cuts.push_back(std::move(c));
+    else
+      settled[i] = 1;
   }
   if (cuts.size() > room) {
     const auto held = [](const Cut& c) {  // the far part's share times its mean square position error
@@ -82,6 +88,7 @@ void split_at_view_changes(std::vector<Stratum<K>>& st, std::size_t room, const 
     std::sort(cuts.begin(), cuts.end(), [](const Cut& a, const Cut& b) { return a.first < b.first; });
   }
   for (auto& [i, c] : cuts) st[i] = c[0], st.push_back(c[1]);
+  settled.resize(st.size(), 0);
 }
 
 /// The axis on which the cells of strata a and b touch to make a box (the
@@ -368,6 +375,7 @@ void mixture_recursion(const Model& model, const std::vector<Step>& steps, std::
   bool merged = true;
   const Gate gate(settings.gate_probability);
   std::vector<Stratum<K>> away;  // a step's strata whose fix the gate turned away
+  std::vector<char> settled;     // the strata in which a step's first pass found no cut
   for (std::size_t k = 1; k < steps.size(); ++k) {
     const double h = steps[k].x[kTheta];
     Eigen::Matrix<double, K, 4> H;
@@ -385,9 +393,11 @@ void mixture_recursion(const Model& model, const std::vector<Step>& steps, std::
     for (Stratum<K>& s : st) s.seen = view(s, s.mean);
     if (settings.deviation_split)
       for (const bool again : {false, true}) {
+        const std::size_t before = st.size();
         while (st.size() + kRoom > cap && make_room<K>(st)) {}
+        if (st.size() != before) settled.assign(st.size(), 0);
         split_at_view_changes<K>(st, cap - std::min(cap, st.size()), view, view_e,
-                                 model.process_noise(steps[k])(kTheta, kTheta), again);
+                                 model.process_noise(steps[k])(kTheta, kTheta), again, settled);
       }
     const auto where = [&](const Eigen::Vector4d& e) -> Eigen::Vector2d {
       if constexpr (K == 3) {
