@@ -192,9 +192,18 @@ def _profiles(sc, path, navigator, nodes: int = 3, along: bool = C.NOMINAL_DEVIA
     along the path too, as the certificate's)."""
     kw = C.mission_inputs(sc, path)
     dev = {"deviation_nodes": nodes, "deviation_split": split}
-    run_kw = {k: v for k, v in kw.items() if k != "speed"}
     return (propagate_belief(path, **dev, **kw), propagate_belief(path, **robust_sight(), **kw),
-            propagate_belief_along(navigator.nominal_trajectory(), deviation_along=along, **dev, **run_kw))
+            nominal_profile(sc, path, navigator, nodes, along, split))
+
+
+def nominal_profile(sc, path, navigator, nodes: int = 3, along: bool = C.NOMINAL_DEVIATION["deviation_along"],
+                    split: bool = True, **belief):
+    """The expected belief along the method's nominal run (the third of
+    :func:`_profiles`, the reported σ profile); ``belief``: other settings of
+    the belief to change (e.g. ``deviation_free_strata``)."""
+    run_kw = {k: v for k, v in C.mission_inputs(sc, path).items() if k != "speed"}
+    return propagate_belief_along(navigator.nominal_trajectory(), deviation_along=along, deviation_nodes=nodes,
+                                  deviation_split=split, **belief, **run_kw)
 
 
 def _fix_shares(profiles, needs: int, edges: np.ndarray, truths, measured) -> list[np.ndarray]:

@@ -38,14 +38,13 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_certified import (METHODS, _kept_bins, _out_of_band, _profiles, certify_one,  # noqa: E402
+from bench_certified import (METHODS, _kept_bins, _out_of_band, certify_one, nominal_profile,  # noqa: E402
                              print_certificates, worlds)
 from bench_safety import faulty  # noqa: E402
 
-from safenav import certify as C  # noqa: E402
 from safenav import navigation as nav  # noqa: E402
 from safenav import results, runner  # noqa: E402
-from safenav.belief import _calibration, arc_position, propagate_belief_along, sigma_calibration  # noqa: E402
+from safenav.belief import _calibration, binned_trials, calibration_edges, sigma_calibration  # noqa: E402
 from safenav.generate import DEFAULT_SEED  # noqa: E402
 
 BIN_M = 10.0
@@ -90,14 +89,8 @@ def _batch(job) -> tuple[np.ndarray, np.ndarray]:
     spec, cache, seeds, edges, nominal_xy = job
     sc, _, path, m = cell(spec, cache)
     rec = nav.make_navigator(sc, path, method=m, filter="ekf", record=True)
-    sq, n = np.zeros((len(seeds), len(edges) - 1)), np.zeros((len(seeds), len(edges) - 1), dtype=int)
-    for i, s in enumerate(seeds):
-        r = rec.run(int(s))
-        x, xh = np.asarray(r.truth)[:, :2], np.asarray(r.estimate)[:, :2]
-        b = np.clip(np.searchsorted(edges, arc_position(nominal_xy, x), side="right") - 1, 0, len(edges) - 2)
-        sq[i] = np.bincount(b, np.sum((xh - x) ** 2, axis=1), len(edges) - 1)
-        n[i] = np.bincount(b, minlength=len(edges) - 1)
-    return sq, n
+    runs = [rec.run(int(s)) for s in seeds]
+    return binned_trials(nominal_xy, edges, [r.truth for r in runs], [r.estimate for r in runs])
 
 
 def record(spec: str, trials: int, cache: Path, workers: int) -> Path:
@@ -105,8 +98,7 @@ def record(spec: str, trials: int, cache: Path, workers: int) -> Path:
     sc, stream, path, m = cell(spec, cache)
     rec = nav.make_navigator(sc, path, method=m, filter="ekf", record=True)
     nominal_xy = np.asarray(rec.nominal_trajectory(), dtype=float)[:, :2]
-    length = float(np.sum(np.hypot(*np.diff(nominal_xy, axis=0).T)))
-    edges = np.arange(0.0, length + BIN_M, BIN_M)
+    edges = calibration_edges(nominal_xy, BIN_M)
     seeds = runner.trial_seeds(sc.seeds.trials, stream, trials)
     jobs = [(spec, cache, seeds[a:a + BATCH], edges, nominal_xy) for a in range(0, trials, BATCH)]
     parts = runner.map_ordered(_batch, jobs, workers=workers, processes=workers > 1)
@@ -119,14 +111,9 @@ def record(spec: str, trials: int, cache: Path, workers: int) -> Path:
 
 def predicted(spec: str, cache: Path, **belief):
     """The expected belief along the method's nominal run, as bench_certified's calibration takes it
-    (``belief``: settings of the deviation mixture to change, e.g. ``deviation_free_strata``)."""
+    (``belief``: settings of the belief to change, e.g. ``deviation_free_strata``)."""
     sc, _, path, m = cell(spec, cache)
-    rec = nav.make_navigator(sc, path, method=m, filter="ekf", record=True)
-    if not belief:
-        return _profiles(sc, path, rec)[2]
-    kw = {k: v for k, v in C.mission_inputs(sc, path).items() if k != "speed"}
-    dev = dict(deviation_nodes=3, deviation_split=True, deviation_along=C.NOMINAL_DEVIATION["deviation_along"])
-    return propagate_belief_along(rec.nominal_trajectory(), **{**dev, **belief}, **kw)
+    return nominal_profile(sc, path, nav.make_navigator(sc, path, method=m, filter="ekf", record=True), **belief)
 
 
 def predicted_bins(spec: str, cache: Path, **belief) -> np.ndarray:

@@ -49,7 +49,7 @@ collision_monte_carlo = _core.collision_monte_carlo
 __all__ = ["BeliefSettings", "BeliefPlannerSettings", "BeliefProblem", "BeliefProfile", "BeliefPlanStatus",
            "BeliefPlanResult", "BeliefPlan", "start_covariance", "collision_monte_carlo", "propagate_belief",
            "propagate_belief_along", "plan_belief", "robust_sight", "arc_position", "SigmaCalibration",
-           "sigma_calibration", "pool_calibrations", "clopper_pearson"]
+           "sigma_calibration", "calibration_edges", "binned_trials", "pool_calibrations", "clopper_pearson"]
 
 # Keyword names of plan_belief / propagate_belief -> declared parameter names.
 _BELIEF_KEYS = {"speed": "speed", "step": "step", "bearing_std": "bearing_std",
@@ -363,15 +363,32 @@ def sigma_calibration(profile, truths, estimates, *, bin_m: float = 10.0) -> Sig
     its own position: ``_predicted_per_bin``) and each true position goes
     to the bin of its :func:`arc_position` (the estimate is paired with the
     truth of its step).  See :class:`SigmaCalibration`."""
+    path = np.asarray(profile.positions, dtype=float)
+    edges = calibration_edges(path, bin_m)
+    tr, n_stage = _predicted_per_bin(profile, path, edges)
+    per_sq, per_n = binned_trials(path, edges, truths, estimates)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        pred = np.where(n_stage > 0, np.sqrt(tr / n_stage), np.nan)
+    return _calibration(edges, pred, per_sq, per_n)
+
+
+def calibration_edges(path, bin_m: float) -> np.ndarray:
+    """The arc-length bins' edges of :func:`sigma_calibration` along ``path`` ((N, 2))."""
     if not (np.isfinite(bin_m) and bin_m > 0):
         raise ValueError(f"bin_m = {bin_m!r}: must be a finite number of metres > 0")
+    length = float(np.sum(np.hypot(*np.diff(np.asarray(path, dtype=float), axis=0).T)))
+    return np.arange(0.0, length + bin_m, bin_m)
+
+
+def binned_trials(path, edges, truths, estimates) -> tuple[np.ndarray, np.ndarray]:
+    """Each trial's squared position error summed per arc-length bin of
+    ``path`` (each true position at its :func:`arc_position`, the estimate
+    paired with the truth of its step), and its step count per bin (rows:
+    trials): the Monte Carlo side of :func:`sigma_calibration`."""
     if len(truths) != len(estimates):
         raise ValueError(f"truths has {len(truths)} trials but estimates has {len(estimates)}")
-    path = np.asarray(profile.positions, dtype=float)
-    length = float(np.sum(np.hypot(*np.diff(path, axis=0).T)))
-    edges = np.arange(0.0, length + bin_m, bin_m)
+    path = np.asarray(path, dtype=float)
     n_bins = len(edges) - 1
-    tr, n_stage = _predicted_per_bin(profile, path, edges)
     per_sq, per_n = np.zeros((len(truths), n_bins)), np.zeros((len(truths), n_bins), dtype=int)
     for i, (x, xh) in enumerate(zip(truths, estimates)):
         x, xh = np.asarray(x, dtype=float)[:, :2], np.asarray(xh, dtype=float)[:, :2]
@@ -380,9 +397,7 @@ def sigma_calibration(profile, truths, estimates, *, bin_m: float = 10.0) -> Sig
         b = np.clip(np.searchsorted(edges, arc_position(path, x), side="right") - 1, 0, n_bins - 1)
         per_sq[i] = np.bincount(b, np.sum((xh - x) ** 2, axis=1), n_bins)
         per_n[i] = np.bincount(b, minlength=n_bins)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        pred = np.where(n_stage > 0, np.sqrt(tr / n_stage), np.nan)
-    return _calibration(edges, pred, per_sq, per_n)
+    return per_sq, per_n
 
 
 def pool_calibrations(calibrations) -> SigmaCalibration:

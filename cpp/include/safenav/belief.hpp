@@ -124,7 +124,9 @@ struct BeliefSettings {
   /// Monte Carlo.  A stratum that sees no fix and whose cell no cut divides
   /// is cut along its viewed heading (its error's heading and the step's
   /// heading noise, which each step draws anew) where that shows it a fix
-  /// (docs/belief_planning.md, "A fresh heading at each step").  At most the
+  /// (docs/belief_planning.md, "A fresh heading at each step").  A second
+  /// pass in the same step cuts the parts again where a fix still comes or
+  /// goes within a cell ("Two cuts at a first fix").  At most the
   /// rule's strata and deviation_free_strata more (twice the rule's where
   /// that is more); no part under 10⁻⁴ of the vehicles, or 10⁻⁶ where the
   /// part takes a fix and the rest of its stratum does not, or the reverse.
