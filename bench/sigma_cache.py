@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_certified import (METHODS, _kept_bins, _out_of_band, certify_one, nominal_profile,  # noqa: E402
+from bench_certified import (METHODS, TARGET_RATIO, _kept_bins, _out_of_band, certify_one, nominal_profile,  # noqa: E402
                              print_certificates, worlds)
 from bench_safety import faulty  # noqa: E402
 
@@ -147,6 +147,16 @@ def _line(spec: str, cal, trials: int, base=None) -> str:
     return s
 
 
+def _summary(what: str, ratios: list[np.ndarray]) -> str:
+    """The kept bins of ``ratios`` (one array per cell): their count, the share within ±25 %, and their
+    least, median and greatest ratio."""
+    r = np.concatenate(ratios)
+    inside = np.abs(r - 1) <= TARGET_RATIO
+    return (f"{what}: {len(ratios)} cells, {len(r)} bins, {100 * inside.mean():.1f} % within "
+            f"±{100 * TARGET_RATIO:.0f} % ({np.count_nonzero(~inside)} outside); "
+            f"min {r.min():.2f}, median {np.median(r):.2f}, max {r.max():.2f}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("what", choices=("record", "score", "predict"))
@@ -171,10 +181,15 @@ def main() -> None:
             print(f"{spec}: {record(spec, a.trials, a.cache, a.workers)} ({time.perf_counter() - t:.0f} s)",
                   flush=True)
     elif a.what == "score":
+        ratios: dict[str, list[np.ndarray]] = {"clean": [], "faulty": []}
         for spec in a.cells:
             cal = score(spec, a.cache, a.trials, **belief)
             saved[spec] = cal.predicted
+            ratios[spec.rsplit(":", 1)[-1]].append(cal.ratio[_kept_bins(cal, a.trials)])
             print(_line(spec, cal, a.trials, base), flush=True)
+        for f, rs in ratios.items():
+            if rs:
+                print(_summary(f, rs))
     else:
         specs = a.cells or [f"{w}:{p}:{m}:{f}" for w in a.worlds for p in sorted(world(w, a.cache)["paths"])
                             for m in METHODS for f in ("clean", "faulty")]
