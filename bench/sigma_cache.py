@@ -16,15 +16,20 @@ that the cached trials stay those of the same path when the model changes
 (the certificate's planner depends on it).  The trial seeds are
 bench_certified's (``runner.trial_seeds(sc.seeds.trials, stream, n)``):
 with ``--trials 10000`` a cell's figures are those of ``--recheck 10000``.
+The cache also keeps each trial's outcome, guard-hold steps, steps and
+least clearance. ``--filter pf`` drives the cell with the particle filter
+(cached apart); the prediction is the same for both filters.
 
-    python bench/sigma_cache.py record 13:P3:centroid:faulty [--trials 10000] [--cache DIR] [--workers 2]
-    python bench/sigma_cache.py score  13:P3:centroid:faulty ... [--cache DIR] [--save FILE] [--base FILE]
+    python bench/sigma_cache.py record 13:P3:centroid:faulty [--trials 10000] [--filter ekf] [--cache DIR] [--workers 2]
+    python bench/sigma_cache.py score  13:P3:centroid:faulty ... [--filter ekf] [--cache DIR] [--save FILE] [--base FILE]
     python bench/sigma_cache.py predict --worlds d 13 17 23 29 31 37 [--save FILE] [--base FILE]
 
-``score`` prints each cell's kept bins' ratio range (MC RMS / predicted) and
-the bins outside ±25 %; ``predict`` prints no ratio, only how far each
-cell's predicted bins moved against ``--base`` (a file that ``--save``
-wrote), to find the cells that a change moves and that need a Monte Carlo.
+``score`` prints each cell's kept bins' ratio range (MC RMS / predicted),
+the bins outside ±25 % and the trials' outcomes, then the share of all
+bins within the band, clean and faulty apart; ``predict`` prints no ratio,
+only how far each cell's predicted bins moved against ``--base`` (a file
+that ``--save`` wrote), to find the cells that a change moves and that
+need a Monte Carlo.
 """
 
 from __future__ import annotations
@@ -49,6 +54,8 @@ from safenav.generate import DEFAULT_SEED  # noqa: E402
 
 BIN_M = 10.0
 BATCH = 250
+#: What the cache keeps of each trial besides its bin sums.
+TRIAL = ("outcome", "guard_hold", "steps", "min_clearance")
 
 
 def _world_key(w: str) -> str:
@@ -85,28 +92,51 @@ def cell(spec: str, cache: Path):
     return sc, stream, path, m
 
 
-def _batch(job) -> tuple[np.ndarray, np.ndarray]:
-    spec, cache, seeds, edges, nominal_xy = job
+def _batch(job) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The batch's per-trial bin sums and step counts, and per trial its outcome, guard-hold steps, steps
+    and least clearance (the ``TRIAL`` columns)."""
+    spec, cache, seeds, edges, nominal_xy, filt = job
     sc, _, path, m = cell(spec, cache)
-    rec = nav.make_navigator(sc, path, method=m, filter="ekf", record=True)
+    rec = nav.make_navigator(sc, path, method=m, filter=filt, record=True)
     runs = [rec.run(int(s)) for s in seeds]
-    return binned_trials(nominal_xy, edges, [r.truth for r in runs], [r.estimate for r in runs])
+    sq, n = binned_trials(nominal_xy, edges, [r.truth for r in runs], [r.estimate for r in runs])
+    trial = np.array([(int(r.outcome), r.guard_hold, r.steps, r.metrics["min_clearance"]) for r in runs],
+                     dtype=float).reshape(-1, len(TRIAL))
+    return sq, n, trial
 
 
-def record(spec: str, trials: int, cache: Path, workers: int) -> Path:
+def _cached(spec: str, cache: Path, trials: int, filt: str) -> Path:
+    """The cache file of the cell's first ``trials`` trials with filter ``filt`` (the EKF's unmarked)."""
+    return cache / f"mc_{spec.replace(':', '_')}{'' if filt == 'ekf' else '_' + filt}_{trials}.npz"
+
+
+def record(spec: str, trials: int, cache: Path, workers: int, filt: str = "ekf") -> Path:
     """Run the cell's first ``trials`` recorded trials and cache their per-bin sums."""
     sc, stream, path, m = cell(spec, cache)
-    rec = nav.make_navigator(sc, path, method=m, filter="ekf", record=True)
+    rec = nav.make_navigator(sc, path, method=m, filter=filt, record=True)
     nominal_xy = np.asarray(rec.nominal_trajectory(), dtype=float)[:, :2]
     edges = calibration_edges(nominal_xy, BIN_M)
     seeds = runner.trial_seeds(sc.seeds.trials, stream, trials)
-    jobs = [(spec, cache, seeds[a:a + BATCH], edges, nominal_xy) for a in range(0, trials, BATCH)]
+    jobs = [(spec, cache, seeds[a:a + BATCH], edges, nominal_xy, filt) for a in range(0, trials, BATCH)]
     parts = runner.map_ordered(_batch, jobs, workers=workers, processes=workers > 1)
-    f = cache / f"mc_{spec.replace(':', '_')}_{trials}.npz"
-    results.atomic_write(f, lambda fh: np.savez(fh, sq=np.concatenate([a for a, _ in parts]),
-                                               n=np.concatenate([b for _, b in parts]), edges=edges,
-                                               nominal_xy=nominal_xy))
+    f = _cached(spec, cache, trials, filt)
+    trial = np.concatenate([c for _, _, c in parts])
+    results.atomic_write(f, lambda fh: np.savez(fh, sq=np.concatenate([a for a, _, _ in parts]),
+                                               n=np.concatenate([b for _, b, _ in parts]), edges=edges,
+                                               nominal_xy=nominal_xy, **dict(zip(TRIAL, trial.T))))
     return f
+
+
+def outcomes(mc) -> str:
+    """The cached trials' collisions, arrivals, other outcomes, guard holds and least clearance (a cache
+    recorded before these were kept: empty)."""
+    if "outcome" not in mc:
+        return ""
+    o = mc["outcome"].astype(int)
+    other = {nav.OUTCOMES[k]: int(np.sum(o == k)) for k in np.unique(o) if k > 1}
+    return (f"  [coll {int(np.sum(o == 1))}, arrived {int(np.sum(o == 0))}/{len(o)}"
+            + "".join(f", {k} {v}" for k, v in other.items())
+            + f", hold {int(np.sum(mc['guard_hold'] > 0))}, clearance min {np.nanmin(mc['min_clearance']):.2f} m]")
 
 
 def predicted(spec: str, cache: Path, **belief):
@@ -121,16 +151,19 @@ def predicted_bins(spec: str, cache: Path, **belief) -> np.ndarray:
     return sigma_calibration(prof, [], [], bin_m=BIN_M).predicted
 
 
-def score(spec: str, cache: Path, trials: int, **belief):
-    f = cache / f"mc_{spec.replace(':', '_')}_{trials}.npz"
+def score(spec: str, cache: Path, trials: int, filt: str = "ekf", **belief):
+    """The cell's calibration against its cached trials with filter ``filt`` (the prediction is the same
+    for both filters), and a line of their outcomes."""
+    f = _cached(spec, cache, trials, filt)
     if not f.exists():
-        raise SystemExit(f"{f}: no cached Monte Carlo; run `record {spec} --trials {trials}` first")
+        raise SystemExit(f"{f}: no cached Monte Carlo; run `record {spec} --trials {trials} --filter {filt}` "
+                         "first")
     mc = np.load(f)
     prof = predicted(spec, cache, **belief)
     if not np.array_equal(np.asarray(prof.positions)[:, :2], mc["nominal_xy"]):
         raise SystemExit(f"{spec}: the nominal run differs from the cached one; record it again")
     pred = sigma_calibration(prof, [], [], bin_m=BIN_M).predicted
-    return _calibration(mc["edges"], pred, mc["sq"], mc["n"])
+    return _calibration(mc["edges"], pred, mc["sq"], mc["n"]), outcomes(mc)
 
 
 def _line(spec: str, cal, trials: int, base=None) -> str:
@@ -164,6 +197,8 @@ def main() -> None:
     ap.add_argument("--trials", type=int, default=10000)
     ap.add_argument("--cache", type=Path, default=Path("/tmp/safenav_sigma_cache"))
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--filter", choices=("ekf", "pf"), default="ekf", help="the driven vehicles' filter "
+                    "(record, score); the prediction is the same for both")
     ap.add_argument("--worlds", nargs="*", default=["d", "13", "17", "23", "29", "31", "37"])
     ap.add_argument("--save", type=Path, help="write each cell's predicted bins here (pickle)")
     ap.add_argument("--base", type=Path, help="predicted bins of another build (--save), to compare")
@@ -178,15 +213,16 @@ def main() -> None:
     t = time.perf_counter()
     if a.what == "record":
         for spec in a.cells:
-            print(f"{spec}: {record(spec, a.trials, a.cache, a.workers)} ({time.perf_counter() - t:.0f} s)",
+            print(f"{spec}: {record(spec, a.trials, a.cache, a.workers, a.filter)} "
+                  f"({time.perf_counter() - t:.0f} s)",
                   flush=True)
     elif a.what == "score":
         ratios: dict[str, list[np.ndarray]] = {"clean": [], "faulty": []}
         for spec in a.cells:
-            cal = score(spec, a.cache, a.trials, **belief)
+            cal, trials = score(spec, a.cache, a.trials, a.filter, **belief)
             saved[spec] = cal.predicted
             ratios[spec.rsplit(":", 1)[-1]].append(cal.ratio[_kept_bins(cal, a.trials)])
-            print(_line(spec, cal, a.trials, base), flush=True)
+            print(_line(spec, cal, a.trials, base) + trials, flush=True)
         for f, rs in ratios.items():
             if rs:
                 print(_summary(f, rs))
