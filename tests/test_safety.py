@@ -358,10 +358,13 @@ def test_the_gate_rejects_an_injected_outlier_fix_and_a_run_of_them_resets_the_p
     np.testing.assert_allclose(np.asarray(loc.P)[:2, :2], R)
 
 
-def _lost_localizer(k=3):
-    """A localizer sure of (0, 0) at rest, with the agreement reset at k."""
+def _lost_localizer(k=3, tail=None):
+    """A localizer sure of (0, 0) at rest, with the agreement reset at k (and, where given,
+    reset_discredit_tail)."""
     s = gd.localizer_settings()
     s.reset_after_consistent = k
+    if tail is not None:
+        s.reset_discredit_tail = tail
     loc = gd.Localizer(s, np.zeros((0, 2)), [])
     loc.initialize(0.0, np.array([0.0, 0.0, 0.0, 0.0]), np.diag([0.01, 0.01, 0.01, 0.01]))
     return loc
@@ -397,15 +400,17 @@ def test_scattered_outliers_never_agree_and_a_fix_through_the_gate_does_not_forg
         assert r.status == gd.InputStatus.REJECTED
     assert loc.counts.resets == 0 and abs(loc.x[0]) < 0.5
     # A fix through the gate between two agreeing rejected ones that contradicts them discredits
-    # them: a repeated wrong landmark between good fixes must not reset the position.
-    loc = _lost_localizer(3)
-    assert loc.fix(0.1, 5.0, 0.0, R).status == gd.InputStatus.REJECTED
-    assert loc.fix(0.2, 5.0, 0.0, R).status == gd.InputStatus.REJECTED
-    assert loc.fix(0.3, 0.02, 0.0, R).status == gd.InputStatus.APPLIED
-    assert loc.fix(0.4, 5.0, 0.0, R).status == gd.InputStatus.REJECTED
-    assert loc.fix(0.5, 5.0, 0.0, R).status == gd.InputStatus.REJECTED
-    assert loc.fix(0.6, 5.0, 0.0, R).status == gd.InputStatus.RESET   # three that agree, none contradicted
-    assert loc.counts.resets == 1
+    # them: a repeated wrong landmark between good fixes must not reset the position.  Without
+    # the discredit by the newest fix through the gate, the three after it reset.
+    for tail, last in ((0.0, gd.InputStatus.RESET), (None, gd.InputStatus.REJECTED)):
+        loc = _lost_localizer(3, tail)
+        assert loc.fix(0.1, 5.0, 0.0, R).status == gd.InputStatus.REJECTED
+        assert loc.fix(0.2, 5.0, 0.0, R).status == gd.InputStatus.REJECTED
+        assert loc.fix(0.3, 0.02, 0.0, R).status == gd.InputStatus.APPLIED
+        assert loc.fix(0.4, 5.0, 0.0, R).status == gd.InputStatus.REJECTED
+        assert loc.fix(0.5, 5.0, 0.0, R).status == gd.InputStatus.REJECTED
+        assert loc.fix(0.6, 5.0, 0.0, R).status == last   # three that agree, none contradicted after them
+        assert loc.counts.resets == (last == gd.InputStatus.RESET)
     # A lost filter's occasional pass (a good fix through a grown σ) agrees with the rejected good
     # fixes: they stay, the count in a row restarts, and the next one resets.
     loc = _lost_localizer(3)
@@ -414,8 +419,9 @@ def test_scattered_outliers_never_agree_and_a_fix_through_the_gate_does_not_forg
     assert loc.fix(0.2, 5.0, 0.0, R).status == gd.InputStatus.REJECTED
     assert loc.fix(0.3, 4.9, 0.0, wide).status == gd.InputStatus.APPLIED
     assert loc.fix(0.4, 5.0, 0.0, R).status == gd.InputStatus.RESET
-    # … but k fixes in a row through the gate forget them.
-    loc = _lost_localizer(3)
+    # … but k fixes in a row through the gate forget them (the discredit by the newest pass off:
+    # the three after them would contradict it).
+    loc = _lost_localizer(3, 0.0)
     assert loc.fix(0.1, 5.0, 0.0, R).status == gd.InputStatus.REJECTED
     assert loc.fix(0.2, 5.0, 0.0, R).status == gd.InputStatus.REJECTED
     for i in range(3):
@@ -447,6 +453,39 @@ def test_a_rejected_fix_that_agrees_with_the_position_before_a_reset_undoes_it()
     assert loc.counts.resets == 1
 
 
+def test_rejected_fixes_that_contradict_the_last_fix_through_the_gate_reset_nothing():
+    """A rejected fix counts toward an agreement reset only if it agrees with the newest fix
+    through the gate: χ²₂ of z − z_last (at rest: no predicted motion) on R + R_last + the
+    growth of P_xy since, within the quantile whose tail is reset_discredit_tail (27.6 at 10⁻⁶).
+    Fixes 0.6 m off fail the gate (S = P + R ≤ 0.015 m², d² ≥ 24) but agree with the pass at
+    0.02 m (d² ≤ 17 on S ≥ 0.02 m²): the filter may be lost, and three of them reset it.  Fixes
+    1.0 m off contradict the pass (d² ≥ 48 > 27.6 on S ≤ 0.02 m² + the growth): faulty, they
+    reset nothing; the consecutive count still counts them, and the reset after
+    reset_after_rejections clears the newest pass (the restarted filter's fixes are judged
+    afresh)."""
+    R = np.eye(2) * 0.01
+    q = chi2.ppf(1 - 1e-6, 2)
+    assert 0.58**2 / 0.02 < q < 0.98**2 / 0.0201 and 0.6**2 / 0.015 > chi2.ppf(0.99, 2)
+
+    def run(off, tail=None, n=3):
+        loc = _lost_localizer(3, tail)
+        assert loc.fix(0.1, 0.02, 0.0, R).status == gd.InputStatus.APPLIED
+        return loc, [loc.fix(0.2 + 0.01 * i, off, 0.0, R).status for i in range(n)]
+
+    loc, st = run(0.6)
+    assert st == [gd.InputStatus.REJECTED] * 2 + [gd.InputStatus.RESET] and loc.x[0] == pytest.approx(0.6)
+    loc, st = run(1.0)
+    assert st == [gd.InputStatus.REJECTED] * 3 and abs(loc.x[0]) < 0.1 and loc.counts.resets == 0
+    assert run(1.0, tail=0.0)[1][-1] == gd.InputStatus.RESET
+    n = gd.localizer_settings().reset_after_rejections
+    loc, st = run(1.0, n=n + 1)
+    assert st == [gd.InputStatus.REJECTED] * n + [gd.InputStatus.RESET] and loc.x[0] == pytest.approx(1.0)
+    # the reset forgot the pass at 0.02 m: three fixes 1 m on, which contradict both that pass and
+    # the reset position, and agree with each other, reset again
+    st = [loc.fix(0.5 + 0.01 * i, 2.0, 0.0, R).status for i in range(3)]
+    assert st == [gd.InputStatus.REJECTED] * 2 + [gd.InputStatus.RESET] and loc.x[0] == pytest.approx(2.0)
+
+
 def test_agreement_counts_the_predicted_motion_between_the_rejected_fixes():
     """Fixes 5 m off that move with the vehicle agree; fixes that stay put
     while the filter predicts 1 m of motion between them do not."""
@@ -471,6 +510,11 @@ def test_reset_after_consistent_is_checked():
     s.reset_after_consistent = 9
     with pytest.raises(ValueError, match="reset_after_consistent"):
         gd.Localizer(s, np.zeros((0, 2)), [])
+    for bad in (1.5, -0.1, float("nan")):
+        s = gd.localizer_settings()
+        s.reset_discredit_tail = bad
+        with pytest.raises(ValueError, match="reset_discredit_tail"):
+            gd.Localizer(s, np.zeros((0, 2)), [])
 
 
 # --------------------------------------------------------------------------- metrics and tables

@@ -358,6 +358,7 @@ void pybind_guidance(py::module_& m) {
       .def_readwrite("init_speed_std", &LocalizerSettings::init_speed_std)
       .def_readwrite("reset_after_rejections", &LocalizerSettings::reset_after_rejections)
       .def_readwrite("reset_after_consistent", &LocalizerSettings::reset_after_consistent)
+      .def_readwrite("reset_discredit_tail", &LocalizerSettings::reset_discredit_tail)
       .def_readwrite("max_delay", &LocalizerSettings::max_delay)
       .def_readwrite("augment", &LocalizerSettings::augment,
                      "AugmentedStates: with any on (and the EKF) the localizer runs the AugmentedEkf.")

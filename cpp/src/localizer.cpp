@@ -240,6 +240,8 @@ InputResult Localizer::Impl::apply_fix(double t, const Eigen::Vector2d& z, const
   if (r.status != InputStatus::Rejected) {
     rej.in_a_row = 0;
     rej.has_undo = false;  // the position the last reset gave is confirmed
+    rej.has_last = true;
+    rej.last = Rejections::Kept{z, Eigen::Vector2d::Zero(), R, Eigen::Matrix2d::Zero()};
     if (++rej.passed >= std::max(k, 1)) rej.n = 0;  // the filter agrees with the fixes again
     // A fix through the gate that contradicts a kept rejected one discredits it: rejected fixes
     // that agree with each other but not with the fixes the filter takes (a repeated wrong
@@ -255,8 +257,15 @@ InputResult Localizer::Impl::apply_fix(double t, const Eigen::Vector2d& z, const
   // held before.  Until a fix passes the gate, one such fix is evidence enough.
   const bool undo = rej.has_undo && Rejections::agree(rej.undo, z, R, gate);
   const bool in_a_row = n > 0 && ++rej.in_a_row > n;
-  const bool consistent = k > 0 && rej.agrees(z, R, k - 1, gate);
-  rej.keep(z, R);
+  // A rejected fix that contradicts the newest fix through the gate beyond what the predicted
+  // motion since explains is not evidence that the filter is lost: a filter that took a fix
+  // moments ago and now meets fixes metres away meets faulty fixes (one landmark's outlier
+  // repeated, where three ranges fit a point metres off as well as the truth).  It counts
+  // toward no agreement: three of them reset good filters 8–12 m off before a blind stretch.
+  const double tail = I.settings.reset_discredit_tail;
+  const bool credible = !rej.has_last || !(tail > 0.0) || Rejections::agree(rej.last, z, R, chi2_quantile(1.0 - tail, 2));
+  const bool consistent = credible && k > 0 && rej.agrees(z, R, k - 1, gate);
+  if (credible) rej.keep(z, R);
   if (undo || in_a_row || consistent) {
     check_covariance(R, "fix R");
     const Rejections::Kept before{I.filter->x().head<2>(), Eigen::Vector2d::Zero(),

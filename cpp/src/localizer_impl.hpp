@@ -87,18 +87,21 @@ struct Rejections {
   /// the reset.
   bool has_undo = false;
   Kept undo;
+  /// The newest fix through the gate (moved and grown by the predictions since): a rejected fix
+  /// that contradicts it beyond what the motion since explains is discredited at once
+  /// (LocalizerSettings::reset_discredit_tail).
+  bool has_last = false;
+  Kept last;
 
-  bool watching() const { return n > 0 || has_undo; }
+  bool watching() const { return n > 0 || has_undo || has_last; }
   /// A prediction moved the estimate's position by d and P_xy by dC.
   void predicted(const Eigen::Vector2d& d, const Eigen::Matrix2d& dC) {
     for (int i = 0; i < n; ++i) {
       kept[i].moved += d;
       kept[i].grown += dC;
     }
-    if (has_undo) {
-      undo.moved += d;
-      undo.grown += dC;
-    }
+    for (Kept* k : {has_undo ? &undo : nullptr, has_last ? &last : nullptr})
+      if (k) k->moved += d, k->grown += dC;
   }
   /// Whether (z, R) agrees with `k`: χ² of z − (k.z + its displacement since) on R + k.R + the
   /// P_xy growth since, within `gate`.

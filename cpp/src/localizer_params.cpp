@@ -41,6 +41,7 @@ const ParamSet<LocalizerSettings>& param_set<LocalizerSettings>() {
           .real("init_speed_std", SN_REF(L, init_speed_std), "m/s", above(0, 100), "sigma of the initial speed when starting from the data")
           .integer("reset_after_rejections", SN_REF(L, reset_after_rejections), closed(0, 1e6), "consecutive fixes rejected by the gate before the next resets the position; 0 = never")
           .integer("reset_after_consistent", SN_REF(L, reset_after_consistent), closed(0, 8), "a rejected fix that agrees (chi-square at the gate's probability, after the predicted motion) with each of the reset_after_consistent - 1 rejected fixes before it resets the position; 0 = never")
+          .real("reset_discredit_tail", SN_REF(L, reset_discredit_tail), "", closed(0, 1), "a rejected fix that contradicts the newest fix through the gate (chi-square after the predicted motion, beyond the quantile with this tail) counts toward no agreement reset; 0 = off")
           .real("max_delay", SN_REF(L, max_delay), "s", closed(0, 60), "a measurement at most this much older than the filter's time is applied at its own time (the inputs since are applied again); 0 = late measurements are dropped")
           .nested("bmm_", param_set<BmmParams>(), SN_REF(L, bmm))
           .nested("augment_", param_set<AugmentedStates>(), SN_REF(L, augment))

@@ -189,6 +189,17 @@ struct LocalizerSettings {
   /// this many fixes in a row pass the gate.  0 = off; at most Localizer's 8
   /// kept rejected fixes.
   int reset_after_consistent = 3;
+  /// A rejected fix that contradicts the newest fix through the gate (the
+  /// same test as the agreement above, z − z_last minus the predicted
+  /// displacement since, on R + R_last + the growth of P_xy since) beyond
+  /// the χ²₂ quantile whose tail holds this probability is discredited: it
+  /// counts toward no agreement reset (the consecutive count above still
+  /// counts it).  A good fix lies beyond it with this probability when the
+  /// filter's motion model is honest, so what it discredits are fixes that
+  /// the motion since cannot explain: a faulty landmark's fixes repeated
+  /// over a few frames, which agree with each other.  A reset clears the
+  /// newest fix through the gate.  0 = off.
+  double reset_discredit_tail = 1e-6;
   /// [s] A measurement at most this much older than the filter's time is
   /// applied at its own time (the inputs since are applied again after it);
   /// an older one is Late.  0 = every measurement older than the filter is Late.
