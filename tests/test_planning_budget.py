@@ -53,3 +53,22 @@ def test_replan_with_a_central_path_far_from_the_map_keeps_its_budget(far, corri
     r, dt = _timed(lambda: P.replan(prob, (2, 10), goal=(32, 10), max_iterations=10**6, max_time=BUDGET,
                                     corridor_bias=corridor_bias, range=4.0))
     assert r.status == P.PlanStatus.NO_PATH and dt < BUDGET + SLACK, (far, dt)
+
+
+@pytest.mark.parametrize("scale", [1.0, 1e7, 1e12])
+def test_plan_belief_stops_at_max_time_at_any_scale(scale):
+    """The belief planner's max_time bounds its roadmap and its search.  The goal is walled in and
+    the guide path (the central one) runs into it: at 10¹² m the guide is cut into 6·10¹² pieces of
+    guide_spacing (more than an int holds), which only the budget stops.  A budget that has passed
+    before the roadmap is built stops it at once, with the reason."""
+    from test_belief import sensors
+
+    central = np.array([(2.0, 10.0), (32.0, 10.0)]) * scale
+    se = sensors(np.array([(10.0, 19.0), (20.0, 19.0)]) * scale, fov=np.deg2rad(85))
+    kw = dict(sensors=se, guide_paths=[central], samples=2000, max_expansions=10**9, seed=1)
+    r, dt = _timed(lambda: P.plan_belief(_walled(scale), central[0], central[1], max_time=BUDGET, **kw))
+    assert not r.success and dt < BUDGET + SLACK, (scale, dt, r.detail)
+    if scale == 1e12:
+        assert r.status == P.BeliefPlanStatus.BUDGET and "max_time" in r.detail, r.detail
+    r = P.plan_belief(_walled(scale), central[0], central[1], max_time=1e-9, **kw)
+    assert r.status == P.BeliefPlanStatus.BUDGET and "max_time = 1e-09 s ran out building the roadmap" in r.detail

@@ -325,6 +325,7 @@ const ParamSet<BeliefPlannerSettings>& param_set<BeliefPlannerSettings>() {
           .integer("max_beliefs", SN_REF(S, max_beliefs), closed(1, 1e6), "non-dominated beliefs kept per vertex")
           .real("dominance_tolerance", SN_REF(S, dominance_tolerance), "", closed(0, 1), "relative epsilon of the belief partial order (Bry & Roy)")
           .integer64("max_expansions", SN_REF(S, max_expansions), closed(1, 1e9), "belief expansions before giving up")
+          .real("max_time", SN_REF(S, max_time), "s", closed(0, 1e6), "wall-clock budget of the roadmap and the search; 0 = none")
           .flag("shortcut", SN_REF(S, shortcut), "shorten the found path where the chance constraint allows")
           .real("max_turn", SN_REF(S, max_turn), "rad", above(0, kPi), "most the path turns at a vertex and within turn_window")
           .real("turn_window", SN_REF(S, turn_window), "m", closed(0, 1e6), "turns closer together than this add up (the controllers' lookahead)")

@@ -49,6 +49,16 @@ namespace {
 
 using Vec2 = Eigen::Vector2d;
 
+/// BeliefPlannerSettings::max_time from the call's start: the roadmap and the search stop at it.
+struct Deadline {
+  bool on = false;
+  std::chrono::steady_clock::time_point at;
+  Deadline(std::chrono::steady_clock::time_point t0, double max_time) : on(max_time > 0.0) {
+    if (on) at = t0 + std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(max_time));
+  }
+  bool passed() const { return on && std::chrono::steady_clock::now() >= at; }
+};
+
 /// An undirected roadmap; each edge has a directed id per direction (the
 /// belief along an edge depends on the heading: the field of view).
 struct Roadmap {
@@ -97,8 +107,9 @@ struct Roadmap {
 
 /// Start, goal, guide points and seeded uniform samples, each joined to its
 /// nearest neighbours within max_edge by free edges.
-Roadmap build_roadmap(const BeliefProblem& pb, const BeliefPlannerSettings& st, const ObstacleChecker& free) {
-  Roadmap g;
+/// The roadmap; false (and a partial g) where the deadline passed while it was built.
+bool build_roadmap(const BeliefProblem& pb, const BeliefPlannerSettings& st, const ObstacleChecker& free,
+                   const Deadline& deadline, Roadmap& g) {
   g.add_vertex(pb.start);
   g.add_vertex(pb.goal);
   for (const Points2& path : pb.guide_paths) {
@@ -106,9 +117,11 @@ Roadmap build_roadmap(const BeliefProblem& pb, const BeliefPlannerSettings& st, 
     for (Eigen::Index i = 0; i < path.rows(); ++i) {
       const Vec2 b = path.row(i).transpose();
       const Vec2 a = i > 0 ? Vec2(path.row(i - 1).transpose()) : b;
-      const int pieces = std::max(1, static_cast<int>(std::ceil((b - a).norm() / st.guide_spacing)));
-      for (int j = i > 0 ? 1 : pieces; j <= pieces; ++j) {
-        const Vec2 p = a + (b - a) * (static_cast<double>(j) / pieces);
+      // In double: a leg 10¹⁰ times the spacing has more pieces than an int holds (the deadline stops it).
+      const double pieces = std::max(1.0, std::ceil((b - a).norm() / st.guide_spacing));
+      for (double j = i > 0 ? 1.0 : pieces; j <= pieces; ++j) {
+        if (deadline.passed()) return false;
+        const Vec2 p = a + (b - a) * (j / pieces);
         if (!free.point_free(p)) {
           prev = -1;
           continue;
@@ -125,10 +138,12 @@ Roadmap build_roadmap(const BeliefProblem& pb, const BeliefPlannerSettings& st, 
     const double ux = rng.uniform();
     const Vec2 p = lo + Vec2(ux * span.x(), rng.uniform() * span.y());
     if (free.point_free(p)) g.add_vertex(p), ++got;
+    if (deadline.passed()) return false;
   }
   const int n = static_cast<int>(g.v.size());
   std::vector<std::pair<double, int>> near;
   for (int i = 0; i < n; ++i) {
+    if (deadline.passed()) return false;
     near.clear();
     for (int j = 0; j < n; ++j) {
       const double d = (g.v[static_cast<std::size_t>(i)] - g.v[static_cast<std::size_t>(j)]).norm();
@@ -138,7 +153,7 @@ Roadmap build_roadmap(const BeliefProblem& pb, const BeliefPlannerSettings& st, 
     std::partial_sort(near.begin(), near.begin() + static_cast<std::ptrdiff_t>(k), near.end());
     for (std::size_t m = 0; m < k; ++m) g.add_edge(i, near[m].second, free);
   }
-  return g;
+  return true;
 }
 
 /// The chance constraint at one stage: clearance − vehicle_radius − margin ≥
@@ -240,11 +255,13 @@ struct Belief {
 
 class Search {
  public:
-  Search(const BeliefProblem& pb, const BeliefPlannerSettings& st, belief::Model& model, Roadmap& g)
-      : pb_(pb), st_(st), model_(model), g_(g), steps_(2 * static_cast<std::size_t>(g.edges)),
+  Search(const BeliefProblem& pb, const BeliefPlannerSettings& st, belief::Model& model, Roadmap& g,
+         const Deadline& deadline)
+      : pb_(pb), st_(st), model_(model), g_(g), deadline_(deadline), steps_(2 * static_cast<std::size_t>(g.edges)),
         ready_(steps_.size(), 0), at_(g.v.size()) {}
 
-  /// Best-first over beliefs; the goal belief's index, or −1.
+  /// Best-first over beliefs; the goal belief's index, −1 (none), −2 (max_expansions ran out) or
+  /// −3 (the deadline passed).
   int run(BeliefPlanResult& res);
   const std::vector<Belief>& beliefs() const { return nodes_; }
 
@@ -307,6 +324,7 @@ class Search {
   const BeliefPlannerSettings& st_;
   belief::Model& model_;
   Roadmap& g_;
+  const Deadline& deadline_;
   std::vector<std::vector<belief::Step>> steps_;
   std::vector<char> ready_;
   std::vector<std::vector<int>> at_;  // live beliefs per vertex
@@ -350,6 +368,7 @@ int Search::run(BeliefPlanResult& res) {
     const Belief cur = nodes_[static_cast<std::size_t>(id)];
     if (cur.vertex == 1) return id;
     if (++res.expansions > st_.max_expansions) return -2;
+    if (deadline_.passed()) return -3;
     for (const auto& [w, e] : g_.adj[static_cast<std::size_t>(cur.vertex)]) {
       if (w == cur.from || !may_turn(cur, w)) continue;
       Belief next{w, cur.vertex, id, cur.cost, cur.P, true};
@@ -396,12 +415,19 @@ BeliefPlanResult plan_belief(const BeliefProblem& problem, const BeliefPlannerSe
     return done(BeliefPlanStatus::Infeasible, "the start breaks the chance constraint: k*sigma = " +
                                                   num(settings.k_sigma * position_std(problem.start_cov)) +
                                                   " m > clearance left " + num(need) + " m");
-  Roadmap g = build_roadmap(problem, settings, free);
+  const Deadline deadline(t0, settings.max_time);
+  const auto out_of_time = [&](const char* in) {
+    return done(BeliefPlanStatus::Budget, "max_time = " + num(settings.max_time) + " s ran out " + in);
+  };
+  Roadmap g;
+  const bool built = build_roadmap(problem, settings, free, deadline, g);
   res.vertices = static_cast<int>(g.v.size());
   res.edges = g.edges;
-  Search search(problem, settings, model, g);
+  if (!built) return out_of_time("building the roadmap");
+  Search search(problem, settings, model, g, deadline);
   const int found = search.run(res);
   if (found == -2) return done(BeliefPlanStatus::Budget, "max_expansions = " + std::to_string(settings.max_expansions) + " ran out");
+  if (found == -3) return out_of_time("in the search");
   if (found < 0) {
     if (!g.connected(0, 1))
       return done(BeliefPlanStatus::NoPath, "the roadmap (" + std::to_string(res.vertices) + " vertices, " +

@@ -191,7 +191,9 @@ def plan_belief(map, start, goal, *, sensors, bmm=None, start_cov=None, guide_pa
     docstring).  Keywords: ``k_sigma`` (default 3), ``alpha``,
     ``sigma_weight``, ``samples``, ``neighbours``, ``max_edge``,
     ``guide_spacing``, ``seed``, ``max_beliefs``, ``dominance_tolerance``,
-    ``max_expansions``, ``max_turn`` and ``turn_window`` (no more than
+    ``max_expansions``, ``max_time`` (a wall-clock budget [s] of the
+    roadmap and the search; 0, the default, is none), ``max_turn`` and
+    ``turn_window`` (no more than
     ``max_turn``, default 90°, of turning at a vertex or in all over any
     ``turn_window`` metres, default 5), and the belief's ``speed``,
     ``step``, ``bearing_std``, ``vehicle_radius``, ``margin``.

@@ -270,6 +270,7 @@ struct BeliefPlannerSettings {
   int max_beliefs = 24;        ///< non-dominated beliefs kept per vertex, ≥ 1
   double dominance_tolerance = 1e-3;  ///< relative ε of the partial order (Bry & Roy's ε), ≥ 0
   std::int64_t max_expansions = 200000;  ///< belief expansions before giving up, ≥ 1
+  double max_time = 0.0;  ///< wall-clock budget of the roadmap and the search [s]; 0 = none (max_expansions alone)
   /// The most a path may turn [rad], in (0, π], at a vertex and in all
   /// within any stretch of turn_window metres (ours).  The belief turns the
   /// camera with each leg at once, while the controllers aim lookahead metres
@@ -308,7 +309,7 @@ enum class BeliefPlanStatus {
   Exact,       ///< a path that meets the chance constraint
   Infeasible,  ///< the roadmap joins start and goal, but no path meets the chance constraint
   NoPath,      ///< the roadmap does not join start and goal (or one of them is not free)
-  Budget,      ///< max_expansions ran out
+  Budget,      ///< max_expansions or max_time ran out
 };
 std::string to_string(BeliefPlanStatus status);
 
