@@ -132,9 +132,9 @@ def outcomes(mc) -> str:
     recorded before these were kept: empty)."""
     if "outcome" not in mc:
         return ""
-    o = mc["outcome"].astype(int)
-    other = {nav.OUTCOMES[k]: int(np.sum(o == k)) for k in np.unique(o) if k > 1}
-    return (f"  [coll {int(np.sum(o == 1))}, arrived {int(np.sum(o == 0))}/{len(o)}"
+    o = np.asarray([nav.OUTCOMES[k] for k in mc["outcome"].astype(int)])
+    other = {k: int(np.sum(o == k)) for k in np.unique(o) if k not in ("arrived", "collision")}
+    return (f"  [coll {int(np.sum(o == 'collision'))}, arrived {int(np.sum(o == 'arrived'))}/{len(o)}"
             + "".join(f", {k} {v}" for k, v in other.items())
             + f", hold {int(np.sum(mc['guard_hold'] > 0))}, clearance min {np.nanmin(mc['min_clearance']):.2f} m]")
 

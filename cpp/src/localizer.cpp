@@ -240,7 +240,8 @@ InputResult Localizer::Impl::apply_fix(double t, const Eigen::Vector2d& z, const
   if (r.status != InputStatus::Rejected) {
     rej.in_a_row = 0;
     rej.has_undo = false;  // the position the last reset gave is confirmed
-    rej.has_last = true;
+    // The newest pass, for the discredit below (kept only where it is on: it is tracked at every prediction).
+    rej.has_last = I.settings.reset_discredit_tail > 0.0;
     rej.last = Rejections::Kept{z, Eigen::Vector2d::Zero(), R, Eigen::Matrix2d::Zero()};
     if (++rej.passed >= std::max(k, 1)) rej.n = 0;  // the filter agrees with the fixes again
     // A fix through the gate that contradicts a kept rejected one discredits it: rejected fixes
@@ -263,7 +264,7 @@ InputResult Localizer::Impl::apply_fix(double t, const Eigen::Vector2d& z, const
   // repeated, where three ranges fit a point metres off as well as the truth).  It counts
   // toward no agreement: three of them reset good filters 8–12 m off before a blind stretch.
   const double tail = I.settings.reset_discredit_tail;
-  const bool credible = !rej.has_last || !(tail > 0.0) || Rejections::agree(rej.last, z, R, chi2_quantile(1.0 - tail, 2));
+  const bool credible = !rej.has_last || Rejections::agree(rej.last, z, R, chi2_quantile(1.0 - tail, 2));
   const bool consistent = credible && k > 0 && rej.agrees(z, R, k - 1, gate);
   if (credible) rej.keep(z, R);
   if (undo || in_a_row || consistent) {
